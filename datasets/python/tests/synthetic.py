@@ -1,0 +1,335 @@
+"""Write small vtgen-format datasets in pure Python, following ``datasets/FORMAT.md``.
+
+Used by ``test_synthetic.py`` so the reader is tested without the Rust generator. The writer uses
+``mcap.writer.Writer`` (zstd, one chunk per sample via ``Writer.flush``, mcap >= 1.5) and the
+Foxglove protobuf classes of the ``foxglove-schemas-protobuf`` package.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import struct
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Dict, List, Optional, Sequence, Tuple
+
+import numpy as np
+from foxglove_schemas_protobuf.CameraCalibration_pb2 import CameraCalibration
+from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
+from foxglove_schemas_protobuf.PoseInFrame_pb2 import PoseInFrame
+from foxglove_schemas_protobuf.RawImage_pb2 import RawImage
+from mcap.writer import CompressionType
+from mcap.writer import Writer as McapWriter
+from mcap_protobuf.schema import build_file_descriptor_set
+
+SAMPLE_PERIOD_NS = 100_000_000
+OBJECT_ID = "test_cube"
+HEIGHT, WIDTH = 6, 8
+
+Pose = Tuple[Tuple[float, float, float], Tuple[float, float, float, float]]
+
+
+@dataclass
+class SyntheticSample:
+    split: str
+    index: int
+    rgb: np.ndarray
+    depth: np.ndarray
+    mask: np.ndarray
+    K: np.ndarray
+    camera_object: Pose
+    world_camera: Pose
+    world_object: Pose
+    info: Dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def log_time(self) -> int:
+        return self.index * SAMPLE_PERIOD_NS
+
+
+def random_pose(rng: np.random.Generator) -> Pose:
+    q = rng.normal(size=4)
+    q /= np.linalg.norm(q)
+    t = rng.uniform(-1.0, 1.0, size=3)
+    return (tuple(float(v) for v in t), tuple(float(v) for v in q))  # type: ignore[return-value]
+
+
+def make_sample(split: str, index: int, rng: np.random.Generator) -> SyntheticSample:
+    rgb = rng.integers(0, 256, size=(HEIGHT, WIDTH, 3), dtype=np.uint8)
+    depth = rng.uniform(0.2, 1.5, size=(HEIGHT, WIDTH)).astype(np.float32)
+    mask = np.zeros((HEIGHT, WIDTH), dtype=np.uint8)
+    mask[1:4, 2:6] = 1
+    depth[mask == 0] = np.where(rng.random(int((mask == 0).sum())) < 0.5, 0.0, 2.0)
+    fx, fy = 500.0 + index, 510.0 + index
+    K = np.array([[fx, 0.0, (WIDTH - 1) / 2], [0.0, fy, (HEIGHT - 1) / 2], [0.0, 0.0, 1.0]])
+    camera_object, world_camera, world_object = (random_pose(rng) for _ in range(3))
+    info = {
+        "split": split,
+        "index": index,
+        "object_id": OBJECT_ID,
+        "object_index": 0,
+        "mask_id": 1,
+        "trajectory": index // 2,
+        "instance": index % 2,
+        "randomized": bool(index % 2),
+        "visible_pixels": int((mask == 1).sum()),
+        "T_world_camera": {"position": list(world_camera[0]), "orientation": list(world_camera[1])},
+        "T_camera_object": {
+            "position": list(camera_object[0]),
+            "orientation": list(camera_object[1]),
+        },
+    }
+    return SyntheticSample(
+        split, index, rgb, depth, mask, K, camera_object, world_camera, world_object, info
+    )
+
+
+def _stamp(msg: Any, log_time: int) -> None:
+    msg.timestamp.seconds = log_time // 1_000_000_000
+    msg.timestamp.nanos = log_time % 1_000_000_000
+
+
+def _raw_image(array: np.ndarray, encoding: str, log_time: int) -> RawImage:
+    msg = RawImage(
+        frame_id="camera",
+        width=array.shape[1],
+        height=array.shape[0],
+        encoding=encoding,
+        step=array.shape[1] * (array.shape[2] if array.ndim == 3 else 1) * array.dtype.itemsize,
+        data=np.ascontiguousarray(array).astype(array.dtype.newbyteorder("<")).tobytes(),
+    )
+    _stamp(msg, log_time)
+    return msg
+
+
+def _set_pose(position: Any, orientation: Any, pose: Pose) -> None:
+    (position.x, position.y, position.z) = pose[0]
+    (orientation.x, orientation.y, orientation.z, orientation.w) = pose[1]
+
+
+def sample_messages(s: SyntheticSample) -> List[Tuple[str, bytes]]:
+    """The (topic, payload) pairs of one sample, as FORMAT.md lists them."""
+    t = s.log_time
+    calibration = CameraCalibration(
+        frame_id="camera",
+        width=WIDTH,
+        height=HEIGHT,
+        distortion_model="plumb_bob",
+        D=[0.0] * 5,
+        K=s.K.reshape(-1).tolist(),
+        R=np.eye(3).reshape(-1).tolist(),
+        P=np.hstack([s.K, np.zeros((3, 1))]).reshape(-1).tolist(),
+    )
+    _stamp(calibration, t)
+    pose = PoseInFrame(frame_id="camera")
+    _stamp(pose, t)
+    _set_pose(pose.pose.position, pose.pose.orientation, s.camera_object)
+    tf = FrameTransforms()
+    for child, value in (("camera", s.world_camera), ("object", s.world_object)):
+        transform = tf.transforms.add(parent_frame_id="world", child_frame_id=child)
+        _stamp(transform, t)
+        _set_pose(transform.translation, transform.rotation, value)
+    return [
+        ("/camera/rgb", _raw_image(s.rgb, "rgb8", t).SerializeToString()),
+        ("/camera/depth", _raw_image(s.depth, "32FC1", t).SerializeToString()),
+        ("/camera/mask", _raw_image(s.mask, "mono8", t).SerializeToString()),
+        ("/camera/calibration", calibration.SerializeToString()),
+        ("/object/pose", pose.SerializeToString()),
+        ("/tf", tf.SerializeToString()),
+        ("/sample/info", json.dumps(s.info, separators=(",", ":")).encode("utf-8")),
+    ]
+
+
+_PROTOBUF_TOPICS = {
+    "/camera/rgb": RawImage,
+    "/camera/depth": RawImage,
+    "/camera/mask": RawImage,
+    "/camera/calibration": CameraCalibration,
+    "/object/pose": PoseInFrame,
+    "/tf": FrameTransforms,
+}
+
+
+def write_shard(
+    path: Path,
+    split: str,
+    shard_index: int,
+    samples: Sequence[SyntheticSample],
+    omit: Optional[Tuple[int, str]] = None,
+) -> None:
+    """Write one shard: zstd, one chunk per sample, the ``vtgen.shard`` metadata record.
+
+    ``omit=(index, topic)`` leaves that message out (to test error reporting).
+    """
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "wb") as f:
+        writer = McapWriter(f, chunk_size=1 << 40, compression=CompressionType.ZSTD)
+        writer.start(profile="", library="vtgen 0.1.0")
+        schema_ids: Dict[str, int] = {}
+        channels: Dict[str, int] = {}
+        for topic, cls in _PROTOBUF_TOPICS.items():
+            name = cls.DESCRIPTOR.full_name
+            if name not in schema_ids:
+                schema_ids[name] = writer.register_schema(
+                    name=name,
+                    encoding="protobuf",
+                    data=build_file_descriptor_set(cls).SerializeToString(),
+                )
+            channels[topic] = writer.register_channel(
+                topic=topic, message_encoding="protobuf", schema_id=schema_ids[name]
+            )
+        info_schema = writer.register_schema(
+            name="vtgen.SampleInfo",
+            encoding="jsonschema",
+            data=json.dumps({"type": "object"}).encode("utf-8"),
+        )
+        channels["/sample/info"] = writer.register_channel(
+            topic="/sample/info", message_encoding="json", schema_id=info_schema
+        )
+        for s in samples:
+            for topic, payload in sample_messages(s):
+                if omit == (s.index, topic):
+                    continue
+                writer.add_message(
+                    channel_id=channels[topic],
+                    log_time=s.log_time,
+                    publish_time=s.log_time,
+                    data=payload,
+                )
+            writer.flush()  # close the chunk: exactly one chunk per sample
+        writer.add_metadata(
+            "vtgen.shard",
+            {
+                "format_version": "1",
+                "generator": "vtgen 0.1.0",
+                "seed": "7",
+                "config_sha256": "0" * 64,
+                "split": split,
+                "shard_index": str(shard_index),
+                "first_sample": str(samples[0].index if samples else 0),
+                "sample_count": str(len(samples)),
+            },
+        )
+        writer.finish()
+
+
+def cube_mesh() -> Dict[str, np.ndarray]:
+    """A 10 cm cube centred on the origin: 24 vertices (4 per face, face normals), 12 triangles."""
+    vertices: List[Tuple[float, float, float]] = []
+    normals: List[Tuple[float, float, float]] = []
+    faces: List[Tuple[int, int, int]] = []
+    h = 0.05
+    for axis in range(3):
+        for sign in (-1.0, 1.0):
+            n = [0.0, 0.0, 0.0]
+            n[axis] = sign
+            u, v = [(axis + 1) % 3, (axis + 2) % 3]
+            base = len(vertices)
+            for a, b in ((-1, -1), (1, -1), (1, 1), (-1, 1)):
+                p = [0.0, 0.0, 0.0]
+                p[axis], p[u], p[v] = sign * h, a * h, b * h
+                vertices.append((p[0], p[1], p[2]))
+                normals.append((n[0], n[1], n[2]))
+            faces += [(base, base + 1, base + 2), (base, base + 2, base + 3)]
+    return {
+        "vertices": np.array(vertices, dtype=np.float32),
+        "normals": np.array(normals, dtype=np.float32),
+        "faces": np.array(faces, dtype=np.int32),
+    }
+
+
+def write_ply(path: Path, vertices: np.ndarray, normals: np.ndarray, faces: np.ndarray) -> None:
+    """Write a mesh exactly as FORMAT.md describes it (binary little-endian PLY)."""
+    header = (
+        "ply\nformat binary_little_endian 1.0\ncomment vtgen test mesh\n"
+        f"element vertex {len(vertices)}\n"
+        "property float x\nproperty float y\nproperty float z\n"
+        "property float nx\nproperty float ny\nproperty float nz\n"
+        f"element face {len(faces)}\nproperty list uchar int vertex_indices\nend_header\n"
+    )
+    body = bytearray()
+    for p, n in zip(vertices, normals):
+        body += struct.pack("<6f", *p, *n)
+    for f in faces:
+        body += struct.pack("<B3i", 3, *f)
+    path.write_bytes(header.encode("ascii") + bytes(body))
+
+
+def write_dataset(
+    root: Path,
+    counts: Dict[str, int],
+    samples_per_shard: int,
+    seed: int = 0,
+    omit: Optional[Tuple[str, int, str]] = None,
+) -> Dict[str, List[SyntheticSample]]:
+    """Write a complete dataset (manifest, models, shards) and return its samples per split.
+
+    ``omit=(split, index, topic)`` leaves one message out.
+    """
+    rng = np.random.default_rng(seed)
+    root.mkdir(parents=True, exist_ok=True)
+    samples = {
+        split: [make_sample(split, i, rng) for i in range(n)] for split, n in counts.items()
+    }
+    splits: Dict[str, Any] = {}
+    for split, items in samples.items():
+        shards = []
+        for shard_index, first in enumerate(range(0, len(items), samples_per_shard)):
+            chunk = items[first : first + samples_per_shard]
+            rel = f"{split}/shard-{shard_index:05d}.mcap"
+            shard_omit = None
+            if omit is not None and omit[0] == split:
+                shard_omit = (omit[1], omit[2])
+            write_shard(root / rel, split, shard_index, chunk, omit=shard_omit)
+            data = (root / rel).read_bytes()
+            shards.append(
+                {
+                    "file": rel,
+                    "shard_index": shard_index,
+                    "first_sample": first,
+                    "samples": len(chunk),
+                    "bytes": len(data),
+                    "sha256": hashlib.sha256(data).hexdigest(),
+                }
+            )
+        splits[split] = {
+            "samples": len(items),
+            "samples_per_shard": samples_per_shard,
+            "shards": shards,
+        }
+    manifest = {
+        "format": "vtgen-dataset",
+        "format_version": 1,
+        "generator": "vtgen 0.1.0",
+        "seed": seed,
+        "config_sha256": "0" * 64,
+        "complete": True,
+        "splits": splits,
+    }
+    (root / "manifest.json").write_text(json.dumps(manifest, indent=2))
+    (root / "config.json").write_text("{}")
+    models = root / "models"
+    models.mkdir(exist_ok=True)
+    mesh = cube_mesh()
+    write_ply(models / f"{OBJECT_ID}.ply", mesh["vertices"], mesh["normals"], mesh["faces"])
+    (models / "models_info.json").write_text(
+        json.dumps(
+            {
+                "objects": [
+                    {
+                        "id": OBJECT_ID,
+                        "object_index": 0,
+                        "mask_id": 1,
+                        "symmetry": "discrete",
+                        "mass": 0.1,
+                        "extents": [0.1, 0.1, 0.1],
+                        "diameter": float(np.sqrt(3) * 0.1),
+                        "source": "procedural",
+                        "file": f"{OBJECT_ID}.ply",
+                    }
+                ]
+            }
+        )
+    )
+    return samples

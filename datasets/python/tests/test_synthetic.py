@@ -1,0 +1,442 @@
+"""Reader tests on datasets written in Python (no Rust binary needed)."""
+
+from __future__ import annotations
+
+import json
+import multiprocessing
+import pickle
+import shutil
+import struct
+import subprocess
+import sys
+from pathlib import Path
+from typing import Dict, List
+
+import numpy as np
+import pytest
+from foxglove_schemas_protobuf.RawImage_pb2 import RawImage
+from mcap.reader import make_reader
+
+import vtdata
+from vtdata import Dataset, DatasetError, PlyError, load_ply
+
+from synthetic import OBJECT_ID, SAMPLE_PERIOD_NS, SyntheticSample, cube_mesh, write_dataset
+
+COUNTS = {"train": 5, "test": 3}
+SAMPLES_PER_SHARD = 2
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory: pytest.TempPathFactory):
+    root = tmp_path_factory.mktemp("synthetic") / "ds"
+    samples = write_dataset(root, COUNTS, SAMPLES_PER_SHARD)
+    return root, samples
+
+
+def fresh_copy(dataset, tmp_path: Path) -> Path:
+    """A copy of the module dataset that a test may modify."""
+    root = tmp_path / "ds"
+    shutil.copytree(dataset[0], root)
+    return root
+
+
+def reference_rotation(q) -> np.ndarray:
+    """Rotation matrix of a unit quaternion (x, y, z, w), written independently of vtdata."""
+    x, y, z, w = q
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def reference_transform(pose) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, :3] = reference_rotation(pose[1])
+    T[:3, 3] = pose[0]
+    return T
+
+
+def assert_bit_exact(actual: np.ndarray, expected: np.ndarray, name: str) -> None:
+    assert isinstance(actual, np.ndarray), name
+    assert actual.dtype == expected.dtype, f"{name}: dtype {actual.dtype} != {expected.dtype}"
+    assert actual.shape == expected.shape, f"{name}: shape {actual.shape} != {expected.shape}"
+    assert actual.flags.c_contiguous, f"{name} is not C-contiguous"
+    assert actual.flags.writeable, f"{name} is read-only"
+    assert actual.tobytes() == expected.tobytes(), f"{name}: values differ"
+
+
+def check_sample(sample: vtdata.Sample, expected: SyntheticSample) -> None:
+    assert_bit_exact(sample["rgb"], expected.rgb, "rgb")
+    assert_bit_exact(sample["depth"], expected.depth, "depth")
+    assert_bit_exact(sample["mask"], expected.mask, "mask")
+    assert_bit_exact(sample["K"], expected.K, "K")
+    for key, pose in (
+        ("T_camera_object", expected.camera_object),
+        ("T_world_camera", expected.world_camera),
+        ("T_world_object", expected.world_object),
+    ):
+        T = sample[key]
+        assert T.dtype == np.float64 and T.shape == (4, 4), key
+        np.testing.assert_allclose(T, reference_transform(pose), rtol=0, atol=1e-12, err_msg=key)
+        assert T[:3, 3].tolist() == list(pose[0]), f"{key}: translation not exact"
+        assert T[3].tolist() == [0.0, 0.0, 0.0, 1.0], key
+    assert sample["info"] == expected.info
+    assert sample["index"] == expected.index
+    assert sample["split"] == expected.split
+    assert sample.rgb is sample["rgb"]  # attribute access
+
+
+def test_len_and_manifest(dataset):
+    root, samples = dataset
+    for split, n in COUNTS.items():
+        ds = Dataset(root, split)
+        assert len(ds) == n
+        assert ds.split == split
+        assert ds.manifest == json.loads((root / "manifest.json").read_text())
+        assert len(ds.shards) == -(-n // SAMPLES_PER_SHARD)
+    assert len(vtdata.open_dataset(root)) == COUNTS["train"]
+
+
+def test_fixture_has_one_chunk_per_sample(dataset):
+    root, _ = dataset
+    for path in sorted(root.glob("*/shard-*.mcap")):
+        with open(path, "rb") as f:
+            summary = make_reader(f).get_summary()
+        starts = [c.message_start_time for c in summary.chunk_indexes]
+        assert all(c.compression == "zstd" for c in summary.chunk_indexes)
+        assert len(starts) == len(set(starts)) == summary.statistics.message_count // 7
+
+
+def test_samples_are_bit_exact_in_any_order(dataset):
+    root, samples = dataset
+    rng = np.random.default_rng(1)
+    for split in COUNTS:
+        ds = Dataset(root, split)
+        for i in rng.permutation(len(ds)):
+            check_sample(ds[int(i)], samples[split][int(i)])
+        for i in rng.permutation(len(ds)):  # again, with every shard already open
+            check_sample(ds[np.int64(i)], samples[split][int(i)])
+
+
+def test_index_comes_from_chunk_indexes(dataset):
+    root, _ = dataset
+    ds = Dataset(root, "train")
+    for i in range(len(ds)):
+        shard, log_time = ds.location(i)
+        assert Path(shard) == root / "train" / f"shard-{i // SAMPLES_PER_SHARD:05d}.mcap"
+        assert log_time == i * SAMPLE_PERIOD_NS
+
+
+def test_negative_indices_and_index_error(dataset):
+    root, samples = dataset
+    ds = Dataset(root, "test")
+    n = len(ds)
+    check_sample(ds[-1], samples["test"][n - 1])
+    check_sample(ds[-n], samples["test"][0])
+    for bad in (n, n + 10, -n - 1):
+        with pytest.raises(IndexError):
+            ds[bad]
+    with pytest.raises(TypeError):
+        ds[1.5]
+    with pytest.raises(TypeError):
+        ds[0:2]
+
+
+def test_iteration(dataset):
+    root, samples = dataset
+    ds = Dataset(root, "train")
+    got = list(ds)
+    assert [s["index"] for s in got] == list(range(COUNTS["train"]))
+    for sample, expected in zip(got, samples["train"]):
+        check_sample(sample, expected)
+
+
+def test_unknown_split(dataset):
+    with pytest.raises(KeyError, match="validation"):
+        Dataset(dataset[0], "validation")
+
+
+def test_missing_manifest(tmp_path):
+    with pytest.raises(FileNotFoundError, match="does not exist"):
+        Dataset(tmp_path / "nowhere")
+    with pytest.raises(FileNotFoundError, match="manifest.json"):
+        Dataset(tmp_path)
+
+
+def test_missing_shard_names_the_file(dataset, tmp_path):
+    root = fresh_copy(dataset, tmp_path)
+    missing = root / "train" / "shard-00001.mcap"
+    missing.unlink()
+    with pytest.raises(FileNotFoundError) as err:
+        Dataset(root, "train")
+    assert str(missing) in str(err.value)
+    assert len(Dataset(root, "test")) == COUNTS["test"]  # the other split is unaffected
+
+
+def test_unwritten_shards(dataset, tmp_path):
+    root = fresh_copy(dataset, tmp_path)
+    manifest_path = root / "manifest.json"
+    manifest = json.loads(manifest_path.read_text())
+    shards = manifest["splits"]["train"]["shards"]
+
+    # A shard in the middle not generated yet: the indices are not contiguous.
+    middle = dict(shards[1])
+    shards[1]["sha256"] = shards[1]["bytes"] = None
+    manifest["complete"] = False
+    manifest_path.write_text(json.dumps(manifest))
+    with pytest.raises(DatasetError, match="not contiguous.*sample 2 is missing"):
+        Dataset(root, "train")
+
+    # Only the last shard missing: the split is the samples before it.
+    shards[1] = middle
+    shards[-1]["sha256"] = shards[-1]["bytes"] = None
+    manifest_path.write_text(json.dumps(manifest))
+    (root / shards[-1]["file"]).unlink()
+    ds = Dataset(root, "train")
+    assert len(ds) == 4
+    check_sample(ds[3], dataset[1]["train"][3])
+    with pytest.raises(IndexError):
+        ds[4]
+
+
+def test_manifest_shard_mismatch(dataset, tmp_path):
+    root = fresh_copy(dataset, tmp_path)
+    manifest_path = root / "manifest.json"
+    manifest = json.loads(manifest_path.read_text())
+    manifest["splits"]["train"]["shards"][0]["samples"] = 3
+    manifest_path.write_text(json.dumps(manifest))
+    with pytest.raises(DatasetError, match="shard-00000.mcap"):
+        Dataset(root, "train")
+
+
+def test_wrong_manifest_format(tmp_path):
+    (tmp_path / "manifest.json").write_text(json.dumps({"format": "something-else"}))
+    with pytest.raises(DatasetError, match="vtgen-dataset"):
+        Dataset(tmp_path)
+
+
+def test_missing_message_names_shard_and_sample(tmp_path):
+    root = tmp_path / "ds"
+    write_dataset(root, {"train": 4}, 2, omit=("train", 3, "/camera/mask"))
+    ds = Dataset(root, "train")
+    ds[2]  # the other sample of that shard is fine
+    with pytest.raises(DatasetError) as err:
+        ds[3]
+    message = str(err.value)
+    assert str(root / "train" / "shard-00001.mcap") in message
+    assert "sample 3" in message and "/camera/mask" in message
+
+
+def test_pickle_carries_no_file_handles(dataset):
+    root, samples = dataset
+    ds = Dataset(root, "train")
+    check_sample(ds[0], samples["train"][0])  # opens a shard
+    assert ds._open  # the handle is cached ...
+    clone = pickle.loads(pickle.dumps(ds))
+    assert not clone._open  # ... but not pickled
+    check_sample(clone[4], samples["train"][4])
+    check_sample(ds[4], samples["train"][4])
+
+
+_FORKED: Dict[str, Dataset] = {}
+
+
+def _read_in_child(index: int) -> bytes:
+    sample = _FORKED["ds"][index]
+    return sample["rgb"].tobytes() + sample["depth"].tobytes()
+
+
+@pytest.mark.skipif(
+    "fork" not in multiprocessing.get_all_start_methods(), reason="needs the fork start method"
+)
+def test_fork_reopens_files(dataset):
+    root, samples = dataset
+    ds = Dataset(root, "train")
+    for i in range(len(ds)):
+        ds[i]  # every shard open in the parent before forking
+    _FORKED["ds"] = ds
+    try:
+        with multiprocessing.get_context("fork").Pool(2) as pool:
+            order = [4, 0, 3, 1, 2, 4, 0]
+            results = pool.map(_read_in_child, order)
+    finally:
+        _FORKED.clear()
+    for i, data in zip(order, results):
+        s = samples["train"][i]
+        assert data == s.rgb.tobytes() + s.depth.tobytes()
+    check_sample(ds[2], samples["train"][2])  # the parent's handles still work
+
+
+def test_models(dataset):
+    root, _ = dataset
+    models = Dataset(root, "train").models()
+    assert list(models) == [OBJECT_ID]
+    model = models[OBJECT_ID]
+    mesh = cube_mesh()
+    info = json.loads((root / "models" / "models_info.json").read_text())["objects"][0]
+    assert model["info"] == info
+    for key in ("vertices", "normals", "faces"):
+        assert_bit_exact(model[key], mesh[key], key)
+
+
+def test_load_ply(dataset):
+    root, _ = dataset
+    mesh = load_ply(root / "models" / f"{OBJECT_ID}.ply")
+    expected = cube_mesh()
+    for key in ("vertices", "normals", "faces"):
+        assert_bit_exact(mesh[key], expected[key], key)
+
+
+def _ply(header_props: str, n_vertices: int, vertex_bytes: bytes, faces: bytes, n_faces: int,
+         fmt: str = "binary_little_endian") -> bytes:
+    header = (
+        f"ply\r\nformat {fmt} 1.0\r\ncomment end_header is not the end\r\nobj_info x\r\n"
+        f"element vertex {n_vertices}\r\n{header_props}"
+        f"element face {n_faces}\r\nproperty list uchar int vertex_indices\r\nend_header\r\n"
+    )
+    return header.encode("ascii") + vertex_bytes + faces
+
+
+def test_load_ply_generic_header(tmp_path):
+    # Extra, interleaved vertex properties of several types; no normals; CRLF header.
+    props = (
+        "property double x\nproperty uchar red\nproperty float y\nproperty float z\n"
+        "property ushort quality\n"
+    )
+    vertices = [(0.5, 7, 1.5, -2.0, 9), (1.0, 8, 2.0, 3.0, 10), (-1.0, 9, 0.0, 0.25, 11)]
+    vbytes = b"".join(struct.pack("<dBffH", *v) for v in vertices)
+    fbytes = struct.pack("<B3i", 3, 0, 1, 2)
+    path = tmp_path / "generic.ply"
+    path.write_bytes(_ply(props, 3, vbytes, fbytes, 1))
+    mesh = load_ply(path)
+    assert mesh["normals"] is None
+    assert_bit_exact(
+        mesh["vertices"],
+        np.array([[0.5, 1.5, -2.0], [1.0, 2.0, 3.0], [-1.0, 0.0, 0.25]], dtype=np.float32),
+        "vertices",
+    )
+    assert_bit_exact(mesh["faces"], np.array([[0, 1, 2]], dtype=np.int32), "faces")
+
+    # Big endian is read too.
+    props_be = "property float x\nproperty float y\nproperty float z\n"
+    vbytes_be = b"".join(struct.pack(">fff", *v) for v in [(1, 2, 3), (4, 5, 6), (7, 8, 9)])
+    path.write_bytes(_ply(props_be, 3, vbytes_be, struct.pack(">B3i", 3, 2, 1, 0), 1,
+                          fmt="binary_big_endian"))
+    mesh = load_ply(path)
+    assert mesh["vertices"].tolist() == [[1, 2, 3], [4, 5, 6], [7, 8, 9]]
+    assert mesh["faces"].tolist() == [[2, 1, 0]]
+
+
+def test_load_ply_errors(tmp_path):
+    path = tmp_path / "bad.ply"
+    props = "property float x\nproperty float y\nproperty float z\n"
+    vbytes = struct.pack("<9f", *range(9))
+    path.write_bytes(_ply(props, 3, vbytes, struct.pack("<B4i", 4, 0, 1, 2, 0), 1))
+    with pytest.raises(PlyError, match="only triangles"):
+        load_ply(path)
+    path.write_bytes(_ply(props, 3, vbytes, struct.pack("<B3i", 3, 0, 1, 3), 1))
+    with pytest.raises(PlyError, match="out of range"):
+        load_ply(path)
+    path.write_bytes(_ply(props, 3, vbytes[:-4], b"", 0))
+    with pytest.raises(PlyError, match="too short"):
+        load_ply(path)
+    path.write_bytes(b"ply\nformat ascii 1.0\nend_header\n")
+    with pytest.raises(PlyError, match="ascii"):
+        load_ply(path)
+
+
+def _raw(array: np.ndarray, encoding: str, pad: int) -> RawImage:
+    h, w = array.shape[:2]
+    row = array.reshape(h, -1).view(np.uint8).reshape(h, -1)
+    padded = np.full((h, row.shape[1] + pad), 0xAB, dtype=np.uint8)
+    padded[:, : row.shape[1]] = row
+    data = padded.tobytes()[:-pad] if pad else padded.tobytes()  # last row may be unpadded
+    return RawImage(width=w, height=h, encoding=encoding, step=row.shape[1] + pad, data=data)
+
+
+@pytest.mark.parametrize("pad", [0, 5])
+def test_decode_raw_image_honours_step(pad):
+    rng = np.random.default_rng(2)
+    cases = [
+        ("rgb8", rng.integers(0, 256, (4, 5, 3), dtype=np.uint8)),
+        ("mono8", rng.integers(0, 256, (4, 5), dtype=np.uint8)),
+        ("mono16", rng.integers(0, 65536, (4, 5), dtype=np.uint16)),
+        ("32FC1", rng.normal(size=(4, 5)).astype(np.float32)),
+    ]
+    for encoding, array in cases:
+        decoded = vtdata.decode_raw_image(_raw(array.astype(array.dtype.newbyteorder("<")),
+                                               encoding, pad))
+        assert_bit_exact(decoded, array, encoding)
+
+
+def test_decode_raw_image_errors():
+    image = RawImage(width=4, height=2, encoding="rgb8", step=12, data=bytes(23))
+    with pytest.raises(DatasetError, match="needs 24 bytes"):
+        vtdata.decode_raw_image(image)
+    with pytest.raises(DatasetError, match="expected encoding 'mono8'"):
+        vtdata.decode_raw_image(image, expect="mono8")
+    with pytest.raises(DatasetError, match="step 11"):
+        vtdata.decode_raw_image(
+            RawImage(width=4, height=2, encoding="rgb8", step=11, data=bytes(24))
+        )
+    with pytest.raises(DatasetError, match="unsupported image encoding 'bgr8'"):
+        vtdata.decode_raw_image(RawImage(width=1, height=1, encoding="bgr8", step=3, data=bytes(3)))
+
+
+def test_quaternion_matrix():
+    rng = np.random.default_rng(3)
+    assert np.array_equal(vtdata.quaternion_matrix((0, 0, 0, 1)), np.eye(3))
+    for _ in range(100):
+        q = rng.normal(size=4)
+        q /= np.linalg.norm(q)
+        R = vtdata.quaternion_matrix(q)
+        np.testing.assert_allclose(R, reference_rotation(q), rtol=0, atol=1e-15)
+        np.testing.assert_allclose(R @ R.T, np.eye(3), rtol=0, atol=1e-14)
+        # q and -q are the same rotation
+        np.testing.assert_allclose(vtdata.quaternion_matrix(-q), R, rtol=0, atol=1e-15)
+
+
+def test_import_does_not_import_torch():
+    code = "import sys, vtdata; vtdata.Dataset; assert 'torch' not in sys.modules, 'torch imported'"
+    subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_torch_dataloader(dataset):
+    torch = pytest.importorskip("torch")
+    from torch.utils.data import DataLoader
+
+    from vtdata.torch import TorchDataset, collate
+
+    root, samples = dataset
+    ds = TorchDataset(root, "train")
+    assert isinstance(ds, torch.utils.data.Dataset)
+    assert vtdata.TorchDataset is TorchDataset
+    item = ds[1]
+    assert item["rgb"].dtype == torch.uint8 and item["rgb"].shape == (6, 8, 3)
+    assert item["depth"].dtype == torch.float32 and item["mask"].dtype == torch.uint8
+    assert item["K"].dtype == torch.float64 and item["T_camera_object"].dtype == torch.float64
+    assert item["info"] == samples["train"][1].info
+
+    loader = DataLoader(ds, batch_size=2, num_workers=2, collate_fn=collate)
+    seen: List[int] = []
+    for batch in loader:
+        b = batch["rgb"].shape[0]
+        assert batch["rgb"].shape == (b, 6, 8, 3)
+        assert batch["depth"].shape == (b, 6, 8) and batch["mask"].shape == (b, 6, 8)
+        assert batch["K"].shape == (b, 3, 3) and batch["T_world_object"].shape == (b, 4, 4)
+        assert batch["index"].dtype == torch.int64
+        assert isinstance(batch["info"], list) and len(batch["info"]) == b
+        assert batch["split"] == ["train"] * b
+        for j, index in enumerate(batch["index"].tolist()):
+            expected = samples["train"][index]
+            assert batch["rgb"][j].numpy().tobytes() == expected.rgb.tobytes()
+            assert batch["depth"][j].numpy().tobytes() == expected.depth.tobytes()
+            assert batch["info"][j] == expected.info
+        seen += batch["index"].tolist()
+    assert seen == list(range(COUNTS["train"]))
+
+    flipped = TorchDataset(root, "train", transform=lambda s: s["rgb"].flip(0))
+    assert torch.equal(flipped[0], torch.from_numpy(samples["train"][0].rgb).flip(0))

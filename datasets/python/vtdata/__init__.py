@@ -1,0 +1,56 @@
+"""Python reader for vtgen synthetic visuotactile datasets.
+
+>>> import vtdata
+>>> ds = vtdata.Dataset("out/tiny", split="train")
+>>> sample = ds[0]
+>>> sample["rgb"].shape, sample["K"], sample["T_camera_object"]
+
+``vtdata.TorchDataset`` (and the ``vtdata.torch`` module) wrap a split for PyTorch; they are
+imported on first use, so ``import vtdata`` never imports torch.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+from .ply import PlyError, load_ply
+from .reader import (
+    Dataset,
+    DatasetError,
+    Sample,
+    decode_raw_image,
+    load_models,
+    open_dataset,
+    pose_matrix,
+    quaternion_matrix,
+)
+
+if TYPE_CHECKING:
+    from . import torch  # noqa: F401  (vtdata.torch, imported lazily at run time)
+    from .torch import TorchDataset
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "Dataset",
+    "DatasetError",
+    "PlyError",
+    "Sample",
+    "TorchDataset",
+    "decode_raw_image",
+    "load_models",
+    "load_ply",
+    "open_dataset",
+    "pose_matrix",
+    "quaternion_matrix",
+]
+
+
+def __getattr__(name: str) -> Any:
+    # PEP 562: import the torch wrapper (and torch itself) only when it is asked for.
+    if name == "TorchDataset":
+        return importlib.import_module(".torch", __name__).TorchDataset
+    if name == "torch":
+        return importlib.import_module(".torch", __name__)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

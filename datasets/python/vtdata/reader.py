@@ -1,0 +1,567 @@
+"""Random-access reader for vtgen datasets (see ``datasets/FORMAT.md``).
+
+A dataset is a folder with ``manifest.json``, ``models/`` and one folder of MCAP shards per split.
+Every sample is one zstd chunk of one shard; all of its messages share ``log_time = index * 1e8``
+ns. :class:`Dataset` builds its sample index from the chunk indexes in each shard's summary section
+(no scan of the data), then reads a sample by decompressing only its chunk.
+"""
+
+from __future__ import annotations
+
+import collections
+import hashlib
+import inspect
+import json
+import os
+import warnings
+from pathlib import Path
+from typing import (
+    IO,
+    Any,
+    Callable,
+    Dict,
+    Iterator,
+    List,
+    Mapping,
+    Optional,
+    Sequence,
+    Tuple,
+    Union,
+)
+
+import numpy as np
+from mcap.decoder import DecoderFactory as _McapDecoderFactory
+from mcap.reader import McapReader, make_reader
+from mcap.records import Schema
+from mcap_protobuf.decoder import DecoderFactory as _ProtobufDecoderFactory
+
+from .ply import load_ply
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+#: Nanoseconds between two consecutive samples on the dataset timeline (10 Hz).
+SAMPLE_PERIOD_NS = 100_000_000
+#: The ``format`` value of a vtgen ``manifest.json``.
+MANIFEST_FORMAT = "vtgen-dataset"
+#: The newest ``format_version`` this reader was written for.
+FORMAT_VERSION = 1
+
+TOPIC_RGB = "/camera/rgb"
+TOPIC_DEPTH = "/camera/depth"
+TOPIC_MASK = "/camera/mask"
+TOPIC_CALIBRATION = "/camera/calibration"
+TOPIC_POSE = "/object/pose"
+TOPIC_TF = "/tf"
+TOPIC_INFO = "/sample/info"
+#: Topics every sample must have; other topics (later format versions) are ignored.
+REQUIRED_TOPICS = (
+    TOPIC_RGB,
+    TOPIC_DEPTH,
+    TOPIC_MASK,
+    TOPIC_CALIBRATION,
+    TOPIC_POSE,
+    TOPIC_TF,
+    TOPIC_INFO,
+)
+
+# RawImage encoding -> (numpy dtype of one channel as stored, channels, dtype returned).
+_IMAGE_ENCODINGS: Dict[str, Tuple[str, int, Any]] = {
+    "rgb8": ("u1", 3, np.uint8),
+    "mono8": ("u1", 1, np.uint8),
+    "mono16": ("<u2", 1, np.uint16),
+    "32FC1": ("<f4", 1, np.float32),
+}
+
+# mcap >= 1.6 renamed the time bounds of iter_messages (start_time/end_time are deprecated there).
+_HAS_NEW_TIME_BOUNDS = (
+    "starting_at" in inspect.signature(McapReader.iter_decoded_messages).parameters
+)
+
+
+class DatasetError(RuntimeError):
+    """A dataset does not follow the vtgen format (missing or inconsistent files or messages)."""
+
+
+class Sample(Dict[str, Any]):
+    """One dataset sample: a plain ``dict`` whose keys can also be read as attributes.
+
+    Keys:
+
+    - ``rgb``: ``(H, W, 3)`` uint8, sRGB colour.
+    - ``depth``: ``(H, W)`` float32 z-depth in metres, ``0.0`` where no surface was hit.
+    - ``mask``: ``(H, W)`` uint8 instance ids (0 background, 1 target object, see FORMAT.md).
+    - ``K``: ``(3, 3)`` float64 camera intrinsics.
+    - ``T_camera_object``, ``T_world_camera``, ``T_world_object``: ``(4, 4)`` float64 homogeneous
+      transforms; ``T_A_B`` maps coordinates in frame B to frame A.
+    - ``info``: the ``/sample/info`` JSON object.
+    - ``index``: the sample's index in its split; ``split``: the split name.
+    """
+
+    __slots__ = ()
+
+    def __getattr__(self, name: str) -> Any:
+        try:
+            return self[name]
+        except KeyError:
+            raise AttributeError(name) from None
+
+
+class _JsonDecoderFactory(_McapDecoderFactory):
+    """Decodes channels with message encoding ``json`` (the ``/sample/info`` channel)."""
+
+    def decoder_for(
+        self, message_encoding: str, schema: Optional[Schema]
+    ) -> Optional[Callable[[bytes], Any]]:
+        if message_encoding == "json":
+            return _decode_json
+        return None
+
+
+def _decode_json(data: bytes) -> Any:
+    return json.loads(data.decode("utf-8"))
+
+
+class _OpenShard:
+    """An open shard file and the MCAP reader on it."""
+
+    __slots__ = ("file", "reader")
+
+    def __init__(self, path: str) -> None:
+        self.file: IO[bytes] = open(path, "rb")
+        try:
+            self.reader: McapReader = make_reader(
+                self.file, decoder_factories=[_ProtobufDecoderFactory(), _JsonDecoderFactory()]
+            )
+        except Exception:
+            self.file.close()
+            raise
+
+    def close(self) -> None:
+        self.file.close()
+
+
+class Dataset(Sequence[Sample]):
+    """Random access to the samples of one split of a vtgen dataset.
+
+    ``Dataset(root, split)`` reads ``manifest.json`` and the summary section of every shard of the
+    split that the manifest lists as written (non-null ``sha256``); ``ds[i]`` then reads sample
+    ``i`` from its chunk. Shard files are opened lazily and cached per process (at most
+    ``max_open_files`` at a time); after a ``fork`` the child opens its own handles, and pickling a
+    ``Dataset`` carries no file handles, so it is safe to use in ``DataLoader`` workers. A
+    ``Dataset`` is not safe to share between threads of one process.
+    """
+
+    def __init__(self, root: PathLike, split: str = "train", *, max_open_files: int = 32) -> None:
+        if max_open_files < 1:
+            raise ValueError(f"max_open_files must be >= 1, got {max_open_files}")
+        self.root = Path(root)
+        self.split = split
+        self.max_open_files = max_open_files
+        self.manifest: Dict[str, Any] = _read_manifest(self.root)
+        splits = self.manifest.get("splits")
+        if not isinstance(splits, dict) or split not in splits:
+            available = sorted(splits) if isinstance(splits, dict) else []
+            raise KeyError(
+                f"split {split!r} is not in {self.root / 'manifest.json'} (splits: {available})"
+            )
+        #: Paths of the split's shard files that the index was built from, in manifest order.
+        self.shards: List[str] = []
+        # _samples[i] = (shard path, chunk message_start_time) of sample i.
+        self._samples: List[Tuple[str, int]] = _build_index(
+            self.root, split, splits[split], self.shards
+        )
+        self._models: Optional[Dict[str, Dict[str, Any]]] = None
+        self._open: "collections.OrderedDict[str, _OpenShard]" = collections.OrderedDict()
+        self._open_pid = os.getpid()
+
+    # --- sequence protocol -------------------------------------------------------------------
+
+    def __len__(self) -> int:
+        return len(self._samples)
+
+    def __getitem__(self, index: int) -> Sample:  # type: ignore[override]
+        if isinstance(index, slice):
+            raise TypeError("Dataset indices must be integers, not slices")
+        index = _check_index(index, len(self._samples))
+        shard, log_time = self._samples[index]
+        return self._read_sample(shard, log_time, index)
+
+    def __iter__(self) -> Iterator[Sample]:
+        for i in range(len(self)):
+            yield self[i]
+
+    def __repr__(self) -> str:
+        return (
+            f"{type(self).__name__}(root={str(self.root)!r}, split={self.split!r}, "
+            f"samples={len(self)}, shards={len(self.shards)})"
+        )
+
+    # --- public helpers ----------------------------------------------------------------------
+
+    def location(self, index: int) -> Tuple[str, int]:
+        """The shard path and ``log_time`` (ns) of sample ``index``."""
+        return self._samples[_check_index(index, len(self._samples))]
+
+    def models(self) -> Dict[str, Dict[str, Any]]:
+        """The dataset's object models, keyed by object id.
+
+        Each value is ``{"info": <models_info.json entry>, "vertices": (N, 3) float32,
+        "normals": (N, 3) float32, "faces": (M, 3) int32}``, in the model frame, metres. Loaded on
+        the first call and cached.
+        """
+        if self._models is None:
+            self._models = load_models(self.root)
+        return self._models
+
+    def verify_checksums(self) -> None:
+        """Recompute the SHA-256 of every shard of the split and compare it with the manifest.
+
+        Raises :class:`DatasetError` naming the first shard whose checksum differs.
+        """
+        for entry in self.manifest["splits"][self.split].get("shards", []):
+            expected = entry.get("sha256")
+            if expected is None:
+                continue
+            path = self.root / entry["file"]
+            digest = hashlib.sha256()
+            with open(path, "rb") as f:
+                for block in iter(lambda: f.read(1 << 20), b""):
+                    digest.update(block)
+            if digest.hexdigest() != expected:
+                raise DatasetError(
+                    f"{path}: SHA-256 {digest.hexdigest()} does not match the manifest ({expected})"
+                )
+
+    def close(self) -> None:
+        """Close the shard files this process opened (they are reopened on the next access)."""
+        if self._open_pid == os.getpid():
+            for shard in self._open.values():
+                shard.close()
+        self._open.clear()
+        self._open_pid = os.getpid()
+
+    def __enter__(self) -> "Dataset":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+    def __del__(self) -> None:
+        # Interpreter shutdown may already have torn down os/attributes: best effort only.
+        try:
+            self.close()
+        except Exception:
+            pass
+
+    def __getstate__(self) -> Dict[str, Any]:
+        state = self.__dict__.copy()
+        state["_open"] = collections.OrderedDict()
+        state["_open_pid"] = None
+        return state
+
+    def __setstate__(self, state: Dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._open_pid = os.getpid()
+
+    # --- reading -----------------------------------------------------------------------------
+
+    def _reader(self, shard: str) -> McapReader:
+        pid = os.getpid()
+        if self._open_pid != pid:
+            # Forked child: the inherited descriptors share their file offsets with the parent, so
+            # never use them. Closing our copies does not affect the parent.
+            for inherited in self._open.values():
+                try:
+                    inherited.close()
+                except OSError:
+                    pass
+            self._open = collections.OrderedDict()
+            self._open_pid = pid
+        handle = self._open.get(shard)
+        if handle is None:
+            while len(self._open) >= self.max_open_files:
+                self._open.popitem(last=False)[1].close()
+            handle = _OpenShard(shard)
+            self._open[shard] = handle
+        else:
+            self._open.move_to_end(shard)
+        return handle.reader
+
+    def _read_sample(self, shard: str, log_time: int, index: int) -> Sample:
+        reader = self._reader(shard)
+        if _HAS_NEW_TIME_BOUNDS:
+            messages = reader.iter_decoded_messages(
+                starting_at=log_time, ending_before=log_time + 1, log_time_order=False
+            )
+        else:
+            messages = reader.iter_decoded_messages(
+                start_time=log_time, end_time=log_time + 1, log_time_order=False
+            )
+        decoded: Dict[str, Any] = {}
+        for _schema, channel, _message, value in messages:
+            if channel.topic in decoded and channel.topic in REQUIRED_TOPICS:
+                raise DatasetError(
+                    f"{shard}: sample {index} of split {self.split!r} has more than one "
+                    f"{channel.topic} message"
+                )
+            decoded[channel.topic] = value
+        missing = [t for t in REQUIRED_TOPICS if t not in decoded]
+        if missing:
+            raise DatasetError(
+                f"{shard}: sample {index} of split {self.split!r} (log_time {log_time}) has no "
+                f"message on {', '.join(missing)}"
+            )
+        where = f"{shard}: sample {index} of split {self.split!r}"
+        transforms = _frame_transforms(decoded[TOPIC_TF], where)
+        pose = decoded[TOPIC_POSE].pose
+        sample = Sample(
+            rgb=decode_raw_image(decoded[TOPIC_RGB], expect="rgb8", where=where + f" {TOPIC_RGB}"),
+            depth=decode_raw_image(
+                decoded[TOPIC_DEPTH], expect="32FC1", where=where + f" {TOPIC_DEPTH}"
+            ),
+            mask=decode_raw_image(
+                decoded[TOPIC_MASK], expect="mono8", where=where + f" {TOPIC_MASK}"
+            ),
+            K=_intrinsics(decoded[TOPIC_CALIBRATION], where),
+            T_camera_object=pose_matrix(
+                (pose.position.x, pose.position.y, pose.position.z),
+                (pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w),
+            ),
+            T_world_camera=transforms[("world", "camera")],
+            T_world_object=transforms[("world", "object")],
+            info=decoded[TOPIC_INFO],
+            index=index,
+            split=self.split,
+        )
+        return sample
+
+
+def open_dataset(root: PathLike, split: str = "train") -> Dataset:
+    """Open one split of the vtgen dataset at ``root`` (same as ``Dataset(root, split)``)."""
+    return Dataset(root, split)
+
+
+# --- decoding helpers ------------------------------------------------------------------------
+
+
+def decode_raw_image(image: Any, expect: Optional[str] = None, where: str = "image") -> np.ndarray:
+    """Convert a ``foxglove.RawImage`` message into a C-contiguous numpy array.
+
+    Supports ``rgb8`` (``(H, W, 3)`` uint8), ``mono8`` (``(H, W)`` uint8), ``mono16`` (``(H, W)``
+    uint16, little-endian) and ``32FC1`` (``(H, W)`` float32, little-endian). Rows are read
+    ``step`` bytes apart, so padded rows are handled. ``expect`` checks the encoding.
+    """
+    encoding = image.encoding
+    if expect is not None and encoding != expect:
+        raise DatasetError(f"{where}: expected encoding {expect!r}, found {encoding!r}")
+    if encoding not in _IMAGE_ENCODINGS:
+        raise DatasetError(
+            f"{where}: unsupported image encoding {encoding!r} "
+            f"(supported: {', '.join(_IMAGE_ENCODINGS)})"
+        )
+    stored, channels, out_dtype = _IMAGE_ENCODINGS[encoding]
+    height, width, step = int(image.height), int(image.width), int(image.step)
+    row_bytes = width * channels * np.dtype(stored).itemsize
+    if step < row_bytes:
+        raise DatasetError(
+            f"{where}: step {step} is smaller than a {width}-pixel {encoding} row "
+            f"({row_bytes} bytes)"
+        )
+    data = np.frombuffer(image.data, dtype=np.uint8)
+    needed = (height - 1) * step + row_bytes if height > 0 else 0
+    if data.size < needed:
+        raise DatasetError(
+            f"{where}: {height}x{width} {encoding} image with step {step} needs {needed} bytes, "
+            f"data has {data.size}"
+        )
+    rows = np.lib.stride_tricks.as_strided(data, shape=(height, row_bytes), strides=(step, 1))
+    # Copy the rows into a new contiguous (writable) buffer, then reinterpret the bytes as pixels.
+    pixels = rows.copy(order="C").view(stored)
+    shape: Tuple[int, ...] = (height, width, channels) if channels > 1 else (height, width)
+    return np.ascontiguousarray(pixels.reshape(shape), dtype=out_dtype)
+
+
+def quaternion_matrix(q: Sequence[float]) -> np.ndarray:
+    """The 3x3 float64 rotation matrix of the unit quaternion ``q = (x, y, z, w)``.
+
+    Uses exactly the arithmetic of glam's ``DMat3::from_quat`` and
+    ``DMat4::from_rotation_translation`` (same operations in the same order, IEEE double), so
+    matrices built here and by the Rust tools from the same stored quaternion are bit-identical.
+    The quaternion is not renormalised.
+    """
+    x, y, z, w = (float(c) for c in q)
+    x2, y2, z2 = x + x, y + y, z + z
+    xx, xy, xz = x * x2, x * y2, x * z2
+    yy, yz, zz = y * y2, y * z2, z * z2
+    wx, wy, wz = w * x2, w * y2, w * z2
+    return np.array(
+        [
+            [1.0 - (yy + zz), xy - wz, xz + wy],
+            [xy + wz, 1.0 - (xx + zz), yz - wx],
+            [xz - wy, yz + wx, 1.0 - (xx + yy)],
+        ],
+        dtype=np.float64,
+    )
+
+
+def pose_matrix(position: Sequence[float], orientation: Sequence[float]) -> np.ndarray:
+    """The 4x4 float64 homogeneous transform of a translation and an ``(x, y, z, w)`` quaternion."""
+    T = np.eye(4, dtype=np.float64)
+    T[:3, :3] = quaternion_matrix(orientation)
+    T[:3, 3] = [float(c) for c in position]
+    return T
+
+
+def _intrinsics(calibration: Any, where: str) -> np.ndarray:
+    K = np.array(list(calibration.K), dtype=np.float64)
+    if K.size != 9:
+        raise DatasetError(f"{where} {TOPIC_CALIBRATION}: K has {K.size} values, expected 9")
+    return K.reshape(3, 3)
+
+
+def _frame_transforms(message: Any, where: str) -> Dict[Tuple[str, str], np.ndarray]:
+    out: Dict[Tuple[str, str], np.ndarray] = {}
+    for tf in message.transforms:
+        t, r = tf.translation, tf.rotation
+        out[(tf.parent_frame_id, tf.child_frame_id)] = pose_matrix(
+            (t.x, t.y, t.z), (r.x, r.y, r.z, r.w)
+        )
+    for key in (("world", "camera"), ("world", "object")):
+        if key not in out:
+            raise DatasetError(
+                f"{where} {TOPIC_TF}: no {key[0]} -> {key[1]} transform "
+                f"(found {sorted(out) or 'none'})"
+            )
+    return out
+
+
+# --- manifest, index and models --------------------------------------------------------------
+
+
+def _read_manifest(root: Path) -> Dict[str, Any]:
+    path = root / "manifest.json"
+    if not path.is_file():
+        if not root.is_dir():
+            raise FileNotFoundError(f"dataset folder {root} does not exist")
+        raise FileNotFoundError(f"{path} is missing: {root} is not a vtgen dataset")
+    try:
+        with open(path, "r", encoding="utf-8") as f:
+            manifest = json.load(f)
+    except json.JSONDecodeError as e:
+        raise DatasetError(f"{path} is not valid JSON: {e}") from e
+    if not isinstance(manifest, dict) or manifest.get("format") != MANIFEST_FORMAT:
+        found = manifest.get("format") if isinstance(manifest, dict) else type(manifest).__name__
+        raise DatasetError(f"{path}: format is {found!r}, expected {MANIFEST_FORMAT!r}")
+    version = manifest.get("format_version")
+    if not isinstance(version, int) or version < 1:
+        raise DatasetError(f"{path}: invalid format_version {version!r}")
+    if version > FORMAT_VERSION:
+        warnings.warn(
+            f"{path}: format_version {version} is newer than this reader ({FORMAT_VERSION}); "
+            "unknown fields are ignored",
+            stacklevel=3,
+        )
+    return manifest
+
+
+def _build_index(
+    root: Path, split: str, split_entry: Mapping[str, Any], shards_out: List[str]
+) -> List[Tuple[str, int]]:
+    """Map every sample of the split to (shard path, log_time) from the shards' chunk indexes."""
+    manifest_path = root / "manifest.json"
+    found: Dict[int, Tuple[str, int]] = {}
+    for entry in split_entry.get("shards", []):
+        if entry.get("sha256") is None:
+            continue  # listed but not generated yet (interrupted or distributed run)
+        path = root / entry["file"]
+        if not path.is_file():
+            raise FileNotFoundError(
+                f"shard {path} is listed in {manifest_path} but missing on disk"
+            )
+        shard = str(path)
+        shards_out.append(shard)
+        with open(path, "rb") as f:
+            try:
+                summary = make_reader(f).get_summary()
+            except Exception as e:
+                raise DatasetError(f"{shard}: cannot read the MCAP summary: {e}") from e
+        if summary is None:
+            raise DatasetError(f"{shard}: MCAP file has no summary section")
+        indices: List[int] = []
+        for chunk in summary.chunk_indexes:
+            start, end = chunk.message_start_time, chunk.message_end_time
+            if start % SAMPLE_PERIOD_NS != 0 or end != start:
+                raise DatasetError(
+                    f"{shard}: chunk at offset {chunk.chunk_start_offset} spans log times "
+                    f"{start}..{end} ns; every chunk must hold exactly one sample at a multiple "
+                    f"of {SAMPLE_PERIOD_NS} ns"
+                )
+            index = start // SAMPLE_PERIOD_NS
+            if index in found:
+                other = found[index][0]
+                raise DatasetError(
+                    f"sample {index} of split {split!r} is stored twice: in {other} and {shard}"
+                )
+            found[index] = (shard, start)
+            indices.append(index)
+        first, count = entry.get("first_sample"), entry.get("samples")
+        if isinstance(first, int) and isinstance(count, int):
+            if sorted(indices) != list(range(first, first + count)):
+                raise DatasetError(
+                    f"{shard}: the manifest lists samples {first}..{first + count - 1} but the "
+                    f"shard's chunk indexes hold {len(indices)} samples "
+                    f"({_describe_range(sorted(indices))})"
+                )
+    n = len(found)
+    if n and (min(found) != 0 or max(found) != n - 1):
+        missing = next(i for i in range(max(found) + 1) if i not in found)
+        raise DatasetError(
+            f"split {split!r} of {root} is not contiguous: {n} samples found but sample {missing} "
+            f"is missing (is a shard still unwritten? see 'complete' in {manifest_path})"
+        )
+    return [found[i] for i in range(n)]
+
+
+def _describe_range(indices: Sequence[int]) -> str:
+    if not indices:
+        return "none"
+    return f"{indices[0]}..{indices[-1]}"
+
+
+def _check_index(index: int, length: int) -> int:
+    try:
+        i = int(index)
+    except TypeError:
+        raise TypeError(f"sample index must be an integer, not {type(index).__name__}") from None
+    if i != index:
+        raise TypeError(f"sample index must be an integer, not {index!r}")
+    if i < 0:
+        i += length
+    if not 0 <= i < length:
+        raise IndexError(f"sample index {index} out of range for a split of {length} samples")
+    return i
+
+
+def load_models(root: PathLike) -> Dict[str, Dict[str, Any]]:
+    """Load ``models/models_info.json`` and every model's PLY mesh of the dataset at ``root``."""
+    models_dir = Path(root) / "models"
+    info_path = models_dir / "models_info.json"
+    if not info_path.is_file():
+        raise FileNotFoundError(f"{info_path} is missing")
+    with open(info_path, "r", encoding="utf-8") as f:
+        info = json.load(f)
+    out: Dict[str, Dict[str, Any]] = {}
+    for entry in info.get("objects", []):
+        ply_path = models_dir / entry["file"]
+        if not ply_path.is_file():
+            raise FileNotFoundError(f"model {ply_path} listed in {info_path} is missing")
+        mesh = load_ply(ply_path)
+        if mesh["normals"] is None:
+            raise DatasetError(f"{ply_path}: vertices have no nx ny nz normals")
+        out[entry["id"]] = {
+            "info": entry,
+            "vertices": mesh["vertices"],
+            "normals": mesh["normals"],
+            "faces": mesh["faces"],
+        }
+    return out

@@ -1,0 +1,99 @@
+"""PyTorch wrapper for vtgen datasets (requires ``pip install vtdata[torch]``).
+
+>>> from torch.utils.data import DataLoader
+>>> from vtdata.torch import TorchDataset, collate
+>>> loader = DataLoader(TorchDataset(root, "train"), batch_size=8, num_workers=4,
+...                     shuffle=True, collate_fn=collate)
+>>> batch = next(iter(loader))
+>>> batch["rgb"].shape          # (8, H, W, 3) uint8
+>>> batch["info"][0]["object_id"]
+
+``TorchDataset`` is safe with ``num_workers > 0`` under both ``fork`` and ``spawn``: the wrapped
+:class:`vtdata.Dataset` pickles without file handles and opens shard files lazily in each worker.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Union
+
+import numpy as np
+import torch
+from torch.utils.data import Dataset as _TorchDataset
+
+from .reader import Dataset
+
+__all__ = ["TorchDataset", "collate", "to_tensors"]
+
+TensorSample = Dict[str, Any]
+
+
+def to_tensors(sample: Mapping[str, Any]) -> TensorSample:
+    """Convert every numpy array of a sample into a ``torch.Tensor`` (same dtype, same shape).
+
+    ``rgb`` stays ``(H, W, 3)`` uint8 (no channel reordering, no scaling), ``depth`` ``(H, W)``
+    float32, ``mask`` ``(H, W)`` uint8, ``K`` and the ``T_*`` poses float64. Other values (``info``,
+    ``index``, ``split``) pass through unchanged.
+    """
+    return {
+        key: torch.from_numpy(value) if isinstance(value, np.ndarray) else value
+        for key, value in sample.items()
+    }
+
+
+class TorchDataset(_TorchDataset):
+    """A ``torch.utils.data.Dataset`` over one split of a vtgen dataset.
+
+    ``ds[i]`` is a dict with the keys of :class:`vtdata.Sample`, arrays converted to tensors by
+    :func:`to_tensors`; ``transform``, if given, is applied to that dict and its result returned.
+    Batch with :func:`collate` (``DataLoader(..., collate_fn=vtdata.torch.collate)``): the default
+    collate cannot batch ``info``, whose nested dicts hold strings and may differ between samples.
+    """
+
+    def __init__(
+        self,
+        root: Union[str, "os.PathLike[str]"],
+        split: str = "train",
+        transform: Optional[Callable[[TensorSample], Any]] = None,
+    ) -> None:
+        self.dataset = Dataset(root, split)
+        self.transform = transform
+
+    def __len__(self) -> int:
+        return len(self.dataset)
+
+    def __getitem__(self, index: int) -> Any:
+        sample = to_tensors(self.dataset[index])
+        if self.transform is not None:
+            return self.transform(sample)
+        return sample
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self.dataset!r}, transform={self.transform!r})"
+
+
+def collate(batch: Sequence[Mapping[str, Any]]) -> Dict[str, Any]:
+    """Batch a list of sample dicts.
+
+    Tensors are stacked along a new first dimension (they must have equal shapes), integers
+    (``index``) become an int64 tensor, and everything else (``info``, ``split``, ...) is kept as a
+    list with one entry per sample.
+    """
+    if len(batch) == 0:
+        raise ValueError("cannot collate an empty batch")
+    keys = list(batch[0].keys())
+    for i, sample in enumerate(batch[1:], start=1):
+        if set(sample.keys()) != set(keys):
+            raise ValueError(
+                f"batch element {i} has keys {sorted(sample.keys())}, element 0 has {sorted(keys)}"
+            )
+    out: Dict[str, Any] = {}
+    for key in keys:
+        values: List[Any] = [sample[key] for sample in batch]
+        if all(isinstance(v, torch.Tensor) for v in values):
+            out[key] = torch.stack(values)
+        elif all(isinstance(v, int) and not isinstance(v, bool) for v in values):
+            out[key] = torch.tensor(values, dtype=torch.int64)
+        else:
+            out[key] = values
+    return out

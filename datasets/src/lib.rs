@@ -1,0 +1,57 @@
+//! The vtgen dataset format (see `datasets/FORMAT.md`, the contract): sharded MCAP files with
+//! Foxglove protobuf schemas, a JSON manifest, and the rendered object models as PLY.
+//!
+//! One implementation of the format per language: this crate for Rust (the generator writes with
+//! it; inspection, validation and the trainer read with it), `datasets/python` for Python.
+
+mod manifest;
+mod ply;
+mod reader;
+mod sample;
+mod writer;
+
+pub use manifest::{Manifest, ModelInfo, ModelsInfo, ShardEntry, SplitManifest, sha256_file};
+pub use ply::{PlyMesh, read_ply, write_ply};
+pub use reader::{DatasetReader, ShardReader};
+pub use sample::{Pose, Sample, ShardMeta};
+pub use writer::{Compression, ShardReceipt, ShardWriter};
+
+/// Version of the on-disk format written by this crate.
+pub const FORMAT_VERSION: u32 = 1;
+/// Nanoseconds between consecutive samples on the MCAP timeline (10 Hz).
+pub const SAMPLE_PERIOD_NS: u64 = 100_000_000;
+/// Name of the per-shard MCAP metadata record.
+pub const SHARD_METADATA: &str = "vtgen.shard";
+/// Suffix of a shard that is still being written.
+pub const PARTIAL_SUFFIX: &str = ".partial";
+
+/// Topic names (FORMAT.md, "MCAP shard").
+pub mod topics {
+    pub const RGB: &str = "/camera/rgb";
+    pub const DEPTH: &str = "/camera/depth";
+    pub const MASK: &str = "/camera/mask";
+    pub const CALIBRATION: &str = "/camera/calibration";
+    pub const OBJECT_POSE: &str = "/object/pose";
+    pub const TF: &str = "/tf";
+    pub const SAMPLE_INFO: &str = "/sample/info";
+    /// Every topic a complete sample has, in the order they are written.
+    pub const ALL: [&str; 7] = [RGB, DEPTH, MASK, CALIBRATION, OBJECT_POSE, TF, SAMPLE_INFO];
+}
+
+/// Frame ids (FORMAT.md, "Conventions").
+pub mod frames {
+    pub const WORLD: &str = "world";
+    pub const CAMERA: &str = "camera";
+    pub const OBJECT: &str = "object";
+}
+
+/// Mask ids (FORMAT.md, "Instance mask ids").
+pub mod mask_ids {
+    pub const BACKGROUND: u8 = 0;
+    pub const TARGET_OBJECT: u8 = 1;
+}
+
+/// The file name of shard `index` of a split, relative to the dataset root.
+pub fn shard_file(split: &str, index: u32) -> String {
+    format!("{split}/shard-{index:05}.mcap")
+}

@@ -1,0 +1,133 @@
+use glam::{DMat4, DQuat, DVec3};
+use serde::{Deserialize, Serialize};
+
+/// A rigid transform `T_A_B` (maps frame-B coordinates into frame A), quaternion (x, y, z, w).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Pose {
+    pub position: [f64; 3],
+    pub orientation: [f64; 4],
+}
+
+impl Pose {
+    pub fn from_rt(rotation: DQuat, translation: DVec3) -> Self {
+        let q = rotation.normalize();
+        Pose { position: translation.to_array(), orientation: [q.x, q.y, q.z, q.w] }
+    }
+
+    pub fn rotation(&self) -> DQuat {
+        let [x, y, z, w] = self.orientation;
+        DQuat::from_xyzw(x, y, z, w)
+    }
+
+    pub fn translation(&self) -> DVec3 {
+        DVec3::from_array(self.position)
+    }
+
+    pub fn matrix(&self) -> DMat4 {
+        DMat4::from_rotation_translation(self.rotation(), self.translation())
+    }
+
+    pub fn transform_point(&self, p: DVec3) -> DVec3 {
+        self.rotation() * p + self.translation()
+    }
+}
+
+/// One complete sample as stored in a shard.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Sample {
+    /// Index of the sample within its split.
+    pub index: u64,
+    pub width: u32,
+    pub height: u32,
+    /// `width * height * 3` bytes, sRGB.
+    pub rgb: Vec<u8>,
+    /// z-depth in metres, 0 = no surface.
+    pub depth: Vec<f32>,
+    /// Instance ids (FORMAT.md).
+    pub mask: Vec<u8>,
+    /// Row-major 3x3 intrinsics.
+    pub k: [f64; 9],
+    pub t_camera_object: Pose,
+    pub t_world_camera: Pose,
+    pub t_world_object: Pose,
+    /// The `/sample/info` JSON object.
+    pub info: serde_json::Value,
+}
+
+impl Sample {
+    pub fn fx(&self) -> f64 {
+        self.k[0]
+    }
+    pub fn fy(&self) -> f64 {
+        self.k[4]
+    }
+    pub fn cx(&self) -> f64 {
+        self.k[2]
+    }
+    pub fn cy(&self) -> f64 {
+        self.k[5]
+    }
+}
+
+/// The `vtgen.shard` metadata record of a shard.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ShardMeta {
+    pub generator: String,
+    pub seed: u64,
+    pub config_sha256: String,
+    pub split: String,
+    pub shard_index: u32,
+    pub first_sample: u64,
+    pub sample_count: u64,
+}
+
+impl ShardMeta {
+    pub fn to_map(&self) -> std::collections::BTreeMap<String, String> {
+        [
+            ("format_version", crate::FORMAT_VERSION.to_string()),
+            ("generator", self.generator.clone()),
+            ("seed", self.seed.to_string()),
+            ("config_sha256", self.config_sha256.clone()),
+            ("split", self.split.clone()),
+            ("shard_index", self.shard_index.to_string()),
+            ("first_sample", self.first_sample.to_string()),
+            ("sample_count", self.sample_count.to_string()),
+        ]
+        .into_iter()
+        .map(|(k, v)| (k.to_string(), v))
+        .collect()
+    }
+
+    pub fn from_map(m: &std::collections::BTreeMap<String, String>) -> anyhow::Result<Self> {
+        let get = |k: &str| m.get(k).ok_or_else(|| anyhow::anyhow!("shard metadata lacks '{k}'"));
+        let num = |k: &str| -> anyhow::Result<u64> { get(k)?.parse().map_err(|_| anyhow::anyhow!("shard metadata '{k}' is not a number")) };
+        Ok(ShardMeta {
+            generator: get("generator")?.clone(),
+            seed: num("seed")?,
+            config_sha256: get("config_sha256")?.clone(),
+            split: get("split")?.clone(),
+            shard_index: num("shard_index")? as u32,
+            first_sample: num("first_sample")?,
+            sample_count: num("sample_count")?,
+        })
+    }
+}
+
+impl Pose {
+    pub const IDENTITY: Pose = Pose { position: [0.0; 3], orientation: [0.0, 0.0, 0.0, 1.0] };
+
+    /// `self * other`: with `self = T_A_B` and `other = T_B_C`, gives `T_A_C`.
+    pub fn compose(&self, other: &Pose) -> Pose {
+        Pose::from_rt(self.rotation() * other.rotation(), self.transform_point(other.translation()))
+    }
+
+    /// `T_B_A` from `T_A_B`.
+    pub fn inverse(&self) -> Pose {
+        let r = self.rotation().inverse();
+        Pose::from_rt(r, -(r * self.translation()))
+    }
+
+    pub fn to_json(&self) -> serde_json::Value {
+        serde_json::json!({"position": self.position, "orientation": self.orientation})
+    }
+}

@@ -1,0 +1,195 @@
+//! Writes one shard: an MCAP file with one zstd chunk per sample, under a temporary name that is
+//! renamed to the final name only once the file is complete and synced.
+
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+use foxglove::Encode;
+use foxglove::schemas::{
+    CameraCalibration, FrameTransform, FrameTransforms, Pose as FgPose, PoseInFrame, Quaternion, RawImage, Timestamp, Vector3,
+};
+use prost::Message;
+
+use crate::sample::{Pose, Sample, ShardMeta};
+use crate::{PARTIAL_SUFFIX, SAMPLE_PERIOD_NS, SHARD_METADATA, frames, topics};
+
+/// Chunk compression of a shard.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Compression {
+    None,
+    Zstd { level: u32 },
+}
+
+/// What a finished shard looks like on disk.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ShardReceipt {
+    pub path: PathBuf,
+    pub bytes: u64,
+    pub sha256: String,
+}
+
+struct Channels {
+    rgb: u16,
+    depth: u16,
+    mask: u16,
+    calibration: u16,
+    pose: u16,
+    tf: u16,
+    info: u16,
+}
+
+/// JSON schema of `/sample/info` (FORMAT.md). Open for extension: readers ignore unknown keys.
+const SAMPLE_INFO_SCHEMA: &str = r#"{"title":"vtgen.SampleInfo","type":"object","properties":{"split":{"type":"string"},"index":{"type":"integer"},"object_id":{"type":"string"},"object_index":{"type":"integer"},"mask_id":{"type":"integer"},"trajectory":{"type":"integer"},"instance":{"type":"integer"},"randomized":{"type":"boolean"},"visible_pixels":{"type":"integer"},"T_world_camera":{"type":"object"},"T_camera_object":{"type":"object"}},"required":["split","index","object_id","trajectory","instance"]}"#;
+
+pub struct ShardWriter {
+    mcap: mcap::Writer<BufWriter<File>>,
+    channels: Channels,
+    partial_path: PathBuf,
+    final_path: PathBuf,
+    sequence: u32,
+    written: u64,
+    expected: u64,
+}
+
+fn add<T: Encode>(w: &mut mcap::Writer<BufWriter<File>>, topic: &str) -> Result<u16> {
+    let schema = T::get_schema().expect("Foxglove schemas carry their descriptor");
+    let sid = w.add_schema(&schema.name, &schema.encoding, &schema.data)?;
+    Ok(w.add_channel(sid, topic, &T::get_message_encoding(), &BTreeMap::new())?)
+}
+
+fn ts(log_time: u64) -> Option<Timestamp> {
+    Some(Timestamp::new((log_time / 1_000_000_000) as u32, (log_time % 1_000_000_000) as u32))
+}
+
+fn fg_pose(p: &Pose) -> FgPose {
+    FgPose {
+        position: Some(Vector3 { x: p.position[0], y: p.position[1], z: p.position[2] }),
+        orientation: Some(Quaternion { x: p.orientation[0], y: p.orientation[1], z: p.orientation[2], w: p.orientation[3] }),
+    }
+}
+
+fn transform(log_time: u64, parent: &str, child: &str, p: &Pose) -> FrameTransform {
+    let fp = fg_pose(p);
+    FrameTransform {
+        timestamp: ts(log_time),
+        parent_frame_id: parent.into(),
+        child_frame_id: child.into(),
+        translation: fp.position,
+        rotation: fp.orientation,
+    }
+}
+
+impl ShardWriter {
+    /// Starts a shard that will end up at `final_path`; nothing exists there until [`finish`].
+    pub fn create(final_path: &Path, meta: &ShardMeta, compression: Compression) -> Result<Self> {
+        let partial_path = PathBuf::from(format!("{}{PARTIAL_SUFFIX}", final_path.display()));
+        if let Some(dir) = final_path.parent() {
+            std::fs::create_dir_all(dir).with_context(|| format!("cannot create directory {}", dir.display()))?;
+        }
+        let file = File::create(&partial_path).with_context(|| format!("cannot create {}", partial_path.display()))?;
+        let (comp, level) = match compression {
+            Compression::None => (None, 0),
+            Compression::Zstd { level } => (Some(mcap::Compression::Zstd), level),
+        };
+        let opts = mcap::WriteOptions::new()
+            .compression(comp)
+            .compression_level(level)
+            // Single-threaded zstd: the same bytes on every machine; parallelism comes from shards.
+            .compression_threads(0)
+            // Chunks are closed explicitly after each sample: one chunk per sample.
+            .chunk_size(None)
+            .library(meta.generator.clone());
+        let mut mcap = opts.create(BufWriter::with_capacity(1 << 20, file))?;
+        let channels = Channels {
+            rgb: add::<RawImage>(&mut mcap, topics::RGB)?,
+            depth: add::<RawImage>(&mut mcap, topics::DEPTH)?,
+            mask: add::<RawImage>(&mut mcap, topics::MASK)?,
+            calibration: add::<CameraCalibration>(&mut mcap, topics::CALIBRATION)?,
+            pose: add::<PoseInFrame>(&mut mcap, topics::OBJECT_POSE)?,
+            tf: add::<FrameTransforms>(&mut mcap, topics::TF)?,
+            info: {
+                let sid = mcap.add_schema("vtgen.SampleInfo", "jsonschema", SAMPLE_INFO_SCHEMA.as_bytes())?;
+                mcap.add_channel(sid, topics::SAMPLE_INFO, "json", &BTreeMap::new())?
+            },
+        };
+        mcap.write_metadata(&mcap::records::Metadata { name: SHARD_METADATA.into(), metadata: meta.to_map() })?;
+        Ok(ShardWriter { mcap, channels, partial_path, final_path: final_path.to_path_buf(), sequence: 0, written: 0, expected: meta.sample_count })
+    }
+
+    fn put(&mut self, channel: u16, log_time: u64, data: &[u8]) -> Result<()> {
+        let header = mcap::records::MessageHeader { channel_id: channel, sequence: self.sequence, log_time, publish_time: log_time };
+        self.sequence += 1;
+        self.mcap.write_to_known_channel(&header, data)?;
+        Ok(())
+    }
+
+    /// Appends one sample as one chunk.
+    pub fn write_sample(&mut self, s: &Sample) -> Result<()> {
+        let t = s.index * SAMPLE_PERIOD_NS;
+        let (w, h) = (s.width, s.height);
+        anyhow::ensure!(s.rgb.len() == (w * h * 3) as usize && s.depth.len() == (w * h) as usize && s.mask.len() == (w * h) as usize, "image sizes do not match {w}x{h}");
+        let image = |encoding: &str, step: u32, data: &[u8]| RawImage {
+            timestamp: ts(t),
+            frame_id: frames::CAMERA.into(),
+            width: w,
+            height: h,
+            encoding: encoding.into(),
+            step,
+            data: prost::bytes::Bytes::copy_from_slice(data),
+        };
+        let rgb = image("rgb8", w * 3, &s.rgb).encode_to_vec();
+        self.put(self.channels.rgb, t, &rgb)?;
+        let depth_bytes: Vec<u8> = s.depth.iter().flat_map(|d| d.to_le_bytes()).collect();
+        let depth = image("32FC1", w * 4, &depth_bytes).encode_to_vec();
+        self.put(self.channels.depth, t, &depth)?;
+        let mask = image("mono8", w, &s.mask).encode_to_vec();
+        self.put(self.channels.mask, t, &mask)?;
+        let k = s.k;
+        let calib = CameraCalibration {
+            timestamp: ts(t),
+            frame_id: frames::CAMERA.into(),
+            width: w,
+            height: h,
+            distortion_model: "plumb_bob".into(),
+            d: vec![0.0; 5],
+            k: k.to_vec(),
+            r: vec![1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+            p: vec![k[0], k[1], k[2], 0.0, k[3], k[4], k[5], 0.0, k[6], k[7], k[8], 0.0],
+        }
+        .encode_to_vec();
+        self.put(self.channels.calibration, t, &calib)?;
+        let pose = PoseInFrame { timestamp: ts(t), frame_id: frames::CAMERA.into(), pose: Some(fg_pose(&s.t_camera_object)) }.encode_to_vec();
+        self.put(self.channels.pose, t, &pose)?;
+        let tf = FrameTransforms {
+            transforms: vec![
+                transform(t, frames::WORLD, frames::CAMERA, &s.t_world_camera),
+                transform(t, frames::WORLD, frames::OBJECT, &s.t_world_object),
+            ],
+        }
+        .encode_to_vec();
+        self.put(self.channels.tf, t, &tf)?;
+        let info = serde_json::to_vec(&s.info)?;
+        self.put(self.channels.info, t, &info)?;
+        // Close the chunk: a random read of sample i decompresses exactly one chunk.
+        self.mcap.flush()?;
+        self.written += 1;
+        Ok(())
+    }
+
+    /// Writes the summary, syncs, and renames the shard to its final name. Until this returns, no
+    /// file with the final name exists, so an interrupted run never leaves a complete-looking shard.
+    pub fn finish(mut self) -> Result<ShardReceipt> {
+        anyhow::ensure!(self.written == self.expected, "shard has {} samples, expected {}", self.written, self.expected);
+        self.mcap.finish()?;
+        let file = self.mcap.into_inner().into_inner().map_err(|e| e.into_error())?;
+        file.sync_all()?;
+        drop(file);
+        std::fs::rename(&self.partial_path, &self.final_path)
+            .with_context(|| format!("cannot rename {} to {}", self.partial_path.display(), self.final_path.display()))?;
+        let (bytes, sha256) = crate::manifest::sha256_file(&self.final_path)?;
+        Ok(ShardReceipt { path: self.final_path.clone(), bytes, sha256 })
+    }
+}

@@ -1,0 +1,128 @@
+//! Finds the line and column of a field path in YAML text, for problems found after parsing
+//! (ranges, cross-field checks). Handles block mappings, block sequences and one-line flow
+//! collections, which is how configs are written; returns None when it cannot tell, and the error
+//! then names the file and field only.
+
+/// One step of a field path.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Seg {
+    Key(&'static str),
+    Index(usize),
+}
+
+pub fn display_path(path: &[Seg]) -> String {
+    let mut s = String::new();
+    for seg in path {
+        match seg {
+            Seg::Key(k) if s.is_empty() => s.push_str(k),
+            Seg::Key(k) => {
+                s.push('.');
+                s.push_str(k);
+            }
+            Seg::Index(i) => s.push_str(&format!("[{i}]")),
+        }
+    }
+    s
+}
+
+struct Line<'a> {
+    text: &'a str,
+    indent: usize,
+}
+
+fn lines(text: &str) -> Vec<Line<'_>> {
+    text.lines()
+        .map(|l| {
+            let code = if l.trim_start().starts_with('#') { "" } else { l.find(" #").map_or(l, |p| &l[..p]) };
+            Line { text: code, indent: code.len() - code.trim_start().len() }
+        })
+        .collect()
+}
+
+/// Column (0-based) where the node of a line starts after any `- ` sequence markers.
+fn node_start(l: &str) -> usize {
+    let mut i = l.len() - l.trim_start().len();
+    while l[i..].starts_with("- ") {
+        i += 2;
+        i += l[i..].len() - l[i..].trim_start().len();
+    }
+    i
+}
+
+/// 1-based (line, column) of the last segment of `path`.
+pub fn locate(text: &str, path: &[Seg]) -> Option<(usize, usize)> {
+    let ls = lines(text);
+    // The node being searched: lines [from, to), whose direct children sit at columns > `col`
+    // (or at `col` itself for a block sequence written under its key).
+    let (mut from, mut to, mut col): (usize, usize, isize) = (0, ls.len(), -1);
+    let mut at = None;
+    for (depth, seg) in path.iter().enumerate() {
+        let last = depth + 1 == path.len();
+        let hit = match seg {
+            Seg::Key(k) => (from..to).find_map(|i| {
+                let l = ls[i].text;
+                let s = node_start(l);
+                if (s as isize > col || (depth == 0 && s == 0)) && l[s..].starts_with(&format!("{k}:")) {
+                    return Some((i, s));
+                }
+                // A one-line flow mapping: `parent: {a: 1, k: 2}`.
+                let open = l.find('{')?;
+                [format!("{{{k}:"), format!(" {k}:"), format!(",{k}:")]
+                    .iter()
+                    .find_map(|p| l[open..].find(p.as_str()).map(|q| (i, open + q + p.len() - k.len() - 1)))
+            }),
+            Seg::Index(n) => {
+                // Block sequence items: `- ` at the first dash indent found in the window.
+                let dashes: Vec<(usize, usize)> = (from..to)
+                    .filter(|&i| ls[i].text.trim_start().starts_with("- ") && ls[i].indent as isize >= col)
+                    .map(|i| (i, ls[i].indent))
+                    .collect();
+                let first = dashes.first().map(|d| d.1);
+                match dashes.into_iter().filter(|d| Some(d.1) == first).nth(*n) {
+                    Some((i, ind)) => Some((i, ind + 2)),
+                    // A flow sequence `[a, b]` on the parent's line: point at the parent.
+                    None => return at,
+                }
+            }
+        };
+        let (i, c) = hit?;
+        at = Some((i + 1, c + 1));
+        if last {
+            break;
+        }
+        // The node's extent: its own line plus the following lines indented deeper than it
+        // (or block-sequence dashes at its own indent, `key:\n- a`).
+        let mut j = i + 1;
+        while j < to {
+            let l = &ls[j];
+            let deeper = l.indent > c || (l.indent == c && l.text.trim_start().starts_with("- ") && matches!(seg, Seg::Key(_)));
+            if !l.text.trim().is_empty() && !deeper {
+                break;
+            }
+            j += 1;
+        }
+        from = i;
+        to = j;
+        col = c as isize;
+    }
+    at
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const YAML: &str = "seed: 1\nobjects:\n  - 003_cracker_box\n  - id: custom\n    mesh: a.obj\ncamera:\n  width: 640\n  intrinsics: {fx: 600, fy: 610, cx: 1, cy: 2}\n  near: 0.1 # comment\nscene:\n  workspace:\n    min: [0, 0, 0]\n";
+
+    #[test]
+    fn finds_block_flow_and_sequence_fields() {
+        assert_eq!(locate(YAML, &[Seg::Key("seed")]), Some((1, 1)));
+        assert_eq!(locate(YAML, &[Seg::Key("camera"), Seg::Key("near")]), Some((9, 3)));
+        assert_eq!(locate(YAML, &[Seg::Key("camera"), Seg::Key("intrinsics"), Seg::Key("fy")]), Some((8, 25)));
+        assert_eq!(locate(YAML, &[Seg::Key("objects"), Seg::Index(1)]), Some((4, 5)));
+        assert_eq!(locate(YAML, &[Seg::Key("objects"), Seg::Index(1), Seg::Key("mesh")]), Some((5, 5)));
+        assert_eq!(locate(YAML, &[Seg::Key("scene"), Seg::Key("workspace"), Seg::Key("min")]), Some((12, 5)));
+        assert_eq!(locate(YAML, &[Seg::Key("camera"), Seg::Key("far")]), None);
+        assert_eq!(display_path(&[Seg::Key("objects"), Seg::Index(1), Seg::Key("mesh")]), "objects[1].mesh");
+    }
+}

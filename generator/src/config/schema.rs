@@ -1,0 +1,340 @@
+//! The config schema. Sections for the robot, physics, tactile sensing and randomization slot in
+//! here as new optional sections; unknown keys are rejected everywhere.
+
+use std::path::PathBuf;
+
+use serde::{Deserialize, Serialize};
+
+use super::locate::Seg;
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Config {
+    /// Root of all randomness: the same seed and config give byte-identical datasets.
+    pub seed: u64,
+    /// Catalogue ids (`003_cracker_box`, …) or custom objects `{id, mesh, …}`.
+    pub objects: Vec<ObjectSpec>,
+    /// A YCB download (`<dir>/<id>/google_16k/textured.obj`); when absent, procedural stand-ins.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ycb_dir: Option<PathBuf>,
+    pub sampling: Sampling,
+    pub camera: Camera,
+    #[serde(default)]
+    pub scene: SceneConfig,
+    #[serde(default)]
+    pub renderer: RendererConfig,
+    pub output: Output,
+}
+
+/// A catalogue id, or a custom object with its own mesh.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(untagged)]
+pub enum ObjectSpec {
+    Catalog(String),
+    Custom(CustomObject),
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CustomObject {
+    pub id: String,
+    /// OBJ (+MTL), glTF or GLB, relative to the config file.
+    pub mesh: PathBuf,
+    #[serde(default = "default_mass")]
+    pub mass: f64,
+    #[serde(default)]
+    pub symmetry: vt_objects::Symmetry,
+}
+
+fn default_mass() -> f64 {
+    0.2
+}
+
+impl ObjectSpec {
+    pub fn id(&self) -> &str {
+        match self {
+            ObjectSpec::Catalog(id) => id,
+            ObjectSpec::Custom(c) => &c.id,
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for ObjectSpec {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> serde::de::Visitor<'de> for V {
+            type Value = ObjectSpec;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a catalogue object id (e.g. 003_cracker_box) or a custom object {id, mesh, mass, symmetry}")
+            }
+            fn visit_str<E: serde::de::Error>(self, v: &str) -> Result<ObjectSpec, E> {
+                Ok(ObjectSpec::Catalog(v.to_string()))
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(self, map: A) -> Result<ObjectSpec, A::Error> {
+                CustomObject::deserialize(serde::de::value::MapAccessDeserializer::new(map)).map(ObjectSpec::Custom)
+            }
+        }
+        d.deserialize_any(V)
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Sampling {
+    /// Random trajectories per object (the paper: 200).
+    pub trajectories_per_object: u32,
+    /// Recorded instances per trajectory (the paper: 100).
+    pub instances_per_trajectory: u32,
+    #[serde(default)]
+    pub split: Split,
+}
+
+/// Train/test ratio, decided per trajectory (FORMAT.md).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Split {
+    pub train: u32,
+    pub test: u32,
+}
+
+impl Default for Split {
+    fn default() -> Self {
+        Split { train: 4, test: 1 }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Camera {
+    pub width: u32,
+    pub height: u32,
+    /// Pinhole intrinsics in pixels (FORMAT.md pixel-centre convention) …
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub intrinsics: Option<Intrinsics>,
+    /// … or a vertical field of view in degrees (square pixels, centred principal point).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fov_y_deg: Option<f64>,
+    /// Camera position in the world frame (metres).
+    pub position: [f64; 3],
+    /// World point the optical axis goes through.
+    pub look_at: [f64; 3],
+    #[serde(default = "default_near")]
+    pub near: f64,
+    #[serde(default = "default_far")]
+    pub far: f64,
+}
+
+fn default_near() -> f64 {
+    0.05
+}
+fn default_far() -> f64 {
+    10.0
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Intrinsics {
+    pub fx: f64,
+    pub fy: f64,
+    pub cx: f64,
+    pub cy: f64,
+}
+
+impl Camera {
+    /// The intrinsics, from `intrinsics` or derived from `fov_y_deg`.
+    pub fn k(&self) -> Intrinsics {
+        match (self.intrinsics, self.fov_y_deg) {
+            (Some(k), _) => k,
+            (None, Some(fov)) => {
+                let f = 0.5 * self.height as f64 / (0.5 * fov.to_radians()).tan();
+                Intrinsics { fx: f, fy: f, cx: (self.width as f64 - 1.0) / 2.0, cy: (self.height as f64 - 1.0) / 2.0 }
+            }
+            (None, None) => unreachable!("validate() requires intrinsics or fov_y_deg"),
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneConfig {
+    /// Box (world frame) in which the object's centre is placed.
+    #[serde(default)]
+    pub workspace: Workspace,
+    /// Background colour (sRGB) where nothing is drawn.
+    #[serde(default = "default_background")]
+    pub background: [u8; 3],
+}
+
+impl Default for SceneConfig {
+    fn default() -> Self {
+        SceneConfig { workspace: Workspace::default(), background: default_background() }
+    }
+}
+
+fn default_background() -> [u8; 3] {
+    [70, 78, 92]
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Workspace {
+    pub min: [f64; 3],
+    pub max: [f64; 3],
+}
+
+impl Default for Workspace {
+    fn default() -> Self {
+        Workspace { min: [-0.08, -0.08, 0.18], max: [0.08, 0.08, 0.32] }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RendererConfig {
+    #[serde(default)]
+    pub backend: Backend,
+    /// Pick the adapter whose name contains this text (e.g. "llvmpipe", "H100").
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub adapter: Option<String>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Backend {
+    /// The best adapter found: a GPU if there is one, else a CPU rasterizer (Mesa lavapipe).
+    #[default]
+    Auto,
+    Vulkan,
+    Gl,
+    Metal,
+    Dx12,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Output {
+    /// Dataset directory, relative to the current directory (overridable with `--out`).
+    pub dir: PathBuf,
+    #[serde(default = "default_samples_per_shard")]
+    pub samples_per_shard: u32,
+    #[serde(default)]
+    pub compression: CompressionKind,
+    #[serde(default = "default_zstd_level")]
+    pub zstd_level: i32,
+}
+
+fn default_samples_per_shard() -> u32 {
+    500
+}
+fn default_zstd_level() -> i32 {
+    3
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum CompressionKind {
+    #[default]
+    Zstd,
+    None,
+}
+
+/// A value that parsed but is not acceptable.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Problem {
+    pub path: Vec<Seg>,
+    pub message: String,
+}
+
+fn range<T: PartialOrd + std::fmt::Display>(out: &mut Vec<Problem>, path: Vec<Seg>, v: T, lo: T, hi: T) {
+    if !(v >= lo && v <= hi) {
+        out.push(Problem { path, message: format!("{v} is out of range: allowed {lo} ..= {hi}") });
+    }
+}
+
+impl Config {
+    /// Every problem of a parsed config, in document order.
+    pub fn validate(&self) -> Vec<Problem> {
+        use Seg::{Index, Key};
+        let mut p = Vec::new();
+        if self.objects.is_empty() {
+            p.push(Problem { path: vec![Key("objects")], message: "at least one object is required".into() });
+        }
+        let catalog = vt_objects::Catalog::builtin();
+        let mut seen = std::collections::BTreeSet::new();
+        for (i, o) in self.objects.iter().enumerate() {
+            let id = o.id();
+            if let ObjectSpec::Catalog(id) = o {
+                if catalog.get(id).is_none() {
+                    let known: Vec<&str> = catalog.ids().collect();
+                    p.push(Problem { path: vec![Key("objects"), Index(i)], message: format!("unknown object id '{id}'; the catalogue has: {}", known.join(", ")) });
+                }
+            }
+            if let ObjectSpec::Custom(c) = o {
+                if !(c.mass > 0.0 && c.mass <= 100.0) {
+                    p.push(Problem { path: vec![Key("objects"), Index(i), Key("mass")], message: format!("{} is out of range: allowed 0 < mass <= 100 kg", c.mass) });
+                }
+                if c.id.is_empty() || !c.id.chars().all(|ch| ch.is_ascii_alphanumeric() || ch == '_' || ch == '-') {
+                    p.push(Problem { path: vec![Key("objects"), Index(i), Key("id")], message: format!("'{}' is not a valid id: use letters, digits, '_' and '-'", c.id) });
+                }
+            }
+            if !seen.insert(id.to_string()) {
+                p.push(Problem { path: vec![Key("objects"), Index(i)], message: format!("object '{id}' is listed twice") });
+            }
+        }
+        let s = &self.sampling;
+        range(&mut p, vec![Key("sampling"), Key("trajectories_per_object")], s.trajectories_per_object, 1, 1_000_000);
+        range(&mut p, vec![Key("sampling"), Key("instances_per_trajectory")], s.instances_per_trajectory, 1, 100_000);
+        range(&mut p, vec![Key("sampling"), Key("split"), Key("train")], s.split.train, 0, 1000);
+        range(&mut p, vec![Key("sampling"), Key("split"), Key("test")], s.split.test, 0, 1000);
+        if s.split.train + s.split.test == 0 {
+            p.push(Problem { path: vec![Key("sampling"), Key("split")], message: "train + test must be at least 1".into() });
+        }
+        let c = &self.camera;
+        range(&mut p, vec![Key("camera"), Key("width")], c.width, 8, 8192);
+        range(&mut p, vec![Key("camera"), Key("height")], c.height, 8, 8192);
+        match (&c.intrinsics, c.fov_y_deg) {
+            (Some(_), Some(_)) => p.push(Problem { path: vec![Key("camera"), Key("fov_y_deg")], message: "give either intrinsics or fov_y_deg, not both".into() }),
+            (None, None) => p.push(Problem { path: vec![Key("camera")], message: "camera needs `intrinsics: {fx, fy, cx, cy}` or `fov_y_deg`".into() }),
+            (None, Some(f)) => range(&mut p, vec![Key("camera"), Key("fov_y_deg")], f, 1.0, 170.0),
+            (Some(k), None) => {
+                for (name, v) in [("fx", k.fx), ("fy", k.fy)] {
+                    range(&mut p, vec![Key("camera"), Key("intrinsics"), Key(name)], v, 1.0, 1e6);
+                }
+                range(&mut p, vec![Key("camera"), Key("intrinsics"), Key("cx")], k.cx, -0.5, c.width as f64 - 0.5);
+                range(&mut p, vec![Key("camera"), Key("intrinsics"), Key("cy")], k.cy, -0.5, c.height as f64 - 0.5);
+            }
+        }
+        range(&mut p, vec![Key("camera"), Key("near")], c.near, 1e-4, 100.0);
+        if !(c.far > c.near && c.far <= 1000.0) {
+            p.push(Problem { path: vec![Key("camera"), Key("far")], message: format!("{} is out of range: allowed near ({}) < far <= 1000", c.far, c.near) });
+        }
+        let d: f64 = (0..3).map(|i| (c.look_at[i] - c.position[i]).powi(2)).sum::<f64>().sqrt();
+        if !(d > 1e-6) {
+            p.push(Problem { path: vec![Key("camera"), Key("look_at")], message: "look_at must differ from position".into() });
+        } else if ((c.look_at[0] - c.position[0]).abs() + (c.look_at[1] - c.position[1]).abs()) < 1e-9 {
+            p.push(Problem { path: vec![Key("camera"), Key("look_at")], message: "the camera must not look straight up or down (world z is the up direction)".into() });
+        }
+        let w = &self.scene.workspace;
+        for i in 0..3 {
+            if !(w.min[i] <= w.max[i]) {
+                p.push(Problem { path: vec![Key("scene"), Key("workspace"), Key("max")], message: format!("max[{i}] = {} must be >= min[{i}] = {}", w.max[i], w.min[i]) });
+            }
+        }
+        if !(w.min[2] > 0.0) {
+            p.push(Problem { path: vec![Key("scene"), Key("workspace"), Key("min")], message: format!("min z = {} must be above the floor (z > 0)", w.min[2]) });
+        }
+        range(&mut p, vec![Key("output"), Key("samples_per_shard")], self.output.samples_per_shard, 1, 1_000_000);
+        range(&mut p, vec![Key("output"), Key("zstd_level")], self.output.zstd_level, 1, 19);
+        p
+    }
+
+    /// Canonical JSON of the dataset's definition: what `config_sha256` hashes. Locations that do
+    /// not change the data (output directory, YCB directory) are left out, so the same dataset
+    /// generated on machines with different paths carries the same hash and bytes.
+    pub fn canonical_json(&self) -> String {
+        let mut c = self.clone();
+        c.output.dir = PathBuf::new();
+        c.ycb_dir = None;
+        serde_json::to_string(&c).expect("config serializes")
+    }
+}

@@ -1,0 +1,12 @@
+//! vtgen: synthetic visuotactile training data for in-hand 6D object pose estimation.
+//!
+//! Data flows one way: config -> plan -> sampled scene -> render -> sample -> shard writer.
+//! Each stage is a module that can be used and tested alone.
+
+pub mod assets;
+pub mod config;
+pub mod dump;
+pub mod pipeline;
+pub mod plan;
+pub mod render;
+pub mod scene;

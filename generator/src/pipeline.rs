@@ -1,0 +1,373 @@
+//! `vtgen generate`: config -> plan -> (per shard, per sample) scene -> render -> sample -> shard
+//! writer, with resumable, atomically-renamed shards and a checksummed manifest.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::mpsc;
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use indicatif::{ProgressBar, ProgressStyle};
+use sha2::{Digest, Sha256};
+use vt_dataset::{Compression, Manifest, ModelInfo, ModelsInfo, Sample, ShardEntry, ShardMeta, ShardReceipt, ShardWriter, SplitManifest, mask_ids};
+use vt_objects::{Texture, TexturedMesh};
+use vt_randomizers::{Appearance, SampleKey};
+
+use crate::assets::{LoadedObject, load_objects};
+use crate::config::{CompressionKind, Config, LoadedConfig};
+use crate::plan::{Plan, SPLITS, ShardPlan, ShardSelector};
+use crate::render::{Draw, Lighting, MeshHandle, Renderer, View, WgpuRenderer};
+use crate::scene::sample_scene;
+
+pub const GENERATOR: &str = concat!("vtgen ", env!("CARGO_PKG_VERSION"));
+
+#[derive(Debug, Clone)]
+pub struct GenerateOptions {
+    pub out: PathBuf,
+    pub shard: ShardSelector,
+    pub resume: bool,
+    pub overwrite: bool,
+    pub jobs: usize,
+    pub quiet: bool,
+    pub ycb_dir: Option<PathBuf>,
+}
+
+#[derive(Debug, Clone)]
+pub struct GenerateSummary {
+    pub samples: u64,
+    pub shards_written: usize,
+    pub shards_skipped: usize,
+    pub bytes: u64,
+    pub seconds: f64,
+    pub adapter: String,
+    pub complete: bool,
+}
+
+pub fn sha256_hex(data: &[u8]) -> String {
+    Sha256::digest(data).iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// Everything a worker needs to turn sample coordinates into a sample.
+pub struct SampleFactory<'a> {
+    pub config: &'a Config,
+    pub objects: &'a [LoadedObject],
+    renderer: Box<dyn Renderer + 'a>,
+    object_meshes: Vec<MeshHandle>,
+    floor: MeshHandle,
+}
+
+/// The floor: a large textured quad on z = 0, the texture repeating every `tile` metres.
+fn floor_mesh(appearance: &Appearance) -> TexturedMesh {
+    let half = 3.0f32;
+    let reps = (2.0 * half as f64 / appearance.floor_tile) as f32;
+    let corners = [[-half, -half], [half, -half], [half, half], [-half, half]];
+    TexturedMesh {
+        positions: corners.iter().map(|c| [c[0], c[1], 0.0]).collect(),
+        normals: vec![[0.0, 0.0, 1.0]; 4],
+        uvs: corners.iter().map(|c| [(c[0] / (2.0 * half) + 0.5) * reps, (0.5 - c[1] / (2.0 * half)) * reps]).collect(),
+        indices: vec![0, 1, 2, 0, 2, 3],
+        texture: Texture { width: appearance.floor.width, height: appearance.floor.height, rgba: appearance.floor.rgba.clone() },
+    }
+}
+
+impl<'a> SampleFactory<'a> {
+    pub fn new(config: &'a Config, objects: &'a [LoadedObject], mut renderer: Box<dyn Renderer + 'a>) -> Result<Self> {
+        let floor = renderer.upload_mesh(&floor_mesh(&Appearance::canonical()))?;
+        let object_meshes = objects.iter().map(|o| renderer.upload_mesh(&o.mesh).with_context(|| format!("uploading '{}'", o.id))).collect::<Result<_>>()?;
+        Ok(SampleFactory { config, objects, renderer, object_meshes, floor })
+    }
+
+    pub fn renderer_name(&self) -> String {
+        self.renderer.describe()
+    }
+
+    pub fn make(&mut self, split: &str, index: u64, r: &crate::plan::SampleRef) -> Result<Sample> {
+        let obj = &self.objects[r.object_index as usize];
+        let key = SampleKey { seed: self.config.seed, object_id: &obj.id, trajectory: r.trajectory, instance: r.instance };
+        let scene = sample_scene(self.config, &key);
+        let cam = &self.config.camera;
+        let k = cam.k();
+        let view = View { width: cam.width, height: cam.height, k, near: cam.near, far: cam.far, t_world_camera: scene.t_world_camera.matrix() };
+        let light = &scene.appearance.light;
+        let lighting = Lighting {
+            light_position: light.position,
+            light_color: light.color.map(|c| c * light.intensity),
+            ambient: light.ambient,
+            background: self.config.scene.background,
+        };
+        let draws = [
+            Draw { mesh: self.floor, t_world_model: glam::DMat4::IDENTITY, mask_id: mask_ids::BACKGROUND },
+            Draw { mesh: self.object_meshes[r.object_index as usize], t_world_model: scene.t_world_object.matrix(), mask_id: mask_ids::TARGET_OBJECT },
+        ];
+        let img = self.renderer.render(&view, &lighting, &draws)?;
+        let t_camera_object = scene.t_world_camera.inverse().compose(&scene.t_world_object);
+        let visible = img.mask.iter().filter(|&&m| m == mask_ids::TARGET_OBJECT).count();
+        let info = serde_json::json!({
+            "split": split,
+            "index": index,
+            "object_id": obj.id,
+            "object_index": obj.index,
+            "mask_id": mask_ids::TARGET_OBJECT,
+            "trajectory": r.trajectory,
+            "instance": r.instance,
+            "randomized": scene.appearance.randomized,
+            "visible_pixels": visible,
+            "T_world_camera": scene.t_world_camera.to_json(),
+            "T_camera_object": t_camera_object.to_json(),
+        });
+        Ok(Sample {
+            index,
+            width: img.width,
+            height: img.height,
+            rgb: img.rgb,
+            depth: img.depth,
+            mask: img.mask,
+            k: [k.fx, 0.0, k.cx, 0.0, k.fy, k.cy, 0.0, 0.0, 1.0],
+            t_camera_object,
+            t_world_camera: scene.t_world_camera,
+            t_world_object: scene.t_world_object,
+            info,
+        })
+    }
+}
+
+fn write_models(out: &Path, objects: &[LoadedObject]) -> Result<()> {
+    let dir = out.join("models");
+    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let mut infos = Vec::new();
+    for o in objects {
+        let file = format!("{}.ply", o.id);
+        vt_dataset::write_ply(&dir.join(&file), &o.mesh.positions, &o.mesh.normals, &o.mesh.indices)?;
+        let e = o.mesh.extents();
+        infos.push(ModelInfo {
+            id: o.id.clone(),
+            object_index: o.index,
+            mask_id: mask_ids::TARGET_OBJECT,
+            symmetry: o.symmetry.as_str().into(),
+            mass: o.mass,
+            extents: [e.x as f64, e.y as f64, e.z as f64],
+            diameter: o.mesh.diameter(),
+            source: if o.source == "procedural" { "procedural".into() } else { "mesh".into() },
+            file,
+        });
+    }
+    let text = serde_json::to_string_pretty(&ModelsInfo { objects: infos })? + "\n";
+    std::fs::write(dir.join("models_info.json"), text).with_context(|| format!("cannot write {}", dir.display()))
+}
+
+/// Prepares the output directory: refuses to mix datasets of different configs, and to redo
+/// complete shards without `--resume` or `--overwrite`.
+fn prepare_output(out: &Path, config_json: &str, plan: &Plan, opts: &GenerateOptions) -> Result<()> {
+    std::fs::create_dir_all(out).with_context(|| format!("cannot create output directory {}", out.display()))?;
+    let cfg_path = out.join("config.json");
+    if let Ok(existing) = std::fs::read_to_string(&cfg_path) {
+        let same = existing == config_json;
+        if opts.overwrite {
+            for d in SPLITS.iter().chain(&["models"]) {
+                let p = out.join(d);
+                if p.exists() {
+                    std::fs::remove_dir_all(&p).with_context(|| format!("cannot remove {}", p.display()))?;
+                }
+            }
+            let _ = std::fs::remove_file(out.join("manifest.json"));
+        } else if !same {
+            bail!(
+                "{} holds a dataset generated from a different config; choose another --out, or pass --overwrite to replace it",
+                out.display()
+            );
+        } else if !opts.resume {
+            let done = plan.shards.iter().filter(|s| opts.shard.selects(s) && out.join(s.file()).is_file()).count();
+            if done > 0 {
+                bail!("{} already has {done} complete shard(s) of this dataset; pass --resume to continue it or --overwrite to start again", out.display());
+            }
+        }
+    }
+    let tmp = out.join("config.json.tmp");
+    std::fs::write(&tmp, config_json).with_context(|| format!("output directory {} is not writable", out.display()))?;
+    std::fs::rename(&tmp, &cfg_path).with_context(|| format!("cannot write {}", cfg_path.display()))?;
+    Ok(())
+}
+
+/// Rebuilds `manifest.json` from the shards on disk. Checksums already known (from this run or the
+/// previous manifest, same size) are reused; unknown complete shards are hashed. Parallel `--shard`
+/// processes on one directory each rewrite it this way, so the last one to finish lists them all.
+fn update_manifest(out: &Path, config: &Config, config_sha: &str, plan: &Plan, receipts: &[(String, ShardReceipt)]) -> Result<Manifest> {
+    let mut known: BTreeMap<String, (u64, String)> = BTreeMap::new();
+    if let Ok(old) = Manifest::load(&out.join("manifest.json")) {
+        if old.config_sha256 == config_sha {
+            for s in old.splits.values().flat_map(|s| &s.shards) {
+                if let (Some(b), Some(h)) = (s.bytes, &s.sha256) {
+                    known.insert(s.file.clone(), (b, h.clone()));
+                }
+            }
+        }
+    }
+    for (file, r) in receipts {
+        known.insert(file.clone(), (r.bytes, r.sha256.clone()));
+    }
+    let mut splits = BTreeMap::new();
+    let mut complete = true;
+    for (si, split) in SPLITS.iter().enumerate() {
+        let mut shards = Vec::new();
+        for s in plan.shards.iter().filter(|s| s.split == *split) {
+            let file = s.file();
+            let path = out.join(&file);
+            let (bytes, sha256) = match std::fs::metadata(&path) {
+                Ok(m) => match known.get(&file) {
+                    Some((b, h)) if *b == m.len() => (Some(*b), Some(h.clone())),
+                    _ => {
+                        let (b, h) = vt_dataset::sha256_file(&path)?;
+                        (Some(b), Some(h))
+                    }
+                },
+                Err(_) => {
+                    complete = false;
+                    (None, None)
+                }
+            };
+            shards.push(ShardEntry { file, shard_index: s.shard_index, first_sample: s.first_sample, samples: s.samples.len() as u64, bytes, sha256 });
+        }
+        splits.insert(split.to_string(), SplitManifest { samples: plan.samples_per_split[si], samples_per_shard: plan.samples_per_shard, shards });
+    }
+    let m = Manifest {
+        format: "vtgen-dataset".into(),
+        format_version: vt_dataset::FORMAT_VERSION,
+        generator: GENERATOR.into(),
+        seed: config.seed,
+        config_sha256: config_sha.into(),
+        complete,
+        splits,
+    };
+    m.save(&out.join("manifest.json"))?;
+    Ok(m)
+}
+
+fn write_shard(factory: &mut SampleFactory, out: &Path, shard: &ShardPlan, meta: &ShardMeta, compression: Compression, progress: &ProgressBar, abort: &AtomicBool) -> Result<Option<ShardReceipt>> {
+    let path = out.join(shard.file());
+    let mut writer = ShardWriter::create(&path, meta, compression)?;
+    for (k, r) in shard.samples.iter().enumerate() {
+        if abort.load(Ordering::Relaxed) {
+            return Ok(None);
+        }
+        let index = shard.first_sample + k as u64;
+        let sample = factory.make(shard.split, index, r).with_context(|| format!("{} sample {index}", shard.split))?;
+        writer.write_sample(&sample).with_context(|| format!("writing {}", path.display()))?;
+        progress.inc(1);
+    }
+    Ok(Some(writer.finish()?))
+}
+
+/// Generates the dataset (or this process's `--shard` part of it).
+pub fn generate(cfg: &LoadedConfig, opts: &GenerateOptions) -> Result<GenerateSummary> {
+    let started = Instant::now();
+    let config = &cfg.config;
+    let plan = Plan::new(config);
+    let config_json = config.canonical_json();
+    let config_sha = sha256_hex(config_json.as_bytes());
+    let out = &opts.out;
+    prepare_output(out, &config_json, &plan, opts)?;
+    let objects = load_objects(cfg, opts.ycb_dir.as_ref())?;
+    write_models(out, &objects)?;
+
+    let selected: Vec<&ShardPlan> = plan.shards.iter().filter(|s| opts.shard.selects(s)).collect();
+    let mut todo = Vec::new();
+    let mut skipped = 0;
+    for s in &selected {
+        let path = out.join(s.file());
+        if path.is_file() {
+            skipped += 1;
+            continue;
+        }
+        // A leftover from an interrupted run: never complete, always redone.
+        let partial = PathBuf::from(format!("{}{}", path.display(), vt_dataset::PARTIAL_SUFFIX));
+        if partial.exists() {
+            std::fs::remove_file(&partial).with_context(|| format!("cannot remove {}", partial.display()))?;
+        }
+        todo.push(*s);
+    }
+    let total: u64 = todo.iter().map(|s| s.samples.len() as u64).sum();
+    let progress = if opts.quiet { ProgressBar::hidden() } else { ProgressBar::new(total) };
+    progress.set_style(
+        ProgressStyle::with_template("{spinner} {elapsed_precise} [{bar:36}] {pos}/{len} samples  {per_sec}  ETA {eta}  {msg}")
+            .expect("valid template")
+            .progress_chars("=> "),
+    );
+    let compression = match config.output.compression {
+        CompressionKind::Zstd => Compression::Zstd { level: config.output.zstd_level as u32 },
+        CompressionKind::None => Compression::None,
+    };
+    let jobs = opts.jobs.max(1).min(todo.len().max(1));
+    let next = AtomicUsize::new(0);
+    let abort = AtomicBool::new(false);
+    let (tx, rx) = mpsc::channel::<Result<(String, ShardReceipt)>>();
+    let (name_tx, name_rx) = mpsc::channel::<String>();
+    let mut receipts = Vec::new();
+    let mut first_error = None;
+    std::thread::scope(|scope| {
+        for _ in 0..jobs {
+            let (tx, name_tx) = (tx.clone(), name_tx.clone());
+            let (todo, next, abort, progress, objects) = (&todo, &next, &abort, &progress, &objects);
+            let config_sha = &config_sha;
+            scope.spawn(move || {
+                let run = || -> Result<()> {
+                    if next.load(Ordering::SeqCst) >= todo.len() {
+                        return Ok(());
+                    }
+                    let renderer = WgpuRenderer::new(&config.renderer)?;
+                    let mut factory = SampleFactory::new(config, objects, Box::new(renderer))?;
+                    let _ = name_tx.send(factory.renderer_name());
+                    loop {
+                        let i = next.fetch_add(1, Ordering::SeqCst);
+                        if i >= todo.len() || abort.load(Ordering::Relaxed) {
+                            return Ok(());
+                        }
+                        let s = todo[i];
+                        let meta = ShardMeta {
+                            generator: GENERATOR.into(),
+                            seed: config.seed,
+                            config_sha256: config_sha.clone(),
+                            split: s.split.into(),
+                            shard_index: s.shard_index,
+                            first_sample: s.first_sample,
+                            sample_count: s.samples.len() as u64,
+                        };
+                        if let Some(r) = write_shard(&mut factory, out, s, &meta, compression, progress, abort)? {
+                            let _ = tx.send(Ok((s.file(), r)));
+                        }
+                    }
+                };
+                if let Err(e) = run() {
+                    abort.store(true, Ordering::SeqCst);
+                    let _ = tx.send(Err(e));
+                }
+            });
+        }
+        drop(tx);
+        drop(name_tx);
+        for r in rx {
+            match r {
+                Ok(r) => receipts.push(r),
+                Err(e) => {
+                    first_error.get_or_insert(e);
+                }
+            }
+        }
+    });
+    progress.finish_and_clear();
+    let adapter = name_rx.try_iter().next().unwrap_or_else(|| "none (nothing to render)".into());
+    // The manifest is rewritten even after an error, so finished shards are recorded.
+    let manifest = update_manifest(out, config, &config_sha, &plan, &receipts)?;
+    if let Some(e) = first_error {
+        return Err(e);
+    }
+    Ok(GenerateSummary {
+        samples: total,
+        shards_written: receipts.len(),
+        shards_skipped: skipped,
+        bytes: receipts.iter().map(|r| r.1.bytes).sum(),
+        seconds: started.elapsed().as_secs_f64(),
+        adapter,
+        complete: manifest.complete,
+    })
+}

@@ -1,0 +1,98 @@
+//! The dataset plan: which samples exist, their split, their order and their shard (FORMAT.md,
+//! "Samples, splits and shards"). Pure arithmetic on the config.
+
+use crate::config::Config;
+
+pub const SPLITS: [&str; 2] = ["train", "test"];
+
+/// One sample's coordinates.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SampleRef {
+    pub object_index: u32,
+    pub trajectory: u32,
+    pub instance: u32,
+}
+
+/// One shard to write.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ShardPlan {
+    /// Position in the dataset's shard list (train shards, then test shards).
+    pub job: usize,
+    pub split: &'static str,
+    pub shard_index: u32,
+    pub first_sample: u64,
+    pub samples: Vec<SampleRef>,
+}
+
+impl ShardPlan {
+    pub fn file(&self) -> String {
+        vt_dataset::shard_file(self.split, self.shard_index)
+    }
+}
+
+#[derive(Debug, Clone)]
+pub struct Plan {
+    pub shards: Vec<ShardPlan>,
+    pub samples_per_split: [u64; 2],
+    pub samples_per_shard: u64,
+}
+
+/// Is trajectory `t` in the test split? Every `train + test` trajectories, the last `test` are.
+pub fn is_test(config: &Config, trajectory: u32) -> bool {
+    let s = config.sampling.split;
+    trajectory % (s.train + s.test) >= s.train
+}
+
+impl Plan {
+    pub fn new(config: &Config) -> Self {
+        let s = &config.sampling;
+        let per_shard = config.output.samples_per_shard as u64;
+        let mut shards = Vec::new();
+        let mut samples_per_split = [0u64; 2];
+        for (si, split) in SPLITS.into_iter().enumerate() {
+            let mut all = Vec::new();
+            for o in 0..config.objects.len() as u32 {
+                for t in (0..s.trajectories_per_object).filter(|&t| is_test(config, t) == (si == 1)) {
+                    all.extend((0..s.instances_per_trajectory).map(|i| SampleRef { object_index: o, trajectory: t, instance: i }));
+                }
+            }
+            samples_per_split[si] = all.len() as u64;
+            for (k, chunk) in all.chunks(per_shard as usize).enumerate() {
+                shards.push(ShardPlan { job: shards.len(), split, shard_index: k as u32, first_sample: k as u64 * per_shard, samples: chunk.to_vec() });
+            }
+        }
+        Plan { shards, samples_per_split, samples_per_shard: per_shard }
+    }
+
+    pub fn total_samples(&self) -> u64 {
+        self.samples_per_split.iter().sum()
+    }
+}
+
+/// `--shard i/N`: which of the dataset's shards job `i` of `N` writes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ShardSelector {
+    pub index: usize,
+    pub count: usize,
+}
+
+impl ShardSelector {
+    pub const ALL: ShardSelector = ShardSelector { index: 0, count: 1 };
+
+    pub fn selects(&self, shard: &ShardPlan) -> bool {
+        shard.job % self.count == self.index
+    }
+}
+
+impl std::str::FromStr for ShardSelector {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        let err = || format!("'{s}' is not a shard selector: expected i/N with 0 <= i < N, e.g. 0/4");
+        let (i, n) = s.split_once('/').ok_or_else(err)?;
+        let (index, count): (usize, usize) = (i.trim().parse().map_err(|_| err())?, n.trim().parse().map_err(|_| err())?);
+        if count == 0 || index >= count {
+            return Err(err());
+        }
+        Ok(ShardSelector { index, count })
+    }
+}

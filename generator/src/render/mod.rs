@@ -1,0 +1,78 @@
+//! Rendering behind a small trait. The wgpu rasterizer is the one backend today; it runs on Mesa's
+//! lavapipe (CPU) and on real GPUs alike.
+
+mod wgpu_backend;
+
+use glam::DMat4;
+use vt_objects::TexturedMesh;
+
+pub use wgpu_backend::WgpuRenderer;
+
+use crate::config::Intrinsics;
+
+/// Handle of a mesh uploaded to a renderer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct MeshHandle(pub(crate) usize);
+
+/// A pinhole view: OpenCV camera frame, z-depth between `near` and `far`.
+#[derive(Debug, Clone, Copy)]
+pub struct View {
+    pub width: u32,
+    pub height: u32,
+    pub k: Intrinsics,
+    pub near: f64,
+    pub far: f64,
+    pub t_world_camera: DMat4,
+}
+
+/// A point light and an ambient term (linear RGB), world frame.
+#[derive(Debug, Clone, Copy)]
+pub struct Lighting {
+    pub light_position: glam::DVec3,
+    pub light_color: [f32; 3],
+    pub ambient: [f32; 3],
+    /// sRGB colour where nothing is drawn.
+    pub background: [u8; 3],
+}
+
+/// One mesh placed in the world, with the mask id its pixels get.
+#[derive(Debug, Clone, Copy)]
+pub struct Draw {
+    pub mesh: MeshHandle,
+    pub t_world_model: DMat4,
+    pub mask_id: u8,
+}
+
+/// The images of one view, row-major, row 0 at the top.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RenderOutput {
+    pub width: u32,
+    pub height: u32,
+    /// sRGB, 3 bytes per pixel.
+    pub rgb: Vec<u8>,
+    /// z-depth in metres, 0 where nothing was drawn.
+    pub depth: Vec<f32>,
+    pub mask: Vec<u8>,
+}
+
+pub trait Renderer {
+    /// Adapter and backend in words, e.g. "llvmpipe (LLVM 15.0.6, 256 bits) [Vulkan, Cpu]".
+    fn describe(&self) -> String;
+    fn upload_mesh(&mut self, mesh: &TexturedMesh) -> anyhow::Result<MeshHandle>;
+    fn render(&mut self, view: &View, lighting: &Lighting, draws: &[Draw]) -> anyhow::Result<RenderOutput>;
+}
+
+/// OpenCV intrinsics to a wgpu clip-space projection (column-major). Pixel (u, v) of the image is
+/// centred at framebuffer coordinate (u + 0.5, v + 0.5), which is where the rasterizer samples, so
+/// a point projecting to `u = fx x/z + cx` is drawn in pixel round(u) (FORMAT.md).
+pub fn projection(view: &View) -> glam::DMat4 {
+    let (w, h) = (view.width as f64, view.height as f64);
+    let k = view.k;
+    let (n, f) = (view.near, view.far);
+    glam::DMat4::from_cols(
+        glam::DVec4::new(2.0 * k.fx / w, 0.0, 0.0, 0.0),
+        glam::DVec4::new(0.0, -2.0 * k.fy / h, 0.0, 0.0),
+        glam::DVec4::new(2.0 * (k.cx + 0.5) / w - 1.0, 1.0 - 2.0 * (k.cy + 0.5) / h, f / (f - n), 1.0),
+        glam::DVec4::new(0.0, 0.0, -f * n / (f - n), 0.0),
+    )
+}

@@ -1,0 +1,512 @@
+//! The wgpu rasterizer. One render pass writes three colour targets (sRGB colour, R32Float
+//! z-depth, R8Uint mask) plus a depth buffer for the z-test; the targets are copied into
+//! 256-byte-aligned readback buffers and unpadded on the CPU.
+
+use anyhow::{Context, Result, anyhow, bail};
+use bytemuck::{Pod, Zeroable};
+use glam::DMat4;
+use vt_objects::TexturedMesh;
+use wgpu::util::DeviceExt;
+
+use super::{Draw, Lighting, MeshHandle, RenderOutput, Renderer, View, projection};
+use crate::config::{Backend, RendererConfig};
+
+const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
+const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Float;
+const MASK_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Uint;
+const ZBUF_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+/// Instance uniforms live in one buffer at 256-byte strides (dynamic offsets).
+const INSTANCE_STRIDE: u64 = 256;
+const MAX_DRAWS: usize = 256;
+
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct Vertex {
+    position: [f32; 3],
+    normal: [f32; 3],
+    uv: [f32; 2],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct FrameUniform {
+    view: [[f32; 4]; 4],
+    proj: [[f32; 4]; 4],
+    light_pos: [f32; 4],
+    light_color: [f32; 4],
+    ambient: [f32; 4],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct InstanceUniform {
+    model_view: [[f32; 4]; 4],
+    normal_mat: [[f32; 4]; 4],
+    mask_id: [u32; 4],
+}
+
+struct GpuMesh {
+    vertices: wgpu::Buffer,
+    indices: wgpu::Buffer,
+    index_count: u32,
+    material: wgpu::BindGroup,
+}
+
+struct Targets {
+    width: u32,
+    height: u32,
+    color: wgpu::TextureView,
+    depth: wgpu::TextureView,
+    mask: wgpu::TextureView,
+    zbuf: wgpu::TextureView,
+    color_tex: wgpu::Texture,
+    depth_tex: wgpu::Texture,
+    mask_tex: wgpu::Texture,
+    readback: [wgpu::Buffer; 3],
+}
+
+pub struct WgpuRenderer {
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    info: wgpu::AdapterInfo,
+    pipeline: wgpu::RenderPipeline,
+    material_layout: wgpu::BindGroupLayout,
+    sampler: wgpu::Sampler,
+    frame_buffer: wgpu::Buffer,
+    frame_group: wgpu::BindGroup,
+    instance_buffer: wgpu::Buffer,
+    instance_group: wgpu::BindGroup,
+    meshes: Vec<GpuMesh>,
+    targets: Option<Targets>,
+}
+
+fn backends(b: Backend) -> wgpu::Backends {
+    match b {
+        Backend::Auto => wgpu::Backends::all(),
+        Backend::Vulkan => wgpu::Backends::VULKAN,
+        Backend::Gl => wgpu::Backends::GL,
+        Backend::Metal => wgpu::Backends::METAL,
+        Backend::Dx12 => wgpu::Backends::DX12,
+    }
+}
+
+/// Preference among adapters: real GPUs first, then CPU rasterizers; Vulkan before GL, whose
+/// R32Float targets need Mesa overrides.
+fn rank(info: &wgpu::AdapterInfo) -> (u8, u8) {
+    let kind = match info.device_type {
+        wgpu::DeviceType::DiscreteGpu => 0,
+        wgpu::DeviceType::IntegratedGpu => 1,
+        wgpu::DeviceType::VirtualGpu => 2,
+        wgpu::DeviceType::Other => 3,
+        wgpu::DeviceType::Cpu => 4,
+    };
+    let api = match info.backend {
+        wgpu::Backend::Vulkan | wgpu::Backend::Metal | wgpu::Backend::Dx12 => 0,
+        _ => 1,
+    };
+    (kind, api)
+}
+
+pub fn describe_adapter(info: &wgpu::AdapterInfo) -> String {
+    let driver = if info.driver_info.is_empty() { String::new() } else { format!(" ({})", info.driver_info) };
+    format!("{}{driver} [{:?}, {:?}]", info.name, info.backend, info.device_type)
+}
+
+impl WgpuRenderer {
+    /// Picks an adapter as the config says and builds the pipeline.
+    pub fn new(cfg: &RendererConfig) -> Result<Self> {
+        let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
+        desc.backends = backends(cfg.backend);
+        let instance = wgpu::Instance::new(desc);
+        let mut adapters = pollster::block_on(instance.enumerate_adapters(backends(cfg.backend)));
+        if adapters.is_empty() {
+            bail!(
+                "no graphics adapter found for backend {:?}. On a machine without a GPU install Mesa's CPU Vulkan driver: \
+                 `sudo apt-get install mesa-vulkan-drivers libvulkan1` (Debian/Ubuntu)",
+                cfg.backend
+            );
+        }
+        if let Some(want) = &cfg.adapter {
+            let names: Vec<String> = adapters.iter().map(|a| describe_adapter(&a.get_info())).collect();
+            adapters.retain(|a| a.get_info().name.to_lowercase().contains(&want.to_lowercase()));
+            if adapters.is_empty() {
+                bail!("no adapter name contains '{want}'; found: {}", names.join("; "));
+            }
+        }
+        adapters.sort_by_key(|a| rank(&a.get_info()));
+        let adapter = adapters.into_iter().next().expect("non-empty");
+        let info = adapter.get_info();
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("vtgen"),
+            required_features: wgpu::Features::empty(),
+            required_limits: wgpu::Limits::downlevel_defaults().using_resolution(adapter.limits()),
+            experimental_features: wgpu::ExperimentalFeatures::disabled(),
+            memory_hints: wgpu::MemoryHints::Performance,
+            trace: wgpu::Trace::Off,
+        }))
+        .with_context(|| format!("cannot open a device on {}", describe_adapter(&info)))?;
+
+        let shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("main view"),
+            source: wgpu::ShaderSource::Wgsl(include_str!("shader.wgsl").into()),
+        });
+        let uniform_entry = |dynamic: bool, size: u64| wgpu::BindGroupLayoutEntry {
+            binding: 0,
+            visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Uniform,
+                has_dynamic_offset: dynamic,
+                min_binding_size: wgpu::BufferSize::new(size),
+            },
+            count: None,
+        };
+        let frame_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("frame"),
+            entries: &[uniform_entry(false, size_of::<FrameUniform>() as u64)],
+        });
+        let instance_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("instance"),
+            entries: &[uniform_entry(true, size_of::<InstanceUniform>() as u64)],
+        });
+        let material_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("material"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                    count: None,
+                },
+            ],
+        });
+        let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("main view"),
+            bind_group_layouts: &[Some(&frame_layout), Some(&instance_layout), Some(&material_layout)],
+            immediate_size: 0,
+        });
+        let target = |format| Some(wgpu::ColorTargetState { format, blend: None, write_mask: wgpu::ColorWrites::ALL });
+        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("main view"),
+            layout: Some(&layout),
+            vertex: wgpu::VertexState {
+                module: &shader,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: &[Some(wgpu::VertexBufferLayout {
+                    array_stride: size_of::<Vertex>() as u64,
+                    step_mode: wgpu::VertexStepMode::Vertex,
+                    attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2],
+                })],
+            },
+            primitive: wgpu::PrimitiveState {
+                topology: wgpu::PrimitiveTopology::TriangleList,
+                // No culling: scanned and user meshes are not reliably closed or consistently wound.
+                cull_mode: None,
+                ..Default::default()
+            },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: ZBUF_FORMAT,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &shader,
+                entry_point: Some("fs_main"),
+                compilation_options: Default::default(),
+                targets: &[target(COLOR_FORMAT), target(DEPTH_FORMAT), target(MASK_FORMAT)],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
+            label: Some("base colour"),
+            address_mode_u: wgpu::AddressMode::Repeat,
+            address_mode_v: wgpu::AddressMode::Repeat,
+            mag_filter: wgpu::FilterMode::Linear,
+            min_filter: wgpu::FilterMode::Linear,
+            ..Default::default()
+        });
+        let frame_buffer = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("frame"),
+            size: size_of::<FrameUniform>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let frame_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("frame"),
+            layout: &frame_layout,
+            entries: &[wgpu::BindGroupEntry { binding: 0, resource: frame_buffer.as_entire_binding() }],
+        });
+        let instance_buffer = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("instances"),
+            size: INSTANCE_STRIDE * MAX_DRAWS as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let instance_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("instances"),
+            layout: &instance_layout,
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                    buffer: &instance_buffer,
+                    offset: 0,
+                    size: wgpu::BufferSize::new(size_of::<InstanceUniform>() as u64),
+                }),
+            }],
+        });
+        Ok(WgpuRenderer {
+            device,
+            queue,
+            info,
+            pipeline,
+            material_layout,
+            sampler,
+            frame_buffer,
+            frame_group,
+            instance_buffer,
+            instance_group,
+            meshes: Vec::new(),
+            targets: None,
+        })
+    }
+
+    fn targets(&mut self, width: u32, height: u32) -> &Targets {
+        if self.targets.as_ref().is_none_or(|t| t.width != width || t.height != height) {
+            let make = |label, format| {
+                self.device.create_texture(&wgpu::TextureDescriptor {
+                    label: Some(label),
+                    size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+                    mip_level_count: 1,
+                    sample_count: 1,
+                    dimension: wgpu::TextureDimension::D2,
+                    format,
+                    usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+                    view_formats: &[],
+                })
+            };
+            let color_tex = make("colour", COLOR_FORMAT);
+            let depth_tex = make("depth", DEPTH_FORMAT);
+            let mask_tex = make("mask", MASK_FORMAT);
+            let zbuf_tex = make("z-buffer", ZBUF_FORMAT);
+            let readback = [4u32, 4, 1].map(|bpp| {
+                self.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("readback"),
+                    size: padded_row(width * bpp) as u64 * height as u64,
+                    usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                })
+            });
+            self.targets = Some(Targets {
+                width,
+                height,
+                color: color_tex.create_view(&Default::default()),
+                depth: depth_tex.create_view(&Default::default()),
+                mask: mask_tex.create_view(&Default::default()),
+                zbuf: zbuf_tex.create_view(&Default::default()),
+                color_tex,
+                depth_tex,
+                mask_tex,
+                readback,
+            });
+        }
+        self.targets.as_ref().expect("just created")
+    }
+}
+
+fn padded_row(bytes: u32) -> u32 {
+    bytes.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT
+}
+
+fn mat(m: DMat4) -> [[f32; 4]; 4] {
+    m.as_mat4().to_cols_array_2d()
+}
+
+impl Renderer for WgpuRenderer {
+    fn describe(&self) -> String {
+        describe_adapter(&self.info)
+    }
+
+    fn upload_mesh(&mut self, mesh: &TexturedMesh) -> Result<MeshHandle> {
+        let n = mesh.positions.len();
+        if mesh.normals.len() != n || mesh.uvs.len() != n {
+            bail!("mesh has {n} positions but {} normals and {} uvs", mesh.normals.len(), mesh.uvs.len());
+        }
+        let vertices: Vec<Vertex> = (0..n).map(|i| Vertex { position: mesh.positions[i], normal: mesh.normals[i], uv: mesh.uvs[i] }).collect();
+        let vbuf = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("vertices"),
+            contents: bytemuck::cast_slice(&vertices),
+            usage: wgpu::BufferUsages::VERTEX,
+        });
+        let ibuf = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("indices"),
+            contents: bytemuck::cast_slice(&mesh.indices),
+            usage: wgpu::BufferUsages::INDEX,
+        });
+        let t = &mesh.texture;
+        let max = self.device.limits().max_texture_dimension_2d;
+        if t.width > max || t.height > max {
+            bail!("texture {}x{} exceeds the adapter's limit of {max}", t.width, t.height);
+        }
+        let size = wgpu::Extent3d { width: t.width, height: t.height, depth_or_array_layers: 1 };
+        let texture = self.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("base colour"),
+            size,
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Rgba8UnormSrgb,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        });
+        self.queue.write_texture(
+            wgpu::TexelCopyTextureInfo { texture: &texture, mip_level: 0, origin: wgpu::Origin3d::ZERO, aspect: wgpu::TextureAspect::All },
+            &t.rgba,
+            wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(4 * t.width), rows_per_image: Some(t.height) },
+            size,
+        );
+        let view = texture.create_view(&Default::default());
+        let material = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("material"),
+            layout: &self.material_layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: wgpu::BindingResource::TextureView(&view) },
+                wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::Sampler(&self.sampler) },
+            ],
+        });
+        self.meshes.push(GpuMesh { vertices: vbuf, indices: ibuf, index_count: mesh.indices.len() as u32, material });
+        Ok(MeshHandle(self.meshes.len() - 1))
+    }
+
+    fn render(&mut self, view: &View, lighting: &Lighting, draws: &[Draw]) -> Result<RenderOutput> {
+        if draws.len() > MAX_DRAWS {
+            bail!("{} draws in one view; at most {MAX_DRAWS}", draws.len());
+        }
+        let t_camera_world = view.t_world_camera.inverse();
+        let light = t_camera_world.transform_point3(lighting.light_position);
+        let frame = FrameUniform {
+            view: mat(t_camera_world),
+            proj: mat(projection(view)),
+            light_pos: [light.x as f32, light.y as f32, light.z as f32, 1.0],
+            light_color: [lighting.light_color[0], lighting.light_color[1], lighting.light_color[2], 1.0],
+            ambient: [lighting.ambient[0], lighting.ambient[1], lighting.ambient[2], 1.0],
+        };
+        self.queue.write_buffer(&self.frame_buffer, 0, bytemuck::bytes_of(&frame));
+        let mut inst = vec![0u8; INSTANCE_STRIDE as usize * draws.len().max(1)];
+        for (i, d) in draws.iter().enumerate() {
+            // Model-view in f64, then f32: keeps camera-frame coordinates exact to ~1e-7 m.
+            let mv = t_camera_world * d.t_world_model;
+            let u = InstanceUniform {
+                model_view: mat(mv),
+                normal_mat: mat(mv.inverse().transpose()),
+                mask_id: [d.mask_id as u32, 0, 0, 0],
+            };
+            let o = i * INSTANCE_STRIDE as usize;
+            inst[o..o + size_of::<InstanceUniform>()].copy_from_slice(bytemuck::bytes_of(&u));
+        }
+        self.queue.write_buffer(&self.instance_buffer, 0, &inst);
+        for d in draws {
+            if d.mesh.0 >= self.meshes.len() {
+                bail!("draw refers to mesh {} of {}", d.mesh.0, self.meshes.len());
+            }
+        }
+        let (w, h) = (view.width, view.height);
+        self.targets(w, h);
+        let t = self.targets.as_ref().expect("created above");
+        let bg = lighting.background.map(|c| srgb_to_linear(c) as f64);
+        let mut enc = self.device.create_command_encoder(&Default::default());
+        {
+            let color_att = |view, clear: wgpu::Color| {
+                Some(wgpu::RenderPassColorAttachment {
+                    view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations { load: wgpu::LoadOp::Clear(clear), store: wgpu::StoreOp::Store },
+                })
+            };
+            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("main view"),
+                color_attachments: &[
+                    color_att(&t.color, wgpu::Color { r: bg[0], g: bg[1], b: bg[2], a: 1.0 }),
+                    color_att(&t.depth, wgpu::Color::TRANSPARENT),
+                    color_att(&t.mask, wgpu::Color::TRANSPARENT),
+                ],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &t.zbuf,
+                    depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Discard }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &self.frame_group, &[]);
+            for (i, d) in draws.iter().enumerate() {
+                let m = &self.meshes[d.mesh.0];
+                pass.set_bind_group(1, &self.instance_group, &[(i as u64 * INSTANCE_STRIDE) as u32]);
+                pass.set_bind_group(2, &m.material, &[]);
+                pass.set_vertex_buffer(0, m.vertices.slice(..));
+                pass.set_index_buffer(m.indices.slice(..), wgpu::IndexFormat::Uint32);
+                pass.draw_indexed(0..m.index_count, 0, 0..1);
+            }
+        }
+        for (tex, buf, bpp) in [(&t.color_tex, &t.readback[0], 4), (&t.depth_tex, &t.readback[1], 4), (&t.mask_tex, &t.readback[2], 1)] {
+            enc.copy_texture_to_buffer(
+                wgpu::TexelCopyTextureInfo { texture: tex, mip_level: 0, origin: wgpu::Origin3d::ZERO, aspect: wgpu::TextureAspect::All },
+                wgpu::TexelCopyBufferInfo {
+                    buffer: buf,
+                    layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(padded_row(w * bpp)), rows_per_image: Some(h) },
+                },
+                wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
+            );
+        }
+        self.queue.submit([enc.finish()]);
+        for b in &t.readback {
+            b.slice(..).map_async(wgpu::MapMode::Read, |r| {
+                if let Err(e) = r {
+                    eprintln!("vtgen: readback mapping failed: {e}");
+                }
+            });
+        }
+        self.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| anyhow!("GPU wait failed: {e}"))?;
+        let read = |buf: &wgpu::Buffer, bpp: u32| -> Result<Vec<u8>> {
+            let data = buf.slice(..).get_mapped_range().map_err(|e| anyhow!("readback failed: {e:?}"))?;
+            let row = (w * bpp) as usize;
+            let padded = padded_row(w * bpp) as usize;
+            let mut out = Vec::with_capacity(row * h as usize);
+            for r in 0..h as usize {
+                out.extend_from_slice(&data[r * padded..r * padded + row]);
+            }
+            Ok(out)
+        };
+        let rgba = read(&t.readback[0], 4)?;
+        let depth_bytes = read(&t.readback[1], 4)?;
+        let mask = read(&t.readback[2], 1)?;
+        for b in &t.readback {
+            b.unmap();
+        }
+        let rgb = rgba.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect();
+        let depth = bytemuck::pod_collect_to_vec::<u8, f32>(&depth_bytes);
+        Ok(RenderOutput { width: w, height: h, rgb, depth, mask })
+    }
+}
+
+fn srgb_to_linear(c: u8) -> f32 {
+    let c = c as f32 / 255.0;
+    if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
+}
+
