@@ -1,1 +1,10 @@
+//! Workspace integration tests. They are compiled as tests of the `vtgen` package so they can run
+//! the real binary; one test binary keeps link time low.
 
+mod common;
+
+mod bad_input;
+mod determinism;
+mod ground_truth;
+mod render_geometry;
+mod ycb_meshes;

@@ -11,7 +11,10 @@ pub struct Pose {
 impl Pose {
     pub fn from_rt(rotation: DQuat, translation: DVec3) -> Self {
         let q = rotation.normalize();
-        Pose { position: translation.to_array(), orientation: [q.x, q.y, q.z, q.w] }
+        Pose {
+            position: translation.to_array(),
+            orientation: [q.x, q.y, q.z, q.w],
+        }
     }
 
     pub fn rotation(&self) -> DQuat {
@@ -99,8 +102,15 @@ impl ShardMeta {
     }
 
     pub fn from_map(m: &std::collections::BTreeMap<String, String>) -> anyhow::Result<Self> {
-        let get = |k: &str| m.get(k).ok_or_else(|| anyhow::anyhow!("shard metadata lacks '{k}'"));
-        let num = |k: &str| -> anyhow::Result<u64> { get(k)?.parse().map_err(|_| anyhow::anyhow!("shard metadata '{k}' is not a number")) };
+        let get = |k: &str| {
+            m.get(k)
+                .ok_or_else(|| anyhow::anyhow!("shard metadata lacks '{k}'"))
+        };
+        let num = |k: &str| -> anyhow::Result<u64> {
+            get(k)?
+                .parse()
+                .map_err(|_| anyhow::anyhow!("shard metadata '{k}' is not a number"))
+        };
         Ok(ShardMeta {
             generator: get("generator")?.clone(),
             seed: num("seed")?,
@@ -114,11 +124,17 @@ impl ShardMeta {
 }
 
 impl Pose {
-    pub const IDENTITY: Pose = Pose { position: [0.0; 3], orientation: [0.0, 0.0, 0.0, 1.0] };
+    pub const IDENTITY: Pose = Pose {
+        position: [0.0; 3],
+        orientation: [0.0, 0.0, 0.0, 1.0],
+    };
 
     /// `self * other`: with `self = T_A_B` and `other = T_B_C`, gives `T_A_C`.
     pub fn compose(&self, other: &Pose) -> Pose {
-        Pose::from_rt(self.rotation() * other.rotation(), self.transform_point(other.translation()))
+        Pose::from_rt(
+            self.rotation() * other.rotation(),
+            self.transform_point(other.translation()),
+        )
     }
 
     /// `T_B_A` from `T_A_B`.

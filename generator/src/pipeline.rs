@@ -10,7 +10,10 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use sha2::{Digest, Sha256};
-use vt_dataset::{Compression, Manifest, ModelInfo, ModelsInfo, Sample, ShardEntry, ShardMeta, ShardReceipt, ShardWriter, SplitManifest, mask_ids};
+use vt_dataset::{
+    Compression, Manifest, ModelInfo, ModelsInfo, Sample, ShardEntry, ShardMeta, ShardReceipt,
+    ShardWriter, SplitManifest, mask_ids,
+};
 use vt_objects::{Texture, TexturedMesh};
 use vt_randomizers::{Appearance, SampleKey};
 
@@ -45,7 +48,10 @@ pub struct GenerateSummary {
 }
 
 pub fn sha256_hex(data: &[u8]) -> String {
-    Sha256::digest(data).iter().map(|b| format!("{b:02x}")).collect()
+    Sha256::digest(data)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
 }
 
 /// Everything a worker needs to turn sample coordinates into a sample.
@@ -65,17 +71,46 @@ fn floor_mesh(appearance: &Appearance) -> TexturedMesh {
     TexturedMesh {
         positions: corners.iter().map(|c| [c[0], c[1], 0.0]).collect(),
         normals: vec![[0.0, 0.0, 1.0]; 4],
-        uvs: corners.iter().map(|c| [(c[0] / (2.0 * half) + 0.5) * reps, (0.5 - c[1] / (2.0 * half)) * reps]).collect(),
+        uvs: corners
+            .iter()
+            .map(|c| {
+                [
+                    (c[0] / (2.0 * half) + 0.5) * reps,
+                    (0.5 - c[1] / (2.0 * half)) * reps,
+                ]
+            })
+            .collect(),
         indices: vec![0, 1, 2, 0, 2, 3],
-        texture: Texture { width: appearance.floor.width, height: appearance.floor.height, rgba: appearance.floor.rgba.clone() },
+        texture: Texture {
+            width: appearance.floor.width,
+            height: appearance.floor.height,
+            rgba: appearance.floor.rgba.clone(),
+        },
     }
 }
 
 impl<'a> SampleFactory<'a> {
-    pub fn new(config: &'a Config, objects: &'a [LoadedObject], mut renderer: Box<dyn Renderer + 'a>) -> Result<Self> {
+    pub fn new(
+        config: &'a Config,
+        objects: &'a [LoadedObject],
+        mut renderer: Box<dyn Renderer + 'a>,
+    ) -> Result<Self> {
         let floor = renderer.upload_mesh(&floor_mesh(&Appearance::canonical()))?;
-        let object_meshes = objects.iter().map(|o| renderer.upload_mesh(&o.mesh).with_context(|| format!("uploading '{}'", o.id))).collect::<Result<_>>()?;
-        Ok(SampleFactory { config, objects, renderer, object_meshes, floor })
+        let object_meshes = objects
+            .iter()
+            .map(|o| {
+                renderer
+                    .upload_mesh(&o.mesh)
+                    .with_context(|| format!("uploading '{}'", o.id))
+            })
+            .collect::<Result<_>>()?;
+        Ok(SampleFactory {
+            config,
+            objects,
+            renderer,
+            object_meshes,
+            floor,
+        })
     }
 
     pub fn renderer_name(&self) -> String {
@@ -84,11 +119,23 @@ impl<'a> SampleFactory<'a> {
 
     pub fn make(&mut self, split: &str, index: u64, r: &crate::plan::SampleRef) -> Result<Sample> {
         let obj = &self.objects[r.object_index as usize];
-        let key = SampleKey { seed: self.config.seed, object_id: &obj.id, trajectory: r.trajectory, instance: r.instance };
+        let key = SampleKey {
+            seed: self.config.seed,
+            object_id: &obj.id,
+            trajectory: r.trajectory,
+            instance: r.instance,
+        };
         let scene = sample_scene(self.config, &key);
         let cam = &self.config.camera;
         let k = cam.k();
-        let view = View { width: cam.width, height: cam.height, k, near: cam.near, far: cam.far, t_world_camera: scene.t_world_camera.matrix() };
+        let view = View {
+            width: cam.width,
+            height: cam.height,
+            k,
+            near: cam.near,
+            far: cam.far,
+            t_world_camera: scene.t_world_camera.matrix(),
+        };
         let light = &scene.appearance.light;
         let lighting = Lighting {
             light_position: light.position,
@@ -97,12 +144,27 @@ impl<'a> SampleFactory<'a> {
             background: self.config.scene.background,
         };
         let draws = [
-            Draw { mesh: self.floor, t_world_model: glam::DMat4::IDENTITY, mask_id: mask_ids::BACKGROUND },
-            Draw { mesh: self.object_meshes[r.object_index as usize], t_world_model: scene.t_world_object.matrix(), mask_id: mask_ids::TARGET_OBJECT },
+            Draw {
+                mesh: self.floor,
+                t_world_model: glam::DMat4::IDENTITY,
+                mask_id: mask_ids::BACKGROUND,
+            },
+            Draw {
+                mesh: self.object_meshes[r.object_index as usize],
+                t_world_model: scene.t_world_object.matrix(),
+                mask_id: mask_ids::TARGET_OBJECT,
+            },
         ];
         let img = self.renderer.render(&view, &lighting, &draws)?;
-        let t_camera_object = scene.t_world_camera.inverse().compose(&scene.t_world_object);
-        let visible = img.mask.iter().filter(|&&m| m == mask_ids::TARGET_OBJECT).count();
+        let t_camera_object = scene
+            .t_world_camera
+            .inverse()
+            .compose(&scene.t_world_object);
+        let visible = img
+            .mask
+            .iter()
+            .filter(|&&m| m == mask_ids::TARGET_OBJECT)
+            .count();
         let info = serde_json::json!({
             "split": split,
             "index": index,
@@ -138,7 +200,12 @@ fn write_models(out: &Path, objects: &[LoadedObject]) -> Result<()> {
     let mut infos = Vec::new();
     for o in objects {
         let file = format!("{}.ply", o.id);
-        vt_dataset::write_ply(&dir.join(&file), &o.mesh.positions, &o.mesh.normals, &o.mesh.indices)?;
+        vt_dataset::write_ply(
+            &dir.join(&file),
+            &o.mesh.positions,
+            &o.mesh.normals,
+            &o.mesh.indices,
+        )?;
         let e = o.mesh.extents();
         infos.push(ModelInfo {
             id: o.id.clone(),
@@ -148,18 +215,29 @@ fn write_models(out: &Path, objects: &[LoadedObject]) -> Result<()> {
             mass: o.mass,
             extents: [e.x as f64, e.y as f64, e.z as f64],
             diameter: o.mesh.diameter(),
-            source: if o.source == "procedural" { "procedural".into() } else { "mesh".into() },
+            source: if o.source == "procedural" {
+                "procedural".into()
+            } else {
+                "mesh".into()
+            },
             file,
         });
     }
     let text = serde_json::to_string_pretty(&ModelsInfo { objects: infos })? + "\n";
-    std::fs::write(dir.join("models_info.json"), text).with_context(|| format!("cannot write {}", dir.display()))
+    std::fs::write(dir.join("models_info.json"), text)
+        .with_context(|| format!("cannot write {}", dir.display()))
 }
 
 /// Prepares the output directory: refuses to mix datasets of different configs, and to redo
 /// complete shards without `--resume` or `--overwrite`.
-fn prepare_output(out: &Path, config_json: &str, plan: &Plan, opts: &GenerateOptions) -> Result<()> {
-    std::fs::create_dir_all(out).with_context(|| format!("cannot create output directory {}", out.display()))?;
+fn prepare_output(
+    out: &Path,
+    config_json: &str,
+    plan: &Plan,
+    opts: &GenerateOptions,
+) -> Result<()> {
+    std::fs::create_dir_all(out)
+        .with_context(|| format!("cannot create output directory {}", out.display()))?;
     let cfg_path = out.join("config.json");
     if let Ok(existing) = std::fs::read_to_string(&cfg_path) {
         let same = existing == config_json;
@@ -167,7 +245,8 @@ fn prepare_output(out: &Path, config_json: &str, plan: &Plan, opts: &GenerateOpt
             for d in SPLITS.iter().chain(&["models"]) {
                 let p = out.join(d);
                 if p.exists() {
-                    std::fs::remove_dir_all(&p).with_context(|| format!("cannot remove {}", p.display()))?;
+                    std::fs::remove_dir_all(&p)
+                        .with_context(|| format!("cannot remove {}", p.display()))?;
                 }
             }
             let _ = std::fs::remove_file(out.join("manifest.json"));
@@ -177,22 +256,37 @@ fn prepare_output(out: &Path, config_json: &str, plan: &Plan, opts: &GenerateOpt
                 out.display()
             );
         } else if !opts.resume {
-            let done = plan.shards.iter().filter(|s| opts.shard.selects(s) && out.join(s.file()).is_file()).count();
+            let done = plan
+                .shards
+                .iter()
+                .filter(|s| opts.shard.selects(s) && out.join(s.file()).is_file())
+                .count();
             if done > 0 {
-                bail!("{} already has {done} complete shard(s) of this dataset; pass --resume to continue it or --overwrite to start again", out.display());
+                bail!(
+                    "{} already has {done} complete shard(s) of this dataset; pass --resume to continue it or --overwrite to start again",
+                    out.display()
+                );
             }
         }
     }
     let tmp = out.join("config.json.tmp");
-    std::fs::write(&tmp, config_json).with_context(|| format!("output directory {} is not writable", out.display()))?;
-    std::fs::rename(&tmp, &cfg_path).with_context(|| format!("cannot write {}", cfg_path.display()))?;
+    std::fs::write(&tmp, config_json)
+        .with_context(|| format!("output directory {} is not writable", out.display()))?;
+    std::fs::rename(&tmp, &cfg_path)
+        .with_context(|| format!("cannot write {}", cfg_path.display()))?;
     Ok(())
 }
 
 /// Rebuilds `manifest.json` from the shards on disk. Checksums already known (from this run or the
 /// previous manifest, same size) are reused; unknown complete shards are hashed. Parallel `--shard`
 /// processes on one directory each rewrite it this way, so the last one to finish lists them all.
-fn update_manifest(out: &Path, config: &Config, config_sha: &str, plan: &Plan, receipts: &[(String, ShardReceipt)]) -> Result<Manifest> {
+fn update_manifest(
+    out: &Path,
+    config: &Config,
+    config_sha: &str,
+    plan: &Plan,
+    receipts: &[(String, ShardReceipt)],
+) -> Result<Manifest> {
     let mut known: BTreeMap<String, (u64, String)> = BTreeMap::new();
     if let Ok(old) = Manifest::load(&out.join("manifest.json")) {
         if old.config_sha256 == config_sha {
@@ -226,9 +320,23 @@ fn update_manifest(out: &Path, config: &Config, config_sha: &str, plan: &Plan, r
                     (None, None)
                 }
             };
-            shards.push(ShardEntry { file, shard_index: s.shard_index, first_sample: s.first_sample, samples: s.samples.len() as u64, bytes, sha256 });
+            shards.push(ShardEntry {
+                file,
+                shard_index: s.shard_index,
+                first_sample: s.first_sample,
+                samples: s.samples.len() as u64,
+                bytes,
+                sha256,
+            });
         }
-        splits.insert(split.to_string(), SplitManifest { samples: plan.samples_per_split[si], samples_per_shard: plan.samples_per_shard, shards });
+        splits.insert(
+            split.to_string(),
+            SplitManifest {
+                samples: plan.samples_per_split[si],
+                samples_per_shard: plan.samples_per_shard,
+                shards,
+            },
+        );
     }
     let m = Manifest {
         format: "vtgen-dataset".into(),
@@ -243,7 +351,15 @@ fn update_manifest(out: &Path, config: &Config, config_sha: &str, plan: &Plan, r
     Ok(m)
 }
 
-fn write_shard(factory: &mut SampleFactory, out: &Path, shard: &ShardPlan, meta: &ShardMeta, compression: Compression, progress: &ProgressBar, abort: &AtomicBool) -> Result<Option<ShardReceipt>> {
+fn write_shard(
+    factory: &mut SampleFactory,
+    out: &Path,
+    shard: &ShardPlan,
+    meta: &ShardMeta,
+    compression: Compression,
+    progress: &ProgressBar,
+    abort: &AtomicBool,
+) -> Result<Option<ShardReceipt>> {
     let path = out.join(shard.file());
     let mut writer = ShardWriter::create(&path, meta, compression)?;
     for (k, r) in shard.samples.iter().enumerate() {
@@ -251,8 +367,12 @@ fn write_shard(factory: &mut SampleFactory, out: &Path, shard: &ShardPlan, meta:
             return Ok(None);
         }
         let index = shard.first_sample + k as u64;
-        let sample = factory.make(shard.split, index, r).with_context(|| format!("{} sample {index}", shard.split))?;
-        writer.write_sample(&sample).with_context(|| format!("writing {}", path.display()))?;
+        let sample = factory
+            .make(shard.split, index, r)
+            .with_context(|| format!("{} sample {index}", shard.split))?;
+        writer
+            .write_sample(&sample)
+            .with_context(|| format!("writing {}", path.display()))?;
         progress.inc(1);
     }
     Ok(Some(writer.finish()?))
@@ -266,11 +386,16 @@ pub fn generate(cfg: &LoadedConfig, opts: &GenerateOptions) -> Result<GenerateSu
     let config_json = config.canonical_json();
     let config_sha = sha256_hex(config_json.as_bytes());
     let out = &opts.out;
-    prepare_output(out, &config_json, &plan, opts)?;
+    // Meshes first: a bad mesh is reported before anything is written.
     let objects = load_objects(cfg, opts.ycb_dir.as_ref())?;
+    prepare_output(out, &config_json, &plan, opts)?;
     write_models(out, &objects)?;
 
-    let selected: Vec<&ShardPlan> = plan.shards.iter().filter(|s| opts.shard.selects(s)).collect();
+    let selected: Vec<&ShardPlan> = plan
+        .shards
+        .iter()
+        .filter(|s| opts.shard.selects(s))
+        .collect();
     let mut todo = Vec::new();
     let mut skipped = 0;
     for s in &selected {
@@ -282,19 +407,26 @@ pub fn generate(cfg: &LoadedConfig, opts: &GenerateOptions) -> Result<GenerateSu
         // A leftover from an interrupted run: never complete, always redone.
         let partial = PathBuf::from(format!("{}{}", path.display(), vt_dataset::PARTIAL_SUFFIX));
         if partial.exists() {
-            std::fs::remove_file(&partial).with_context(|| format!("cannot remove {}", partial.display()))?;
+            std::fs::remove_file(&partial)
+                .with_context(|| format!("cannot remove {}", partial.display()))?;
         }
         todo.push(*s);
     }
     let total: u64 = todo.iter().map(|s| s.samples.len() as u64).sum();
-    let progress = if opts.quiet { ProgressBar::hidden() } else { ProgressBar::new(total) };
+    let progress = if opts.quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(total)
+    };
     progress.set_style(
         ProgressStyle::with_template("{spinner} {elapsed_precise} [{bar:36}] {pos}/{len} samples  {per_sec}  ETA {eta}  {msg}")
             .expect("valid template")
             .progress_chars("=> "),
     );
     let compression = match config.output.compression {
-        CompressionKind::Zstd => Compression::Zstd { level: config.output.zstd_level as u32 },
+        CompressionKind::Zstd => Compression::Zstd {
+            level: config.output.zstd_level as u32,
+        },
         CompressionKind::None => Compression::None,
     };
     let jobs = opts.jobs.max(1).min(todo.len().max(1));
@@ -307,7 +439,8 @@ pub fn generate(cfg: &LoadedConfig, opts: &GenerateOptions) -> Result<GenerateSu
     std::thread::scope(|scope| {
         for _ in 0..jobs {
             let (tx, name_tx) = (tx.clone(), name_tx.clone());
-            let (todo, next, abort, progress, objects) = (&todo, &next, &abort, &progress, &objects);
+            let (todo, next, abort, progress, objects) =
+                (&todo, &next, &abort, &progress, &objects);
             let config_sha = &config_sha;
             scope.spawn(move || {
                 let run = || -> Result<()> {
@@ -332,7 +465,9 @@ pub fn generate(cfg: &LoadedConfig, opts: &GenerateOptions) -> Result<GenerateSu
                             first_sample: s.first_sample,
                             sample_count: s.samples.len() as u64,
                         };
-                        if let Some(r) = write_shard(&mut factory, out, s, &meta, compression, progress, abort)? {
+                        if let Some(r) =
+                            write_shard(&mut factory, out, s, &meta, compression, progress, abort)?
+                        {
                             let _ = tx.send(Ok((s.file(), r)));
                         }
                     }
@@ -355,7 +490,10 @@ pub fn generate(cfg: &LoadedConfig, opts: &GenerateOptions) -> Result<GenerateSu
         }
     });
     progress.finish_and_clear();
-    let adapter = name_rx.try_iter().next().unwrap_or_else(|| "none (nothing to render)".into());
+    let adapter = name_rx
+        .try_iter()
+        .next()
+        .unwrap_or_else(|| "none (nothing to render)".into());
     // The manifest is rewritten even after an error, so finished shards are recorded.
     let manifest = update_manifest(out, config, &config_sha, &plan, &receipts)?;
     if let Some(e) = first_error {

@@ -22,7 +22,13 @@ pub struct SampleStream;
 impl SampleStream {
     /// The stream of one trajectory (shared by all its instances), for `purpose`.
     pub fn trajectory(seed: u64, object_id: &str, trajectory: u32, purpose: &str) -> ChaCha8Rng {
-        ChaCha8Rng::from_seed(key(&[b"trajectory", purpose.as_bytes(), &seed.to_le_bytes(), object_id.as_bytes(), &trajectory.to_le_bytes()]))
+        ChaCha8Rng::from_seed(key(&[
+            b"trajectory",
+            purpose.as_bytes(),
+            &seed.to_le_bytes(),
+            object_id.as_bytes(),
+            &trajectory.to_le_bytes(),
+        ]))
     }
 
     /// The stream of one sample, for `purpose`.
@@ -56,12 +62,20 @@ mod tests {
 
     #[test]
     fn streams_depend_on_every_key_part_and_nothing_else() {
-        let k = SampleKey { seed: 1, object_id: "a", trajectory: 2, instance: 3 };
+        let k = SampleKey {
+            seed: 1,
+            object_id: "a",
+            trajectory: 2,
+            instance: 3,
+        };
         let x: u64 = SampleStream::sample(&k, "pose").random();
         assert_eq!(x, SampleStream::sample(&k, "pose").random::<u64>());
         for other in [
             SampleKey { seed: 2, ..k },
-            SampleKey { object_id: "b", ..k },
+            SampleKey {
+                object_id: "b",
+                ..k
+            },
             SampleKey { trajectory: 3, ..k },
             SampleKey { instance: 4, ..k },
         ] {

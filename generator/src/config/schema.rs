@@ -70,8 +70,12 @@ impl<'de> Deserialize<'de> for ObjectSpec {
             fn visit_str<E: serde::de::Error>(self, v: &str) -> Result<ObjectSpec, E> {
                 Ok(ObjectSpec::Catalog(v.to_string()))
             }
-            fn visit_map<A: serde::de::MapAccess<'de>>(self, map: A) -> Result<ObjectSpec, A::Error> {
-                CustomObject::deserialize(serde::de::value::MapAccessDeserializer::new(map)).map(ObjectSpec::Custom)
+            fn visit_map<A: serde::de::MapAccess<'de>>(
+                self,
+                map: A,
+            ) -> Result<ObjectSpec, A::Error> {
+                CustomObject::deserialize(serde::de::value::MapAccessDeserializer::new(map))
+                    .map(ObjectSpec::Custom)
             }
         }
         d.deserialize_any(V)
@@ -147,7 +151,12 @@ impl Camera {
             (Some(k), _) => k,
             (None, Some(fov)) => {
                 let f = 0.5 * self.height as f64 / (0.5 * fov.to_radians()).tan();
-                Intrinsics { fx: f, fy: f, cx: (self.width as f64 - 1.0) / 2.0, cy: (self.height as f64 - 1.0) / 2.0 }
+                Intrinsics {
+                    fx: f,
+                    fy: f,
+                    cx: (self.width as f64 - 1.0) / 2.0,
+                    cy: (self.height as f64 - 1.0) / 2.0,
+                }
             }
             (None, None) => unreachable!("validate() requires intrinsics or fov_y_deg"),
         }
@@ -167,7 +176,10 @@ pub struct SceneConfig {
 
 impl Default for SceneConfig {
     fn default() -> Self {
-        SceneConfig { workspace: Workspace::default(), background: default_background() }
+        SceneConfig {
+            workspace: Workspace::default(),
+            background: default_background(),
+        }
     }
 }
 
@@ -184,7 +196,10 @@ pub struct Workspace {
 
 impl Default for Workspace {
     fn default() -> Self {
-        Workspace { min: [-0.08, -0.08, 0.18], max: [0.08, 0.08, 0.32] }
+        Workspace {
+            min: [-0.08, -0.08, 0.18],
+            max: [0.08, 0.08, 0.32],
+        }
     }
 }
 
@@ -245,9 +260,18 @@ pub struct Problem {
     pub message: String,
 }
 
-fn range<T: PartialOrd + std::fmt::Display>(out: &mut Vec<Problem>, path: Vec<Seg>, v: T, lo: T, hi: T) {
+fn range<T: PartialOrd + std::fmt::Display>(
+    out: &mut Vec<Problem>,
+    path: Vec<Seg>,
+    v: T,
+    lo: T,
+    hi: T,
+) {
     if !(v >= lo && v <= hi) {
-        out.push(Problem { path, message: format!("{v} is out of range: allowed {lo} ..= {hi}") });
+        out.push(Problem {
+            path,
+            message: format!("{v} is out of range: allowed {lo} ..= {hi}"),
+        });
     }
 }
 
@@ -257,7 +281,10 @@ impl Config {
         use Seg::{Index, Key};
         let mut p = Vec::new();
         if self.objects.is_empty() {
-            p.push(Problem { path: vec![Key("objects")], message: "at least one object is required".into() });
+            p.push(Problem {
+                path: vec![Key("objects")],
+                message: "at least one object is required".into(),
+            });
         }
         let catalog = vt_objects::Catalog::builtin();
         let mut seen = std::collections::BTreeSet::new();
@@ -266,65 +293,188 @@ impl Config {
             if let ObjectSpec::Catalog(id) = o {
                 if catalog.get(id).is_none() {
                     let known: Vec<&str> = catalog.ids().collect();
-                    p.push(Problem { path: vec![Key("objects"), Index(i)], message: format!("unknown object id '{id}'; the catalogue has: {}", known.join(", ")) });
+                    p.push(Problem {
+                        path: vec![Key("objects"), Index(i)],
+                        message: format!(
+                            "unknown object id '{id}'; the catalogue has: {}",
+                            known.join(", ")
+                        ),
+                    });
                 }
             }
             if let ObjectSpec::Custom(c) = o {
                 if !(c.mass > 0.0 && c.mass <= 100.0) {
-                    p.push(Problem { path: vec![Key("objects"), Index(i), Key("mass")], message: format!("{} is out of range: allowed 0 < mass <= 100 kg", c.mass) });
+                    p.push(Problem {
+                        path: vec![Key("objects"), Index(i), Key("mass")],
+                        message: format!("{} is out of range: allowed 0 < mass <= 100 kg", c.mass),
+                    });
                 }
-                if c.id.is_empty() || !c.id.chars().all(|ch| ch.is_ascii_alphanumeric() || ch == '_' || ch == '-') {
-                    p.push(Problem { path: vec![Key("objects"), Index(i), Key("id")], message: format!("'{}' is not a valid id: use letters, digits, '_' and '-'", c.id) });
+                if c.id.is_empty()
+                    || !c
+                        .id
+                        .chars()
+                        .all(|ch| ch.is_ascii_alphanumeric() || ch == '_' || ch == '-')
+                {
+                    p.push(Problem {
+                        path: vec![Key("objects"), Index(i), Key("id")],
+                        message: format!(
+                            "'{}' is not a valid id: use letters, digits, '_' and '-'",
+                            c.id
+                        ),
+                    });
                 }
             }
             if !seen.insert(id.to_string()) {
-                p.push(Problem { path: vec![Key("objects"), Index(i)], message: format!("object '{id}' is listed twice") });
+                p.push(Problem {
+                    path: vec![Key("objects"), Index(i)],
+                    message: format!("object '{id}' is listed twice"),
+                });
             }
         }
         let s = &self.sampling;
-        range(&mut p, vec![Key("sampling"), Key("trajectories_per_object")], s.trajectories_per_object, 1, 1_000_000);
-        range(&mut p, vec![Key("sampling"), Key("instances_per_trajectory")], s.instances_per_trajectory, 1, 100_000);
-        range(&mut p, vec![Key("sampling"), Key("split"), Key("train")], s.split.train, 0, 1000);
-        range(&mut p, vec![Key("sampling"), Key("split"), Key("test")], s.split.test, 0, 1000);
+        range(
+            &mut p,
+            vec![Key("sampling"), Key("trajectories_per_object")],
+            s.trajectories_per_object,
+            1,
+            1_000_000,
+        );
+        range(
+            &mut p,
+            vec![Key("sampling"), Key("instances_per_trajectory")],
+            s.instances_per_trajectory,
+            1,
+            100_000,
+        );
+        range(
+            &mut p,
+            vec![Key("sampling"), Key("split"), Key("train")],
+            s.split.train,
+            0,
+            1000,
+        );
+        range(
+            &mut p,
+            vec![Key("sampling"), Key("split"), Key("test")],
+            s.split.test,
+            0,
+            1000,
+        );
         if s.split.train + s.split.test == 0 {
-            p.push(Problem { path: vec![Key("sampling"), Key("split")], message: "train + test must be at least 1".into() });
+            p.push(Problem {
+                path: vec![Key("sampling"), Key("split")],
+                message: "train + test must be at least 1".into(),
+            });
         }
         let c = &self.camera;
         range(&mut p, vec![Key("camera"), Key("width")], c.width, 8, 8192);
-        range(&mut p, vec![Key("camera"), Key("height")], c.height, 8, 8192);
+        range(
+            &mut p,
+            vec![Key("camera"), Key("height")],
+            c.height,
+            8,
+            8192,
+        );
         match (&c.intrinsics, c.fov_y_deg) {
-            (Some(_), Some(_)) => p.push(Problem { path: vec![Key("camera"), Key("fov_y_deg")], message: "give either intrinsics or fov_y_deg, not both".into() }),
-            (None, None) => p.push(Problem { path: vec![Key("camera")], message: "camera needs `intrinsics: {fx, fy, cx, cy}` or `fov_y_deg`".into() }),
+            (Some(_), Some(_)) => p.push(Problem {
+                path: vec![Key("camera"), Key("fov_y_deg")],
+                message: "give either intrinsics or fov_y_deg, not both".into(),
+            }),
+            (None, None) => p.push(Problem {
+                path: vec![Key("camera")],
+                message: "camera needs `intrinsics: {fx, fy, cx, cy}` or `fov_y_deg`".into(),
+            }),
             (None, Some(f)) => range(&mut p, vec![Key("camera"), Key("fov_y_deg")], f, 1.0, 170.0),
             (Some(k), None) => {
                 for (name, v) in [("fx", k.fx), ("fy", k.fy)] {
-                    range(&mut p, vec![Key("camera"), Key("intrinsics"), Key(name)], v, 1.0, 1e6);
+                    range(
+                        &mut p,
+                        vec![Key("camera"), Key("intrinsics"), Key(name)],
+                        v,
+                        1.0,
+                        1e6,
+                    );
                 }
-                range(&mut p, vec![Key("camera"), Key("intrinsics"), Key("cx")], k.cx, -0.5, c.width as f64 - 0.5);
-                range(&mut p, vec![Key("camera"), Key("intrinsics"), Key("cy")], k.cy, -0.5, c.height as f64 - 0.5);
+                range(
+                    &mut p,
+                    vec![Key("camera"), Key("intrinsics"), Key("cx")],
+                    k.cx,
+                    -0.5,
+                    c.width as f64 - 0.5,
+                );
+                range(
+                    &mut p,
+                    vec![Key("camera"), Key("intrinsics"), Key("cy")],
+                    k.cy,
+                    -0.5,
+                    c.height as f64 - 0.5,
+                );
             }
         }
-        range(&mut p, vec![Key("camera"), Key("near")], c.near, 1e-4, 100.0);
+        range(
+            &mut p,
+            vec![Key("camera"), Key("near")],
+            c.near,
+            1e-4,
+            100.0,
+        );
         if !(c.far > c.near && c.far <= 1000.0) {
-            p.push(Problem { path: vec![Key("camera"), Key("far")], message: format!("{} is out of range: allowed near ({}) < far <= 1000", c.far, c.near) });
+            p.push(Problem {
+                path: vec![Key("camera"), Key("far")],
+                message: format!(
+                    "{} is out of range: allowed near ({}) < far <= 1000",
+                    c.far, c.near
+                ),
+            });
         }
-        let d: f64 = (0..3).map(|i| (c.look_at[i] - c.position[i]).powi(2)).sum::<f64>().sqrt();
+        let d: f64 = (0..3)
+            .map(|i| (c.look_at[i] - c.position[i]).powi(2))
+            .sum::<f64>()
+            .sqrt();
         if !(d > 1e-6) {
-            p.push(Problem { path: vec![Key("camera"), Key("look_at")], message: "look_at must differ from position".into() });
-        } else if ((c.look_at[0] - c.position[0]).abs() + (c.look_at[1] - c.position[1]).abs()) < 1e-9 {
-            p.push(Problem { path: vec![Key("camera"), Key("look_at")], message: "the camera must not look straight up or down (world z is the up direction)".into() });
+            p.push(Problem {
+                path: vec![Key("camera"), Key("look_at")],
+                message: "look_at must differ from position".into(),
+            });
+        } else if ((c.look_at[0] - c.position[0]).abs() + (c.look_at[1] - c.position[1]).abs())
+            < 1e-9
+        {
+            p.push(Problem {
+                path: vec![Key("camera"), Key("look_at")],
+                message:
+                    "the camera must not look straight up or down (world z is the up direction)"
+                        .into(),
+            });
         }
         let w = &self.scene.workspace;
         for i in 0..3 {
             if !(w.min[i] <= w.max[i]) {
-                p.push(Problem { path: vec![Key("scene"), Key("workspace"), Key("max")], message: format!("max[{i}] = {} must be >= min[{i}] = {}", w.max[i], w.min[i]) });
+                p.push(Problem {
+                    path: vec![Key("scene"), Key("workspace"), Key("max")],
+                    message: format!("max[{i}] = {} must be >= min[{i}] = {}", w.max[i], w.min[i]),
+                });
             }
         }
         if !(w.min[2] > 0.0) {
-            p.push(Problem { path: vec![Key("scene"), Key("workspace"), Key("min")], message: format!("min z = {} must be above the floor (z > 0)", w.min[2]) });
+            p.push(Problem {
+                path: vec![Key("scene"), Key("workspace"), Key("min")],
+                message: format!("min z = {} must be above the floor (z > 0)", w.min[2]),
+            });
         }
-        range(&mut p, vec![Key("output"), Key("samples_per_shard")], self.output.samples_per_shard, 1, 1_000_000);
-        range(&mut p, vec![Key("output"), Key("zstd_level")], self.output.zstd_level, 1, 19);
+        range(
+            &mut p,
+            vec![Key("output"), Key("samples_per_shard")],
+            self.output.samples_per_shard,
+            1,
+            1_000_000,
+        );
+        range(
+            &mut p,
+            vec![Key("output"), Key("zstd_level")],
+            self.output.zstd_level,
+            1,
+            19,
+        );
         p
     }
 

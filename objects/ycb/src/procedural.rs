@@ -20,7 +20,10 @@ impl Region {
             Region::Label => (0.01, 0.49),
             Region::Plain => (0.51, 0.99),
         };
-        [u0 + (u1 - u0) * uv.x.clamp(0.0, 1.0), 0.01 + 0.98 * uv.y.clamp(0.0, 1.0)]
+        [
+            u0 + (u1 - u0) * uv.x.clamp(0.0, 1.0),
+            0.01 + 0.98 * uv.y.clamp(0.0, 1.0),
+        ]
     }
 }
 
@@ -57,7 +60,8 @@ impl Builder {
                 let uv = Vec2::new((a + 1.0) * 0.5, 1.0 - (b + 1.0) * 0.5);
                 self.vertex(c + hu * a + hv * b, region.map(uv));
             }
-            self.indices.extend([base, base + 1, base + 2, base, base + 2, base + 3]);
+            self.indices
+                .extend([base, base + 1, base + 2, base, base + 2, base + 3]);
         }
     }
 
@@ -65,7 +69,14 @@ impl Builder {
     /// counter-clockwise in the (r, z) half-plane (bottom centre, outwards, up, inwards) so faces point
     /// out of the solid; repeat a point to make a crease. `squareness` 2 gives circles, larger values
     /// give rounded rectangles (a superellipse cross-section).
-    fn lathe(&mut self, center: Vec3, profile: &[(f32, f32)], segments: u32, squareness: f32, region: Region) {
+    fn lathe(
+        &mut self,
+        center: Vec3,
+        profile: &[(f32, f32)],
+        segments: u32,
+        squareness: f32,
+        region: Region,
+    ) {
         let mut len = vec![0.0f32];
         for w in profile.windows(2) {
             let d = Vec2::new(w[1].0 - w[0].0, w[1].1 - w[0].1).length();
@@ -101,14 +112,16 @@ impl Builder {
         let n = path.len();
         let tangent = |k: usize| (path[(k + 1).min(n - 1)] - path[k.saturating_sub(1)]).normalize();
         // Parallel-transported frame (t, nrm, bin) with bin = t x nrm: right-handed, so faces point out.
-        let t0 = tangent(0);
-        let mut nrm = t0.any_orthonormal_vector();
+        let mut prev = tangent(0);
+        let mut nrm = prev.any_orthonormal_vector();
         let base = self.positions.len() as u32;
         let ring = segments + 1;
         let mut frames = Vec::with_capacity(n);
         for k in 0..n {
+            // Rotate the normal with the tangent (parallel transport): it never twists or flips.
             let t = tangent(k);
-            nrm = (nrm - t * nrm.dot(t)).normalize();
+            nrm = (glam::Quat::from_rotation_arc(prev, t) * nrm).normalize();
+            prev = t;
             frames.push((t, nrm, t.cross(nrm)));
         }
         for k in 0..n {
@@ -149,7 +162,8 @@ impl Builder {
         };
         // Scale to the scan's bounding box exactly, then centre.
         let ext = mesh.extents();
-        let s = Vec3::new(extents[0] as f32, extents[1] as f32, extents[2] as f32) / ext.max(Vec3::splat(1e-9));
+        let s = Vec3::new(extents[0] as f32, extents[1] as f32, extents[2] as f32)
+            / ext.max(Vec3::splat(1e-9));
         for p in &mut mesh.positions {
             *p = (Vec3::from(*p) * s).into();
         }
@@ -176,14 +190,30 @@ pub fn procedural_mesh(entry: &CatalogEntry) -> TexturedMesh {
         Shape::Box => b.cuboid(Vec3::ZERO, Vec3::splat(0.5), Region::Label),
         Shape::RoundedBox => b.lathe(
             Vec3::ZERO,
-            &[(0.0, 0.0), (0.9, 0.0), (1.0, 0.04), (1.0, 0.96), (0.9, 1.0), (0.0, 1.0)],
+            &[
+                (0.0, 0.0),
+                (0.9, 0.0),
+                (1.0, 0.04),
+                (1.0, 0.96),
+                (0.9, 1.0),
+                (0.0, 1.0),
+            ],
             seg,
             5.0,
             Region::Label,
         ),
         Shape::Can => b.lathe(
             Vec3::ZERO,
-            &[(0.0, 0.02), (0.93, 0.02), (0.97, 0.0), (1.0, 0.03), (1.0, 0.97), (0.97, 1.0), (0.93, 0.98), (0.0, 0.98)],
+            &[
+                (0.0, 0.02),
+                (0.93, 0.02),
+                (0.97, 0.0),
+                (1.0, 0.03),
+                (1.0, 0.97),
+                (0.97, 1.0),
+                (0.93, 0.98),
+                (0.0, 0.98),
+            ],
             seg,
             2.0,
             Region::Label,
@@ -191,21 +221,48 @@ pub fn procedural_mesh(entry: &CatalogEntry) -> TexturedMesh {
         Shape::Bottle => {
             b.lathe(
                 Vec3::ZERO,
-                &[(0.0, 0.0), (0.95, 0.0), (1.0, 0.05), (1.0, 0.62), (0.85, 0.72), (0.45, 0.8), (0.3, 0.82), (0.0, 0.82)],
+                &[
+                    (0.0, 0.0),
+                    (0.95, 0.0),
+                    (1.0, 0.05),
+                    (1.0, 0.62),
+                    (0.85, 0.72),
+                    (0.45, 0.8),
+                    (0.3, 0.82),
+                    (0.0, 0.82),
+                ],
                 seg,
                 3.0,
                 Region::Label,
             );
             // Cap and the off-centre spout that breaks the symmetry, as on the real bottle.
-            b.lathe(Vec3::new(0.0, 0.0, 0.8), &[(0.0, 0.0), (0.32, 0.0), (0.32, 0.1), (0.0, 0.1)], seg, 2.0, Region::Plain);
-            b.tube(&[Vec3::new(0.1, 0.0, 0.88), Vec3::new(0.22, 0.0, 1.0)], &[0.08, 0.03], 16, Region::Plain);
+            b.lathe(
+                Vec3::new(0.0, 0.0, 0.8),
+                &[(0.0, 0.0), (0.32, 0.0), (0.32, 0.1), (0.0, 0.1)],
+                seg,
+                2.0,
+                Region::Plain,
+            );
+            b.tube(
+                &[Vec3::new(0.1, 0.0, 0.88), Vec3::new(0.22, 0.0, 1.0)],
+                &[0.08, 0.03],
+                16,
+                Region::Plain,
+            );
         }
         Shape::Banana => {
-            let path = arc(Vec3::new(-1.0, 0.0, 0.0), 1.0, -0.9, 0.9, 24, (Vec3::X, Vec3::Y));
+            let path = arc(
+                Vec3::new(-1.0, 0.0, 0.0),
+                1.0,
+                -0.9,
+                0.9,
+                24,
+                (Vec3::X, Vec3::Y),
+            );
             let radii: Vec<f32> = (0..path.len())
                 .map(|k| {
                     let s = k as f32 / (path.len() - 1) as f32;
-                    0.02 + 0.16 * (std::f32::consts::PI * s).sin().powf(0.6)
+                    0.02 + 0.16 * (std::f32::consts::PI * s).sin().max(0.0).powf(0.6)
                 })
                 .collect();
             b.tube(&path, &radii, 24, Region::Label);
@@ -213,32 +270,94 @@ pub fn procedural_mesh(entry: &CatalogEntry) -> TexturedMesh {
         Shape::Mug => {
             b.lathe(
                 Vec3::ZERO,
-                &[(0.0, 0.0), (0.5, 0.0), (0.5, 0.0), (0.5, 1.0), (0.5, 1.0), (0.45, 1.0), (0.45, 1.0), (0.45, 0.08), (0.45, 0.08), (0.0, 0.08)],
+                &[
+                    (0.0, 0.0),
+                    (0.5, 0.0),
+                    (0.5, 0.0),
+                    (0.5, 1.0),
+                    (0.5, 1.0),
+                    (0.45, 1.0),
+                    (0.45, 1.0),
+                    (0.45, 0.08),
+                    (0.45, 0.08),
+                    (0.0, 0.08),
+                ],
                 seg,
                 2.0,
                 Region::Label,
             );
-            let handle = arc(Vec3::new(0.5, 0.0, 0.5), 0.3, -1.5, 1.5, 20, (Vec3::Z, Vec3::X));
+            let handle = arc(
+                Vec3::new(0.5, 0.0, 0.5),
+                0.3,
+                -1.5,
+                1.5,
+                20,
+                (Vec3::Z, Vec3::X),
+            );
             b.tube(&handle, &vec![0.06; handle.len()], 16, Region::Plain);
         }
         Shape::Drill => {
             // Lies flat like the scan: barrel along x, grip along -y, battery at the grip's end.
-            b.tube(&[Vec3::new(-0.5, 0.25, 0.0), Vec3::new(0.2, 0.25, 0.0)], &[0.15, 0.15], 32, Region::Label);
-            b.tube(&[Vec3::new(0.2, 0.25, 0.0), Vec3::new(0.5, 0.25, 0.0)], &[0.07, 0.05], 24, Region::Plain);
-            b.cuboid(Vec3::new(-0.3, -0.05, 0.0), Vec3::new(0.09, 0.3, 0.12), Region::Label);
-            b.cuboid(Vec3::new(-0.3, -0.45, 0.0), Vec3::new(0.2, 0.1, 0.15), Region::Plain);
+            b.tube(
+                &[Vec3::new(-0.5, 0.25, 0.0), Vec3::new(0.2, 0.25, 0.0)],
+                &[0.15, 0.15],
+                32,
+                Region::Label,
+            );
+            b.tube(
+                &[Vec3::new(0.2, 0.25, 0.0), Vec3::new(0.5, 0.25, 0.0)],
+                &[0.07, 0.05],
+                24,
+                Region::Plain,
+            );
+            b.cuboid(
+                Vec3::new(-0.3, -0.05, 0.0),
+                Vec3::new(0.09, 0.3, 0.12),
+                Region::Label,
+            );
+            b.cuboid(
+                Vec3::new(-0.3, -0.45, 0.0),
+                Vec3::new(0.2, 0.1, 0.15),
+                Region::Plain,
+            );
         }
         Shape::Scissors => {
-            b.cuboid(Vec3::new(-0.05, 0.25, 0.0), Vec3::new(0.06, 0.5, 0.03), Region::Plain);
-            b.cuboid(Vec3::new(0.07, 0.25, 0.0), Vec3::new(0.05, 0.48, 0.03), Region::Plain);
+            b.cuboid(
+                Vec3::new(-0.05, 0.25, 0.0),
+                Vec3::new(0.06, 0.5, 0.03),
+                Region::Plain,
+            );
+            b.cuboid(
+                Vec3::new(0.07, 0.25, 0.0),
+                Vec3::new(0.05, 0.48, 0.03),
+                Region::Plain,
+            );
             for x in [-0.25, 0.25] {
-                let ring = arc(Vec3::new(x, -0.45, 0.0), 0.18, 0.0, std::f32::consts::TAU, 24, (Vec3::X, Vec3::Y));
+                let ring = arc(
+                    Vec3::new(x, -0.45, 0.0),
+                    0.18,
+                    0.0,
+                    std::f32::consts::TAU,
+                    24,
+                    (Vec3::X, Vec3::Y),
+                );
                 b.tube(&ring, &vec![0.06; ring.len()], 12, Region::Label);
             }
         }
         Shape::Wrench => {
-            b.cuboid(Vec3::new(0.0, -0.2, 0.0), Vec3::new(0.12, 0.6, 0.05), Region::Label);
-            let head = arc(Vec3::new(0.0, 0.55, 0.0), 0.3, -1.2, 4.3, 28, (Vec3::X, Vec3::Y));
+            b.cuboid(
+                Vec3::new(0.0, -0.2, 0.0),
+                Vec3::new(0.12, 0.6, 0.05),
+                Region::Label,
+            );
+            let head = arc(
+                Vec3::new(0.0, 0.55, 0.0),
+                0.3,
+                -1.2,
+                4.3,
+                28,
+                (Vec3::X, Vec3::Y),
+            );
             b.tube(&head, &vec![0.12; head.len()], 12, Region::Plain);
         }
     }
@@ -251,7 +370,9 @@ fn label_texture(entry: &CatalogEntry) -> Texture {
     let (w, h) = (512u32, 256u32);
     let [p, s] = entry.colors;
     // FNV-1a of the id: a stable per-object pattern.
-    let mut hash = entry.id.bytes().fold(0xcbf29ce484222325u64, |h, b| (h ^ b as u64).wrapping_mul(0x100000001b3));
+    let mut hash = entry.id.bytes().fold(0xcbf29ce484222325u64, |h, b| {
+        (h ^ b as u64).wrapping_mul(0x100000001b3)
+    });
     let mut next = || {
         hash ^= hash << 13;
         hash ^= hash >> 7;
@@ -264,7 +385,13 @@ fn label_texture(entry: &CatalogEntry) -> Texture {
             let bh = 6 + (next() % 22) as u32;
             let x = 8 + (next() % (240 - bw as u64)) as u32;
             let y = 8 + (next() % (240 - bh as u64)) as u32;
-            let c = if k % 3 == 0 { [245, 245, 240] } else if k % 3 == 1 { [25, 25, 30] } else { s };
+            let c = if k % 3 == 0 {
+                [245, 245, 240]
+            } else if k % 3 == 1 {
+                [25, 25, 30]
+            } else {
+                s
+            };
             (x, y, bw, bh, c)
         })
         .collect();
@@ -279,19 +406,30 @@ fn label_texture(entry: &CatalogEntry) -> Texture {
                     c = s;
                 }
                 for &(bx, by, bw, bh, bc) in &blocks {
-                    if (bx..bx + bw).contains(&x) && (by..by + bh).contains(&y) && ((x / 3 + y / 2) % 4 != 0) {
+                    if (bx..bx + bw).contains(&x)
+                        && (by..by + bh).contains(&y)
+                        && ((x / 3 + y / 2) % 4 != 0)
+                    {
                         c = bc;
                     }
                 }
                 c
             } else {
                 let shade = if (x / 8 + y / 8) % 2 == 0 { 0 } else { 12 };
-                [s[0].saturating_sub(shade), s[1].saturating_sub(shade), s[2].saturating_sub(shade)]
+                [
+                    s[0].saturating_sub(shade),
+                    s[1].saturating_sub(shade),
+                    s[2].saturating_sub(shade),
+                ]
             };
             rgba.extend([c[0], c[1], c[2], 255]);
         }
     }
-    Texture { width: w, height: h, rgba }
+    Texture {
+        width: w,
+        height: h,
+        rgba,
+    }
 }
 
 #[cfg(test)]
@@ -304,7 +442,8 @@ mod tests {
         m.indices
             .chunks_exact(3)
             .map(|t| {
-                let [a, b, c] = [t[0], t[1], t[2]].map(|i| Vec3::from(m.positions[i as usize]).as_dvec3());
+                let [a, b, c] =
+                    [t[0], t[1], t[2]].map(|i| Vec3::from(m.positions[i as usize]).as_dvec3());
                 a.dot(b.cross(c)) / 6.0
             })
             .sum()
@@ -316,13 +455,23 @@ mod tests {
             let m = procedural_mesh(e);
             let ext = m.extents();
             for k in 0..3 {
-                assert!((ext[k] as f64 - e.extents[k]).abs() < 1e-5, "{} axis {k}: {} vs {}", e.id, ext[k], e.extents[k]);
+                assert!(
+                    (ext[k] as f64 - e.extents[k]).abs() < 1e-5,
+                    "{} axis {k}: {} vs {}",
+                    e.id,
+                    ext[k],
+                    e.extents[k]
+                );
             }
             let (lo, hi) = m.aabb();
             assert!((lo + hi).length() < 1e-5, "{} is centred", e.id);
             let box_volume = e.extents.iter().product::<f64>();
             let v = signed_volume(&m);
-            assert!(v > 0.03 * box_volume && v < 1.01 * box_volume, "{}: volume {v} vs box {box_volume}", e.id);
+            assert!(
+                v > 0.03 * box_volume && v < 1.01 * box_volume,
+                "{}: volume {v} vs box {box_volume}",
+                e.id
+            );
             assert_eq!(m.normals.len(), m.positions.len());
             assert!(m.texture.rgba.len() == (m.texture.width * m.texture.height * 4) as usize);
         }

@@ -1,0 +1,102 @@
+//! Shared helpers: running the binary, the reference tiny dataset (generated once per test run).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::sync::OnceLock;
+
+pub fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("workspace root")
+        .to_path_buf()
+}
+
+pub fn tiny_config() -> PathBuf {
+    root().join("scenes/tiny.yaml")
+}
+
+pub fn vtgen() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_vtgen"));
+    c.current_dir(root());
+    c
+}
+
+pub fn run(args: &[&str]) -> Output {
+    vtgen().args(args).output().expect("vtgen runs")
+}
+
+pub fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+pub fn tempdir() -> tempfile::TempDir {
+    tempfile::Builder::new()
+        .prefix("vtgen-test-")
+        .tempdir()
+        .expect("temp dir")
+}
+
+/// Generates `scenes/tiny.yaml` into `out` with the CLI, asserting success.
+pub fn generate(out: &Path, extra: &[&str]) {
+    let config = tiny_config();
+    let mut args = vec![
+        "generate",
+        config.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ];
+    args.extend_from_slice(extra);
+    let o = run(&args);
+    assert!(o.status.success(), "vtgen generate failed: {}", stderr(&o));
+}
+
+/// The reference dataset: `scenes/tiny.yaml` generated once with the README's main command.
+pub fn reference_dataset() -> &'static Path {
+    static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();
+    DIR.get_or_init(|| {
+        let d = tempdir();
+        generate(d.path(), &[]);
+        d
+    })
+    .path()
+}
+
+/// Every file under `dir` (relative path -> bytes), sorted.
+pub fn files(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    let mut out = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                stack.push(p);
+            } else {
+                out.push((
+                    p.strip_prefix(dir).unwrap().display().to_string(),
+                    std::fs::read(&p).unwrap(),
+                ));
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+/// Names of the complete shard files (`*.mcap`) under a dataset directory.
+pub fn complete_shards(dir: &Path) -> Vec<String> {
+    files_named(dir, |n| n.ends_with(".mcap"))
+}
+
+pub fn files_named(dir: &Path, pred: impl Fn(&str) -> bool) -> Vec<String> {
+    if !dir.exists() {
+        return Vec::new();
+    }
+    let mut v: Vec<String> = files(dir)
+        .into_iter()
+        .map(|f| f.0)
+        .filter(|n| pred(n))
+        .collect();
+    v.sort();
+    v
+}
