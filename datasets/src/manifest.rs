@@ -43,14 +43,11 @@ impl Manifest {
             .with_context(|| format!("{} is not a valid vtgen manifest", path.display()))
     }
 
-    /// Writes atomically (temporary file + rename), so a reader never sees half a manifest.
+    /// Writes atomically, so a reader never sees half a manifest.
     pub fn save(&self, path: &Path) -> Result<()> {
-        let tmp = path.with_extension("json.tmp");
         let mut text = serde_json::to_string_pretty(self)?;
         text.push('\n');
-        std::fs::write(&tmp, text).with_context(|| format!("cannot write {}", tmp.display()))?;
-        std::fs::rename(&tmp, path).with_context(|| format!("cannot write {}", path.display()))?;
-        Ok(())
+        write_atomic(path, text.as_bytes())
     }
 }
 
@@ -89,4 +86,13 @@ pub fn sha256_file(path: &Path) -> Result<(u64, String)> {
         n += k as u64;
     }
     Ok((n, h.finalize().iter().map(|b| format!("{b:02x}")).collect()))
+}
+
+/// Writes a file through a temporary file of this process and a rename: readers see the old or the
+/// new content, never a mix, even with several `--shard` processes writing the same directory.
+pub fn write_atomic(path: &Path, data: &[u8]) -> Result<()> {
+    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("file");
+    let tmp = path.with_file_name(format!(".{name}.{}.tmp", std::process::id()));
+    std::fs::write(&tmp, data).with_context(|| format!("cannot write {}", tmp.display()))?;
+    std::fs::rename(&tmp, path).with_context(|| format!("cannot write {}", path.display()))
 }

@@ -36,7 +36,7 @@ pub fn write_ply(
             out.extend((i as i32).to_le_bytes());
         }
     }
-    std::fs::write(path, out).with_context(|| format!("cannot write {}", path.display()))
+    crate::write_atomic(path, &out)
 }
 
 /// Reads the PLY files this crate writes (and any binary little-endian PLY with float xyz[+normals]

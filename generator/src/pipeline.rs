@@ -224,8 +224,7 @@ fn write_models(out: &Path, objects: &[LoadedObject]) -> Result<()> {
         });
     }
     let text = serde_json::to_string_pretty(&ModelsInfo { objects: infos })? + "\n";
-    std::fs::write(dir.join("models_info.json"), text)
-        .with_context(|| format!("cannot write {}", dir.display()))
+    vt_dataset::write_atomic(&dir.join("models_info.json"), text.as_bytes())
 }
 
 /// Prepares the output directory: refuses to mix datasets of different configs, and to redo
@@ -269,12 +268,8 @@ fn prepare_output(
             }
         }
     }
-    let tmp = out.join("config.json.tmp");
-    std::fs::write(&tmp, config_json)
-        .with_context(|| format!("output directory {} is not writable", out.display()))?;
-    std::fs::rename(&tmp, &cfg_path)
-        .with_context(|| format!("cannot write {}", cfg_path.display()))?;
-    Ok(())
+    vt_dataset::write_atomic(&cfg_path, config_json.as_bytes())
+        .with_context(|| format!("output directory {} is not writable", out.display()))
 }
 
 /// Rebuilds `manifest.json` from the shards on disk. Checksums already known (from this run or the

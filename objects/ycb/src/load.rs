@@ -295,4 +295,40 @@ mod tests {
         let e = load_mesh(&texobj).unwrap_err().to_string();
         assert!(e.contains("missing.png"), "{e}");
     }
+
+    #[test]
+    fn gltf_applies_node_transforms_and_base_colour() {
+        let d = tmpdir("gltf");
+        let mut bin = Vec::new();
+        for v in [[0.0f32, 0.0, 0.0], [0.1, 0.0, 0.0], [0.0, 0.2, 0.0]] {
+            for c in v {
+                bin.extend(c.to_le_bytes());
+            }
+        }
+        for i in [0u16, 1, 2, 0] {
+            bin.extend(i.to_le_bytes()); // 3 indices + padding
+        }
+        std::fs::write(d.join("tri.bin"), &bin).unwrap();
+        let json = r#"{"asset":{"version":"2.0"},"scene":0,"scenes":[{"nodes":[0]}],
+            "nodes":[{"mesh":0,"translation":[1,2,3],"scale":[2,2,2]}],
+            "meshes":[{"primitives":[{"attributes":{"POSITION":0},"indices":1,"material":0}]}],
+            "materials":[{"pbrMetallicRoughness":{"baseColorFactor":[1,0,0,1]}}],
+            "buffers":[{"uri":"tri.bin","byteLength":44}],
+            "bufferViews":[{"buffer":0,"byteOffset":0,"byteLength":36},{"buffer":0,"byteOffset":36,"byteLength":6}],
+            "accessors":[{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[0.1,0.2,0]},
+                         {"bufferView":1,"componentType":5123,"count":3,"type":"SCALAR"}]}"#;
+        let path = d.join("tri.gltf");
+        std::fs::write(&path, json).unwrap();
+        let m = load_mesh(&path).unwrap();
+        assert_eq!(m.indices, vec![0, 1, 2]);
+        // Scaled by 2 by the node, then centred.
+        let e = m.extents();
+        assert!((e.x - 0.2).abs() < 1e-6 && (e.y - 0.4).abs() < 1e-6, "{e}");
+        assert_eq!(m.texture.rgba, vec![255, 0, 0, 255]);
+        assert_eq!(m.normals.len(), 3);
+
+        std::fs::write(&path, "{ not json").unwrap();
+        let err = load_mesh(&path).unwrap_err().to_string();
+        assert!(err.contains("tri.gltf") && err.contains("glTF"), "{err}");
+    }
 }
