@@ -1,0 +1,398 @@
+use std::collections::HashMap;
+
+use glam::{DAffine3, DQuat, DVec3};
+
+use crate::{ARM_JOINTS, PALM, hand_joint_names, phalanx_names};
+
+/// A robot description that cannot be used; names what is wrong.
+#[derive(Debug, thiserror::Error)]
+#[error("robot description {source_name}: {message}")]
+pub struct RobotError {
+    pub source_name: String,
+    pub message: String,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Geometry {
+    Box { size: DVec3 },
+    Cylinder { radius: f64, length: f64 },
+    Sphere { radius: f64 },
+}
+
+/// A primitive placed in its link's frame, with an sRGB-ish colour (0..1, from the URDF material).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Shape {
+    pub geometry: Geometry,
+    pub origin: DAffine3,
+    pub rgba: [f64; 4],
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Link {
+    pub name: String,
+    pub mass: f64,
+    /// Centre of mass in the link frame.
+    pub com: DVec3,
+    pub visuals: Vec<Shape>,
+    pub collisions: Vec<Shape>,
+    /// The joint whose child this link is (None for the root).
+    pub parent_joint: Option<usize>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum JointKind {
+    Revolute,
+    Fixed,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Joint {
+    pub name: String,
+    pub kind: JointKind,
+    pub parent: usize,
+    pub child: usize,
+    /// Child joint frame in the parent link frame at q = 0.
+    pub origin: DAffine3,
+    pub axis: DVec3,
+    pub lower: f64,
+    pub upper: f64,
+    pub effort: f64,
+    pub velocity: f64,
+    /// Position in the robot's vector of joint values (revolute joints only).
+    pub dof: Option<usize>,
+}
+
+/// The kinematic model. Joint values are a `Vec<f64>` with one entry per revolute joint, in the
+/// order of [`RobotModel::dof_names`].
+#[derive(Debug, Clone)]
+pub struct RobotModel {
+    pub links: Vec<Link>,
+    /// Topologically ordered: a joint comes after the joint of its parent link.
+    pub joints: Vec<Joint>,
+    pub root: usize,
+    dofs: Vec<usize>,
+    link_index: HashMap<String, usize>,
+    joint_index: HashMap<String, usize>,
+}
+
+fn pose(p: &urdf_rs::Pose) -> DAffine3 {
+    let [r, pch, y] = p.rpy.0;
+    // URDF rpy: fixed-axis roll about x, then pitch about y, then yaw about z: R = Rz * Ry * Rx.
+    let rot = DQuat::from_rotation_z(y) * DQuat::from_rotation_y(pch) * DQuat::from_rotation_x(r);
+    DAffine3::from_rotation_translation(rot, DVec3::from_array(p.xyz.0))
+}
+
+impl RobotModel {
+    /// The built-in UR5e + Allegro description.
+    pub fn builtin() -> Self {
+        Self::from_urdf_str(crate::BUILTIN_URDF, "built-in ur5e_allegro.urdf")
+            .expect("the built-in URDF is valid (unit-tested)")
+    }
+
+    pub fn from_urdf_file(path: &std::path::Path) -> Result<Self, RobotError> {
+        let text = std::fs::read_to_string(path).map_err(|e| RobotError {
+            source_name: path.display().to_string(),
+            message: format!("cannot read: {e}"),
+        })?;
+        Self::from_urdf_str(&text, &path.display().to_string())
+    }
+
+    pub fn from_urdf_str(text: &str, source_name: &str) -> Result<Self, RobotError> {
+        let err = |message: String| RobotError {
+            source_name: source_name.to_string(),
+            message,
+        };
+        let urdf =
+            urdf_rs::read_from_string(text).map_err(|e| err(format!("not valid URDF: {e}")))?;
+        let colours: HashMap<&str, [f64; 4]> = urdf
+            .materials
+            .iter()
+            .filter_map(|m| m.color.as_ref().map(|c| (m.name.as_str(), c.rgba.0)))
+            .collect();
+        let shape = |origin: &urdf_rs::Pose,
+                     g: &urdf_rs::Geometry,
+                     rgba: [f64; 4],
+                     owner: &str|
+         -> Result<Shape, RobotError> {
+            let geometry = match g {
+                urdf_rs::Geometry::Box { size } => Geometry::Box {
+                    size: DVec3::from_array(size.0),
+                },
+                urdf_rs::Geometry::Cylinder { radius, length } => Geometry::Cylinder {
+                    radius: *radius,
+                    length: *length,
+                },
+                urdf_rs::Geometry::Sphere { radius } => Geometry::Sphere { radius: *radius },
+                other => {
+                    return Err(err(format!(
+                        "link '{owner}': geometry {other:?} is not supported (use box, cylinder or sphere)"
+                    )));
+                }
+            };
+            Ok(Shape {
+                geometry,
+                origin: pose(origin),
+                rgba,
+            })
+        };
+        let mut links = Vec::new();
+        let mut link_index = HashMap::new();
+        for l in &urdf.links {
+            if link_index.insert(l.name.clone(), links.len()).is_some() {
+                return Err(err(format!("link '{}' is defined twice", l.name)));
+            }
+            let mut visuals = Vec::new();
+            for v in &l.visual {
+                let rgba = v
+                    .material
+                    .as_ref()
+                    .and_then(|m| {
+                        m.color
+                            .as_ref()
+                            .map(|c| c.rgba.0)
+                            .or_else(|| colours.get(m.name.as_str()).copied())
+                    })
+                    .unwrap_or([0.5, 0.5, 0.5, 1.0]);
+                visuals.push(shape(&v.origin, &v.geometry, rgba, &l.name)?);
+            }
+            let collisions = l
+                .collision
+                .iter()
+                .map(|c| shape(&c.origin, &c.geometry, [0.0; 4], &l.name))
+                .collect::<Result<_, _>>()?;
+            links.push(Link {
+                name: l.name.clone(),
+                mass: l.inertial.mass.value,
+                com: DVec3::from_array(l.inertial.origin.xyz.0),
+                visuals,
+                collisions,
+                parent_joint: None,
+            });
+        }
+        let mut joints = Vec::new();
+        let mut joint_index = HashMap::new();
+        for j in &urdf.joints {
+            let find = |name: &str, role: &str| {
+                link_index.get(name).copied().ok_or_else(|| {
+                    err(format!(
+                        "joint '{}' refers to a missing {role} link '{name}'",
+                        j.name
+                    ))
+                })
+            };
+            let (parent, child) = (
+                find(&j.parent.link, "parent")?,
+                find(&j.child.link, "child")?,
+            );
+            let kind = match j.joint_type {
+                urdf_rs::JointType::Revolute | urdf_rs::JointType::Continuous => {
+                    JointKind::Revolute
+                }
+                urdf_rs::JointType::Fixed => JointKind::Fixed,
+                ref other => {
+                    return Err(err(format!(
+                        "joint '{}': type {other:?} is not supported (revolute, continuous, fixed)",
+                        j.name
+                    )));
+                }
+            };
+            let (mut lower, mut upper) = (j.limit.lower, j.limit.upper);
+            if j.joint_type == urdf_rs::JointType::Continuous {
+                (lower, upper) = (f64::NEG_INFINITY, f64::INFINITY);
+            }
+            if kind == JointKind::Revolute && !(lower <= upper) {
+                return Err(err(format!(
+                    "joint '{}': lower limit {lower} is above upper limit {upper}",
+                    j.name
+                )));
+            }
+            let axis = DVec3::from_array(j.axis.xyz.0);
+            if kind == JointKind::Revolute && !(axis.length() > 1e-9) {
+                return Err(err(format!("joint '{}': axis is zero", j.name)));
+            }
+            if links[child].parent_joint.is_some() {
+                return Err(err(format!(
+                    "link '{}' is the child of two joints",
+                    j.child.link
+                )));
+            }
+            links[child].parent_joint = Some(joints.len());
+            joint_index.insert(j.name.clone(), joints.len());
+            joints.push(Joint {
+                name: j.name.clone(),
+                kind,
+                parent,
+                child,
+                origin: pose(&j.origin),
+                axis: axis.normalize_or_zero(),
+                lower,
+                upper,
+                effort: j.limit.effort,
+                velocity: j.limit.velocity,
+                dof: None,
+            });
+        }
+        let roots: Vec<usize> = (0..links.len())
+            .filter(|&i| links[i].parent_joint.is_none())
+            .collect();
+        let [root] = roots[..] else {
+            let names: Vec<&str> = roots.iter().map(|&i| links[i].name.as_str()).collect();
+            return Err(err(format!(
+                "expected one root link, found {}: {}",
+                names.len(),
+                names.join(", ")
+            )));
+        };
+        // Topological order from the root (also detects cycles: unreachable links).
+        let mut order = Vec::with_capacity(joints.len());
+        let mut stack = vec![root];
+        while let Some(l) = stack.pop() {
+            for (ji, j) in joints.iter().enumerate() {
+                if j.parent == l {
+                    order.push(ji);
+                    stack.push(j.child);
+                }
+            }
+        }
+        if order.len() != joints.len() {
+            return Err(err("the joints do not form a tree".into()));
+        }
+        let mut remap = vec![0; joints.len()];
+        let mut sorted = Vec::with_capacity(joints.len());
+        for (new, &old) in order.iter().enumerate() {
+            remap[old] = new;
+            sorted.push(joints[old].clone());
+        }
+        for l in &mut links {
+            l.parent_joint = l.parent_joint.map(|j| remap[j]);
+        }
+        let joint_index = joint_index
+            .into_iter()
+            .map(|(k, v)| (k, remap[v]))
+            .collect();
+        let mut dofs = Vec::new();
+        for (i, j) in sorted.iter_mut().enumerate() {
+            if j.kind == JointKind::Revolute {
+                j.dof = Some(dofs.len());
+                dofs.push(i);
+            }
+        }
+        let model = RobotModel {
+            links,
+            joints: sorted,
+            root,
+            dofs,
+            link_index,
+            joint_index,
+        };
+        // What vtgen relies on: the arm chain, the palm, the 16 hand joints and the 12 pads.
+        for name in ARM_JOINTS
+            .iter()
+            .map(|s| s.to_string())
+            .chain(hand_joint_names())
+        {
+            match model.joint(&name) {
+                Some(j) if j.kind == JointKind::Revolute => {}
+                Some(_) => return Err(err(format!("joint '{name}' must be revolute"))),
+                None => return Err(err(format!("required joint '{name}' is missing"))),
+            }
+        }
+        for name in [PALM.to_string(), "flange".to_string()]
+            .into_iter()
+            .chain(phalanx_names())
+            .chain(phalanx_names().into_iter().map(|p| format!("{p}_pad")))
+        {
+            if model.link(&name).is_none() {
+                return Err(err(format!("required link '{name}' is missing")));
+            }
+        }
+        Ok(model)
+    }
+
+    pub fn link(&self, name: &str) -> Option<&Link> {
+        self.link_index.get(name).map(|&i| &self.links[i])
+    }
+
+    pub fn link_id(&self, name: &str) -> Option<usize> {
+        self.link_index.get(name).copied()
+    }
+
+    pub fn joint(&self, name: &str) -> Option<&Joint> {
+        self.joint_index.get(name).map(|&i| &self.joints[i])
+    }
+
+    /// Number of revolute joints (entries of a joint-value vector).
+    pub fn dof_count(&self) -> usize {
+        self.dofs.len()
+    }
+
+    pub fn dof_names(&self) -> Vec<&str> {
+        self.dofs
+            .iter()
+            .map(|&j| self.joints[j].name.as_str())
+            .collect()
+    }
+
+    /// Index in the joint-value vector of a revolute joint.
+    pub fn dof(&self, joint: &str) -> Option<usize> {
+        self.joint(joint).and_then(|j| j.dof)
+    }
+
+    /// Joint values at zero, clamped into the limits.
+    pub fn zero(&self) -> Vec<f64> {
+        self.dofs
+            .iter()
+            .map(|&j| 0.0f64.clamp(self.joints[j].lower, self.joints[j].upper))
+            .collect()
+    }
+
+    /// The joint's transform for value `q`: origin, then rotation about the axis.
+    pub fn joint_transform(&self, joint: usize, q: &[f64]) -> DAffine3 {
+        let j = &self.joints[joint];
+        match j.dof {
+            Some(d) => j.origin * DAffine3::from_quat(DQuat::from_axis_angle(j.axis, q[d])),
+            None => j.origin,
+        }
+    }
+
+    /// Pose of every link in the root (robot base) frame.
+    pub fn forward_kinematics(&self, q: &[f64]) -> Vec<DAffine3> {
+        assert_eq!(q.len(), self.dofs.len(), "one value per revolute joint");
+        let mut out = vec![DAffine3::IDENTITY; self.links.len()];
+        for (i, j) in self.joints.iter().enumerate() {
+            out[j.child] = out[j.parent] * self.joint_transform(i, q);
+        }
+        out
+    }
+
+    /// Pose of `link` relative to `ancestor` (e.g. a phalanx in the palm frame).
+    pub fn relative_pose(&self, q: &[f64], ancestor: usize, link: usize) -> DAffine3 {
+        let mut t = DAffine3::IDENTITY;
+        let mut l = link;
+        while l != ancestor {
+            let Some(j) = self.links[l].parent_joint else {
+                panic!(
+                    "'{}' is not below '{}'",
+                    self.links[link].name, self.links[ancestor].name
+                )
+            };
+            t = self.joint_transform(j, q) * t;
+            l = self.joints[j].parent;
+        }
+        t
+    }
+
+    /// Is `link` in the subtree of `ancestor` (itself included)?
+    pub fn is_below(&self, link: usize, ancestor: usize) -> bool {
+        let mut l = link;
+        loop {
+            if l == ancestor {
+                return true;
+            }
+            match self.links[l].parent_joint {
+                Some(j) => l = self.joints[j].parent,
+                None => return false,
+            }
+        }
+    }
+}
