@@ -97,6 +97,8 @@ pub fn reproject(s: &Sample, points: &[(DVec3, DVec3)], mask_id: u8) -> Reprojec
     out
 }
 
+/// Checks every sample of a dataset. With a robot in the picture the object can be almost hidden:
+/// samples with fewer than 30 visible model points are counted, not checked (at most a third).
 pub fn check_dataset(dir: &std::path::Path) {
     let ds = DatasetReader::open(dir).unwrap();
     let info: vt_dataset::ModelsInfo =
@@ -107,7 +109,7 @@ pub fn check_dataset(dir: &std::path::Path) {
         .iter()
         .map(|o| surface_points(&read_ply(&dir.join("models").join(&o.file)).unwrap(), 3000))
         .collect();
-    let mut checked = 0;
+    let (mut checked, mut hidden) = (0, 0);
     for split in ["train", "test"] {
         for s in ds.samples(split).unwrap() {
             let s = s.unwrap();
@@ -117,19 +119,25 @@ pub fn check_dataset(dir: &std::path::Path) {
             assert!((composed.translation() - s.t_camera_object.translation()).length() < 1e-9);
             assert!(composed.rotation().dot(s.t_camera_object.rotation()).abs() > 1.0 - 1e-12);
             let r = reproject(&s, &models[obj], 1);
-            assert!(
-                r.front_facing > 50,
-                "{split} {}: the object is in view ({} points)",
-                s.index,
-                r.front_facing
-            );
-            assert!(
-                r.visible * 2 >= r.front_facing,
-                "{split} {}: {} of {} facing points visible",
-                s.index,
-                r.visible,
-                r.front_facing
-            );
+            if s.info.get("physics_backend").is_none() {
+                // Nothing but the object itself can hide it.
+                assert!(
+                    r.front_facing > 50,
+                    "{split} {}: the object is in view ({} points)",
+                    s.index,
+                    r.front_facing
+                );
+                assert!(
+                    r.visible * 2 >= r.front_facing,
+                    "{split} {}: {} of {} facing points visible",
+                    s.index,
+                    r.visible,
+                    r.front_facing
+                );
+            } else if r.visible < 30 {
+                hidden += 1;
+                continue;
+            }
             let share = r.agreeing as f64 / r.visible as f64;
             assert!(
                 share >= 0.99,
@@ -141,7 +149,11 @@ pub fn check_dataset(dir: &std::path::Path) {
             checked += 1;
         }
     }
-    assert_eq!(checked, 40);
+    assert_eq!(checked + hidden, 40);
+    assert!(
+        hidden * 3 <= 40,
+        "{hidden} of 40 samples have the object hidden"
+    );
 }
 
 #[test]

@@ -5,6 +5,7 @@ mod common;
 
 mod bad_input;
 mod determinism;
+mod grasping;
 mod ground_truth;
 mod render_geometry;
 mod ycb_meshes;

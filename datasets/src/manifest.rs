@@ -16,6 +16,9 @@ pub struct Manifest {
     pub config_sha256: String,
     pub complete: bool,
     pub splits: BTreeMap<String, SplitManifest>,
+    /// Grasp-loop figures summed over the complete shards (when a robot is in the scene).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub grasp: Option<serde_json::Value>,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

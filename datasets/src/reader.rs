@@ -188,6 +188,22 @@ impl ShardReader {
             t_camera_object: to_pose(p.position, p.orientation)?,
             t_world_camera: find_tf(frames::CAMERA)?,
             t_world_object: find_tf(frames::OBJECT)?,
+            extra_transforms: tf
+                .transforms
+                .iter()
+                .filter(|t| {
+                    !(t.parent_frame_id == frames::WORLD
+                        && (t.child_frame_id == frames::CAMERA
+                            || t.child_frame_id == frames::OBJECT))
+                })
+                .map(|t| {
+                    Ok((
+                        t.parent_frame_id.clone(),
+                        t.child_frame_id.clone(),
+                        to_pose(t.translation.clone(), t.rotation.clone())?,
+                    ))
+                })
+                .collect::<Result<_>>()?,
             info,
         })
     }

@@ -53,6 +53,9 @@ pub struct Sample {
     pub t_camera_object: Pose,
     pub t_world_camera: Pose,
     pub t_world_object: Pose,
+    /// Further frames for `/tf` (parent, child, `T_parent_child`): the palm and the 12 phalanx
+    /// sensor pads when a robot is in the scene.
+    pub extra_transforms: Vec<(String, String, Pose)>,
     /// The `/sample/info` JSON object.
     pub info: serde_json::Value,
 }
@@ -82,6 +85,8 @@ pub struct ShardMeta {
     pub shard_index: u32,
     pub first_sample: u64,
     pub sample_count: u64,
+    /// Further string entries (e.g. `grasp_stats`, JSON).
+    pub extra: std::collections::BTreeMap<String, String>,
 }
 
 impl ShardMeta {
@@ -98,6 +103,7 @@ impl ShardMeta {
         ]
         .into_iter()
         .map(|(k, v)| (k.to_string(), v))
+        .chain(self.extra.clone())
         .collect()
     }
 
@@ -119,6 +125,23 @@ impl ShardMeta {
             shard_index: num("shard_index")? as u32,
             first_sample: num("first_sample")?,
             sample_count: num("sample_count")?,
+            extra: m
+                .iter()
+                .filter(|(k, _)| {
+                    ![
+                        "format_version",
+                        "generator",
+                        "seed",
+                        "config_sha256",
+                        "split",
+                        "shard_index",
+                        "first_sample",
+                        "sample_count",
+                    ]
+                    .contains(&k.as_str())
+                })
+                .map(|(k, v)| (k.clone(), v.clone()))
+                .collect(),
         })
     }
 }

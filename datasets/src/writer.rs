@@ -206,13 +206,16 @@ impl ShardWriter {
         }
         .encode_to_vec();
         self.put(self.channels.pose, t, &pose)?;
-        let tf = FrameTransforms {
-            transforms: vec![
-                transform(t, frames::WORLD, frames::CAMERA, &s.t_world_camera),
-                transform(t, frames::WORLD, frames::OBJECT, &s.t_world_object),
-            ],
-        }
-        .encode_to_vec();
+        let mut transforms = vec![
+            transform(t, frames::WORLD, frames::CAMERA, &s.t_world_camera),
+            transform(t, frames::WORLD, frames::OBJECT, &s.t_world_object),
+        ];
+        transforms.extend(
+            s.extra_transforms
+                .iter()
+                .map(|(parent, child, p)| transform(t, parent, child, p)),
+        );
+        let tf = FrameTransforms { transforms }.encode_to_vec();
         self.put(self.channels.tf, t, &tf)?;
         let info = serde_json::to_vec(&s.info)?;
         self.put(self.channels.info, t, &info)?;
@@ -220,6 +223,11 @@ impl ShardWriter {
         self.mcap.flush()?;
         self.written += 1;
         Ok(())
+    }
+
+    /// Adds an entry to the shard's metadata record (written by [`finish`]).
+    pub fn set_metadata(&mut self, key: &str, value: String) {
+        self.meta.extra.insert(key.to_string(), value);
     }
 
     /// Writes the summary, syncs, and renames the shard to its final name. Until this returns, no

@@ -6,7 +6,10 @@
 pub mod assets;
 pub mod config;
 pub mod dump;
+pub mod grasp;
+pub mod physics;
 pub mod pipeline;
 pub mod plan;
 pub mod render;
+pub mod sample;
 pub mod scene;

@@ -11,17 +11,16 @@ use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use sha2::{Digest, Sha256};
 use vt_dataset::{
-    Compression, Manifest, ModelInfo, ModelsInfo, Sample, ShardEntry, ShardMeta, ShardReceipt,
-    ShardWriter, SplitManifest, mask_ids,
+    Compression, Manifest, ModelInfo, ModelsInfo, ShardEntry, ShardMeta, ShardReceipt, ShardWriter,
+    SplitManifest, mask_ids,
 };
-use vt_objects::{Texture, TexturedMesh};
-use vt_randomizers::{Appearance, SampleKey};
 
 use crate::assets::{LoadedObject, load_objects};
 use crate::config::{CompressionKind, Config, LoadedConfig};
 use crate::plan::{Plan, SPLITS, ShardPlan, ShardSelector};
-use crate::render::{Draw, Lighting, MeshHandle, Renderer, View, WgpuRenderer};
-use crate::scene::sample_scene;
+use crate::render::WgpuRenderer;
+use crate::sample::SampleFactory;
+use crate::scene::robot::GraspStats;
 
 pub const GENERATOR: &str = concat!("vtgen ", env!("CARGO_PKG_VERSION"));
 
@@ -52,146 +51,6 @@ pub fn sha256_hex(data: &[u8]) -> String {
         .iter()
         .map(|b| format!("{b:02x}"))
         .collect()
-}
-
-/// Everything a worker needs to turn sample coordinates into a sample.
-pub struct SampleFactory<'a> {
-    pub config: &'a Config,
-    pub objects: &'a [LoadedObject],
-    renderer: Box<dyn Renderer + 'a>,
-    object_meshes: Vec<MeshHandle>,
-    floor: MeshHandle,
-}
-
-/// The floor: a large textured quad on z = 0, the texture repeating every `tile` metres.
-fn floor_mesh(appearance: &Appearance) -> TexturedMesh {
-    let half = 3.0f32;
-    let reps = (2.0 * half as f64 / appearance.floor_tile) as f32;
-    let corners = [[-half, -half], [half, -half], [half, half], [-half, half]];
-    TexturedMesh {
-        positions: corners.iter().map(|c| [c[0], c[1], 0.0]).collect(),
-        normals: vec![[0.0, 0.0, 1.0]; 4],
-        uvs: corners
-            .iter()
-            .map(|c| {
-                [
-                    (c[0] / (2.0 * half) + 0.5) * reps,
-                    (0.5 - c[1] / (2.0 * half)) * reps,
-                ]
-            })
-            .collect(),
-        indices: vec![0, 1, 2, 0, 2, 3],
-        texture: Texture {
-            width: appearance.floor.width,
-            height: appearance.floor.height,
-            rgba: appearance.floor.rgba.clone(),
-        },
-    }
-}
-
-impl<'a> SampleFactory<'a> {
-    pub fn new(
-        config: &'a Config,
-        objects: &'a [LoadedObject],
-        mut renderer: Box<dyn Renderer + 'a>,
-    ) -> Result<Self> {
-        let floor = renderer.upload_mesh(&floor_mesh(&Appearance::canonical()))?;
-        let object_meshes = objects
-            .iter()
-            .map(|o| {
-                renderer
-                    .upload_mesh(&o.mesh)
-                    .with_context(|| format!("uploading '{}'", o.id))
-            })
-            .collect::<Result<_>>()?;
-        Ok(SampleFactory {
-            config,
-            objects,
-            renderer,
-            object_meshes,
-            floor,
-        })
-    }
-
-    pub fn renderer_name(&self) -> String {
-        self.renderer.describe()
-    }
-
-    pub fn make(&mut self, split: &str, index: u64, r: &crate::plan::SampleRef) -> Result<Sample> {
-        let obj = &self.objects[r.object_index as usize];
-        let key = SampleKey {
-            seed: self.config.seed,
-            object_id: &obj.id,
-            trajectory: r.trajectory,
-            instance: r.instance,
-        };
-        let scene = sample_scene(self.config, &key);
-        let cam = &self.config.camera;
-        let k = cam.k();
-        let view = View {
-            width: cam.width,
-            height: cam.height,
-            k,
-            near: cam.near,
-            far: cam.far,
-            t_world_camera: scene.t_world_camera.matrix(),
-        };
-        let light = &scene.appearance.light;
-        let lighting = Lighting {
-            light_position: light.position,
-            light_color: light.color.map(|c| c * light.intensity),
-            ambient: light.ambient,
-            background: self.config.scene.background,
-        };
-        let draws = [
-            Draw {
-                mesh: self.floor,
-                t_world_model: glam::DMat4::IDENTITY,
-                mask_id: mask_ids::BACKGROUND,
-            },
-            Draw {
-                mesh: self.object_meshes[r.object_index as usize],
-                t_world_model: scene.t_world_object.matrix(),
-                mask_id: mask_ids::TARGET_OBJECT,
-            },
-        ];
-        let img = self.renderer.render(&view, &lighting, &draws)?;
-        let t_camera_object = scene
-            .t_world_camera
-            .inverse()
-            .compose(&scene.t_world_object);
-        let visible = img
-            .mask
-            .iter()
-            .filter(|&&m| m == mask_ids::TARGET_OBJECT)
-            .count();
-        let info = serde_json::json!({
-            "split": split,
-            "index": index,
-            "object_id": obj.id,
-            "object_index": obj.index,
-            "mask_id": mask_ids::TARGET_OBJECT,
-            "trajectory": r.trajectory,
-            "instance": r.instance,
-            "randomized": scene.appearance.randomized,
-            "visible_pixels": visible,
-            "T_world_camera": scene.t_world_camera.to_json(),
-            "T_camera_object": t_camera_object.to_json(),
-        });
-        Ok(Sample {
-            index,
-            width: img.width,
-            height: img.height,
-            rgb: img.rgb,
-            depth: img.depth,
-            mask: img.mask,
-            k: [k.fx, 0.0, k.cx, 0.0, k.fy, k.cy, 0.0, 0.0, 1.0],
-            t_camera_object,
-            t_world_camera: scene.t_world_camera,
-            t_world_object: scene.t_world_object,
-            info,
-        })
-    }
 }
 
 fn write_models(out: &Path, objects: &[LoadedObject]) -> Result<()> {
@@ -333,6 +192,24 @@ fn update_manifest(
             },
         );
     }
+    // Grasp-loop figures: each shard stores those of the trajectories that start in it.
+    let mut grasp = None;
+    if config.robot.is_some() {
+        let mut total = GraspStats::default();
+        for e in splits
+            .values()
+            .flat_map(|s: &SplitManifest| &s.shards)
+            .filter(|e| e.sha256.is_some())
+        {
+            let reader = vt_dataset::ShardReader::open(&out.join(&e.file))?;
+            if let Some(j) = reader.meta().extra.get("grasp_stats") {
+                let st: GraspStats =
+                    serde_json::from_str(j).with_context(|| format!("{}: grasp_stats", e.file))?;
+                total.merge(&st);
+            }
+        }
+        grasp = Some(serde_json::to_value(total)?);
+    }
     let m = Manifest {
         format: "vtgen-dataset".into(),
         format_version: vt_dataset::FORMAT_VERSION,
@@ -341,6 +218,7 @@ fn update_manifest(
         config_sha256: config_sha.into(),
         complete,
         splits,
+        grasp,
     };
     m.save(&out.join("manifest.json"))?;
     Ok(m)
@@ -357,6 +235,7 @@ fn write_shard(
 ) -> Result<Option<ShardReceipt>> {
     let path = out.join(shard.file());
     let mut writer = ShardWriter::create(&path, meta, compression)?;
+    factory.shard_stats = GraspStats::default();
     for (k, r) in shard.samples.iter().enumerate() {
         if abort.load(Ordering::Relaxed) {
             return Ok(None);
@@ -369,6 +248,9 @@ fn write_shard(
             .write_sample(&sample)
             .with_context(|| format!("writing {}", path.display()))?;
         progress.inc(1);
+    }
+    if factory.has_robot() {
+        writer.set_metadata("grasp_stats", serde_json::to_string(&factory.shard_stats)?);
     }
     Ok(Some(writer.finish()?))
 }
@@ -443,7 +325,7 @@ pub fn generate(cfg: &LoadedConfig, opts: &GenerateOptions) -> Result<GenerateSu
                         return Ok(());
                     }
                     let renderer = WgpuRenderer::new(&config.renderer)?;
-                    let mut factory = SampleFactory::new(config, objects, Box::new(renderer))?;
+                    let mut factory = SampleFactory::new(cfg, objects, Box::new(renderer))?;
                     let _ = name_tx.send(factory.renderer_name());
                     loop {
                         let i = next.fetch_add(1, Ordering::SeqCst);
@@ -459,6 +341,7 @@ pub fn generate(cfg: &LoadedConfig, opts: &GenerateOptions) -> Result<GenerateSu
                             shard_index: s.shard_index,
                             first_sample: s.first_sample,
                             sample_count: s.samples.len() as u64,
+                            extra: Default::default(),
                         };
                         if let Some(r) =
                             write_shard(&mut factory, out, s, &meta, compression, progress, abort)?

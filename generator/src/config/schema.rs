@@ -23,7 +23,132 @@ pub struct Config {
     pub scene: SceneConfig,
     #[serde(default)]
     pub renderer: RendererConfig,
+    /// The arm and hand and the grasp loop. Without it, the object floats in front of the camera.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub robot: Option<RobotConfig>,
     pub output: Output,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RobotConfig {
+    /// A URDF with the same joint and link names; default: the built-in UR5e + Allegro.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub urdf: Option<PathBuf>,
+    /// Robot base position (world) and rotation about world z.
+    #[serde(default = "default_base_position")]
+    pub base_position: [f64; 3],
+    #[serde(default = "default_base_yaw")]
+    pub base_yaw_deg: f64,
+    #[serde(default)]
+    pub physics: PhysicsConfig,
+    #[serde(default)]
+    pub grasp: GraspConfig,
+}
+
+fn default_base_position() -> [f64; 3] {
+    [0.0, 0.5, 0.0]
+}
+fn default_base_yaw() -> f64 {
+    180.0
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum PhysicsBackend {
+    #[default]
+    Rapier,
+    Mujoco,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PhysicsConfig {
+    pub backend: PhysicsBackend,
+    /// Simulation step (s).
+    pub timestep: f64,
+    /// Coulomb friction of hand and object surfaces.
+    pub friction: f64,
+    /// Finger joint PD gains (N·m/rad, N·m·s/rad) and torque limit (N·m).
+    pub stiffness: f64,
+    pub damping: f64,
+    pub max_torque: f64,
+}
+
+impl Default for PhysicsConfig {
+    fn default() -> Self {
+        PhysicsConfig {
+            backend: PhysicsBackend::Rapier,
+            timestep: 1.0 / 240.0,
+            friction: 1.5,
+            stiffness: 5.0,
+            damping: 0.2,
+            max_torque: 0.7,
+        }
+    }
+}
+
+/// The grasp loop's parameters. Hand joint arrays are in `ff, mf, rf, th` × `joint_0..3` order.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct GraspConfig {
+    /// Arm joints the IK starts from (rad).
+    pub home_arm: [f64; 6],
+    /// Box (world) the palm is moved to, and how far its palmar normal may tilt from straight up.
+    pub palm_workspace: Workspace,
+    pub max_tilt_deg: f64,
+    /// Rotation of the palm about its normal, either way from "fingers towards the camera side".
+    pub max_roll_deg: f64,
+    /// Random preshape: a range per hand joint (rad).
+    pub preshape: [(f64, f64); 16],
+    /// Closing targets per hand joint; null keeps the preshape value (ab/adduction).
+    pub close: [Option<f64>; 16],
+    /// Object centre range in the palm frame (y, z used; x puts the object against the palm).
+    pub object_offset: Workspace,
+    /// Palmar surface of the palm (palm frame x, m).
+    pub palm_surface_x: f64,
+    /// Object orientations deeper than this in front of the palm (m) are redrawn: the fingers
+    /// cannot wrap around them.
+    pub max_grasp_depth: f64,
+    pub close_seconds: f64,
+    pub settle_seconds: f64,
+    pub move_seconds: f64,
+    pub hold_seconds: f64,
+    pub max_attempts: u32,
+    /// Largest accepted penetration of a hand link into the object (m).
+    pub max_penetration: f64,
+}
+
+impl Default for GraspConfig {
+    fn default() -> Self {
+        let finger = [(-0.15, 0.15), (-0.1, 0.3), (-0.1, 0.3), (-0.1, 0.3)];
+        let thumb = [(0.3, 0.5), (0.0, 0.4), (-0.1, 0.3), (-0.1, 0.3)];
+        let fc = [None, Some(1.5), Some(1.5), Some(1.4)];
+        let tc = [Some(1.35), Some(0.9), Some(1.2), Some(1.2)];
+        GraspConfig {
+            home_arm: [-1.5708, -1.5708, 1.5708, -1.5708, -1.5708, 0.0],
+            palm_workspace: Workspace {
+                min: [-0.08, -0.05, 0.22],
+                max: [0.08, 0.05, 0.32],
+            },
+            max_tilt_deg: 50.0,
+            max_roll_deg: 45.0,
+            preshape: std::array::from_fn(|k| if k < 12 { finger[k % 4] } else { thumb[k - 12] }),
+            close: std::array::from_fn(|k| if k < 12 { fc[k % 4] } else { tc[k - 12] }),
+            object_offset: Workspace {
+                min: [0.0, -0.02, 0.0],
+                max: [0.0, 0.02, 0.05],
+            },
+            palm_surface_x: 0.0111,
+            max_grasp_depth: 0.08,
+            close_seconds: 0.6,
+            settle_seconds: 0.4,
+            move_seconds: 0.5,
+            hold_seconds: 0.2,
+            max_attempts: 60,
+            max_penetration: 0.001,
+        }
+    }
 }
 
 /// A catalogue id, or a custom object with its own mesh.

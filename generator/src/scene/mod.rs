@@ -1,6 +1,8 @@
 //! Scene sampling: from a sample's key to the camera, the object pose and the appearance. Pure
 //! and seeded; the robot and the grasp loop replace the free-floating object pose later.
 
+pub mod robot;
+
 use glam::{DMat3, DQuat, DVec3};
 use rand::Rng;
 use vt_dataset::Pose;

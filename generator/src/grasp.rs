@@ -1,0 +1,470 @@
+//! The paper's grasp loop (Algorithm 1), one trajectory at a time: place the object against the
+//! palm at a random orientation, random preshape, close the fingers under PD control, check the
+//! grasp holds, then move the arm to a new random palm pose for every instance (a simulated
+//! joint-space path, so the object may slip or turn), let it settle and record. A failed attempt
+//! (dropped object, fewer than 2 phalanges in contact, object lost during motion) is retried with
+//! fresh randomness from the same trajectory stream; attempts are counted.
+
+use anyhow::{Result, bail};
+use glam::{DAffine3, DMat3, DQuat, DVec3};
+use rand::Rng;
+use rand_chacha::ChaCha8Rng;
+use vt_randomizers::{SampleKey, SampleStream};
+use vt_robot::{IkOptions, RobotModel, hand_joint_names};
+
+use crate::config::GraspConfig;
+use crate::physics::{HandPhysics, PhysicsObject};
+use crate::scene::uniform_rotation;
+
+/// The state recorded at one instance.
+#[derive(Debug, Clone)]
+pub struct InstanceState {
+    /// All robot joint values (`RobotModel::dof_names` order).
+    pub q: Vec<f64>,
+    /// Palm pose in the robot base frame.
+    pub t_base_palm: DAffine3,
+    /// Object pose in the palm frame.
+    pub t_palm_object: DAffine3,
+    /// Per phalanx (`vt_robot::phalanx_names` order): contact distance when touching.
+    pub contacts: [Option<f64>; 12],
+    /// Object motion relative to the palm since the grasp settled: metres and radians.
+    pub slip_translation: f64,
+    pub slip_rotation: f64,
+    pub penetration: f64,
+}
+
+#[derive(Debug, Clone)]
+pub struct Trajectory {
+    pub instances: Vec<InstanceState>,
+    /// Attempts it took (1 = the first grasp held through every instance).
+    pub attempts: u32,
+}
+
+/// Why an attempt failed, for the run's statistics.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Failure {
+    InitialOverlap,
+    GraspNotHeld,
+    LostDuringMotion,
+    TooFewContacts,
+    Penetration,
+    TouchesFloor,
+    Unreachable,
+}
+
+const GRAVITY: DVec3 = DVec3::new(0.0, 0.0, -9.81);
+
+fn rot(t: &DAffine3) -> DQuat {
+    DQuat::from_mat3(&DMat3::from(t.matrix3)).normalize()
+}
+
+/// Everything the loop needs besides the physics.
+pub struct GraspContext<'a> {
+    pub robot: &'a RobotModel,
+    pub t_world_base: DAffine3,
+    pub config: &'a GraspConfig,
+    pub timestep: f64,
+}
+
+impl GraspContext<'_> {
+    /// The arm's home: elbow up, palm facing up over the workspace.
+    pub fn home(&self) -> Vec<f64> {
+        let mut q = self.robot.zero();
+        for (k, d) in self.robot.arm_dofs().into_iter().enumerate() {
+            q[d] = self.config.home_arm[k];
+        }
+        q
+    }
+
+    /// A random palm pose (world): position in the palm workspace, palmar normal within
+    /// `max_tilt` of straight up, any roll about it.
+    fn sample_palm(&self, rng: &mut ChaCha8Rng) -> DAffine3 {
+        let w = &self.config.palm_workspace;
+        let p = DVec3::new(
+            rng.random_range(w.min[0]..=w.max[0]),
+            rng.random_range(w.min[1]..=w.max[1]),
+            rng.random_range(w.min[2]..=w.max[2]),
+        );
+        // Palm frame: +x palmar normal, +z along the fingers. Neutral: palm up (x -> world z),
+        // fingers towards the camera side (z -> world -y), so the arm stays behind the hand.
+        let up = DQuat::from_mat3(&DMat3::from_cols(DVec3::Z, DVec3::NEG_X, DVec3::NEG_Y));
+        let max_roll = self.config.max_roll_deg.to_radians();
+        let roll = DQuat::from_rotation_x(rng.random_range(-max_roll..=max_roll));
+        let tilt_axis = DVec3::new(
+            0.0,
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+        )
+        .normalize_or(DVec3::Y);
+        let cos_max = self.config.max_tilt_deg.to_radians().cos();
+        let tilt = (rng.random_range(cos_max..=1.0f64)).acos();
+        DAffine3::from_rotation_translation(up * roll * DQuat::from_axis_angle(tilt_axis, tilt), p)
+    }
+
+    /// IK for a world palm pose, from `q`.
+    fn reach(&self, t_world_palm: &DAffine3, q: &[f64]) -> Option<Vec<f64>> {
+        let target = self.t_world_base.inverse() * *t_world_palm;
+        self.robot.solve_palm_ik(&target, q, &IkOptions::default())
+    }
+}
+
+fn set_hand(robot: &RobotModel, q: &mut [f64], hand: &[f64; 16]) {
+    for (k, n) in hand_joint_names().iter().enumerate() {
+        q[robot.dof(n).expect("validated")] = hand[k];
+    }
+}
+
+/// Simulates trajectory `trajectory` of `object_id` and returns its recorded instances.
+pub fn simulate_trajectory(
+    ctx: &GraspContext,
+    physics: &mut dyn HandPhysics,
+    object: &PhysicsObject,
+    seed: u64,
+    object_id: &str,
+    trajectory: u32,
+    instances: u32,
+    failures: &mut Vec<Failure>,
+) -> Result<Trajectory> {
+    let cfg = ctx.config;
+    for attempt in 0..cfg.max_attempts {
+        let mut rng =
+            SampleStream::trajectory(seed, object_id, trajectory, &format!("grasp/{attempt}"));
+        match attempt_trajectory(
+            ctx, physics, object, &mut rng, seed, object_id, trajectory, attempt, instances,
+        )? {
+            Ok(instances) => {
+                return Ok(Trajectory {
+                    instances,
+                    attempts: attempt + 1,
+                });
+            }
+            Err(f) => failures.push(f),
+        }
+    }
+    bail!(
+        "{object_id} trajectory {trajectory}: no grasp held in {} attempts ({:?})",
+        cfg.max_attempts,
+        failures.last()
+    )
+}
+
+#[allow(clippy::too_many_arguments)]
+fn attempt_trajectory(
+    ctx: &GraspContext,
+    physics: &mut dyn HandPhysics,
+    object: &PhysicsObject,
+    rng: &mut ChaCha8Rng,
+    seed: u64,
+    object_id: &str,
+    trajectory: u32,
+    attempt: u32,
+    instances: u32,
+) -> Result<std::result::Result<Vec<InstanceState>, Failure>> {
+    let cfg = ctx.config;
+    let robot = ctx.robot;
+    let steps = |s: f64| (s / ctx.timestep).round().max(1.0) as usize;
+    // Grasp pose of the palm, reached by IK.
+    let mut q = ctx.home();
+    let t_world_palm = ctx.sample_palm(rng);
+    let Some(q_grasp) = ctx.reach(&t_world_palm, &q) else {
+        return Ok(Err(Failure::Unreachable));
+    };
+    q = q_grasp;
+    // Preshape and object placement against the palm.
+    let pre: [f64; 16] = std::array::from_fn(|k| {
+        let (lo, hi) = cfg.preshape[k];
+        rng.random_range(lo..=hi)
+    });
+    // A uniformly random orientation, redrawn (no physics needed) while the object is deeper in
+    // front of the palm than the fingers can wrap around.
+    let depth_along = |r: DQuat| {
+        let xs = object
+            .points
+            .iter()
+            .map(|p| (r * DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)).x);
+        let (lo, hi) = xs.fold((f64::MAX, f64::MIN), |(lo, hi), x| (lo.min(x), hi.max(x)));
+        (hi - lo, -lo)
+    };
+    let mut r_obj = uniform_rotation(rng);
+    for _ in 0..20 {
+        if depth_along(r_obj).0 <= cfg.max_grasp_depth {
+            break;
+        }
+        r_obj = uniform_rotation(rng);
+    }
+    if depth_along(r_obj).0 > cfg.max_grasp_depth {
+        // Large objects (boxes, the drill) fit the hand in few orientations: turn the model's
+        // thinnest axis onto the palm normal, then spin about it, flip, and tilt a little.
+        let (lo, hi) = object.points.iter().fold(
+            (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)),
+            |(lo, hi), p| {
+                let v = DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+                (lo.min(v), hi.max(v))
+            },
+        );
+        let ext = hi - lo;
+        let thin = if ext.x <= ext.y && ext.x <= ext.z {
+            DVec3::X
+        } else if ext.y <= ext.z {
+            DVec3::Y
+        } else {
+            DVec3::Z
+        };
+        let flip = if rng.random_bool(0.5) { -1.0 } else { 1.0 };
+        let align = DQuat::from_rotation_arc(thin * flip, DVec3::X);
+        let spin = DQuat::from_rotation_x(rng.random_range(0.0..std::f64::consts::TAU));
+        let tilt_axis = DVec3::new(
+            0.0,
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+        )
+        .normalize_or(DVec3::Y);
+        let tilt = DQuat::from_axis_angle(tilt_axis, rng.random_range(0.0..0.25));
+        r_obj = tilt * spin * align;
+    }
+    let back = depth_along(r_obj).1;
+    let o = &cfg.object_offset;
+    let pos = DVec3::new(
+        cfg.palm_surface_x + 0.003 + back,
+        rng.random_range(o.min[1]..=o.max[1]),
+        rng.random_range(o.min[2]..=o.max[2]),
+    );
+    // An object spawned inside a link (large objects reach the thumb, which sits in front of the
+    // palm) would be launched by the solver: one step finds the overlap, and the object is moved
+    // out along the palm normal until it is clear.
+    let mut clear = false;
+    for shift in 0..6 {
+        let p = pos + DVec3::X * (0.01 * shift as f64);
+        physics.reset(object, DAffine3::from_rotation_translation(r_obj, p), &pre)?;
+        // Open hand at the preshape, weightless object held still by damping.
+        physics.set_targets(&pre);
+        physics.set_gravity(DVec3::ZERO);
+        physics.set_object_damping(20.0, 20.0);
+        physics.step();
+        if physics.max_penetration() <= 0.0015 {
+            clear = true;
+            break;
+        }
+    }
+    if !clear {
+        return Ok(Err(Failure::InitialOverlap));
+    }
+    for _ in 0..steps(0.15) {
+        physics.step();
+    }
+    // Close: every flexion joint towards its closed target, ab/adduction kept.
+    let mut close = pre;
+    for k in 0..16 {
+        if let Some(t) = cfg.close[k] {
+            close[k] = t;
+        }
+    }
+    physics.set_targets(&close);
+    physics.set_object_damping(2.0, 2.0);
+    for _ in 0..steps(cfg.close_seconds) {
+        physics.step();
+    }
+    // Gravity on, as the palm is oriented: the grasp must hold the object by friction.
+    physics.set_object_damping(0.05, 0.05);
+    let r_palm = rot(&t_world_palm);
+    physics.set_gravity(r_palm.inverse() * GRAVITY);
+    let before = physics.object_pose();
+    for _ in 0..steps(cfg.settle_seconds) {
+        physics.step();
+    }
+    let held = physics.object_pose();
+    let touching = physics
+        .phalanx_contacts()
+        .iter()
+        .filter(|c| c.is_some())
+        .count();
+    if (held.translation - before.translation).length() > 0.02 || touching < 2 {
+        return Ok(Err(Failure::GraspNotHeld));
+    }
+    let grasped = held;
+    let mut out = Vec::with_capacity(instances as usize);
+    for instance in 0..instances {
+        let key = SampleKey {
+            seed,
+            object_id,
+            trajectory,
+            instance,
+        };
+        let mut arm_rng = SampleStream::sample(&key, &format!("arm/{attempt}"));
+        let mut target = None;
+        for _ in 0..20 {
+            let t = ctx.sample_palm(&mut arm_rng);
+            if let Some(qt) = ctx.reach(&t, &q) {
+                target = Some(qt);
+                break;
+            }
+        }
+        let Some(q_target) = target else {
+            return Ok(Err(Failure::Unreachable));
+        };
+        // Smooth joint-space path; the palm's world motion gives the apparent gravity.
+        let n = steps(cfg.move_seconds);
+        let q_from = q.clone();
+        let palm_at = |s: f64| -> DAffine3 {
+            let w = s * s * (3.0 - 2.0 * s);
+            let qs: Vec<f64> = q_from
+                .iter()
+                .zip(&q_target)
+                .map(|(a, b)| a + (b - a) * w)
+                .collect();
+            ctx.t_world_base * robot.palm_pose(&qs)
+        };
+        let dt = ctx.timestep;
+        let ds = 1.0 / n as f64;
+        for k in 1..=n + steps(cfg.hold_seconds) {
+            let s = (k as f64 * ds).min(1.0);
+            let p = palm_at(s);
+            let acc = if k <= n {
+                let (a, b) = (
+                    palm_at((s - ds).max(0.0)).translation,
+                    palm_at((s + ds).min(1.0)).translation,
+                );
+                (b - 2.0 * p.translation + a) / (dt * dt)
+            } else {
+                DVec3::ZERO
+            };
+            physics.set_gravity(rot(&p).inverse() * (GRAVITY - acc));
+            physics.step();
+        }
+        q = q_target;
+        let obj = physics.object_pose();
+        let contacts = physics.phalanx_contacts();
+        let touching = contacts.iter().filter(|c| c.is_some()).count();
+        if obj.translation.length() > 0.25 || touching == 0 {
+            return Ok(Err(Failure::LostDuringMotion));
+        }
+        if touching < 2 {
+            return Ok(Err(Failure::TooFewContacts));
+        }
+        let penetration = physics.max_penetration();
+        if penetration > cfg.max_penetration {
+            return Ok(Err(Failure::Penetration));
+        }
+        // The object must hang free: its lowest point above the floor (z = 0).
+        let t_world_object = ctx.t_world_base * robot.palm_pose(&q) * obj;
+        let lowest = object
+            .points
+            .iter()
+            .map(|p| {
+                t_world_object
+                    .transform_point3(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64))
+                    .z
+            })
+            .fold(f64::MAX, f64::min);
+        if lowest < 0.005 {
+            return Ok(Err(Failure::TouchesFloor));
+        }
+        let mut qr = q.clone();
+        set_hand(robot, &mut qr, &physics.joint_positions());
+        let rel = grasped.inverse() * obj;
+        out.push(InstanceState {
+            t_base_palm: robot.palm_pose(&qr),
+            q: qr,
+            t_palm_object: obj,
+            contacts,
+            slip_translation: rel.translation.length(),
+            slip_rotation: rot(&rel).angle_between(DQuat::IDENTITY),
+            penetration,
+        });
+    }
+    Ok(Ok(out))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::{GraspConfig, PhysicsConfig};
+    use crate::physics::{PhysicsSettings, RapierHand};
+
+    pub fn physics_object(id: &str) -> PhysicsObject {
+        let e = vt_objects::Catalog::builtin().get(id).unwrap().clone();
+        let m = vt_objects::procedural_mesh(&e);
+        PhysicsObject {
+            points: m.positions.clone(),
+            mass: e.mass,
+        }
+    }
+
+    #[test]
+    #[ignore]
+    fn experiment() {
+        let robot = RobotModel::builtin();
+        let pc = PhysicsConfig::default();
+        let env = |k: &str, d: f64| {
+            std::env::var(k)
+                .ok()
+                .and_then(|v| v.parse().ok())
+                .unwrap_or(d)
+        };
+        let settings = PhysicsSettings {
+            timestep: pc.timestep,
+            friction: env("F", pc.friction),
+            stiffness: pc.stiffness,
+            damping: pc.damping,
+            max_torque: env("T", pc.max_torque),
+        };
+        let cfg = GraspConfig::default();
+        let only = std::env::var("OBJ").unwrap_or_default();
+        let ctx = GraspContext {
+            robot: &robot,
+            t_world_base: DAffine3::from_rotation_translation(
+                DQuat::from_rotation_z(std::f64::consts::PI),
+                DVec3::new(0.0, 0.5, 0.0),
+            ),
+            config: &cfg,
+            timestep: pc.timestep,
+        };
+        let mut hand = RapierHand::new(&robot, settings).unwrap();
+        let n: u32 = std::env::var("TRAJ")
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(3);
+        let inst: u32 = std::env::var("INST")
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(10);
+        for e in vt_objects::Catalog::builtin()
+            .entries()
+            .iter()
+            .filter(|e| e.id.contains(&only))
+        {
+            let obj = physics_object(&e.id);
+            let mut failures = Vec::new();
+            let t0 = std::time::Instant::now();
+            let mut ok = 0;
+            let mut attempts = 0;
+            let mut max_slip: f64 = 0.0;
+            let mut max_pen: f64 = 0.0;
+            for t in 0..n {
+                match simulate_trajectory(&ctx, &mut hand, &obj, 1, &e.id, t, inst, &mut failures) {
+                    Ok(tr) => {
+                        ok += 1;
+                        attempts += tr.attempts;
+                        for s in &tr.instances {
+                            max_slip = max_slip.max(s.slip_translation);
+                            max_pen = max_pen.max(s.penetration);
+                        }
+                    }
+                    Err(e) => eprintln!("{e}"),
+                }
+            }
+            let mut counts = std::collections::BTreeMap::new();
+            for f in &failures {
+                *counts.entry(format!("{f:?}")).or_insert(0) += 1;
+            }
+            eprintln!(
+                "{:24} ok {ok}/{n} attempts {attempts} slip {:.1}mm pen {:.2}mm {:.1}s {:?}",
+                e.id,
+                max_slip * 1e3,
+                max_pen * 1e3,
+                t0.elapsed().as_secs_f64(),
+                counts
+            );
+        }
+    }
+}

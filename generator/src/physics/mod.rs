@@ -1,0 +1,57 @@
+//! Physics behind a small trait. The hand is simulated in its palm frame: a fixed-base articulated
+//! hand (16 PD-controlled joints) and one free object. The arm's motion enters as the apparent
+//! gravity in the palm frame, `R_palmᵀ (g − a_palm)`, which is what makes an object slip or turn in
+//! the hand when the arm reorients or accelerates. (Rotational fictitious forces, below 1% of g for
+//! the arm's speeds, are neglected.) This keeps the grasp stable and identical for every backend.
+
+mod rapier_backend;
+
+use glam::{DAffine3, DVec3};
+
+pub use rapier_backend::RapierHand;
+
+/// What the physics needs of an object: a convex collision shape and a mass.
+#[derive(Debug, Clone)]
+pub struct PhysicsObject {
+    /// Vertices (model frame); the backend uses their convex hull.
+    pub points: Vec<[f32; 3]>,
+    pub mass: f64,
+}
+
+/// Per-step settings shared by backends.
+#[derive(Debug, Clone, Copy)]
+pub struct PhysicsSettings {
+    pub timestep: f64,
+    pub friction: f64,
+    /// PD gains of the finger joints (N·m/rad, N·m·s/rad) and the torque limit (N·m).
+    pub stiffness: f64,
+    pub damping: f64,
+    pub max_torque: f64,
+}
+
+/// The simulated hand in the palm frame.
+pub trait HandPhysics {
+    fn backend_name(&self) -> &'static str;
+    /// A new grasp: hand joints at `q` (16 values, `vt_robot::hand_joint_names` order), the object
+    /// at `object_pose` (palm frame), at rest.
+    fn reset(
+        &mut self,
+        object: &PhysicsObject,
+        object_pose: DAffine3,
+        q: &[f64; 16],
+    ) -> anyhow::Result<()>;
+    /// PD targets of the 16 hand joints.
+    fn set_targets(&mut self, targets: &[f64; 16]);
+    /// Apparent gravity in the palm frame (m/s²).
+    fn set_gravity(&mut self, g: DVec3);
+    /// Extra damping of the object's motion, e.g. while the fingers close around it.
+    fn set_object_damping(&mut self, linear: f64, angular: f64);
+    fn step(&mut self);
+    fn object_pose(&self) -> DAffine3;
+    fn joint_positions(&self) -> [f64; 16];
+    /// For each of the 12 phalanges (`vt_robot::phalanx_names` order): the signed distance of its
+    /// closest contact with the object (negative = penetration), None when not touching.
+    fn phalanx_contacts(&self) -> [Option<f64>; 12];
+    /// Deepest penetration (m, >= 0) of any hand link into the object.
+    fn max_penetration(&self) -> f64;
+}

@@ -1,0 +1,283 @@
+//! The robot in the scene: the grasp loop's recorded states turned into world poses, and the
+//! arm and hand links as renderable meshes with their mask ids (FORMAT.md).
+
+use std::collections::BTreeMap;
+
+use anyhow::{Context, Result};
+use glam::{DAffine3, DMat3, DQuat, DVec3, Vec3};
+use vt_objects::{Texture, TexturedMesh};
+use vt_robot::{ARM_JOINTS, Geometry, RobotModel, hand_joint_names};
+
+use crate::config::{LoadedConfig, RobotConfig};
+use crate::grasp::{Failure, GraspContext, Trajectory, simulate_trajectory};
+use crate::physics::{HandPhysics, PhysicsObject, PhysicsSettings, RapierHand};
+
+/// Mask id of a robot link (FORMAT.md): arm links 10–15 (the base counts with link 1), palm and
+/// adapter 16, hand links 17 + the index of the hand joint that moves them. None: not drawn.
+pub fn mask_id(model: &RobotModel, link: usize) -> Option<u8> {
+    let name = model.links[link].name.as_str();
+    if name == "base_link" {
+        return Some(10);
+    }
+    if name == "palm" || name == "hand_adapter" {
+        return Some(16);
+    }
+    let joint = &model.joints[model.links[link].parent_joint?];
+    if let Some(k) = ARM_JOINTS.iter().position(|j| *j == joint.name) {
+        return Some(10 + k as u8);
+    }
+    hand_joint_names()
+        .iter()
+        .position(|j| *j == joint.name)
+        .map(|k| 17 + k as u8)
+}
+
+/// A link's visual shapes as one mesh (its colours in a small texture, one texel per shape).
+pub fn link_mesh(model: &RobotModel, link: usize) -> Option<TexturedMesh> {
+    let shapes = &model.links[link].visuals;
+    if shapes.is_empty() {
+        return None;
+    }
+    let n = shapes.len();
+    let mut mesh = TexturedMesh {
+        positions: Vec::new(),
+        normals: Vec::new(),
+        uvs: Vec::new(),
+        indices: Vec::new(),
+        texture: Texture {
+            width: n as u32,
+            height: 1,
+            rgba: shapes
+                .iter()
+                .flat_map(|s| {
+                    s.rgba
+                        .map(|c| (c.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0).round() as u8)
+                })
+                .collect(),
+        },
+    };
+    for (i, s) in shapes.iter().enumerate() {
+        let uv = [(i as f32 + 0.5) / n as f32, 0.5];
+        let (pos, nrm, idx) = primitive(&s.geometry);
+        let base = mesh.positions.len() as u32;
+        let m = s.origin;
+        let r = DMat3::from(m.matrix3);
+        mesh.positions.extend(
+            pos.iter()
+                .map(|p| m.transform_point3(p.as_dvec3()).as_vec3().to_array()),
+        );
+        mesh.normals.extend(
+            nrm.iter()
+                .map(|v| (r * v.as_dvec3()).normalize().as_vec3().to_array()),
+        );
+        mesh.uvs.extend(std::iter::repeat_n(uv, pos.len()));
+        mesh.indices.extend(idx.iter().map(|i| i + base));
+    }
+    Some(mesh)
+}
+
+/// Box, cylinder (along z) or sphere as positions, normals and triangles.
+fn primitive(g: &Geometry) -> (Vec<Vec3>, Vec<Vec3>, Vec<u32>) {
+    let (mut p, mut n, mut t) = (Vec::new(), Vec::new(), Vec::new());
+    match *g {
+        Geometry::Box { size } => {
+            let h = size.as_vec3() * 0.5;
+            for (nn, u, v) in [
+                (Vec3::X, Vec3::Y, Vec3::Z),
+                (Vec3::NEG_X, Vec3::NEG_Y, Vec3::Z),
+                (Vec3::Y, Vec3::NEG_X, Vec3::Z),
+                (Vec3::NEG_Y, Vec3::X, Vec3::Z),
+                (Vec3::Z, Vec3::X, Vec3::Y),
+                (Vec3::NEG_Z, Vec3::X, Vec3::NEG_Y),
+            ] {
+                let b = p.len() as u32;
+                for (a, c) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
+                    p.push((nn + u * a + v * c) * h);
+                    n.push(nn);
+                }
+                t.extend([b, b + 1, b + 2, b, b + 2, b + 3]);
+            }
+        }
+        Geometry::Cylinder { radius, length } => {
+            let (r, hl, seg) = (radius as f32, length as f32 / 2.0, 24u32);
+            for j in 0..=seg {
+                let a = std::f32::consts::TAU * j as f32 / seg as f32;
+                let d = Vec3::new(a.cos(), a.sin(), 0.0);
+                p.extend([d * r - Vec3::Z * hl, d * r + Vec3::Z * hl]);
+                n.extend([d, d]);
+            }
+            for j in 0..seg {
+                let b = 2 * j;
+                t.extend([b, b + 2, b + 3, b, b + 3, b + 1]);
+            }
+            for (z, nz) in [(-hl, Vec3::NEG_Z), (hl, Vec3::Z)] {
+                let c = p.len() as u32;
+                p.push(Vec3::Z * z);
+                n.push(nz);
+                for j in 0..=seg {
+                    let a = std::f32::consts::TAU * j as f32 / seg as f32;
+                    p.push(Vec3::new(a.cos() * r, a.sin() * r, z));
+                    n.push(nz);
+                }
+                for j in 0..seg {
+                    if z < 0.0 {
+                        t.extend([c, c + 2 + j, c + 1 + j])
+                    } else {
+                        t.extend([c, c + 1 + j, c + 2 + j])
+                    }
+                }
+            }
+        }
+        Geometry::Sphere { radius } => {
+            let (r, st, sl) = (radius as f32, 12u32, 24u32);
+            for i in 0..=st {
+                let th = std::f32::consts::PI * i as f32 / st as f32;
+                for j in 0..=sl {
+                    let ph = std::f32::consts::TAU * j as f32 / sl as f32;
+                    let d = Vec3::new(th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos());
+                    p.push(d * r);
+                    n.push(d);
+                }
+            }
+            for i in 0..st {
+                for j in 0..sl {
+                    let a = i * (sl + 1) + j;
+                    let b = a + sl + 1;
+                    t.extend([a, b, b + 1, a, b + 1, a + 1]);
+                }
+            }
+        }
+    }
+    (p, n, t)
+}
+
+/// Counts for the run's summary.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct GraspStats {
+    pub trajectories: u64,
+    pub attempts: u64,
+    pub failures: BTreeMap<String, u64>,
+    pub max_slip_mm: f64,
+    pub max_penetration_mm: f64,
+}
+
+impl GraspStats {
+    pub fn merge(&mut self, o: &GraspStats) {
+        self.trajectories += o.trajectories;
+        self.attempts += o.attempts;
+        for (k, v) in &o.failures {
+            *self.failures.entry(k.clone()).or_default() += v;
+        }
+        self.max_slip_mm = self.max_slip_mm.max(o.max_slip_mm);
+        self.max_penetration_mm = self.max_penetration_mm.max(o.max_penetration_mm);
+    }
+}
+
+/// The robot half of a worker: model, physics, and the trajectory being recorded.
+pub struct RobotScene {
+    pub model: RobotModel,
+    pub config: RobotConfig,
+    pub t_world_base: DAffine3,
+    physics: Box<dyn HandPhysics>,
+    objects: Vec<PhysicsObject>,
+    current: Option<((u32, u32), Trajectory)>,
+    /// Statistics of the trajectory simulated last (attempts, failures, slip).
+    pub last_stats: GraspStats,
+}
+
+impl RobotScene {
+    pub fn new(
+        cfg: &LoadedConfig,
+        robot: &RobotConfig,
+        objects: &[crate::assets::LoadedObject],
+    ) -> Result<Self> {
+        let model = match &robot.urdf {
+            Some(p) => RobotModel::from_urdf_file(&cfg.resolve(p))?,
+            None => RobotModel::builtin(),
+        };
+        let pc = &robot.physics;
+        let settings = PhysicsSettings {
+            timestep: pc.timestep,
+            friction: pc.friction,
+            stiffness: pc.stiffness,
+            damping: pc.damping,
+            max_torque: pc.max_torque,
+        };
+        let physics: Box<dyn HandPhysics> = match pc.backend {
+            crate::config::PhysicsBackend::Rapier => Box::new(RapierHand::new(&model, settings)?),
+            crate::config::PhysicsBackend::Mujoco => anyhow::bail!(
+                "physics backend 'mujoco' is not built into this vtgen (build with the `mujoco` feature)"
+            ),
+        };
+        let t_world_base = DAffine3::from_rotation_translation(
+            DQuat::from_rotation_z(robot.base_yaw_deg.to_radians()),
+            DVec3::from_array(robot.base_position),
+        );
+        let objects = objects
+            .iter()
+            .map(|o| PhysicsObject {
+                points: o.mesh.positions.clone(),
+                mass: o.mass,
+            })
+            .collect();
+        Ok(RobotScene {
+            model,
+            config: robot.clone(),
+            t_world_base,
+            physics,
+            objects,
+            current: None,
+            last_stats: GraspStats::default(),
+        })
+    }
+
+    pub fn backend_name(&self) -> &'static str {
+        self.physics.backend_name()
+    }
+
+    /// The recorded trajectory of (object, trajectory), simulated on first use.
+    pub fn trajectory(
+        &mut self,
+        seed: u64,
+        object_index: u32,
+        object_id: &str,
+        trajectory: u32,
+        instances: u32,
+    ) -> Result<&Trajectory> {
+        if self.current.as_ref().map(|c| c.0) != Some((object_index, trajectory)) {
+            let ctx = GraspContext {
+                robot: &self.model,
+                t_world_base: self.t_world_base,
+                config: &self.config.grasp,
+                timestep: self.config.physics.timestep,
+            };
+            let mut failures: Vec<Failure> = Vec::new();
+            let traj = simulate_trajectory(
+                &ctx,
+                self.physics.as_mut(),
+                &self.objects[object_index as usize],
+                seed,
+                object_id,
+                trajectory,
+                instances,
+                &mut failures,
+            )
+            .with_context(|| format!("grasping {object_id}"))?;
+            let mut st = GraspStats {
+                trajectories: 1,
+                attempts: traj.attempts as u64,
+                ..Default::default()
+            };
+            for f in failures {
+                *st.failures.entry(format!("{f:?}")).or_default() += 1;
+            }
+            for s in &traj.instances {
+                st.max_slip_mm = st.max_slip_mm.max(s.slip_translation * 1e3);
+                st.max_penetration_mm = st.max_penetration_mm.max(s.penetration * 1e3);
+            }
+            self.last_stats = st;
+            self.current = Some(((object_index, trajectory), traj));
+        }
+        Ok(&self.current.as_ref().expect("set above").1)
+    }
+}
