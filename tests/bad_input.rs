@@ -11,13 +11,7 @@ fn fails(yaml: &str, expect: &[&str]) -> String {
     let cfg = d.path().join("bad.yaml");
     std::fs::write(&cfg, yaml).unwrap();
     let out = d.path().join("out");
-    let o = run(&[
-        "generate",
-        cfg.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--quiet",
-    ]);
+    let o = run(&["generate", cfg.to_str().unwrap(), "--out", out.to_str().unwrap(), "--quiet"]);
     let err = stderr(&o);
     assert!(!o.status.success(), "must fail: {yaml}");
     assert_eq!(err.lines().count(), 1, "one clear line: {err}");
@@ -30,10 +24,7 @@ fn fails(yaml: &str, expect: &[&str]) -> String {
 }
 
 fn assert_nothing_complete(out: &Path) {
-    assert!(
-        complete_shards(out).is_empty(),
-        "no shard may look complete"
-    );
+    assert!(complete_shards(out).is_empty(), "no shard may look complete");
     assert!(!out.join("manifest.json").exists(), "no manifest");
 }
 
@@ -53,15 +44,7 @@ fn malformed_yaml_names_file_and_line() {
     let line = line_of(&y, "seed: [7");
     let e = fails(&y, &["bad.yaml:"]);
     // The parser reports where the flow sequence breaks, at or after its start.
-    let reported: usize = e
-        .split("bad.yaml:")
-        .nth(1)
-        .unwrap()
-        .split(':')
-        .next()
-        .unwrap()
-        .parse()
-        .unwrap();
+    let reported: usize = e.split("bad.yaml:").nth(1).unwrap().split(':').next().unwrap().parse().unwrap();
     assert!(reported >= line, "{e}");
 }
 
@@ -69,90 +52,45 @@ fn malformed_yaml_names_file_and_line() {
 fn an_unknown_key_names_file_line_and_key() {
     let y = tiny_with("camera:\n", "camera:\n  focal: 3\n");
     let line = line_of(&y, "focal: 3");
-    fails(
-        &y,
-        &[&format!("bad.yaml:{line}:3: "), "unknown field `focal`"],
-    );
+    fails(&y, &[&format!("bad.yaml:{line}:3: "), "unknown field `focal`"]);
 }
 
 #[test]
 fn an_out_of_range_value_names_the_field_and_the_range() {
     let y = tiny_with("width: 640", "width: 0");
     let line = line_of(&y, "width: 0");
-    fails(
-        &y,
-        &[&format!(
-            "bad.yaml:{line}:3: camera.width: 0 is out of range: allowed 8 ..= 8192"
-        )],
-    );
+    fails(&y, &[&format!("bad.yaml:{line}:3: camera.width: 0 is out of range: allowed 8 ..= 8192")]);
     let y = tiny_with("fx: 615.0", "fx: -615.0");
     let line = line_of(&y, "fx: -615.0");
-    fails(
-        &y,
-        &[
-            &format!("bad.yaml:{line}:"),
-            "camera.intrinsics.fx: -615 is out of range",
-        ],
-    );
+    fails(&y, &[&format!("bad.yaml:{line}:"), "camera.intrinsics.fx: -615 is out of range"]);
     let y = tiny_with("zstd_level: 3", "zstd_level: 40");
-    fails(
-        &y,
-        &["output.zstd_level: 40 is out of range: allowed 1 ..= 19"],
-    );
+    fails(&y, &["output.zstd_level: 40 is out of range: allowed 1 ..= 19"]);
 }
 
 #[test]
 fn a_wrong_type_names_the_field() {
-    let y = tiny_with(
-        "trajectories_per_object: 5",
-        "trajectories_per_object: many",
-    );
+    let y = tiny_with("trajectories_per_object: 5", "trajectories_per_object: many");
     let line = line_of(&y, "many");
-    fails(
-        &y,
-        &[
-            &format!("bad.yaml:{line}:"),
-            "sampling.trajectories_per_object: invalid type",
-        ],
-    );
+    fails(&y, &[&format!("bad.yaml:{line}:"), "sampling.trajectories_per_object: invalid type"]);
 }
 
 #[test]
 fn an_unknown_object_id_is_named_with_the_catalogue() {
     let y = tiny_with("- 005_tomato_soup_can", "- 005_tomato_soop_can");
     let line = line_of(&y, "soop");
-    fails(
-        &y,
-        &[
-            &format!("bad.yaml:{line}:5: objects[1]: unknown object id '005_tomato_soop_can'"),
-            "003_cracker_box",
-        ],
-    );
+    fails(&y, &[&format!("bad.yaml:{line}:5: objects[1]: unknown object id '005_tomato_soop_can'"), "003_cracker_box"]);
 }
 
 #[test]
 fn a_missing_or_corrupt_mesh_names_the_path() {
-    let y = tiny_with(
-        "- 005_tomato_soup_can",
-        "- {id: thing, mesh: meshes/thing.obj}",
-    );
+    let y = tiny_with("- 005_tomato_soup_can", "- {id: thing, mesh: meshes/thing.obj}");
     fails(&y, &["meshes/thing.obj", "not found"]);
 
     let d = tempdir();
     std::fs::write(d.path().join("broken.obj"), "v 0 0 0\nv 1 0 0\nf 1 2 9\n").unwrap();
     let cfg = d.path().join("c.yaml");
-    std::fs::write(
-        &cfg,
-        tiny_with("- 005_tomato_soup_can", "- {id: thing, mesh: broken.obj}"),
-    )
-    .unwrap();
-    let o = run(&[
-        "generate",
-        cfg.to_str().unwrap(),
-        "--out",
-        d.path().join("out").to_str().unwrap(),
-        "--quiet",
-    ]);
+    std::fs::write(&cfg, tiny_with("- 005_tomato_soup_can", "- {id: thing, mesh: broken.obj}")).unwrap();
+    let o = run(&["generate", cfg.to_str().unwrap(), "--out", d.path().join("out").to_str().unwrap(), "--quiet"]);
     assert!(!o.status.success());
     assert!(stderr(&o).contains("broken.obj"), "{}", stderr(&o));
     assert_nothing_complete(&d.path().join("out"));
@@ -168,11 +106,7 @@ fn a_missing_or_corrupt_mesh_names_the_path() {
         "--quiet",
     ]);
     assert!(!o.status.success());
-    assert!(
-        stderr(&o).contains("003_cracker_box/google_16k/textured.obj"),
-        "{}",
-        stderr(&o)
-    );
+    assert!(stderr(&o).contains("003_cracker_box/google_16k/textured.obj"), "{}", stderr(&o));
 }
 
 #[test]
@@ -181,36 +115,17 @@ fn an_unwritable_output_directory_is_named() {
     let file = d.path().join("a-file");
     std::fs::write(&file, "x").unwrap();
     let out = file.join("out");
-    let o = run(&[
-        "generate",
-        tiny_config().to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--quiet",
-    ]);
+    let o = run(&["generate", tiny_config().to_str().unwrap(), "--out", out.to_str().unwrap(), "--quiet"]);
     assert!(!o.status.success());
-    assert!(
-        stderr(&o).contains("cannot create output directory") && stderr(&o).contains("a-file/out"),
-        "{}",
-        stderr(&o)
-    );
+    assert!(stderr(&o).contains("cannot create output directory") && stderr(&o).contains("a-file/out"), "{}", stderr(&o));
 }
 
 #[test]
 fn a_missing_config_and_a_bad_shard_selector_are_clear() {
     let o = run(&["generate", "nope.yaml"]);
     assert!(!o.status.success());
-    assert!(
-        stderr(&o).contains("nope.yaml: cannot read config"),
-        "{}",
-        stderr(&o)
-    );
-    let o = run(&[
-        "generate",
-        tiny_config().to_str().unwrap(),
-        "--shard",
-        "2/2",
-    ]);
+    assert!(stderr(&o).contains("nope.yaml: cannot read config"), "{}", stderr(&o));
+    let o = run(&["generate", tiny_config().to_str().unwrap(), "--shard", "2/2"]);
     assert!(!o.status.success());
     assert!(stderr(&o).contains("0 <= i < N"), "{}", stderr(&o));
 }
@@ -221,14 +136,7 @@ fn a_different_config_never_mixes_into_an_existing_dataset() {
     generate(d.path(), &["--shard", "0/5"]);
     let cfg = d.path().join("other.yaml");
     std::fs::write(&cfg, tiny_with("seed: 7", "seed: 8")).unwrap();
-    let o = run(&[
-        "generate",
-        cfg.to_str().unwrap(),
-        "--out",
-        d.path().to_str().unwrap(),
-        "--resume",
-        "--quiet",
-    ]);
+    let o = run(&["generate", cfg.to_str().unwrap(), "--out", d.path().to_str().unwrap(), "--resume", "--quiet"]);
     assert!(!o.status.success());
     assert!(stderr(&o).contains("different config"), "{}", stderr(&o));
 }
@@ -238,16 +146,7 @@ fn plan_prints_the_dataset_and_writes_nothing() {
     let o = run(&["plan", tiny_config().to_str().unwrap()]);
     assert!(o.status.success());
     let text = String::from_utf8_lossy(&o.stdout);
-    assert!(
-        text.contains("2 objects x 5 trajectories x 4 instances = 40"),
-        "{text}"
-    );
-    assert!(
-        text.contains("train       32 samples in 4 shard(s)"),
-        "{text}"
-    );
-    assert!(
-        text.contains("test        8 samples in 1 shard(s)"),
-        "{text}"
-    );
+    assert!(text.contains("2 objects x 5 trajectories x 4 instances = 40"), "{text}");
+    assert!(text.contains("train       32 samples in 4 shard(s)"), "{text}");
+    assert!(text.contains("test        8 samples in 1 shard(s)"), "{text}");
 }

@@ -5,10 +5,7 @@ use std::process::{Command, Output};
 use std::sync::OnceLock;
 
 pub fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .parent()
-        .expect("workspace root")
-        .to_path_buf()
+    Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("workspace root").to_path_buf()
 }
 
 pub fn tiny_config() -> PathBuf {
@@ -30,22 +27,13 @@ pub fn stderr(o: &Output) -> String {
 }
 
 pub fn tempdir() -> tempfile::TempDir {
-    tempfile::Builder::new()
-        .prefix("vtgen-test-")
-        .tempdir()
-        .expect("temp dir")
+    tempfile::Builder::new().prefix("vtgen-test-").tempdir().expect("temp dir")
 }
 
 /// Generates `scenes/tiny.yaml` into `out` with the CLI, asserting success.
 pub fn generate(out: &Path, extra: &[&str]) {
     let config = tiny_config();
-    let mut args = vec![
-        "generate",
-        config.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--quiet",
-    ];
+    let mut args = vec!["generate", config.to_str().unwrap(), "--out", out.to_str().unwrap(), "--quiet"];
     args.extend_from_slice(extra);
     let o = run(&args);
     assert!(o.status.success(), "vtgen generate failed: {}", stderr(&o));
@@ -72,10 +60,7 @@ pub fn files(dir: &Path) -> Vec<(String, Vec<u8>)> {
             if p.is_dir() {
                 stack.push(p);
             } else {
-                out.push((
-                    p.strip_prefix(dir).unwrap().display().to_string(),
-                    std::fs::read(&p).unwrap(),
-                ));
+                out.push((p.strip_prefix(dir).unwrap().display().to_string(), std::fs::read(&p).unwrap()));
             }
         }
     }
@@ -92,11 +77,7 @@ pub fn files_named(dir: &Path, pred: impl Fn(&str) -> bool) -> Vec<String> {
     if !dir.exists() {
         return Vec::new();
     }
-    let mut v: Vec<String> = files(dir)
-        .into_iter()
-        .map(|f| f.0)
-        .filter(|n| pred(n))
-        .collect();
+    let mut v: Vec<String> = files(dir).into_iter().map(|f| f.0).filter(|n| pred(n)).collect();
     v.sort();
     v
 }

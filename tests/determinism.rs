@@ -46,8 +46,7 @@ fn a_shard_job_alone_writes_the_same_bytes_as_the_full_run() {
     assert_eq!(mine, ["train/shard-00001.mcap", "train/shard-00003.mcap"]);
     for f in &mine {
         assert!(
-            std::fs::read(part.path().join(f)).unwrap()
-                == std::fs::read(reference_dataset().join(f)).unwrap(),
+            std::fs::read(part.path().join(f)).unwrap() == std::fs::read(reference_dataset().join(f)).unwrap(),
             "{f} differs from the full run"
         );
     }
@@ -66,16 +65,8 @@ fn a_shard_job_alone_writes_the_same_bytes_as_the_full_run() {
 #[test]
 fn a_killed_run_leaves_no_complete_looking_shard_and_resume_finishes_it_identically() {
     let d = tempdir();
-    let mut child = vtgen()
-        .args([
-            "generate",
-            tiny_config().to_str().unwrap(),
-            "--out",
-            d.path().to_str().unwrap(),
-            "--quiet",
-        ])
-        .spawn()
-        .unwrap();
+    let mut child =
+        vtgen().args(["generate", tiny_config().to_str().unwrap(), "--out", d.path().to_str().unwrap(), "--quiet"]).spawn().unwrap();
     // Wait until a shard is being written, then SIGKILL.
     let deadline = Instant::now() + Duration::from_secs(120);
     loop {
@@ -95,30 +86,17 @@ fn a_killed_run_leaves_no_complete_looking_shard_and_resume_finishes_it_identica
     assert!(complete.len() < 5, "the run was interrupted before the end");
     // Every complete-looking shard really is complete: identical to the reference.
     for f in &complete {
-        assert!(
-            std::fs::read(d.path().join(f)).unwrap()
-                == std::fs::read(reference_dataset().join(f)).unwrap(),
-            "{f}"
-        );
+        assert!(std::fs::read(d.path().join(f)).unwrap() == std::fs::read(reference_dataset().join(f)).unwrap(), "{f}");
     }
     // Without --resume the directory is not silently reused.
-    let o = run(&[
-        "generate",
-        tiny_config().to_str().unwrap(),
-        "--out",
-        d.path().to_str().unwrap(),
-        "--quiet",
-    ]);
+    let o = run(&["generate", tiny_config().to_str().unwrap(), "--out", d.path().to_str().unwrap(), "--quiet"]);
     assert!(!o.status.success());
     assert!(stderr(&o).contains("--resume"), "{}", stderr(&o));
     generate(d.path(), &["--resume"]);
     assert!(files_named(d.path(), |n| n.ends_with(".partial")).is_empty());
     let a = files(reference_dataset());
     let b = files(d.path());
-    assert_eq!(
-        a.iter().map(|f| &f.0).collect::<Vec<_>>(),
-        b.iter().map(|f| &f.0).collect::<Vec<_>>()
-    );
+    assert_eq!(a.iter().map(|f| &f.0).collect::<Vec<_>>(), b.iter().map(|f| &f.0).collect::<Vec<_>>());
     for (fa, fb) in a.iter().zip(&b) {
         assert!(fa.1 == fb.1, "{} differs after resume", fa.0);
     }

@@ -17,13 +17,7 @@ fn hand_dataset() -> &'static std::path::Path {
     static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();
     DIR.get_or_init(|| {
         let d = tempdir();
-        let o = run(&[
-            "generate",
-            hand_config().to_str().unwrap(),
-            "--out",
-            d.path().to_str().unwrap(),
-            "--quiet",
-        ]);
+        let o = run(&["generate", hand_config().to_str().unwrap(), "--out", d.path().to_str().unwrap(), "--quiet"]);
         assert!(o.status.success(), "{}", stderr(&o));
         d
     })
@@ -34,20 +28,11 @@ fn hand_dataset() -> &'static std::path::Path {
 fn every_recorded_instance_is_a_plausible_grasp() {
     let dir = hand_dataset();
     let ds = DatasetReader::open(dir).unwrap();
-    let info: vt_dataset::ModelsInfo =
-        serde_json::from_slice(&std::fs::read(dir.join("models/models_info.json")).unwrap())
-            .unwrap();
+    let info: vt_dataset::ModelsInfo = serde_json::from_slice(&std::fs::read(dir.join("models/models_info.json")).unwrap()).unwrap();
     let models: Vec<Vec<DVec3>> = info
         .objects
         .iter()
-        .map(|o| {
-            read_ply(&dir.join("models").join(&o.file))
-                .unwrap()
-                .positions
-                .iter()
-                .map(|p| glam::Vec3::from(*p).as_dvec3())
-                .collect()
-        })
+        .map(|o| read_ply(&dir.join("models").join(&o.file)).unwrap().positions.iter().map(|p| glam::Vec3::from(*p).as_dvec3()).collect())
         .collect();
     let mut robot_pixels = 0usize;
     let mut n = 0;
@@ -57,29 +42,13 @@ fn every_recorded_instance_is_a_plausible_grasp() {
             let i = &s.info;
             assert_eq!(i["physics_backend"], "rapier");
             let contacts = i["phalanges_in_contact"].as_array().unwrap();
-            assert!(
-                contacts.len() >= 2,
-                "{split} {}: {} phalanges in contact",
-                s.index,
-                contacts.len()
-            );
-            assert!(
-                i["penetration_mm"].as_f64().unwrap() <= 1.0,
-                "{split} {}: penetration",
-                s.index
-            );
+            assert!(contacts.len() >= 2, "{split} {}: {} phalanges in contact", s.index, contacts.len());
+            assert!(i["penetration_mm"].as_f64().unwrap() <= 1.0, "{split} {}: penetration", s.index);
             assert_eq!(i["joint_positions"].as_object().unwrap().len(), 22);
             // The object hangs free: all of it above the floor.
             let obj = i["object_index"].as_u64().unwrap() as usize;
-            let lowest = models[obj]
-                .iter()
-                .map(|p| s.t_world_object.transform_point(*p).z)
-                .fold(f64::MAX, f64::min);
-            assert!(
-                lowest > 0.0,
-                "{split} {}: object reaches z = {lowest}",
-                s.index
-            );
+            let lowest = models[obj].iter().map(|p| s.t_world_object.transform_point(*p).z).fold(f64::MAX, f64::min);
+            assert!(lowest > 0.0, "{split} {}: object reaches z = {lowest}", s.index);
             // Palm and the 12 phalanx pads are in /tf.
             assert_eq!(s.extra_transforms.len(), 13);
             robot_pixels += s.mask.iter().filter(|&&m| (10..=32).contains(&m)).count();
@@ -102,23 +71,11 @@ fn ground_truth_holds_with_the_hand_in_the_picture() {
 #[test]
 fn the_grasp_loop_is_deterministic() {
     let other = tempdir();
-    let o = run(&[
-        "generate",
-        hand_config().to_str().unwrap(),
-        "--out",
-        other.path().to_str().unwrap(),
-        "--quiet",
-        "--shard",
-        "2/5",
-    ]);
+    let o = run(&["generate", hand_config().to_str().unwrap(), "--out", other.path().to_str().unwrap(), "--quiet", "--shard", "2/5"]);
     assert!(o.status.success(), "{}", stderr(&o));
     // Job 2 of 5 writes train shard 2 alone, re-simulating its trajectories from their start.
     for f in complete_shards(other.path()) {
-        assert!(
-            std::fs::read(other.path().join(&f)).unwrap()
-                == std::fs::read(hand_dataset().join(&f)).unwrap(),
-            "{f} differs"
-        );
+        assert!(std::fs::read(other.path().join(&f)).unwrap() == std::fs::read(hand_dataset().join(&f)).unwrap(), "{f} differs");
     }
     assert_eq!(complete_shards(other.path()), ["train/shard-00002.mcap"]);
 }
@@ -129,40 +86,16 @@ fn bad_robot_input_gives_clear_errors() {
     let d = tempdir();
     let cfg = d.path().join("robot.yaml");
     std::fs::write(&cfg, text.replace("backend: rapier", "backend: bullet")).unwrap();
-    let o = run(&[
-        "generate",
-        cfg.to_str().unwrap(),
-        "--out",
-        d.path().join("o").to_str().unwrap(),
-        "--quiet",
-    ]);
+    let o = run(&["generate", cfg.to_str().unwrap(), "--out", d.path().join("o").to_str().unwrap(), "--quiet"]);
     assert!(!o.status.success());
-    assert!(
-        stderr(&o).contains("robot.physics.backend: unknown variant `bullet`"),
-        "{}",
-        stderr(&o)
-    );
+    assert!(stderr(&o).contains("robot.physics.backend: unknown variant `bullet`"), "{}", stderr(&o));
 
-    let urdf = vt_robot::BUILTIN_URDF
-        .replace("<child link=\"ff_medial\"/>", "<child link=\"ff_middle\"/>");
+    let urdf = vt_robot::BUILTIN_URDF.replace("<child link=\"ff_medial\"/>", "<child link=\"ff_middle\"/>");
     std::fs::write(d.path().join("hand.urdf"), urdf).unwrap();
-    std::fs::write(
-        &cfg,
-        text.replace("robot:\n", "robot:\n  urdf: hand.urdf\n"),
-    )
-    .unwrap();
-    let o = run(&[
-        "generate",
-        cfg.to_str().unwrap(),
-        "--out",
-        d.path().join("o2").to_str().unwrap(),
-        "--quiet",
-    ]);
+    std::fs::write(&cfg, text.replace("robot:\n", "robot:\n  urdf: hand.urdf\n")).unwrap();
+    let o = run(&["generate", cfg.to_str().unwrap(), "--out", d.path().join("o2").to_str().unwrap(), "--quiet"]);
     assert!(!o.status.success());
     let e = stderr(&o);
-    assert!(
-        e.contains("hand.urdf") && e.contains("missing child link 'ff_middle'"),
-        "{e}"
-    );
+    assert!(e.contains("hand.urdf") && e.contains("missing child link 'ff_middle'"), "{e}");
     assert!(complete_shards(&d.path().join("o2")).is_empty());
 }

@@ -8,15 +8,8 @@ use crate::common::*;
 
 /// Area-weighted points on the mesh surface with their face normals (deterministic).
 pub fn surface_points(mesh: &PlyMesh, n: usize) -> Vec<(DVec3, DVec3)> {
-    let tris: Vec<[DVec3; 3]> = mesh
-        .triangles
-        .iter()
-        .map(|t| t.map(|i| glam::Vec3::from(mesh.positions[i as usize]).as_dvec3()))
-        .collect();
-    let areas: Vec<f64> = tris
-        .iter()
-        .map(|t| 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length())
-        .collect();
+    let tris: Vec<[DVec3; 3]> = mesh.triangles.iter().map(|t| t.map(|i| glam::Vec3::from(mesh.positions[i as usize]).as_dvec3())).collect();
+    let areas: Vec<f64> = tris.iter().map(|t| 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length()).collect();
     let total: f64 = areas.iter().sum();
     let mut cdf = Vec::with_capacity(areas.len());
     let mut acc = 0.0;
@@ -26,9 +19,7 @@ pub fn surface_points(mesh: &PlyMesh, n: usize) -> Vec<(DVec3, DVec3)> {
     }
     let mut state = 0x9e3779b97f4a7c15u64;
     let mut rnd = || {
-        state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
+        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
         (state >> 11) as f64 / (1u64 << 53) as f64
     };
     (0..n)
@@ -58,11 +49,7 @@ pub fn reproject(s: &Sample, points: &[(DVec3, DVec3)], mask_id: u8) -> Reprojec
     let (w, h) = (s.width as i64, s.height as i64);
     let pose = s.t_camera_object;
     let r = pose.rotation();
-    let mut out = Reprojection {
-        visible: 0,
-        front_facing: 0,
-        agreeing: 0,
-    };
+    let mut out = Reprojection { visible: 0, front_facing: 0, agreeing: 0 };
     for (p, n) in points {
         let pc = pose.transform_point(*p);
         let nc = r * *n;
@@ -101,14 +88,9 @@ pub fn reproject(s: &Sample, points: &[(DVec3, DVec3)], mask_id: u8) -> Reprojec
 /// samples with fewer than 30 visible model points are counted, not checked (at most a third).
 pub fn check_dataset(dir: &std::path::Path) {
     let ds = DatasetReader::open(dir).unwrap();
-    let info: vt_dataset::ModelsInfo =
-        serde_json::from_slice(&std::fs::read(dir.join("models/models_info.json")).unwrap())
-            .unwrap();
-    let models: Vec<Vec<(DVec3, DVec3)>> = info
-        .objects
-        .iter()
-        .map(|o| surface_points(&read_ply(&dir.join("models").join(&o.file)).unwrap(), 3000))
-        .collect();
+    let info: vt_dataset::ModelsInfo = serde_json::from_slice(&std::fs::read(dir.join("models/models_info.json")).unwrap()).unwrap();
+    let models: Vec<Vec<(DVec3, DVec3)>> =
+        info.objects.iter().map(|o| surface_points(&read_ply(&dir.join("models").join(&o.file)).unwrap(), 3000)).collect();
     let (mut checked, mut hidden) = (0, 0);
     for split in ["train", "test"] {
         for s in ds.samples(split).unwrap() {
@@ -121,19 +103,8 @@ pub fn check_dataset(dir: &std::path::Path) {
             let r = reproject(&s, &models[obj], 1);
             if s.info.get("physics_backend").is_none() {
                 // Nothing but the object itself can hide it.
-                assert!(
-                    r.front_facing > 50,
-                    "{split} {}: the object is in view ({} points)",
-                    s.index,
-                    r.front_facing
-                );
-                assert!(
-                    r.visible * 2 >= r.front_facing,
-                    "{split} {}: {} of {} facing points visible",
-                    s.index,
-                    r.visible,
-                    r.front_facing
-                );
+                assert!(r.front_facing > 50, "{split} {}: the object is in view ({} points)", s.index, r.front_facing);
+                assert!(r.visible * 2 >= r.front_facing, "{split} {}: {} of {} facing points visible", s.index, r.visible, r.front_facing);
             } else if r.visible < 30 {
                 hidden += 1;
                 continue;
@@ -150,10 +121,7 @@ pub fn check_dataset(dir: &std::path::Path) {
         }
     }
     assert_eq!(checked + hidden, 40);
-    assert!(
-        hidden * 3 <= 40,
-        "{hidden} of 40 samples have the object hidden"
-    );
+    assert!(hidden * 3 <= 40, "{hidden} of 40 samples have the object hidden");
 }
 
 #[test]
@@ -166,26 +134,11 @@ fn a_wrong_pose_is_caught() {
     // The check is not vacuous: a pose 5 mm too close to the camera fails it.
     let ds = DatasetReader::open(reference_dataset()).unwrap();
     let mut s = ds.samples("train").unwrap().next().unwrap().unwrap();
-    let info: vt_dataset::ModelsInfo = serde_json::from_slice(
-        &std::fs::read(reference_dataset().join("models/models_info.json")).unwrap(),
-    )
-    .unwrap();
+    let info: vt_dataset::ModelsInfo =
+        serde_json::from_slice(&std::fs::read(reference_dataset().join("models/models_info.json")).unwrap()).unwrap();
     let obj = s.info["object_index"].as_u64().unwrap() as usize;
-    let pts = surface_points(
-        &read_ply(
-            &reference_dataset()
-                .join("models")
-                .join(&info.objects[obj].file),
-        )
-        .unwrap(),
-        3000,
-    );
+    let pts = surface_points(&read_ply(&reference_dataset().join("models").join(&info.objects[obj].file)).unwrap(), 3000);
     s.t_camera_object.position[2] -= 0.005;
     let r = reproject(&s, &pts, 1);
-    assert!(
-        (r.agreeing as f64) < 0.5 * r.visible as f64,
-        "{} of {} still agree",
-        r.agreeing,
-        r.visible
-    );
+    assert!((r.agreeing as f64) < 0.5 * r.visible as f64, "{} of {} still agree", r.agreeing, r.visible);
 }

@@ -11,88 +11,42 @@ const W: u32 = 320;
 const H: u32 = 240;
 
 fn view(t_world_camera: DMat4) -> View {
-    View {
-        width: W,
-        height: H,
-        k: Intrinsics {
-            fx: 300.0,
-            fy: 310.0,
-            cx: 161.3,
-            cy: 118.7,
-        },
-        near: 0.05,
-        far: 20.0,
-        t_world_camera,
-    }
+    View { width: W, height: H, k: Intrinsics { fx: 300.0, fy: 310.0, cx: 161.3, cy: 118.7 }, near: 0.05, far: 20.0, t_world_camera }
 }
 
 fn lighting() -> Lighting {
-    Lighting {
-        light_position: DVec3::new(0.0, 0.0, 3.0),
-        light_color: [1.0; 3],
-        ambient: [0.2; 3],
-        background: [0, 0, 0],
-    }
+    Lighting { light_position: DVec3::new(0.0, 0.0, 3.0), light_color: [1.0; 3], ambient: [0.2; 3], background: [0, 0, 0] }
 }
 
 /// Camera-frame ray direction through the centre of pixel (u, v), with z = 1.
 fn ray(v: &View, u: u32, row: u32) -> DVec3 {
-    DVec3::new(
-        (u as f64 - v.k.cx) / v.k.fx,
-        (row as f64 - v.k.cy) / v.k.fy,
-        1.0,
-    )
+    DVec3::new((u as f64 - v.k.cx) / v.k.fx, (row as f64 - v.k.cy) / v.k.fy, 1.0)
 }
 
 /// Compares a render with an analytic `hit(pixel) -> Option<z-depth>`; pixels whose 3x3
 /// neighbourhood is not entirely inside or outside the shape are edge pixels and only need to be
 /// consistent (drawn => depth right).
-fn compare(
-    img: &vtgen::render::RenderOutput,
-    mask_id: u8,
-    hit: impl Fn(u32, u32) -> Option<f64>,
-) -> usize {
-    let expect: Vec<Option<f64>> = (0..H)
-        .flat_map(|r| (0..W).map(move |u| (u, r)))
-        .map(|(u, r)| hit(u, r))
-        .collect();
+fn compare(img: &vtgen::render::RenderOutput, mask_id: u8, hit: impl Fn(u32, u32) -> Option<f64>) -> usize {
+    let expect: Vec<Option<f64>> = (0..H).flat_map(|r| (0..W).map(move |u| (u, r))).map(|(u, r)| hit(u, r)).collect();
     let mut interior = 0;
     for r in 1..H - 1 {
         for u in 1..W - 1 {
             let i = (r * W + u) as usize;
-            let inside = (-1i32..=1).all(|dy| {
-                (-1i32..=1).all(|dx| {
-                    expect[((r as i32 + dy) as u32 * W + (u as i32 + dx) as u32) as usize].is_some()
-                })
-            });
-            let outside = (-1i32..=1).all(|dy| {
-                (-1i32..=1).all(|dx| {
-                    expect[((r as i32 + dy) as u32 * W + (u as i32 + dx) as u32) as usize].is_none()
-                })
-            });
+            let inside = (-1i32..=1)
+                .all(|dy| (-1i32..=1).all(|dx| expect[((r as i32 + dy) as u32 * W + (u as i32 + dx) as u32) as usize].is_some()));
+            let outside = (-1i32..=1)
+                .all(|dy| (-1i32..=1).all(|dx| expect[((r as i32 + dy) as u32 * W + (u as i32 + dx) as u32) as usize].is_none()));
             let drawn = img.mask[i] == mask_id;
             if inside {
                 assert!(drawn, "pixel ({u}, {r}) should be covered");
                 let err = (img.depth[i] as f64 - expect[i].unwrap()).abs();
-                assert!(
-                    err < 1e-3,
-                    "pixel ({u}, {r}): depth {} vs analytic {} ({} mm off)",
-                    img.depth[i],
-                    expect[i].unwrap(),
-                    err * 1e3
-                );
+                assert!(err < 1e-3, "pixel ({u}, {r}): depth {} vs analytic {} ({} mm off)", img.depth[i], expect[i].unwrap(), err * 1e3);
                 interior += 1;
             } else if outside {
                 assert!(!drawn, "pixel ({u}, {r}) should not be covered");
-                assert_eq!(
-                    img.depth[i], 0.0,
-                    "pixel ({u}, {r}): nothing drawn, depth 0"
-                );
+                assert_eq!(img.depth[i], 0.0, "pixel ({u}, {r}): nothing drawn, depth 0");
             } else if drawn && let Some(z) = expect[i] {
-                assert!(
-                    (img.depth[i] as f64 - z).abs() < 1e-3,
-                    "edge pixel ({u}, {r})"
-                );
+                assert!((img.depth[i] as f64 - z).abs() < 1e-3, "edge pixel ({u}, {r})");
             }
         }
     }
@@ -116,17 +70,7 @@ fn a_plane_renders_to_its_analytic_depth_and_coverage() {
     let plane = r.upload_mesh(&quad(0.3)).unwrap();
     let cam = look_at(DVec3::new(0.2, -0.9, 0.7), DVec3::new(0.05, 0.0, 0.0));
     let v = view(cam.matrix());
-    let img = r
-        .render(
-            &v,
-            &lighting(),
-            &[Draw {
-                mesh: plane,
-                t_world_model: DMat4::IDENTITY,
-                mask_id: 7,
-            }],
-        )
-        .unwrap();
+    let img = r.render(&v, &lighting(), &[Draw { mesh: plane, t_world_model: DMat4::IDENTITY, mask_id: 7 }]).unwrap();
     let (rot, o) = (cam.rotation(), cam.translation());
     let interior = compare(&img, 7, |u, row| {
         let d = rot * ray(&v, u, row);
@@ -134,10 +78,7 @@ fn a_plane_renders_to_its_analytic_depth_and_coverage() {
         let p = o + d * s;
         (s > 0.0 && p.x.abs() <= 0.3 && p.y.abs() <= 0.3).then_some(s)
     });
-    assert!(
-        interior > 5000,
-        "the plane covers a good part of the image ({interior} px)"
-    );
+    assert!(interior > 5000, "the plane covers a good part of the image ({interior} px)");
 }
 
 #[test]
@@ -148,21 +89,8 @@ fn a_box_renders_to_its_analytic_depth_and_coverage() {
     let boxm = r.upload_mesh(&procedural_mesh(&entry)).unwrap();
     let cam = look_at(DVec3::new(0.0, -0.7, 0.4), DVec3::new(0.0, 0.0, 0.2));
     let v = view(cam.matrix());
-    let pose = DMat4::from_rotation_translation(
-        DQuat::from_euler(glam::EulerRot::XYZ, 0.3, -0.5, 0.9),
-        DVec3::new(0.02, 0.01, 0.22),
-    );
-    let img = r
-        .render(
-            &v,
-            &lighting(),
-            &[Draw {
-                mesh: boxm,
-                t_world_model: pose,
-                mask_id: 1,
-            }],
-        )
-        .unwrap();
+    let pose = DMat4::from_rotation_translation(DQuat::from_euler(glam::EulerRot::XYZ, 0.3, -0.5, 0.9), DVec3::new(0.02, 0.01, 0.22));
+    let img = r.render(&v, &lighting(), &[Draw { mesh: boxm, t_world_model: pose, mask_id: 1 }]).unwrap();
     // Slab intersection in the box frame; the hit's camera z is the ray parameter (ray z = 1).
     let to_box = pose.inverse() * cam.matrix();
     let interior = compare(&img, 1, |u, row| {
@@ -176,10 +104,7 @@ fn a_box_renders_to_its_analytic_depth_and_coverage() {
         }
         (t0 <= t1 && t0 > 0.0).then_some(t0)
     });
-    assert!(
-        interior > 3000,
-        "the box covers a good part of the image ({interior} px)"
-    );
+    assert!(interior > 3000, "the box covers a good part of the image ({interior} px)");
 }
 
 #[test]
@@ -189,32 +114,12 @@ fn the_principal_point_is_at_the_pixel_centre_convention() {
     let mut r = WgpuRenderer::new(&RendererConfig::default()).unwrap();
     let dot = r.upload_mesh(&quad(0.25 / 600.0)).unwrap();
     let cam = look_at(DVec3::new(0.1, -0.8, 0.5), DVec3::new(0.0, 0.0, 0.1));
-    let v = View {
-        k: Intrinsics {
-            fx: 600.0,
-            fy: 600.0,
-            cx: 100.0,
-            cy: 60.0,
-        },
-        ..view(cam.matrix())
-    };
+    let v = View { k: Intrinsics { fx: 600.0, fy: 600.0, cx: 100.0, cy: 60.0 }, ..view(cam.matrix()) };
     // The square lies in the camera's image plane, 1 m in front of it, centred on the axis.
     let pose = cam.matrix() * DMat4::from_translation(DVec3::new(0.0, 0.0, 1.0));
-    let img = r
-        .render(
-            &v,
-            &lighting(),
-            &[Draw {
-                mesh: dot,
-                t_world_model: pose,
-                mask_id: 3,
-            }],
-        )
-        .unwrap();
-    let covered: Vec<(u32, u32)> = (0..H)
-        .flat_map(|y| (0..W).map(move |x| (x, y)))
-        .filter(|&(x, y)| img.mask[(y * W + x) as usize] == 3)
-        .collect();
+    let img = r.render(&v, &lighting(), &[Draw { mesh: dot, t_world_model: pose, mask_id: 3 }]).unwrap();
+    let covered: Vec<(u32, u32)> =
+        (0..H).flat_map(|y| (0..W).map(move |x| (x, y))).filter(|&(x, y)| img.mask[(y * W + x) as usize] == 3).collect();
     assert_eq!(covered, vec![(100, 60)]);
     assert!((img.depth[(60 * W + 100) as usize] - 1.0).abs() < 1e-5);
 }

@@ -10,9 +10,7 @@ mod reader;
 mod sample;
 mod writer;
 
-pub use manifest::{
-    Manifest, ModelInfo, ModelsInfo, ShardEntry, SplitManifest, sha256_file, write_atomic,
-};
+pub use manifest::{Manifest, ModelInfo, ModelsInfo, ShardEntry, SplitManifest, sha256_file, write_atomic};
 pub use ply::{PlyMesh, read_ply, write_ply};
 pub use reader::{DatasetReader, ShardReader};
 pub use sample::{Pose, Sample, ShardMeta};

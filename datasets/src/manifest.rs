@@ -40,10 +40,8 @@ pub struct ShardEntry {
 
 impl Manifest {
     pub fn load(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path)
-            .with_context(|| format!("cannot read {}", path.display()))?;
-        serde_json::from_str(&text)
-            .with_context(|| format!("{} is not a valid vtgen manifest", path.display()))
+        let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+        serde_json::from_str(&text).with_context(|| format!("{} is not a valid vtgen manifest", path.display()))
     }
 
     /// Writes atomically, so a reader never sees half a manifest.
@@ -75,8 +73,7 @@ pub struct ModelInfo {
 
 /// Size and SHA-256 (hex) of a file.
 pub fn sha256_file(path: &Path) -> Result<(u64, String)> {
-    let mut f =
-        std::fs::File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
+    let mut f = std::fs::File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
     let mut h = Sha256::new();
     let mut buf = vec![0u8; 1 << 20];
     let mut n = 0u64;

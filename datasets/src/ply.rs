@@ -12,12 +12,7 @@ pub struct PlyMesh {
     pub triangles: Vec<[u32; 3]>,
 }
 
-pub fn write_ply(
-    path: &Path,
-    positions: &[[f32; 3]],
-    normals: &[[f32; 3]],
-    indices: &[u32],
-) -> Result<()> {
+pub fn write_ply(path: &Path, positions: &[[f32; 3]], normals: &[[f32; 3]], indices: &[u32]) -> Result<()> {
     let mut out = Vec::with_capacity(positions.len() * 24 + indices.len() * 5 + 256);
     write!(
         out,
@@ -74,21 +69,13 @@ pub fn read_ply(path: &Path) -> Result<PlyMesh> {
         }
     }
     let pos = |n: &str| props.iter().position(|p| p == n);
-    let (Some(x), Some(y), Some(z)) = (pos("x"), pos("y"), pos("z")) else {
-        bail!("{}: vertices lack x y z", ctx())
-    };
+    let (Some(x), Some(y), Some(z)) = (pos("x"), pos("y"), pos("z")) else { bail!("{}: vertices lack x y z", ctx()) };
     let normal_ix = (pos("nx"), pos("ny"), pos("nz"));
     let mut rec = vec![0u8; props.len() * 4];
-    let mut mesh = PlyMesh {
-        positions: Vec::with_capacity(nv),
-        normals: Vec::new(),
-        triangles: Vec::with_capacity(nf),
-    };
+    let mut mesh = PlyMesh { positions: Vec::with_capacity(nv), normals: Vec::new(), triangles: Vec::with_capacity(nf) };
     for _ in 0..nv {
         r.read_exact(&mut rec).with_context(ctx)?;
-        let f = |i: usize| {
-            f32::from_le_bytes([rec[4 * i], rec[4 * i + 1], rec[4 * i + 2], rec[4 * i + 3]])
-        };
+        let f = |i: usize| f32::from_le_bytes([rec[4 * i], rec[4 * i + 1], rec[4 * i + 2], rec[4 * i + 3]]);
         mesh.positions.push([f(x), f(y), f(z)]);
         if let (Some(a), Some(b), Some(c)) = normal_ix {
             mesh.normals.push([f(a), f(b), f(c)]);
@@ -100,14 +87,7 @@ pub fn read_ply(path: &Path) -> Result<PlyMesh> {
         if tri[0] != 3 {
             bail!("{}: only triangle faces are supported", ctx());
         }
-        let i = |k: usize| {
-            i32::from_le_bytes([
-                tri[1 + 4 * k],
-                tri[2 + 4 * k],
-                tri[3 + 4 * k],
-                tri[4 + 4 * k],
-            ]) as u32
-        };
+        let i = |k: usize| i32::from_le_bytes([tri[1 + 4 * k], tri[2 + 4 * k], tri[3 + 4 * k], tri[4 + 4 * k]]) as u32;
         let t = [i(0), i(1), i(2)];
         if t.iter().any(|&v| v as usize >= nv) {
             bail!("{}: a face refers to a missing vertex", ctx());

@@ -24,31 +24,19 @@ pub struct ShardReader {
 
 impl ShardReader {
     pub fn open(path: &Path) -> Result<Self> {
-        let file =
-            File::open(path).with_context(|| format!("cannot open shard {}", path.display()))?;
+        let file = File::open(path).with_context(|| format!("cannot open shard {}", path.display()))?;
         // SAFETY: shards are immutable once renamed to their final name; the map is read-only.
-        let data = unsafe { memmap2::Mmap::map(&file) }
-            .with_context(|| format!("cannot map shard {}", path.display()))?;
+        let data = unsafe { memmap2::Mmap::map(&file) }.with_context(|| format!("cannot map shard {}", path.display()))?;
         let summary = mcap::Summary::read(&data)
             .with_context(|| format!("shard {}: summary section is unreadable", path.display()))?
-            .ok_or_else(|| {
-                anyhow!(
-                    "shard {}: has no summary section (truncated or unfinished)",
-                    path.display()
-                )
-            })?;
+            .ok_or_else(|| anyhow!("shard {}: has no summary section (truncated or unfinished)", path.display()))?;
         let mut chunks = BTreeMap::new();
         for (i, ci) in summary.chunk_indexes.iter().enumerate() {
             if ci.message_index_offsets.is_empty() {
                 continue; // schemas/channels only, no sample
             }
-            if ci.message_start_time % SAMPLE_PERIOD_NS != 0
-                || ci.message_start_time != ci.message_end_time
-            {
-                bail!(
-                    "shard {}: chunk {i} does not hold exactly one sample",
-                    path.display()
-                );
+            if ci.message_start_time % SAMPLE_PERIOD_NS != 0 || ci.message_start_time != ci.message_end_time {
+                bail!("shard {}: chunk {i} does not hold exactly one sample", path.display());
             }
             chunks.insert(ci.message_start_time / SAMPLE_PERIOD_NS, i);
         }
@@ -57,17 +45,9 @@ impl ShardReader {
             .iter()
             .find(|m| m.name == SHARD_METADATA)
             .ok_or_else(|| anyhow!("shard {}: no '{SHARD_METADATA}' metadata", path.display()))?;
-        let meta = mcap::read::metadata(&data, meta_index)
-            .with_context(|| format!("shard {}: metadata unreadable", path.display()))?;
-        let meta = ShardMeta::from_map(&meta.metadata)
-            .with_context(|| format!("shard {}", path.display()))?;
-        Ok(ShardReader {
-            path: path.to_path_buf(),
-            data,
-            summary,
-            chunks,
-            meta,
-        })
+        let meta = mcap::read::metadata(&data, meta_index).with_context(|| format!("shard {}: metadata unreadable", path.display()))?;
+        let meta = ShardMeta::from_map(&meta.metadata).with_context(|| format!("shard {}", path.display()))?;
+        Ok(ShardReader { path: path.to_path_buf(), data, summary, chunks, meta })
     }
 
     pub fn meta(&self) -> &ShardMeta {
@@ -94,47 +74,28 @@ impl ShardReader {
     /// Reads sample `index` (its index within the split).
     pub fn read(&self, index: u64) -> Result<Sample> {
         let ctx = || format!("shard {} sample {index}", self.path.display());
-        let ci = *self
-            .chunks
-            .get(&index)
-            .ok_or_else(|| anyhow!("{}: not in this shard", ctx()))?;
+        let ci = *self.chunks.get(&index).ok_or_else(|| anyhow!("{}: not in this shard", ctx()))?;
         let mut by_topic: BTreeMap<String, Vec<u8>> = BTreeMap::new();
-        for msg in self
-            .summary
-            .stream_chunk(&self.data, &self.summary.chunk_indexes[ci])
-            .with_context(ctx)?
-        {
+        for msg in self.summary.stream_chunk(&self.data, &self.summary.chunk_indexes[ci]).with_context(ctx)? {
             let msg = msg.with_context(ctx)?;
             by_topic.insert(msg.channel.topic.clone(), msg.data.into_owned());
         }
-        let get = |topic: &str| {
-            by_topic
-                .get(topic)
-                .ok_or_else(|| anyhow!("{}: missing message on {topic}", ctx()))
-        };
+        let get = |topic: &str| by_topic.get(topic).ok_or_else(|| anyhow!("{}: missing message on {topic}", ctx()));
         let rgb = RawImage::decode(&get(topics::RGB)?[..]).with_context(ctx)?;
         let depth = RawImage::decode(&get(topics::DEPTH)?[..]).with_context(ctx)?;
         let mask = RawImage::decode(&get(topics::MASK)?[..]).with_context(ctx)?;
         let calib = CameraCalibration::decode(&get(topics::CALIBRATION)?[..]).with_context(ctx)?;
         let pose = PoseInFrame::decode(&get(topics::OBJECT_POSE)?[..]).with_context(ctx)?;
         let tf = FrameTransforms::decode(&get(topics::TF)?[..]).with_context(ctx)?;
-        let info: serde_json::Value =
-            serde_json::from_slice(get(topics::SAMPLE_INFO)?).with_context(ctx)?;
+        let info: serde_json::Value = serde_json::from_slice(get(topics::SAMPLE_INFO)?).with_context(ctx)?;
         let (w, h) = (rgb.width, rgb.height);
         let unpad = |img: &RawImage, bpp: usize| -> Result<Vec<u8>> {
             let row = img.width as usize * bpp;
             let step = img.step as usize;
-            if img.width != w || img.height != h || step < row || img.data.len() < step * h as usize
-            {
+            if img.width != w || img.height != h || step < row || img.data.len() < step * h as usize {
                 bail!("{}: image '{}' has inconsistent size", ctx(), img.encoding);
             }
-            Ok(img
-                .data
-                .chunks(step)
-                .take(h as usize)
-                .flat_map(|r| &r[..row])
-                .copied()
-                .collect())
+            Ok(img.data.chunks(step).take(h as usize).flat_map(|r| &r[..row]).copied().collect())
         };
         let expect_enc = |img: &RawImage, enc: &str| {
             if img.encoding != enc {
@@ -145,30 +106,16 @@ impl ShardReader {
         expect_enc(&rgb, "rgb8")?;
         expect_enc(&depth, "32FC1")?;
         expect_enc(&mask, "mono8")?;
-        let depth = unpad(&depth, 4)?
-            .chunks_exact(4)
-            .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-            .collect();
-        let k: [f64; 9] = calib
-            .k
-            .as_slice()
-            .try_into()
-            .map_err(|_| anyhow!("{}: calibration K has {} values", ctx(), calib.k.len()))?;
-        let to_pose = |p: Option<foxglove::schemas::Vector3>,
-                       q: Option<foxglove::schemas::Quaternion>|
-         -> Result<Pose> {
+        let depth = unpad(&depth, 4)?.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+        let k: [f64; 9] = calib.k.as_slice().try_into().map_err(|_| anyhow!("{}: calibration K has {} values", ctx(), calib.k.len()))?;
+        let to_pose = |p: Option<foxglove::schemas::Vector3>, q: Option<foxglove::schemas::Quaternion>| -> Result<Pose> {
             let (p, q) = (
                 p.ok_or_else(|| anyhow!("{}: pose lacks a position", ctx()))?,
                 q.ok_or_else(|| anyhow!("{}: pose lacks an orientation", ctx()))?,
             );
-            Ok(Pose {
-                position: [p.x, p.y, p.z],
-                orientation: [q.x, q.y, q.z, q.w],
-            })
+            Ok(Pose { position: [p.x, p.y, p.z], orientation: [q.x, q.y, q.z, q.w] })
         };
-        let p = pose
-            .pose
-            .ok_or_else(|| anyhow!("{}: empty object pose", ctx()))?;
+        let p = pose.pose.ok_or_else(|| anyhow!("{}: empty object pose", ctx()))?;
         let find_tf = |child: &str| -> Result<Pose> {
             let t = tf
                 .transforms
@@ -192,17 +139,9 @@ impl ShardReader {
                 .transforms
                 .iter()
                 .filter(|t| {
-                    !(t.parent_frame_id == frames::WORLD
-                        && (t.child_frame_id == frames::CAMERA
-                            || t.child_frame_id == frames::OBJECT))
+                    !(t.parent_frame_id == frames::WORLD && (t.child_frame_id == frames::CAMERA || t.child_frame_id == frames::OBJECT))
                 })
-                .map(|t| {
-                    Ok((
-                        t.parent_frame_id.clone(),
-                        t.child_frame_id.clone(),
-                        to_pose(t.translation.clone(), t.rotation.clone())?,
-                    ))
-                })
+                .map(|t| Ok((t.parent_frame_id.clone(), t.child_frame_id.clone(), to_pose(t.translation.clone(), t.rotation.clone())?)))
                 .collect::<Result<_>>()?,
             info,
         })
@@ -218,10 +157,7 @@ pub struct DatasetReader {
 impl DatasetReader {
     pub fn open(root: &Path) -> Result<Self> {
         let manifest = Manifest::load(&root.join("manifest.json"))?;
-        Ok(DatasetReader {
-            root: root.to_path_buf(),
-            manifest,
-        })
+        Ok(DatasetReader { root: root.to_path_buf(), manifest })
     }
 
     pub fn manifest(&self) -> &Manifest {
@@ -234,14 +170,8 @@ impl DatasetReader {
 
     /// The complete shards of a split, opened.
     pub fn shards(&self, split: &str) -> Result<Vec<ShardReader>> {
-        let Some(s) = self.manifest.splits.get(split) else {
-            bail!("dataset {} has no split '{split}'", self.root.display())
-        };
-        s.shards
-            .iter()
-            .filter(|e| e.sha256.is_some())
-            .map(|e| ShardReader::open(&self.root.join(&e.file)))
-            .collect()
+        let Some(s) = self.manifest.splits.get(split) else { bail!("dataset {} has no split '{split}'", self.root.display()) };
+        s.shards.iter().filter(|e| e.sha256.is_some()).map(|e| ShardReader::open(&self.root.join(&e.file))).collect()
     }
 
     /// Every sample of a split, in order.

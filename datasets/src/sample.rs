@@ -11,10 +11,7 @@ pub struct Pose {
 impl Pose {
     pub fn from_rt(rotation: DQuat, translation: DVec3) -> Self {
         let q = rotation.normalize();
-        Pose {
-            position: translation.to_array(),
-            orientation: [q.x, q.y, q.z, q.w],
-        }
+        Pose { position: translation.to_array(), orientation: [q.x, q.y, q.z, q.w] }
     }
 
     pub fn rotation(&self) -> DQuat {
@@ -108,15 +105,8 @@ impl ShardMeta {
     }
 
     pub fn from_map(m: &std::collections::BTreeMap<String, String>) -> anyhow::Result<Self> {
-        let get = |k: &str| {
-            m.get(k)
-                .ok_or_else(|| anyhow::anyhow!("shard metadata lacks '{k}'"))
-        };
-        let num = |k: &str| -> anyhow::Result<u64> {
-            get(k)?
-                .parse()
-                .map_err(|_| anyhow::anyhow!("shard metadata '{k}' is not a number"))
-        };
+        let get = |k: &str| m.get(k).ok_or_else(|| anyhow::anyhow!("shard metadata lacks '{k}'"));
+        let num = |k: &str| -> anyhow::Result<u64> { get(k)?.parse().map_err(|_| anyhow::anyhow!("shard metadata '{k}' is not a number")) };
         Ok(ShardMeta {
             generator: get("generator")?.clone(),
             seed: num("seed")?,
@@ -128,17 +118,8 @@ impl ShardMeta {
             extra: m
                 .iter()
                 .filter(|(k, _)| {
-                    ![
-                        "format_version",
-                        "generator",
-                        "seed",
-                        "config_sha256",
-                        "split",
-                        "shard_index",
-                        "first_sample",
-                        "sample_count",
-                    ]
-                    .contains(&k.as_str())
+                    !["format_version", "generator", "seed", "config_sha256", "split", "shard_index", "first_sample", "sample_count"]
+                        .contains(&k.as_str())
                 })
                 .map(|(k, v)| (k.clone(), v.clone()))
                 .collect(),
@@ -147,17 +128,11 @@ impl ShardMeta {
 }
 
 impl Pose {
-    pub const IDENTITY: Pose = Pose {
-        position: [0.0; 3],
-        orientation: [0.0, 0.0, 0.0, 1.0],
-    };
+    pub const IDENTITY: Pose = Pose { position: [0.0; 3], orientation: [0.0, 0.0, 0.0, 1.0] };
 
     /// `self * other`: with `self = T_A_B` and `other = T_B_C`, gives `T_A_C`.
     pub fn compose(&self, other: &Pose) -> Pose {
-        Pose::from_rt(
-            self.rotation() * other.rotation(),
-            self.transform_point(other.translation()),
-        )
+        Pose::from_rt(self.rotation() * other.rotation(), self.transform_point(other.translation()))
     }
 
     /// `T_B_A` from `T_A_B`.

@@ -9,8 +9,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use foxglove::Encode;
 use foxglove::schemas::{
-    CameraCalibration, FrameTransform, FrameTransforms, Pose as FgPose, PoseInFrame, Quaternion,
-    RawImage, Timestamp, Vector3,
+    CameraCalibration, FrameTransform, FrameTransforms, Pose as FgPose, PoseInFrame, Quaternion, RawImage, Timestamp, Vector3,
 };
 use prost::Message;
 
@@ -62,25 +61,13 @@ fn add<T: Encode>(w: &mut mcap::Writer<BufWriter<File>>, topic: &str) -> Result<
 }
 
 fn ts(log_time: u64) -> Option<Timestamp> {
-    Some(Timestamp::new(
-        (log_time / 1_000_000_000) as u32,
-        (log_time % 1_000_000_000) as u32,
-    ))
+    Some(Timestamp::new((log_time / 1_000_000_000) as u32, (log_time % 1_000_000_000) as u32))
 }
 
 fn fg_pose(p: &Pose) -> FgPose {
     FgPose {
-        position: Some(Vector3 {
-            x: p.position[0],
-            y: p.position[1],
-            z: p.position[2],
-        }),
-        orientation: Some(Quaternion {
-            x: p.orientation[0],
-            y: p.orientation[1],
-            z: p.orientation[2],
-            w: p.orientation[3],
-        }),
+        position: Some(Vector3 { x: p.position[0], y: p.position[1], z: p.position[2] }),
+        orientation: Some(Quaternion { x: p.orientation[0], y: p.orientation[1], z: p.orientation[2], w: p.orientation[3] }),
     }
 }
 
@@ -100,11 +87,9 @@ impl ShardWriter {
     pub fn create(final_path: &Path, meta: &ShardMeta, compression: Compression) -> Result<Self> {
         let partial_path = PathBuf::from(format!("{}{PARTIAL_SUFFIX}", final_path.display()));
         if let Some(dir) = final_path.parent() {
-            std::fs::create_dir_all(dir)
-                .with_context(|| format!("cannot create directory {}", dir.display()))?;
+            std::fs::create_dir_all(dir).with_context(|| format!("cannot create directory {}", dir.display()))?;
         }
-        let file = File::create(&partial_path)
-            .with_context(|| format!("cannot create {}", partial_path.display()))?;
+        let file = File::create(&partial_path).with_context(|| format!("cannot create {}", partial_path.display()))?;
         let (comp, level) = match compression {
             Compression::None => (None, 0),
             Compression::Zstd { level } => (Some(mcap::Compression::Zstd), level),
@@ -126,32 +111,15 @@ impl ShardWriter {
             pose: add::<PoseInFrame>(&mut mcap, topics::OBJECT_POSE)?,
             tf: add::<FrameTransforms>(&mut mcap, topics::TF)?,
             info: {
-                let sid = mcap.add_schema(
-                    "vtgen.SampleInfo",
-                    "jsonschema",
-                    SAMPLE_INFO_SCHEMA.as_bytes(),
-                )?;
+                let sid = mcap.add_schema("vtgen.SampleInfo", "jsonschema", SAMPLE_INFO_SCHEMA.as_bytes())?;
                 mcap.add_channel(sid, topics::SAMPLE_INFO, "json", &BTreeMap::new())?
             },
         };
-        Ok(ShardWriter {
-            mcap,
-            channels,
-            partial_path,
-            final_path: final_path.to_path_buf(),
-            sequence: 0,
-            written: 0,
-            meta: meta.clone(),
-        })
+        Ok(ShardWriter { mcap, channels, partial_path, final_path: final_path.to_path_buf(), sequence: 0, written: 0, meta: meta.clone() })
     }
 
     fn put(&mut self, channel: u16, log_time: u64, data: &[u8]) -> Result<()> {
-        let header = mcap::records::MessageHeader {
-            channel_id: channel,
-            sequence: self.sequence,
-            log_time,
-            publish_time: log_time,
-        };
+        let header = mcap::records::MessageHeader { channel_id: channel, sequence: self.sequence, log_time, publish_time: log_time };
         self.sequence += 1;
         self.mcap.write_to_known_channel(&header, data)?;
         Ok(())
@@ -162,9 +130,7 @@ impl ShardWriter {
         let t = s.index * SAMPLE_PERIOD_NS;
         let (w, h) = (s.width, s.height);
         anyhow::ensure!(
-            s.rgb.len() == (w * h * 3) as usize
-                && s.depth.len() == (w * h) as usize
-                && s.mask.len() == (w * h) as usize,
+            s.rgb.len() == (w * h * 3) as usize && s.depth.len() == (w * h) as usize && s.mask.len() == (w * h) as usize,
             "image sizes do not match {w}x{h}"
         );
         let image = |encoding: &str, step: u32, data: &[u8]| RawImage {
@@ -193,28 +159,18 @@ impl ShardWriter {
             d: vec![0.0; 5],
             k: k.to_vec(),
             r: vec![1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
-            p: vec![
-                k[0], k[1], k[2], 0.0, k[3], k[4], k[5], 0.0, k[6], k[7], k[8], 0.0,
-            ],
+            p: vec![k[0], k[1], k[2], 0.0, k[3], k[4], k[5], 0.0, k[6], k[7], k[8], 0.0],
         }
         .encode_to_vec();
         self.put(self.channels.calibration, t, &calib)?;
-        let pose = PoseInFrame {
-            timestamp: ts(t),
-            frame_id: frames::CAMERA.into(),
-            pose: Some(fg_pose(&s.t_camera_object)),
-        }
-        .encode_to_vec();
+        let pose =
+            PoseInFrame { timestamp: ts(t), frame_id: frames::CAMERA.into(), pose: Some(fg_pose(&s.t_camera_object)) }.encode_to_vec();
         self.put(self.channels.pose, t, &pose)?;
         let mut transforms = vec![
             transform(t, frames::WORLD, frames::CAMERA, &s.t_world_camera),
             transform(t, frames::WORLD, frames::OBJECT, &s.t_world_object),
         ];
-        transforms.extend(
-            s.extra_transforms
-                .iter()
-                .map(|(parent, child, p)| transform(t, parent, child, p)),
-        );
+        transforms.extend(s.extra_transforms.iter().map(|(parent, child, p)| transform(t, parent, child, p)));
         let tf = FrameTransforms { transforms }.encode_to_vec();
         self.put(self.channels.tf, t, &tf)?;
         let info = serde_json::to_vec(&s.info)?;
@@ -233,38 +189,17 @@ impl ShardWriter {
     /// Writes the summary, syncs, and renames the shard to its final name. Until this returns, no
     /// file with the final name exists, so an interrupted run never leaves a complete-looking shard.
     pub fn finish(mut self) -> Result<ShardReceipt> {
-        anyhow::ensure!(
-            self.written == self.meta.sample_count,
-            "shard has {} samples, expected {}",
-            self.written,
-            self.meta.sample_count
-        );
+        anyhow::ensure!(self.written == self.meta.sample_count, "shard has {} samples, expected {}", self.written, self.meta.sample_count);
         // Written after the last sample's chunk was closed: a metadata record in the middle would
         // close a chunk early and leave one without a sample.
-        self.mcap.write_metadata(&mcap::records::Metadata {
-            name: SHARD_METADATA.into(),
-            metadata: self.meta.to_map(),
-        })?;
+        self.mcap.write_metadata(&mcap::records::Metadata { name: SHARD_METADATA.into(), metadata: self.meta.to_map() })?;
         self.mcap.finish()?;
-        let file = self
-            .mcap
-            .into_inner()
-            .into_inner()
-            .map_err(|e| e.into_error())?;
+        let file = self.mcap.into_inner().into_inner().map_err(|e| e.into_error())?;
         file.sync_all()?;
         drop(file);
-        std::fs::rename(&self.partial_path, &self.final_path).with_context(|| {
-            format!(
-                "cannot rename {} to {}",
-                self.partial_path.display(),
-                self.final_path.display()
-            )
-        })?;
+        std::fs::rename(&self.partial_path, &self.final_path)
+            .with_context(|| format!("cannot rename {} to {}", self.partial_path.display(), self.final_path.display()))?;
         let (bytes, sha256) = crate::manifest::sha256_file(&self.final_path)?;
-        Ok(ShardReceipt {
-            path: self.final_path.clone(),
-            bytes,
-            sha256,
-        })
+        Ok(ShardReceipt { path: self.final_path.clone(), bytes, sha256 })
     }
 }

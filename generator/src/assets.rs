@@ -24,9 +24,7 @@ pub struct LoadedObject {
 /// for catalogue objects; without it, catalogue objects are procedural.
 pub fn load_objects(cfg: &LoadedConfig, ycb_dir: Option<&PathBuf>) -> Result<Vec<LoadedObject>> {
     let catalog = Catalog::builtin();
-    let ycb_dir = ycb_dir
-        .cloned()
-        .or_else(|| cfg.config.ycb_dir.as_ref().map(|p| cfg.resolve(p)));
+    let ycb_dir = ycb_dir.cloned().or_else(|| cfg.config.ycb_dir.as_ref().map(|p| cfg.resolve(p)));
     if let Some(d) = &ycb_dir {
         if !d.is_dir() {
             bail!("YCB directory {} does not exist", d.display());
@@ -36,31 +34,18 @@ pub fn load_objects(cfg: &LoadedConfig, ycb_dir: Option<&PathBuf>) -> Result<Vec
     for (i, spec) in cfg.config.objects.iter().enumerate() {
         let obj = match spec {
             ObjectSpec::Catalog(id) => {
-                let entry = catalog
-                    .get(id)
-                    .with_context(|| format!("unknown object id '{id}'"))?;
+                let entry = catalog.get(id).with_context(|| format!("unknown object id '{id}'"))?;
                 let (mesh, source) = match &ycb_dir {
                     Some(dir) => {
                         let path = find_ycb_mesh(dir, id).map_err(|tried| {
-                            let tried: Vec<String> =
-                                tried.iter().map(|p| p.display().to_string()).collect();
-                            anyhow::anyhow!(
-                                "no mesh for '{id}' in the YCB directory; looked for: {}",
-                                tried.join(", ")
-                            )
+                            let tried: Vec<String> = tried.iter().map(|p| p.display().to_string()).collect();
+                            anyhow::anyhow!("no mesh for '{id}' in the YCB directory; looked for: {}", tried.join(", "))
                         })?;
                         (load_mesh(&path)?, path.display().to_string())
                     }
                     None => (procedural_mesh(entry), "procedural".to_string()),
                 };
-                LoadedObject {
-                    id: id.clone(),
-                    index: i as u32,
-                    mass: entry.mass,
-                    symmetry: entry.symmetry,
-                    mesh,
-                    source,
-                }
+                LoadedObject { id: id.clone(), index: i as u32, mass: entry.mass, symmetry: entry.symmetry, mesh, source }
             }
             ObjectSpec::Custom(c) => {
                 let path = cfg.resolve(&c.mesh);
@@ -77,14 +62,7 @@ pub fn load_objects(cfg: &LoadedConfig, ycb_dir: Option<&PathBuf>) -> Result<Vec
         };
         let ext = obj.mesh.extents();
         if ext.max_element() > 2.0 || ext.min_element() < 1e-4 {
-            bail!(
-                "mesh of '{}' ({}) is {:.3} x {:.3} x {:.3}: meshes must be in metres",
-                obj.id,
-                obj.source,
-                ext.x,
-                ext.y,
-                ext.z
-            );
+            bail!("mesh of '{}' ({}) is {:.3} x {:.3} x {:.3}: meshes must be in metres", obj.id, obj.source, ext.x, ext.y, ext.z);
         }
         out.push(obj);
     }

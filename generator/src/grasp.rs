@@ -80,22 +80,14 @@ impl GraspContext<'_> {
     /// `max_tilt` of straight up, any roll about it.
     fn sample_palm(&self, rng: &mut ChaCha8Rng) -> DAffine3 {
         let w = &self.config.palm_workspace;
-        let p = DVec3::new(
-            rng.random_range(w.min[0]..=w.max[0]),
-            rng.random_range(w.min[1]..=w.max[1]),
-            rng.random_range(w.min[2]..=w.max[2]),
-        );
+        let p =
+            DVec3::new(rng.random_range(w.min[0]..=w.max[0]), rng.random_range(w.min[1]..=w.max[1]), rng.random_range(w.min[2]..=w.max[2]));
         // Palm frame: +x palmar normal, +z along the fingers. Neutral: palm up (x -> world z),
         // fingers towards the camera side (z -> world -y), so the arm stays behind the hand.
         let up = DQuat::from_mat3(&DMat3::from_cols(DVec3::Z, DVec3::NEG_X, DVec3::NEG_Y));
         let max_roll = self.config.max_roll_deg.to_radians();
         let roll = DQuat::from_rotation_x(rng.random_range(-max_roll..=max_roll));
-        let tilt_axis = DVec3::new(
-            0.0,
-            rng.random_range(-1.0..1.0),
-            rng.random_range(-1.0..1.0),
-        )
-        .normalize_or(DVec3::Y);
+        let tilt_axis = DVec3::new(0.0, rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0)).normalize_or(DVec3::Y);
         let cos_max = self.config.max_tilt_deg.to_radians().cos();
         let tilt = (rng.random_range(cos_max..=1.0f64)).acos();
         DAffine3::from_rotation_translation(up * roll * DQuat::from_axis_angle(tilt_axis, tilt), p)
@@ -127,25 +119,15 @@ pub fn simulate_trajectory(
 ) -> Result<Trajectory> {
     let cfg = ctx.config;
     for attempt in 0..cfg.max_attempts {
-        let mut rng =
-            SampleStream::trajectory(seed, object_id, trajectory, &format!("grasp/{attempt}"));
-        match attempt_trajectory(
-            ctx, physics, object, &mut rng, seed, object_id, trajectory, attempt, instances,
-        )? {
+        let mut rng = SampleStream::trajectory(seed, object_id, trajectory, &format!("grasp/{attempt}"));
+        match attempt_trajectory(ctx, physics, object, &mut rng, seed, object_id, trajectory, attempt, instances)? {
             Ok(instances) => {
-                return Ok(Trajectory {
-                    instances,
-                    attempts: attempt + 1,
-                });
+                return Ok(Trajectory { instances, attempts: attempt + 1 });
             }
             Err(f) => failures.push(f),
         }
     }
-    bail!(
-        "{object_id} trajectory {trajectory}: no grasp held in {} attempts ({:?})",
-        cfg.max_attempts,
-        failures.last()
-    )
+    bail!("{object_id} trajectory {trajectory}: no grasp held in {} attempts ({:?})", cfg.max_attempts, failures.last())
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -178,10 +160,7 @@ fn attempt_trajectory(
     // A uniformly random orientation, redrawn (no physics needed) while the object is deeper in
     // front of the palm than the fingers can wrap around.
     let depth_along = |r: DQuat| {
-        let xs = object
-            .points
-            .iter()
-            .map(|p| (r * DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)).x);
+        let xs = object.points.iter().map(|p| (r * DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)).x);
         let (lo, hi) = xs.fold((f64::MAX, f64::MIN), |(lo, hi), x| (lo.min(x), hi.max(x)));
         (hi - lo, -lo)
     };
@@ -195,13 +174,10 @@ fn attempt_trajectory(
     if depth_along(r_obj).0 > cfg.max_grasp_depth {
         // Large objects (boxes, the drill) fit the hand in few orientations: turn the model's
         // thinnest axis onto the palm normal, then spin about it, flip, and tilt a little.
-        let (lo, hi) = object.points.iter().fold(
-            (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)),
-            |(lo, hi), p| {
-                let v = DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64);
-                (lo.min(v), hi.max(v))
-            },
-        );
+        let (lo, hi) = object.points.iter().fold((DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)), |(lo, hi), p| {
+            let v = DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+            (lo.min(v), hi.max(v))
+        });
         let ext = hi - lo;
         let thin = if ext.x <= ext.y && ext.x <= ext.z {
             DVec3::X
@@ -213,22 +189,13 @@ fn attempt_trajectory(
         let flip = if rng.random_bool(0.5) { -1.0 } else { 1.0 };
         let align = DQuat::from_rotation_arc(thin * flip, DVec3::X);
         let spin = DQuat::from_rotation_x(rng.random_range(0.0..std::f64::consts::TAU));
-        let tilt_axis = DVec3::new(
-            0.0,
-            rng.random_range(-1.0..1.0),
-            rng.random_range(-1.0..1.0),
-        )
-        .normalize_or(DVec3::Y);
+        let tilt_axis = DVec3::new(0.0, rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0)).normalize_or(DVec3::Y);
         let tilt = DQuat::from_axis_angle(tilt_axis, rng.random_range(0.0..0.25));
         r_obj = tilt * spin * align;
     }
     let back = depth_along(r_obj).1;
     let o = &cfg.object_offset;
-    let pos = DVec3::new(
-        cfg.palm_surface_x + 0.003 + back,
-        rng.random_range(o.min[1]..=o.max[1]),
-        rng.random_range(o.min[2]..=o.max[2]),
-    );
+    let pos = DVec3::new(cfg.palm_surface_x + 0.003 + back, rng.random_range(o.min[1]..=o.max[1]), rng.random_range(o.min[2]..=o.max[2]));
     // An object spawned inside a link (large objects reach the thumb, which sits in front of the
     // palm) would be launched by the solver: one step finds the overlap, and the object is moved
     // out along the palm normal until it is clear.
@@ -273,23 +240,14 @@ fn attempt_trajectory(
         physics.step();
     }
     let held = physics.object_pose();
-    let touching = physics
-        .phalanx_contacts()
-        .iter()
-        .filter(|c| c.is_some())
-        .count();
+    let touching = physics.phalanx_contacts().iter().filter(|c| c.is_some()).count();
     if (held.translation - before.translation).length() > 0.02 || touching < 2 {
         return Ok(Err(Failure::GraspNotHeld));
     }
     let grasped = held;
     let mut out = Vec::with_capacity(instances as usize);
     for instance in 0..instances {
-        let key = SampleKey {
-            seed,
-            object_id,
-            trajectory,
-            instance,
-        };
+        let key = SampleKey { seed, object_id, trajectory, instance };
         let mut arm_rng = SampleStream::sample(&key, &format!("arm/{attempt}"));
         let mut target = None;
         for _ in 0..20 {
@@ -307,11 +265,7 @@ fn attempt_trajectory(
         let q_from = q.clone();
         let palm_at = |s: f64| -> DAffine3 {
             let w = s * s * (3.0 - 2.0 * s);
-            let qs: Vec<f64> = q_from
-                .iter()
-                .zip(&q_target)
-                .map(|(a, b)| a + (b - a) * w)
-                .collect();
+            let qs: Vec<f64> = q_from.iter().zip(&q_target).map(|(a, b)| a + (b - a) * w).collect();
             ctx.t_world_base * robot.palm_pose(&qs)
         };
         let dt = ctx.timestep;
@@ -320,10 +274,7 @@ fn attempt_trajectory(
             let s = (k as f64 * ds).min(1.0);
             let p = palm_at(s);
             let acc = if k <= n {
-                let (a, b) = (
-                    palm_at((s - ds).max(0.0)).translation,
-                    palm_at((s + ds).min(1.0)).translation,
-                );
+                let (a, b) = (palm_at((s - ds).max(0.0)).translation, palm_at((s + ds).min(1.0)).translation);
                 (b - 2.0 * p.translation + a) / (dt * dt)
             } else {
                 DVec3::ZERO
@@ -332,29 +283,39 @@ fn attempt_trajectory(
             physics.step();
         }
         q = q_target;
-        let obj = physics.object_pose();
         let contacts = physics.phalanx_contacts();
         let touching = contacts.iter().filter(|c| c.is_some()).count();
-        if obj.translation.length() > 0.25 || touching == 0 {
+        if physics.object_pose().translation.length() > 0.25 || touching == 0 {
             return Ok(Err(Failure::LostDuringMotion));
         }
         if touching < 2 {
             return Ok(Err(Failure::TooFewContacts));
         }
-        let penetration = physics.max_penetration();
+        // Squeezing transients settle within a few tens of milliseconds: wait for them.
+        let mut penetration = physics.max_penetration();
+        for _ in 0..10 {
+            if penetration <= cfg.max_penetration {
+                break;
+            }
+            for _ in 0..steps(0.025) {
+                physics.step();
+            }
+            penetration = physics.max_penetration();
+        }
         if penetration > cfg.max_penetration {
             return Ok(Err(Failure::Penetration));
+        }
+        let obj = physics.object_pose();
+        let contacts = physics.phalanx_contacts();
+        if contacts.iter().filter(|c| c.is_some()).count() < 2 {
+            return Ok(Err(Failure::TooFewContacts));
         }
         // The object must hang free: its lowest point above the floor (z = 0).
         let t_world_object = ctx.t_world_base * robot.palm_pose(&q) * obj;
         let lowest = object
             .points
             .iter()
-            .map(|p| {
-                t_world_object
-                    .transform_point3(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64))
-                    .z
-            })
+            .map(|p| t_world_object.transform_point3(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)).z)
             .fold(f64::MAX, f64::min);
         if lowest < 0.005 {
             return Ok(Err(Failure::TouchesFloor));
@@ -384,10 +345,7 @@ mod tests {
     pub fn physics_object(id: &str) -> PhysicsObject {
         let e = vt_objects::Catalog::builtin().get(id).unwrap().clone();
         let m = vt_objects::procedural_mesh(&e);
-        PhysicsObject {
-            points: m.positions.clone(),
-            mass: e.mass,
-        }
+        PhysicsObject { points: m.positions.clone(), mass: e.mass }
     }
 
     #[test]
@@ -395,12 +353,7 @@ mod tests {
     fn experiment() {
         let robot = RobotModel::builtin();
         let pc = PhysicsConfig::default();
-        let env = |k: &str, d: f64| {
-            std::env::var(k)
-                .ok()
-                .and_then(|v| v.parse().ok())
-                .unwrap_or(d)
-        };
+        let env = |k: &str, d: f64| std::env::var(k).ok().and_then(|v| v.parse().ok()).unwrap_or(d);
         let settings = PhysicsSettings {
             timestep: pc.timestep,
             friction: env("F", pc.friction),
@@ -412,27 +365,14 @@ mod tests {
         let only = std::env::var("OBJ").unwrap_or_default();
         let ctx = GraspContext {
             robot: &robot,
-            t_world_base: DAffine3::from_rotation_translation(
-                DQuat::from_rotation_z(std::f64::consts::PI),
-                DVec3::new(0.0, 0.5, 0.0),
-            ),
+            t_world_base: DAffine3::from_rotation_translation(DQuat::from_rotation_z(std::f64::consts::PI), DVec3::new(0.0, 0.5, 0.0)),
             config: &cfg,
             timestep: pc.timestep,
         };
         let mut hand = RapierHand::new(&robot, settings).unwrap();
-        let n: u32 = std::env::var("TRAJ")
-            .ok()
-            .and_then(|s| s.parse().ok())
-            .unwrap_or(3);
-        let inst: u32 = std::env::var("INST")
-            .ok()
-            .and_then(|s| s.parse().ok())
-            .unwrap_or(10);
-        for e in vt_objects::Catalog::builtin()
-            .entries()
-            .iter()
-            .filter(|e| e.id.contains(&only))
-        {
+        let n: u32 = std::env::var("TRAJ").ok().and_then(|s| s.parse().ok()).unwrap_or(3);
+        let inst: u32 = std::env::var("INST").ok().and_then(|s| s.parse().ok()).unwrap_or(10);
+        for e in vt_objects::Catalog::builtin().entries().iter().filter(|e| e.id.contains(&only)) {
             let obj = physics_object(&e.id);
             let mut failures = Vec::new();
             let t0 = std::time::Instant::now();

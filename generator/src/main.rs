@@ -70,27 +70,11 @@ fn human_bytes(b: f64) -> String {
 
 fn run(cli: Cli) -> Result<()> {
     match cli.command {
-        Command::Generate {
-            config,
-            out,
-            shard,
-            resume,
-            overwrite,
-            jobs,
-            ycb_dir,
-            quiet,
-        } => {
+        Command::Generate { config, out, shard, resume, overwrite, jobs, ycb_dir, quiet } => {
             let cfg = LoadedConfig::load(&config)?;
             let out = out.unwrap_or_else(|| cfg.config.output.dir.clone());
-            let opts = GenerateOptions {
-                out: out.clone(),
-                shard: shard.unwrap_or(ShardSelector::ALL),
-                resume,
-                overwrite,
-                jobs,
-                quiet,
-                ycb_dir,
-            };
+            let opts =
+                GenerateOptions { out: out.clone(), shard: shard.unwrap_or(ShardSelector::ALL), resume, overwrite, jobs, quiet, ycb_dir };
             let s = generate(&cfg, &opts)?;
             if !quiet {
                 eprintln!("renderer: {}", s.adapter);
@@ -103,15 +87,7 @@ fn run(cli: Cli) -> Result<()> {
                     s.seconds,
                     s.samples as f64 / s.seconds.max(1e-9)
                 );
-                eprintln!(
-                    "dataset {}: {}",
-                    out.display(),
-                    if s.complete {
-                        "complete"
-                    } else {
-                        "incomplete (other shards pending)"
-                    }
-                );
+                eprintln!("dataset {}: {}", out.display(), if s.complete { "complete" } else { "incomplete (other shards pending)" });
             }
             Ok(())
         }
@@ -121,15 +97,7 @@ fn run(cli: Cli) -> Result<()> {
             let plan = Plan::new(c);
             let s = &c.sampling;
             println!("config      {}", config.display());
-            println!(
-                "objects     {} ({})",
-                c.objects.len(),
-                c.objects
-                    .iter()
-                    .map(|o| o.id())
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            );
+            println!("objects     {} ({})", c.objects.len(), c.objects.iter().map(|o| o.id()).collect::<Vec<_>>().join(", "));
             println!(
                 "samples     {} objects x {} trajectories x {} instances = {}",
                 c.objects.len(),
@@ -139,10 +107,7 @@ fn run(cli: Cli) -> Result<()> {
             );
             for (i, split) in SPLITS.iter().enumerate() {
                 let shards = plan.shards.iter().filter(|x| x.split == *split).count();
-                println!(
-                    "{split:<11} {} samples in {shards} shard(s) of up to {}",
-                    plan.samples_per_split[i], plan.samples_per_shard
-                );
+                println!("{split:<11} {} samples in {shards} shard(s) of up to {}", plan.samples_per_split[i], plan.samples_per_shard);
             }
             let (w, h) = (c.camera.width as f64, c.camera.height as f64);
             let raw = w * h * (3.0 + 4.0 + 1.0) + 2048.0;
@@ -157,12 +122,7 @@ fn run(cli: Cli) -> Result<()> {
             println!("output      {}", c.output.dir.display());
             Ok(())
         }
-        Command::Dump {
-            dataset,
-            split,
-            index,
-            out,
-        } => vtgen::dump::dump(&dataset, &split, index, &out),
+        Command::Dump { dataset, split, index, out } => vtgen::dump::dump(&dataset, &split, index, &out),
     }
 }
 

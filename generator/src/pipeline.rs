@@ -10,10 +10,7 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use sha2::{Digest, Sha256};
-use vt_dataset::{
-    Compression, Manifest, ModelInfo, ModelsInfo, ShardEntry, ShardMeta, ShardReceipt, ShardWriter,
-    SplitManifest, mask_ids,
-};
+use vt_dataset::{Compression, Manifest, ModelInfo, ModelsInfo, ShardEntry, ShardMeta, ShardReceipt, ShardWriter, SplitManifest, mask_ids};
 
 use crate::assets::{LoadedObject, load_objects};
 use crate::config::{CompressionKind, Config, LoadedConfig};
@@ -47,10 +44,7 @@ pub struct GenerateSummary {
 }
 
 pub fn sha256_hex(data: &[u8]) -> String {
-    Sha256::digest(data)
-        .iter()
-        .map(|b| format!("{b:02x}"))
-        .collect()
+    Sha256::digest(data).iter().map(|b| format!("{b:02x}")).collect()
 }
 
 fn write_models(out: &Path, objects: &[LoadedObject]) -> Result<()> {
@@ -59,12 +53,7 @@ fn write_models(out: &Path, objects: &[LoadedObject]) -> Result<()> {
     let mut infos = Vec::new();
     for o in objects {
         let file = format!("{}.ply", o.id);
-        vt_dataset::write_ply(
-            &dir.join(&file),
-            &o.mesh.positions,
-            &o.mesh.normals,
-            &o.mesh.indices,
-        )?;
+        vt_dataset::write_ply(&dir.join(&file), &o.mesh.positions, &o.mesh.normals, &o.mesh.indices)?;
         let e = o.mesh.extents();
         infos.push(ModelInfo {
             id: o.id.clone(),
@@ -74,11 +63,7 @@ fn write_models(out: &Path, objects: &[LoadedObject]) -> Result<()> {
             mass: o.mass,
             extents: [e.x as f64, e.y as f64, e.z as f64],
             diameter: o.mesh.diameter(),
-            source: if o.source == "procedural" {
-                "procedural".into()
-            } else {
-                "mesh".into()
-            },
+            source: if o.source == "procedural" { "procedural".into() } else { "mesh".into() },
             file,
         });
     }
@@ -88,14 +73,8 @@ fn write_models(out: &Path, objects: &[LoadedObject]) -> Result<()> {
 
 /// Prepares the output directory: refuses to mix datasets of different configs, and to redo
 /// complete shards without `--resume` or `--overwrite`.
-fn prepare_output(
-    out: &Path,
-    config_json: &str,
-    plan: &Plan,
-    opts: &GenerateOptions,
-) -> Result<()> {
-    std::fs::create_dir_all(out)
-        .with_context(|| format!("cannot create output directory {}", out.display()))?;
+fn prepare_output(out: &Path, config_json: &str, plan: &Plan, opts: &GenerateOptions) -> Result<()> {
+    std::fs::create_dir_all(out).with_context(|| format!("cannot create output directory {}", out.display()))?;
     let cfg_path = out.join("config.json");
     if let Ok(existing) = std::fs::read_to_string(&cfg_path) {
         let same = existing == config_json;
@@ -103,8 +82,7 @@ fn prepare_output(
             for d in SPLITS.iter().chain(&["models"]) {
                 let p = out.join(d);
                 if p.exists() {
-                    std::fs::remove_dir_all(&p)
-                        .with_context(|| format!("cannot remove {}", p.display()))?;
+                    std::fs::remove_dir_all(&p).with_context(|| format!("cannot remove {}", p.display()))?;
                 }
             }
             let _ = std::fs::remove_file(out.join("manifest.json"));
@@ -114,11 +92,7 @@ fn prepare_output(
                 out.display()
             );
         } else if !opts.resume {
-            let done = plan
-                .shards
-                .iter()
-                .filter(|s| opts.shard.selects(s) && out.join(s.file()).is_file())
-                .count();
+            let done = plan.shards.iter().filter(|s| opts.shard.selects(s) && out.join(s.file()).is_file()).count();
             if done > 0 {
                 bail!(
                     "{} already has {done} complete shard(s) of this dataset; pass --resume to continue it or --overwrite to start again",
@@ -134,13 +108,7 @@ fn prepare_output(
 /// Rebuilds `manifest.json` from the shards on disk. Checksums already known (from this run or the
 /// previous manifest, same size) are reused; unknown complete shards are hashed. Parallel `--shard`
 /// processes on one directory each rewrite it this way, so the last one to finish lists them all.
-fn update_manifest(
-    out: &Path,
-    config: &Config,
-    config_sha: &str,
-    plan: &Plan,
-    receipts: &[(String, ShardReceipt)],
-) -> Result<Manifest> {
+fn update_manifest(out: &Path, config: &Config, config_sha: &str, plan: &Plan, receipts: &[(String, ShardReceipt)]) -> Result<Manifest> {
     let mut known: BTreeMap<String, (u64, String)> = BTreeMap::new();
     if let Ok(old) = Manifest::load(&out.join("manifest.json")) {
         if old.config_sha256 == config_sha {
@@ -185,26 +153,17 @@ fn update_manifest(
         }
         splits.insert(
             split.to_string(),
-            SplitManifest {
-                samples: plan.samples_per_split[si],
-                samples_per_shard: plan.samples_per_shard,
-                shards,
-            },
+            SplitManifest { samples: plan.samples_per_split[si], samples_per_shard: plan.samples_per_shard, shards },
         );
     }
     // Grasp-loop figures: each shard stores those of the trajectories that start in it.
     let mut grasp = None;
     if config.robot.is_some() {
         let mut total = GraspStats::default();
-        for e in splits
-            .values()
-            .flat_map(|s: &SplitManifest| &s.shards)
-            .filter(|e| e.sha256.is_some())
-        {
+        for e in splits.values().flat_map(|s: &SplitManifest| &s.shards).filter(|e| e.sha256.is_some()) {
             let reader = vt_dataset::ShardReader::open(&out.join(&e.file))?;
             if let Some(j) = reader.meta().extra.get("grasp_stats") {
-                let st: GraspStats =
-                    serde_json::from_str(j).with_context(|| format!("{}: grasp_stats", e.file))?;
+                let st: GraspStats = serde_json::from_str(j).with_context(|| format!("{}: grasp_stats", e.file))?;
                 total.merge(&st);
             }
         }
@@ -241,12 +200,8 @@ fn write_shard(
             return Ok(None);
         }
         let index = shard.first_sample + k as u64;
-        let sample = factory
-            .make(shard.split, index, r)
-            .with_context(|| format!("{} sample {index}", shard.split))?;
-        writer
-            .write_sample(&sample)
-            .with_context(|| format!("writing {}", path.display()))?;
+        let sample = factory.make(shard.split, index, r).with_context(|| format!("{} sample {index}", shard.split))?;
+        writer.write_sample(&sample).with_context(|| format!("writing {}", path.display()))?;
         progress.inc(1);
     }
     if factory.has_robot() {
@@ -268,11 +223,7 @@ pub fn generate(cfg: &LoadedConfig, opts: &GenerateOptions) -> Result<GenerateSu
     prepare_output(out, &config_json, &plan, opts)?;
     write_models(out, &objects)?;
 
-    let selected: Vec<&ShardPlan> = plan
-        .shards
-        .iter()
-        .filter(|s| opts.shard.selects(s))
-        .collect();
+    let selected: Vec<&ShardPlan> = plan.shards.iter().filter(|s| opts.shard.selects(s)).collect();
     let mut todo = Vec::new();
     let mut skipped = 0;
     for s in &selected {
@@ -284,26 +235,19 @@ pub fn generate(cfg: &LoadedConfig, opts: &GenerateOptions) -> Result<GenerateSu
         // A leftover from an interrupted run: never complete, always redone.
         let partial = PathBuf::from(format!("{}{}", path.display(), vt_dataset::PARTIAL_SUFFIX));
         if partial.exists() {
-            std::fs::remove_file(&partial)
-                .with_context(|| format!("cannot remove {}", partial.display()))?;
+            std::fs::remove_file(&partial).with_context(|| format!("cannot remove {}", partial.display()))?;
         }
         todo.push(*s);
     }
     let total: u64 = todo.iter().map(|s| s.samples.len() as u64).sum();
-    let progress = if opts.quiet {
-        ProgressBar::hidden()
-    } else {
-        ProgressBar::new(total)
-    };
+    let progress = if opts.quiet { ProgressBar::hidden() } else { ProgressBar::new(total) };
     progress.set_style(
         ProgressStyle::with_template("{spinner} {elapsed_precise} [{bar:36}] {pos}/{len} samples  {per_sec}  ETA {eta}  {msg}")
             .expect("valid template")
             .progress_chars("=> "),
     );
     let compression = match config.output.compression {
-        CompressionKind::Zstd => Compression::Zstd {
-            level: config.output.zstd_level as u32,
-        },
+        CompressionKind::Zstd => Compression::Zstd { level: config.output.zstd_level as u32 },
         CompressionKind::None => Compression::None,
     };
     let jobs = opts.jobs.max(1).min(todo.len().max(1));
@@ -316,8 +260,7 @@ pub fn generate(cfg: &LoadedConfig, opts: &GenerateOptions) -> Result<GenerateSu
     std::thread::scope(|scope| {
         for _ in 0..jobs {
             let (tx, name_tx) = (tx.clone(), name_tx.clone());
-            let (todo, next, abort, progress, objects) =
-                (&todo, &next, &abort, &progress, &objects);
+            let (todo, next, abort, progress, objects) = (&todo, &next, &abort, &progress, &objects);
             let config_sha = &config_sha;
             scope.spawn(move || {
                 let run = || -> Result<()> {
@@ -343,9 +286,7 @@ pub fn generate(cfg: &LoadedConfig, opts: &GenerateOptions) -> Result<GenerateSu
                             sample_count: s.samples.len() as u64,
                             extra: Default::default(),
                         };
-                        if let Some(r) =
-                            write_shard(&mut factory, out, s, &meta, compression, progress, abort)?
-                        {
+                        if let Some(r) = write_shard(&mut factory, out, s, &meta, compression, progress, abort)? {
                             let _ = tx.send(Ok((s.file(), r)));
                         }
                     }
@@ -368,10 +309,7 @@ pub fn generate(cfg: &LoadedConfig, opts: &GenerateOptions) -> Result<GenerateSu
         }
     });
     progress.finish_and_clear();
-    let adapter = name_rx
-        .try_iter()
-        .next()
-        .unwrap_or_else(|| "none (nothing to render)".into());
+    let adapter = name_rx.try_iter().next().unwrap_or_else(|| "none (nothing to render)".into());
     // The manifest is rewritten even after an error, so finished shards are recorded.
     let manifest = update_manifest(out, config, &config_sha, &plan, &receipts)?;
     if let Some(e) = first_error {

@@ -52,13 +52,8 @@ impl Plan {
         for (si, split) in SPLITS.into_iter().enumerate() {
             let mut all = Vec::new();
             for o in 0..config.objects.len() as u32 {
-                for t in (0..s.trajectories_per_object).filter(|&t| is_test(config, t) == (si == 1))
-                {
-                    all.extend((0..s.instances_per_trajectory).map(|i| SampleRef {
-                        object_index: o,
-                        trajectory: t,
-                        instance: i,
-                    }));
+                for t in (0..s.trajectories_per_object).filter(|&t| is_test(config, t) == (si == 1)) {
+                    all.extend((0..s.instances_per_trajectory).map(|i| SampleRef { object_index: o, trajectory: t, instance: i }));
                 }
             }
             samples_per_split[si] = all.len() as u64;
@@ -72,11 +67,7 @@ impl Plan {
                 });
             }
         }
-        Plan {
-            shards,
-            samples_per_split,
-            samples_per_shard: per_shard,
-        }
+        Plan { shards, samples_per_split, samples_per_shard: per_shard }
     }
 
     pub fn total_samples(&self) -> u64 {
@@ -102,13 +93,9 @@ impl ShardSelector {
 impl std::str::FromStr for ShardSelector {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {
-        let err =
-            || format!("'{s}' is not a shard selector: expected i/N with 0 <= i < N, e.g. 0/4");
+        let err = || format!("'{s}' is not a shard selector: expected i/N with 0 <= i < N, e.g. 0/4");
         let (i, n) = s.split_once('/').ok_or_else(err)?;
-        let (index, count): (usize, usize) = (
-            i.trim().parse().map_err(|_| err())?,
-            n.trim().parse().map_err(|_| err())?,
-        );
+        let (index, count): (usize, usize) = (i.trim().parse().map_err(|_| err())?, n.trim().parse().map_err(|_| err())?);
         if count == 0 || index >= count {
             return Err(err());
         }

@@ -26,21 +26,9 @@ fn floor_mesh(appearance: &Appearance) -> TexturedMesh {
     TexturedMesh {
         positions: corners.iter().map(|c| [c[0], c[1], 0.0]).collect(),
         normals: vec![[0.0, 0.0, 1.0]; 4],
-        uvs: corners
-            .iter()
-            .map(|c| {
-                [
-                    (c[0] / (2.0 * half) + 0.5) * reps,
-                    (0.5 - c[1] / (2.0 * half)) * reps,
-                ]
-            })
-            .collect(),
+        uvs: corners.iter().map(|c| [(c[0] / (2.0 * half) + 0.5) * reps, (0.5 - c[1] / (2.0 * half)) * reps]).collect(),
         indices: vec![0, 1, 2, 0, 2, 3],
-        texture: Texture {
-            width: appearance.floor.width,
-            height: appearance.floor.height,
-            rgba: appearance.floor.rgba.clone(),
-        },
+        texture: Texture { width: appearance.floor.width, height: appearance.floor.height, rgba: appearance.floor.rgba.clone() },
     }
 }
 
@@ -59,46 +47,23 @@ pub struct SampleFactory<'a> {
 }
 
 impl<'a> SampleFactory<'a> {
-    pub fn new(
-        cfg: &'a LoadedConfig,
-        objects: &'a [LoadedObject],
-        mut renderer: Box<dyn Renderer + 'a>,
-    ) -> Result<Self> {
+    pub fn new(cfg: &'a LoadedConfig, objects: &'a [LoadedObject], mut renderer: Box<dyn Renderer + 'a>) -> Result<Self> {
         let config = &cfg.config;
         let floor = renderer.upload_mesh(&floor_mesh(&Appearance::canonical()))?;
         let object_meshes = objects
             .iter()
-            .map(|o| {
-                renderer
-                    .upload_mesh(&o.mesh)
-                    .with_context(|| format!("uploading '{}'", o.id))
-            })
+            .map(|o| renderer.upload_mesh(&o.mesh).with_context(|| format!("uploading '{}'", o.id)))
             .collect::<Result<_>>()?;
-        let robot = config
-            .robot
-            .as_ref()
-            .map(|r| RobotScene::new(cfg, r, objects))
-            .transpose()?;
+        let robot = config.robot.as_ref().map(|r| RobotScene::new(cfg, r, objects)).transpose()?;
         let mut robot_meshes = Vec::new();
         if let Some(r) = &robot {
             for link in 0..r.model.links.len() {
-                if let (Some(mesh), Some(id)) =
-                    (link_mesh(&r.model, link), robot_mask_id(&r.model, link))
-                {
+                if let (Some(mesh), Some(id)) = (link_mesh(&r.model, link), robot_mask_id(&r.model, link)) {
                     robot_meshes.push((link, renderer.upload_mesh(&mesh)?, id));
                 }
             }
         }
-        Ok(SampleFactory {
-            config,
-            objects,
-            renderer,
-            object_meshes,
-            floor,
-            robot,
-            robot_meshes,
-            shard_stats: GraspStats::default(),
-        })
+        Ok(SampleFactory { config, objects, renderer, object_meshes, floor, robot, robot_meshes, shard_stats: GraspStats::default() })
     }
 
     pub fn renderer_name(&self) -> String {
@@ -111,30 +76,15 @@ impl<'a> SampleFactory<'a> {
 
     pub fn make(&mut self, split: &str, index: u64, r: &SampleRef) -> Result<Sample> {
         let obj = &self.objects[r.object_index as usize];
-        let key = SampleKey {
-            seed: self.config.seed,
-            object_id: &obj.id,
-            trajectory: r.trajectory,
-            instance: r.instance,
-        };
+        let key = SampleKey { seed: self.config.seed, object_id: &obj.id, trajectory: r.trajectory, instance: r.instance };
         let mut scene = sample_scene(self.config, &key);
-        let mut draws = vec![Draw {
-            mesh: self.floor,
-            t_world_model: DMat4::IDENTITY,
-            mask_id: mask_ids::BACKGROUND,
-        }];
+        let mut draws = vec![Draw { mesh: self.floor, t_world_model: DMat4::IDENTITY, mask_id: mask_ids::BACKGROUND }];
         let mut robot_info = serde_json::Map::new();
         let mut extra_transforms = Vec::new();
         if let Some(robot) = &mut self.robot {
             // The object's pose is the grasp loop's: recorded after the arm moved and it settled.
             let instances = self.config.sampling.instances_per_trajectory;
-            let traj = robot.trajectory(
-                self.config.seed,
-                r.object_index,
-                &obj.id,
-                r.trajectory,
-                instances,
-            )?;
+            let traj = robot.trajectory(self.config.seed, r.object_index, &obj.id, r.trajectory, instances)?;
             let attempts = traj.attempts;
             let st = traj.instances[r.instance as usize].clone();
             if r.instance == 0 {
@@ -144,56 +94,22 @@ impl<'a> SampleFactory<'a> {
             scene.t_world_object = pose_of(&(t_world_palm * st.t_palm_object));
             let links = robot.model.forward_kinematics(&st.q);
             for &(link, mesh, id) in &self.robot_meshes {
-                draws.push(Draw {
-                    mesh,
-                    t_world_model: DMat4::from(robot.t_world_base * links[link]),
-                    mask_id: id,
-                });
+                draws.push(Draw { mesh, t_world_model: DMat4::from(robot.t_world_base * links[link]), mask_id: id });
             }
-            extra_transforms.push((
-                frames::WORLD.to_string(),
-                "palm".to_string(),
-                pose_of(&t_world_palm),
-            ));
+            extra_transforms.push((frames::WORLD.to_string(), "palm".to_string(), pose_of(&t_world_palm)));
             let names = vt_robot::phalanx_names();
             for p in &names {
-                let pad = robot
-                    .model
-                    .link_id(&format!("{p}_pad"))
-                    .expect("validated at load");
-                extra_transforms.push((
-                    frames::WORLD.to_string(),
-                    format!("{p}_pad"),
-                    pose_of(&(robot.t_world_base * links[pad])),
-                ));
+                let pad = robot.model.link_id(&format!("{p}_pad")).expect("validated at load");
+                extra_transforms.push((frames::WORLD.to_string(), format!("{p}_pad"), pose_of(&(robot.t_world_base * links[pad]))));
             }
-            let touching: Vec<&String> = names
-                .iter()
-                .zip(&st.contacts)
-                .filter(|(_, c)| c.is_some())
-                .map(|(n, _)| n)
-                .collect();
-            let joints: serde_json::Map<String, serde_json::Value> = robot
-                .model
-                .dof_names()
-                .iter()
-                .zip(&st.q)
-                .map(|(n, v)| (n.to_string(), serde_json::json!(v)))
-                .collect();
+            let touching: Vec<&String> = names.iter().zip(&st.contacts).filter(|(_, c)| c.is_some()).map(|(n, _)| n).collect();
+            let joints: serde_json::Map<String, serde_json::Value> =
+                robot.model.dof_names().iter().zip(&st.q).map(|(n, v)| (n.to_string(), serde_json::json!(v))).collect();
             robot_info.insert("physics_backend".into(), robot.backend_name().into());
             robot_info.insert("phalanges_in_contact".into(), serde_json::json!(touching));
-            robot_info.insert(
-                "slip_mm".into(),
-                serde_json::json!(st.slip_translation * 1e3),
-            );
-            robot_info.insert(
-                "slip_deg".into(),
-                serde_json::json!(st.slip_rotation.to_degrees()),
-            );
-            robot_info.insert(
-                "penetration_mm".into(),
-                serde_json::json!(st.penetration * 1e3),
-            );
+            robot_info.insert("slip_mm".into(), serde_json::json!(st.slip_translation * 1e3));
+            robot_info.insert("slip_deg".into(), serde_json::json!(st.slip_rotation.to_degrees()));
+            robot_info.insert("penetration_mm".into(), serde_json::json!(st.penetration * 1e3));
             robot_info.insert("grasp_attempts".into(), serde_json::json!(attempts));
             robot_info.insert("joint_positions".into(), serde_json::Value::Object(joints));
             robot_info.insert("T_world_palm".into(), pose_of(&t_world_palm).to_json());
@@ -205,14 +121,8 @@ impl<'a> SampleFactory<'a> {
         });
         let cam = &self.config.camera;
         let k = cam.k();
-        let view = View {
-            width: cam.width,
-            height: cam.height,
-            k,
-            near: cam.near,
-            far: cam.far,
-            t_world_camera: scene.t_world_camera.matrix(),
-        };
+        let view =
+            View { width: cam.width, height: cam.height, k, near: cam.near, far: cam.far, t_world_camera: scene.t_world_camera.matrix() };
         let light = &scene.appearance.light;
         let lighting = Lighting {
             light_position: light.position,
@@ -221,15 +131,8 @@ impl<'a> SampleFactory<'a> {
             background: self.config.scene.background,
         };
         let img = self.renderer.render(&view, &lighting, &draws)?;
-        let t_camera_object = scene
-            .t_world_camera
-            .inverse()
-            .compose(&scene.t_world_object);
-        let visible = img
-            .mask
-            .iter()
-            .filter(|&&m| m == mask_ids::TARGET_OBJECT)
-            .count();
+        let t_camera_object = scene.t_world_camera.inverse().compose(&scene.t_world_object);
+        let visible = img.mask.iter().filter(|&&m| m == mask_ids::TARGET_OBJECT).count();
         let mut info = serde_json::json!({
             "split": split,
             "index": index,

@@ -29,12 +29,7 @@ impl Appearance {
     /// The canonical appearance: a light above and in front of the workspace, a grey checker floor.
     pub fn canonical() -> Self {
         Appearance {
-            light: Light {
-                position: DVec3::new(0.4, -0.6, 1.4),
-                color: [1.0, 0.97, 0.92],
-                intensity: 1.0,
-                ambient: [0.28, 0.28, 0.3],
-            },
+            light: Light { position: DVec3::new(0.4, -0.6, 1.4), color: [1.0, 0.97, 0.92], intensity: 1.0, ambient: [0.28, 0.28, 0.3] },
             floor: checker_texture(256, 8, [150, 150, 145], [110, 110, 108]),
             floor_tile: 0.4,
             randomized: false,

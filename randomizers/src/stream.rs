@@ -62,20 +62,12 @@ mod tests {
 
     #[test]
     fn streams_depend_on_every_key_part_and_nothing_else() {
-        let k = SampleKey {
-            seed: 1,
-            object_id: "a",
-            trajectory: 2,
-            instance: 3,
-        };
+        let k = SampleKey { seed: 1, object_id: "a", trajectory: 2, instance: 3 };
         let x: u64 = SampleStream::sample(&k, "pose").random();
         assert_eq!(x, SampleStream::sample(&k, "pose").random::<u64>());
         for other in [
             SampleKey { seed: 2, ..k },
-            SampleKey {
-                object_id: "b",
-                ..k
-            },
+            SampleKey { object_id: "b", ..k },
             SampleKey { trajectory: 3, ..k },
             SampleKey { instance: 4, ..k },
         ] {

@@ -33,15 +33,8 @@ struct Line<'a> {
 fn lines(text: &str) -> Vec<Line<'_>> {
     text.lines()
         .map(|l| {
-            let code = if l.trim_start().starts_with('#') {
-                ""
-            } else {
-                l.find(" #").map_or(l, |p| &l[..p])
-            };
-            Line {
-                text: code,
-                indent: code.len() - code.trim_start().len(),
-            }
+            let code = if l.trim_start().starts_with('#') { "" } else { l.find(" #").map_or(l, |p| &l[..p]) };
+            Line { text: code, indent: code.len() - code.trim_start().len() }
         })
         .collect()
 }
@@ -71,8 +64,7 @@ pub fn locate(text: &str, path: &[Seg]) -> Option<(usize, usize)> {
                 let s = node_start(l);
                 // Keys of a mapping inside a sequence item start at the item's own column.
                 let after_item = depth > 0 && matches!(path[depth - 1], Seg::Index(_));
-                let deeper =
-                    s as isize > col || (after_item && s as isize == col) || (depth == 0 && s == 0);
+                let deeper = s as isize > col || (after_item && s as isize == col) || (depth == 0 && s == 0);
                 if deeper && l[s..].starts_with(&format!("{k}:")) {
                     return Some((i, s));
                 }
@@ -80,18 +72,12 @@ pub fn locate(text: &str, path: &[Seg]) -> Option<(usize, usize)> {
                 let open = l.find('{')?;
                 [format!("{{{k}:"), format!(" {k}:"), format!(",{k}:")]
                     .iter()
-                    .find_map(|p| {
-                        l[open..]
-                            .find(p.as_str())
-                            .map(|q| (i, open + q + p.len() - k.len() - 1))
-                    })
+                    .find_map(|p| l[open..].find(p.as_str()).map(|q| (i, open + q + p.len() - k.len() - 1)))
             }),
             Seg::Index(n) => {
                 // Block sequence items: `- ` at the first dash indent found in the window.
                 let dashes: Vec<(usize, usize)> = (from..to)
-                    .filter(|&i| {
-                        ls[i].text.trim_start().starts_with("- ") && ls[i].indent as isize >= col
-                    })
+                    .filter(|&i| ls[i].text.trim_start().starts_with("- ") && ls[i].indent as isize >= col)
                     .map(|i| (i, ls[i].indent))
                     .collect();
                 let first = dashes.first().map(|d| d.1);
@@ -113,9 +99,7 @@ pub fn locate(text: &str, path: &[Seg]) -> Option<(usize, usize)> {
         while j < to {
             let l = &ls[j];
             let deeper = match seg {
-                Seg::Key(_) => {
-                    l.indent > c || (l.indent == c && l.text.trim_start().starts_with("- "))
-                }
+                Seg::Key(_) => l.indent > c || (l.indent == c && l.text.trim_start().starts_with("- ")),
                 // The item's mapping continues at the column its first key started.
                 Seg::Index(_) => l.indent >= c,
             };
@@ -140,39 +124,12 @@ mod tests {
     #[test]
     fn finds_block_flow_and_sequence_fields() {
         assert_eq!(locate(YAML, &[Seg::Key("seed")]), Some((1, 1)));
-        assert_eq!(
-            locate(YAML, &[Seg::Key("camera"), Seg::Key("near")]),
-            Some((9, 3))
-        );
-        assert_eq!(
-            locate(
-                YAML,
-                &[Seg::Key("camera"), Seg::Key("intrinsics"), Seg::Key("fy")]
-            ),
-            Some((8, 25))
-        );
-        assert_eq!(
-            locate(YAML, &[Seg::Key("objects"), Seg::Index(1)]),
-            Some((4, 5))
-        );
-        assert_eq!(
-            locate(
-                YAML,
-                &[Seg::Key("objects"), Seg::Index(1), Seg::Key("mesh")]
-            ),
-            Some((5, 5))
-        );
-        assert_eq!(
-            locate(
-                YAML,
-                &[Seg::Key("scene"), Seg::Key("workspace"), Seg::Key("min")]
-            ),
-            Some((12, 5))
-        );
+        assert_eq!(locate(YAML, &[Seg::Key("camera"), Seg::Key("near")]), Some((9, 3)));
+        assert_eq!(locate(YAML, &[Seg::Key("camera"), Seg::Key("intrinsics"), Seg::Key("fy")]), Some((8, 25)));
+        assert_eq!(locate(YAML, &[Seg::Key("objects"), Seg::Index(1)]), Some((4, 5)));
+        assert_eq!(locate(YAML, &[Seg::Key("objects"), Seg::Index(1), Seg::Key("mesh")]), Some((5, 5)));
+        assert_eq!(locate(YAML, &[Seg::Key("scene"), Seg::Key("workspace"), Seg::Key("min")]), Some((12, 5)));
         assert_eq!(locate(YAML, &[Seg::Key("camera"), Seg::Key("far")]), None);
-        assert_eq!(
-            display_path(&[Seg::Key("objects"), Seg::Index(1), Seg::Key("mesh")]),
-            "objects[1].mesh"
-        );
+        assert_eq!(display_path(&[Seg::Key("objects"), Seg::Index(1), Seg::Key("mesh")]), "objects[1].mesh");
     }
 }

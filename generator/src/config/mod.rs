@@ -28,11 +28,7 @@ fn location(file: &Path, line: &Option<usize>, column: &Option<usize>) -> String
 }
 
 fn field_prefix(field: &str) -> String {
-    if field.is_empty() || field == "." {
-        String::new()
-    } else {
-        format!("{field}: ")
-    }
+    if field.is_empty() || field == "." { String::new() } else { format!("{field}: ") }
 }
 
 /// A parsed and validated config, with the file it came from.
@@ -78,31 +74,16 @@ impl LoadedConfig {
         })?;
         let problems = config.validate();
         if let Some(p) = problems.into_iter().next() {
-            let (line, column) =
-                locate::locate(text, &p.path).map_or((None, None), |(l, c)| (Some(l), Some(c)));
-            return Err(ConfigError {
-                file: path.to_path_buf(),
-                line,
-                column,
-                field: locate::display_path(&p.path),
-                message: p.message,
-            });
+            let (line, column) = locate::locate(text, &p.path).map_or((None, None), |(l, c)| (Some(l), Some(c)));
+            return Err(ConfigError { file: path.to_path_buf(), line, column, field: locate::display_path(&p.path), message: p.message });
         }
         let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-        Ok(LoadedConfig {
-            config,
-            path: path.to_path_buf(),
-            base_dir,
-        })
+        Ok(LoadedConfig { config, path: path.to_path_buf(), base_dir })
     }
 
     /// Resolves a path written in the config relative to the config file's directory.
     pub fn resolve(&self, p: &Path) -> PathBuf {
-        if p.is_absolute() {
-            p.to_path_buf()
-        } else {
-            self.base_dir.join(p)
-        }
+        if p.is_absolute() { p.to_path_buf() } else { self.base_dir.join(p) }
     }
 }
 

@@ -127,18 +127,12 @@ impl Default for GraspConfig {
         let tc = [Some(1.35), Some(0.9), Some(1.2), Some(1.2)];
         GraspConfig {
             home_arm: [-1.5708, -1.5708, 1.5708, -1.5708, -1.5708, 0.0],
-            palm_workspace: Workspace {
-                min: [-0.08, -0.05, 0.22],
-                max: [0.08, 0.05, 0.32],
-            },
+            palm_workspace: Workspace { min: [-0.08, -0.05, 0.22], max: [0.08, 0.05, 0.32] },
             max_tilt_deg: 50.0,
             max_roll_deg: 45.0,
             preshape: std::array::from_fn(|k| if k < 12 { finger[k % 4] } else { thumb[k - 12] }),
             close: std::array::from_fn(|k| if k < 12 { fc[k % 4] } else { tc[k - 12] }),
-            object_offset: Workspace {
-                min: [0.0, -0.02, 0.0],
-                max: [0.0, 0.02, 0.05],
-            },
+            object_offset: Workspace { min: [0.0, -0.02, 0.0], max: [0.0, 0.02, 0.05] },
             palm_surface_x: 0.0111,
             max_grasp_depth: 0.08,
             close_seconds: 0.6,
@@ -195,12 +189,8 @@ impl<'de> Deserialize<'de> for ObjectSpec {
             fn visit_str<E: serde::de::Error>(self, v: &str) -> Result<ObjectSpec, E> {
                 Ok(ObjectSpec::Catalog(v.to_string()))
             }
-            fn visit_map<A: serde::de::MapAccess<'de>>(
-                self,
-                map: A,
-            ) -> Result<ObjectSpec, A::Error> {
-                CustomObject::deserialize(serde::de::value::MapAccessDeserializer::new(map))
-                    .map(ObjectSpec::Custom)
+            fn visit_map<A: serde::de::MapAccess<'de>>(self, map: A) -> Result<ObjectSpec, A::Error> {
+                CustomObject::deserialize(serde::de::value::MapAccessDeserializer::new(map)).map(ObjectSpec::Custom)
             }
         }
         d.deserialize_any(V)
@@ -276,12 +266,7 @@ impl Camera {
             (Some(k), _) => k,
             (None, Some(fov)) => {
                 let f = 0.5 * self.height as f64 / (0.5 * fov.to_radians()).tan();
-                Intrinsics {
-                    fx: f,
-                    fy: f,
-                    cx: (self.width as f64 - 1.0) / 2.0,
-                    cy: (self.height as f64 - 1.0) / 2.0,
-                }
+                Intrinsics { fx: f, fy: f, cx: (self.width as f64 - 1.0) / 2.0, cy: (self.height as f64 - 1.0) / 2.0 }
             }
             (None, None) => unreachable!("validate() requires intrinsics or fov_y_deg"),
         }
@@ -301,10 +286,7 @@ pub struct SceneConfig {
 
 impl Default for SceneConfig {
     fn default() -> Self {
-        SceneConfig {
-            workspace: Workspace::default(),
-            background: default_background(),
-        }
+        SceneConfig { workspace: Workspace::default(), background: default_background() }
     }
 }
 
@@ -321,10 +303,7 @@ pub struct Workspace {
 
 impl Default for Workspace {
     fn default() -> Self {
-        Workspace {
-            min: [-0.08, -0.08, 0.18],
-            max: [0.08, 0.08, 0.32],
-        }
+        Workspace { min: [-0.08, -0.08, 0.18], max: [0.08, 0.08, 0.32] }
     }
 }
 
@@ -385,18 +364,9 @@ pub struct Problem {
     pub message: String,
 }
 
-fn range<T: PartialOrd + std::fmt::Display>(
-    out: &mut Vec<Problem>,
-    path: Vec<Seg>,
-    v: T,
-    lo: T,
-    hi: T,
-) {
+fn range<T: PartialOrd + std::fmt::Display>(out: &mut Vec<Problem>, path: Vec<Seg>, v: T, lo: T, hi: T) {
     if !(v >= lo && v <= hi) {
-        out.push(Problem {
-            path,
-            message: format!("{v} is out of range: allowed {lo} ..= {hi}"),
-        });
+        out.push(Problem { path, message: format!("{v} is out of range: allowed {lo} ..= {hi}") });
     }
 }
 
@@ -406,10 +376,7 @@ impl Config {
         use Seg::{Index, Key};
         let mut p = Vec::new();
         if self.objects.is_empty() {
-            p.push(Problem {
-                path: vec![Key("objects")],
-                message: "at least one object is required".into(),
-            });
+            p.push(Problem { path: vec![Key("objects")], message: "at least one object is required".into() });
         }
         let catalog = vt_objects::Catalog::builtin();
         let mut seen = std::collections::BTreeSet::new();
@@ -420,10 +387,7 @@ impl Config {
                     let known: Vec<&str> = catalog.ids().collect();
                     p.push(Problem {
                         path: vec![Key("objects"), Index(i)],
-                        message: format!(
-                            "unknown object id '{id}'; the catalogue has: {}",
-                            known.join(", ")
-                        ),
+                        message: format!("unknown object id '{id}'; the catalogue has: {}", known.join(", ")),
                     });
                 }
             }
@@ -434,141 +398,59 @@ impl Config {
                         message: format!("{} is out of range: allowed 0 < mass <= 100 kg", c.mass),
                     });
                 }
-                if c.id.is_empty()
-                    || !c
-                        .id
-                        .chars()
-                        .all(|ch| ch.is_ascii_alphanumeric() || ch == '_' || ch == '-')
-                {
+                if c.id.is_empty() || !c.id.chars().all(|ch| ch.is_ascii_alphanumeric() || ch == '_' || ch == '-') {
                     p.push(Problem {
                         path: vec![Key("objects"), Index(i), Key("id")],
-                        message: format!(
-                            "'{}' is not a valid id: use letters, digits, '_' and '-'",
-                            c.id
-                        ),
+                        message: format!("'{}' is not a valid id: use letters, digits, '_' and '-'", c.id),
                     });
                 }
             }
             if !seen.insert(id.to_string()) {
-                p.push(Problem {
-                    path: vec![Key("objects"), Index(i)],
-                    message: format!("object '{id}' is listed twice"),
-                });
+                p.push(Problem { path: vec![Key("objects"), Index(i)], message: format!("object '{id}' is listed twice") });
             }
         }
         let s = &self.sampling;
-        range(
-            &mut p,
-            vec![Key("sampling"), Key("trajectories_per_object")],
-            s.trajectories_per_object,
-            1,
-            1_000_000,
-        );
-        range(
-            &mut p,
-            vec![Key("sampling"), Key("instances_per_trajectory")],
-            s.instances_per_trajectory,
-            1,
-            100_000,
-        );
-        range(
-            &mut p,
-            vec![Key("sampling"), Key("split"), Key("train")],
-            s.split.train,
-            0,
-            1000,
-        );
-        range(
-            &mut p,
-            vec![Key("sampling"), Key("split"), Key("test")],
-            s.split.test,
-            0,
-            1000,
-        );
+        range(&mut p, vec![Key("sampling"), Key("trajectories_per_object")], s.trajectories_per_object, 1, 1_000_000);
+        range(&mut p, vec![Key("sampling"), Key("instances_per_trajectory")], s.instances_per_trajectory, 1, 100_000);
+        range(&mut p, vec![Key("sampling"), Key("split"), Key("train")], s.split.train, 0, 1000);
+        range(&mut p, vec![Key("sampling"), Key("split"), Key("test")], s.split.test, 0, 1000);
         if s.split.train + s.split.test == 0 {
-            p.push(Problem {
-                path: vec![Key("sampling"), Key("split")],
-                message: "train + test must be at least 1".into(),
-            });
+            p.push(Problem { path: vec![Key("sampling"), Key("split")], message: "train + test must be at least 1".into() });
         }
         let c = &self.camera;
         range(&mut p, vec![Key("camera"), Key("width")], c.width, 8, 8192);
-        range(
-            &mut p,
-            vec![Key("camera"), Key("height")],
-            c.height,
-            8,
-            8192,
-        );
+        range(&mut p, vec![Key("camera"), Key("height")], c.height, 8, 8192);
         match (&c.intrinsics, c.fov_y_deg) {
             (Some(_), Some(_)) => p.push(Problem {
                 path: vec![Key("camera"), Key("fov_y_deg")],
                 message: "give either intrinsics or fov_y_deg, not both".into(),
             }),
-            (None, None) => p.push(Problem {
-                path: vec![Key("camera")],
-                message: "camera needs `intrinsics: {fx, fy, cx, cy}` or `fov_y_deg`".into(),
-            }),
+            (None, None) => {
+                p.push(Problem { path: vec![Key("camera")], message: "camera needs `intrinsics: {fx, fy, cx, cy}` or `fov_y_deg`".into() })
+            }
             (None, Some(f)) => range(&mut p, vec![Key("camera"), Key("fov_y_deg")], f, 1.0, 170.0),
             (Some(k), None) => {
                 for (name, v) in [("fx", k.fx), ("fy", k.fy)] {
-                    range(
-                        &mut p,
-                        vec![Key("camera"), Key("intrinsics"), Key(name)],
-                        v,
-                        1.0,
-                        1e6,
-                    );
+                    range(&mut p, vec![Key("camera"), Key("intrinsics"), Key(name)], v, 1.0, 1e6);
                 }
-                range(
-                    &mut p,
-                    vec![Key("camera"), Key("intrinsics"), Key("cx")],
-                    k.cx,
-                    -0.5,
-                    c.width as f64 - 0.5,
-                );
-                range(
-                    &mut p,
-                    vec![Key("camera"), Key("intrinsics"), Key("cy")],
-                    k.cy,
-                    -0.5,
-                    c.height as f64 - 0.5,
-                );
+                range(&mut p, vec![Key("camera"), Key("intrinsics"), Key("cx")], k.cx, -0.5, c.width as f64 - 0.5);
+                range(&mut p, vec![Key("camera"), Key("intrinsics"), Key("cy")], k.cy, -0.5, c.height as f64 - 0.5);
             }
         }
-        range(
-            &mut p,
-            vec![Key("camera"), Key("near")],
-            c.near,
-            1e-4,
-            100.0,
-        );
+        range(&mut p, vec![Key("camera"), Key("near")], c.near, 1e-4, 100.0);
         if !(c.far > c.near && c.far <= 1000.0) {
             p.push(Problem {
                 path: vec![Key("camera"), Key("far")],
-                message: format!(
-                    "{} is out of range: allowed near ({}) < far <= 1000",
-                    c.far, c.near
-                ),
+                message: format!("{} is out of range: allowed near ({}) < far <= 1000", c.far, c.near),
             });
         }
-        let d: f64 = (0..3)
-            .map(|i| (c.look_at[i] - c.position[i]).powi(2))
-            .sum::<f64>()
-            .sqrt();
+        let d: f64 = (0..3).map(|i| (c.look_at[i] - c.position[i]).powi(2)).sum::<f64>().sqrt();
         if !(d > 1e-6) {
+            p.push(Problem { path: vec![Key("camera"), Key("look_at")], message: "look_at must differ from position".into() });
+        } else if ((c.look_at[0] - c.position[0]).abs() + (c.look_at[1] - c.position[1]).abs()) < 1e-9 {
             p.push(Problem {
                 path: vec![Key("camera"), Key("look_at")],
-                message: "look_at must differ from position".into(),
-            });
-        } else if ((c.look_at[0] - c.position[0]).abs() + (c.look_at[1] - c.position[1]).abs())
-            < 1e-9
-        {
-            p.push(Problem {
-                path: vec![Key("camera"), Key("look_at")],
-                message:
-                    "the camera must not look straight up or down (world z is the up direction)"
-                        .into(),
+                message: "the camera must not look straight up or down (world z is the up direction)".into(),
             });
         }
         let w = &self.scene.workspace;
@@ -586,20 +468,8 @@ impl Config {
                 message: format!("min z = {} must be above the floor (z > 0)", w.min[2]),
             });
         }
-        range(
-            &mut p,
-            vec![Key("output"), Key("samples_per_shard")],
-            self.output.samples_per_shard,
-            1,
-            1_000_000,
-        );
-        range(
-            &mut p,
-            vec![Key("output"), Key("zstd_level")],
-            self.output.zstd_level,
-            1,
-            19,
-        );
+        range(&mut p, vec![Key("output"), Key("samples_per_shard")], self.output.samples_per_shard, 1, 1_000_000);
+        range(&mut p, vec![Key("output"), Key("zstd_level")], self.output.zstd_level, 1, 19);
         p
     }
 

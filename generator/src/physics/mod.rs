@@ -34,12 +34,7 @@ pub trait HandPhysics {
     fn backend_name(&self) -> &'static str;
     /// A new grasp: hand joints at `q` (16 values, `vt_robot::hand_joint_names` order), the object
     /// at `object_pose` (palm frame), at rest.
-    fn reset(
-        &mut self,
-        object: &PhysicsObject,
-        object_pose: DAffine3,
-        q: &[f64; 16],
-    ) -> anyhow::Result<()>;
+    fn reset(&mut self, object: &PhysicsObject, object_pose: DAffine3, q: &[f64; 16]) -> anyhow::Result<()>;
     /// PD targets of the 16 hand joints.
     fn set_targets(&mut self, targets: &[f64; 16]);
     /// Apparent gravity in the palm frame (m/s²).

@@ -64,13 +64,12 @@ impl RapierHand {
         world.integration_parameters.dt = self.settings.timestep as f32;
         // Tighter than the default so resting contacts penetrate well under a millimetre.
         world.integration_parameters.normalized_allowed_linear_error = 0.0002;
-        world.integration_parameters.num_solver_iterations = 8;
+        world.integration_parameters.num_solver_iterations = 4;
         // Stiff contacts: fingers squeeze with up to 0.7 N·m, which soft contacts turn into
         // millimetres of overlap.
         let nf = 400.0;
         world.integration_parameters.contact_softness = SpringCoefficients::new(nf, 5.0);
-        world.integration_parameters.static_contact_softness =
-            SpringCoefficients::new(2.0 * nf, 5.0);
+        world.integration_parameters.static_contact_softness = SpringCoefficients::new(2.0 * nf, 5.0);
         let palm = m.link_id(vt_robot::PALM).context("palm")?;
         let names = hand_joint_names();
         let mut full_q = m.zero();
@@ -83,37 +82,21 @@ impl RapierHand {
         let mut link_colliders: Vec<Vec<ColliderHandle>> = vec![Vec::new(); m.links.len()];
         // Bodies for the palm and every link below it that has mass or collision geometry.
         for (li, link) in m.links.iter().enumerate() {
-            if !m.is_below(li, palm)
-                || (li != palm && link.mass <= 0.0 && link.collisions.is_empty())
-            {
+            if !m.is_below(li, palm) || (li != palm && link.mass <= 0.0 && link.collisions.is_empty()) {
                 continue;
             }
             let pose = to_pose(&m.relative_pose(&full_q, palm, li));
-            let rb = if li == palm {
-                RigidBodyBuilder::fixed()
-            } else {
-                RigidBodyBuilder::dynamic()
-            };
+            let rb = if li == palm { RigidBodyBuilder::fixed() } else { RigidBodyBuilder::dynamic() };
             let handle = world.insert_body(rb.pose(pose).can_sleep(false));
             bodies[li] = Some(handle);
             for s in &link.collisions {
                 let shape = match s.geometry {
-                    Geometry::Box { size } => ColliderBuilder::cuboid(
-                        size.x as f32 / 2.0,
-                        size.y as f32 / 2.0,
-                        size.z as f32 / 2.0,
-                    ),
+                    Geometry::Box { size } => ColliderBuilder::cuboid(size.x as f32 / 2.0, size.y as f32 / 2.0, size.z as f32 / 2.0),
                     Geometry::Sphere { radius } => ColliderBuilder::ball(radius as f32),
-                    Geometry::Cylinder { radius, length } => {
-                        ColliderBuilder::cylinder(length as f32 / 2.0, radius as f32)
-                    }
+                    Geometry::Cylinder { radius, length } => ColliderBuilder::cylinder(length as f32 / 2.0, radius as f32),
                 };
                 // Colliders share the link's mass; their density is set so the link mass is exact.
-                let c = shape
-                    .position(to_pose(&s.origin))
-                    .friction(self.settings.friction as f32)
-                    .density(0.0)
-                    .collision_groups(groups);
+                let c = shape.position(to_pose(&s.origin)).friction(self.settings.friction as f32).density(0.0).collision_groups(groups);
                 let ch = world.insert_collider(c, Some(handle));
                 hand_colliders.push(ch);
                 link_colliders[li].push(ch);
@@ -123,29 +106,26 @@ impl RapierHand {
                 let mass = link.mass.max(0.005) as f32;
                 let i = mass * 0.02 * 0.02 / 6.0;
                 if let Some(b) = world.bodies.get_mut(handle) {
-                    b.set_additional_mass_properties(
-                        MassProperties::new(link.com.as_vec3(), mass, Vec3::splat(i)),
-                        true,
-                    );
+                    b.set_additional_mass_properties(MassProperties::new(link.com.as_vec3(), mass, Vec3::splat(i)), true);
                 }
             }
         }
         let mut joints = Vec::new();
         for name in &names {
-            let ji = m
-                .joints
-                .iter()
-                .position(|j| &j.name == name)
-                .context("hand joint")?;
+            let ji = m.joints.iter().position(|j| &j.name == name).context("hand joint")?;
             let j = &m.joints[ji];
-            let (Some(parent), Some(child)) = (bodies[j.parent], bodies[j.child]) else {
+            let (Some(mut parent), Some(child)) = (bodies[j.parent], bodies[j.child]) else {
                 bail!("joint {name} links bodies without geometry")
             };
+            if j.parent == palm {
+                // One multibody per finger, each on its own fixed root at the palm: contact
+                // constraints then solve against 4x4 instead of 16x16 mass matrices.
+                parent = world.insert_body(RigidBodyBuilder::fixed().pose(to_pose(&DAffine3::IDENTITY)));
+            }
             // Joint frames whose x axis is the URDF axis: rapier's free revolute axis is AngX.
             let to_axis = DQuat::from_rotation_arc(DVec3::X, j.axis);
             let origin_rot = DQuat::from_mat3(&DMat3::from(j.origin.matrix3));
-            let frame1 =
-                DAffine3::from_rotation_translation(origin_rot * to_axis, j.origin.translation);
+            let frame1 = DAffine3::from_rotation_translation(origin_rot * to_axis, j.origin.translation);
             let frame2 = DAffine3::from_quat(to_axis);
             let k = full_q[j.dof.expect("revolute")];
             let joint = GenericJointBuilder::new(JointAxesMask::LOCKED_REVOLUTE_AXES)
@@ -153,31 +133,14 @@ impl RapierHand {
                 .local_frame2(to_pose(&frame2))
                 .limits(JointAxis::AngX, [j.lower as f32, j.upper as f32])
                 .motor_model(JointAxis::AngX, MotorModel::ForceBased)
-                .motor_position(
-                    JointAxis::AngX,
-                    k as f32,
-                    self.settings.stiffness as f32,
-                    self.settings.damping as f32,
-                )
+                .motor_position(JointAxis::AngX, k as f32, self.settings.stiffness as f32, self.settings.damping as f32)
                 .motor_max_force(JointAxis::AngX, self.settings.max_torque as f32)
                 .build();
-            let handle = world
-                .insert_multibody_joint(parent, child, joint)
-                .with_context(|| format!("cannot add joint {name} to the hand"))?;
-            joints.push(HandJoint {
-                body: child,
-                parent,
-                joint: handle,
-                origin_rot,
-                axis: j.axis,
-                lower: j.lower,
-                upper: j.upper,
-            });
+            let handle =
+                world.insert_multibody_joint(parent, child, joint).with_context(|| format!("cannot add joint {name} to the hand"))?;
+            joints.push(HandJoint { body: child, parent, joint: handle, origin_rot, axis: j.axis, lower: j.lower, upper: j.upper });
         }
-        let phalanx_colliders = phalanx_names()
-            .iter()
-            .map(|p| link_colliders[m.link_id(p).expect("validated")].clone())
-            .collect();
+        let phalanx_colliders = phalanx_names().iter().map(|p| link_colliders[m.link_id(p).expect("validated")].clone()).collect();
         self.world = world;
         self.joints = joints;
         self.hand_colliders = hand_colliders;
@@ -186,12 +149,14 @@ impl RapierHand {
         Ok(())
     }
 
+    /// Signed distance (negative = penetration) between a hand collider and the object at their
+    /// current poses, computed by parry; None when farther apart than 1 mm. (The narrow phase's
+    /// manifolds date from before the last solver pass and over-state penetration.)
     fn contact_distance(&self, c: ColliderHandle) -> Option<f64> {
         let (_, oc) = self.object?;
-        let pair = self.world.narrow_phase.contact_pair(c, oc)?;
-        let (_, contact) = pair.find_deepest_contact()?;
-        // Within a millimetre counts as touching (the solver keeps a small gap or overlap).
-        (contact.dist < 1e-3).then_some(contact.dist as f64)
+        let (a, b) = (&self.world.colliders[c], &self.world.colliders[oc]);
+        let contact = rapier3d::parry::query::contact(a.position(), a.shape(), b.position(), b.shape(), 1e-3).ok()??;
+        Some(contact.dist as f64)
     }
 }
 
@@ -200,17 +165,9 @@ impl HandPhysics for RapierHand {
         "rapier"
     }
 
-    fn reset(
-        &mut self,
-        object: &PhysicsObject,
-        object_pose: DAffine3,
-        q: &[f64; 16],
-    ) -> Result<()> {
+    fn reset(&mut self, object: &PhysicsObject, object_pose: DAffine3, q: &[f64; 16]) -> Result<()> {
         let q: [f64; 16] = std::array::from_fn(|k| {
-            q[k].clamp(
-                self.joints.get(k).map_or(f64::MIN, |j| j.lower),
-                self.joints.get(k).map_or(f64::MAX, |j| j.upper),
-            )
+            q[k].clamp(self.joints.get(k).map_or(f64::MIN, |j| j.lower), self.joints.get(k).map_or(f64::MAX, |j| j.upper))
         });
         self.build(&q)?;
         let pts: Vec<Vec3> = object.points.iter().map(|p| Vec3::from_array(*p)).collect();
@@ -219,17 +176,8 @@ impl HandPhysics for RapierHand {
             .mass(object.mass as f32)
             .friction(self.settings.friction as f32)
             .restitution(0.0)
-            .collision_groups(InteractionGroups::new(
-                OBJECT_GROUP,
-                HAND_GROUP,
-                InteractionTestMode::And,
-            ));
-        let body = self.world.insert_body(
-            RigidBodyBuilder::dynamic()
-                .pose(to_pose(&object_pose))
-                .can_sleep(false)
-                .ccd_enabled(true),
-        );
+            .collision_groups(InteractionGroups::new(OBJECT_GROUP, HAND_GROUP, InteractionTestMode::And));
+        let body = self.world.insert_body(RigidBodyBuilder::dynamic().pose(to_pose(&object_pose)).can_sleep(false).ccd_enabled(true));
         let ch = self.world.insert_collider(collider, Some(body));
         self.object = Some((body, ch));
         Ok(())
@@ -241,9 +189,7 @@ impl HandPhysics for RapierHand {
             let t = targets[k].clamp(hj.lower, hj.upper) as f32;
             if let Some((mb, link)) = self.world.multibody_joints.get_mut(hj.joint) {
                 if let Some(l) = mb.link_mut(link) {
-                    l.joint
-                        .data
-                        .set_motor_position(JointAxis::AngX, t, stiffness, damping);
+                    l.joint.data.set_motor_position(JointAxis::AngX, t, stiffness, damping);
                 }
             }
         }
@@ -284,19 +230,10 @@ impl HandPhysics for RapierHand {
     }
 
     fn phalanx_contacts(&self) -> [Option<f64>; 12] {
-        std::array::from_fn(|p| {
-            self.phalanx_colliders[p]
-                .iter()
-                .filter_map(|&c| self.contact_distance(c))
-                .min_by(f64::total_cmp)
-        })
+        std::array::from_fn(|p| self.phalanx_colliders[p].iter().filter_map(|&c| self.contact_distance(c)).min_by(f64::total_cmp))
     }
 
     fn max_penetration(&self) -> f64 {
-        self.hand_colliders
-            .iter()
-            .filter_map(|&c| self.contact_distance(c))
-            .map(|d| (-d).max(0.0))
-            .fold(0.0, f64::max)
+        self.hand_colliders.iter().filter_map(|&c| self.contact_distance(c)).map(|d| (-d).max(0.0)).fold(0.0, f64::max)
     }
 }

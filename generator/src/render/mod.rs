@@ -59,12 +59,7 @@ pub trait Renderer {
     /// Adapter and backend in words, e.g. "llvmpipe (LLVM 15.0.6, 256 bits) [Vulkan, Cpu]".
     fn describe(&self) -> String;
     fn upload_mesh(&mut self, mesh: &TexturedMesh) -> anyhow::Result<MeshHandle>;
-    fn render(
-        &mut self,
-        view: &View,
-        lighting: &Lighting,
-        draws: &[Draw],
-    ) -> anyhow::Result<RenderOutput>;
+    fn render(&mut self, view: &View, lighting: &Lighting, draws: &[Draw]) -> anyhow::Result<RenderOutput>;
 }
 
 /// OpenCV intrinsics to a wgpu clip-space projection (column-major). Pixel (u, v) of the image is
@@ -77,12 +72,7 @@ pub fn projection(view: &View) -> glam::DMat4 {
     glam::DMat4::from_cols(
         glam::DVec4::new(2.0 * k.fx / w, 0.0, 0.0, 0.0),
         glam::DVec4::new(0.0, -2.0 * k.fy / h, 0.0, 0.0),
-        glam::DVec4::new(
-            2.0 * (k.cx + 0.5) / w - 1.0,
-            1.0 - 2.0 * (k.cy + 0.5) / h,
-            f / (f - n),
-            1.0,
-        ),
+        glam::DVec4::new(2.0 * (k.cx + 0.5) / w - 1.0, 1.0 - 2.0 * (k.cy + 0.5) / h, f / (f - n), 1.0),
         glam::DVec4::new(0.0, 0.0, -f * n / (f - n), 0.0),
     )
 }

@@ -108,15 +108,8 @@ fn rank(info: &wgpu::AdapterInfo) -> (u8, u8) {
 }
 
 pub fn describe_adapter(info: &wgpu::AdapterInfo) -> String {
-    let driver = if info.driver_info.is_empty() {
-        String::new()
-    } else {
-        format!(" ({})", info.driver_info)
-    };
-    format!(
-        "{}{driver} [{:?}, {:?}]",
-        info.name, info.backend, info.device_type
-    )
+    let driver = if info.driver_info.is_empty() { String::new() } else { format!(" ({})", info.driver_info) };
+    format!("{}{driver} [{:?}, {:?}]", info.name, info.backend, info.device_type)
 }
 
 impl WgpuRenderer {
@@ -146,21 +139,10 @@ impl WgpuRenderer {
             );
         }
         if let Some(want) = &cfg.adapter {
-            let names: Vec<String> = adapters
-                .iter()
-                .map(|a| describe_adapter(&a.get_info()))
-                .collect();
-            adapters.retain(|a| {
-                a.get_info()
-                    .name
-                    .to_lowercase()
-                    .contains(&want.to_lowercase())
-            });
+            let names: Vec<String> = adapters.iter().map(|a| describe_adapter(&a.get_info())).collect();
+            adapters.retain(|a| a.get_info().name.to_lowercase().contains(&want.to_lowercase()));
             if adapters.is_empty() {
-                bail!(
-                    "no adapter name contains '{want}'; found: {}",
-                    names.join("; ")
-                );
+                bail!("no adapter name contains '{want}'; found: {}", names.join("; "));
             }
         }
         adapters.sort_by_key(|a| rank(&a.get_info()));
@@ -221,20 +203,10 @@ impl WgpuRenderer {
         });
         let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("main view"),
-            bind_group_layouts: &[
-                Some(&frame_layout),
-                Some(&instance_layout),
-                Some(&material_layout),
-            ],
+            bind_group_layouts: &[Some(&frame_layout), Some(&instance_layout), Some(&material_layout)],
             immediate_size: 0,
         });
-        let target = |format| {
-            Some(wgpu::ColorTargetState {
-                format,
-                blend: None,
-                write_mask: wgpu::ColorWrites::ALL,
-            })
-        };
+        let target = |format| Some(wgpu::ColorTargetState { format, blend: None, write_mask: wgpu::ColorWrites::ALL });
         let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some("main view"),
             layout: Some(&layout),
@@ -288,10 +260,7 @@ impl WgpuRenderer {
         let frame_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("frame"),
             layout: &frame_layout,
-            entries: &[wgpu::BindGroupEntry {
-                binding: 0,
-                resource: frame_buffer.as_entire_binding(),
-            }],
+            entries: &[wgpu::BindGroupEntry { binding: 0, resource: frame_buffer.as_entire_binding() }],
         });
         let instance_buffer = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("instances"),
@@ -328,19 +297,11 @@ impl WgpuRenderer {
     }
 
     fn targets(&mut self, width: u32, height: u32) -> &Targets {
-        if self
-            .targets
-            .as_ref()
-            .is_none_or(|t| t.width != width || t.height != height)
-        {
+        if self.targets.as_ref().is_none_or(|t| t.width != width || t.height != height) {
             let make = |label, format| {
                 self.device.create_texture(&wgpu::TextureDescriptor {
                     label: Some(label),
-                    size: wgpu::Extent3d {
-                        width,
-                        height,
-                        depth_or_array_layers: 1,
-                    },
+                    size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
                     mip_level_count: 1,
                     sample_count: 1,
                     dimension: wgpu::TextureDimension::D2,
@@ -394,47 +355,26 @@ impl Renderer for WgpuRenderer {
     fn upload_mesh(&mut self, mesh: &TexturedMesh) -> Result<MeshHandle> {
         let n = mesh.positions.len();
         if mesh.normals.len() != n || mesh.uvs.len() != n {
-            bail!(
-                "mesh has {n} positions but {} normals and {} uvs",
-                mesh.normals.len(),
-                mesh.uvs.len()
-            );
+            bail!("mesh has {n} positions but {} normals and {} uvs", mesh.normals.len(), mesh.uvs.len());
         }
-        let vertices: Vec<Vertex> = (0..n)
-            .map(|i| Vertex {
-                position: mesh.positions[i],
-                normal: mesh.normals[i],
-                uv: mesh.uvs[i],
-            })
-            .collect();
-        let vbuf = self
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("vertices"),
-                contents: bytemuck::cast_slice(&vertices),
-                usage: wgpu::BufferUsages::VERTEX,
-            });
-        let ibuf = self
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("indices"),
-                contents: bytemuck::cast_slice(&mesh.indices),
-                usage: wgpu::BufferUsages::INDEX,
-            });
+        let vertices: Vec<Vertex> =
+            (0..n).map(|i| Vertex { position: mesh.positions[i], normal: mesh.normals[i], uv: mesh.uvs[i] }).collect();
+        let vbuf = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("vertices"),
+            contents: bytemuck::cast_slice(&vertices),
+            usage: wgpu::BufferUsages::VERTEX,
+        });
+        let ibuf = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("indices"),
+            contents: bytemuck::cast_slice(&mesh.indices),
+            usage: wgpu::BufferUsages::INDEX,
+        });
         let t = &mesh.texture;
         let max = self.device.limits().max_texture_dimension_2d;
         if t.width > max || t.height > max {
-            bail!(
-                "texture {}x{} exceeds the adapter's limit of {max}",
-                t.width,
-                t.height
-            );
+            bail!("texture {}x{} exceeds the adapter's limit of {max}", t.width, t.height);
         }
-        let size = wgpu::Extent3d {
-            width: t.width,
-            height: t.height,
-            depth_or_array_layers: 1,
-        };
+        let size = wgpu::Extent3d { width: t.width, height: t.height, depth_or_array_layers: 1 };
         let texture = self.device.create_texture(&wgpu::TextureDescriptor {
             label: Some("base colour"),
             size,
@@ -446,18 +386,9 @@ impl Renderer for WgpuRenderer {
             view_formats: &[],
         });
         self.queue.write_texture(
-            wgpu::TexelCopyTextureInfo {
-                texture: &texture,
-                mip_level: 0,
-                origin: wgpu::Origin3d::ZERO,
-                aspect: wgpu::TextureAspect::All,
-            },
+            wgpu::TexelCopyTextureInfo { texture: &texture, mip_level: 0, origin: wgpu::Origin3d::ZERO, aspect: wgpu::TextureAspect::All },
             &t.rgba,
-            wgpu::TexelCopyBufferLayout {
-                offset: 0,
-                bytes_per_row: Some(4 * t.width),
-                rows_per_image: Some(t.height),
-            },
+            wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(4 * t.width), rows_per_image: Some(t.height) },
             size,
         );
         let view = texture.create_view(&Default::default());
@@ -465,22 +396,11 @@ impl Renderer for WgpuRenderer {
             label: Some("material"),
             layout: &self.material_layout,
             entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: wgpu::BindingResource::TextureView(&view),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: wgpu::BindingResource::Sampler(&self.sampler),
-                },
+                wgpu::BindGroupEntry { binding: 0, resource: wgpu::BindingResource::TextureView(&view) },
+                wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::Sampler(&self.sampler) },
             ],
         });
-        self.meshes.push(GpuMesh {
-            vertices: vbuf,
-            indices: ibuf,
-            index_count: mesh.indices.len() as u32,
-            material,
-        });
+        self.meshes.push(GpuMesh { vertices: vbuf, indices: ibuf, index_count: mesh.indices.len() as u32, material });
         Ok(MeshHandle(self.meshes.len() - 1))
     }
 
@@ -494,30 +414,16 @@ impl Renderer for WgpuRenderer {
             view: mat(t_camera_world),
             proj: mat(projection(view)),
             light_pos: [light.x as f32, light.y as f32, light.z as f32, 1.0],
-            light_color: [
-                lighting.light_color[0],
-                lighting.light_color[1],
-                lighting.light_color[2],
-                1.0,
-            ],
-            ambient: [
-                lighting.ambient[0],
-                lighting.ambient[1],
-                lighting.ambient[2],
-                1.0,
-            ],
+            light_color: [lighting.light_color[0], lighting.light_color[1], lighting.light_color[2], 1.0],
+            ambient: [lighting.ambient[0], lighting.ambient[1], lighting.ambient[2], 1.0],
         };
-        self.queue
-            .write_buffer(&self.frame_buffer, 0, bytemuck::bytes_of(&frame));
+        self.queue.write_buffer(&self.frame_buffer, 0, bytemuck::bytes_of(&frame));
         let mut inst = vec![0u8; INSTANCE_STRIDE as usize * draws.len().max(1)];
         for (i, d) in draws.iter().enumerate() {
             // Model-view in f64, then f32: keeps camera-frame coordinates exact to ~1e-7 m.
             let mv = t_camera_world * d.t_world_model;
-            let u = InstanceUniform {
-                model_view: mat(mv),
-                normal_mat: mat(mv.inverse().transpose()),
-                mask_id: [d.mask_id as u32, 0, 0, 0],
-            };
+            let u =
+                InstanceUniform { model_view: mat(mv), normal_mat: mat(mv.inverse().transpose()), mask_id: [d.mask_id as u32, 0, 0, 0] };
             let o = i * INSTANCE_STRIDE as usize;
             inst[o..o + size_of::<InstanceUniform>()].copy_from_slice(bytemuck::bytes_of(&u));
         }
@@ -538,33 +444,19 @@ impl Renderer for WgpuRenderer {
                     view,
                     depth_slice: None,
                     resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(clear),
-                        store: wgpu::StoreOp::Store,
-                    },
+                    ops: wgpu::Operations { load: wgpu::LoadOp::Clear(clear), store: wgpu::StoreOp::Store },
                 })
             };
             let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("main view"),
                 color_attachments: &[
-                    color_att(
-                        &t.color,
-                        wgpu::Color {
-                            r: bg[0],
-                            g: bg[1],
-                            b: bg[2],
-                            a: 1.0,
-                        },
-                    ),
+                    color_att(&t.color, wgpu::Color { r: bg[0], g: bg[1], b: bg[2], a: 1.0 }),
                     color_att(&t.depth, wgpu::Color::TRANSPARENT),
                     color_att(&t.mask, wgpu::Color::TRANSPARENT),
                 ],
                 depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
                     view: &t.zbuf,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(1.0),
-                        store: wgpu::StoreOp::Discard,
-                    }),
+                    depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Discard }),
                     stencil_ops: None,
                 }),
                 timestamp_writes: None,
@@ -575,42 +467,21 @@ impl Renderer for WgpuRenderer {
             pass.set_bind_group(0, &self.frame_group, &[]);
             for (i, d) in draws.iter().enumerate() {
                 let m = &self.meshes[d.mesh.0];
-                pass.set_bind_group(
-                    1,
-                    &self.instance_group,
-                    &[(i as u64 * INSTANCE_STRIDE) as u32],
-                );
+                pass.set_bind_group(1, &self.instance_group, &[(i as u64 * INSTANCE_STRIDE) as u32]);
                 pass.set_bind_group(2, &m.material, &[]);
                 pass.set_vertex_buffer(0, m.vertices.slice(..));
                 pass.set_index_buffer(m.indices.slice(..), wgpu::IndexFormat::Uint32);
                 pass.draw_indexed(0..m.index_count, 0, 0..1);
             }
         }
-        for (tex, buf, bpp) in [
-            (&t.color_tex, &t.readback[0], 4),
-            (&t.depth_tex, &t.readback[1], 4),
-            (&t.mask_tex, &t.readback[2], 1),
-        ] {
+        for (tex, buf, bpp) in [(&t.color_tex, &t.readback[0], 4), (&t.depth_tex, &t.readback[1], 4), (&t.mask_tex, &t.readback[2], 1)] {
             enc.copy_texture_to_buffer(
-                wgpu::TexelCopyTextureInfo {
-                    texture: tex,
-                    mip_level: 0,
-                    origin: wgpu::Origin3d::ZERO,
-                    aspect: wgpu::TextureAspect::All,
-                },
+                wgpu::TexelCopyTextureInfo { texture: tex, mip_level: 0, origin: wgpu::Origin3d::ZERO, aspect: wgpu::TextureAspect::All },
                 wgpu::TexelCopyBufferInfo {
                     buffer: buf,
-                    layout: wgpu::TexelCopyBufferLayout {
-                        offset: 0,
-                        bytes_per_row: Some(padded_row(w * bpp)),
-                        rows_per_image: Some(h),
-                    },
+                    layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(padded_row(w * bpp)), rows_per_image: Some(h) },
                 },
-                wgpu::Extent3d {
-                    width: w,
-                    height: h,
-                    depth_or_array_layers: 1,
-                },
+                wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
             );
         }
         self.queue.submit([enc.finish()]);
@@ -621,14 +492,9 @@ impl Renderer for WgpuRenderer {
                 }
             });
         }
-        self.device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| anyhow!("GPU wait failed: {e}"))?;
+        self.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| anyhow!("GPU wait failed: {e}"))?;
         let read = |buf: &wgpu::Buffer, bpp: u32| -> Result<Vec<u8>> {
-            let data = buf
-                .slice(..)
-                .get_mapped_range()
-                .map_err(|e| anyhow!("readback failed: {e:?}"))?;
+            let data = buf.slice(..).get_mapped_range().map_err(|e| anyhow!("readback failed: {e:?}"))?;
             let row = (w * bpp) as usize;
             let padded = padded_row(w * bpp) as usize;
             let mut out = Vec::with_capacity(row * h as usize);
@@ -643,26 +509,13 @@ impl Renderer for WgpuRenderer {
         for b in &t.readback {
             b.unmap();
         }
-        let rgb = rgba
-            .chunks_exact(4)
-            .flat_map(|p| [p[0], p[1], p[2]])
-            .collect();
+        let rgb = rgba.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect();
         let depth = bytemuck::pod_collect_to_vec::<u8, f32>(&depth_bytes);
-        Ok(RenderOutput {
-            width: w,
-            height: h,
-            rgb,
-            depth,
-            mask,
-        })
+        Ok(RenderOutput { width: w, height: h, rgb, depth, mask })
     }
 }
 
 fn srgb_to_linear(c: u8) -> f32 {
     let c = c as f32 / 255.0;
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }
+    if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
 }

@@ -31,34 +31,18 @@ pub fn uniform_rotation(rng: &mut impl Rng) -> DQuat {
     let (u1, u2, u3): (f64, f64, f64) = (rng.random(), rng.random(), rng.random());
     let tau = std::f64::consts::TAU;
     let (a, b) = ((1.0 - u1).sqrt(), u1.sqrt());
-    DQuat::from_xyzw(
-        a * (tau * u2).sin(),
-        a * (tau * u2).cos(),
-        b * (tau * u3).sin(),
-        b * (tau * u3).cos(),
-    )
-    .normalize()
+    DQuat::from_xyzw(a * (tau * u2).sin(), a * (tau * u2).cos(), b * (tau * u3).sin(), b * (tau * u3).cos()).normalize()
 }
 
 pub fn sample_scene(config: &Config, key: &SampleKey) -> SampledScene {
     let cam = &config.camera;
-    let t_world_camera = look_at(
-        DVec3::from_array(cam.position),
-        DVec3::from_array(cam.look_at),
-    );
+    let t_world_camera = look_at(DVec3::from_array(cam.position), DVec3::from_array(cam.look_at));
     let mut rng = SampleStream::sample(key, "object_pose");
     let w = &config.scene.workspace;
-    let pos = DVec3::new(
-        rng.random_range(w.min[0]..=w.max[0]),
-        rng.random_range(w.min[1]..=w.max[1]),
-        rng.random_range(w.min[2]..=w.max[2]),
-    );
+    let pos =
+        DVec3::new(rng.random_range(w.min[0]..=w.max[0]), rng.random_range(w.min[1]..=w.max[1]), rng.random_range(w.min[2]..=w.max[2]));
     let rot = uniform_rotation(&mut rng);
-    SampledScene {
-        t_world_camera,
-        t_world_object: Pose::from_rt(rot, pos),
-        appearance: Appearance::canonical(),
-    }
+    SampledScene { t_world_camera, t_world_object: Pose::from_rt(rot, pos), appearance: Appearance::canonical() }
 }
 
 #[cfg(test)]
@@ -78,10 +62,7 @@ mod tests {
     fn uniform_rotations_are_unbiased() {
         let mut rng = SampleStream::trajectory(1, "x", 0, "test");
         let n = 20000;
-        let mean = (0..n)
-            .map(|_| uniform_rotation(&mut rng) * DVec3::Z)
-            .sum::<DVec3>()
-            / n as f64;
+        let mean = (0..n).map(|_| uniform_rotation(&mut rng) * DVec3::Z).sum::<DVec3>() / n as f64;
         assert!(mean.length() < 0.03, "rotated axes average out: {mean}");
     }
 }

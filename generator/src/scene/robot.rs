@@ -26,10 +26,7 @@ pub fn mask_id(model: &RobotModel, link: usize) -> Option<u8> {
     if let Some(k) = ARM_JOINTS.iter().position(|j| *j == joint.name) {
         return Some(10 + k as u8);
     }
-    hand_joint_names()
-        .iter()
-        .position(|j| *j == joint.name)
-        .map(|k| 17 + k as u8)
+    hand_joint_names().iter().position(|j| *j == joint.name).map(|k| 17 + k as u8)
 }
 
 /// A link's visual shapes as one mesh (its colours in a small texture, one texel per shape).
@@ -47,13 +44,7 @@ pub fn link_mesh(model: &RobotModel, link: usize) -> Option<TexturedMesh> {
         texture: Texture {
             width: n as u32,
             height: 1,
-            rgba: shapes
-                .iter()
-                .flat_map(|s| {
-                    s.rgba
-                        .map(|c| (c.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0).round() as u8)
-                })
-                .collect(),
+            rgba: shapes.iter().flat_map(|s| s.rgba.map(|c| (c.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0).round() as u8)).collect(),
         },
     };
     for (i, s) in shapes.iter().enumerate() {
@@ -62,14 +53,8 @@ pub fn link_mesh(model: &RobotModel, link: usize) -> Option<TexturedMesh> {
         let base = mesh.positions.len() as u32;
         let m = s.origin;
         let r = DMat3::from(m.matrix3);
-        mesh.positions.extend(
-            pos.iter()
-                .map(|p| m.transform_point3(p.as_dvec3()).as_vec3().to_array()),
-        );
-        mesh.normals.extend(
-            nrm.iter()
-                .map(|v| (r * v.as_dvec3()).normalize().as_vec3().to_array()),
-        );
+        mesh.positions.extend(pos.iter().map(|p| m.transform_point3(p.as_dvec3()).as_vec3().to_array()));
+        mesh.normals.extend(nrm.iter().map(|v| (r * v.as_dvec3()).normalize().as_vec3().to_array()));
         mesh.uvs.extend(std::iter::repeat_n(uv, pos.len()));
         mesh.indices.extend(idx.iter().map(|i| i + base));
     }
@@ -120,11 +105,7 @@ fn primitive(g: &Geometry) -> (Vec<Vec3>, Vec<Vec3>, Vec<u32>) {
                     n.push(nz);
                 }
                 for j in 0..seg {
-                    if z < 0.0 {
-                        t.extend([c, c + 2 + j, c + 1 + j])
-                    } else {
-                        t.extend([c, c + 1 + j, c + 2 + j])
-                    }
+                    if z < 0.0 { t.extend([c, c + 2 + j, c + 1 + j]) } else { t.extend([c, c + 1 + j, c + 2 + j]) }
                 }
             }
         }
@@ -186,11 +167,7 @@ pub struct RobotScene {
 }
 
 impl RobotScene {
-    pub fn new(
-        cfg: &LoadedConfig,
-        robot: &RobotConfig,
-        objects: &[crate::assets::LoadedObject],
-    ) -> Result<Self> {
+    pub fn new(cfg: &LoadedConfig, robot: &RobotConfig, objects: &[crate::assets::LoadedObject]) -> Result<Self> {
         let model = match &robot.urdf {
             Some(p) => RobotModel::from_urdf_file(&cfg.resolve(p))?,
             None => RobotModel::builtin(),
@@ -205,30 +182,16 @@ impl RobotScene {
         };
         let physics: Box<dyn HandPhysics> = match pc.backend {
             crate::config::PhysicsBackend::Rapier => Box::new(RapierHand::new(&model, settings)?),
-            crate::config::PhysicsBackend::Mujoco => anyhow::bail!(
-                "physics backend 'mujoco' is not built into this vtgen (build with the `mujoco` feature)"
-            ),
+            crate::config::PhysicsBackend::Mujoco => {
+                anyhow::bail!("physics backend 'mujoco' is not built into this vtgen (build with the `mujoco` feature)")
+            }
         };
         let t_world_base = DAffine3::from_rotation_translation(
             DQuat::from_rotation_z(robot.base_yaw_deg.to_radians()),
             DVec3::from_array(robot.base_position),
         );
-        let objects = objects
-            .iter()
-            .map(|o| PhysicsObject {
-                points: o.mesh.positions.clone(),
-                mass: o.mass,
-            })
-            .collect();
-        Ok(RobotScene {
-            model,
-            config: robot.clone(),
-            t_world_base,
-            physics,
-            objects,
-            current: None,
-            last_stats: GraspStats::default(),
-        })
+        let objects = objects.iter().map(|o| PhysicsObject { points: o.mesh.positions.clone(), mass: o.mass }).collect();
+        Ok(RobotScene { model, config: robot.clone(), t_world_base, physics, objects, current: None, last_stats: GraspStats::default() })
     }
 
     pub fn backend_name(&self) -> &'static str {
@@ -236,14 +199,7 @@ impl RobotScene {
     }
 
     /// The recorded trajectory of (object, trajectory), simulated on first use.
-    pub fn trajectory(
-        &mut self,
-        seed: u64,
-        object_index: u32,
-        object_id: &str,
-        trajectory: u32,
-        instances: u32,
-    ) -> Result<&Trajectory> {
+    pub fn trajectory(&mut self, seed: u64, object_index: u32, object_id: &str, trajectory: u32, instances: u32) -> Result<&Trajectory> {
         if self.current.as_ref().map(|c| c.0) != Some((object_index, trajectory)) {
             let ctx = GraspContext {
                 robot: &self.model,
@@ -263,11 +219,7 @@ impl RobotScene {
                 &mut failures,
             )
             .with_context(|| format!("grasping {object_id}"))?;
-            let mut st = GraspStats {
-                trajectories: 1,
-                attempts: traj.attempts as u64,
-                ..Default::default()
-            };
+            let mut st = GraspStats { trajectories: 1, attempts: traj.attempts as u64, ..Default::default() };
             for f in failures {
                 *st.failures.entry(format!("{f:?}")).or_default() += 1;
             }

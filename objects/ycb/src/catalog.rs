@@ -62,8 +62,8 @@ pub struct Catalog {
 
 impl Catalog {
     pub fn builtin() -> Self {
-        let entries: Vec<CatalogEntry> = serde_yaml::from_str(include_str!("../catalog.yaml"))
-            .expect("the embedded catalog.yaml is valid (checked by a unit test)");
+        let entries: Vec<CatalogEntry> =
+            serde_yaml::from_str(include_str!("../catalog.yaml")).expect("the embedded catalog.yaml is valid (checked by a unit test)");
         Catalog { entries }
     }
 

@@ -16,10 +16,7 @@ pub struct MeshError {
 }
 
 fn err(path: &Path, message: impl Into<String>) -> MeshError {
-    MeshError {
-        path: path.to_path_buf(),
-        message: message.into(),
-    }
+    MeshError { path: path.to_path_buf(), message: message.into() }
 }
 
 /// Finds an object's mesh in a YCB directory laid out as the official download
@@ -44,19 +41,12 @@ pub fn load_mesh(path: &Path) -> Result<TexturedMesh, MeshError> {
     if !path.is_file() {
         return Err(err(path, "file not found"));
     }
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .unwrap_or("")
-        .to_ascii_lowercase();
+    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
     let mut mesh = match ext.as_str() {
         "obj" => load_obj(path)?,
         "gltf" | "glb" => load_gltf(path)?,
         other => {
-            return Err(err(
-                path,
-                format!("unsupported mesh format '.{other}' (use .obj, .gltf or .glb)"),
-            ));
+            return Err(err(path, format!("unsupported mesh format '.{other}' (use .obj, .gltf or .glb)")));
         }
     };
     if mesh.indices.is_empty() {
@@ -82,21 +72,12 @@ pub fn load_mesh(path: &Path) -> Result<TexturedMesh, MeshError> {
 fn load_texture(path: &Path) -> Result<Texture, MeshError> {
     let img = image::open(path).map_err(|e| err(path, format!("texture cannot be read: {e}")))?;
     let rgba = img.to_rgba8();
-    Ok(Texture {
-        width: rgba.width(),
-        height: rgba.height(),
-        rgba: rgba.into_raw(),
-    })
+    Ok(Texture { width: rgba.width(), height: rgba.height(), rgba: rgba.into_raw() })
 }
 
 fn load_obj(path: &Path) -> Result<TexturedMesh, MeshError> {
-    let opts = tobj::LoadOptions {
-        triangulate: true,
-        single_index: true,
-        ..Default::default()
-    };
-    let (models, materials) =
-        tobj::load_obj(path, &opts).map_err(|e| err(path, format!("not a valid OBJ file: {e}")))?;
+    let opts = tobj::LoadOptions { triangulate: true, single_index: true, ..Default::default() };
+    let (models, materials) = tobj::load_obj(path, &opts).map_err(|e| err(path, format!("not a valid OBJ file: {e}")))?;
     let materials = materials.unwrap_or_default();
     let mut mesh = TexturedMesh {
         positions: Vec::new(),
@@ -111,18 +92,15 @@ fn load_obj(path: &Path) -> Result<TexturedMesh, MeshError> {
         let base = mesh.positions.len() as u32;
         let tm = &m.mesh;
         let nv = tm.positions.len() / 3;
-        mesh.positions
-            .extend(tm.positions.chunks_exact(3).map(|p| [p[0], p[1], p[2]]));
+        mesh.positions.extend(tm.positions.chunks_exact(3).map(|p| [p[0], p[1], p[2]]));
         if tm.normals.len() == tm.positions.len() {
-            mesh.normals
-                .extend(tm.normals.chunks_exact(3).map(|p| [p[0], p[1], p[2]]));
+            mesh.normals.extend(tm.normals.chunks_exact(3).map(|p| [p[0], p[1], p[2]]));
         } else {
             all_have_normals = false;
         }
         if tm.texcoords.len() / 2 == nv {
             // OBJ's v runs bottom-to-top; textures are stored top row first.
-            mesh.uvs
-                .extend(tm.texcoords.chunks_exact(2).map(|t| [t[0], 1.0 - t[1]]));
+            mesh.uvs.extend(tm.texcoords.chunks_exact(2).map(|t| [t[0], 1.0 - t[1]]));
         } else {
             mesh.uvs.extend(std::iter::repeat_n([0.0, 0.0], nv));
         }
@@ -147,8 +125,7 @@ fn load_obj(path: &Path) -> Result<TexturedMesh, MeshError> {
 }
 
 fn load_gltf(path: &Path) -> Result<TexturedMesh, MeshError> {
-    let (doc, buffers, images) =
-        gltf::import(path).map_err(|e| err(path, format!("not a valid glTF file: {e}")))?;
+    let (doc, buffers, images) = gltf::import(path).map_err(|e| err(path, format!("not a valid glTF file: {e}")))?;
     let mut mesh = TexturedMesh {
         positions: Vec::new(),
         normals: Vec::new(),
@@ -158,10 +135,7 @@ fn load_gltf(path: &Path) -> Result<TexturedMesh, MeshError> {
     };
     let mut texture_set = false;
     let mut all_have_normals = true;
-    let scene = doc
-        .default_scene()
-        .or_else(|| doc.scenes().next())
-        .ok_or_else(|| err(path, "has no scene"))?;
+    let scene = doc.default_scene().or_else(|| doc.scenes().next()).ok_or_else(|| err(path, "has no scene"))?;
     let mut stack: Vec<(gltf::Node, Mat4)> = scene.nodes().map(|n| (n, Mat4::IDENTITY)).collect();
     while let Some((node, parent)) = stack.pop() {
         let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
@@ -179,17 +153,11 @@ fn load_gltf(path: &Path) -> Result<TexturedMesh, MeshError> {
                 continue;
             };
             let base = mesh.positions.len() as u32;
-            let pos: Vec<[f32; 3]> = pos
-                .map(|p| world.transform_point3(Vec3::from(p)).into())
-                .collect();
+            let pos: Vec<[f32; 3]> = pos.map(|p| world.transform_point3(Vec3::from(p)).into()).collect();
             let nv = pos.len();
             mesh.positions.extend(pos);
             match reader.read_normals() {
-                Some(ns) => mesh.normals.extend(ns.map(|n| {
-                    (normal_mat * Vec3::from(n))
-                        .normalize_or(Vec3::Z)
-                        .to_array()
-                })),
+                Some(ns) => mesh.normals.extend(ns.map(|n| (normal_mat * Vec3::from(n)).normalize_or(Vec3::Z).to_array())),
                 None => all_have_normals = false,
             }
             match reader.read_tex_coords(0) {
@@ -203,11 +171,10 @@ fn load_gltf(path: &Path) -> Result<TexturedMesh, MeshError> {
             if !texture_set {
                 let pbr = prim.material().pbr_metallic_roughness();
                 if let Some(info) = pbr.base_color_texture() {
-                    let img = images.get(info.texture().source().index()).ok_or_else(|| {
-                        err(path, "refers to a texture image that does not exist")
-                    })?;
-                    mesh.texture = gltf_image_to_texture(img)
-                        .ok_or_else(|| err(path, "has a texture in an unsupported pixel format"))?;
+                    let img = images
+                        .get(info.texture().source().index())
+                        .ok_or_else(|| err(path, "refers to a texture image that does not exist"))?;
+                    mesh.texture = gltf_image_to_texture(img).ok_or_else(|| err(path, "has a texture in an unsupported pixel format"))?;
                     texture_set = true;
                 } else {
                     let f = pbr.base_color_factor();
@@ -228,24 +195,12 @@ fn gltf_image_to_texture(img: &gltf::image::Data) -> Option<Texture> {
     let px = (img.width * img.height) as usize;
     let rgba: Vec<u8> = match img.format {
         Format::R8G8B8A8 => img.pixels.clone(),
-        Format::R8G8B8 => img
-            .pixels
-            .chunks_exact(3)
-            .flat_map(|c| [c[0], c[1], c[2], 255])
-            .collect(),
+        Format::R8G8B8 => img.pixels.chunks_exact(3).flat_map(|c| [c[0], c[1], c[2], 255]).collect(),
         Format::R8 => img.pixels.iter().flat_map(|&g| [g, g, g, 255]).collect(),
-        Format::R8G8 => img
-            .pixels
-            .chunks_exact(2)
-            .flat_map(|c| [c[0], c[0], c[0], c[1]])
-            .collect(),
+        Format::R8G8 => img.pixels.chunks_exact(2).flat_map(|c| [c[0], c[0], c[0], c[1]]).collect(),
         _ => return None,
     };
-    (rgba.len() == px * 4).then_some(Texture {
-        width: img.width,
-        height: img.height,
-        rgba,
-    })
+    (rgba.len() == px * 4).then_some(Texture { width: img.width, height: img.height, rgba })
 }
 
 #[cfg(test)]
@@ -262,17 +217,10 @@ mod tests {
     fn obj_is_recentred_and_errors_name_the_path() {
         let d = tmpdir("obj");
         let obj = d.join("tri.obj");
-        std::fs::write(
-            &obj,
-            "v 1 1 1\nv 3 1 1\nv 1 5 1\nv 1 1 3\nf 1 2 3\nf 1 3 4\n",
-        )
-        .unwrap();
+        std::fs::write(&obj, "v 1 1 1\nv 3 1 1\nv 1 5 1\nv 1 1 3\nf 1 2 3\nf 1 3 4\n").unwrap();
         let m = load_mesh(&obj).unwrap();
         let (lo, hi) = m.aabb();
-        assert!(
-            (lo + hi).length() < 1e-6,
-            "bounding box centred at the origin"
-        );
+        assert!((lo + hi).length() < 1e-6, "bounding box centred at the origin");
         assert_eq!(m.normals.len(), m.positions.len());
 
         let missing = d.join("nope.obj");
@@ -287,11 +235,7 @@ mod tests {
         let mtl = d.join("tex.mtl");
         std::fs::write(&mtl, "newmtl m\nmap_Kd missing.png\n").unwrap();
         let texobj = d.join("tex.obj");
-        std::fs::write(
-            &texobj,
-            "mtllib tex.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nusemtl m\nf 1/1 2/1 3/1\n",
-        )
-        .unwrap();
+        std::fs::write(&texobj, "mtllib tex.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nusemtl m\nf 1/1 2/1 3/1\n").unwrap();
         let e = load_mesh(&texobj).unwrap_err().to_string();
         assert!(e.contains("missing.png"), "{e}");
     }

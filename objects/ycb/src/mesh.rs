@@ -10,11 +10,7 @@ pub struct Texture {
 
 impl Texture {
     pub fn solid(rgb: [u8; 3]) -> Self {
-        Texture {
-            width: 1,
-            height: 1,
-            rgba: vec![rgb[0], rgb[1], rgb[2], 255],
-        }
+        Texture { width: 1, height: 1, rgba: vec![rgb[0], rgb[1], rgb[2], 255] }
     }
 }
 
@@ -92,9 +88,7 @@ impl TexturedMesh {
                     idx.insert(best_lo);
                 }
             }
-            idx.into_iter()
-                .map(|k| Vec3::from(self.positions[k]))
-                .collect()
+            idx.into_iter().map(|k| Vec3::from(self.positions[k])).collect()
         };
         let mut best = 0.0f64;
         for (i, a) in pts.iter().enumerate() {
@@ -111,15 +105,11 @@ impl TexturedMesh {
         for t in self.indices.chunks_exact(3) {
             let [a, b, c] = [t[0] as usize, t[1] as usize, t[2] as usize];
             let pa = Vec3::from(self.positions[a]);
-            let fn_ =
-                (Vec3::from(self.positions[b]) - pa).cross(Vec3::from(self.positions[c]) - pa);
+            let fn_ = (Vec3::from(self.positions[b]) - pa).cross(Vec3::from(self.positions[c]) - pa);
             n[a] += fn_;
             n[b] += fn_;
             n[c] += fn_;
         }
-        self.normals = n
-            .into_iter()
-            .map(|v| v.normalize_or(Vec3::Z).into())
-            .collect();
+        self.normals = n.into_iter().map(|v| v.normalize_or(Vec3::Z).into()).collect();
     }
 }

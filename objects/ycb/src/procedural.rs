@@ -20,10 +20,7 @@ impl Region {
             Region::Label => (0.01, 0.49),
             Region::Plain => (0.51, 0.99),
         };
-        [
-            u0 + (u1 - u0) * uv.x.clamp(0.0, 1.0),
-            0.01 + 0.98 * uv.y.clamp(0.0, 1.0),
-        ]
+        [u0 + (u1 - u0) * uv.x.clamp(0.0, 1.0), 0.01 + 0.98 * uv.y.clamp(0.0, 1.0)]
     }
 }
 
@@ -60,8 +57,7 @@ impl Builder {
                 let uv = Vec2::new((a + 1.0) * 0.5, 1.0 - (b + 1.0) * 0.5);
                 self.vertex(c + hu * a + hv * b, region.map(uv));
             }
-            self.indices
-                .extend([base, base + 1, base + 2, base, base + 2, base + 3]);
+            self.indices.extend([base, base + 1, base + 2, base, base + 2, base + 3]);
         }
     }
 
@@ -69,14 +65,7 @@ impl Builder {
     /// counter-clockwise in the (r, z) half-plane (bottom centre, outwards, up, inwards) so faces point
     /// out of the solid; repeat a point to make a crease. `squareness` 2 gives circles, larger values
     /// give rounded rectangles (a superellipse cross-section).
-    fn lathe(
-        &mut self,
-        center: Vec3,
-        profile: &[(f32, f32)],
-        segments: u32,
-        squareness: f32,
-        region: Region,
-    ) {
+    fn lathe(&mut self, center: Vec3, profile: &[(f32, f32)], segments: u32, squareness: f32, region: Region) {
         let mut len = vec![0.0f32];
         for w in profile.windows(2) {
             let d = Vec2::new(w[1].0 - w[0].0, w[1].1 - w[0].1).length();
@@ -162,8 +151,7 @@ impl Builder {
         };
         // Scale to the scan's bounding box exactly, then centre.
         let ext = mesh.extents();
-        let s = Vec3::new(extents[0] as f32, extents[1] as f32, extents[2] as f32)
-            / ext.max(Vec3::splat(1e-9));
+        let s = Vec3::new(extents[0] as f32, extents[1] as f32, extents[2] as f32) / ext.max(Vec3::splat(1e-9));
         for p in &mut mesh.positions {
             *p = (Vec3::from(*p) * s).into();
         }
@@ -188,32 +176,12 @@ pub fn procedural_mesh(entry: &CatalogEntry) -> TexturedMesh {
     let seg = 48;
     match entry.shape {
         Shape::Box => b.cuboid(Vec3::ZERO, Vec3::splat(0.5), Region::Label),
-        Shape::RoundedBox => b.lathe(
-            Vec3::ZERO,
-            &[
-                (0.0, 0.0),
-                (0.9, 0.0),
-                (1.0, 0.04),
-                (1.0, 0.96),
-                (0.9, 1.0),
-                (0.0, 1.0),
-            ],
-            seg,
-            5.0,
-            Region::Label,
-        ),
+        Shape::RoundedBox => {
+            b.lathe(Vec3::ZERO, &[(0.0, 0.0), (0.9, 0.0), (1.0, 0.04), (1.0, 0.96), (0.9, 1.0), (0.0, 1.0)], seg, 5.0, Region::Label)
+        }
         Shape::Can => b.lathe(
             Vec3::ZERO,
-            &[
-                (0.0, 0.02),
-                (0.93, 0.02),
-                (0.97, 0.0),
-                (1.0, 0.03),
-                (1.0, 0.97),
-                (0.97, 1.0),
-                (0.93, 0.98),
-                (0.0, 0.98),
-            ],
+            &[(0.0, 0.02), (0.93, 0.02), (0.97, 0.0), (1.0, 0.03), (1.0, 0.97), (0.97, 1.0), (0.93, 0.98), (0.0, 0.98)],
             seg,
             2.0,
             Region::Label,
@@ -221,44 +189,17 @@ pub fn procedural_mesh(entry: &CatalogEntry) -> TexturedMesh {
         Shape::Bottle => {
             b.lathe(
                 Vec3::ZERO,
-                &[
-                    (0.0, 0.0),
-                    (0.95, 0.0),
-                    (1.0, 0.05),
-                    (1.0, 0.62),
-                    (0.85, 0.72),
-                    (0.45, 0.8),
-                    (0.3, 0.82),
-                    (0.0, 0.82),
-                ],
+                &[(0.0, 0.0), (0.95, 0.0), (1.0, 0.05), (1.0, 0.62), (0.85, 0.72), (0.45, 0.8), (0.3, 0.82), (0.0, 0.82)],
                 seg,
                 3.0,
                 Region::Label,
             );
             // Cap and the off-centre spout that breaks the symmetry, as on the real bottle.
-            b.lathe(
-                Vec3::new(0.0, 0.0, 0.8),
-                &[(0.0, 0.0), (0.32, 0.0), (0.32, 0.1), (0.0, 0.1)],
-                seg,
-                2.0,
-                Region::Plain,
-            );
-            b.tube(
-                &[Vec3::new(0.1, 0.0, 0.88), Vec3::new(0.22, 0.0, 1.0)],
-                &[0.08, 0.03],
-                16,
-                Region::Plain,
-            );
+            b.lathe(Vec3::new(0.0, 0.0, 0.8), &[(0.0, 0.0), (0.32, 0.0), (0.32, 0.1), (0.0, 0.1)], seg, 2.0, Region::Plain);
+            b.tube(&[Vec3::new(0.1, 0.0, 0.88), Vec3::new(0.22, 0.0, 1.0)], &[0.08, 0.03], 16, Region::Plain);
         }
         Shape::Banana => {
-            let path = arc(
-                Vec3::new(-1.0, 0.0, 0.0),
-                1.0,
-                -0.9,
-                0.9,
-                24,
-                (Vec3::X, Vec3::Y),
-            );
+            let path = arc(Vec3::new(-1.0, 0.0, 0.0), 1.0, -0.9, 0.9, 24, (Vec3::X, Vec3::Y));
             let radii: Vec<f32> = (0..path.len())
                 .map(|k| {
                     let s = k as f32 / (path.len() - 1) as f32;
@@ -286,78 +227,27 @@ pub fn procedural_mesh(entry: &CatalogEntry) -> TexturedMesh {
                 2.0,
                 Region::Label,
             );
-            let handle = arc(
-                Vec3::new(0.5, 0.0, 0.5),
-                0.3,
-                -1.5,
-                1.5,
-                20,
-                (Vec3::Z, Vec3::X),
-            );
+            let handle = arc(Vec3::new(0.5, 0.0, 0.5), 0.3, -1.5, 1.5, 20, (Vec3::Z, Vec3::X));
             b.tube(&handle, &vec![0.06; handle.len()], 16, Region::Plain);
         }
         Shape::Drill => {
             // Lies flat like the scan: barrel along x, grip along -y, battery at the grip's end.
-            b.tube(
-                &[Vec3::new(-0.5, 0.25, 0.0), Vec3::new(0.2, 0.25, 0.0)],
-                &[0.15, 0.15],
-                32,
-                Region::Label,
-            );
-            b.tube(
-                &[Vec3::new(0.2, 0.25, 0.0), Vec3::new(0.5, 0.25, 0.0)],
-                &[0.07, 0.05],
-                24,
-                Region::Plain,
-            );
-            b.cuboid(
-                Vec3::new(-0.3, -0.05, 0.0),
-                Vec3::new(0.09, 0.3, 0.12),
-                Region::Label,
-            );
-            b.cuboid(
-                Vec3::new(-0.3, -0.45, 0.0),
-                Vec3::new(0.2, 0.1, 0.15),
-                Region::Plain,
-            );
+            b.tube(&[Vec3::new(-0.5, 0.25, 0.0), Vec3::new(0.2, 0.25, 0.0)], &[0.15, 0.15], 32, Region::Label);
+            b.tube(&[Vec3::new(0.2, 0.25, 0.0), Vec3::new(0.5, 0.25, 0.0)], &[0.07, 0.05], 24, Region::Plain);
+            b.cuboid(Vec3::new(-0.3, -0.05, 0.0), Vec3::new(0.09, 0.3, 0.12), Region::Label);
+            b.cuboid(Vec3::new(-0.3, -0.45, 0.0), Vec3::new(0.2, 0.1, 0.15), Region::Plain);
         }
         Shape::Scissors => {
-            b.cuboid(
-                Vec3::new(-0.05, 0.25, 0.0),
-                Vec3::new(0.06, 0.5, 0.03),
-                Region::Plain,
-            );
-            b.cuboid(
-                Vec3::new(0.07, 0.25, 0.0),
-                Vec3::new(0.05, 0.48, 0.03),
-                Region::Plain,
-            );
+            b.cuboid(Vec3::new(-0.05, 0.25, 0.0), Vec3::new(0.06, 0.5, 0.03), Region::Plain);
+            b.cuboid(Vec3::new(0.07, 0.25, 0.0), Vec3::new(0.05, 0.48, 0.03), Region::Plain);
             for x in [-0.25, 0.25] {
-                let ring = arc(
-                    Vec3::new(x, -0.45, 0.0),
-                    0.18,
-                    0.0,
-                    std::f32::consts::TAU,
-                    24,
-                    (Vec3::X, Vec3::Y),
-                );
+                let ring = arc(Vec3::new(x, -0.45, 0.0), 0.18, 0.0, std::f32::consts::TAU, 24, (Vec3::X, Vec3::Y));
                 b.tube(&ring, &vec![0.06; ring.len()], 12, Region::Label);
             }
         }
         Shape::Wrench => {
-            b.cuboid(
-                Vec3::new(0.0, -0.2, 0.0),
-                Vec3::new(0.12, 0.6, 0.05),
-                Region::Label,
-            );
-            let head = arc(
-                Vec3::new(0.0, 0.55, 0.0),
-                0.3,
-                -1.2,
-                4.3,
-                28,
-                (Vec3::X, Vec3::Y),
-            );
+            b.cuboid(Vec3::new(0.0, -0.2, 0.0), Vec3::new(0.12, 0.6, 0.05), Region::Label);
+            let head = arc(Vec3::new(0.0, 0.55, 0.0), 0.3, -1.2, 4.3, 28, (Vec3::X, Vec3::Y));
             b.tube(&head, &vec![0.12; head.len()], 12, Region::Plain);
         }
     }
@@ -370,9 +260,7 @@ fn label_texture(entry: &CatalogEntry) -> Texture {
     let (w, h) = (512u32, 256u32);
     let [p, s] = entry.colors;
     // FNV-1a of the id: a stable per-object pattern.
-    let mut hash = entry.id.bytes().fold(0xcbf29ce484222325u64, |h, b| {
-        (h ^ b as u64).wrapping_mul(0x100000001b3)
-    });
+    let mut hash = entry.id.bytes().fold(0xcbf29ce484222325u64, |h, b| (h ^ b as u64).wrapping_mul(0x100000001b3));
     let mut next = || {
         hash ^= hash << 13;
         hash ^= hash >> 7;
@@ -406,30 +294,19 @@ fn label_texture(entry: &CatalogEntry) -> Texture {
                     c = s;
                 }
                 for &(bx, by, bw, bh, bc) in &blocks {
-                    if (bx..bx + bw).contains(&x)
-                        && (by..by + bh).contains(&y)
-                        && ((x / 3 + y / 2) % 4 != 0)
-                    {
+                    if (bx..bx + bw).contains(&x) && (by..by + bh).contains(&y) && ((x / 3 + y / 2) % 4 != 0) {
                         c = bc;
                     }
                 }
                 c
             } else {
                 let shade = if (x / 8 + y / 8) % 2 == 0 { 0 } else { 12 };
-                [
-                    s[0].saturating_sub(shade),
-                    s[1].saturating_sub(shade),
-                    s[2].saturating_sub(shade),
-                ]
+                [s[0].saturating_sub(shade), s[1].saturating_sub(shade), s[2].saturating_sub(shade)]
             };
             rgba.extend([c[0], c[1], c[2], 255]);
         }
     }
-    Texture {
-        width: w,
-        height: h,
-        rgba,
-    }
+    Texture { width: w, height: h, rgba }
 }
 
 #[cfg(test)]
@@ -442,8 +319,7 @@ mod tests {
         m.indices
             .chunks_exact(3)
             .map(|t| {
-                let [a, b, c] =
-                    [t[0], t[1], t[2]].map(|i| Vec3::from(m.positions[i as usize]).as_dvec3());
+                let [a, b, c] = [t[0], t[1], t[2]].map(|i| Vec3::from(m.positions[i as usize]).as_dvec3());
                 a.dot(b.cross(c)) / 6.0
             })
             .sum()
@@ -455,23 +331,13 @@ mod tests {
             let m = procedural_mesh(e);
             let ext = m.extents();
             for k in 0..3 {
-                assert!(
-                    (ext[k] as f64 - e.extents[k]).abs() < 1e-5,
-                    "{} axis {k}: {} vs {}",
-                    e.id,
-                    ext[k],
-                    e.extents[k]
-                );
+                assert!((ext[k] as f64 - e.extents[k]).abs() < 1e-5, "{} axis {k}: {} vs {}", e.id, ext[k], e.extents[k]);
             }
             let (lo, hi) = m.aabb();
             assert!((lo + hi).length() < 1e-5, "{} is centred", e.id);
             let box_volume = e.extents.iter().product::<f64>();
             let v = signed_volume(&m);
-            assert!(
-                v > 0.03 * box_volume && v < 1.01 * box_volume,
-                "{}: volume {v} vs box {box_volume}",
-                e.id
-            );
+            assert!(v > 0.03 * box_volume && v < 1.01 * box_volume, "{}: volume {v} vs box {box_volume}", e.id);
             assert_eq!(m.normals.len(), m.positions.len());
             assert!(m.texture.rgba.len() == (m.texture.width * m.texture.height * 4) as usize);
         }

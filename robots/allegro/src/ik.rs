@@ -18,12 +18,7 @@ pub struct IkOptions {
 
 impl Default for IkOptions {
     fn default() -> Self {
-        IkOptions {
-            max_iterations: 150,
-            position_tolerance: 1e-5,
-            rotation_tolerance: 1e-4,
-            damping: 1e-3,
-        }
+        IkOptions { max_iterations: 150, position_tolerance: 1e-5, rotation_tolerance: 1e-4, damping: 1e-3 }
     }
 }
 
@@ -37,11 +32,7 @@ fn pose_error(current: &DAffine3, target: &DAffine3) -> [f64; 6] {
         dq = -dq;
     }
     let (axis, angle) = dq.to_axis_angle();
-    let dr = if angle.is_finite() {
-        axis * angle
-    } else {
-        DVec3::ZERO
-    };
+    let dr = if angle.is_finite() { axis * angle } else { DVec3::ZERO };
     [dp.x, dp.y, dp.z, dr.x, dr.y, dr.z]
 }
 
@@ -50,15 +41,12 @@ fn dls_step(j: &[[f64; 6]; 6], e: &[f64; 6], lambda: f64) -> [f64; 6] {
     let mut a = [[0.0; 7]; 6];
     for r in 0..6 {
         for c in 0..6 {
-            a[r][c] = (0..6).map(|k| j[r][k] * j[c][k]).sum::<f64>()
-                + if r == c { lambda * lambda } else { 0.0 };
+            a[r][c] = (0..6).map(|k| j[r][k] * j[c][k]).sum::<f64>() + if r == c { lambda * lambda } else { 0.0 };
         }
         a[r][6] = e[r];
     }
     for col in 0..6 {
-        let piv = (col..6)
-            .max_by(|&x, &y| a[x][col].abs().total_cmp(&a[y][col].abs()))
-            .unwrap();
+        let piv = (col..6).max_by(|&x, &y| a[x][col].abs().total_cmp(&a[y][col].abs())).unwrap();
         a.swap(col, piv);
         let p = a[col][col];
         for r in 0..6 {
@@ -91,12 +79,7 @@ impl RobotModel {
 
     /// Arm joint values that put the palm at `target` (robot base frame), starting from `q`
     /// (only the arm entries change; joint limits are respected). None if it does not converge.
-    pub fn solve_palm_ik(
-        &self,
-        target: &DAffine3,
-        q: &[f64],
-        opts: &IkOptions,
-    ) -> Option<Vec<f64>> {
+    pub fn solve_palm_ik(&self, target: &DAffine3, q: &[f64], opts: &IkOptions) -> Option<Vec<f64>> {
         if let Some(q) = self.solve_palm_ik_from(target, q, opts) {
             return Some(q);
         }
@@ -109,9 +92,7 @@ impl RobotModel {
             let mut seed = q.to_vec();
             // UR link lengths are negative: the palm sits roughly opposite the pan angle.
             let turn = azimuth - std::f64::consts::PI + offset;
-            seed[pan] = current
-                + (turn - current + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
-                - std::f64::consts::PI;
+            seed[pan] = current + (turn - current + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
             if let Some(q) = self.solve_palm_ik_from(target, &seed, opts) {
                 return Some(q);
             }
@@ -119,12 +100,7 @@ impl RobotModel {
         None
     }
 
-    fn solve_palm_ik_from(
-        &self,
-        target: &DAffine3,
-        q: &[f64],
-        opts: &IkOptions,
-    ) -> Option<Vec<f64>> {
+    fn solve_palm_ik_from(&self, target: &DAffine3, q: &[f64], opts: &IkOptions) -> Option<Vec<f64>> {
         let arm = self.arm_dofs();
         let palm = self.link_id(PALM)?;
         let mut q = q.to_vec();
@@ -149,9 +125,7 @@ impl RobotModel {
                 }
             }
             // Limit the step so the linearisation holds.
-            let scale = (0.2 / pe.max(1e-12))
-                .min(1.0)
-                .min((0.5 / re.max(1e-12)).min(1.0));
+            let scale = (0.2 / pe.max(1e-12)).min(1.0).min((0.5 / re.max(1e-12)).min(1.0));
             let es: [f64; 6] = e.map(|x| x * scale);
             let dq = dls_step(&jac, &es, opts.damping);
             for (k, &d) in arm.iter().enumerate() {
@@ -163,9 +137,6 @@ impl RobotModel {
     }
 
     fn dof_joint(&self, dof: usize) -> usize {
-        self.joints
-            .iter()
-            .position(|j| j.dof == Some(dof))
-            .expect("dof exists")
+        self.joints.iter().position(|j| j.dof == Some(dof)).expect("dof exists")
     }
 }

@@ -16,31 +16,19 @@ pub const FINGERS: [&str; 4] = ["ff", "mf", "rf", "th"];
 /// The 3 phalanges of every finger, from the palm outwards.
 pub const PHALANGES: [&str; 3] = ["proximal", "medial", "distal"];
 /// Names of the 6 arm joints, base to flange.
-pub const ARM_JOINTS: [&str; 6] = [
-    "shoulder_pan_joint",
-    "shoulder_lift_joint",
-    "elbow_joint",
-    "wrist_1_joint",
-    "wrist_2_joint",
-    "wrist_3_joint",
-];
+pub const ARM_JOINTS: [&str; 6] =
+    ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint", "wrist_3_joint"];
 /// Link the hand's physics is expressed in.
 pub const PALM: &str = "palm";
 
 /// The 16 hand joint names, `<finger>_joint_<k>`, in the order of `FINGERS`.
 pub fn hand_joint_names() -> Vec<String> {
-    FINGERS
-        .iter()
-        .flat_map(|f| (0..4).map(move |k| format!("{f}_joint_{k}")))
-        .collect()
+    FINGERS.iter().flat_map(|f| (0..4).map(move |k| format!("{f}_joint_{k}"))).collect()
 }
 
 /// The 12 phalanx link names `<finger>_<phalanx>` (the pads are `<finger>_<phalanx>_pad`).
 pub fn phalanx_names() -> Vec<String> {
-    FINGERS
-        .iter()
-        .flat_map(|f| PHALANGES.iter().map(move |p| format!("{f}_{p}")))
-        .collect()
+    FINGERS.iter().flat_map(|f| PHALANGES.iter().map(move |p| format!("{f}_{p}"))).collect()
 }
 
 /// The built-in robot description.

@@ -85,55 +85,30 @@ fn pose(p: &urdf_rs::Pose) -> DAffine3 {
 impl RobotModel {
     /// The built-in UR5e + Allegro description.
     pub fn builtin() -> Self {
-        Self::from_urdf_str(crate::BUILTIN_URDF, "built-in ur5e_allegro.urdf")
-            .expect("the built-in URDF is valid (unit-tested)")
+        Self::from_urdf_str(crate::BUILTIN_URDF, "built-in ur5e_allegro.urdf").expect("the built-in URDF is valid (unit-tested)")
     }
 
     pub fn from_urdf_file(path: &std::path::Path) -> Result<Self, RobotError> {
-        let text = std::fs::read_to_string(path).map_err(|e| RobotError {
-            source_name: path.display().to_string(),
-            message: format!("cannot read: {e}"),
-        })?;
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| RobotError { source_name: path.display().to_string(), message: format!("cannot read: {e}") })?;
         Self::from_urdf_str(&text, &path.display().to_string())
     }
 
     pub fn from_urdf_str(text: &str, source_name: &str) -> Result<Self, RobotError> {
-        let err = |message: String| RobotError {
-            source_name: source_name.to_string(),
-            message,
-        };
-        let urdf =
-            urdf_rs::read_from_string(text).map_err(|e| err(format!("not valid URDF: {e}")))?;
-        let colours: HashMap<&str, [f64; 4]> = urdf
-            .materials
-            .iter()
-            .filter_map(|m| m.color.as_ref().map(|c| (m.name.as_str(), c.rgba.0)))
-            .collect();
-        let shape = |origin: &urdf_rs::Pose,
-                     g: &urdf_rs::Geometry,
-                     rgba: [f64; 4],
-                     owner: &str|
-         -> Result<Shape, RobotError> {
+        let err = |message: String| RobotError { source_name: source_name.to_string(), message };
+        let urdf = urdf_rs::read_from_string(text).map_err(|e| err(format!("not valid URDF: {e}")))?;
+        let colours: HashMap<&str, [f64; 4]> =
+            urdf.materials.iter().filter_map(|m| m.color.as_ref().map(|c| (m.name.as_str(), c.rgba.0))).collect();
+        let shape = |origin: &urdf_rs::Pose, g: &urdf_rs::Geometry, rgba: [f64; 4], owner: &str| -> Result<Shape, RobotError> {
             let geometry = match g {
-                urdf_rs::Geometry::Box { size } => Geometry::Box {
-                    size: DVec3::from_array(size.0),
-                },
-                urdf_rs::Geometry::Cylinder { radius, length } => Geometry::Cylinder {
-                    radius: *radius,
-                    length: *length,
-                },
+                urdf_rs::Geometry::Box { size } => Geometry::Box { size: DVec3::from_array(size.0) },
+                urdf_rs::Geometry::Cylinder { radius, length } => Geometry::Cylinder { radius: *radius, length: *length },
                 urdf_rs::Geometry::Sphere { radius } => Geometry::Sphere { radius: *radius },
                 other => {
-                    return Err(err(format!(
-                        "link '{owner}': geometry {other:?} is not supported (use box, cylinder or sphere)"
-                    )));
+                    return Err(err(format!("link '{owner}': geometry {other:?} is not supported (use box, cylinder or sphere)")));
                 }
             };
-            Ok(Shape {
-                geometry,
-                origin: pose(origin),
-                rgba,
-            })
+            Ok(Shape { geometry, origin: pose(origin), rgba })
         };
         let mut links = Vec::new();
         let mut link_index = HashMap::new();
@@ -146,20 +121,11 @@ impl RobotModel {
                 let rgba = v
                     .material
                     .as_ref()
-                    .and_then(|m| {
-                        m.color
-                            .as_ref()
-                            .map(|c| c.rgba.0)
-                            .or_else(|| colours.get(m.name.as_str()).copied())
-                    })
+                    .and_then(|m| m.color.as_ref().map(|c| c.rgba.0).or_else(|| colours.get(m.name.as_str()).copied()))
                     .unwrap_or([0.5, 0.5, 0.5, 1.0]);
                 visuals.push(shape(&v.origin, &v.geometry, rgba, &l.name)?);
             }
-            let collisions = l
-                .collision
-                .iter()
-                .map(|c| shape(&c.origin, &c.geometry, [0.0; 4], &l.name))
-                .collect::<Result<_, _>>()?;
+            let collisions = l.collision.iter().map(|c| shape(&c.origin, &c.geometry, [0.0; 4], &l.name)).collect::<Result<_, _>>()?;
             links.push(Link {
                 name: l.name.clone(),
                 mass: l.inertial.mass.value,
@@ -173,27 +139,14 @@ impl RobotModel {
         let mut joint_index = HashMap::new();
         for j in &urdf.joints {
             let find = |name: &str, role: &str| {
-                link_index.get(name).copied().ok_or_else(|| {
-                    err(format!(
-                        "joint '{}' refers to a missing {role} link '{name}'",
-                        j.name
-                    ))
-                })
+                link_index.get(name).copied().ok_or_else(|| err(format!("joint '{}' refers to a missing {role} link '{name}'", j.name)))
             };
-            let (parent, child) = (
-                find(&j.parent.link, "parent")?,
-                find(&j.child.link, "child")?,
-            );
+            let (parent, child) = (find(&j.parent.link, "parent")?, find(&j.child.link, "child")?);
             let kind = match j.joint_type {
-                urdf_rs::JointType::Revolute | urdf_rs::JointType::Continuous => {
-                    JointKind::Revolute
-                }
+                urdf_rs::JointType::Revolute | urdf_rs::JointType::Continuous => JointKind::Revolute,
                 urdf_rs::JointType::Fixed => JointKind::Fixed,
                 ref other => {
-                    return Err(err(format!(
-                        "joint '{}': type {other:?} is not supported (revolute, continuous, fixed)",
-                        j.name
-                    )));
+                    return Err(err(format!("joint '{}': type {other:?} is not supported (revolute, continuous, fixed)", j.name)));
                 }
             };
             let (mut lower, mut upper) = (j.limit.lower, j.limit.upper);
@@ -201,20 +154,14 @@ impl RobotModel {
                 (lower, upper) = (f64::NEG_INFINITY, f64::INFINITY);
             }
             if kind == JointKind::Revolute && !(lower <= upper) {
-                return Err(err(format!(
-                    "joint '{}': lower limit {lower} is above upper limit {upper}",
-                    j.name
-                )));
+                return Err(err(format!("joint '{}': lower limit {lower} is above upper limit {upper}", j.name)));
             }
             let axis = DVec3::from_array(j.axis.xyz.0);
             if kind == JointKind::Revolute && !(axis.length() > 1e-9) {
                 return Err(err(format!("joint '{}': axis is zero", j.name)));
             }
             if links[child].parent_joint.is_some() {
-                return Err(err(format!(
-                    "link '{}' is the child of two joints",
-                    j.child.link
-                )));
+                return Err(err(format!("link '{}' is the child of two joints", j.child.link)));
             }
             links[child].parent_joint = Some(joints.len());
             joint_index.insert(j.name.clone(), joints.len());
@@ -232,16 +179,10 @@ impl RobotModel {
                 dof: None,
             });
         }
-        let roots: Vec<usize> = (0..links.len())
-            .filter(|&i| links[i].parent_joint.is_none())
-            .collect();
+        let roots: Vec<usize> = (0..links.len()).filter(|&i| links[i].parent_joint.is_none()).collect();
         let [root] = roots[..] else {
             let names: Vec<&str> = roots.iter().map(|&i| links[i].name.as_str()).collect();
-            return Err(err(format!(
-                "expected one root link, found {}: {}",
-                names.len(),
-                names.join(", ")
-            )));
+            return Err(err(format!("expected one root link, found {}: {}", names.len(), names.join(", "))));
         };
         // Topological order from the root (also detects cycles: unreachable links).
         let mut order = Vec::with_capacity(joints.len());
@@ -266,10 +207,7 @@ impl RobotModel {
         for l in &mut links {
             l.parent_joint = l.parent_joint.map(|j| remap[j]);
         }
-        let joint_index = joint_index
-            .into_iter()
-            .map(|(k, v)| (k, remap[v]))
-            .collect();
+        let joint_index = joint_index.into_iter().map(|(k, v)| (k, remap[v])).collect();
         let mut dofs = Vec::new();
         for (i, j) in sorted.iter_mut().enumerate() {
             if j.kind == JointKind::Revolute {
@@ -277,20 +215,9 @@ impl RobotModel {
                 dofs.push(i);
             }
         }
-        let model = RobotModel {
-            links,
-            joints: sorted,
-            root,
-            dofs,
-            link_index,
-            joint_index,
-        };
+        let model = RobotModel { links, joints: sorted, root, dofs, link_index, joint_index };
         // What vtgen relies on: the arm chain, the palm, the 16 hand joints and the 12 pads.
-        for name in ARM_JOINTS
-            .iter()
-            .map(|s| s.to_string())
-            .chain(hand_joint_names())
-        {
+        for name in ARM_JOINTS.iter().map(|s| s.to_string()).chain(hand_joint_names()) {
             match model.joint(&name) {
                 Some(j) if j.kind == JointKind::Revolute => {}
                 Some(_) => return Err(err(format!("joint '{name}' must be revolute"))),
@@ -327,10 +254,7 @@ impl RobotModel {
     }
 
     pub fn dof_names(&self) -> Vec<&str> {
-        self.dofs
-            .iter()
-            .map(|&j| self.joints[j].name.as_str())
-            .collect()
+        self.dofs.iter().map(|&j| self.joints[j].name.as_str()).collect()
     }
 
     /// Index in the joint-value vector of a revolute joint.
@@ -340,10 +264,7 @@ impl RobotModel {
 
     /// Joint values at zero, clamped into the limits.
     pub fn zero(&self) -> Vec<f64> {
-        self.dofs
-            .iter()
-            .map(|&j| 0.0f64.clamp(self.joints[j].lower, self.joints[j].upper))
-            .collect()
+        self.dofs.iter().map(|&j| 0.0f64.clamp(self.joints[j].lower, self.joints[j].upper)).collect()
     }
 
     /// The joint's transform for value `q`: origin, then rotation about the axis.
@@ -371,10 +292,7 @@ impl RobotModel {
         let mut l = link;
         while l != ancestor {
             let Some(j) = self.links[l].parent_joint else {
-                panic!(
-                    "'{}' is not below '{}'",
-                    self.links[link].name, self.links[ancestor].name
-                )
+                panic!("'{}' is not below '{}'", self.links[link].name, self.links[ancestor].name)
             };
             t = self.joint_transform(j, q) * t;
             l = self.joints[j].parent;

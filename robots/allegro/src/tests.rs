@@ -15,8 +15,7 @@ fn tip(m: &RobotModel, finger: &str, q4: [f64; 4]) -> DVec3 {
     let palm = m.link_id(PALM).unwrap();
     let distal = m.link_id(&format!("{finger}_distal")).unwrap();
     let len = if finger == "th" { 0.0423 } else { 0.0267 };
-    m.relative_pose(&q, palm, distal)
-        .transform_point3(DVec3::new(0.0, 0.0, len))
+    m.relative_pose(&q, palm, distal).transform_point3(DVec3::new(0.0, 0.0, len))
 }
 
 #[test]
@@ -35,10 +34,7 @@ fn hand_forward_kinematics_matches_the_published_check_vectors() {
     ];
     for (f, q, want) in cases {
         let got = tip(&m, f, q);
-        assert!(
-            (got - DVec3::from_array(want)).length() < 2e-4,
-            "{f} {q:?}: {got} vs {want:?}"
-        );
+        assert!((got - DVec3::from_array(want)).length() < 2e-4, "{f} {q:?}: {got} vs {want:?}");
     }
 }
 
@@ -49,17 +45,7 @@ fn arm_forward_kinematics_matches_the_dh_check_vectors() {
     let arm = m.arm_dofs();
     let cases: [([f64; 6], [f64; 3]); 3] = [
         ([0.0; 6], [-0.8172, -0.2329, 0.0628]),
-        (
-            [
-                0.0,
-                -std::f64::consts::FRAC_PI_2,
-                0.0,
-                -std::f64::consts::FRAC_PI_2,
-                0.0,
-                0.0,
-            ],
-            [0.0, -0.2329, 1.0794],
-        ),
+        ([0.0, -std::f64::consts::FRAC_PI_2, 0.0, -std::f64::consts::FRAC_PI_2, 0.0, 0.0], [0.0, -0.2329, 1.0794]),
         (
             [
                 -std::f64::consts::FRAC_PI_2,
@@ -78,10 +64,7 @@ fn arm_forward_kinematics_matches_the_dh_check_vectors() {
             q[arm[k]] = qa[k];
         }
         let got = m.forward_kinematics(&q)[flange].translation;
-        assert!(
-            (got - DVec3::from_array(want)).length() < 2e-4,
-            "{qa:?}: {got} vs {want:?}"
-        );
+        assert!((got - DVec3::from_array(want)).length() < 2e-4, "{qa:?}: {got} vs {want:?}");
     }
 }
 
@@ -95,10 +78,7 @@ fn sensor_pads_sit_on_the_palmar_surface_facing_out() {
         let t = m.relative_pose(&q, link, pad);
         // z of the pad is +x of the phalanx (the side the finger flexes towards).
         assert!((t.matrix3.z_axis - DVec3::X).length() < 1e-7, "{p}");
-        assert!(
-            (t.translation.x - 0.0098).abs() < 1e-9,
-            "{p} on the surface"
-        );
+        assert!((t.translation.x - 0.0098).abs() < 1e-9, "{p} on the surface");
     }
     assert_eq!(hand_joint_names().len(), 16);
     assert_eq!(m.dof_count(), 22);
@@ -109,69 +89,32 @@ fn ik_reaches_poses_in_front_of_the_robot() {
     let m = model();
     let arm = m.arm_dofs();
     let mut seed = m.zero();
-    for (k, v) in [-1.5708, -1.5708, 1.5708, -1.5708, -1.5708, 0.0]
-        .into_iter()
-        .enumerate()
-    {
+    for (k, v) in [-1.5708, -1.5708, 1.5708, -1.5708, -1.5708, 0.0].into_iter().enumerate() {
         seed[arm[k]] = v;
     }
-    for (i, p) in [
-        [0.0, 0.45, 0.35],
-        [0.1, 0.5, 0.25],
-        [-0.15, 0.4, 0.45],
-        [0.3, -0.4, 0.3],
-    ]
-    .into_iter()
-    .enumerate()
-    {
-        let rot = DQuat::from_rotation_x(std::f64::consts::PI - 0.4 * i as f64)
-            * DQuat::from_rotation_y(0.3 * i as f64);
+    for (i, p) in [[0.0, 0.45, 0.35], [0.1, 0.5, 0.25], [-0.15, 0.4, 0.45], [0.3, -0.4, 0.3]].into_iter().enumerate() {
+        let rot = DQuat::from_rotation_x(std::f64::consts::PI - 0.4 * i as f64) * DQuat::from_rotation_y(0.3 * i as f64);
         let target = DAffine3::from_rotation_translation(rot, DVec3::from_array(p));
-        let q = m
-            .solve_palm_ik(&target, &seed, &IkOptions::default())
-            .unwrap_or_else(|| panic!("pose {i} reachable"));
+        let q = m.solve_palm_ik(&target, &seed, &IkOptions::default()).unwrap_or_else(|| panic!("pose {i} reachable"));
         let got = m.palm_pose(&q);
         assert!((got.translation - target.translation).length() < 1e-4);
-        assert!(
-            (got.matrix3 - target.matrix3)
-                .abs()
-                .to_cols_array()
-                .iter()
-                .all(|&x| x < 1e-3)
-        );
+        assert!((got.matrix3 - target.matrix3).abs().to_cols_array().iter().all(|&x| x < 1e-3));
     }
 }
 
 #[test]
 fn broken_descriptions_give_clear_errors() {
     let cases = [
+        (BUILTIN_URDF.replace("<parent link=\"ff_base\"/>", "<parent link=\"ff_bse\"/>"), "missing parent link 'ff_bse'"),
         (
-            BUILTIN_URDF.replace("<parent link=\"ff_base\"/>", "<parent link=\"ff_bse\"/>"),
-            "missing parent link 'ff_bse'",
-        ),
-        (
-            BUILTIN_URDF.replace(
-                "lower=\"-0.47\" upper=\"0.47\"",
-                "lower=\"0.47\" upper=\"-0.47\"",
-            ),
+            BUILTIN_URDF.replace("lower=\"-0.47\" upper=\"0.47\"", "lower=\"0.47\" upper=\"-0.47\""),
             "lower limit 0.47 is above upper limit -0.47",
         ),
-        (
-            BUILTIN_URDF.replace("name=\"th_joint_2\"", "name=\"th_joint_x\""),
-            "required joint 'th_joint_2' is missing",
-        ),
-        (
-            "<robot name=\"x\"><link name=\"a\"/>".to_string(),
-            "not valid URDF",
-        ),
+        (BUILTIN_URDF.replace("name=\"th_joint_2\"", "name=\"th_joint_x\""), "required joint 'th_joint_2' is missing"),
+        ("<robot name=\"x\"><link name=\"a\"/>".to_string(), "not valid URDF"),
     ];
     for (text, want) in cases {
-        let e = RobotModel::from_urdf_str(&text, "bad.urdf")
-            .unwrap_err()
-            .to_string();
-        assert!(
-            e.starts_with("robot description bad.urdf: ") && e.contains(want),
-            "{e}"
-        );
+        let e = RobotModel::from_urdf_str(&text, "bad.urdf").unwrap_err().to_string();
+        assert!(e.starts_with("robot description bad.urdf: ") && e.contains(want), "{e}");
     }
 }
