@@ -123,3 +123,29 @@ fn the_principal_point_is_at_the_pixel_centre_convention() {
     assert_eq!(covered, vec![(100, 60)]);
     assert!((img.depth[(60 * W + 100) as usize] - 1.0).abs() < 1e-5);
 }
+
+#[test]
+fn a_pad_pressed_on_a_box_sees_its_whole_footprint_and_a_free_pad_sees_nothing() {
+    use vtgen::config::TactileConfig;
+    use vtgen::tactile::sense;
+    let mut r = WgpuRenderer::new(&RendererConfig::default()).unwrap();
+    let entry = Catalog::builtin().get("009_gelatin_box").unwrap().clone();
+    let boxm = r.upload_mesh(&procedural_mesh(&entry)).unwrap();
+    let half = DVec3::from_array(entry.extents) * 0.5;
+    // The box's +z face lies 0.5 mm in front of pad 0 (its z points at the box); other pads look away.
+    let pad0 = DMat4::from_rotation_translation(DQuat::from_rotation_x(std::f64::consts::PI), DVec3::new(0.0, 0.0, half.z + 0.0005));
+    let far = DMat4::from_translation(DVec3::new(0.0, 0.0, 1.0));
+    let pads: [glam::DAffine3; 12] = std::array::from_fn(|k| glam::DAffine3::from_mat4(if k == 0 { pad0 } else { far }));
+    let sizes = [(0.03, 0.02); 12];
+    let cfg = TactileConfig::default();
+    let object = Draw { mesh: boxm, t_world_model: DMat4::IDENTITY, mask_id: 1 };
+    let reading = sense(&mut r, &cfg, &sizes, &pads, object, &glam::DAffine3::IDENTITY).unwrap();
+    assert_eq!(reading.counts[0], 32 * 32, "the whole pad footprint is in contact");
+    assert!(reading.depth[0].iter().all(|d| (d - 0.0005).abs() < 1e-5), "flat face at 0.5 mm");
+    assert!(reading.counts[1..].iter().all(|&c| c == 0), "pads away from the object report nothing");
+    assert!(reading.depth[1].iter().all(|d| d.is_infinite()));
+    // Points are on the box face, in the frame the caller asked for (here the world).
+    assert!(
+        reading.points.iter().all(|p| (p.position.z - half.z).abs() < 1e-5 && p.position.x.abs() <= 0.015 && p.position.y.abs() <= 0.01)
+    );
+}

@@ -13,7 +13,7 @@ mod writer;
 pub use manifest::{Manifest, ModelInfo, ModelsInfo, ShardEntry, SplitManifest, sha256_file, write_atomic};
 pub use ply::{PlyMesh, read_ply, write_ply};
 pub use reader::{DatasetReader, ShardReader};
-pub use sample::{Pose, Sample, ShardMeta};
+pub use sample::{Pose, Sample, ShardMeta, TactileData, TactilePointRecord};
 pub use writer::{Compression, ShardReceipt, ShardWriter};
 
 /// Version of the on-disk format written by this crate.
@@ -34,6 +34,11 @@ pub mod topics {
     pub const OBJECT_POSE: &str = "/object/pose";
     pub const TF: &str = "/tf";
     pub const SAMPLE_INFO: &str = "/sample/info";
+    pub const TACTILE_POINTS: &str = "/tactile/points";
+    /// The depth image topic of a phalanx camera.
+    pub fn tactile_depth(phalanx: &str) -> String {
+        format!("/tactile/{phalanx}/depth")
+    }
     /// Every topic a complete sample has, in the order they are written.
     pub const ALL: [&str; 7] = [RGB, DEPTH, MASK, CALIBRATION, OBJECT_POSE, TF, SAMPLE_INFO];
 }

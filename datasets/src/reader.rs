@@ -143,9 +143,48 @@ impl ShardReader {
                 })
                 .map(|t| Ok((t.parent_frame_id.clone(), t.child_frame_id.clone(), to_pose(t.translation.clone(), t.rotation.clone())?)))
                 .collect::<Result<_>>()?,
+            tactile: read_tactile(&by_topic).with_context(ctx)?,
             info,
         })
     }
+}
+
+/// The tactile topics of a sample, if it has them.
+fn read_tactile(by_topic: &BTreeMap<String, Vec<u8>>) -> Result<Option<crate::sample::TactileData>> {
+    use foxglove::schemas::PointCloud;
+    let Some(raw) = by_topic.get(topics::TACTILE_POINTS) else { return Ok(None) };
+    let cloud = PointCloud::decode(&raw[..])?;
+    if cloud.point_stride != 20 {
+        bail!("tactile points have stride {}, expected 20", cloud.point_stride);
+    }
+    let f32_at = |c: &[u8], o: usize| f32::from_le_bytes([c[o], c[o + 1], c[o + 2], c[o + 3]]);
+    let points = cloud
+        .data
+        .chunks_exact(20)
+        .map(|c| crate::sample::TactilePointRecord {
+            position: [f32_at(c, 0), f32_at(c, 4), f32_at(c, 8)],
+            distance: f32_at(c, 12),
+            phalanx: u32::from_le_bytes([c[16], c[17], c[18], c[19]]),
+        })
+        .collect();
+    let mut phalanges = Vec::new();
+    let mut depth = Vec::new();
+    let mut resolution = 0;
+    for (topic, raw) in by_topic {
+        if let Some(name) = topic.strip_prefix("/tactile/").and_then(|t| t.strip_suffix("/depth")) {
+            let img = RawImage::decode(&raw[..])?;
+            resolution = img.width;
+            phalanges.push(name.to_string());
+            depth.push(img.data.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect());
+        }
+    }
+    // Topics come back sorted by name; restore the phalanx index order of the points.
+    let order: Vec<String> =
+        ["ff", "mf", "rf", "th"].iter().flat_map(|f| ["proximal", "medial", "distal"].map(|p| format!("{f}_{p}"))).collect();
+    let mut pairs: Vec<(String, Vec<f32>)> = phalanges.into_iter().zip(depth).collect();
+    pairs.sort_by_key(|(n, _)| order.iter().position(|o| o == n).unwrap_or(usize::MAX));
+    let (phalanges, depth) = pairs.into_iter().unzip();
+    Ok(Some(crate::sample::TactileData { phalanges, resolution, depth, points }))
 }
 
 /// A dataset directory opened through its manifest.

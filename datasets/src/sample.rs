@@ -55,6 +55,28 @@ pub struct Sample {
     pub extra_transforms: Vec<(String, String, Pose)>,
     /// The `/sample/info` JSON object.
     pub info: serde_json::Value,
+    /// The phalanx cameras and the tactile point cloud, when a robot is in the scene.
+    pub tactile: Option<TactileData>,
+}
+
+/// One tactile point (FORMAT.md `/tactile/points`): camera-frame position, depth from the pad,
+/// phalanx index.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TactilePointRecord {
+    pub position: [f32; 3],
+    pub distance: f32,
+    pub phalanx: u32,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct TactileData {
+    /// Phalanx names `<finger>_<phalanx>`, 12, in index order.
+    pub phalanges: Vec<String>,
+    /// Pixels per side of each phalanx camera.
+    pub resolution: u32,
+    /// Per phalanx: row-major z-depths from the pad plane, `+inf` = no surface.
+    pub depth: Vec<Vec<f32>>,
+    pub points: Vec<TactilePointRecord>,
 }
 
 impl Sample {

@@ -9,7 +9,8 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use foxglove::Encode;
 use foxglove::schemas::{
-    CameraCalibration, FrameTransform, FrameTransforms, Pose as FgPose, PoseInFrame, Quaternion, RawImage, Timestamp, Vector3,
+    CameraCalibration, FrameTransform, FrameTransforms, PackedElementField, PointCloud, Pose as FgPose, PoseInFrame, Quaternion, RawImage,
+    Timestamp, Vector3,
 };
 use prost::Message;
 
@@ -52,6 +53,8 @@ pub struct ShardWriter {
     sequence: u32,
     written: u64,
     meta: ShardMeta,
+    /// Tactile channels, added with the first sample that has tactile data.
+    tactile_channels: Option<(u16, Vec<u16>)>,
 }
 
 fn add<T: Encode>(w: &mut mcap::Writer<BufWriter<File>>, topic: &str) -> Result<u16> {
@@ -115,7 +118,16 @@ impl ShardWriter {
                 mcap.add_channel(sid, topics::SAMPLE_INFO, "json", &BTreeMap::new())?
             },
         };
-        Ok(ShardWriter { mcap, channels, partial_path, final_path: final_path.to_path_buf(), sequence: 0, written: 0, meta: meta.clone() })
+        Ok(ShardWriter {
+            mcap,
+            channels,
+            partial_path,
+            final_path: final_path.to_path_buf(),
+            sequence: 0,
+            written: 0,
+            meta: meta.clone(),
+            tactile_channels: None,
+        })
     }
 
     fn put(&mut self, channel: u16, log_time: u64, data: &[u8]) -> Result<()> {
@@ -175,9 +187,62 @@ impl ShardWriter {
         self.put(self.channels.tf, t, &tf)?;
         let info = serde_json::to_vec(&s.info)?;
         self.put(self.channels.info, t, &info)?;
+        if let Some(tac) = &s.tactile {
+            self.write_tactile(t, tac)?;
+        }
         // Close the chunk: a random read of sample i decompresses exactly one chunk.
         self.mcap.flush()?;
         self.written += 1;
+        Ok(())
+    }
+
+    fn write_tactile(&mut self, t: u64, tac: &crate::sample::TactileData) -> Result<()> {
+        if self.tactile_channels.is_none() {
+            let points = add::<PointCloud>(&mut self.mcap, topics::TACTILE_POINTS)?;
+            let images = tac.phalanges.iter().map(|p| add::<RawImage>(&mut self.mcap, &topics::tactile_depth(p))).collect::<Result<_>>()?;
+            self.tactile_channels = Some((points, images));
+        }
+        let (points_ch, image_chs) = self.tactile_channels.clone().expect("set above");
+        use foxglove::schemas::packed_element_field::NumericType;
+        let field = |name: &str, offset: u32, ty: NumericType| PackedElementField { name: name.into(), offset, r#type: ty as i32 };
+        let mut data = Vec::with_capacity(tac.points.len() * 20);
+        for p in &tac.points {
+            for v in p.position.iter().chain([&p.distance]) {
+                data.extend(v.to_le_bytes());
+            }
+            data.extend(p.phalanx.to_le_bytes());
+        }
+        let cloud = PointCloud {
+            timestamp: ts(t),
+            frame_id: frames::CAMERA.into(),
+            pose: Some(fg_pose(&Pose::IDENTITY)),
+            point_stride: 20,
+            fields: vec![
+                field("x", 0, NumericType::Float32),
+                field("y", 4, NumericType::Float32),
+                field("z", 8, NumericType::Float32),
+                field("distance", 12, NumericType::Float32),
+                field("phalanx", 16, NumericType::Uint32),
+            ],
+            data: prost::bytes::Bytes::from(data),
+        }
+        .encode_to_vec();
+        self.put(points_ch, t, &cloud)?;
+        let r = tac.resolution;
+        for (k, ch) in image_chs.iter().enumerate() {
+            let bytes: Vec<u8> = tac.depth[k].iter().flat_map(|d| d.to_le_bytes()).collect();
+            let img = RawImage {
+                timestamp: ts(t),
+                frame_id: format!("{}_pad", tac.phalanges[k]),
+                width: r,
+                height: r,
+                encoding: "32FC1".into(),
+                step: r * 4,
+                data: prost::bytes::Bytes::from(bytes),
+            }
+            .encode_to_vec();
+            self.put(*ch, t, &img)?;
+        }
         Ok(())
     }
 

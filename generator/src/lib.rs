@@ -13,3 +13,4 @@ pub mod plan;
 pub mod render;
 pub mod sample;
 pub mod scene;
+pub mod tactile;

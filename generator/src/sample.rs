@@ -3,7 +3,7 @@
 
 use anyhow::{Context, Result};
 use glam::{DAffine3, DMat3, DMat4, DQuat};
-use vt_dataset::{Pose, Sample, frames, mask_ids};
+use vt_dataset::{Pose, Sample, TactileData, TactilePointRecord, frames, mask_ids};
 use vt_objects::{Texture, TexturedMesh};
 use vt_randomizers::{Appearance, SampleKey};
 
@@ -13,6 +13,7 @@ use crate::plan::SampleRef;
 use crate::render::{Draw, Lighting, MeshHandle, Renderer, View};
 use crate::scene::robot::{GraspStats, RobotScene, link_mesh, mask_id as robot_mask_id};
 use crate::scene::sample_scene;
+use crate::tactile::{pad_sizes, sense};
 
 pub fn pose_of(t: &DAffine3) -> Pose {
     Pose::from_rt(DQuat::from_mat3(&DMat3::from(t.matrix3)), t.translation)
@@ -44,6 +45,8 @@ pub struct SampleFactory<'a> {
     robot_meshes: Vec<(usize, MeshHandle, u8)>,
     /// Grasp statistics of the trajectories that start in the shard being written.
     pub shard_stats: GraspStats,
+    /// Sensing area of the 12 phalanx pads.
+    pad_sizes: [(f64, f64); 12],
 }
 
 impl<'a> SampleFactory<'a> {
@@ -63,7 +66,18 @@ impl<'a> SampleFactory<'a> {
                 }
             }
         }
-        Ok(SampleFactory { config, objects, renderer, object_meshes, floor, robot, robot_meshes, shard_stats: GraspStats::default() })
+        let pad_sizes = robot.as_ref().map(|r| pad_sizes(&r.model)).unwrap_or([(0.0, 0.0); 12]);
+        Ok(SampleFactory {
+            config,
+            objects,
+            renderer,
+            object_meshes,
+            floor,
+            robot,
+            robot_meshes,
+            shard_stats: GraspStats::default(),
+            pad_sizes,
+        })
     }
 
     pub fn renderer_name(&self) -> String {
@@ -81,6 +95,7 @@ impl<'a> SampleFactory<'a> {
         let mut draws = vec![Draw { mesh: self.floor, t_world_model: DMat4::IDENTITY, mask_id: mask_ids::BACKGROUND }];
         let mut robot_info = serde_json::Map::new();
         let mut extra_transforms = Vec::new();
+        let mut pad_poses: Option<[DAffine3; 12]> = None;
         if let Some(robot) = &mut self.robot {
             // The object's pose is the grasp loop's: recorded after the arm moved and it settled.
             let instances = self.config.sampling.instances_per_trajectory;
@@ -98,10 +113,14 @@ impl<'a> SampleFactory<'a> {
             }
             extra_transforms.push((frames::WORLD.to_string(), "palm".to_string(), pose_of(&t_world_palm)));
             let names = vt_robot::phalanx_names();
-            for p in &names {
-                let pad = robot.model.link_id(&format!("{p}_pad")).expect("validated at load");
-                extra_transforms.push((frames::WORLD.to_string(), format!("{p}_pad"), pose_of(&(robot.t_world_base * links[pad]))));
+            let pads: [DAffine3; 12] = std::array::from_fn(|k| {
+                let pad = robot.model.link_id(&format!("{}_pad", names[k])).expect("validated at load");
+                robot.t_world_base * links[pad]
+            });
+            for (p, t) in names.iter().zip(&pads) {
+                extra_transforms.push((frames::WORLD.to_string(), format!("{p}_pad"), pose_of(t)));
             }
+            pad_poses = Some(pads);
             let touching: Vec<&String> = names.iter().zip(&st.contacts).filter(|(_, c)| c.is_some()).map(|(n, _)| n).collect();
             let joints: serde_json::Map<String, serde_json::Value> =
                 robot.model.dof_names().iter().zip(&st.q).map(|(n, v)| (n.to_string(), serde_json::json!(v))).collect();
@@ -131,6 +150,42 @@ impl<'a> SampleFactory<'a> {
             background: self.config.scene.background,
         };
         let img = self.renderer.render(&view, &lighting, &draws)?;
+        let mut tactile = None;
+        if let (Some(robot), Some(pads)) = (&self.robot, pad_poses) {
+            let cfg = &robot.config.tactile;
+            let object = *draws.last().expect("the object is drawn last");
+            let t_camera_world = scene.t_world_camera.inverse().matrix();
+            let reading = sense(self.renderer.as_mut(), cfg, &self.pad_sizes, &pads, object, &DAffine3::from_mat4(t_camera_world))?;
+            let names = vt_robot::phalanx_names();
+            let counts: serde_json::Map<String, serde_json::Value> =
+                names.iter().zip(reading.counts).map(|(n, c)| (n.clone(), c.into())).collect();
+            let sizes: serde_json::Map<String, serde_json::Value> =
+                names.iter().zip(&self.pad_sizes).map(|(n, (l, w))| (n.clone(), serde_json::json!([l, w]))).collect();
+            robot_info.insert(
+                "tactile".into(),
+                serde_json::json!({
+                    "contact_threshold_mm": cfg.contact_threshold_mm,
+                    "near_mm": cfg.near_mm,
+                    "far_mm": cfg.far_mm,
+                    "pads": sizes,
+                    "points": counts,
+                }),
+            );
+            tactile = Some(TactileData {
+                phalanges: names,
+                resolution: cfg.resolution,
+                depth: reading.depth,
+                points: reading
+                    .points
+                    .iter()
+                    .map(|p| TactilePointRecord {
+                        position: p.position.as_vec3().to_array(),
+                        distance: p.distance as f32,
+                        phalanx: p.phalanx,
+                    })
+                    .collect(),
+            });
+        }
         let t_camera_object = scene.t_world_camera.inverse().compose(&scene.t_world_object);
         let visible = img.mask.iter().filter(|&&m| m == mask_ids::TARGET_OBJECT).count();
         let mut info = serde_json::json!({
@@ -162,6 +217,7 @@ impl<'a> SampleFactory<'a> {
             t_world_object: scene.t_world_object,
             extra_transforms,
             info,
+            tactile,
         })
     }
 }

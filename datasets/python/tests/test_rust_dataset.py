@@ -209,3 +209,30 @@ def test_torch_dataloader_over_train(rust_dataset: Path, splits: Dict[str, vtdat
         assert [info["index"] for info in batch["info"]] == batch["index"].tolist()
         seen += batch["index"].tolist()
     assert seen == list(range(n))
+
+
+def test_tactile_data_of_a_robot_dataset(tmp_path):
+    """The grasp scene carries the tactile point cloud and the 12 phalanx images."""
+    bin_ = os.environ.get("VTGEN_BIN")
+    if not bin_:
+        if os.environ.get("VTDATA_SKIP_RUST") == "1":
+            pytest.skip("VTDATA_SKIP_RUST=1: no Rust binary")
+        pytest.fail("set VTGEN_BIN to the vtgen binary (scripts/test does)")
+    root = Path(__file__).resolve().parents[3]
+    out = tmp_path / "hand"
+    subprocess.run([bin_, "generate", str(root / "scenes" / "tiny-hand.yaml"), "--out", str(out), "--quiet"], check=True)
+    ds = vtdata.Dataset(out, "train")
+    total = 0
+    for i in range(len(ds)):
+        s = ds[i]
+        t = s["tactile"]
+        assert t["depth"].shape == (12, 32, 32) and t["depth"].dtype == np.float32
+        n = len(t["points"])
+        assert t["points"].shape == (n, 3) and t["distance"].shape == (n,) and t["phalanx"].shape == (n,)
+        assert (t["phalanx"] < 12).all()
+        counts = s["info"]["tactile"]["points"]
+        assert sum(counts.values()) == n
+        for k, name in enumerate(t["phalanges"]):
+            assert int((t["phalanx"] == k).sum()) == counts[name]
+        total += n
+    assert total > 0

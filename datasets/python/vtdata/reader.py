@@ -53,6 +53,10 @@ TOPIC_CALIBRATION = "/camera/calibration"
 TOPIC_POSE = "/object/pose"
 TOPIC_TF = "/tf"
 TOPIC_INFO = "/sample/info"
+TOPIC_TACTILE_POINTS = "/tactile/points"
+#: The 12 phalanges in tactile index order (FORMAT.md).
+PHALANGES = tuple(f"{f}_{p}" for f in ("ff", "mf", "rf", "th") for p in ("proximal", "medial", "distal"))
+_TACTILE_DTYPE = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("distance", "<f4"), ("phalanx", "<u4")])
 #: Topics every sample must have; other topics (later format versions) are ignored.
 REQUIRED_TOPICS = (
     TOPIC_RGB,
@@ -95,6 +99,10 @@ class Sample(Dict[str, Any]):
       transforms; ``T_A_B`` maps coordinates in frame B to frame A.
     - ``info``: the ``/sample/info`` JSON object.
     - ``index``: the sample's index in its split; ``split``: the split name.
+    - ``tactile`` (only with a robot in the scene): a dict with ``points`` ``(N, 3)`` float32
+      tactile points in the camera frame, ``distance`` ``(N,)`` float32 depth from the pad,
+      ``phalanx`` ``(N,)`` uint32 phalanx index, ``phalanges`` (the 12 names in index order) and
+      ``depth`` ``(12, R, R)`` float32 phalanx camera images (``inf`` = no surface).
     """
 
     __slots__ = ()
@@ -333,6 +341,8 @@ class Dataset(Sequence[Sample]):
             index=index,
             split=self.split,
         )
+        if TOPIC_TACTILE_POINTS in decoded:
+            sample["tactile"] = _tactile(decoded, where)
         return sample
 
 
@@ -410,6 +420,27 @@ def pose_matrix(position: Sequence[float], orientation: Sequence[float]) -> np.n
     T[:3, :3] = quaternion_matrix(orientation)
     T[:3, 3] = [float(c) for c in position]
     return T
+
+
+def _tactile(decoded: Dict[str, Any], where: str) -> Dict[str, Any]:
+    """The tactile point cloud and the 12 phalanx depth images of a sample."""
+    cloud = decoded[TOPIC_TACTILE_POINTS]
+    if cloud.point_stride != _TACTILE_DTYPE.itemsize:
+        raise DatasetError(f"{where} {TOPIC_TACTILE_POINTS}: point stride {cloud.point_stride}, expected 20")
+    pts = np.frombuffer(bytes(cloud.data), dtype=_TACTILE_DTYPE)
+    depth = []
+    for name in PHALANGES:
+        topic = f"/tactile/{name}/depth"
+        if topic not in decoded:
+            raise DatasetError(f"{where}: no message on {topic}")
+        depth.append(decode_raw_image(decoded[topic], expect="32FC1", where=f"{where} {topic}"))
+    return {
+        "points": np.ascontiguousarray(np.stack([pts["x"], pts["y"], pts["z"]], axis=1)),
+        "distance": pts["distance"].copy(),
+        "phalanx": pts["phalanx"].copy(),
+        "phalanges": list(PHALANGES),
+        "depth": np.stack(depth),
+    }
 
 
 def _intrinsics(calibration: Any, where: str) -> np.ndarray:

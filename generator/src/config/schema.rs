@@ -44,6 +44,28 @@ pub struct RobotConfig {
     pub physics: PhysicsConfig,
     #[serde(default)]
     pub grasp: GraspConfig,
+    #[serde(default)]
+    pub tactile: TactileConfig,
+}
+
+/// The phalanx depth cameras (FORMAT.md, `/tactile/*`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TactileConfig {
+    /// Pixels per side of each phalanx camera (the paper: 32).
+    pub resolution: u32,
+    /// A pixel is in contact when the object surface is at most this far from the pad (mm).
+    pub contact_threshold_mm: f64,
+    /// Depth range of the cameras from the pad plane (mm); near < 0 keeps surfaces pressed into
+    /// the pad.
+    pub near_mm: f64,
+    pub far_mm: f64,
+}
+
+impl Default for TactileConfig {
+    fn default() -> Self {
+        TactileConfig { resolution: 32, contact_threshold_mm: 2.0, near_mm: -5.0, far_mm: 30.0 }
+    }
 }
 
 fn default_base_position() -> [f64; 3] {

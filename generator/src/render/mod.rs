@@ -55,11 +55,39 @@ pub struct RenderOutput {
     pub mask: Vec<u8>,
 }
 
+/// An orthographic depth view (a phalanx camera): looks along +z of `t_world_camera`, covering
+/// `[-half_x, half_x] x [-half_y, half_y]` metres over `width x height` pixels, depth in
+/// `[near, far]` (near may be negative: surfaces pressed behind the camera plane).
+#[derive(Debug, Clone, Copy)]
+pub struct DepthView {
+    pub width: u32,
+    pub height: u32,
+    pub half_x: f64,
+    pub half_y: f64,
+    pub near: f64,
+    pub far: f64,
+    pub t_world_camera: DMat4,
+}
+
 pub trait Renderer {
     /// Adapter and backend in words, e.g. "llvmpipe (LLVM 15.0.6, 256 bits) [Vulkan, Cpu]".
     fn describe(&self) -> String;
     fn upload_mesh(&mut self, mesh: &TexturedMesh) -> anyhow::Result<MeshHandle>;
     fn render(&mut self, view: &View, lighting: &Lighting, draws: &[Draw]) -> anyhow::Result<RenderOutput>;
+    /// Renders several depth views of the same draws in one submission; z-depth per view, row-major,
+    /// `+inf` where no surface is within range.
+    fn render_depth_views(&mut self, views: &[DepthView], draws: &[Draw]) -> anyhow::Result<Vec<Vec<f32>>>;
+}
+
+/// Orthographic projection of a depth view: x right, y down (as OpenCV), z forward.
+pub fn orthographic(v: &DepthView) -> glam::DMat4 {
+    let (n, f) = (v.near, v.far);
+    glam::DMat4::from_cols(
+        glam::DVec4::new(1.0 / v.half_x, 0.0, 0.0, 0.0),
+        glam::DVec4::new(0.0, -1.0 / v.half_y, 0.0, 0.0),
+        glam::DVec4::new(0.0, 0.0, 1.0 / (f - n), 0.0),
+        glam::DVec4::new(0.0, 0.0, -n / (f - n), 1.0),
+    )
 }
 
 /// OpenCV intrinsics to a wgpu clip-space projection (column-major). Pixel (u, v) of the image is

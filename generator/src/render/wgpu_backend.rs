@@ -8,16 +8,19 @@ use glam::DMat4;
 use vt_objects::TexturedMesh;
 use wgpu::util::DeviceExt;
 
-use super::{Draw, Lighting, MeshHandle, RenderOutput, Renderer, View, projection};
+use super::{DepthView, Draw, Lighting, MeshHandle, RenderOutput, Renderer, View, orthographic, projection};
 use crate::config::{Backend, RendererConfig};
 
 const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Float;
 const MASK_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Uint;
 const ZBUF_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
-/// Instance uniforms live in one buffer at 256-byte strides (dynamic offsets).
-const INSTANCE_STRIDE: u64 = 256;
-const MAX_DRAWS: usize = 256;
+/// Frame and instance uniforms live in buffers at 256-byte strides (dynamic offsets).
+const UNIFORM_STRIDE: u64 = 256;
+/// Draw records (view x draw) per render call.
+const MAX_DRAWS: usize = 1024;
+/// Views per render call (the main camera, or the 12 phalanx cameras).
+const MAX_VIEWS: usize = 16;
 
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
@@ -77,7 +80,8 @@ pub struct WgpuRenderer {
     instance_buffer: wgpu::Buffer,
     instance_group: wgpu::BindGroup,
     meshes: Vec<GpuMesh>,
-    targets: Option<Targets>,
+    /// Render targets: [main view, tactile atlas], created on first use at their size.
+    targets: [Option<Targets>; 2],
 }
 
 fn backends(b: Backend) -> wgpu::Backends {
@@ -174,7 +178,7 @@ impl WgpuRenderer {
         };
         let frame_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("frame"),
-            entries: &[uniform_entry(false, size_of::<FrameUniform>() as u64)],
+            entries: &[uniform_entry(true, size_of::<FrameUniform>() as u64)],
         });
         let instance_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("instance"),
@@ -253,18 +257,25 @@ impl WgpuRenderer {
         });
         let frame_buffer = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("frame"),
-            size: size_of::<FrameUniform>() as u64,
+            size: UNIFORM_STRIDE * MAX_VIEWS as u64,
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
         let frame_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("frame"),
             layout: &frame_layout,
-            entries: &[wgpu::BindGroupEntry { binding: 0, resource: frame_buffer.as_entire_binding() }],
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                    buffer: &frame_buffer,
+                    offset: 0,
+                    size: wgpu::BufferSize::new(size_of::<FrameUniform>() as u64),
+                }),
+            }],
         });
         let instance_buffer = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("instances"),
-            size: INSTANCE_STRIDE * MAX_DRAWS as u64,
+            size: UNIFORM_STRIDE * MAX_DRAWS as u64,
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
@@ -292,12 +303,12 @@ impl WgpuRenderer {
             instance_buffer,
             instance_group,
             meshes: Vec::new(),
-            targets: None,
+            targets: [None, None],
         })
     }
 
-    fn targets(&mut self, width: u32, height: u32) -> &Targets {
-        if self.targets.as_ref().is_none_or(|t| t.width != width || t.height != height) {
+    fn ensure_targets(&mut self, slot: usize, width: u32, height: u32) {
+        if self.targets[slot].as_ref().is_none_or(|t| t.width != width || t.height != height) {
             let make = |label, format| {
                 self.device.create_texture(&wgpu::TextureDescriptor {
                     label: Some(label),
@@ -322,7 +333,7 @@ impl WgpuRenderer {
                     mapped_at_creation: false,
                 })
             });
-            self.targets = Some(Targets {
+            self.targets[slot] = Some(Targets {
                 width,
                 height,
                 color: color_tex.create_view(&Default::default()),
@@ -335,7 +346,149 @@ impl WgpuRenderer {
                 readback,
             });
         }
-        self.targets.as_ref().expect("just created")
+    }
+
+    /// One render pass drawing `draws` into each of `views` (its own viewport of the target in
+    /// `slot`), then one readback of the target's colour, depth and mask (depth only if
+    /// `depth_only`). Returns (rgba, depth, mask) of the whole target.
+    fn draw_views(
+        &mut self,
+        slot: usize,
+        size: (u32, u32),
+        views: &[(DMat4, DMat4, [u32; 4])],
+        lighting: &Lighting,
+        draws: &[Draw],
+        depth_only: bool,
+    ) -> Result<(Vec<u8>, Vec<u8>, Vec<u8>)> {
+        if views.len() > MAX_VIEWS || views.len() * draws.len() > MAX_DRAWS {
+            bail!("{} views x {} draws in one pass; at most {MAX_VIEWS} views and {MAX_DRAWS} draw records", views.len(), draws.len());
+        }
+        for d in draws {
+            if d.mesh.0 >= self.meshes.len() {
+                bail!("draw refers to mesh {} of {}", d.mesh.0, self.meshes.len());
+            }
+        }
+        let mut frames = vec![0u8; UNIFORM_STRIDE as usize * views.len().max(1)];
+        let mut inst = vec![0u8; UNIFORM_STRIDE as usize * (views.len() * draws.len()).max(1)];
+        for (vi, (t_world_camera, proj, _)) in views.iter().enumerate() {
+            let t_camera_world = t_world_camera.inverse();
+            let light = t_camera_world.transform_point3(lighting.light_position);
+            let frame = FrameUniform {
+                view: mat(t_camera_world),
+                proj: mat(*proj),
+                light_pos: [light.x as f32, light.y as f32, light.z as f32, 1.0],
+                light_color: [lighting.light_color[0], lighting.light_color[1], lighting.light_color[2], 1.0],
+                ambient: [lighting.ambient[0], lighting.ambient[1], lighting.ambient[2], 1.0],
+            };
+            let o = vi * UNIFORM_STRIDE as usize;
+            frames[o..o + size_of::<FrameUniform>()].copy_from_slice(bytemuck::bytes_of(&frame));
+            for (di, d) in draws.iter().enumerate() {
+                // Model-view in f64, then f32: keeps camera-frame coordinates exact to ~1e-7 m.
+                let mv = t_camera_world * d.t_world_model;
+                let u = InstanceUniform {
+                    model_view: mat(mv),
+                    normal_mat: mat(mv.inverse().transpose()),
+                    mask_id: [d.mask_id as u32, 0, 0, 0],
+                };
+                let o = (vi * draws.len() + di) * UNIFORM_STRIDE as usize;
+                inst[o..o + size_of::<InstanceUniform>()].copy_from_slice(bytemuck::bytes_of(&u));
+            }
+        }
+        self.queue.write_buffer(&self.frame_buffer, 0, &frames);
+        self.queue.write_buffer(&self.instance_buffer, 0, &inst);
+        let (w, h) = size;
+        self.ensure_targets(slot, w, h);
+        let t = self.targets[slot].as_ref().expect("created above");
+        let bg = lighting.background.map(|c| srgb_to_linear(c) as f64);
+        let mut enc = self.device.create_command_encoder(&Default::default());
+        {
+            let color_att = |view, clear: wgpu::Color| {
+                Some(wgpu::RenderPassColorAttachment {
+                    view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations { load: wgpu::LoadOp::Clear(clear), store: wgpu::StoreOp::Store },
+                })
+            };
+            // Depth-view targets are cleared to +inf: "no surface in range".
+            let depth_clear = if depth_only { f64::INFINITY } else { 0.0 };
+            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("views"),
+                color_attachments: &[
+                    color_att(&t.color, wgpu::Color { r: bg[0], g: bg[1], b: bg[2], a: 1.0 }),
+                    color_att(&t.depth, wgpu::Color { r: depth_clear, g: 0.0, b: 0.0, a: 0.0 }),
+                    color_att(&t.mask, wgpu::Color::TRANSPARENT),
+                ],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &t.zbuf,
+                    depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Discard }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&self.pipeline);
+            for (vi, (_, _, vp)) in views.iter().enumerate() {
+                pass.set_viewport(vp[0] as f32, vp[1] as f32, vp[2] as f32, vp[3] as f32, 0.0, 1.0);
+                pass.set_scissor_rect(vp[0], vp[1], vp[2], vp[3]);
+                pass.set_bind_group(0, &self.frame_group, &[(vi as u64 * UNIFORM_STRIDE) as u32]);
+                for (di, d) in draws.iter().enumerate() {
+                    let m = &self.meshes[d.mesh.0];
+                    pass.set_bind_group(1, &self.instance_group, &[((vi * draws.len() + di) as u64 * UNIFORM_STRIDE) as u32]);
+                    pass.set_bind_group(2, &m.material, &[]);
+                    pass.set_vertex_buffer(0, m.vertices.slice(..));
+                    pass.set_index_buffer(m.indices.slice(..), wgpu::IndexFormat::Uint32);
+                    pass.draw_indexed(0..m.index_count, 0, 0..1);
+                }
+            }
+        }
+        let copies: Vec<(&wgpu::Texture, &wgpu::Buffer, u32)> = if depth_only {
+            vec![(&t.depth_tex, &t.readback[1], 4)]
+        } else {
+            vec![(&t.color_tex, &t.readback[0], 4), (&t.depth_tex, &t.readback[1], 4), (&t.mask_tex, &t.readback[2], 1)]
+        };
+        for (tex, buf, bpp) in &copies {
+            enc.copy_texture_to_buffer(
+                wgpu::TexelCopyTextureInfo { texture: tex, mip_level: 0, origin: wgpu::Origin3d::ZERO, aspect: wgpu::TextureAspect::All },
+                wgpu::TexelCopyBufferInfo {
+                    buffer: buf,
+                    layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(padded_row(w * bpp)), rows_per_image: Some(h) },
+                },
+                wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
+            );
+        }
+        self.queue.submit([enc.finish()]);
+        for (_, b, _) in &copies {
+            b.slice(..).map_async(wgpu::MapMode::Read, |r| {
+                if let Err(e) = r {
+                    eprintln!("vtgen: readback mapping failed: {e}");
+                }
+            });
+        }
+        self.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| anyhow!("GPU wait failed: {e}"))?;
+        let read = |buf: &wgpu::Buffer, bpp: u32| -> Result<Vec<u8>> {
+            let data = buf.slice(..).get_mapped_range().map_err(|e| anyhow!("readback failed: {e:?}"))?;
+            let row = (w * bpp) as usize;
+            let padded = padded_row(w * bpp) as usize;
+            let mut out = Vec::with_capacity(row * h as usize);
+            for r in 0..h as usize {
+                out.extend_from_slice(&data[r * padded..r * padded + row]);
+            }
+            Ok(out)
+        };
+        let mut out = (Vec::new(), Vec::new(), Vec::new());
+        if depth_only {
+            out.1 = read(&t.readback[1], 4)?;
+        } else {
+            out.0 = read(&t.readback[0], 4)?;
+            out.1 = read(&t.readback[1], 4)?;
+            out.2 = read(&t.readback[2], 1)?;
+        }
+        for (_, b, _) in &copies {
+            b.unmap();
+        }
+        Ok(out)
     }
 }
 
@@ -405,113 +558,42 @@ impl Renderer for WgpuRenderer {
     }
 
     fn render(&mut self, view: &View, lighting: &Lighting, draws: &[Draw]) -> Result<RenderOutput> {
-        if draws.len() > MAX_DRAWS {
-            bail!("{} draws in one view; at most {MAX_DRAWS}", draws.len());
-        }
-        let t_camera_world = view.t_world_camera.inverse();
-        let light = t_camera_world.transform_point3(lighting.light_position);
-        let frame = FrameUniform {
-            view: mat(t_camera_world),
-            proj: mat(projection(view)),
-            light_pos: [light.x as f32, light.y as f32, light.z as f32, 1.0],
-            light_color: [lighting.light_color[0], lighting.light_color[1], lighting.light_color[2], 1.0],
-            ambient: [lighting.ambient[0], lighting.ambient[1], lighting.ambient[2], 1.0],
-        };
-        self.queue.write_buffer(&self.frame_buffer, 0, bytemuck::bytes_of(&frame));
-        let mut inst = vec![0u8; INSTANCE_STRIDE as usize * draws.len().max(1)];
-        for (i, d) in draws.iter().enumerate() {
-            // Model-view in f64, then f32: keeps camera-frame coordinates exact to ~1e-7 m.
-            let mv = t_camera_world * d.t_world_model;
-            let u =
-                InstanceUniform { model_view: mat(mv), normal_mat: mat(mv.inverse().transpose()), mask_id: [d.mask_id as u32, 0, 0, 0] };
-            let o = i * INSTANCE_STRIDE as usize;
-            inst[o..o + size_of::<InstanceUniform>()].copy_from_slice(bytemuck::bytes_of(&u));
-        }
-        self.queue.write_buffer(&self.instance_buffer, 0, &inst);
-        for d in draws {
-            if d.mesh.0 >= self.meshes.len() {
-                bail!("draw refers to mesh {} of {}", d.mesh.0, self.meshes.len());
-            }
-        }
         let (w, h) = (view.width, view.height);
-        self.targets(w, h);
-        let t = self.targets.as_ref().expect("created above");
-        let bg = lighting.background.map(|c| srgb_to_linear(c) as f64);
-        let mut enc = self.device.create_command_encoder(&Default::default());
-        {
-            let color_att = |view, clear: wgpu::Color| {
-                Some(wgpu::RenderPassColorAttachment {
-                    view,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations { load: wgpu::LoadOp::Clear(clear), store: wgpu::StoreOp::Store },
-                })
-            };
-            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("main view"),
-                color_attachments: &[
-                    color_att(&t.color, wgpu::Color { r: bg[0], g: bg[1], b: bg[2], a: 1.0 }),
-                    color_att(&t.depth, wgpu::Color::TRANSPARENT),
-                    color_att(&t.mask, wgpu::Color::TRANSPARENT),
-                ],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &t.zbuf,
-                    depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Discard }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &self.frame_group, &[]);
-            for (i, d) in draws.iter().enumerate() {
-                let m = &self.meshes[d.mesh.0];
-                pass.set_bind_group(1, &self.instance_group, &[(i as u64 * INSTANCE_STRIDE) as u32]);
-                pass.set_bind_group(2, &m.material, &[]);
-                pass.set_vertex_buffer(0, m.vertices.slice(..));
-                pass.set_index_buffer(m.indices.slice(..), wgpu::IndexFormat::Uint32);
-                pass.draw_indexed(0..m.index_count, 0, 0..1);
-            }
-        }
-        for (tex, buf, bpp) in [(&t.color_tex, &t.readback[0], 4), (&t.depth_tex, &t.readback[1], 4), (&t.mask_tex, &t.readback[2], 1)] {
-            enc.copy_texture_to_buffer(
-                wgpu::TexelCopyTextureInfo { texture: tex, mip_level: 0, origin: wgpu::Origin3d::ZERO, aspect: wgpu::TextureAspect::All },
-                wgpu::TexelCopyBufferInfo {
-                    buffer: buf,
-                    layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(padded_row(w * bpp)), rows_per_image: Some(h) },
-                },
-                wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
-            );
-        }
-        self.queue.submit([enc.finish()]);
-        for b in &t.readback {
-            b.slice(..).map_async(wgpu::MapMode::Read, |r| {
-                if let Err(e) = r {
-                    eprintln!("vtgen: readback mapping failed: {e}");
-                }
-            });
-        }
-        self.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| anyhow!("GPU wait failed: {e}"))?;
-        let read = |buf: &wgpu::Buffer, bpp: u32| -> Result<Vec<u8>> {
-            let data = buf.slice(..).get_mapped_range().map_err(|e| anyhow!("readback failed: {e:?}"))?;
-            let row = (w * bpp) as usize;
-            let padded = padded_row(w * bpp) as usize;
-            let mut out = Vec::with_capacity(row * h as usize);
-            for r in 0..h as usize {
-                out.extend_from_slice(&data[r * padded..r * padded + row]);
-            }
-            Ok(out)
-        };
-        let rgba = read(&t.readback[0], 4)?;
-        let depth_bytes = read(&t.readback[1], 4)?;
-        let mask = read(&t.readback[2], 1)?;
-        for b in &t.readback {
-            b.unmap();
-        }
+        let (rgba, depth, mask) =
+            self.draw_views(0, (w, h), &[(view.t_world_camera, projection(view), [0, 0, w, h])], lighting, draws, false)?;
         let rgb = rgba.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect();
-        let depth = bytemuck::pod_collect_to_vec::<u8, f32>(&depth_bytes);
-        Ok(RenderOutput { width: w, height: h, rgb, depth, mask })
+        Ok(RenderOutput { width: w, height: h, rgb, depth: bytemuck::pod_collect_to_vec::<u8, f32>(&depth), mask })
+    }
+
+    fn render_depth_views(&mut self, views: &[DepthView], draws: &[Draw]) -> Result<Vec<Vec<f32>>> {
+        let Some(first) = views.first() else { return Ok(Vec::new()) };
+        let (vw, vh) = (first.width, first.height);
+        if views.iter().any(|v| v.width != vw || v.height != vh) {
+            bail!("depth views of one call share their size");
+        }
+        // An atlas of 4 columns: one pass, one readback (rows of 4 x 32 x 4 bytes are aligned).
+        let cols = 4u32.min(views.len() as u32);
+        let rows = (views.len() as u32).div_ceil(cols);
+        let specs: Vec<(DMat4, DMat4, [u32; 4])> = views
+            .iter()
+            .enumerate()
+            .map(|(i, v)| (v.t_world_camera, orthographic(v), [(i as u32 % cols) * vw, (i as u32 / cols) * vh, vw, vh]))
+            .collect();
+        let lighting = Lighting { light_position: glam::DVec3::ZERO, light_color: [0.0; 3], ambient: [0.0; 3], background: [0, 0, 0] };
+        let (_, depth, _) = self.draw_views(1, (cols * vw, rows * vh), &specs, &lighting, draws, true)?;
+        let atlas: Vec<f32> = bytemuck::pod_collect_to_vec(&depth);
+        let aw = (cols * vw) as usize;
+        Ok(specs
+            .iter()
+            .map(|(_, _, vp)| {
+                (0..vh as usize)
+                    .flat_map(|r| {
+                        let start = (vp[1] as usize + r) * aw + vp[0] as usize;
+                        atlas[start..start + vw as usize].iter().copied()
+                    })
+                    .collect()
+            })
+            .collect())
     }
 }
 
