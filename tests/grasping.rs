@@ -147,3 +147,41 @@ fn every_tactile_point_lies_on_the_object_surface_within_its_pad() {
     }
     assert!(points > 0 && samples_with_touch > 10, "{points} points in {samples_with_touch} samples");
 }
+
+#[test]
+fn the_occlusion_level_agrees_with_brute_force() {
+    use vtgen::config::Intrinsics;
+    use vtgen::occlusion::{model_points, occlusion_level, occlusion_level_brute_force};
+    let dir = hand_dataset();
+    let ds = DatasetReader::open(dir).unwrap();
+    let info: vt_dataset::ModelsInfo = serde_json::from_slice(&std::fs::read(dir.join("models/models_info.json")).unwrap()).unwrap();
+    let mut checked = 0;
+    for s in ds.samples("train").unwrap().step_by(7).take(3) {
+        let s = s.unwrap();
+        let o = &info.objects[s.info["object_index"].as_u64().unwrap() as usize];
+        let ply = read_ply(&dir.join("models").join(&o.file)).unwrap();
+        let mesh = vt_objects::TexturedMesh {
+            positions: ply.positions.clone(),
+            normals: ply.normals.clone(),
+            uvs: vec![[0.0; 2]; ply.positions.len()],
+            indices: ply.triangles.iter().flatten().copied().collect(),
+            texture: vt_objects::Texture::solid([0, 0, 0]),
+        };
+        let occ = &s.info["occlusion"];
+        let pts: Vec<DVec3> = model_points(&mesh, occ["model_points"].as_u64().unwrap() as usize)
+            .iter()
+            .map(|p| s.t_camera_object.transform_point(*p))
+            .collect();
+        let k = Intrinsics { fx: s.fx(), fy: s.fy(), cx: s.cx(), cy: s.cy() };
+        let eps = occ["epsilon_mm"].as_f64().unwrap() * 1e-3;
+        let (fast, _) = occlusion_level(&pts, &s.depth, s.width, s.height, &k, eps);
+        let (brute, _) = occlusion_level_brute_force(&pts, &s.depth, s.width, s.height, &k, eps);
+        assert!((fast - brute).abs() <= 0.001, "k-d tree {fast} vs all pairs {brute}");
+        assert_eq!(fast, occ["level"].as_f64().unwrap(), "the stored level is reproducible from the stored data");
+        assert!(fast > 0.3 && fast < 1.0, "self-occlusion alone hides part of the object: {fast}");
+        let sil = occ["silhouette_visible_fraction"].as_f64().unwrap();
+        assert!(sil > 0.0 && sil <= 1.0);
+        checked += 1;
+    }
+    assert_eq!(checked, 3);
+}

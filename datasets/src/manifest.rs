@@ -19,6 +19,9 @@ pub struct Manifest {
     /// Grasp-loop figures summed over the complete shards (when a robot is in the scene).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub grasp: Option<serde_json::Value>,
+    /// Occlusion-level histogram over the paper's bins, summed over the complete shards.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub occlusion: Option<serde_json::Value>,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -7,6 +7,7 @@ pub mod assets;
 pub mod config;
 pub mod dump;
 pub mod grasp;
+pub mod occlusion;
 pub mod physics;
 pub mod pipeline;
 pub mod plan;

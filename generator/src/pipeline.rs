@@ -156,19 +156,24 @@ fn update_manifest(out: &Path, config: &Config, config_sha: &str, plan: &Plan, r
             SplitManifest { samples: plan.samples_per_split[si], samples_per_shard: plan.samples_per_shard, shards },
         );
     }
-    // Grasp-loop figures: each shard stores those of the trajectories that start in it.
-    let mut grasp = None;
-    if config.robot.is_some() {
-        let mut total = GraspStats::default();
-        for e in splits.values().flat_map(|s: &SplitManifest| &s.shards).filter(|e| e.sha256.is_some()) {
-            let reader = vt_dataset::ShardReader::open(&out.join(&e.file))?;
-            if let Some(j) = reader.meta().extra.get("grasp_stats") {
-                let st: GraspStats = serde_json::from_str(j).with_context(|| format!("{}: grasp_stats", e.file))?;
-                total.merge(&st);
-            }
+    // Figures summed over the complete shards: the occlusion histogram, and the grasp loop's
+    // (each shard stores those of the trajectories that start in it).
+    let mut grasp_total = GraspStats::default();
+    let mut histogram = [0u64; 3];
+    for e in splits.values().flat_map(|s: &SplitManifest| &s.shards).filter(|e| e.sha256.is_some()) {
+        let reader = vt_dataset::ShardReader::open(&out.join(&e.file))?;
+        let extra = &reader.meta().extra;
+        if let Some(j) = extra.get("grasp_stats") {
+            let st: GraspStats = serde_json::from_str(j).with_context(|| format!("{}: grasp_stats", e.file))?;
+            grasp_total.merge(&st);
         }
-        grasp = Some(serde_json::to_value(total)?);
+        if let Some(j) = extra.get("occlusion_histogram") {
+            let h: [u64; 3] = serde_json::from_str(j).with_context(|| format!("{}: occlusion_histogram", e.file))?;
+            (0..3).for_each(|i| histogram[i] += h[i]);
+        }
     }
+    let grasp = config.robot.is_some().then(|| serde_json::to_value(grasp_total)).transpose()?;
+    let occlusion = Some(serde_json::json!({"bins": crate::occlusion::BINS, "counts": histogram}));
     let m = Manifest {
         format: "vtgen-dataset".into(),
         format_version: vt_dataset::FORMAT_VERSION,
@@ -178,6 +183,7 @@ fn update_manifest(out: &Path, config: &Config, config_sha: &str, plan: &Plan, r
         complete,
         splits,
         grasp,
+        occlusion,
     };
     m.save(&out.join("manifest.json"))?;
     Ok(m)
@@ -195,6 +201,7 @@ fn write_shard(
     let path = out.join(shard.file());
     let mut writer = ShardWriter::create(&path, meta, compression)?;
     factory.shard_stats = GraspStats::default();
+    factory.occlusion_histogram = [0; 3];
     for (k, r) in shard.samples.iter().enumerate() {
         if abort.load(Ordering::Relaxed) {
             return Ok(None);
@@ -204,6 +211,7 @@ fn write_shard(
         writer.write_sample(&sample).with_context(|| format!("writing {}", path.display()))?;
         progress.inc(1);
     }
+    writer.set_metadata("occlusion_histogram", serde_json::to_string(&factory.occlusion_histogram)?);
     if factory.has_robot() {
         writer.set_metadata("grasp_stats", serde_json::to_string(&factory.shard_stats)?);
     }

@@ -9,6 +9,7 @@ use vt_randomizers::{Appearance, SampleKey};
 
 use crate::assets::LoadedObject;
 use crate::config::{Config, LoadedConfig};
+use crate::occlusion::{bin as occlusion_bin, model_points, occlusion_level};
 use crate::plan::SampleRef;
 use crate::render::{Draw, Lighting, MeshHandle, Renderer, View};
 use crate::scene::robot::{GraspStats, RobotScene, link_mesh, mask_id as robot_mask_id};
@@ -47,6 +48,10 @@ pub struct SampleFactory<'a> {
     pub shard_stats: GraspStats,
     /// Sensing area of the 12 phalanx pads.
     pad_sizes: [(f64, f64); 12],
+    /// Per object: the model points the occlusion level is measured with.
+    model_points: Vec<Vec<glam::DVec3>>,
+    /// Occlusion-level histogram (`occlusion::BINS`) of the shard being written.
+    pub occlusion_histogram: [u64; 3],
 }
 
 impl<'a> SampleFactory<'a> {
@@ -67,6 +72,7 @@ impl<'a> SampleFactory<'a> {
             }
         }
         let pad_sizes = robot.as_ref().map(|r| pad_sizes(&r.model)).unwrap_or([(0.0, 0.0); 12]);
+        let model_points = objects.iter().map(|o| model_points(&o.mesh, config.scene.occlusion_points as usize)).collect();
         Ok(SampleFactory {
             config,
             objects,
@@ -77,6 +83,8 @@ impl<'a> SampleFactory<'a> {
             robot_meshes,
             shard_stats: GraspStats::default(),
             pad_sizes,
+            model_points,
+            occlusion_histogram: [0; 3],
         })
     }
 
@@ -188,6 +196,14 @@ impl<'a> SampleFactory<'a> {
         }
         let t_camera_object = scene.t_world_camera.inverse().compose(&scene.t_world_object);
         let visible = img.mask.iter().filter(|&&m| m == mask_ids::TARGET_OBJECT).count();
+        // Occlusion level (model points vs depth cloud) and the visible share of the silhouette.
+        let pts: Vec<glam::DVec3> =
+            self.model_points[r.object_index as usize].iter().map(|p| t_camera_object.transform_point(*p)).collect();
+        let eps = self.config.scene.occlusion_epsilon_mm * 1e-3;
+        let (level, visible_points) = occlusion_level(&pts, &img.depth, img.width, img.height, &k, eps);
+        let object_draw = *draws.last().expect("the object is drawn last");
+        let alone = self.renderer.render_mask(&view, &[object_draw])?.iter().filter(|&&m| m == mask_ids::TARGET_OBJECT).count();
+        self.occlusion_histogram[occlusion_bin(level)] += 1;
         let mut info = serde_json::json!({
             "split": split,
             "index": index,
@@ -198,6 +214,14 @@ impl<'a> SampleFactory<'a> {
             "instance": r.instance,
             "randomized": scene.appearance.randomized,
             "visible_pixels": visible,
+            "occlusion": {
+                "level": level,
+                "visible_points": visible_points,
+                "model_points": pts.len(),
+                "epsilon_mm": self.config.scene.occlusion_epsilon_mm,
+                "silhouette_pixels": alone,
+                "silhouette_visible_fraction": if alone > 0 { visible as f64 / alone as f64 } else { 0.0 },
+            },
             "T_world_camera": scene.t_world_camera.to_json(),
             "T_camera_object": t_camera_object.to_json(),
         });

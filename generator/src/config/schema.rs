@@ -304,11 +304,29 @@ pub struct SceneConfig {
     /// Background colour (sRGB) where nothing is drawn.
     #[serde(default = "default_background")]
     pub background: [u8; 3],
+    /// Occlusion level: model points per object, and how close (mm) a depth point must be for a
+    /// model point to count as visible.
+    #[serde(default = "default_occlusion_points")]
+    pub occlusion_points: u32,
+    #[serde(default = "default_occlusion_epsilon")]
+    pub occlusion_epsilon_mm: f64,
+}
+
+fn default_occlusion_points() -> u32 {
+    2000
+}
+fn default_occlusion_epsilon() -> f64 {
+    3.0
 }
 
 impl Default for SceneConfig {
     fn default() -> Self {
-        SceneConfig { workspace: Workspace::default(), background: default_background() }
+        SceneConfig {
+            workspace: Workspace::default(),
+            background: default_background(),
+            occlusion_points: default_occlusion_points(),
+            occlusion_epsilon_mm: default_occlusion_epsilon(),
+        }
     }
 }
 
@@ -490,6 +508,8 @@ impl Config {
                 message: format!("min z = {} must be above the floor (z > 0)", w.min[2]),
             });
         }
+        range(&mut p, vec![Key("scene"), Key("occlusion_points")], self.scene.occlusion_points, 10, 1_000_000);
+        range(&mut p, vec![Key("scene"), Key("occlusion_epsilon_mm")], self.scene.occlusion_epsilon_mm, 0.01, 100.0);
         range(&mut p, vec![Key("output"), Key("samples_per_shard")], self.output.samples_per_shard, 1, 1_000_000);
         range(&mut p, vec![Key("output"), Key("zstd_level")], self.output.zstd_level, 1, 19);
         p

@@ -74,6 +74,9 @@ pub trait Renderer {
     fn describe(&self) -> String;
     fn upload_mesh(&mut self, mesh: &TexturedMesh) -> anyhow::Result<MeshHandle>;
     fn render(&mut self, view: &View, lighting: &Lighting, draws: &[Draw]) -> anyhow::Result<RenderOutput>;
+    /// The instance mask alone (cheaper: no colour or depth readback), e.g. an object's unoccluded
+    /// silhouette.
+    fn render_mask(&mut self, view: &View, draws: &[Draw]) -> anyhow::Result<Vec<u8>>;
     /// Renders several depth views of the same draws in one submission; z-depth per view, row-major,
     /// `+inf` where no surface is within range.
     fn render_depth_views(&mut self, views: &[DepthView], draws: &[Draw]) -> anyhow::Result<Vec<Vec<f32>>>;

@@ -358,7 +358,7 @@ impl WgpuRenderer {
         views: &[(DMat4, DMat4, [u32; 4])],
         lighting: &Lighting,
         draws: &[Draw],
-        depth_only: bool,
+        readback: Readback,
     ) -> Result<(Vec<u8>, Vec<u8>, Vec<u8>)> {
         if views.len() > MAX_VIEWS || views.len() * draws.len() > MAX_DRAWS {
             bail!("{} views x {} draws in one pass; at most {MAX_VIEWS} views and {MAX_DRAWS} draw records", views.len(), draws.len());
@@ -411,7 +411,7 @@ impl WgpuRenderer {
                 })
             };
             // Depth-view targets are cleared to +inf: "no surface in range".
-            let depth_clear = if depth_only { f64::INFINITY } else { 0.0 };
+            let depth_clear = if readback == Readback::Depth { f64::INFINITY } else { 0.0 };
             let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("views"),
                 color_attachments: &[
@@ -443,10 +443,10 @@ impl WgpuRenderer {
                 }
             }
         }
-        let copies: Vec<(&wgpu::Texture, &wgpu::Buffer, u32)> = if depth_only {
-            vec![(&t.depth_tex, &t.readback[1], 4)]
-        } else {
-            vec![(&t.color_tex, &t.readback[0], 4), (&t.depth_tex, &t.readback[1], 4), (&t.mask_tex, &t.readback[2], 1)]
+        let copies: Vec<(&wgpu::Texture, &wgpu::Buffer, u32)> = match readback {
+            Readback::Depth => vec![(&t.depth_tex, &t.readback[1], 4)],
+            Readback::Mask => vec![(&t.mask_tex, &t.readback[2], 1)],
+            Readback::All => vec![(&t.color_tex, &t.readback[0], 4), (&t.depth_tex, &t.readback[1], 4), (&t.mask_tex, &t.readback[2], 1)],
         };
         for (tex, buf, bpp) in &copies {
             enc.copy_texture_to_buffer(
@@ -478,11 +478,13 @@ impl WgpuRenderer {
             Ok(out)
         };
         let mut out = (Vec::new(), Vec::new(), Vec::new());
-        if depth_only {
-            out.1 = read(&t.readback[1], 4)?;
-        } else {
+        if readback == Readback::All {
             out.0 = read(&t.readback[0], 4)?;
+        }
+        if readback != Readback::Mask {
             out.1 = read(&t.readback[1], 4)?;
+        }
+        if readback != Readback::Depth {
             out.2 = read(&t.readback[2], 1)?;
         }
         for (_, b, _) in &copies {
@@ -490,6 +492,14 @@ impl WgpuRenderer {
         }
         Ok(out)
     }
+}
+
+/// Which targets a pass reads back.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Readback {
+    All,
+    Depth,
+    Mask,
 }
 
 fn padded_row(bytes: u32) -> u32 {
@@ -560,9 +570,17 @@ impl Renderer for WgpuRenderer {
     fn render(&mut self, view: &View, lighting: &Lighting, draws: &[Draw]) -> Result<RenderOutput> {
         let (w, h) = (view.width, view.height);
         let (rgba, depth, mask) =
-            self.draw_views(0, (w, h), &[(view.t_world_camera, projection(view), [0, 0, w, h])], lighting, draws, false)?;
+            self.draw_views(0, (w, h), &[(view.t_world_camera, projection(view), [0, 0, w, h])], lighting, draws, Readback::All)?;
         let rgb = rgba.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect();
         Ok(RenderOutput { width: w, height: h, rgb, depth: bytemuck::pod_collect_to_vec::<u8, f32>(&depth), mask })
+    }
+
+    fn render_mask(&mut self, view: &View, draws: &[Draw]) -> Result<Vec<u8>> {
+        let (w, h) = (view.width, view.height);
+        let lighting = Lighting { light_position: glam::DVec3::ZERO, light_color: [0.0; 3], ambient: [0.0; 3], background: [0, 0, 0] };
+        let (_, _, mask) =
+            self.draw_views(0, (w, h), &[(view.t_world_camera, projection(view), [0, 0, w, h])], &lighting, draws, Readback::Mask)?;
+        Ok(mask)
     }
 
     fn render_depth_views(&mut self, views: &[DepthView], draws: &[Draw]) -> Result<Vec<Vec<f32>>> {
@@ -580,7 +598,7 @@ impl Renderer for WgpuRenderer {
             .map(|(i, v)| (v.t_world_camera, orthographic(v), [(i as u32 % cols) * vw, (i as u32 / cols) * vh, vw, vh]))
             .collect();
         let lighting = Lighting { light_position: glam::DVec3::ZERO, light_color: [0.0; 3], ambient: [0.0; 3], background: [0, 0, 0] };
-        let (_, depth, _) = self.draw_views(1, (cols * vw, rows * vh), &specs, &lighting, draws, true)?;
+        let (_, depth, _) = self.draw_views(1, (cols * vw, rows * vh), &specs, &lighting, draws, Readback::Depth)?;
         let atlas: Vec<f32> = bytemuck::pod_collect_to_vec(&depth);
         let aw = (cols * vw) as usize;
         Ok(specs

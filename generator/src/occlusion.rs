@@ -1,0 +1,93 @@
+//! The occlusion level of a sample, as the paper computes it: the object's model points moved by
+//! the ground-truth pose; a point is visible when the main camera's depth point cloud has a point
+//! within ε of it (nearest neighbour in a k-d tree); occlusion = share of model points not visible.
+//! Self-occlusion counts: the far side of an object is never visible.
+
+use glam::DVec3;
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
+use vt_objects::TexturedMesh;
+
+use crate::config::Intrinsics;
+
+/// The paper's occlusion bins: below 80%, 80–85%, above 85%.
+pub const BINS: [&str; 3] = ["<80%", "80-85%", ">85%"];
+
+pub fn bin(level: f64) -> usize {
+    if level < 0.80 {
+        0
+    } else if level <= 0.85 {
+        1
+    } else {
+        2
+    }
+}
+
+/// `n` points spread over the mesh surface by area (a fixed, seed-free sequence: the same model
+/// always gives the same points).
+pub fn model_points(mesh: &TexturedMesh, n: usize) -> Vec<DVec3> {
+    let v = |i: u32| glam::Vec3::from(mesh.positions[i as usize]).as_dvec3();
+    let tris: Vec<[DVec3; 3]> = mesh.indices.chunks_exact(3).map(|t| [v(t[0]), v(t[1]), v(t[2])]).collect();
+    let mut cdf = Vec::with_capacity(tris.len());
+    let mut acc = 0.0;
+    for t in &tris {
+        acc += 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length();
+        cdf.push(acc);
+    }
+    // A low-discrepancy (R2) sequence: even coverage without a random generator.
+    let (a1, a2, a3) = (0.819_172_513_396_164_4, 0.671_043_606_703_789_2, 0.549_730_125_185_948_4);
+    (0..n)
+        .map(|i| {
+            let i = i as f64 + 0.5;
+            let (r0, r1, r2) = ((a1 * i).fract(), (a2 * i).fract(), (a3 * i).fract());
+            let k = cdf.partition_point(|&c| c < r0 * acc).min(tris.len() - 1);
+            let (mut u, mut w) = (r1, r2);
+            if u + w > 1.0 {
+                (u, w) = (1.0 - u, 1.0 - w);
+            }
+            let [a, b, c] = tris[k];
+            a + (b - a) * u + (c - a) * w
+        })
+        .collect()
+}
+
+/// Back-projects the depth pixels inside the image box that the points project into (plus a
+/// margin): only they can be within ε of a model point.
+fn depth_cloud(points: &[DVec3], depth: &[f32], width: u32, height: u32, k: &Intrinsics, margin: i64) -> Vec<[f64; 3]> {
+    let (mut u0, mut v0, mut u1, mut v1) = (i64::MAX, i64::MAX, i64::MIN, i64::MIN);
+    for p in points.iter().filter(|p| p.z > 1e-6) {
+        let u = (k.fx * p.x / p.z + k.cx).round() as i64;
+        let v = (k.fy * p.y / p.z + k.cy).round() as i64;
+        (u0, v0, u1, v1) = (u0.min(u), v0.min(v), u1.max(u), v1.max(v));
+    }
+    let (u0, v0) = ((u0 - margin).max(0), (v0 - margin).max(0));
+    let (u1, v1) = ((u1 + margin).min(width as i64 - 1), (v1 + margin).min(height as i64 - 1));
+    let mut cloud = Vec::new();
+    for v in v0..=v1 {
+        for u in u0..=u1 {
+            let d = depth[(v * width as i64 + u) as usize] as f64;
+            if d > 0.0 && d.is_finite() {
+                cloud.push([(u as f64 - k.cx) * d / k.fx, (v as f64 - k.cy) * d / k.fy, d]);
+            }
+        }
+    }
+    cloud
+}
+
+/// Occlusion level (0…1) and the number of visible points, for model points in the camera frame.
+pub fn occlusion_level(points: &[DVec3], depth: &[f32], width: u32, height: u32, k: &Intrinsics, epsilon: f64) -> (f64, usize) {
+    let cloud = depth_cloud(points, depth, width, height, k, 4);
+    if cloud.is_empty() || points.is_empty() {
+        return (1.0, 0);
+    }
+    let tree: ImmutableKdTree<f64, 3> = ImmutableKdTree::new_from_slice(&cloud);
+    let eps2 = epsilon * epsilon;
+    let visible = points.iter().filter(|p| tree.nearest_one::<SquaredEuclidean>(&[p.x, p.y, p.z]).distance <= eps2).count();
+    (1.0 - visible as f64 / points.len() as f64, visible)
+}
+
+/// The same by comparing every model point with every depth point (for tests).
+pub fn occlusion_level_brute_force(points: &[DVec3], depth: &[f32], width: u32, height: u32, k: &Intrinsics, epsilon: f64) -> (f64, usize) {
+    let cloud = depth_cloud(points, depth, width, height, k, i64::MAX / 4);
+    let visible = points.iter().filter(|p| cloud.iter().any(|c| DVec3::from_array(*c).distance(**p) <= epsilon)).count();
+    (1.0 - visible as f64 / points.len().max(1) as f64, visible)
+}
