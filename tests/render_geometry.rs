@@ -149,3 +149,41 @@ fn a_pad_pressed_on_a_box_sees_its_whole_footprint_and_a_free_pad_sees_nothing()
         reading.points.iter().all(|p| (p.position.z - half.z).abs() < 1e-5 && p.position.x.abs() <= 0.015 && p.position.y.abs() <= 0.01)
     );
 }
+
+#[test]
+fn the_three_sensor_models_report_the_same_surface_patch() {
+    use vtgen::config::{SensorGroups, SensorModel, TactileConfig};
+    use vtgen::tactile::sense;
+    let mut r = WgpuRenderer::new(&RendererConfig::default()).unwrap();
+    let entry = Catalog::builtin().get("009_gelatin_box").unwrap().clone();
+    let boxm = r.upload_mesh(&procedural_mesh(&entry)).unwrap();
+    let half = DVec3::from_array(entry.extents) * 0.5;
+    // The box's +z face, tilted 15 degrees about x, crosses the pad plane: only part of the pad is
+    // within the contact threshold.
+    let tilt = DQuat::from_rotation_x(15f64.to_radians());
+    let pose = DMat4::from_rotation_translation(tilt, DVec3::new(0.0, 0.0, -half.z));
+    let (normal, on_face) = (tilt * DVec3::Z, pose.transform_point3(DVec3::new(0.0, 0.0, half.z)));
+    let pad = DMat4::from_rotation_translation(DQuat::from_rotation_x(std::f64::consts::PI), DVec3::new(0.0, 0.0, 0.0005));
+    let pads: [glam::DAffine3; 12] = std::array::from_fn(|_| glam::DAffine3::from_mat4(pad));
+    let sizes = [(0.03, 0.02); 12];
+    let object = Draw { mesh: boxm, t_world_model: pose, mask_id: 1 };
+    let mut cloud = |model: SensorModel| {
+        let cfg = TactileConfig { sensors: SensorGroups { proximal: model, medial: model, distal: model }, ..TactileConfig::default() };
+        let reading = sense(&mut r, &cfg, &sizes, &pads, object, &glam::DAffine3::IDENTITY).unwrap();
+        reading.points.iter().filter(|p| p.phalanx == 0).map(|p| p.position).collect::<Vec<_>>()
+    };
+    let camera = cloud(SensorModel::DepthCamera);
+    let gel = cloud(SensorModel::Gelsight { gel_thickness_mm: 1.0 });
+    let taxels = cloud(SensorModel::TaxelArray { rows: 4, cols: 6 });
+    for (name, pts) in [("depth camera", &camera), ("gelsight", &gel), ("taxels", &taxels)] {
+        assert!(!pts.is_empty(), "{name} sees the contact");
+        for p in pts.iter() {
+            assert!(normal.dot(*p - on_face).abs() < 2e-5, "{name}: point {p} off the face");
+        }
+    }
+    assert!(camera.len() < 32 * 32, "the tilted face touches part of the pad only ({})", camera.len());
+    // The gel (1 mm) and the taxels sample inside the camera's 2 mm contact patch.
+    let inside = |p: &DVec3| camera.iter().any(|q| q.distance(*p) < 1e-9);
+    assert!(gel.len() < camera.len() && gel.iter().all(inside));
+    assert!(taxels.len() <= 24 && taxels.iter().all(inside));
+}

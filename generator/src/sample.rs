@@ -173,6 +173,7 @@ impl<'a> SampleFactory<'a> {
                 "tactile".into(),
                 serde_json::json!({
                     "contact_threshold_mm": cfg.contact_threshold_mm,
+                    "sensors": cfg.sensors,
                     "near_mm": cfg.near_mm,
                     "far_mm": cfg.far_mm,
                     "pads": sizes,

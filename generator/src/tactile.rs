@@ -7,7 +7,7 @@ use anyhow::Result;
 use glam::{DAffine3, DMat4, DVec3};
 use vt_robot::{Geometry, RobotModel, phalanx_names};
 
-use crate::config::TactileConfig;
+use crate::config::{SensorModel, TactileConfig};
 use crate::render::{DepthView, Draw, Renderer};
 
 /// One tactile point in the main camera frame.
@@ -29,19 +29,21 @@ pub struct TactileReading {
     pub counts: [u32; 12],
 }
 
-/// Sensing area of each phalanx pad: (length along the finger, width across it), metres, from the
-/// phalanx's collision box.
+/// Sensing area of each phalanx pad: (length along the finger, width across it), metres: the
+/// phalanx's collision box, plus the fingertip sphere on the distal phalanges.
 pub fn pad_sizes(model: &RobotModel) -> [(f64, f64); 12] {
     let names = phalanx_names();
     std::array::from_fn(|k| {
         let link = model.link(&names[k]).expect("validated at load");
-        link.collisions
-            .iter()
-            .find_map(|s| match s.geometry {
-                Geometry::Box { size } => Some((size.z, size.y)),
-                _ => None,
-            })
-            .unwrap_or((0.02, 0.02))
+        let (mut len, mut wid) = (0.02, 0.02);
+        for s in &link.collisions {
+            match s.geometry {
+                Geometry::Box { size } => (len, wid) = (size.z, size.y),
+                Geometry::Sphere { radius } => len += radius,
+                Geometry::Cylinder { .. } => {}
+            }
+        }
+        (len, wid)
     })
 }
 
@@ -68,24 +70,50 @@ pub fn sense(
         })
         .collect();
     let depth = renderer.render_depth_views(&views, &[object])?;
-    let threshold = cfg.contact_threshold_mm * 1e-3;
     let mut points = Vec::new();
     let mut counts = [0u32; 12];
     for k in 0..12 {
         let (len, wid) = pads[k];
         let to_camera = *t_camera_world * t_world_pads[k];
-        for v in 0..n {
-            for u in 0..n {
-                let d = depth[k][(v * n + u) as usize] as f64;
-                if !(d <= threshold) {
-                    continue;
-                }
-                let x = (u as f64 + 0.5 - n as f64 / 2.0) * len / n as f64;
-                let y = (v as f64 + 0.5 - n as f64 / 2.0) * wid / n as f64;
-                points.push(TactilePoint { position: to_camera.transform_point3(DVec3::new(x, y, d)), distance: d, phalanx: k as u32 });
-                counts[k] += 1;
-            }
+        let model = match k % 3 {
+            0 => cfg.sensors.proximal,
+            1 => cfg.sensors.medial,
+            _ => cfg.sensors.distal,
+        };
+        for (u, v) in contact_pixels(&depth[k], n, model, cfg.contact_threshold_mm * 1e-3) {
+            let d = depth[k][(v * n + u) as usize] as f64;
+            let x = (u as f64 + 0.5 - n as f64 / 2.0) * len / n as f64;
+            let y = (v as f64 + 0.5 - n as f64 / 2.0) * wid / n as f64;
+            points.push(TactilePoint { position: to_camera.transform_point3(DVec3::new(x, y, d)), distance: d, phalanx: k as u32 });
+            counts[k] += 1;
         }
     }
     Ok(TactileReading { depth, points, counts })
+}
+
+/// The pixels (u, v) of an `n x n` pad depth image that a sensor model reports as contacts. Every
+/// model reports actual surface points (a pixel's depth), so their clouds lie on the same surface.
+pub fn contact_pixels(depth: &[f32], n: u32, model: SensorModel, threshold: f64) -> Vec<(u32, u32)> {
+    let at = |u: u32, v: u32| depth[(v * n + u) as usize] as f64;
+    let all =
+        |limit: f64| (0..n).flat_map(move |v| (0..n).map(move |u| (u, v))).filter(move |&(u, v)| at(u, v) <= limit).collect::<Vec<_>>();
+    match model {
+        SensorModel::DepthCamera => all(threshold),
+        SensorModel::Gelsight { gel_thickness_mm } => all(gel_thickness_mm * 1e-3),
+        SensorModel::TaxelArray { rows, cols } => {
+            let mut out = Vec::new();
+            for r in 0..rows {
+                for c in 0..cols {
+                    // The taxel's block of pixels, and its closest surface pixel.
+                    let (u0, u1) = (c * n / cols, ((c + 1) * n / cols).max(c * n / cols + 1));
+                    let (v0, v1) = (r * n / rows, ((r + 1) * n / rows).max(r * n / rows + 1));
+                    let best = (v0..v1).flat_map(|v| (u0..u1).map(move |u| (u, v))).min_by(|a, b| at(a.0, a.1).total_cmp(&at(b.0, b.1)));
+                    if let Some((u, v)) = best.filter(|&(u, v)| at(u, v) <= threshold) {
+                        out.push((u, v));
+                    }
+                }
+            }
+            out
+        }
+    }
 }

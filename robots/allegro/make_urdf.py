@@ -121,9 +121,11 @@ for p, j0_xyz, j0_rpy, j0_axis, (base_size, base_xyz), j1_xyz, axes, lengths, li
         link(f"{p}_{phalanx}", masses[k + 1], geoms, com=(0, 0, length / 2))
         joint(f"{p}_joint_{k + 1}", "revolute", parent, f"{p}_{phalanx}", origin, (0, 0, 0), axes[k], limits[k + 1], 0.7, 6.0)
         # Tactile pad: palmar surface (+x) at mid-length; rpy (0, pi/2, 0) turns the pad's z to +x.
+        # The distal pad spans the fingertip too (to the end of the tip sphere).
+        sensing = length + (TIP_RADIUS if phalanx == "distal" else 0.0)
         link(f"{p}_{phalanx}_pad", 0.0, [])
         joint(f"{p}_{phalanx}_pad_joint", "fixed", f"{p}_{phalanx}", f"{p}_{phalanx}_pad",
-              (SECTION[0] / 2, 0, round(length / 2, 6)), (0, round(math.pi / 2, 8), 0))
+              (SECTION[0] / 2, 0, round(sensing / 2, 6)), (0, round(math.pi / 2, 8), 0))
         parent, origin = f"{p}_{phalanx}", (0, 0, length)
 w("</robot>")
 Path(__file__).with_name("ur5e_allegro.urdf").write_text("\n".join(out) + "\n")

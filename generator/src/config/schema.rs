@@ -60,12 +60,43 @@ pub struct TactileConfig {
     /// the pad.
     pub near_mm: f64,
     pub far_mm: f64,
+    /// The sensor model of each phalanx group. All give object-surface points (the paper's
+    /// sensor-invariant representation); they differ in where they sample the contact.
+    pub sensors: SensorGroups,
 }
 
 impl Default for TactileConfig {
     fn default() -> Self {
-        TactileConfig { resolution: 32, contact_threshold_mm: 2.0, near_mm: -5.0, far_mm: 30.0 }
+        TactileConfig { resolution: 32, contact_threshold_mm: 2.0, near_mm: -5.0, far_mm: 30.0, sensors: SensorGroups::default() }
     }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SensorGroups {
+    pub proximal: SensorModel,
+    pub medial: SensorModel,
+    pub distal: SensorModel,
+}
+
+impl Default for SensorGroups {
+    fn default() -> Self {
+        SensorGroups { proximal: SensorModel::DepthCamera, medial: SensorModel::DepthCamera, distal: SensorModel::DepthCamera }
+    }
+}
+
+/// A tactile sensor model on a phalanx pad.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", tag = "model", deny_unknown_fields)]
+pub enum SensorModel {
+    /// Every depth-camera pixel within the contact threshold is a point (the paper's sensor).
+    DepthCamera,
+    /// A grid of taxels (e.g. 224 over the hand): a taxel fires when any surface under it is within
+    /// the threshold and reports the surface point at its closest pixel.
+    TaxelArray { rows: u32, cols: u32 },
+    /// An optical gel pad: the surface indents a gel of this thickness; every indented pixel is a
+    /// point (a height map of the indentation).
+    Gelsight { gel_thickness_mm: f64 },
 }
 
 fn default_base_position() -> [f64; 3] {
@@ -512,6 +543,34 @@ impl Config {
         range(&mut p, vec![Key("scene"), Key("occlusion_epsilon_mm")], self.scene.occlusion_epsilon_mm, 0.01, 100.0);
         range(&mut p, vec![Key("output"), Key("samples_per_shard")], self.output.samples_per_shard, 1, 1_000_000);
         range(&mut p, vec![Key("output"), Key("zstd_level")], self.output.zstd_level, 1, 19);
+        if let Some(r) = &self.robot {
+            let t = &r.tactile;
+            range(&mut p, vec![Key("robot"), Key("tactile"), Key("resolution")], t.resolution, 4, 256);
+            range(&mut p, vec![Key("robot"), Key("tactile"), Key("contact_threshold_mm")], t.contact_threshold_mm, 0.0, 50.0);
+            if !(t.near_mm < t.far_mm) {
+                p.push(Problem {
+                    path: vec![Key("robot"), Key("tactile"), Key("far_mm")],
+                    message: format!("{} must be above near_mm ({})", t.far_mm, t.near_mm),
+                });
+            }
+            for (group, m) in [("proximal", t.sensors.proximal), ("medial", t.sensors.medial), ("distal", t.sensors.distal)] {
+                let path = vec![Key("robot"), Key("tactile"), Key("sensors"), Key(group)];
+                match m {
+                    SensorModel::TaxelArray { rows, cols } if rows == 0 || cols == 0 || rows > t.resolution || cols > t.resolution => p
+                        .push(Problem {
+                            path,
+                            message: format!("taxel grid {rows}x{cols} is out of range: 1 ..= resolution ({}) per side", t.resolution),
+                        }),
+                    SensorModel::Gelsight { gel_thickness_mm } if !(gel_thickness_mm > 0.0 && gel_thickness_mm <= 20.0) => {
+                        p.push(Problem { path, message: format!("gel_thickness_mm {gel_thickness_mm} is out of range: 0 < t <= 20") })
+                    }
+                    _ => {}
+                }
+            }
+            range(&mut p, vec![Key("robot"), Key("physics"), Key("timestep")], r.physics.timestep, 1e-4, 0.02);
+            range(&mut p, vec![Key("robot"), Key("physics"), Key("friction")], r.physics.friction, 0.0, 10.0);
+            range(&mut p, vec![Key("robot"), Key("grasp"), Key("max_attempts")], r.grasp.max_attempts, 1, 10_000);
+        }
         p
     }
 
