@@ -4,6 +4,7 @@
 //! Each stage is a module that can be used and tested alone.
 
 pub mod assets;
+pub mod bench;
 pub mod config;
 pub mod dump;
 pub mod grasp;

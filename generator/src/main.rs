@@ -45,6 +45,17 @@ enum Command {
     },
     /// Print what a config would generate (objects, splits, shards, disk size) and write nothing.
     Plan { config: PathBuf },
+    /// Measure samples/s and the time per stage on the config's first samples (writes nothing).
+    Bench {
+        config: PathBuf,
+        #[arg(long, default_value_t = 40)]
+        samples: u64,
+        #[arg(long)]
+        ycb_dir: Option<PathBuf>,
+        /// Print the report as JSON.
+        #[arg(long)]
+        json: bool,
+    },
     /// Write one sample as .npy files (rgb, depth, mask, K, T_camera_object) and info.json.
     Dump {
         dataset: PathBuf,
@@ -120,6 +131,27 @@ fn run(cli: Cli) -> Result<()> {
                 human_bytes(est * 0.4)
             );
             println!("output      {}", c.output.dir.display());
+            Ok(())
+        }
+        Command::Bench { config, samples, ycb_dir, json } => {
+            let cfg = LoadedConfig::load(&config)?;
+            let r = vtgen::bench::bench(&cfg, samples, ycb_dir.as_ref())?;
+            if json {
+                println!("{}", serde_json::to_string_pretty(&r)?);
+            } else {
+                println!("adapter          {}", r.adapter);
+                println!("samples          {} in {:.2} s: {:.1} samples/s", r.samples, r.seconds, r.samples_per_second);
+                let per = |x: f64| 1e3 * x / r.samples as f64;
+                println!("physics          {:7.2} ms/sample", per(r.physics));
+                println!("main render      {:7.2} ms/sample", per(r.main_render));
+                println!(
+                    "tactile render   {:7.2} ms/sample  ({:.0}% of the main render)",
+                    per(r.tactile_render),
+                    100.0 * r.tactile_over_main_render
+                );
+                println!("occlusion        {:7.2} ms/sample", per(r.occlusion));
+                println!("encode + write   {:7.2} ms/sample", per(r.encode_and_write));
+            }
             Ok(())
         }
         Command::Dump { dataset, split, index, out } => vtgen::dump::dump(&dataset, &split, index, &out),

@@ -1,6 +1,8 @@
 //! One sample: scene sampling, the robot's recorded grasp state, rendering, and the ground truth
 //! and metadata that go with it. A factory lives in one worker thread with its own renderer.
 
+use std::time::{Duration, Instant};
+
 use anyhow::{Context, Result};
 use glam::{DAffine3, DMat3, DMat4, DQuat};
 use vt_dataset::{Pose, Sample, TactileData, TactilePointRecord, frames, mask_ids};
@@ -52,6 +54,20 @@ pub struct SampleFactory<'a> {
     model_points: Vec<Vec<glam::DVec3>>,
     /// Occlusion-level histogram (`occlusion::BINS`) of the shard being written.
     pub occlusion_histogram: [u64; 3],
+    /// Time spent per stage, for `vtgen bench`.
+    pub times: StageTimes,
+}
+
+/// Accumulated time of each stage of making samples.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct StageTimes {
+    /// Grasp-loop simulation (whole trajectories, when their first sample is made).
+    pub physics: Duration,
+    pub main_render: Duration,
+    /// The 12 phalanx depth views and the tactile point extraction.
+    pub tactile: Duration,
+    /// Occlusion level and the object's unoccluded silhouette.
+    pub occlusion: Duration,
 }
 
 impl<'a> SampleFactory<'a> {
@@ -85,6 +101,7 @@ impl<'a> SampleFactory<'a> {
             pad_sizes,
             model_points,
             occlusion_histogram: [0; 3],
+            times: StageTimes::default(),
         })
     }
 
@@ -107,7 +124,9 @@ impl<'a> SampleFactory<'a> {
         if let Some(robot) = &mut self.robot {
             // The object's pose is the grasp loop's: recorded after the arm moved and it settled.
             let instances = self.config.sampling.instances_per_trajectory;
+            let t0 = Instant::now();
             let traj = robot.trajectory(self.config.seed, r.object_index, &obj.id, r.trajectory, instances)?;
+            self.times.physics += t0.elapsed();
             let attempts = traj.attempts;
             let st = traj.instances[r.instance as usize].clone();
             if r.instance == 0 {
@@ -157,13 +176,17 @@ impl<'a> SampleFactory<'a> {
             ambient: light.ambient,
             background: self.config.scene.background,
         };
+        let t0 = Instant::now();
         let img = self.renderer.render(&view, &lighting, &draws)?;
+        self.times.main_render += t0.elapsed();
         let mut tactile = None;
         if let (Some(robot), Some(pads)) = (&self.robot, pad_poses) {
             let cfg = &robot.config.tactile;
             let object = *draws.last().expect("the object is drawn last");
             let t_camera_world = scene.t_world_camera.inverse().matrix();
+            let t0 = Instant::now();
             let reading = sense(self.renderer.as_mut(), cfg, &self.pad_sizes, &pads, object, &DAffine3::from_mat4(t_camera_world))?;
+            self.times.tactile += t0.elapsed();
             let names = vt_robot::phalanx_names();
             let counts: serde_json::Map<String, serde_json::Value> =
                 names.iter().zip(reading.counts).map(|(n, c)| (n.clone(), c.into())).collect();
@@ -201,9 +224,11 @@ impl<'a> SampleFactory<'a> {
         let pts: Vec<glam::DVec3> =
             self.model_points[r.object_index as usize].iter().map(|p| t_camera_object.transform_point(*p)).collect();
         let eps = self.config.scene.occlusion_epsilon_mm * 1e-3;
+        let t0 = Instant::now();
         let (level, visible_points) = occlusion_level(&pts, &img.depth, img.width, img.height, &k, eps);
         let object_draw = *draws.last().expect("the object is drawn last");
         let alone = self.renderer.render_mask(&view, &[object_draw])?.iter().filter(|&&m| m == mask_ids::TARGET_OBJECT).count();
+        self.times.occlusion += t0.elapsed();
         self.occlusion_histogram[occlusion_bin(level)] += 1;
         let mut info = serde_json::json!({
             "split": split,

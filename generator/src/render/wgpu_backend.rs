@@ -53,6 +53,57 @@ struct GpuMesh {
     indices: wgpu::Buffer,
     index_count: u32,
     material: wgpu::BindGroup,
+    /// Triangles grouped into spatial clusters (index range, model-frame bounding box), so that
+    /// small views draw only the part of a mesh they can see.
+    clusters: Vec<(std::ops::Range<u32>, glam::DVec3, glam::DVec3)>,
+}
+
+/// Reorders triangles into the cells of an 8x8x8 grid over the mesh's bounding box and returns the
+/// new indices with each non-empty cell's index range and bounding box.
+fn cluster_triangles(mesh: &TexturedMesh) -> (Vec<u32>, Vec<(std::ops::Range<u32>, glam::DVec3, glam::DVec3)>) {
+    const N: usize = 8;
+    let (lo, hi) = mesh.aabb();
+    let (lo, size) = (lo.as_dvec3(), (hi - lo).as_dvec3().max(glam::DVec3::splat(1e-9)));
+    let p = |i: u32| glam::Vec3::from(mesh.positions[i as usize]).as_dvec3();
+    let mut cells: Vec<Vec<[u32; 3]>> = vec![Vec::new(); N * N * N];
+    for t in mesh.indices.chunks_exact(3) {
+        let c = (p(t[0]) + p(t[1]) + p(t[2])) / 3.0;
+        let g = ((c - lo) / size * N as f64).floor().clamp(glam::DVec3::ZERO, glam::DVec3::splat((N - 1) as f64));
+        cells[(g.x as usize * N + g.y as usize) * N + g.z as usize].push([t[0], t[1], t[2]]);
+    }
+    let mut indices = Vec::with_capacity(mesh.indices.len());
+    let mut clusters = Vec::new();
+    for cell in cells.into_iter().filter(|c| !c.is_empty()) {
+        let start = indices.len() as u32;
+        let (mut a, mut b) = (glam::DVec3::splat(f64::MAX), glam::DVec3::splat(f64::MIN));
+        for t in cell {
+            for i in t {
+                a = a.min(p(i));
+                b = b.max(p(i));
+                indices.push(i);
+            }
+        }
+        clusters.push((start..indices.len() as u32, a, b));
+    }
+    (indices, clusters)
+}
+
+/// Does the box `[lo, hi]` (model frame), seen through `model_view`, overlap the view volume
+/// `[-hx, hx] x [-hy, hy] x [near, far]` (camera frame)?
+fn box_overlaps_view(model_view: &DMat4, lo: glam::DVec3, hi: glam::DVec3, cull: [f64; 4]) -> bool {
+    let [hx, hy, near, far] = cull;
+    let (mut a, mut b) = (glam::DVec3::splat(f64::MAX), glam::DVec3::splat(f64::MIN));
+    for k in 0..8 {
+        let c = glam::DVec3::new(
+            if k & 1 == 0 { lo.x } else { hi.x },
+            if k & 2 == 0 { lo.y } else { hi.y },
+            if k & 4 == 0 { lo.z } else { hi.z },
+        );
+        let q = model_view.transform_point3(c);
+        a = a.min(q);
+        b = b.max(q);
+    }
+    a.x <= hx && b.x >= -hx && a.y <= hy && b.y >= -hy && a.z <= far && b.z >= near
 }
 
 struct Targets {
@@ -359,6 +410,7 @@ impl WgpuRenderer {
         lighting: &Lighting,
         draws: &[Draw],
         readback: Readback,
+        cull: Option<&[[f64; 4]]>,
     ) -> Result<(Vec<u8>, Vec<u8>, Vec<u8>)> {
         if views.len() > MAX_VIEWS || views.len() * draws.len() > MAX_DRAWS {
             bail!("{} views x {} draws in one pass; at most {MAX_VIEWS} views and {MAX_DRAWS} draw records", views.len(), draws.len());
@@ -439,7 +491,18 @@ impl WgpuRenderer {
                     pass.set_bind_group(2, &m.material, &[]);
                     pass.set_vertex_buffer(0, m.vertices.slice(..));
                     pass.set_index_buffer(m.indices.slice(..), wgpu::IndexFormat::Uint32);
-                    pass.draw_indexed(0..m.index_count, 0, 0..1);
+                    match cull {
+                        // Small orthographic views: only the clusters inside the view volume.
+                        Some(c) => {
+                            let mv = views[vi].0.inverse() * d.t_world_model;
+                            for (range, lo, hi) in &m.clusters {
+                                if box_overlaps_view(&mv, *lo, *hi, c[vi]) {
+                                    pass.draw_indexed(range.clone(), 0, 0..1);
+                                }
+                            }
+                        }
+                        None => pass.draw_indexed(0..m.index_count, 0, 0..1),
+                    }
                 }
             }
         }
@@ -527,9 +590,10 @@ impl Renderer for WgpuRenderer {
             contents: bytemuck::cast_slice(&vertices),
             usage: wgpu::BufferUsages::VERTEX,
         });
+        let (indices, clusters) = cluster_triangles(mesh);
         let ibuf = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("indices"),
-            contents: bytemuck::cast_slice(&mesh.indices),
+            contents: bytemuck::cast_slice(&indices),
             usage: wgpu::BufferUsages::INDEX,
         });
         let t = &mesh.texture;
@@ -563,14 +627,14 @@ impl Renderer for WgpuRenderer {
                 wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::Sampler(&self.sampler) },
             ],
         });
-        self.meshes.push(GpuMesh { vertices: vbuf, indices: ibuf, index_count: mesh.indices.len() as u32, material });
+        self.meshes.push(GpuMesh { vertices: vbuf, indices: ibuf, index_count: mesh.indices.len() as u32, material, clusters });
         Ok(MeshHandle(self.meshes.len() - 1))
     }
 
     fn render(&mut self, view: &View, lighting: &Lighting, draws: &[Draw]) -> Result<RenderOutput> {
         let (w, h) = (view.width, view.height);
         let (rgba, depth, mask) =
-            self.draw_views(0, (w, h), &[(view.t_world_camera, projection(view), [0, 0, w, h])], lighting, draws, Readback::All)?;
+            self.draw_views(0, (w, h), &[(view.t_world_camera, projection(view), [0, 0, w, h])], lighting, draws, Readback::All, None)?;
         let rgb = rgba.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect();
         Ok(RenderOutput { width: w, height: h, rgb, depth: bytemuck::pod_collect_to_vec::<u8, f32>(&depth), mask })
     }
@@ -579,7 +643,7 @@ impl Renderer for WgpuRenderer {
         let (w, h) = (view.width, view.height);
         let lighting = Lighting { light_position: glam::DVec3::ZERO, light_color: [0.0; 3], ambient: [0.0; 3], background: [0, 0, 0] };
         let (_, _, mask) =
-            self.draw_views(0, (w, h), &[(view.t_world_camera, projection(view), [0, 0, w, h])], &lighting, draws, Readback::Mask)?;
+            self.draw_views(0, (w, h), &[(view.t_world_camera, projection(view), [0, 0, w, h])], &lighting, draws, Readback::Mask, None)?;
         Ok(mask)
     }
 
@@ -598,7 +662,8 @@ impl Renderer for WgpuRenderer {
             .map(|(i, v)| (v.t_world_camera, orthographic(v), [(i as u32 % cols) * vw, (i as u32 / cols) * vh, vw, vh]))
             .collect();
         let lighting = Lighting { light_position: glam::DVec3::ZERO, light_color: [0.0; 3], ambient: [0.0; 3], background: [0, 0, 0] };
-        let (_, depth, _) = self.draw_views(1, (cols * vw, rows * vh), &specs, &lighting, draws, Readback::Depth)?;
+        let cull: Vec<[f64; 4]> = views.iter().map(|v| [v.half_x, v.half_y, v.near, v.far]).collect();
+        let (_, depth, _) = self.draw_views(1, (cols * vw, rows * vh), &specs, &lighting, draws, Readback::Depth, Some(&cull))?;
         let atlas: Vec<f32> = bytemuck::pod_collect_to_vec(&depth);
         let aw = (cols * vw) as usize;
         Ok(specs
