@@ -187,3 +187,29 @@ fn the_three_sensor_models_report_the_same_surface_patch() {
     assert!(gel.len() < camera.len() && gel.iter().all(inside));
     assert!(taxels.len() <= 24 && taxels.iter().all(inside));
 }
+
+#[test]
+fn perspective_pads_see_the_same_surface_as_orthographic_ones() {
+    use vtgen::config::{PadProjection, TactileConfig};
+    use vtgen::tactile::sense;
+    let mut r = WgpuRenderer::new(&RendererConfig::default()).unwrap();
+    let entry = Catalog::builtin().get("009_gelatin_box").unwrap().clone();
+    let boxm = r.upload_mesh(&procedural_mesh(&entry)).unwrap();
+    let half = DVec3::from_array(entry.extents) * 0.5;
+    let tilt = DQuat::from_rotation_x(15f64.to_radians());
+    let pose = DMat4::from_rotation_translation(tilt, DVec3::new(0.0, 0.0, -half.z));
+    let (normal, on_face) = (tilt * DVec3::Z, pose.transform_point3(DVec3::new(0.0, 0.0, half.z)));
+    let pad = DMat4::from_rotation_translation(DQuat::from_rotation_x(std::f64::consts::PI), DVec3::new(0.0, 0.0, 0.0005));
+    let pads: [glam::DAffine3; 12] = std::array::from_fn(|_| glam::DAffine3::from_mat4(pad));
+    let object = Draw { mesh: boxm, t_world_model: pose, mask_id: 1 };
+    let cfg = TactileConfig { projection: PadProjection::Perspective, ..TactileConfig::default() };
+    let persp = sense(&mut r, &cfg, &[(0.03, 0.02); 12], &pads, object, &glam::DAffine3::IDENTITY).unwrap();
+    let ortho = sense(&mut r, &TactileConfig::default(), &[(0.03, 0.02); 12], &pads, object, &glam::DAffine3::IDENTITY).unwrap();
+    assert!(persp.counts[0] > 100 && persp.counts[0] < 1024);
+    for p in persp.points.iter().filter(|p| p.phalanx == 0) {
+        assert!(normal.dot(p.position - on_face).abs() < 2e-5, "perspective point {} off the face", p.position);
+    }
+    // The same contact patch, up to a few rows of pixels (the pinhole's rays spread with depth).
+    let diff = persp.counts[0] as i64 - ortho.counts[0] as i64;
+    assert!(diff.abs() <= 96, "{} vs {}", persp.counts[0], ortho.counts[0]);
+}

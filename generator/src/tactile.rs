@@ -7,7 +7,7 @@ use anyhow::Result;
 use glam::{DAffine3, DMat4, DVec3};
 use vt_robot::{Geometry, RobotModel, phalanx_names};
 
-use crate::config::{SensorModel, TactileConfig};
+use crate::config::{PadProjection, SensorModel, TactileConfig};
 use crate::render::{DepthView, Draw, Renderer};
 
 /// One tactile point in the main camera frame.
@@ -58,6 +58,7 @@ pub fn sense(
     t_camera_world: &DAffine3,
 ) -> Result<TactileReading> {
     let n = cfg.resolution;
+    let standoff = (cfg.projection == PadProjection::Perspective).then_some(cfg.perspective_standoff_mm * 1e-3);
     let views: Vec<DepthView> = (0..12)
         .map(|k| DepthView {
             width: n,
@@ -67,6 +68,7 @@ pub fn sense(
             near: cfg.near_mm * 1e-3,
             far: cfg.far_mm * 1e-3,
             t_world_camera: DMat4::from(t_world_pads[k]),
+            perspective_standoff: standoff,
         })
         .collect();
     let depth = renderer.render_depth_views(&views, &[object])?;
@@ -82,8 +84,10 @@ pub fn sense(
         };
         for (u, v) in contact_pixels(&depth[k], n, model, cfg.contact_threshold_mm * 1e-3) {
             let d = depth[k][(v * n + u) as usize] as f64;
-            let x = (u as f64 + 0.5 - n as f64 / 2.0) * len / n as f64;
-            let y = (v as f64 + 0.5 - n as f64 / 2.0) * wid / n as f64;
+            // The pixel's ray meets the pad plane at (x, y); a pinhole's ray spreads with depth.
+            let spread = standoff.map_or(1.0, |s| (s + d) / s);
+            let x = (u as f64 + 0.5 - n as f64 / 2.0) * len / n as f64 * spread;
+            let y = (v as f64 + 0.5 - n as f64 / 2.0) * wid / n as f64 * spread;
             points.push(TactilePoint { position: to_camera.transform_point3(DVec3::new(x, y, d)), distance: d, phalanx: k as u32 });
             counts[k] += 1;
         }

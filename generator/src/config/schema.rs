@@ -63,11 +63,31 @@ pub struct TactileConfig {
     /// The sensor model of each phalanx group. All give object-surface points (the paper's
     /// sensor-invariant representation); they differ in where they sample the contact.
     pub sensors: SensorGroups,
+    /// `orthographic` (default: each pixel looks straight out of the pad) or `perspective` (a
+    /// pinhole `perspective_standoff_mm` behind the pad whose view covers the pad).
+    pub projection: PadProjection,
+    pub perspective_standoff_mm: f64,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum PadProjection {
+    #[default]
+    Orthographic,
+    Perspective,
 }
 
 impl Default for TactileConfig {
     fn default() -> Self {
-        TactileConfig { resolution: 32, contact_threshold_mm: 2.0, near_mm: -5.0, far_mm: 30.0, sensors: SensorGroups::default() }
+        TactileConfig {
+            resolution: 32,
+            contact_threshold_mm: 2.0,
+            near_mm: -5.0,
+            far_mm: 30.0,
+            sensors: SensorGroups::default(),
+            projection: PadProjection::Orthographic,
+            perspective_standoff_mm: 10.0,
+        }
     }
 }
 

@@ -67,6 +67,10 @@ pub struct DepthView {
     pub near: f64,
     pub far: f64,
     pub t_world_camera: DMat4,
+    /// None: orthographic. Some(s): a pinhole `s` metres behind the camera plane whose field of
+    /// view covers the `half_x x half_y` rectangle on that plane. Depths are still measured from
+    /// the camera plane, so both projections report the same surface at the same depth.
+    pub perspective_standoff: Option<f64>,
 }
 
 pub trait Renderer {

@@ -659,20 +659,54 @@ impl Renderer for WgpuRenderer {
         let specs: Vec<(DMat4, DMat4, [u32; 4])> = views
             .iter()
             .enumerate()
-            .map(|(i, v)| (v.t_world_camera, orthographic(v), [(i as u32 % cols) * vw, (i as u32 / cols) * vh, vw, vh]))
+            .map(|(i, v)| {
+                let viewport = [(i as u32 % cols) * vw, (i as u32 / cols) * vh, vw, vh];
+                match v.perspective_standoff {
+                    None => (v.t_world_camera, orthographic(v), viewport),
+                    Some(s) => {
+                        let pinhole = View {
+                            width: vw,
+                            height: vh,
+                            k: crate::config::Intrinsics {
+                                fx: vw as f64 * s / (2.0 * v.half_x),
+                                fy: vh as f64 * s / (2.0 * v.half_y),
+                                cx: (vw as f64 - 1.0) / 2.0,
+                                cy: (vh as f64 - 1.0) / 2.0,
+                            },
+                            near: (s + v.near).max(0.05 * s),
+                            far: s + v.far,
+                            t_world_camera: v.t_world_camera * DMat4::from_translation(glam::DVec3::new(0.0, 0.0, -s)),
+                        };
+                        (pinhole.t_world_camera, projection(&pinhole), viewport)
+                    }
+                }
+            })
             .collect();
         let lighting = Lighting { light_position: glam::DVec3::ZERO, light_color: [0.0; 3], ambient: [0.0; 3], background: [0, 0, 0] };
-        let cull: Vec<[f64; 4]> = views.iter().map(|v| [v.half_x, v.half_y, v.near, v.far]).collect();
+        // Cull boxes in each view's camera frame (for a pinhole: the frustum's bounding box).
+        let cull: Vec<[f64; 4]> = views
+            .iter()
+            .map(|v| match v.perspective_standoff {
+                None => [v.half_x, v.half_y, v.near, v.far],
+                Some(s) => {
+                    let spread = (s + v.far) / s;
+                    [v.half_x * spread, v.half_y * spread, 0.0, s + v.far]
+                }
+            })
+            .collect();
         let (_, depth, _) = self.draw_views(1, (cols * vw, rows * vh), &specs, &lighting, draws, Readback::Depth, Some(&cull))?;
         let atlas: Vec<f32> = bytemuck::pod_collect_to_vec(&depth);
         let aw = (cols * vw) as usize;
         Ok(specs
             .iter()
-            .map(|(_, _, vp)| {
+            .zip(views)
+            .map(|((_, _, vp), v)| {
+                // Pinhole depths are measured from the pinhole: shift them to the camera plane.
+                let shift = v.perspective_standoff.unwrap_or(0.0) as f32;
                 (0..vh as usize)
                     .flat_map(|r| {
                         let start = (vp[1] as usize + r) * aw + vp[0] as usize;
-                        atlas[start..start + vw as usize].iter().copied()
+                        atlas[start..start + vw as usize].iter().map(move |d| d - shift)
                     })
                     .collect()
             })
