@@ -150,23 +150,28 @@ fn a_pad_pressed_on_a_box_sees_its_whole_footprint_and_a_free_pad_sees_nothing()
     );
 }
 
-#[test]
-fn the_three_sensor_models_report_the_same_surface_patch() {
-    use vtgen::config::{SensorGroups, SensorModel, TactileConfig};
-    use vtgen::tactile::sense;
+/// A gelatin-box face tilted 15 degrees about x crossing the pad plane of 12 identical pads at the
+/// origin (looking at the box): only part of each pad is within the contact threshold. Returns the
+/// renderer, the box draw, the pads, and the face's normal and a point on it.
+fn tilted_face() -> (WgpuRenderer, Draw, [glam::DAffine3; 12], DVec3, DVec3) {
     let mut r = WgpuRenderer::new(&RendererConfig::default()).unwrap();
     let entry = Catalog::builtin().get("009_gelatin_box").unwrap().clone();
     let boxm = r.upload_mesh(&procedural_mesh(&entry)).unwrap();
     let half = DVec3::from_array(entry.extents) * 0.5;
-    // The box's +z face, tilted 15 degrees about x, crosses the pad plane: only part of the pad is
-    // within the contact threshold.
     let tilt = DQuat::from_rotation_x(15f64.to_radians());
     let pose = DMat4::from_rotation_translation(tilt, DVec3::new(0.0, 0.0, -half.z));
     let (normal, on_face) = (tilt * DVec3::Z, pose.transform_point3(DVec3::new(0.0, 0.0, half.z)));
     let pad = DMat4::from_rotation_translation(DQuat::from_rotation_x(std::f64::consts::PI), DVec3::new(0.0, 0.0, 0.0005));
     let pads: [glam::DAffine3; 12] = std::array::from_fn(|_| glam::DAffine3::from_mat4(pad));
+    (r, Draw { mesh: boxm, t_world_model: pose, mask_id: 1 }, pads, normal, on_face)
+}
+
+#[test]
+fn the_three_sensor_models_report_the_same_surface_patch() {
+    use vtgen::config::{SensorGroups, SensorModel, TactileConfig};
+    use vtgen::tactile::sense;
+    let (mut r, object, pads, normal, on_face) = tilted_face();
     let sizes = [(0.03, 0.02); 12];
-    let object = Draw { mesh: boxm, t_world_model: pose, mask_id: 1 };
     let mut cloud = |model: SensorModel| {
         let cfg = TactileConfig { sensors: SensorGroups { proximal: model, medial: model, distal: model }, ..TactileConfig::default() };
         let reading = sense(&mut r, &cfg, &sizes, &pads, object, &glam::DAffine3::IDENTITY).unwrap();
@@ -192,16 +197,7 @@ fn the_three_sensor_models_report_the_same_surface_patch() {
 fn perspective_pads_see_the_same_surface_as_orthographic_ones() {
     use vtgen::config::{PadProjection, TactileConfig};
     use vtgen::tactile::sense;
-    let mut r = WgpuRenderer::new(&RendererConfig::default()).unwrap();
-    let entry = Catalog::builtin().get("009_gelatin_box").unwrap().clone();
-    let boxm = r.upload_mesh(&procedural_mesh(&entry)).unwrap();
-    let half = DVec3::from_array(entry.extents) * 0.5;
-    let tilt = DQuat::from_rotation_x(15f64.to_radians());
-    let pose = DMat4::from_rotation_translation(tilt, DVec3::new(0.0, 0.0, -half.z));
-    let (normal, on_face) = (tilt * DVec3::Z, pose.transform_point3(DVec3::new(0.0, 0.0, half.z)));
-    let pad = DMat4::from_rotation_translation(DQuat::from_rotation_x(std::f64::consts::PI), DVec3::new(0.0, 0.0, 0.0005));
-    let pads: [glam::DAffine3; 12] = std::array::from_fn(|_| glam::DAffine3::from_mat4(pad));
-    let object = Draw { mesh: boxm, t_world_model: pose, mask_id: 1 };
+    let (mut r, object, pads, normal, on_face) = tilted_face();
     let cfg = TactileConfig { projection: PadProjection::Perspective, ..TactileConfig::default() };
     let persp = sense(&mut r, &cfg, &[(0.03, 0.02); 12], &pads, object, &glam::DAffine3::IDENTITY).unwrap();
     let ortho = sense(&mut r, &TactileConfig::default(), &[(0.03, 0.02); 12], &pads, object, &glam::DAffine3::IDENTITY).unwrap();
