@@ -9,8 +9,23 @@ use vt_dataset::{DatasetReader, read_ply};
 
 use crate::common::*;
 
+/// The physics backend under test: rapier, or the one `VTGEN_TEST_PHYSICS` names (scripts/test
+/// runs these tests again with `mujoco`).
+fn backend() -> String {
+    std::env::var("VTGEN_TEST_PHYSICS").unwrap_or_else(|_| "rapier".into())
+}
+
+/// `scenes/tiny-hand.yaml`, with the backend under test.
 fn hand_config() -> std::path::PathBuf {
-    root().join("scenes/tiny-hand.yaml")
+    static CFG: OnceLock<tempfile::TempDir> = OnceLock::new();
+    let dir = CFG.get_or_init(|| {
+        let d = tempdir();
+        let text = std::fs::read_to_string(root().join("scenes/tiny-hand.yaml")).unwrap();
+        assert!(text.contains("backend: rapier"));
+        std::fs::write(d.path().join("tiny-hand.yaml"), text.replace("backend: rapier", &format!("backend: {}", backend()))).unwrap();
+        d
+    });
+    dir.path().join("tiny-hand.yaml")
 }
 
 fn hand_dataset() -> &'static std::path::Path {
@@ -40,7 +55,7 @@ fn every_recorded_instance_is_a_plausible_grasp() {
         for s in ds.samples(split).unwrap() {
             let s = s.unwrap();
             let i = &s.info;
-            assert_eq!(i["physics_backend"], "rapier");
+            assert_eq!(i["physics_backend"], backend().as_str());
             let contacts = i["phalanges_in_contact"].as_array().unwrap();
             assert!(contacts.len() >= 2, "{split} {}: {} phalanges in contact", s.index, contacts.len());
             assert!(i["penetration_mm"].as_f64().unwrap() <= 1.0, "{split} {}: penetration", s.index);
@@ -82,7 +97,7 @@ fn the_grasp_loop_is_deterministic() {
 
 #[test]
 fn bad_robot_input_gives_clear_errors() {
-    let text = std::fs::read_to_string(hand_config()).unwrap();
+    let text = std::fs::read_to_string(root().join("scenes/tiny-hand.yaml")).unwrap();
     let d = tempdir();
     let cfg = d.path().join("robot.yaml");
     std::fs::write(&cfg, text.replace("backend: rapier", "backend: bullet")).unwrap();

@@ -369,7 +369,12 @@ mod tests {
             config: &cfg,
             timestep: pc.timestep,
         };
-        let mut hand = RapierHand::new(&robot, settings).unwrap();
+        // PHYS=mujoco (with --features mujoco) measures the MuJoCo backend instead.
+        let mut hand: Box<dyn HandPhysics> = match std::env::var("PHYS").as_deref() {
+            #[cfg(feature = "mujoco")]
+            Ok("mujoco") => Box::new(crate::physics::MujocoHand::new(&robot, settings).unwrap()),
+            _ => Box::new(RapierHand::new(&robot, settings).unwrap()),
+        };
         let n: u32 = std::env::var("TRAJ").ok().and_then(|s| s.parse().ok()).unwrap_or(3);
         let inst: u32 = std::env::var("INST").ok().and_then(|s| s.parse().ok()).unwrap_or(10);
         for e in vt_objects::Catalog::builtin().entries().iter().filter(|e| e.id.contains(&only)) {
@@ -381,7 +386,7 @@ mod tests {
             let mut max_slip: f64 = 0.0;
             let mut max_pen: f64 = 0.0;
             for t in 0..n {
-                match simulate_trajectory(&ctx, &mut hand, &obj, 1, &e.id, t, inst, &mut failures) {
+                match simulate_trajectory(&ctx, hand.as_mut(), &obj, 1, &e.id, t, inst, &mut failures) {
                     Ok(tr) => {
                         ok += 1;
                         attempts += tr.attempts;

@@ -4,10 +4,14 @@
 //! the hand when the arm reorients or accelerates. (Rotational fictitious forces, below 1% of g for
 //! the arm's speeds, are neglected.) This keeps the grasp stable and identical for every backend.
 
+#[cfg(feature = "mujoco")]
+mod mujoco_backend;
 mod rapier_backend;
 
 use glam::{DAffine3, DVec3};
 
+#[cfg(feature = "mujoco")]
+pub use mujoco_backend::MujocoHand;
 pub use rapier_backend::RapierHand;
 
 /// What the physics needs of an object: a convex collision shape and a mass.

@@ -182,8 +182,13 @@ impl RobotScene {
         };
         let physics: Box<dyn HandPhysics> = match pc.backend {
             crate::config::PhysicsBackend::Rapier => Box::new(RapierHand::new(&model, settings)?),
+            #[cfg(feature = "mujoco")]
+            crate::config::PhysicsBackend::Mujoco => Box::new(crate::physics::MujocoHand::new(&model, settings)?),
+            #[cfg(not(feature = "mujoco"))]
             crate::config::PhysicsBackend::Mujoco => {
-                anyhow::bail!("physics backend 'mujoco' is not built into this vtgen (build with the `mujoco` feature)")
+                anyhow::bail!(
+                    "physics backend 'mujoco' is not built into this vtgen: build with `--features mujoco` (see scripts/mujoco-setup)"
+                )
             }
         };
         let t_world_base = DAffine3::from_rotation_translation(

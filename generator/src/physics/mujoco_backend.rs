@@ -1,0 +1,265 @@
+//! MuJoCo backend (cargo feature `mujoco`): the same hand-frame simulation as the rapier backend,
+//! as an MJCF model generated from the robot description: the palm fixed in the world, the 16
+//! finger joints with position actuators (PD gains and torque limit from the config), and the
+//! object as a free body whose collision shape MuJoCo takes as its mesh's convex hull.
+
+use std::fmt::Write as _;
+
+use anyhow::{Context, Result, anyhow};
+use glam::{DAffine3, DMat3, DQuat, DVec3};
+use mujoco_rs::prelude::*;
+use vt_robot::{Geometry, JointKind, RobotModel, hand_joint_names, phalanx_names};
+
+use super::{HandPhysics, PhysicsObject, PhysicsSettings};
+
+struct Sim {
+    data: MjData<Box<MjModel>>,
+    /// Which object the model was built for (its points' count and first point).
+    object_key: (usize, [u32; 3]),
+    hand_qpos: [usize; 16],
+    hand_actuators: [usize; 16],
+    object_body: usize,
+    object_dof: usize,
+    object_geom: usize,
+    phalanx_geoms: Vec<Vec<usize>>,
+    hand_geoms: Vec<usize>,
+}
+
+pub struct MujocoHand {
+    model: RobotModel,
+    settings: PhysicsSettings,
+    sim: Option<Sim>,
+    damping: (f64, f64),
+    mass: f64,
+}
+
+fn quat_wxyz(t: &DAffine3) -> [f64; 4] {
+    let q = DQuat::from_mat3(&DMat3::from(t.matrix3)).normalize();
+    [q.w, q.x, q.y, q.z]
+}
+
+impl MujocoHand {
+    pub fn new(model: &RobotModel, settings: PhysicsSettings) -> Result<Self> {
+        Ok(MujocoHand { model: model.clone(), settings, sim: None, damping: (0.0, 0.0), mass: 1.0 })
+    }
+
+    /// MJCF of the hand below the palm and one free object.
+    fn mjcf(&self, object: &PhysicsObject) -> String {
+        let m = &self.model;
+        let s = &self.settings;
+        let palm = m.link_id(vt_robot::PALM).expect("validated");
+        let mut x = String::new();
+        let _ = write!(
+            x,
+            r#"<mujoco model="vtgen-hand"><compiler angle="radian" autolimits="true"/>
+<option timestep="{}" gravity="0 0 0" integrator="implicitfast" cone="elliptic" impratio="10"/>
+<default><geom friction="{} 0.005 0.0001" condim="4" solref="0.01 1" solimp="0.99 0.999 0.0005"/></default>
+<asset><mesh name="object" vertex=""#,
+            s.timestep, s.friction
+        );
+        for p in &object.points {
+            let _ = write!(x, "{} {} {} ", p[0], p[1], p[2]);
+        }
+        x.push_str("\"/></asset><worldbody>");
+        // Hand geoms collide with the object only (contype 1 / conaffinity 2, the object 2 / 1).
+        let geoms = |x: &mut String, link: usize| {
+            for (i, sh) in m.links[link].collisions.iter().enumerate() {
+                let (kind, size) = match sh.geometry {
+                    Geometry::Box { size } => ("box", format!("{} {} {}", size.x / 2.0, size.y / 2.0, size.z / 2.0)),
+                    Geometry::Sphere { radius } => ("sphere", format!("{radius}")),
+                    Geometry::Cylinder { radius, length } => ("cylinder", format!("{radius} {}", length / 2.0)),
+                };
+                let q = quat_wxyz(&sh.origin);
+                let t = sh.origin.translation;
+                let _ = write!(
+                    x,
+                    r#"<geom name="{}_{i}" type="{kind}" size="{size}" pos="{} {} {}" quat="{} {} {} {}" contype="1" conaffinity="2" mass="0"/>"#,
+                    m.links[link].name, t.x, t.y, t.z, q[0], q[1], q[2], q[3]
+                );
+            }
+        };
+        x.push_str(r#"<body name="palm">"#);
+        geoms(&mut x, palm);
+        // Depth-first over the joints below the palm; fixed joints (the sensor pads) are skipped.
+        fn children(m: &RobotModel, link: usize, x: &mut String, geoms: &dyn Fn(&mut String, usize), s: &PhysicsSettings) {
+            for j in m.joints.iter().filter(|j| j.parent == link && j.kind == JointKind::Revolute) {
+                let c = &m.links[j.child];
+                let q = quat_wxyz(&j.origin);
+                let t = j.origin.translation;
+                let mass = c.mass.max(0.005);
+                let i = mass * 0.02 * 0.02 / 6.0;
+                let _ = write!(
+                    x,
+                    r#"<body name="{}" pos="{} {} {}" quat="{} {} {} {}"><inertial pos="{} {} {}" mass="{mass}" diaginertia="{i} {i} {i}"/><joint name="{}" type="hinge" axis="{} {} {}" range="{} {}" damping="0.01" armature="0.0005"/>"#,
+                    c.name,
+                    t.x,
+                    t.y,
+                    t.z,
+                    q[0],
+                    q[1],
+                    q[2],
+                    q[3],
+                    c.com.x,
+                    c.com.y,
+                    c.com.z,
+                    j.name,
+                    j.axis.x,
+                    j.axis.y,
+                    j.axis.z,
+                    j.lower,
+                    j.upper
+                );
+                geoms(x, j.child);
+                children(m, j.child, x, geoms, s);
+                x.push_str("</body>");
+            }
+        }
+        children(m, palm, &mut x, &geoms, s);
+        x.push_str("</body>");
+        let _ = write!(
+            x,
+            r#"<body name="object"><freejoint name="object"/><geom name="object" type="mesh" mesh="object" mass="{}" contype="2" conaffinity="1"/></body></worldbody><actuator>"#,
+            object.mass
+        );
+        for name in hand_joint_names() {
+            let j = m.joint(&name).expect("validated");
+            let _ = write!(
+                x,
+                r#"<position name="{name}" joint="{name}" kp="{}" kv="{}" ctrlrange="{} {}" forcerange="{} {}"/>"#,
+                s.stiffness, s.damping, j.lower, j.upper, -s.max_torque, s.max_torque
+            );
+        }
+        x.push_str("</actuator></mujoco>");
+        x
+    }
+
+    fn build(&mut self, object: &PhysicsObject) -> Result<()> {
+        let key = (object.points.len(), object.points.first().map_or([0; 3], |p| p.map(f32::to_bits)));
+        if self.sim.as_ref().is_some_and(|s| s.object_key == key) {
+            let sim = self.sim.as_mut().expect("checked");
+            sim.data.reset();
+            return Ok(());
+        }
+        let xml = self.mjcf(object);
+        let model = MjModel::from_xml_string(&xml).map_err(|e| anyhow!("MuJoCo rejected the generated hand model: {e:?}"))?;
+        let id = |t: MjtObjBase, n: &str| model.name_to_id(t, n).with_context(|| format!("MuJoCo model lacks {n}"));
+        let names = hand_joint_names();
+        let mut hand_qpos = [0usize; 16];
+        let mut hand_actuators = [0usize; 16];
+        for k in 0..16 {
+            let j = id(MjtObjBase::mjOBJ_JOINT, &names[k])?;
+            hand_qpos[k] = model.jnt_qposadr()[j] as usize;
+            hand_actuators[k] = id(MjtObjBase::mjOBJ_ACTUATOR, &names[k])?;
+        }
+        let object_body = id(MjtObjBase::mjOBJ_BODY, "object")?;
+        let object_joint = id(MjtObjBase::mjOBJ_JOINT, "object")?;
+        let object_dof = model.jnt_dofadr()[object_joint] as usize;
+        let object_geom = id(MjtObjBase::mjOBJ_GEOM, "object")?;
+        let geom_of_link = |link: &str| -> Vec<usize> {
+            (0..16).filter_map(|i| model.name_to_id(MjtObjBase::mjOBJ_GEOM, &format!("{link}_{i}"))).collect()
+        };
+        let phalanx_geoms = phalanx_names().iter().map(|p| geom_of_link(p)).collect();
+        let hand_geoms = (0..model.ngeom() as usize).filter(|&g| g != object_geom).collect();
+        let data = MjData::new(Box::new(model));
+        self.sim =
+            Some(Sim { data, object_key: key, hand_qpos, hand_actuators, object_body, object_dof, object_geom, phalanx_geoms, hand_geoms });
+        Ok(())
+    }
+
+    fn sim(&self) -> &Sim {
+        self.sim.as_ref().expect("reset() builds the model")
+    }
+
+    /// Signed distances of current contacts between the object and `geoms`.
+    fn contact_dists<'a>(&'a self, geoms: &'a [usize]) -> impl Iterator<Item = f64> + 'a {
+        let sim = self.sim();
+        sim.data.contact().iter().filter_map(move |c| {
+            let (a, b) = (c.geom[0] as usize, c.geom[1] as usize);
+            let hit = (a == sim.object_geom && geoms.contains(&b)) || (b == sim.object_geom && geoms.contains(&a));
+            (hit && c.dist < 1e-3).then_some(c.dist)
+        })
+    }
+}
+
+impl HandPhysics for MujocoHand {
+    fn backend_name(&self) -> &'static str {
+        "mujoco"
+    }
+
+    fn reset(&mut self, object: &PhysicsObject, object_pose: DAffine3, q: &[f64; 16]) -> Result<()> {
+        self.build(object)?;
+        self.mass = object.mass;
+        let sim = self.sim.as_mut().expect("built");
+        let qp = sim.data.qpos_mut();
+        for k in 0..16 {
+            qp[sim.hand_qpos[k]] = q[k];
+        }
+        let oq = quat_wxyz(&object_pose);
+        let t = object_pose.translation;
+        let base = {
+            let m = sim.data.model();
+            m.jnt_qposadr()[m.name_to_id(MjtObjBase::mjOBJ_JOINT, "object").expect("built")] as usize
+        };
+        let qp = sim.data.qpos_mut();
+        qp[base..base + 7].copy_from_slice(&[t.x, t.y, t.z, oq[0], oq[1], oq[2], oq[3]]);
+        let acts = sim.hand_actuators;
+        let ctrl = sim.data.ctrl_mut();
+        for k in 0..16 {
+            ctrl[acts[k]] = q[k];
+        }
+        sim.data.forward();
+        Ok(())
+    }
+
+    fn set_targets(&mut self, targets: &[f64; 16]) {
+        let sim = self.sim.as_mut().expect("built");
+        let acts = sim.hand_actuators;
+        let ctrl = sim.data.ctrl_mut();
+        for k in 0..16 {
+            ctrl[acts[k]] = targets[k];
+        }
+    }
+
+    fn set_gravity(&mut self, g: DVec3) {
+        let sim = self.sim.as_mut().expect("built");
+        sim.data.model_opt_mut().gravity = g.to_array();
+    }
+
+    fn set_object_damping(&mut self, linear: f64, angular: f64) {
+        self.damping = (linear, angular);
+    }
+
+    fn step(&mut self) {
+        let (lin, ang, mass) = (self.damping.0, self.damping.1, self.mass);
+        let sim = self.sim.as_mut().expect("built");
+        let d = sim.object_dof;
+        let v: Vec<f64> = sim.data.qvel()[d..d + 6].to_vec();
+        // Damping of the object's motion as applied generalized forces (like rapier's).
+        let f = sim.data.qfrc_applied_mut();
+        for i in 0..3 {
+            f[d + i] = -lin * mass * v[i];
+            f[d + 3 + i] = -ang * mass * 0.0025 * v[3 + i];
+        }
+        sim.data.step();
+    }
+
+    fn object_pose(&self) -> DAffine3 {
+        let sim = self.sim();
+        let p = sim.data.xpos()[sim.object_body];
+        let q = sim.data.xquat()[sim.object_body];
+        DAffine3::from_rotation_translation(DQuat::from_xyzw(q[1], q[2], q[3], q[0]).normalize(), DVec3::from_array(p))
+    }
+
+    fn joint_positions(&self) -> [f64; 16] {
+        let sim = self.sim();
+        std::array::from_fn(|k| sim.data.qpos()[sim.hand_qpos[k]])
+    }
+
+    fn phalanx_contacts(&self) -> [Option<f64>; 12] {
+        std::array::from_fn(|p| self.contact_dists(&self.sim().phalanx_geoms[p]).min_by(f64::total_cmp))
+    }
+
+    fn max_penetration(&self) -> f64 {
+        self.contact_dists(&self.sim().hand_geoms).map(|d| (-d).max(0.0)).fold(0.0, f64::max)
+    }
+}
