@@ -173,7 +173,7 @@ fn attempt_trajectory(
     }
     if depth_along(r_obj).0 > cfg.max_grasp_depth {
         // Large objects (boxes, the drill) fit the hand in few orientations: turn the model's
-        // thinnest axis onto the palm normal, then spin about it, flip, and tilt a little.
+        // thinnest axis onto the palm normal, then spin about it, flip, and tilt by at most 3 degrees (more makes them deeper than the fingers reach).
         let (lo, hi) = object.points.iter().fold((DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)), |(lo, hi), p| {
             let v = DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64);
             (lo.min(v), hi.max(v))
@@ -190,7 +190,7 @@ fn attempt_trajectory(
         let align = DQuat::from_rotation_arc(thin * flip, DVec3::X);
         let spin = DQuat::from_rotation_x(rng.random_range(0.0..std::f64::consts::TAU));
         let tilt_axis = DVec3::new(0.0, rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0)).normalize_or(DVec3::Y);
-        let tilt = DQuat::from_axis_angle(tilt_axis, rng.random_range(0.0..0.25));
+        let tilt = DQuat::from_axis_angle(tilt_axis, rng.random_range(0.0..0.05));
         r_obj = tilt * spin * align;
     }
     let back = depth_along(r_obj).1;
