@@ -67,14 +67,7 @@ fn primitive(g: &Geometry) -> (Vec<Vec3>, Vec<Vec3>, Vec<u32>) {
     match *g {
         Geometry::Box { size } => {
             let h = size.as_vec3() * 0.5;
-            for (nn, u, v) in [
-                (Vec3::X, Vec3::Y, Vec3::Z),
-                (Vec3::NEG_X, Vec3::NEG_Y, Vec3::Z),
-                (Vec3::Y, Vec3::NEG_X, Vec3::Z),
-                (Vec3::NEG_Y, Vec3::X, Vec3::Z),
-                (Vec3::Z, Vec3::X, Vec3::Y),
-                (Vec3::NEG_Z, Vec3::X, Vec3::NEG_Y),
-            ] {
+            for (nn, u, v) in vt_objects::BOX_FACES {
                 let b = p.len() as u32;
                 for (a, c) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
                     p.push((nn + u * a + v * c) * h);

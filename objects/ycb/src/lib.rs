@@ -12,4 +12,4 @@ mod procedural;
 pub use catalog::{Catalog, CatalogEntry, Shape, Symmetry};
 pub use load::{MeshError, find_ycb_mesh, load_mesh};
 pub use mesh::{Texture, TexturedMesh};
-pub use procedural::procedural_mesh;
+pub use procedural::{BOX_FACES, procedural_mesh};

@@ -24,6 +24,18 @@ impl Region {
     }
 }
 
+/// The 6 faces of an axis-aligned box as (outward normal, u, v) with `u x v = normal`: corners
+/// `normal ± u ± v` (scaled by the half extents) in the order (-,-), (+,-), (+,+), (-,+) are wound
+/// counter-clockwise seen from outside.
+pub const BOX_FACES: [(Vec3, Vec3, Vec3); 6] = [
+    (Vec3::X, Vec3::Y, Vec3::Z),
+    (Vec3::NEG_X, Vec3::NEG_Y, Vec3::Z),
+    (Vec3::Y, Vec3::NEG_X, Vec3::Z),
+    (Vec3::NEG_Y, Vec3::X, Vec3::Z),
+    (Vec3::Z, Vec3::X, Vec3::Y),
+    (Vec3::NEG_Z, Vec3::X, Vec3::NEG_Y),
+];
+
 #[derive(Default)]
 struct Builder {
     positions: Vec<Vec3>,
@@ -40,15 +52,7 @@ impl Builder {
 
     /// Axis-aligned box; faces wound counter-clockwise seen from outside.
     fn cuboid(&mut self, center: Vec3, half: Vec3, region: Region) {
-        let faces = [
-            (Vec3::X, Vec3::Y, Vec3::Z),
-            (Vec3::NEG_X, Vec3::NEG_Y, Vec3::Z),
-            (Vec3::Y, Vec3::NEG_X, Vec3::Z),
-            (Vec3::NEG_Y, Vec3::X, Vec3::Z),
-            (Vec3::Z, Vec3::X, Vec3::Y),
-            (Vec3::NEG_Z, Vec3::X, Vec3::NEG_Y),
-        ];
-        for (n, u, v) in faces {
+        for (n, u, v) in BOX_FACES {
             let c = center + n * half;
             let (hu, hv) = (u * half, v * half);
             let corners = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)];
