@@ -200,3 +200,21 @@ fn the_occlusion_level_agrees_with_brute_force() {
     }
     assert_eq!(checked, 3);
 }
+
+#[test]
+fn validate_checks_the_tactile_points_too() {
+    let dir = hand_dataset();
+    let o = run(&["validate", dir.to_str().unwrap(), "--full"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // A tactile point moved 2 mm along the camera axis is caught.
+    let ds = DatasetReader::open(dir).unwrap();
+    let info: vt_dataset::ModelsInfo = serde_json::from_slice(&std::fs::read(dir.join("models/models_info.json")).unwrap()).unwrap();
+    let models: Vec<vtgen::validate::Model> =
+        info.objects.iter().map(|o| vtgen::validate::Model::new(&read_ply(&dir.join("models").join(&o.file)).unwrap()).unwrap()).collect();
+    let mut s =
+        ds.samples("train").unwrap().map(|s| s.unwrap()).find(|s| s.tactile.as_ref().is_some_and(|t| !t.points.is_empty())).unwrap();
+    assert_eq!(vtgen::validate::check_ground_truth(&s, &models), None);
+    s.tactile.as_mut().unwrap().points[0].position[2] += 0.002;
+    let msg = vtgen::validate::check_ground_truth(&s, &models).expect("caught");
+    assert!(msg.contains("tactile point") && msg.contains("off the object's surface"), "{msg}");
+}

@@ -2,87 +2,10 @@
 //! pose and projected with the stored intrinsics, lands in the mask and on the depth.
 
 use glam::DVec3;
-use vt_dataset::{DatasetReader, PlyMesh, Sample, read_ply};
+use vt_dataset::{DatasetReader, read_ply};
+use vtgen::validate::{reproject, surface_points};
 
 use crate::common::*;
-
-/// Area-weighted points on the mesh surface with their face normals (deterministic).
-pub fn surface_points(mesh: &PlyMesh, n: usize) -> Vec<(DVec3, DVec3)> {
-    let tris: Vec<[DVec3; 3]> = mesh.triangles.iter().map(|t| t.map(|i| glam::Vec3::from(mesh.positions[i as usize]).as_dvec3())).collect();
-    let areas: Vec<f64> = tris.iter().map(|t| 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length()).collect();
-    let total: f64 = areas.iter().sum();
-    let mut cdf = Vec::with_capacity(areas.len());
-    let mut acc = 0.0;
-    for a in &areas {
-        acc += a / total;
-        cdf.push(acc);
-    }
-    let mut state = 0x9e3779b97f4a7c15u64;
-    let mut rnd = || {
-        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
-    (0..n)
-        .map(|_| {
-            let k = cdf.partition_point(|&c| c < rnd()).min(tris.len() - 1);
-            let [a, b, c] = tris[k];
-            let (mut u, mut v) = (rnd(), rnd());
-            if u + v > 1.0 {
-                (u, v) = (1.0 - u, 1.0 - v);
-            }
-            let p = a + (b - a) * u + (c - a) * v;
-            (p, (b - a).cross(c - a).normalize())
-        })
-        .collect()
-}
-
-pub struct Reprojection {
-    pub visible: usize,
-    pub front_facing: usize,
-    pub agreeing: usize,
-}
-
-/// Projects surface points with the sample's pose and intrinsics. A point is *visible* when it faces
-/// the camera (not grazing) and nothing is drawn in front of it; it *agrees* when a pixel within one
-/// pixel of its projection (edge pixels aside) has the object's mask id and its depth within 2 mm.
-pub fn reproject(s: &Sample, points: &[(DVec3, DVec3)], mask_id: u8) -> Reprojection {
-    let (w, h) = (s.width as i64, s.height as i64);
-    let pose = s.t_camera_object;
-    let r = pose.rotation();
-    let mut out = Reprojection { visible: 0, front_facing: 0, agreeing: 0 };
-    for (p, n) in points {
-        let pc = pose.transform_point(*p);
-        let nc = r * *n;
-        if pc.z <= 0.0 {
-            continue;
-        }
-        let u = s.fx() * pc.x / pc.z + s.cx();
-        let v = s.fy() * pc.y / pc.z + s.cy();
-        let (ui, vi) = (u.round() as i64, v.round() as i64);
-        if ui < 1 || vi < 1 || ui >= w - 1 || vi >= h - 1 {
-            continue;
-        }
-        // Closed meshes: a point faces the camera when its outward normal points at it.
-        if nc.dot(-pc.normalize()) < 0.3 {
-            continue;
-        }
-        out.front_facing += 1;
-        let at = |x: i64, y: i64| (y * w + x) as usize;
-        let d = s.depth[at(ui, vi)] as f64;
-        if d > 0.0 && d < pc.z - 0.002 {
-            continue; // occluded
-        }
-        out.visible += 1;
-        let ok = (-1..=1).any(|dy| {
-            (-1..=1).any(|dx| {
-                let i = at(ui + dx, vi + dy);
-                s.mask[i] == mask_id && (s.depth[i] as f64 - pc.z).abs() <= 0.002
-            })
-        });
-        out.agreeing += ok as usize;
-    }
-    out
-}
 
 /// Checks every sample of a dataset. With a robot in the picture the object can be almost hidden:
 /// samples with fewer than 30 visible model points are counted, not checked (at most a third).

@@ -8,4 +8,5 @@ mod determinism;
 mod grasping;
 mod ground_truth;
 mod render_geometry;
+mod validate;
 mod ycb_meshes;

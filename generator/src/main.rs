@@ -56,6 +56,13 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Check a dataset: checksums, shard indexes, every sample's messages, and the ground truth
+    /// (re-projected onto mask and depth) of one sample per shard, or of all with --full.
+    Validate {
+        dataset: PathBuf,
+        #[arg(long)]
+        full: bool,
+    },
     /// Write one sample as .npy files (rgb, depth, mask, K, T_camera_object) and info.json.
     Dump {
         dataset: PathBuf,
@@ -152,6 +159,22 @@ fn run(cli: Cli) -> Result<()> {
                 println!("occlusion        {:7.2} ms/sample", per(r.occlusion));
                 println!("encode + write   {:7.2} ms/sample", per(r.encode_and_write));
             }
+            Ok(())
+        }
+        Command::Validate { dataset, full } => {
+            let r = vtgen::validate::validate(&dataset, full)?;
+            for p in &r.problems {
+                eprintln!("problem: {p}");
+            }
+            println!(
+                "{}: {} shards, {} samples read, ground truth checked on {}: {}",
+                dataset.display(),
+                r.shards,
+                r.samples,
+                r.ground_truth_checked,
+                if r.problems.is_empty() { "valid".to_string() } else { format!("{} problem(s)", r.problems.len()) }
+            );
+            anyhow::ensure!(r.problems.is_empty(), "{} is not valid ({} problem(s))", dataset.display(), r.problems.len());
             Ok(())
         }
         Command::Dump { dataset, split, index, out } => vtgen::dump::dump(&dataset, &split, index, &out),

@@ -1,0 +1,240 @@
+//! `vtgen validate`: a dataset is intact and its ground truth is right. Checks the manifest's
+//! checksums, that every complete shard on disk is in the manifest, that every shard's summary and
+//! chunk indexes are readable, that every sample is there with all its messages (decompressing a
+//! chunk verifies its CRC), and re-projects the object model onto the stored mask and depth for a
+//! sample of each shard (every sample with `--full`).
+
+use std::path::Path;
+
+use anyhow::Result;
+use glam::DVec3;
+use vt_dataset::{Manifest, PlyMesh, Sample, ShardReader, read_ply, topics};
+
+/// Area-weighted points on the mesh surface with their face normals (deterministic).
+pub fn surface_points(mesh: &PlyMesh, n: usize) -> Vec<(DVec3, DVec3)> {
+    let tris: Vec<[DVec3; 3]> = mesh.triangles.iter().map(|t| t.map(|i| glam::Vec3::from(mesh.positions[i as usize]).as_dvec3())).collect();
+    let areas: Vec<f64> = tris.iter().map(|t| 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length()).collect();
+    let total: f64 = areas.iter().sum();
+    let mut cdf = Vec::with_capacity(areas.len());
+    let mut acc = 0.0;
+    for a in &areas {
+        acc += a / total;
+        cdf.push(acc);
+    }
+    let mut state = 0x9e3779b97f4a7c15u64;
+    let mut rnd = || {
+        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    (0..n)
+        .map(|_| {
+            let k = cdf.partition_point(|&c| c < rnd()).min(tris.len() - 1);
+            let [a, b, c] = tris[k];
+            let (mut u, mut v) = (rnd(), rnd());
+            if u + v > 1.0 {
+                (u, v) = (1.0 - u, 1.0 - v);
+            }
+            let p = a + (b - a) * u + (c - a) * v;
+            (p, (b - a).cross(c - a).normalize())
+        })
+        .collect()
+}
+
+pub struct Reprojection {
+    pub visible: usize,
+    pub front_facing: usize,
+    pub agreeing: usize,
+}
+
+/// Projects surface points with the sample's pose and intrinsics. A point is *visible* when it faces
+/// the camera (not grazing) and nothing is drawn in front of it; it *agrees* when a pixel within one
+/// pixel of its projection (edge pixels aside) has the object's mask id and its depth within 2 mm.
+pub fn reproject(s: &Sample, points: &[(DVec3, DVec3)], mask_id: u8) -> Reprojection {
+    let (w, h) = (s.width as i64, s.height as i64);
+    let pose = s.t_camera_object;
+    let r = pose.rotation();
+    let mut out = Reprojection { visible: 0, front_facing: 0, agreeing: 0 };
+    for (p, n) in points {
+        let pc = pose.transform_point(*p);
+        let nc = r * *n;
+        if pc.z <= 0.0 {
+            continue;
+        }
+        let u = s.fx() * pc.x / pc.z + s.cx();
+        let v = s.fy() * pc.y / pc.z + s.cy();
+        let (ui, vi) = (u.round() as i64, v.round() as i64);
+        if ui < 1 || vi < 1 || ui >= w - 1 || vi >= h - 1 {
+            continue;
+        }
+        // Closed meshes: a point faces the camera when its outward normal points at it.
+        if nc.dot(-pc.normalize()) < 0.3 {
+            continue;
+        }
+        out.front_facing += 1;
+        let at = |x: i64, y: i64| (y * w + x) as usize;
+        let d = s.depth[at(ui, vi)] as f64;
+        if d > 0.0 && d < pc.z - 0.002 {
+            continue; // occluded
+        }
+        out.visible += 1;
+        let ok = (-1..=1).any(|dy| {
+            (-1..=1).any(|dx| {
+                let i = at(ui + dx, vi + dy);
+                s.mask[i] == mask_id && (s.depth[i] as f64 - pc.z).abs() <= 0.002
+            })
+        });
+        out.agreeing += ok as usize;
+    }
+    out
+}
+
+/// Minimum share of visible model points that must agree with mask and depth.
+pub const AGREEMENT: f64 = 0.99;
+
+/// One problem found, naming the shard and sample when it concerns one.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Problem {
+    pub shard: Option<String>,
+    pub sample: Option<u64>,
+    pub message: String,
+}
+
+impl std::fmt::Display for Problem {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        match (&self.shard, self.sample) {
+            (Some(s), Some(i)) => write!(f, "{s} sample {i}: {}", self.message),
+            (Some(s), None) => write!(f, "{s}: {}", self.message),
+            _ => write!(f, "{}", self.message),
+        }
+    }
+}
+
+#[derive(Debug, Clone, Default)]
+pub struct Report {
+    pub shards: usize,
+    pub samples: u64,
+    pub ground_truth_checked: u64,
+    pub problems: Vec<Problem>,
+}
+
+/// Validates the dataset at `root`.
+pub fn validate(root: &Path, full: bool) -> Result<Report> {
+    let manifest = Manifest::load(&root.join("manifest.json"))?;
+    let mut report = Report::default();
+    let mut problems = Vec::new();
+    let info: Option<vt_dataset::ModelsInfo> =
+        std::fs::read(root.join("models/models_info.json")).ok().and_then(|b| serde_json::from_slice(&b).ok());
+    let models: Vec<Model> = match &info {
+        Some(i) => {
+            i.objects.iter().map(|o| read_ply(&root.join("models").join(&o.file)).and_then(|m| Model::new(&m))).collect::<Result<_>>()?
+        }
+        None => {
+            problems.push(Problem { shard: None, sample: None, message: "models/models_info.json is missing or unreadable".into() });
+            Vec::new()
+        }
+    };
+    let listed: std::collections::BTreeSet<String> = manifest.splits.values().flat_map(|s| &s.shards).map(|e| e.file.clone()).collect();
+    for split in manifest.splits.keys() {
+        if let Ok(dir) = std::fs::read_dir(root.join(split)) {
+            for e in dir.flatten() {
+                let name = format!("{split}/{}", e.file_name().to_string_lossy());
+                if name.ends_with(".mcap") && !listed.contains(&name) {
+                    problems.push(Problem {
+                        shard: Some(name),
+                        sample: None,
+                        message: "complete shard on disk but not in the manifest".into(),
+                    });
+                }
+            }
+        }
+    }
+    for split in manifest.splits.values() {
+        for e in &split.shards {
+            let Some(sha) = &e.sha256 else { continue };
+            let path = root.join(&e.file);
+            let p = |m: String| Problem { shard: Some(e.file.clone()), sample: None, message: m };
+            match vt_dataset::sha256_file(&path) {
+                Err(_) => {
+                    problems.push(p("listed in the manifest but missing".into()));
+                    continue;
+                }
+                Ok((bytes, h)) => {
+                    if Some(bytes) != e.bytes {
+                        problems.push(p(format!("{bytes} bytes, the manifest says {} (truncated or replaced)", e.bytes.unwrap_or(0))));
+                    } else if &h != sha {
+                        problems.push(p("SHA-256 differs from the manifest (corrupted)".into()));
+                    }
+                }
+            }
+            let reader = match ShardReader::open(&path) {
+                Ok(r) => r,
+                Err(err) => {
+                    problems.push(p(format!("{err:#}")));
+                    continue;
+                }
+            };
+            report.shards += 1;
+            for index in e.first_sample..e.first_sample + e.samples {
+                let sample = match reader.read(index) {
+                    Ok(s) => s,
+                    Err(err) => {
+                        let msg = format!("{err:#}");
+                        let msg = msg.rsplit(&format!("sample {index}: ")).next().unwrap_or(&msg).to_string();
+                        problems.push(Problem { shard: Some(e.file.clone()), sample: Some(index), message: msg });
+                        continue;
+                    }
+                };
+                report.samples += 1;
+                let spot = full || index == e.first_sample;
+                if spot && !models.is_empty() {
+                    if let Some(m) = check_ground_truth(&sample, &models) {
+                        problems.push(Problem { shard: Some(e.file.clone()), sample: Some(index), message: m });
+                    }
+                    report.ground_truth_checked += 1;
+                }
+            }
+        }
+    }
+    report.problems = problems;
+    Ok(report)
+}
+
+/// An object model as the checks need it: surface points with normals, and the mesh for distances.
+pub struct Model {
+    points: Vec<(DVec3, DVec3)>,
+    mesh: rapier3d::parry::shape::TriMesh,
+}
+
+impl Model {
+    pub fn new(m: &PlyMesh) -> Result<Self> {
+        let v = m.positions.iter().map(|p| glam::Vec3::from(*p)).collect();
+        let mesh = rapier3d::parry::shape::TriMesh::new(v, m.triangles.clone()).map_err(|e| anyhow::anyhow!("model mesh: {e:?}"))?;
+        Ok(Model { points: surface_points(m, 3000), mesh })
+    }
+}
+
+/// The sample's ground truth against its images and its tactile points; a message when it does
+/// not hold.
+pub fn check_ground_truth(s: &Sample, models: &[Model]) -> Option<String> {
+    use rapier3d::parry::query::PointQuery;
+    let Some(obj) = s.info["object_index"].as_u64().map(|o| o as usize).filter(|&o| o < models.len()) else {
+        return Some(format!("{} lacks a valid object_index", topics::SAMPLE_INFO));
+    };
+    let model = &models[obj];
+    if let Some(t) = &s.tactile {
+        let to_object = s.t_camera_object.inverse();
+        for p in &t.points {
+            let q = to_object.transform_point(glam::Vec3::from(p.position).as_dvec3());
+            let d = model.mesh.distance_to_local_point(q.as_vec3(), false);
+            if d > 1e-3 {
+                return Some(format!("a tactile point is {:.2} mm off the object's surface", d * 1e3));
+            }
+        }
+    }
+    let r = reproject(s, &model.points, 1);
+    if r.visible < 30 {
+        return None; // hidden (by the hand): nothing to compare
+    }
+    let share = r.agreeing as f64 / r.visible as f64;
+    (share < AGREEMENT).then(|| format!("only {:.1}% of {} visible model points agree with mask and depth", 100.0 * share, r.visible))
+}
