@@ -206,7 +206,7 @@ fn validate_checks_the_tactile_points_too() {
     let dir = hand_dataset();
     let o = run(&["validate", dir.to_str().unwrap(), "--full"]);
     assert!(o.status.success(), "{}", stderr(&o));
-    // A tactile point moved 2 mm along the camera axis is caught.
+    // A tactile point moved 10 mm outwards from the object's centre is caught.
     let ds = DatasetReader::open(dir).unwrap();
     let info: vt_dataset::ModelsInfo = serde_json::from_slice(&std::fs::read(dir.join("models/models_info.json")).unwrap()).unwrap();
     let models: Vec<vtgen::validate::Model> =
@@ -214,7 +214,26 @@ fn validate_checks_the_tactile_points_too() {
     let mut s =
         ds.samples("train").unwrap().map(|s| s.unwrap()).find(|s| s.tactile.as_ref().is_some_and(|t| !t.points.is_empty())).unwrap();
     assert_eq!(vtgen::validate::check_ground_truth(&s, &models), None);
-    s.tactile.as_mut().unwrap().points[0].position[2] += 0.002;
+    let centre = s.t_camera_object.translation();
+    let p = &mut s.tactile.as_mut().unwrap().points[0];
+    let at = glam::Vec3::from(p.position).as_dvec3();
+    p.position = (at + (at - centre).normalize() * 0.01).as_vec3().to_array();
     let msg = vtgen::validate::check_ground_truth(&s, &models).expect("caught");
     assert!(msg.contains("tactile point") && msg.contains("off the object's surface"), "{msg}");
+}
+
+#[test]
+fn inspect_summarises_a_robot_dataset() {
+    let o = run(&["inspect", hand_dataset().to_str().unwrap(), "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let r: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(r["complete"], true);
+    assert_eq!(r["samples"]["train"]["009_gelatin_box"], 16);
+    assert_eq!(r["samples"]["test"]["005_tomato_soup_can"], 4);
+    assert_eq!(r["occlusion"].as_object().unwrap().values().map(|v| v.as_u64().unwrap()).sum::<u64>(), 40);
+    let [lo, med, hi] = [0, 1, 2].map(|i| r["tactile_points"][i].as_u64().unwrap());
+    assert!(lo <= med && med <= hi && hi > 0);
+    // Every sample has at least 2 phalanges in contact, so the shares sum to at least 2.
+    assert!(r["contact_share"].as_object().unwrap().values().map(|v| v.as_f64().unwrap()).sum::<f64>() >= 2.0);
+    assert_eq!(r["grasp"]["trajectories"], 10);
 }

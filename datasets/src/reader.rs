@@ -71,6 +71,19 @@ impl ShardReader {
         self.chunks.is_empty()
     }
 
+    /// Only the `/sample/info` JSON of sample `index` (no image is decoded).
+    pub fn read_info(&self, index: u64) -> Result<serde_json::Value> {
+        let ctx = || format!("shard {} sample {index}", self.path.display());
+        let ci = *self.chunks.get(&index).ok_or_else(|| anyhow!("{}: not in this shard", ctx()))?;
+        for msg in self.summary.stream_chunk(&self.data, &self.summary.chunk_indexes[ci]).with_context(ctx)? {
+            let msg = msg.with_context(ctx)?;
+            if msg.channel.topic == topics::SAMPLE_INFO {
+                return serde_json::from_slice(&msg.data).with_context(ctx);
+            }
+        }
+        bail!("{}: missing message on {}", ctx(), topics::SAMPLE_INFO)
+    }
+
     /// Reads sample `index` (its index within the split).
     pub fn read(&self, index: u64) -> Result<Sample> {
         let ctx = || format!("shard {} sample {index}", self.path.display());

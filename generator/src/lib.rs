@@ -8,6 +8,7 @@ pub mod bench;
 pub mod config;
 pub mod dump;
 pub mod grasp;
+pub mod inspect;
 pub mod occlusion;
 pub mod physics;
 pub mod pipeline;

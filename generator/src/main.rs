@@ -56,6 +56,13 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Summarise a dataset: samples per split and object, shards, bytes, occlusion, touch, grasps.
+    Inspect {
+        dataset: PathBuf,
+        /// Print the summary as JSON.
+        #[arg(long)]
+        json: bool,
+    },
     /// Check a dataset: checksums, shard indexes, every sample's messages, and the ground truth
     /// (re-projected onto mask and depth) of one sample per shard, or of all with --full.
     Validate {
@@ -158,6 +165,38 @@ fn run(cli: Cli) -> Result<()> {
                 );
                 println!("occlusion        {:7.2} ms/sample", per(r.occlusion));
                 println!("encode + write   {:7.2} ms/sample", per(r.encode_and_write));
+            }
+            Ok(())
+        }
+        Command::Inspect { dataset, json } => {
+            let r = vtgen::inspect::inspect(&dataset)?;
+            if json {
+                println!("{}", serde_json::to_string_pretty(&r)?);
+                return Ok(());
+            }
+            println!(
+                "dataset     {} ({}; {}/{} shards, {})",
+                dataset.display(),
+                if r.complete { "complete" } else { "incomplete" },
+                r.shards_complete,
+                r.shards,
+                human_bytes(r.bytes as f64)
+            );
+            for (split, objects) in &r.samples {
+                let total: u64 = objects.values().sum();
+                let per: Vec<String> = objects.iter().map(|(o, c)| format!("{o} {c}")).collect();
+                println!("{split:<11} {total} samples: {}", per.join(", "));
+            }
+            let occ: Vec<String> = r.occlusion.iter().map(|(b, c)| format!("{b} {c}")).collect();
+            println!("occlusion   {}", occ.join(", "));
+            println!("randomized  {:.1}%", 100.0 * r.randomized_share);
+            if let Some([lo, med, hi]) = r.tactile_points {
+                println!("touch       tactile points per sample: min {lo}, median {med}, max {hi}");
+                let c: Vec<String> = r.contact_share.iter().map(|(p, s)| format!("{p} {:.0}%", 100.0 * s)).collect();
+                println!("contacts    {}", c.join(", "));
+            }
+            if let Some(g) = &r.grasp {
+                println!("grasps      {g}");
             }
             Ok(())
         }

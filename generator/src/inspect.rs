@@ -1,0 +1,79 @@
+//! `vtgen inspect`: what a dataset holds, from its manifest and the samples' `/sample/info`
+//! (no image is decoded): counts per split and object, shards and bytes, the occlusion
+//! histogram, tactile points per sample, contacts per phalanx, grasp figures, randomized share.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use anyhow::Result;
+use serde::Serialize;
+use vt_dataset::{DatasetReader, Manifest};
+
+#[derive(Debug, Clone, Serialize)]
+pub struct Inspection {
+    pub complete: bool,
+    pub shards: usize,
+    pub shards_complete: usize,
+    pub bytes: u64,
+    /// Samples per split and object.
+    pub samples: BTreeMap<String, BTreeMap<String, u64>>,
+    /// Samples per occlusion bin (`occlusion::BINS`).
+    pub occlusion: BTreeMap<String, u64>,
+    pub randomized_share: f64,
+    /// Tactile points per sample (robot datasets): min, median, max.
+    pub tactile_points: Option<[u64; 3]>,
+    /// Share of samples in which each phalanx touches the object.
+    pub contact_share: BTreeMap<String, f64>,
+    pub grasp: Option<serde_json::Value>,
+}
+
+fn median(mut v: Vec<u64>) -> Option<[u64; 3]> {
+    if v.is_empty() {
+        return None;
+    }
+    v.sort_unstable();
+    Some([v[0], v[v.len() / 2], v[v.len() - 1]])
+}
+
+pub fn inspect(root: &Path) -> Result<Inspection> {
+    let manifest: Manifest = Manifest::load(&root.join("manifest.json"))?;
+    let ds = DatasetReader::open(root)?;
+    let entries: Vec<_> = manifest.splits.values().flat_map(|s| &s.shards).collect();
+    let mut samples: BTreeMap<String, BTreeMap<String, u64>> = BTreeMap::new();
+    let mut occlusion: BTreeMap<String, u64> = crate::occlusion::BINS.iter().map(|b| (b.to_string(), 0)).collect();
+    let (mut n, mut randomized) = (0u64, 0u64);
+    let mut tactile = Vec::new();
+    let mut contacts: BTreeMap<String, u64> = BTreeMap::new();
+    for split in manifest.splits.keys() {
+        for shard in ds.shards(split)? {
+            for index in shard.indices().collect::<Vec<_>>() {
+                let info = shard.read_info(index)?;
+                n += 1;
+                let object = info["object_id"].as_str().unwrap_or("?").to_string();
+                *samples.entry(split.clone()).or_default().entry(object).or_default() += 1;
+                randomized += info["randomized"].as_bool().unwrap_or(false) as u64;
+                if let Some(level) = info["occlusion"]["level"].as_f64() {
+                    *occlusion.entry(crate::occlusion::BINS[crate::occlusion::bin(level)].to_string()).or_default() += 1;
+                }
+                if let Some(points) = info["tactile"]["points"].as_object() {
+                    tactile.push(points.values().filter_map(|v| v.as_u64()).sum());
+                }
+                for p in info["phalanges_in_contact"].as_array().into_iter().flatten() {
+                    *contacts.entry(p.as_str().unwrap_or("?").to_string()).or_default() += 1;
+                }
+            }
+        }
+    }
+    Ok(Inspection {
+        complete: manifest.complete,
+        shards: entries.len(),
+        shards_complete: entries.iter().filter(|e| e.sha256.is_some()).count(),
+        bytes: entries.iter().filter_map(|e| e.bytes).sum(),
+        samples,
+        occlusion,
+        randomized_share: randomized as f64 / n.max(1) as f64,
+        tactile_points: median(tactile),
+        contact_share: contacts.into_iter().map(|(k, v)| (k, v as f64 / n.max(1) as f64)).collect(),
+        grasp: manifest.grasp.clone(),
+    })
+}
