@@ -361,7 +361,8 @@ mod tests {
             damping: pc.damping,
             max_torque: env("T", pc.max_torque),
         };
-        let cfg = GraspConfig::default();
+        let mut cfg = GraspConfig::default();
+        cfg.max_tilt_deg = env("TILT", cfg.max_tilt_deg);
         let only = std::env::var("OBJ").unwrap_or_default();
         let ctx = GraspContext {
             robot: &robot,
