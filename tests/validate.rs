@@ -109,3 +109,14 @@ fn a_sample_missing_a_message_is_named() {
     assert!(out.contains("test/shard-00000.mcap sample 2: missing message on /camera/mask"), "{out}");
     assert_eq!(out.matches("problem:").count(), 1, "{out}");
 }
+
+#[test]
+fn preview_writes_a_contact_sheet() {
+    let d = tempdir();
+    let out = d.path().join("sheet.png");
+    let o = run(&["preview", reference_dataset().to_str().unwrap(), "--n", "3", "--out", out.to_str().unwrap(), "--width", "400"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let img = image::open(&out).unwrap();
+    assert_eq!(img.width(), 400);
+    assert!(img.height() >= 3 * 100, "three rows");
+}

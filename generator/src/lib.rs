@@ -13,6 +13,7 @@ pub mod occlusion;
 pub mod physics;
 pub mod pipeline;
 pub mod plan;
+pub mod preview;
 pub mod render;
 pub mod sample;
 pub mod scene;

@@ -56,6 +56,21 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// A contact sheet (PNG) of a config's samples (generated in memory) or of a dataset's: RGB with
+    /// mask, tactile points and pose axes, next to the depth.
+    Preview {
+        /// A YAML config or a dataset directory.
+        source: PathBuf,
+        #[arg(long, default_value_t = 6)]
+        n: usize,
+        #[arg(long, default_value = "preview.png")]
+        out: PathBuf,
+        /// Width of each row in pixels.
+        #[arg(long, default_value_t = 960)]
+        width: u32,
+        #[arg(long)]
+        ycb_dir: Option<PathBuf>,
+    },
     /// Summarise a dataset: samples per split and object, shards, bytes, occlusion, touch, grasps.
     Inspect {
         dataset: PathBuf,
@@ -166,6 +181,12 @@ fn run(cli: Cli) -> Result<()> {
                 println!("occlusion        {:7.2} ms/sample", per(r.occlusion));
                 println!("encode + write   {:7.2} ms/sample", per(r.encode_and_write));
             }
+            Ok(())
+        }
+        Command::Preview { source, n, out, width, ycb_dir } => {
+            let samples = vtgen::preview::samples(&source, n, ycb_dir.as_ref())?;
+            vtgen::preview::write_sheet(&samples, &out, width)?;
+            println!("wrote {} ({} samples)", out.display(), samples.len());
             Ok(())
         }
         Command::Inspect { dataset, json } => {

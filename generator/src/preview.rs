@@ -1,0 +1,143 @@
+//! `vtgen preview`: a contact sheet to look at. One row per sample, cropped around the object: the
+//! RGB image with the object's mask tinted, the tactile points projected as dots and the ground-truth pose drawn as
+//! axes (x red, y green, z blue, 5 cm), next to the depth colour-mapped (near bright, far dark).
+
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use glam::DVec3;
+use image::{Rgb, RgbImage};
+use vt_dataset::{DatasetReader, Sample};
+
+use crate::assets::load_objects;
+use crate::config::LoadedConfig;
+use crate::plan::Plan;
+use crate::render::WgpuRenderer;
+use crate::sample::SampleFactory;
+
+/// The first `n` samples of a config (generated in memory) or of a dataset directory's train split.
+pub fn samples(source: &Path, n: usize, ycb_dir: Option<&std::path::PathBuf>) -> Result<Vec<Sample>> {
+    if source.is_dir() {
+        let ds = DatasetReader::open(source)?;
+        return ds.samples("train")?.take(n).collect();
+    }
+    let cfg = LoadedConfig::load(source)?;
+    let plan = Plan::new(&cfg.config);
+    let objects = load_objects(&cfg, ycb_dir)?;
+    let mut factory = SampleFactory::new(&cfg, &objects, Box::new(WgpuRenderer::new(&cfg.config.renderer)?))?;
+    // Spread the rows over the plan so that every object shows up.
+    let all: Vec<_> =
+        plan.shards.iter().flat_map(|s| s.samples.iter().enumerate().map(move |(k, r)| (s.split, s.first_sample + k as u64, *r))).collect();
+    let step = (all.len() / n.max(1)).max(1);
+    all.iter().step_by(step).take(n).map(|(split, i, r)| factory.make(split, *i, r)).collect()
+}
+
+fn project(s: &Sample, p: DVec3) -> Option<(f64, f64)> {
+    (p.z > 1e-6).then(|| (s.fx() * p.x / p.z + s.cx(), s.fy() * p.y / p.z + s.cy()))
+}
+
+fn put(img: &mut RgbImage, x: i64, y: i64, c: [u8; 3]) {
+    if x >= 0 && y >= 0 && (x as u32) < img.width() && (y as u32) < img.height() {
+        img.put_pixel(x as u32, y as u32, Rgb(c));
+    }
+}
+
+fn line(img: &mut RgbImage, a: (f64, f64), b: (f64, f64), c: [u8; 3]) {
+    let n = ((b.0 - a.0).abs().max((b.1 - a.1).abs()) as usize).max(1);
+    for k in 0..=n {
+        let t = k as f64 / n as f64;
+        let (x, y) = (a.0 + (b.0 - a.0) * t, a.1 + (b.1 - a.1) * t);
+        for (dx, dy) in [(0, 0), (1, 0), (0, 1)] {
+            put(img, x as i64 + dx, y as i64 + dy, c);
+        }
+    }
+}
+
+/// One row: annotated RGB | colour-mapped depth.
+fn row(s: &Sample) -> RgbImage {
+    let (w, h) = (s.width, s.height);
+    let mut rgb = RgbImage::from_raw(w, h, s.rgb.clone()).expect("w x h x 3 bytes");
+    for (i, m) in s.mask.iter().enumerate() {
+        if *m == 1 {
+            let p = rgb.get_pixel_mut(i as u32 % w, i as u32 / w);
+            p.0 = [p.0[0] / 2, (p.0[1] / 2).saturating_add(110), p.0[2] / 2];
+        }
+    }
+    if let Some(t) = &s.tactile {
+        for p in &t.points {
+            if let Some((u, v)) = project(s, glam::Vec3::from(p.position).as_dvec3()) {
+                for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                    put(&mut rgb, u.round() as i64 + dx, v.round() as i64 + dy, [255, 40, 200]);
+                }
+            }
+        }
+    }
+    let pose = s.t_camera_object;
+    let o = pose.transform_point(DVec3::ZERO);
+    for (axis, c) in [(DVec3::X, [230, 40, 40]), (DVec3::Y, [40, 230, 40]), (DVec3::Z, [60, 90, 255])] {
+        if let (Some(a), Some(b)) = (project(s, o), project(s, pose.transform_point(axis * 0.05))) {
+            line(&mut rgb, a, b, c);
+        }
+    }
+    // Crop around the object (its mask's box, widened 2.5x, 4:3), so hand and object are legible.
+    let (mut u0, mut v0, mut u1, mut v1) = (w, h, 0, 0);
+    for (i, m) in s.mask.iter().enumerate() {
+        if *m == 1 {
+            let (u, v) = (i as u32 % w, i as u32 / w);
+            (u0, v0, u1, v1) = (u0.min(u), v0.min(v), u1.max(u), v1.max(v));
+        }
+    }
+    let (cu, cv, half_w) = if u1 >= u0 && v1 >= v0 {
+        let hw = (((u1 - u0) as f64).max((v1 - v0) as f64 * 4.0 / 3.0) * 1.25).max(w as f64 / 6.0).min(w as f64 / 2.0);
+        ((u0 + u1) as f64 / 2.0, (v0 + v1) as f64 / 2.0, hw)
+    } else {
+        (w as f64 / 2.0, h as f64 / 2.0, w as f64 / 2.0)
+    };
+    let half_h = half_w * 3.0 / 4.0;
+    let x0 = (cu - half_w).clamp(0.0, w as f64 - 2.0 * half_w) as u32;
+    let y0 = (cv - half_h).clamp(0.0, (h as f64 - 2.0 * half_h).max(0.0)) as u32;
+    let (cw, ch) = ((2.0 * half_w) as u32, ((2.0 * half_h) as u32).min(h));
+    let crop = |img: &RgbImage| image::imageops::crop_imm(img, x0, y0, cw, ch).to_image();
+    let in_crop = |i: usize| {
+        let (u, v) = (i as u32 % w, i as u32 / w);
+        u >= x0 && u < x0 + cw && v >= y0 && v < y0 + ch
+    };
+    let valid: Vec<f32> = s.depth.iter().enumerate().filter(|(i, d)| **d > 0.0 && d.is_finite() && in_crop(*i)).map(|(_, d)| *d).collect();
+    let (lo, hi) = valid.iter().fold((f32::MAX, f32::MIN), |(l, h), d| (l.min(*d), h.max(*d)));
+    let mut depth = RgbImage::new(w, h);
+    for (i, d) in s.depth.iter().enumerate() {
+        let c = if *d > 0.0 && d.is_finite() {
+            let t = (1.0 - (d - lo) / (hi - lo).max(1e-6)).clamp(0.0, 1.0);
+            // A warm ramp: near is bright yellow, far dark purple.
+            [(60.0 + 195.0 * t) as u8, (20.0 + 200.0 * t * t) as u8, (90.0 * (1.0 - t) + 30.0) as u8]
+        } else {
+            [0, 0, 0]
+        };
+        depth.put_pixel(i as u32 % w, i as u32 / w, Rgb(c));
+    }
+    let (rgb, depth) = (crop(&rgb), crop(&depth));
+    let mut out = RgbImage::new(2 * cw, ch);
+    image::imageops::overlay(&mut out, &rgb, 0, 0);
+    image::imageops::overlay(&mut out, &depth, cw as i64, 0);
+    out
+}
+
+/// Writes the contact sheet of `samples` (rows scaled to `row_width` pixels wide) as a PNG.
+pub fn write_sheet(samples: &[Sample], out: &Path, row_width: u32) -> Result<()> {
+    let rows: Vec<RgbImage> = samples
+        .iter()
+        .map(|s| {
+            let r = row(s);
+            let hgt = (r.height() as f64 * row_width as f64 / r.width() as f64).round() as u32;
+            image::imageops::resize(&r, row_width, hgt, image::imageops::FilterType::Triangle)
+        })
+        .collect();
+    let height = rows.iter().map(|r| r.height()).sum::<u32>().max(1);
+    let mut sheet = RgbImage::new(row_width, height);
+    let mut y = 0;
+    for r in &rows {
+        image::imageops::overlay(&mut sheet, r, 0, y as i64);
+        y += r.height();
+    }
+    sheet.save(out).with_context(|| format!("cannot write {}", out.display()))
+}
