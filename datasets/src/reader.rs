@@ -135,7 +135,7 @@ impl ShardReader {
                 .iter()
                 .find(|t| t.parent_frame_id == frames::WORLD && t.child_frame_id == child)
                 .ok_or_else(|| anyhow!("{}: /tf lacks world -> {child}", ctx()))?;
-            to_pose(t.translation.clone(), t.rotation.clone())
+            to_pose(t.translation, t.rotation)
         };
         Ok(Sample {
             index,
@@ -154,7 +154,7 @@ impl ShardReader {
                 .filter(|t| {
                     !(t.parent_frame_id == frames::WORLD && (t.child_frame_id == frames::CAMERA || t.child_frame_id == frames::OBJECT))
                 })
-                .map(|t| Ok((t.parent_frame_id.clone(), t.child_frame_id.clone(), to_pose(t.translation.clone(), t.rotation.clone())?)))
+                .map(|t| Ok((t.parent_frame_id.clone(), t.child_frame_id.clone(), to_pose(t.translation, t.rotation)?)))
                 .collect::<Result<_>>()?,
             tactile: read_tactile(&by_topic).with_context(ctx)?,
             info,

@@ -25,10 +25,10 @@ pub struct LoadedObject {
 pub fn load_objects(cfg: &LoadedConfig, ycb_dir: Option<&PathBuf>) -> Result<Vec<LoadedObject>> {
     let catalog = Catalog::builtin();
     let ycb_dir = ycb_dir.cloned().or_else(|| cfg.config.ycb_dir.as_ref().map(|p| cfg.resolve(p)));
-    if let Some(d) = &ycb_dir {
-        if !d.is_dir() {
-            bail!("YCB directory {} does not exist", d.display());
-        }
+    if let Some(d) = &ycb_dir
+        && !d.is_dir()
+    {
+        bail!("YCB directory {} does not exist", d.display());
     }
     let mut out = Vec::new();
     for (i, spec) in cfg.config.objects.iter().enumerate() {

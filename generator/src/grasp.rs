@@ -55,7 +55,7 @@ pub enum Failure {
 const GRAVITY: DVec3 = DVec3::new(0.0, 0.0, -9.81);
 
 fn rot(t: &DAffine3) -> DQuat {
-    DQuat::from_mat3(&DMat3::from(t.matrix3)).normalize()
+    DQuat::from_mat3(&t.matrix3).normalize()
 }
 
 /// Everything the loop needs besides the physics.

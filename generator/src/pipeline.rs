@@ -110,12 +110,12 @@ fn prepare_output(out: &Path, config_json: &str, plan: &Plan, opts: &GenerateOpt
 /// processes on one directory each rewrite it this way, so the last one to finish lists them all.
 fn update_manifest(out: &Path, config: &Config, config_sha: &str, plan: &Plan, receipts: &[(String, ShardReceipt)]) -> Result<Manifest> {
     let mut known: BTreeMap<String, (u64, String)> = BTreeMap::new();
-    if let Ok(old) = Manifest::load(&out.join("manifest.json")) {
-        if old.config_sha256 == config_sha {
-            for s in old.splits.values().flat_map(|s| &s.shards) {
-                if let (Some(b), Some(h)) = (s.bytes, &s.sha256) {
-                    known.insert(s.file.clone(), (b, h.clone()));
-                }
+    if let Ok(old) = Manifest::load(&out.join("manifest.json"))
+        && old.config_sha256 == config_sha
+    {
+        for s in old.splits.values().flat_map(|s| &s.shards) {
+            if let (Some(b), Some(h)) = (s.bytes, &s.sha256) {
+                known.insert(s.file.clone(), (b, h.clone()));
             }
         }
     }

@@ -4,7 +4,7 @@
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
-use glam::{DAffine3, DMat3, DMat4, DQuat};
+use glam::{DAffine3, DMat4, DQuat};
 use vt_dataset::{Pose, Sample, TactileData, TactilePointRecord, frames, mask_ids};
 use vt_objects::{Texture, TexturedMesh};
 use vt_randomizers::{Appearance, SampleKey};
@@ -19,7 +19,7 @@ use crate::scene::sample_scene;
 use crate::tactile::{pad_sizes, sense};
 
 pub fn pose_of(t: &DAffine3) -> Pose {
-    Pose::from_rt(DQuat::from_mat3(&DMat3::from(t.matrix3)), t.translation)
+    Pose::from_rt(DQuat::from_mat3(&t.matrix3), t.translation)
 }
 
 /// The floor: a large textured quad on z = 0, the texture repeating every `tile` metres.

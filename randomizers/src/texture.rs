@@ -12,7 +12,7 @@ pub fn checker_texture(size: u32, squares: u32, a: [u8; 3], b: [u8; 3]) -> Proce
     let mut rgba = Vec::with_capacity((size * size * 4) as usize);
     for y in 0..size {
         for x in 0..size {
-            let c = if ((x / cell) + (y / cell)) % 2 == 0 { a } else { b };
+            let c = if ((x / cell) + (y / cell)).is_multiple_of(2) { a } else { b };
             // Deterministic grain so that flat regions are not perfectly uniform.
             let g = ((x.wrapping_mul(73_856_093) ^ y.wrapping_mul(19_349_663)) % 9) as i16 - 4;
             let px = c.map(|v| (v as i16 + g).clamp(0, 255) as u8);

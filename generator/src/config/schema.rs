@@ -3,6 +3,8 @@
 
 use std::path::PathBuf;
 
+use std::f64::consts::FRAC_PI_2;
+
 use serde::{Deserialize, Serialize};
 
 use super::locate::Seg;
@@ -199,7 +201,7 @@ impl Default for GraspConfig {
         let fc = [None, Some(1.5), Some(1.5), Some(1.4)];
         let tc = [Some(1.35), Some(0.9), Some(1.2), Some(1.2)];
         GraspConfig {
-            home_arm: [-1.5708, -1.5708, 1.5708, -1.5708, -1.5708, 0.0],
+            home_arm: [-FRAC_PI_2, -FRAC_PI_2, FRAC_PI_2, -FRAC_PI_2, -FRAC_PI_2, 0.0],
             palm_workspace: Workspace { min: [-0.08, -0.05, 0.22], max: [0.08, 0.05, 0.32] },
             max_tilt_deg: 50.0,
             max_roll_deg: 45.0,
@@ -473,14 +475,14 @@ impl Config {
         let mut seen = std::collections::BTreeSet::new();
         for (i, o) in self.objects.iter().enumerate() {
             let id = o.id();
-            if let ObjectSpec::Catalog(id) = o {
-                if catalog.get(id).is_none() {
-                    let known: Vec<&str> = catalog.ids().collect();
-                    p.push(Problem {
-                        path: vec![Key("objects"), Index(i)],
-                        message: format!("unknown object id '{id}'; the catalogue has: {}", known.join(", ")),
-                    });
-                }
+            if let ObjectSpec::Catalog(id) = o
+                && catalog.get(id).is_none()
+            {
+                let known: Vec<&str> = catalog.ids().collect();
+                p.push(Problem {
+                    path: vec![Key("objects"), Index(i)],
+                    message: format!("unknown object id '{id}'; the catalogue has: {}", known.join(", ")),
+                });
             }
             if let ObjectSpec::Custom(c) = o {
                 if !(c.mass > 0.0 && c.mass <= 100.0) {

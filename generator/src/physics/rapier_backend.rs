@@ -2,7 +2,7 @@
 //! stay stiff), joint motors as PD controllers, the object as a convex hull.
 
 use anyhow::{Context, Result, bail};
-use glam::{DAffine3, DMat3, DQuat, DVec3, Vec3};
+use glam::{DAffine3, DQuat, DVec3, Vec3};
 use rapier3d::prelude::*;
 use vt_robot::{Geometry, RobotModel, hand_joint_names, phalanx_names};
 
@@ -12,7 +12,7 @@ const HAND_GROUP: Group = Group::GROUP_1;
 const OBJECT_GROUP: Group = Group::GROUP_2;
 
 fn to_pose(t: &DAffine3) -> Pose {
-    let q = DQuat::from_mat3(&DMat3::from(t.matrix3)).normalize();
+    let q = DQuat::from_mat3(&t.matrix3).normalize();
     Pose::from_parts(t.translation.as_vec3(), q.as_quat())
 }
 
@@ -124,7 +124,7 @@ impl RapierHand {
             }
             // Joint frames whose x axis is the URDF axis: rapier's free revolute axis is AngX.
             let to_axis = DQuat::from_rotation_arc(DVec3::X, j.axis);
-            let origin_rot = DQuat::from_mat3(&DMat3::from(j.origin.matrix3));
+            let origin_rot = DQuat::from_mat3(&j.origin.matrix3);
             let frame1 = DAffine3::from_rotation_translation(origin_rot * to_axis, j.origin.translation);
             let frame2 = DAffine3::from_quat(to_axis);
             let k = full_q[j.dof.expect("revolute")];
@@ -187,10 +187,10 @@ impl HandPhysics for RapierHand {
         let (stiffness, damping) = (self.settings.stiffness as f32, self.settings.damping as f32);
         for (k, hj) in self.joints.iter().enumerate() {
             let t = targets[k].clamp(hj.lower, hj.upper) as f32;
-            if let Some((mb, link)) = self.world.multibody_joints.get_mut(hj.joint) {
-                if let Some(l) = mb.link_mut(link) {
-                    l.joint.data.set_motor_position(JointAxis::AngX, t, stiffness, damping);
-                }
+            if let Some((mb, link)) = self.world.multibody_joints.get_mut(hj.joint)
+                && let Some(l) = mb.link_mut(link)
+            {
+                l.joint.data.set_motor_position(JointAxis::AngX, t, stiffness, damping);
             }
         }
     }
@@ -200,11 +200,11 @@ impl HandPhysics for RapierHand {
     }
 
     fn set_object_damping(&mut self, linear: f64, angular: f64) {
-        if let Some((b, _)) = self.object {
-            if let Some(body) = self.world.bodies.get_mut(b) {
-                body.set_linear_damping(linear as f32);
-                body.set_angular_damping(angular as f32);
-            }
+        if let Some((b, _)) = self.object
+            && let Some(body) = self.world.bodies.get_mut(b)
+        {
+            body.set_linear_damping(linear as f32);
+            body.set_angular_damping(angular as f32);
         }
     }
 
@@ -222,7 +222,7 @@ impl HandPhysics for RapierHand {
             let hj = &self.joints[k];
             let p = from_pose(self.world.bodies[hj.parent].position());
             let c = from_pose(self.world.bodies[hj.body].position());
-            let rel = DQuat::from_mat3(&DMat3::from((p.inverse() * c).matrix3));
+            let rel = DQuat::from_mat3(&(p.inverse() * c).matrix3);
             let q = hj.origin_rot.inverse() * rel;
             let s = DVec3::new(q.x, q.y, q.z).dot(hj.axis);
             2.0 * s.atan2(q.w)

@@ -4,7 +4,7 @@
 use std::collections::BTreeMap;
 
 use anyhow::{Context, Result};
-use glam::{DAffine3, DMat3, DQuat, DVec3, Vec3};
+use glam::{DAffine3, DQuat, DVec3, Vec3};
 use vt_objects::{Texture, TexturedMesh};
 use vt_robot::{ARM_JOINTS, Geometry, RobotModel, hand_joint_names};
 
@@ -52,7 +52,7 @@ pub fn link_mesh(model: &RobotModel, link: usize) -> Option<TexturedMesh> {
         let (pos, nrm, idx) = primitive(&s.geometry);
         let base = mesh.positions.len() as u32;
         let m = s.origin;
-        let r = DMat3::from(m.matrix3);
+        let r = m.matrix3;
         mesh.positions.extend(pos.iter().map(|p| m.transform_point3(p.as_dvec3()).as_vec3().to_array()));
         mesh.normals.extend(nrm.iter().map(|v| (r * v.as_dvec3()).normalize().as_vec3().to_array()));
         mesh.uvs.extend(std::iter::repeat_n(uv, pos.len()));

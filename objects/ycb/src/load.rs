@@ -105,16 +105,14 @@ fn load_obj(path: &Path) -> Result<TexturedMesh, MeshError> {
             mesh.uvs.extend(std::iter::repeat_n([0.0, 0.0], nv));
         }
         mesh.indices.extend(tm.indices.iter().map(|&i| i + base));
-        if !texture_set {
-            if let Some(mat) = tm.material_id.and_then(|id| materials.get(id)) {
-                if let Some(tex) = &mat.diffuse_texture {
-                    let tex_path = path.parent().unwrap_or(Path::new(".")).join(tex);
-                    mesh.texture = load_texture(&tex_path)?;
-                    texture_set = true;
-                } else if let Some(kd) = mat.diffuse {
-                    let c = |x: f32| (x.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0).round() as u8;
-                    mesh.texture = Texture::solid([c(kd[0]), c(kd[1]), c(kd[2])]);
-                }
+        if !texture_set && let Some(mat) = tm.material_id.and_then(|id| materials.get(id)) {
+            if let Some(tex) = &mat.diffuse_texture {
+                let tex_path = path.parent().unwrap_or(Path::new(".")).join(tex);
+                mesh.texture = load_texture(&tex_path)?;
+                texture_set = true;
+            } else if let Some(kd) = mat.diffuse {
+                let c = |x: f32| (x.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0).round() as u8;
+                mesh.texture = Texture::solid([c(kd[0]), c(kd[1]), c(kd[2])]);
             }
         }
     }

@@ -1,7 +1,7 @@
 //! Inverse kinematics of the palm pose over the 6 arm joints: damped least squares on a numerical
 //! Jacobian (6 extra forward passes per iteration; the chain is short, so this is cheap and exact).
 
-use glam::{DAffine3, DMat3, DQuat, DVec3};
+use glam::{DAffine3, DQuat, DVec3};
 
 use crate::model::RobotModel;
 use crate::{ARM_JOINTS, PALM};
@@ -25,8 +25,8 @@ impl Default for IkOptions {
 /// The 6-vector (position error, rotation error as axis * angle) from `current` to `target`.
 fn pose_error(current: &DAffine3, target: &DAffine3) -> [f64; 6] {
     let dp = target.translation - current.translation;
-    let rc = DQuat::from_mat3(&DMat3::from(current.matrix3));
-    let rt = DQuat::from_mat3(&DMat3::from(target.matrix3));
+    let rc = DQuat::from_mat3(&current.matrix3);
+    let rt = DQuat::from_mat3(&target.matrix3);
     let mut dq = rt * rc.inverse();
     if dq.w < 0.0 {
         dq = -dq;

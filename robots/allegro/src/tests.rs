@@ -89,7 +89,8 @@ fn ik_reaches_poses_in_front_of_the_robot() {
     let m = model();
     let arm = m.arm_dofs();
     let mut seed = m.zero();
-    for (k, v) in [-1.5708, -1.5708, 1.5708, -1.5708, -1.5708, 0.0].into_iter().enumerate() {
+    use std::f64::consts::FRAC_PI_2;
+    for (k, v) in [-FRAC_PI_2, -FRAC_PI_2, FRAC_PI_2, -FRAC_PI_2, -FRAC_PI_2, 0.0].into_iter().enumerate() {
         seed[arm[k]] = v;
     }
     for (i, p) in [[0.0, 0.45, 0.35], [0.1, 0.5, 0.25], [-0.15, 0.4, 0.45], [0.3, -0.4, 0.3]].into_iter().enumerate() {
