@@ -19,6 +19,8 @@ struct Sim {
     hand_qpos: [usize; 16],
     hand_actuators: [usize; 16],
     object_body: usize,
+    /// The object's free joint: its qpos address (position, wxyz quaternion) and dof address.
+    object_qpos: usize,
     object_dof: usize,
     object_geom: usize,
     phalanx_geoms: Vec<Vec<usize>>,
@@ -153,6 +155,7 @@ impl MujocoHand {
         }
         let object_body = id(MjtObjBase::mjOBJ_BODY, "object")?;
         let object_joint = id(MjtObjBase::mjOBJ_JOINT, "object")?;
+        let object_qpos = model.jnt_qposadr()[object_joint] as usize;
         let object_dof = model.jnt_dofadr()[object_joint] as usize;
         let object_geom = id(MjtObjBase::mjOBJ_GEOM, "object")?;
         let geom_of_link = |link: &str| -> Vec<usize> {
@@ -161,8 +164,18 @@ impl MujocoHand {
         let phalanx_geoms = phalanx_names().iter().map(|p| geom_of_link(p)).collect();
         let hand_geoms = (0..model.ngeom() as usize).filter(|&g| g != object_geom).collect();
         let data = MjData::new(Box::new(model));
-        self.sim =
-            Some(Sim { data, object_key: key, hand_qpos, hand_actuators, object_body, object_dof, object_geom, phalanx_geoms, hand_geoms });
+        self.sim = Some(Sim {
+            data,
+            object_key: key,
+            hand_qpos,
+            hand_actuators,
+            object_body,
+            object_qpos,
+            object_dof,
+            object_geom,
+            phalanx_geoms,
+            hand_geoms,
+        });
         Ok(())
     }
 
@@ -196,10 +209,7 @@ impl HandPhysics for MujocoHand {
         }
         let oq = quat_wxyz(&object_pose);
         let t = object_pose.translation;
-        let base = {
-            let m = sim.data.model();
-            m.jnt_qposadr()[m.name_to_id(MjtObjBase::mjOBJ_JOINT, "object").expect("built")] as usize
-        };
+        let base = sim.object_qpos;
         let qp = sim.data.qpos_mut();
         qp[base..base + 7].copy_from_slice(&[t.x, t.y, t.z, oq[0], oq[1], oq[2], oq[3]]);
         let acts = sim.hand_actuators;

@@ -166,9 +166,8 @@ impl HandPhysics for RapierHand {
     }
 
     fn reset(&mut self, object: &PhysicsObject, object_pose: DAffine3, q: &[f64; 16]) -> Result<()> {
-        let q: [f64; 16] = std::array::from_fn(|k| {
-            q[k].clamp(self.joints.get(k).map_or(f64::MIN, |j| j.lower), self.joints.get(k).map_or(f64::MAX, |j| j.upper))
-        });
+        // `new` built the 16 joints: their limits clamp the requested values.
+        let q: [f64; 16] = std::array::from_fn(|k| q[k].clamp(self.joints[k].lower, self.joints[k].upper));
         self.build(&q)?;
         let pts: Vec<Vec3> = object.points.iter().map(|p| Vec3::from_array(*p)).collect();
         let collider = ColliderBuilder::convex_hull(&pts)

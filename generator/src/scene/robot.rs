@@ -44,7 +44,7 @@ pub fn link_mesh(model: &RobotModel, link: usize) -> Option<TexturedMesh> {
         texture: Texture {
             width: n as u32,
             height: 1,
-            rgba: shapes.iter().flat_map(|s| s.rgba.map(|c| (c.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0).round() as u8)).collect(),
+            rgba: shapes.iter().flat_map(|s| s.rgba.map(vt_objects::linear_to_srgb8)).collect(),
         },
     };
     for (i, s) in shapes.iter().enumerate() {

@@ -11,5 +11,5 @@ mod procedural;
 
 pub use catalog::{Catalog, CatalogEntry, Shape, Symmetry};
 pub use load::{MeshError, find_ycb_mesh, load_mesh};
-pub use mesh::{Texture, TexturedMesh};
+pub use mesh::{Texture, TexturedMesh, linear_to_srgb8};
 pub use procedural::{BOX_FACES, procedural_mesh};

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use glam::{Mat3, Mat4, Vec3};
 
-use crate::mesh::{Texture, TexturedMesh};
+use crate::mesh::{Texture, TexturedMesh, linear_to_srgb8};
 
 /// A mesh that could not be loaded; always names the offending file.
 #[derive(Debug, thiserror::Error)]
@@ -111,8 +111,7 @@ fn load_obj(path: &Path) -> Result<TexturedMesh, MeshError> {
                 mesh.texture = load_texture(&tex_path)?;
                 texture_set = true;
             } else if let Some(kd) = mat.diffuse {
-                let c = |x: f32| (x.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0).round() as u8;
-                mesh.texture = Texture::solid([c(kd[0]), c(kd[1]), c(kd[2])]);
+                mesh.texture = Texture::solid(kd.map(|x| linear_to_srgb8(x as f64)));
             }
         }
     }
@@ -176,8 +175,7 @@ fn load_gltf(path: &Path) -> Result<TexturedMesh, MeshError> {
                     texture_set = true;
                 } else {
                     let f = pbr.base_color_factor();
-                    let c = |x: f32| (x.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0).round() as u8;
-                    mesh.texture = Texture::solid([c(f[0]), c(f[1]), c(f[2])]);
+                    mesh.texture = Texture::solid([f[0], f[1], f[2]].map(|x| linear_to_srgb8(x as f64)));
                 }
             }
         }

@@ -1,5 +1,11 @@
 use glam::Vec3;
 
+/// A linear colour channel (0..1, as in MTL `Kd`, glTF factors and URDF colours) as an sRGB byte
+/// (gamma 2.2).
+pub fn linear_to_srgb8(x: f64) -> u8 {
+    (x.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0).round() as u8
+}
+
 /// An RGBA8 texture, sRGB-encoded, row 0 at the top (v = 0).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Texture {
