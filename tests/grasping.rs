@@ -28,7 +28,7 @@ fn hand_config() -> std::path::PathBuf {
     dir.path().join("tiny-hand.yaml")
 }
 
-fn hand_dataset() -> &'static std::path::Path {
+pub fn hand_dataset() -> &'static std::path::Path {
     static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();
     DIR.get_or_init(|| {
         let d = tempdir();

@@ -5,6 +5,7 @@ mod common;
 
 mod bad_input;
 mod determinism;
+mod foxglove_scene;
 mod grasping;
 mod ground_truth;
 mod render_geometry;

@@ -4,17 +4,19 @@
 //! One implementation of the format per language: this crate for Rust (the generator writes with
 //! it; inspection, validation and the trainer read with it), `datasets/python` for Python.
 
+mod glb;
 mod manifest;
 mod ply;
 mod reader;
 mod sample;
 mod writer;
 
+pub use glb::{ColoredMesh, encode_glb};
 pub use manifest::{Manifest, ModelInfo, ModelsInfo, ShardEntry, SplitManifest, sha256_file, write_atomic};
 pub use ply::{PlyMesh, read_ply, write_ply};
 pub use reader::{DatasetReader, ShardReader};
 pub use sample::{Pose, Sample, ShardMeta, TactileData, TactilePointRecord};
-pub use writer::{Compression, ShardReceipt, ShardWriter};
+pub use writer::{Compression, SceneModel, ShardReceipt, ShardWriter};
 
 /// Version of the on-disk format written by this crate.
 pub const FORMAT_VERSION: u32 = 1;
@@ -35,6 +37,9 @@ pub mod topics {
     pub const TF: &str = "/tf";
     pub const SAMPLE_INFO: &str = "/sample/info";
     pub const TACTILE_POINTS: &str = "/tactile/points";
+    /// `foxglove.SceneUpdate`: the meshes for the 3D view, with the first sample of a shard and
+    /// whenever the target object changes.
+    pub const SCENE_MODELS: &str = "/scene/models";
     /// The depth image topic of a phalanx camera.
     pub fn tactile_depth(phalanx: &str) -> String {
         format!("/tactile/{phalanx}/depth")

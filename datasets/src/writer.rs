@@ -9,8 +9,8 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use foxglove::Encode;
 use foxglove::schemas::{
-    CameraCalibration, FrameTransform, FrameTransforms, PackedElementField, PointCloud, Pose as FgPose, PoseInFrame, Quaternion, RawImage,
-    Timestamp, Vector3,
+    CameraCalibration, Color, FrameTransform, FrameTransforms, ModelPrimitive, PackedElementField, PointCloud, Pose as FgPose, PoseInFrame,
+    Quaternion, RawImage, SceneEntity, SceneUpdate, Timestamp, Vector3,
 };
 use prost::Message;
 
@@ -22,6 +22,16 @@ use crate::{PARTIAL_SUFFIX, SAMPLE_PERIOD_NS, SHARD_METADATA, frames, topics};
 pub enum Compression {
     None,
     Zstd { level: u32 },
+}
+
+/// A mesh shown in Foxglove's 3D panel (`/scene/models`): a binary glTF drawn in `frame_id`,
+/// which `/tf` moves per sample (the object in `object`, each robot link in its link frame).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SceneModel {
+    pub id: String,
+    pub frame_id: String,
+    /// A GLB ([`crate::encode_glb`]); shared, since every shard of a run carries the same meshes.
+    pub glb: std::sync::Arc<Vec<u8>>,
 }
 
 /// What a finished shard looks like on disk.
@@ -55,6 +65,10 @@ pub struct ShardWriter {
     meta: ShardMeta,
     /// Tactile channels, added with the first sample that has tactile data.
     tactile_channels: Option<(u16, Vec<u16>)>,
+    /// `/scene/models`, added with the first scene update.
+    scene_channel: Option<u16>,
+    /// Models to publish with the next sample.
+    pending_scene: Option<Vec<SceneModel>>,
 }
 
 fn add<T: Encode>(w: &mut mcap::Writer<BufWriter<File>>, topic: &str) -> Result<u16> {
@@ -127,6 +141,8 @@ impl ShardWriter {
             written: 0,
             meta: meta.clone(),
             tactile_channels: None,
+            scene_channel: None,
+            pending_scene: None,
         })
     }
 
@@ -190,6 +206,9 @@ impl ShardWriter {
         if let Some(tac) = &s.tactile {
             self.write_tactile(t, tac)?;
         }
+        if let Some(models) = self.pending_scene.take() {
+            self.write_scene(t, &models)?;
+        }
         // Close the chunk: a random read of sample i decompresses exactly one chunk.
         self.mcap.flush()?;
         self.written += 1;
@@ -244,6 +263,54 @@ impl ShardWriter {
             self.put(*ch, t, &img)?;
         }
         Ok(())
+    }
+
+    /// Publishes `models` on `/scene/models` with the next sample, replacing what the previous
+    /// update showed. Call it before the first sample of a shard and whenever the set changes (the
+    /// target object does): each update is complete, so a viewer that seeks shows the right scene
+    /// from the latest update alone.
+    pub fn set_scene(&mut self, models: Vec<SceneModel>) {
+        self.pending_scene = Some(models);
+    }
+
+    fn write_scene(&mut self, t: u64, models: &[SceneModel]) -> Result<()> {
+        let channel = match self.scene_channel {
+            Some(c) => c,
+            None => {
+                let c = add::<SceneUpdate>(&mut self.mcap, topics::SCENE_MODELS)?;
+                self.scene_channel = Some(c);
+                c
+            }
+        };
+        let entities = models
+            .iter()
+            .map(|m| SceneEntity {
+                timestamp: ts(t),
+                frame_id: m.frame_id.clone(),
+                id: m.id.clone(),
+                // Lives until replaced, attached to its frame: /tf moves it from sample to sample.
+                lifetime: None,
+                frame_locked: true,
+                models: vec![ModelPrimitive {
+                    pose: Some(fg_pose(&Pose::IDENTITY)),
+                    scale: Some(Vector3 { x: 1.0, y: 1.0, z: 1.0 }),
+                    color: Some(Color { r: 1.0, g: 1.0, b: 1.0, a: 1.0 }),
+                    override_color: false,
+                    url: String::new(),
+                    media_type: "model/gltf-binary".into(),
+                    data: prost::bytes::Bytes::copy_from_slice(&m.glb),
+                }],
+                ..Default::default()
+            })
+            .collect();
+        // Entities of the previous update that this one does not replace are deleted first.
+        let deletions = vec![foxglove::schemas::SceneEntityDeletion {
+            timestamp: ts(t),
+            r#type: foxglove::schemas::scene_entity_deletion::Type::All as i32,
+            id: String::new(),
+        }];
+        let update = SceneUpdate { deletions, entities }.encode_to_vec();
+        self.put(channel, t, &update)
     }
 
     /// Adds an entry to the shard's metadata record (written by [`finish`]).

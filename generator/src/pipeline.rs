@@ -207,6 +207,9 @@ fn write_shard(
             return Ok(None);
         }
         let index = shard.first_sample + k as u64;
+        if k == 0 || shard.samples[k - 1].object_index != r.object_index {
+            writer.set_scene(factory.scene_models(r.object_index));
+        }
         let sample = factory.make(shard.split, index, r).with_context(|| format!("{} sample {index}", shard.split))?;
         writer.write_sample(&sample).with_context(|| format!("writing {}", path.display()))?;
         progress.inc(1);

@@ -5,7 +5,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 use glam::{DAffine3, DMat4, DQuat};
-use vt_dataset::{Pose, Sample, TactileData, TactilePointRecord, frames, mask_ids};
+use vt_dataset::{ColoredMesh, Pose, Sample, SceneModel, TactileData, TactilePointRecord, encode_glb, frames, mask_ids};
 use vt_objects::{Texture, TexturedMesh};
 use vt_randomizers::{Appearance, SampleKey};
 
@@ -36,6 +36,17 @@ fn floor_mesh(appearance: &Appearance) -> TexturedMesh {
     }
 }
 
+/// A mesh as a vertex-coloured GLB for the shards' 3D view.
+fn glb_of(mesh: &TexturedMesh) -> std::sync::Arc<Vec<u8>> {
+    let colored = ColoredMesh {
+        positions: mesh.positions.clone(),
+        normals: mesh.normals.clone(),
+        colors: mesh.vertex_colors(),
+        indices: mesh.indices.clone(),
+    };
+    std::sync::Arc::new(encode_glb(&colored))
+}
+
 /// Everything a worker needs to turn sample coordinates into a sample.
 pub struct SampleFactory<'a> {
     pub config: &'a Config,
@@ -46,6 +57,9 @@ pub struct SampleFactory<'a> {
     robot: Option<RobotScene>,
     /// (link, mesh, mask id) of every drawn robot link.
     robot_meshes: Vec<(usize, MeshHandle, u8)>,
+    /// The meshes shards carry for Foxglove's 3D view: per object, and the drawn robot links.
+    object_glbs: Vec<std::sync::Arc<Vec<u8>>>,
+    robot_glbs: Vec<SceneModel>,
     /// Grasp statistics of the trajectories that start in the shard being written.
     pub shard_stats: GraspStats,
     /// Sensing area of the 12 phalanx pads.
@@ -80,13 +94,17 @@ impl<'a> SampleFactory<'a> {
             .collect::<Result<_>>()?;
         let robot = config.robot.as_ref().map(|r| RobotScene::new(cfg, r, objects)).transpose()?;
         let mut robot_meshes = Vec::new();
+        let mut robot_glbs = Vec::new();
         if let Some(r) = &robot {
             for link in 0..r.model.links.len() {
                 if let (Some(mesh), Some(id)) = (link_mesh(&r.model, link), robot_mask_id(&r.model, link)) {
                     robot_meshes.push((link, renderer.upload_mesh(&mesh)?, id));
+                    let name = &r.model.links[link].name;
+                    robot_glbs.push(SceneModel { id: format!("robot/{name}"), frame_id: name.clone(), glb: glb_of(&mesh) });
                 }
             }
         }
+        let object_glbs = objects.iter().map(|o| glb_of(&o.mesh)).collect();
         let pad_sizes = robot.as_ref().map(|r| pad_sizes(&r.model)).unwrap_or([(0.0, 0.0); 12]);
         let model_points = objects.iter().map(|o| model_points(&o.mesh, config.scene.occlusion_points as usize)).collect();
         Ok(SampleFactory {
@@ -97,6 +115,8 @@ impl<'a> SampleFactory<'a> {
             floor,
             robot,
             robot_meshes,
+            object_glbs,
+            robot_glbs,
             shard_stats: GraspStats::default(),
             pad_sizes,
             model_points,
@@ -111,6 +131,16 @@ impl<'a> SampleFactory<'a> {
 
     pub fn has_robot(&self) -> bool {
         self.robot.is_some()
+    }
+
+    /// What `/scene/models` shows while `object_index` is the target: its mesh in the `object`
+    /// frame and the robot links in theirs.
+    pub fn scene_models(&self, object_index: u32) -> Vec<SceneModel> {
+        let obj = &self.objects[object_index as usize];
+        let mut models =
+            vec![SceneModel { id: format!("object/{}", obj.id), frame_id: frames::OBJECT.into(), glb: self.object_glbs[object_index as usize].clone() }];
+        models.extend(self.robot_glbs.iter().cloned());
+        models
     }
 
     pub fn make(&mut self, split: &str, index: u64, r: &SampleRef) -> Result<Sample> {
@@ -135,10 +165,16 @@ impl<'a> SampleFactory<'a> {
             let t_world_palm = robot.t_world_base * st.t_base_palm;
             scene.t_world_object = pose_of(&(t_world_palm * st.t_palm_object));
             let links = robot.model.forward_kinematics(&st.q);
-            for &(link, mesh, id) in &self.robot_meshes {
-                draws.push(Draw { mesh, t_world_model: DMat4::from(robot.t_world_base * links[link]), mask_id: id });
-            }
             extra_transforms.push((frames::WORLD.to_string(), "palm".to_string(), pose_of(&t_world_palm)));
+            for &(link, mesh, id) in &self.robot_meshes {
+                let t_world_link = robot.t_world_base * links[link];
+                draws.push(Draw { mesh, t_world_model: DMat4::from(t_world_link), mask_id: id });
+                // The link frames carry the robot's meshes in Foxglove (`/scene/models`).
+                let name = &robot.model.links[link].name;
+                if name != "palm" {
+                    extra_transforms.push((frames::WORLD.to_string(), name.clone(), pose_of(&t_world_link)));
+                }
+            }
             let names = vt_robot::phalanx_names();
             let pads: [DAffine3; 12] = std::array::from_fn(|k| {
                 let pad = robot.model.link_id(&format!("{}_pad", names[k])).expect("validated at load");

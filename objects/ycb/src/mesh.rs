@@ -18,6 +18,13 @@ impl Texture {
     pub fn solid(rgb: [u8; 3]) -> Self {
         Texture { width: 1, height: 1, rgba: vec![rgb[0], rgb[1], rgb[2], 255] }
     }
+
+    /// The texel under `uv` (repeating, as the renderer's sampler), sRGB RGBA.
+    pub fn texel(&self, uv: [f32; 2]) -> [u8; 4] {
+        let wrap = |x: f32, n: u32| ((x.rem_euclid(1.0) * n as f32) as u32).min(n - 1) as usize;
+        let i = 4 * (wrap(uv[1], self.height) * self.width as usize + wrap(uv[0], self.width));
+        [self.rgba[i], self.rgba[i + 1], self.rgba[i + 2], self.rgba[i + 3]]
+    }
 }
 
 /// A triangle mesh with one base-colour texture, in metres.
@@ -46,6 +53,12 @@ impl TexturedMesh {
             hi = hi.max(p);
         }
         (lo, hi)
+    }
+
+    /// Per-vertex colours (sRGB RGBA) from the texture: for viewers that take vertex colours
+    /// (e.g. the meshes embedded in shards for Foxglove) instead of a multi-megabyte texture.
+    pub fn vertex_colors(&self) -> Vec<[u8; 4]> {
+        self.uvs.iter().map(|uv| self.texture.texel(*uv)).collect()
     }
 
     /// Extents of the bounding box.
