@@ -7,6 +7,7 @@ pub mod assets;
 pub mod bench;
 pub mod config;
 pub mod dump;
+pub mod export;
 pub mod grasp;
 pub mod inspect;
 pub mod occlusion;

@@ -85,6 +85,11 @@ enum Command {
         #[arg(long)]
         full: bool,
     },
+    /// Convert a dataset for other tools.
+    Export {
+        #[command(subcommand)]
+        format: ExportFormat,
+    },
     /// Write one sample as .npy files (rgb, depth, mask, K, T_camera_object) and info.json.
     Dump {
         dataset: PathBuf,
@@ -94,6 +99,20 @@ enum Command {
         index: u64,
         #[arg(long)]
         out: PathBuf,
+    },
+}
+
+#[derive(Subcommand)]
+enum ExportFormat {
+    /// The BOP format (scene_gt.json, scene_camera.json, scene_gt_info.json, rgb/, depth/, mask/,
+    /// mask_visib/, models/ in mm), read unchanged by the BOP toolkit; tactile points beside it.
+    Bop {
+        dataset: PathBuf,
+        /// A new (or empty) directory.
+        out: PathBuf,
+        /// No progress bar.
+        #[arg(long)]
+        quiet: bool,
     },
 }
 
@@ -235,6 +254,17 @@ fn run(cli: Cli) -> Result<()> {
                 if r.problems.is_empty() { "valid".to_string() } else { format!("{} problem(s)", r.problems.len()) }
             );
             anyhow::ensure!(r.problems.is_empty(), "{} is not valid ({} problem(s))", dataset.display(), r.problems.len());
+            Ok(())
+        }
+        Command::Export { format: ExportFormat::Bop { dataset, out, quiet } } => {
+            // The renderer the dataset was made with (its adapter choice), for the amodal masks.
+            let renderer = std::fs::read(dataset.join("config.json"))
+                .ok()
+                .and_then(|b| serde_json::from_slice::<serde_json::Value>(&b).ok())
+                .and_then(|c| serde_json::from_value(c["renderer"].clone()).ok())
+                .unwrap_or_default();
+            let r = vtgen::export::export_bop(&dataset, &out, &renderer, quiet)?;
+            println!("wrote {}: {} objects, {} scenes, {} images (BOP format)", out.display(), r.objects, r.scenes, r.images);
             Ok(())
         }
         Command::Dump { dataset, split, index, out } => vtgen::dump::dump(&dataset, &split, index, &out),
