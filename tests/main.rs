@@ -10,5 +10,6 @@ mod foxglove_scene;
 mod grasping;
 mod ground_truth;
 mod render_geometry;
+mod stats;
 mod validate;
 mod ycb_meshes;

@@ -18,5 +18,6 @@ pub mod preview;
 pub mod render;
 pub mod sample;
 pub mod scene;
+pub mod stats;
 pub mod tactile;
 pub mod validate;

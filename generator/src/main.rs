@@ -85,6 +85,13 @@ enum Command {
         #[arg(long)]
         full: bool,
     },
+    /// Plots (SVG) of what a dataset covers — positions, rotations, occlusion, touch — and a
+    /// Markdown page tying them together.
+    Stats {
+        dataset: PathBuf,
+        #[arg(long)]
+        out: PathBuf,
+    },
     /// Convert a dataset for other tools.
     Export {
         #[command(subcommand)]
@@ -254,6 +261,11 @@ fn run(cli: Cli) -> Result<()> {
                 if r.problems.is_empty() { "valid".to_string() } else { format!("{} problem(s)", r.problems.len()) }
             );
             anyhow::ensure!(r.problems.is_empty(), "{} is not valid ({} problem(s))", dataset.display(), r.problems.len());
+            Ok(())
+        }
+        Command::Stats { dataset, out } => {
+            let files = vtgen::stats::write_stats(&dataset, &out)?;
+            println!("wrote {} files to {}: {}", files.len(), out.display(), files.join(", "));
             Ok(())
         }
         Command::Export { format: ExportFormat::Bop { dataset, out, quiet } } => {

@@ -4,15 +4,15 @@ Needs ``VTGEN_BIN`` (path to the built ``vtgen`` binary). Without it these tests
 ``VTDATA_SKIP_RUST=1`` is set, which skips them. ``VTGEN_TIMEOUT`` (seconds, default 1800) bounds
 the ``vtgen generate`` run.
 
-The fixture runs ``$VTGEN_BIN generate <repo>/scenes/tiny.yaml --out <tmp>/ds --quiet``; the tests
-compare the Python reader with ``$VTGEN_BIN dump`` (the Rust reader) bit for bit.
+The fixtures (``conftest.py``) run ``$VTGEN_BIN generate <repo>/scenes/tiny.yaml --out <tmp>/ds
+--quiet``; the tests compare the Python reader with ``$VTGEN_BIN dump`` (the Rust reader) bit for
+bit.
 """
 
 from __future__ import annotations
 
 import json
 import os
-import subprocess
 from pathlib import Path
 from typing import Dict, List, Tuple
 
@@ -20,13 +20,12 @@ import numpy as np
 import pytest
 
 import vtdata
+from vtgen_cli import SCENES, run
 
 if os.environ.get("VTDATA_SKIP_RUST") == "1":
     pytest.skip("VTDATA_SKIP_RUST=1: cross-language tests skipped", allow_module_level=True)
 
-# tests/ -> python/ -> datasets/ -> repository root
-REPO_ROOT = Path(__file__).resolve().parents[3]
-SCENE = REPO_ROOT / "scenes" / "tiny.yaml"
+SCENE = SCENES / "tiny.yaml"
 SPLITS = ("train", "test")
 DUMPED = {
     "rgb": ((None, None, 3), np.uint8),
@@ -37,50 +36,13 @@ DUMPED = {
 }
 
 
-def _run(args: List[str], timeout: float) -> subprocess.CompletedProcess:
-    result = subprocess.run(args, capture_output=True, text=True, timeout=timeout)
-    if result.returncode != 0:
-        pytest.fail(
-            f"command failed with exit status {result.returncode}: {' '.join(args)}\n"
-            f"--- stdout ---\n{result.stdout[-4000:]}\n--- stderr ---\n{result.stderr[-4000:]}",
-            pytrace=False,
-        )
-    return result
-
-
-@pytest.fixture(scope="session")
-def vtgen_bin() -> str:
-    path = os.environ.get("VTGEN_BIN")
-    if not path:
-        pytest.fail(
-            "VTGEN_BIN is not set: point it at the Rust vtgen binary (e.g. "
-            "VTGEN_BIN=target/release/vtgen) to run the cross-language tests, or set "
-            "VTDATA_SKIP_RUST=1 to skip them",
-            pytrace=False,
-        )
-    resolved = Path(path).expanduser().resolve()
-    if not (resolved.is_file() and os.access(resolved, os.X_OK)):
-        pytest.fail(f"VTGEN_BIN={path} is not an executable file", pytrace=False)
-    return str(resolved)
-
-
-@pytest.fixture(scope="session")
-def rust_dataset(vtgen_bin: str, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    if not SCENE.is_file():
-        pytest.fail(f"scene file {SCENE} is missing", pytrace=False)
-    out = tmp_path_factory.mktemp("rust") / "ds"
-    timeout = float(os.environ.get("VTGEN_TIMEOUT", "1800"))
-    _run([vtgen_bin, "generate", str(SCENE), "--out", str(out), "--quiet"], timeout)
-    return out
-
-
 @pytest.fixture(scope="session")
 def splits(rust_dataset: Path) -> Dict[str, vtdata.Dataset]:
     return {split: vtdata.Dataset(rust_dataset, split) for split in SPLITS}
 
 
 def _dump(vtgen_bin: str, root: Path, split: str, index: int, out: Path) -> Dict[str, object]:
-    _run(
+    run(
         [vtgen_bin, "dump", str(root), "--split", split, "--index", str(index), "--out", str(out)],
         timeout=600,
     )
@@ -211,17 +173,9 @@ def test_torch_dataloader_over_train(rust_dataset: Path, splits: Dict[str, vtdat
     assert seen == list(range(n))
 
 
-def test_tactile_data_of_a_robot_dataset(tmp_path):
+def test_tactile_data_of_a_robot_dataset(rust_hand_dataset: Path) -> None:
     """The grasp scene carries the tactile point cloud and the 12 phalanx images."""
-    bin_ = os.environ.get("VTGEN_BIN")
-    if not bin_:
-        if os.environ.get("VTDATA_SKIP_RUST") == "1":
-            pytest.skip("VTDATA_SKIP_RUST=1: no Rust binary")
-        pytest.fail("set VTGEN_BIN to the vtgen binary (scripts/test does)")
-    root = Path(__file__).resolve().parents[3]
-    out = tmp_path / "hand"
-    subprocess.run([bin_, "generate", str(root / "scenes" / "tiny-hand.yaml"), "--out", str(out), "--quiet"], check=True)
-    ds = vtdata.Dataset(out, "train")
+    ds = vtdata.Dataset(rust_hand_dataset, "train")
     total = 0
     for i in range(len(ds)):
         s = ds[i]

@@ -5,8 +5,10 @@
 >>> sample = ds[0]
 >>> sample["rgb"].shape, sample["K"], sample["T_camera_object"]
 
-``vtdata.TorchDataset`` (and the ``vtdata.torch`` module) wrap a split for PyTorch; they are
-imported on first use, so ``import vtdata`` never imports torch.
+``vtdata.DenseFusionView`` maps each sample to DenseFusion's inputs (depth points, RGB crop,
+tactile points, model points; numpy). ``vtdata.TorchDataset`` and ``vtdata.DenseFusionDataset``
+(and the ``vtdata.torch`` module) wrap a split for PyTorch; they are imported on first use, so
+``import vtdata`` never imports torch.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
+from .densefusion import DenseFusionView, densefusion_sample
 from .ply import PlyError, load_ply
 from .reader import (
     Dataset,
@@ -28,17 +31,20 @@ from .reader import (
 
 if TYPE_CHECKING:
     from . import torch  # noqa: F401  (vtdata.torch, imported lazily at run time)
-    from .torch import TorchDataset
+    from .torch import DenseFusionDataset, TorchDataset
 
 __version__ = "0.1.0"
 
 __all__ = [
     "Dataset",
     "DatasetError",
+    "DenseFusionDataset",
+    "DenseFusionView",
     "PlyError",
     "Sample",
     "TorchDataset",
     "decode_raw_image",
+    "densefusion_sample",
     "load_models",
     "load_ply",
     "open_dataset",
@@ -49,8 +55,8 @@ __all__ = [
 
 def __getattr__(name: str) -> Any:
     # PEP 562: import the torch wrapper (and torch itself) only when it is asked for.
-    if name == "TorchDataset":
-        return importlib.import_module(".torch", __name__).TorchDataset
+    if name in ("TorchDataset", "DenseFusionDataset"):
+        return getattr(importlib.import_module(".torch", __name__), name)
     if name == "torch":
         return importlib.import_module(".torch", __name__)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

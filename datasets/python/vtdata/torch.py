@@ -10,6 +10,14 @@
 
 ``TorchDataset`` is safe with ``num_workers > 0`` under both ``fork`` and ``spawn``: the wrapped
 :class:`vtdata.Dataset` pickles without file handles and opens shard files lazily in each worker.
+
+``DenseFusionDataset`` is the DenseFusion-ready view (:class:`vtdata.densefusion.DenseFusionView`)
+as tensors; its samples all have the same shapes, so the default collate batches them:
+
+>>> loader = DataLoader(DenseFusionDataset(root, "train", seed=0), batch_size=8, num_workers=2)
+>>> batch = next(iter(loader))
+>>> batch["cloud"].shape, batch["choose"].shape, batch["img"].shape
+(torch.Size([8, 1000, 3]), torch.Size([8, 1, 1000]), torch.Size([8, 3, 128, 128]))
 """
 
 from __future__ import annotations
@@ -21,9 +29,10 @@ import numpy as np
 import torch
 from torch.utils.data import Dataset as _TorchDataset
 
+from .densefusion import DenseFusionView
 from .reader import Dataset
 
-__all__ = ["TorchDataset", "collate", "to_tensors"]
+__all__ = ["DenseFusionDataset", "TorchDataset", "collate", "to_tensors"]
 
 TensorSample = Dict[str, Any]
 
@@ -70,6 +79,40 @@ class TorchDataset(_TorchDataset):
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}({self.dataset!r}, transform={self.transform!r})"
+
+
+class DenseFusionDataset(_TorchDataset):
+    """The DenseFusion-ready view of one split as a ``torch.utils.data.Dataset``.
+
+    ``options`` are those of :class:`vtdata.densefusion.DenseFusionView` (``n_points=1000``,
+    ``n_tactile=1000``, ``n_model_points=500``, ``crop_size=128``, ``normalize=True``,
+    ``seed=0``); ``ds[i]`` is that view's dict with every array converted by :func:`to_tensors`
+    (same shapes and dtypes), then passed through ``transform`` if given. Every sample has the same
+    shapes (unless ``crop_size=None``), so ``DataLoader``'s default collate works, and so does
+    :func:`collate`.
+    """
+
+    def __init__(
+        self,
+        root: Union[str, "os.PathLike[str]", Dataset],
+        split: str = "train",
+        transform: Optional[Callable[[TensorSample], Any]] = None,
+        **options: Any,
+    ) -> None:
+        self.view = DenseFusionView(root, split, **options)
+        self.transform = transform
+
+    def __len__(self) -> int:
+        return len(self.view)
+
+    def __getitem__(self, index: int) -> Any:
+        sample = to_tensors(self.view[index])
+        if self.transform is not None:
+            return self.transform(sample)
+        return sample
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self.view!r}, transform={self.transform!r})"
 
 
 def collate(batch: Sequence[Mapping[str, Any]]) -> Dict[str, Any]:
