@@ -15,7 +15,7 @@ fn view(t_world_camera: DMat4) -> View {
 }
 
 fn lighting() -> Lighting {
-    Lighting { light_position: DVec3::new(0.0, 0.0, 3.0), light_color: [1.0; 3], ambient: [0.2; 3], background: [0, 0, 0] }
+    Lighting::spot(DVec3::new(0.0, 0.0, 3.0), DVec3::ZERO, [1.0; 3], [0.2; 3])
 }
 
 /// Camera-frame ray direction through the centre of pixel (u, v), with z = 1.
@@ -208,4 +208,81 @@ fn perspective_pads_see_the_same_surface_as_orthographic_ones() {
     // The same contact patch, up to a few rows of pixels (the pinhole's rays spread with depth).
     let diff = persp.counts[0] as i64 - ortho.counts[0] as i64;
     assert!(diff.abs() <= 96, "{} vs {}", persp.counts[0], ortho.counts[0]);
+}
+
+/// Does the segment from `p` to `light` pass through the axis-aligned box `centre ± half`?
+fn segment_hits_box(p: DVec3, light: DVec3, centre: DVec3, half: DVec3) -> bool {
+    let d = light - p;
+    let (mut t0, mut t1) = (1e-6f64, 1.0f64);
+    for a in 0..3 {
+        let (lo, hi) = (centre[a] - half[a], centre[a] + half[a]);
+        if d[a].abs() < 1e-12 {
+            if p[a] < lo || p[a] > hi {
+                return false;
+            }
+            continue;
+        }
+        let (ta, tb) = ((lo - p[a]) / d[a], (hi - p[a]) / d[a]);
+        t0 = t0.max(ta.min(tb));
+        t1 = t1.min(ta.max(tb));
+    }
+    t0 <= t1
+}
+
+#[test]
+fn a_box_casts_its_shadow_where_geometry_puts_it() {
+    // A 10 x 10 x 20 cm box on a white floor under a spotlight at a known position: every floor
+    // pixel more than 3 px from the analytic shadow's outline is dark inside it and lit outside.
+    let mut r = WgpuRenderer::new(&RendererConfig::default()).unwrap();
+    let floor = r.upload_mesh(&quad(1.5)).unwrap();
+    let half = DVec3::new(0.05, 0.05, 0.1);
+    let unit_box = procedural_mesh(&vt_objects::CatalogEntry { extents: (half * 2.0).to_array(), ..Catalog::builtin().get("003_cracker_box").unwrap().clone() });
+    let boxm = r.upload_mesh(&unit_box).unwrap();
+    let centre = DVec3::new(0.0, 0.0, 0.1);
+    let light = DVec3::new(0.35, 0.25, 0.9);
+    let lighting = Lighting { cone_deg: 60.0, softness: 0.9, ..Lighting::spot(light, DVec3::ZERO, [1.0; 3], [0.08; 3]) };
+    let cam = look_at(DVec3::new(-0.15, -0.75, 0.8), DVec3::new(-0.1, -0.05, 0.0));
+    let v = view(cam.matrix());
+    let draws = [
+        Draw { mesh: floor, t_world_model: DMat4::IDENTITY, mask_id: 5 },
+        Draw { mesh: boxm, t_world_model: DMat4::from_translation(centre), mask_id: 1 },
+    ];
+    let img = r.render(&v, &lighting, &draws).unwrap();
+    if let Ok(path) = std::env::var("VTGEN_TEST_SHADOW_PNG") {
+        image::RgbImage::from_raw(W, H, img.rgb.clone()).unwrap().save(path).unwrap();
+    }
+    let (rot, o) = (cam.rotation(), cam.translation());
+    // Per pixel: Some(in shadow?) for floor pixels seen directly, by ray casting.
+    let class: Vec<Option<bool>> = (0..H)
+        .flat_map(|row| (0..W).map(move |u| (u, row)))
+        .map(|(u, row)| {
+            let d = rot * ray(&v, u, row);
+            let p = o + d * (-o.z / d.z);
+            // Floor seen directly, well inside the spot's cone.
+            let seen = !segment_hits_box(o, p, centre, half) && p.truncate().length() < 0.45;
+            seen.then(|| segment_hits_box(p, light, centre, half))
+        })
+        .collect();
+    let luma = |i: usize| img.rgb[3 * i] as f64 * 0.3 + img.rgb[3 * i + 1] as f64 * 0.59 + img.rgb[3 * i + 2] as f64 * 0.11;
+    let (mut shadow, mut lit) = (Vec::new(), Vec::new());
+    let margin = 3i64;
+    for row in margin..H as i64 - margin {
+        for u in margin..W as i64 - margin {
+            let i = (row * W as i64 + u) as usize;
+            let Some(c) = class[i] else { continue };
+            let clear = (-margin..=margin).all(|dy| (-margin..=margin).all(|dx| class[((row + dy) * W as i64 + u + dx) as usize] == Some(c)));
+            if clear {
+                assert_eq!(img.mask[i], 5, "pixel ({u}, {row}) is floor");
+                if c { shadow.push(luma(i)) } else { lit.push(luma(i)) }
+            }
+        }
+    }
+    assert!(shadow.len() > 500 && lit.len() > 5000, "{} shadow and {} lit pixels to compare", shadow.len(), lit.len());
+    let max_shadow = shadow.iter().copied().fold(0.0, f64::max);
+    let lit_sorted = { let mut l = lit.clone(); l.sort_by(f64::total_cmp); l };
+    // Every shadowed pixel is darker than 99.9% of the lit floor near the box.
+    let dark_enough = lit_sorted[lit_sorted.len() / 1000];
+    assert!(max_shadow < dark_enough, "shadow up to {max_shadow}, lit floor from {dark_enough}");
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    assert!(mean(&lit) > 2.5 * mean(&shadow), "lit {} vs shadow {}", mean(&lit), mean(&shadow));
 }

@@ -206,11 +206,11 @@ impl<'a> SampleFactory<'a> {
         let view =
             View { width: cam.width, height: cam.height, k, near: cam.near, far: cam.far, t_world_camera: scene.t_world_camera.matrix() };
         let light = &scene.appearance.light;
+        let ws = &self.config.scene.workspace;
+        let target = glam::DVec3::from_array(std::array::from_fn(|k| 0.5 * (ws.min[k] + ws.max[k])));
         let lighting = Lighting {
-            light_position: light.position,
-            light_color: light.color.map(|c| c * light.intensity),
-            ambient: light.ambient,
             background: self.config.scene.background,
+            ..Lighting::spot(light.position, target, light.color.map(|c| c * light.intensity), light.ambient)
         };
         let t0 = Instant::now();
         let img = self.renderer.render(&view, &lighting, &draws)?;

@@ -400,7 +400,7 @@ impl Default for Workspace {
     }
 }
 
-#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RendererConfig {
     #[serde(default)]
@@ -408,6 +408,30 @@ pub struct RendererConfig {
     /// Pick the adapter whose name contains this text (e.g. "llvmpipe", "H100").
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub adapter: Option<String>,
+    /// Side of the spotlight's shadow map in texels (256–8192).
+    #[serde(default = "default_shadow_map_size")]
+    pub shadow_map_size: u32,
+    /// Tone mapping of the linear colour before sRGB encoding: `none` (clamp) or `aces` (filmic).
+    #[serde(default)]
+    pub tonemapping: ToneMapping,
+}
+
+fn default_shadow_map_size() -> u32 {
+    1024
+}
+
+impl Default for RendererConfig {
+    fn default() -> Self {
+        RendererConfig { backend: Backend::Auto, adapter: None, shadow_map_size: default_shadow_map_size(), tonemapping: ToneMapping::None }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ToneMapping {
+    #[default]
+    None,
+    Aces,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]

@@ -25,14 +25,58 @@ pub struct View {
     pub t_world_camera: DMat4,
 }
 
-/// A point light and an ambient term (linear RGB), world frame.
+/// A spotlight (with shadows) and an ambient hemisphere term, world frame, linear RGB.
 #[derive(Debug, Clone, Copy)]
 pub struct Lighting {
     pub light_position: glam::DVec3,
+    /// The point the spot's axis goes through.
+    pub light_target: glam::DVec3,
+    /// Colour × intensity: the irradiance a surface facing the light gets at the target's distance
+    /// (it falls off with the squared distance from the light).
     pub light_color: [f32; 3],
+    /// Outer half-angle of the cone, degrees (< 80).
+    pub cone_deg: f64,
+    /// Inner/outer angle ratio: the light fades from the inner angle to the outer one.
+    pub softness: f64,
     pub ambient: [f32; 3],
     /// sRGB colour where nothing is drawn.
     pub background: [u8; 3],
+    /// Shadow mapping of the spotlight.
+    pub shadows: bool,
+}
+
+impl Lighting {
+    /// No light at all: for passes that only want depth or the mask.
+    pub fn unlit() -> Self {
+        Lighting {
+            light_position: glam::DVec3::Z,
+            light_target: glam::DVec3::ZERO,
+            light_color: [0.0; 3],
+            cone_deg: 45.0,
+            softness: 0.8,
+            ambient: [0.0; 3],
+            background: [0, 0, 0],
+            shadows: false,
+        }
+    }
+
+    /// A spotlight at `position` aimed at `target` with a 45° cone and shadows.
+    pub fn spot(position: glam::DVec3, target: glam::DVec3, color: [f32; 3], ambient: [f32; 3]) -> Self {
+        Lighting { light_position: position, light_target: target, light_color: color, ambient, shadows: true, ..Lighting::unlit() }
+    }
+}
+
+/// glTF metallic-roughness factors of a mesh (the base colour is its texture).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Material {
+    pub roughness: f32,
+    pub metallic: f32,
+}
+
+impl Default for Material {
+    fn default() -> Self {
+        Material { roughness: 0.7, metallic: 0.0 }
+    }
 }
 
 /// One mesh placed in the world, with the mask id its pixels get.
@@ -76,7 +120,12 @@ pub struct DepthView {
 pub trait Renderer {
     /// Adapter and backend in words, e.g. "llvmpipe (LLVM 15.0.6, 256 bits) [Vulkan, Cpu]".
     fn describe(&self) -> String;
-    fn upload_mesh(&mut self, mesh: &TexturedMesh) -> anyhow::Result<MeshHandle>;
+    fn upload_mesh(&mut self, mesh: &TexturedMesh) -> anyhow::Result<MeshHandle> {
+        self.upload_mesh_with(mesh, Material::default())
+    }
+    fn upload_mesh_with(&mut self, mesh: &TexturedMesh, material: Material) -> anyhow::Result<MeshHandle>;
+    /// Replaces a mesh's base-colour texture (randomized floors and backdrops).
+    fn set_texture(&mut self, mesh: MeshHandle, texture: &vt_objects::Texture) -> anyhow::Result<()>;
     fn render(&mut self, view: &View, lighting: &Lighting, draws: &[Draw]) -> anyhow::Result<RenderOutput>;
     /// The instance mask alone (cheaper: no colour or depth readback), e.g. an object's unoccluded
     /// silhouette.

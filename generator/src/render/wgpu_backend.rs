@@ -8,15 +8,17 @@ use glam::DMat4;
 use vt_objects::TexturedMesh;
 use wgpu::util::DeviceExt;
 
-use super::{DepthView, Draw, Lighting, MeshHandle, RenderOutput, Renderer, View, orthographic, projection};
-use crate::config::{Backend, RendererConfig};
+use super::{DepthView, Draw, Lighting, Material, MeshHandle, RenderOutput, Renderer, View, orthographic, projection};
+use crate::config::{Backend, Intrinsics, RendererConfig, ToneMapping};
 
 const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Float;
 const MASK_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Uint;
 const ZBUF_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
-/// Frame and instance uniforms live in buffers at 256-byte strides (dynamic offsets).
+const SHADOW_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+/// Instance uniforms live in a buffer at 256-byte strides, frame uniforms at 512 (dynamic offsets).
 const UNIFORM_STRIDE: u64 = 256;
+const FRAME_STRIDE: u64 = 512;
 /// Draw records (view x draw) per render call.
 const MAX_DRAWS: usize = 1024;
 /// Views per render call (the main camera, or the 12 phalanx cameras).
@@ -38,6 +40,10 @@ struct FrameUniform {
     light_pos: [f32; 4],
     light_color: [f32; 4],
     ambient: [f32; 4],
+    light_dir: [f32; 4],
+    spot: [f32; 4],
+    up: [f32; 4],
+    shadow_vp: [[f32; 4]; 4],
 }
 
 #[repr(C)]
@@ -53,6 +59,9 @@ struct GpuMesh {
     indices: wgpu::Buffer,
     index_count: u32,
     material: wgpu::BindGroup,
+    /// Roughness and metallic factors (uniform of the material bind group).
+    factors: wgpu::Buffer,
+    texture: wgpu::Texture,
     /// Triangles grouped into spatial clusters (index range, model-frame bounding box), so that
     /// small views draw only the part of a mesh they can see.
     clusters: Vec<(std::ops::Range<u32>, glam::DVec3, glam::DVec3)>,
@@ -124,6 +133,12 @@ pub struct WgpuRenderer {
     queue: wgpu::Queue,
     info: wgpu::AdapterInfo,
     pipeline: wgpu::RenderPipeline,
+    /// Depth-only pass from the spotlight into `shadow_map`.
+    shadow_pipeline: wgpu::RenderPipeline,
+    shadow_map: wgpu::TextureView,
+    shadow_group: wgpu::BindGroup,
+    shadow_size: u32,
+    tonemapping: ToneMapping,
     material_layout: wgpu::BindGroupLayout,
     sampler: wgpu::Sampler,
     frame_buffer: wgpu::Buffer,
@@ -254,12 +269,94 @@ impl WgpuRenderer {
                     ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
                     count: None,
                 },
+                wgpu::BindGroupLayoutEntry { binding: 2, ..uniform_entry(false, 16) },
+            ],
+        });
+        let shadow_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("shadow map"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Depth,
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Comparison),
+                    count: None,
+                },
             ],
         });
         let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("main view"),
-            bind_group_layouts: &[Some(&frame_layout), Some(&instance_layout), Some(&material_layout)],
+            bind_group_layouts: &[Some(&frame_layout), Some(&instance_layout), Some(&material_layout), Some(&shadow_layout)],
             immediate_size: 0,
+        });
+        let shadow_pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("shadow map"),
+            bind_group_layouts: &[Some(&frame_layout), Some(&instance_layout)],
+            immediate_size: 0,
+        });
+        let vertex_layout = wgpu::VertexBufferLayout {
+            array_stride: size_of::<Vertex>() as u64,
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2],
+        };
+        let shadow_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("shadow map"),
+            layout: Some(&shadow_pipeline_layout),
+            vertex: wgpu::VertexState {
+                module: &shader,
+                entry_point: Some("vs_shadow"),
+                compilation_options: Default::default(),
+                buffers: &[Some(vertex_layout.clone())],
+            },
+            primitive: wgpu::PrimitiveState { topology: wgpu::PrimitiveTopology::TriangleList, cull_mode: None, ..Default::default() },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: SHADOW_FORMAT,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: Default::default(),
+                // A small slope-scaled bias; the normal offset in the lookup does the rest.
+                bias: wgpu::DepthBiasState { constant: 2, slope_scale: 1.5, clamp: 0.0 },
+            }),
+            multisample: Default::default(),
+            fragment: None,
+            multiview_mask: None,
+            cache: None,
+        });
+        let shadow_size = cfg.shadow_map_size.clamp(256, adapter.limits().max_texture_dimension_2d.min(8192));
+        let shadow_tex = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("shadow map"),
+            size: wgpu::Extent3d { width: shadow_size, height: shadow_size, depth_or_array_layers: 1 },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: SHADOW_FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        });
+        let shadow_map = shadow_tex.create_view(&Default::default());
+        let shadow_sampler = device.create_sampler(&wgpu::SamplerDescriptor {
+            label: Some("shadow"),
+            mag_filter: wgpu::FilterMode::Linear,
+            min_filter: wgpu::FilterMode::Linear,
+            compare: Some(wgpu::CompareFunction::LessEqual),
+            ..Default::default()
+        });
+        let shadow_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("shadow map"),
+            layout: &shadow_layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: wgpu::BindingResource::TextureView(&shadow_map) },
+                wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::Sampler(&shadow_sampler) },
+            ],
         });
         let target = |format| Some(wgpu::ColorTargetState { format, blend: None, write_mask: wgpu::ColorWrites::ALL });
         let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
@@ -269,11 +366,7 @@ impl WgpuRenderer {
                 module: &shader,
                 entry_point: Some("vs_main"),
                 compilation_options: Default::default(),
-                buffers: &[Some(wgpu::VertexBufferLayout {
-                    array_stride: size_of::<Vertex>() as u64,
-                    step_mode: wgpu::VertexStepMode::Vertex,
-                    attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2],
-                })],
+                buffers: &[Some(vertex_layout)],
             },
             primitive: wgpu::PrimitiveState {
                 topology: wgpu::PrimitiveTopology::TriangleList,
@@ -308,7 +401,7 @@ impl WgpuRenderer {
         });
         let frame_buffer = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("frame"),
-            size: UNIFORM_STRIDE * MAX_VIEWS as u64,
+            size: FRAME_STRIDE * (MAX_VIEWS + 1) as u64,
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
@@ -347,6 +440,11 @@ impl WgpuRenderer {
             queue,
             info,
             pipeline,
+            shadow_pipeline,
+            shadow_map,
+            shadow_group,
+            shadow_size,
+            tonemapping: cfg.tonemapping,
             material_layout,
             sampler,
             frame_buffer,
@@ -412,7 +510,10 @@ impl WgpuRenderer {
         readback: Readback,
         cull: Option<&[[f64; 4]]>,
     ) -> Result<(Vec<u8>, Vec<u8>, Vec<u8>)> {
-        if views.len() > MAX_VIEWS || views.len() * draws.len() > MAX_DRAWS {
+        // The spotlight's shadow pass draws the scene once more, as an extra view record.
+        let shadow = (readback == Readback::All && lighting.shadows).then(|| light_view(lighting));
+        let records = views.len() + shadow.is_some() as usize;
+        if views.len() > MAX_VIEWS || records * draws.len() > MAX_DRAWS {
             bail!("{} views x {} draws in one pass; at most {MAX_VIEWS} views and {MAX_DRAWS} draw records", views.len(), draws.len());
         }
         for d in draws {
@@ -420,19 +521,35 @@ impl WgpuRenderer {
                 bail!("draw refers to mesh {} of {}", d.mesh.0, self.meshes.len());
             }
         }
-        let mut frames = vec![0u8; UNIFORM_STRIDE as usize * views.len().max(1)];
-        let mut inst = vec![0u8; UNIFORM_STRIDE as usize * (views.len() * draws.len()).max(1)];
-        for (vi, (t_world_camera, proj, _)) in views.iter().enumerate() {
+        let mut frames = vec![0u8; FRAME_STRIDE as usize * records.max(1)];
+        let mut inst = vec![0u8; UNIFORM_STRIDE as usize * (records * draws.len()).max(1)];
+        let lit = readback == Readback::All;
+        let all_views = views.iter().map(|(t, p, _)| (*t, *p)).chain(shadow);
+        for (vi, (t_world_camera, proj)) in all_views.enumerate() {
             let t_camera_world = t_world_camera.inverse();
             let light = t_camera_world.transform_point3(lighting.light_position);
+            let axis = t_camera_world.transform_vector3(lighting.light_target - lighting.light_position).normalize_or_zero();
+            let outer = lighting.cone_deg.to_radians();
+            let up = t_camera_world.transform_vector3(glam::DVec3::Z);
+            let (shadow_vp, texel) = match shadow {
+                Some((t_world_light, light_proj)) => {
+                    // Shadow-map texel size at 1 m from the light: 2 tan(fov / 2) / size.
+                    (light_proj * t_world_light.inverse() * t_world_camera, 2.0 * shadow_half_tan(lighting) / self.shadow_size as f64)
+                }
+                None => (DMat4::IDENTITY, 0.0),
+            };
             let frame = FrameUniform {
                 view: mat(t_camera_world),
-                proj: mat(*proj),
-                light_pos: [light.x as f32, light.y as f32, light.z as f32, 1.0],
-                light_color: [lighting.light_color[0], lighting.light_color[1], lighting.light_color[2], 1.0],
-                ambient: [lighting.ambient[0], lighting.ambient[1], lighting.ambient[2], 1.0],
+                proj: mat(proj),
+                light_pos: [light.x as f32, light.y as f32, light.z as f32, lighting.light_position.distance(lighting.light_target) as f32],
+                light_color: [lighting.light_color[0], lighting.light_color[1], lighting.light_color[2], if lit { 1.0 } else { 0.0 }],
+                ambient: [lighting.ambient[0], lighting.ambient[1], lighting.ambient[2], if shadow.is_some() { 1.0 } else { 0.0 }],
+                light_dir: [axis.x as f32, axis.y as f32, axis.z as f32, outer.cos() as f32],
+                spot: [(outer * lighting.softness.clamp(0.0, 0.999)).cos() as f32, texel as f32, (self.tonemapping == ToneMapping::Aces) as u8 as f32, 0.0],
+                up: [up.x as f32, up.y as f32, up.z as f32, 0.0],
+                shadow_vp: mat(shadow_vp),
             };
-            let o = vi * UNIFORM_STRIDE as usize;
+            let o = vi * FRAME_STRIDE as usize;
             frames[o..o + size_of::<FrameUniform>()].copy_from_slice(bytemuck::bytes_of(&frame));
             for (di, d) in draws.iter().enumerate() {
                 // Model-view in f64, then f32: keeps camera-frame coordinates exact to ~1e-7 m.
@@ -453,6 +570,30 @@ impl WgpuRenderer {
         let t = self.targets[slot].as_ref().expect("created above");
         let bg = lighting.background.map(|c| srgb_to_linear(c) as f64);
         let mut enc = self.device.create_command_encoder(&Default::default());
+        if shadow.is_some() {
+            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("shadow map"),
+                color_attachments: &[],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &self.shadow_map,
+                    depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Store }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&self.shadow_pipeline);
+            let vi = views.len();
+            pass.set_bind_group(0, &self.frame_group, &[(vi as u64 * FRAME_STRIDE) as u32]);
+            for (di, d) in draws.iter().enumerate() {
+                let m = &self.meshes[d.mesh.0];
+                pass.set_bind_group(1, &self.instance_group, &[((vi * draws.len() + di) as u64 * UNIFORM_STRIDE) as u32]);
+                pass.set_vertex_buffer(0, m.vertices.slice(..));
+                pass.set_index_buffer(m.indices.slice(..), wgpu::IndexFormat::Uint32);
+                pass.draw_indexed(0..m.index_count, 0, 0..1);
+            }
+        }
         {
             let color_att = |view, clear: wgpu::Color| {
                 Some(wgpu::RenderPassColorAttachment {
@@ -481,10 +622,11 @@ impl WgpuRenderer {
                 multiview_mask: None,
             });
             pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(3, &self.shadow_group, &[]);
             for (vi, (_, _, vp)) in views.iter().enumerate() {
                 pass.set_viewport(vp[0] as f32, vp[1] as f32, vp[2] as f32, vp[3] as f32, 0.0, 1.0);
                 pass.set_scissor_rect(vp[0], vp[1], vp[2], vp[3]);
-                pass.set_bind_group(0, &self.frame_group, &[(vi as u64 * UNIFORM_STRIDE) as u32]);
+                pass.set_bind_group(0, &self.frame_group, &[(vi as u64 * FRAME_STRIDE) as u32]);
                 for (di, d) in draws.iter().enumerate() {
                     let m = &self.meshes[d.mesh.0];
                     pass.set_bind_group(1, &self.instance_group, &[((vi * draws.len() + di) as u64 * UNIFORM_STRIDE) as u32]);
@@ -557,6 +699,72 @@ impl WgpuRenderer {
     }
 }
 
+/// tan of the half field of view of the shadow map: the cone with a margin for the PCF kernel.
+fn shadow_half_tan(l: &Lighting) -> f64 {
+    (l.cone_deg.clamp(1.0, 80.0) * 1.05).to_radians().tan()
+}
+
+/// The spotlight as a camera (OpenCV frame looking along the spot's axis) and its projection.
+fn light_view(l: &Lighting) -> (DMat4, DMat4) {
+    let t = crate::scene::look_at(l.light_position, l.light_target).matrix();
+    let f = 1.0 / shadow_half_tan(l);
+    let dist = l.light_position.distance(l.light_target);
+    let v = View {
+        width: 2,
+        height: 2,
+        // A 2x2 "image" with the optical axis at its centre: only the field of view matters.
+        k: Intrinsics { fx: f, fy: f, cx: 0.5, cy: 0.5 },
+        near: (dist * 0.05).max(0.02),
+        far: dist * 4.0 + 2.0,
+        t_world_camera: t,
+    };
+    (t, projection(&v))
+}
+
+fn write_texture(queue: &wgpu::Queue, texture: &wgpu::Texture, t: &vt_objects::Texture) {
+    queue.write_texture(
+        wgpu::TexelCopyTextureInfo { texture, mip_level: 0, origin: wgpu::Origin3d::ZERO, aspect: wgpu::TextureAspect::All },
+        &t.rgba,
+        wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(4 * t.width), rows_per_image: Some(t.height) },
+        wgpu::Extent3d { width: t.width, height: t.height, depth_or_array_layers: 1 },
+    );
+}
+
+impl WgpuRenderer {
+    /// A base-colour texture and the material bind group (texture, sampler, factors) around it.
+    fn make_material(&self, t: &vt_objects::Texture, factors: &wgpu::Buffer) -> Result<(wgpu::Texture, wgpu::BindGroup)> {
+        let max = self.device.limits().max_texture_dimension_2d;
+        if t.width > max || t.height > max {
+            bail!("texture {}x{} exceeds the adapter's limit of {max}", t.width, t.height);
+        }
+        if t.rgba.len() != (t.width * t.height * 4) as usize {
+            bail!("texture {}x{} has {} bytes, expected {}", t.width, t.height, t.rgba.len(), t.width * t.height * 4);
+        }
+        let texture = self.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("base colour"),
+            size: wgpu::Extent3d { width: t.width, height: t.height, depth_or_array_layers: 1 },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Rgba8UnormSrgb,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        });
+        write_texture(&self.queue, &texture, t);
+        let view = texture.create_view(&Default::default());
+        let group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("material"),
+            layout: &self.material_layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: wgpu::BindingResource::TextureView(&view) },
+                wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::Sampler(&self.sampler) },
+                wgpu::BindGroupEntry { binding: 2, resource: factors.as_entire_binding() },
+            ],
+        });
+        Ok((texture, group))
+    }
+}
+
 /// Which targets a pass reads back.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Readback {
@@ -578,7 +786,7 @@ impl Renderer for WgpuRenderer {
         describe_adapter(&self.info)
     }
 
-    fn upload_mesh(&mut self, mesh: &TexturedMesh) -> Result<MeshHandle> {
+    fn upload_mesh_with(&mut self, mesh: &TexturedMesh, material: Material) -> Result<MeshHandle> {
         let n = mesh.positions.len();
         if mesh.normals.len() != n || mesh.uvs.len() != n {
             bail!("mesh has {n} positions but {} normals and {} uvs", mesh.normals.len(), mesh.uvs.len());
@@ -596,39 +804,27 @@ impl Renderer for WgpuRenderer {
             contents: bytemuck::cast_slice(&indices),
             usage: wgpu::BufferUsages::INDEX,
         });
-        let t = &mesh.texture;
-        let max = self.device.limits().max_texture_dimension_2d;
-        if t.width > max || t.height > max {
-            bail!("texture {}x{} exceeds the adapter's limit of {max}", t.width, t.height);
-        }
-        let size = wgpu::Extent3d { width: t.width, height: t.height, depth_or_array_layers: 1 };
-        let texture = self.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("base colour"),
-            size,
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::Rgba8UnormSrgb,
-            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-            view_formats: &[],
+        let factors = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("material factors"),
+            contents: bytemuck::cast_slice(&[material.roughness, material.metallic, 0.0, 0.0]),
+            usage: wgpu::BufferUsages::UNIFORM,
         });
-        self.queue.write_texture(
-            wgpu::TexelCopyTextureInfo { texture: &texture, mip_level: 0, origin: wgpu::Origin3d::ZERO, aspect: wgpu::TextureAspect::All },
-            &t.rgba,
-            wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(4 * t.width), rows_per_image: Some(t.height) },
-            size,
-        );
-        let view = texture.create_view(&Default::default());
-        let material = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("material"),
-            layout: &self.material_layout,
-            entries: &[
-                wgpu::BindGroupEntry { binding: 0, resource: wgpu::BindingResource::TextureView(&view) },
-                wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::Sampler(&self.sampler) },
-            ],
-        });
-        self.meshes.push(GpuMesh { vertices: vbuf, indices: ibuf, index_count: mesh.indices.len() as u32, material, clusters });
+        let (texture, material) = self.make_material(&mesh.texture, &factors)?;
+        self.meshes.push(GpuMesh { vertices: vbuf, indices: ibuf, index_count: mesh.indices.len() as u32, material, factors, texture, clusters });
         Ok(MeshHandle(self.meshes.len() - 1))
+    }
+
+    fn set_texture(&mut self, mesh: MeshHandle, texture: &vt_objects::Texture) -> Result<()> {
+        let m = self.meshes.get(mesh.0).ok_or_else(|| anyhow!("no mesh {}", mesh.0))?;
+        if m.texture.width() == texture.width && m.texture.height() == texture.height {
+            write_texture(&self.queue, &m.texture, texture);
+            return Ok(());
+        }
+        let (tex, group) = self.make_material(texture, &m.factors)?;
+        let m = &mut self.meshes[mesh.0];
+        m.texture = tex;
+        m.material = group;
+        Ok(())
     }
 
     fn render(&mut self, view: &View, lighting: &Lighting, draws: &[Draw]) -> Result<RenderOutput> {
@@ -641,7 +837,7 @@ impl Renderer for WgpuRenderer {
 
     fn render_mask(&mut self, view: &View, draws: &[Draw]) -> Result<Vec<u8>> {
         let (w, h) = (view.width, view.height);
-        let lighting = Lighting { light_position: glam::DVec3::ZERO, light_color: [0.0; 3], ambient: [0.0; 3], background: [0, 0, 0] };
+        let lighting = Lighting::unlit();
         let (_, _, mask) =
             self.draw_views(0, (w, h), &[(view.t_world_camera, projection(view), [0, 0, w, h])], &lighting, draws, Readback::Mask, None)?;
         Ok(mask)
@@ -682,7 +878,7 @@ impl Renderer for WgpuRenderer {
                 }
             })
             .collect();
-        let lighting = Lighting { light_position: glam::DVec3::ZERO, light_color: [0.0; 3], ambient: [0.0; 3], background: [0, 0, 0] };
+        let lighting = Lighting::unlit();
         // Cull boxes in each view's camera frame (for a pinhole: the frustum's bounding box).
         let cull: Vec<[f64; 4]> = views
             .iter()

@@ -1,0 +1,482 @@
+// vtgen shards as Foxglove sees them: read with @mcap/core (McapIndexedReader, zstd through
+// @foxglove/wasm-zstd), every channel's schema parsed and every message decoded the way Foxglove
+// does it (protobufjs from the embedded FileDescriptorSet; JSON with Foxglove's JSON Schema rules),
+// every sample checked against datasets/FORMAT.md, the /scene/models 3D models checked as the
+// 3D panel will place them, and datasets/foxglove-layout.json held against the shards.
+//
+// Datasets: VTGEN_DATASET=<dataset dir or shard .mcap>[:<another>...], or VTGEN_BIN=<vtgen binary>
+// to generate VTGEN_SCENES (default scenes/tiny-hand.yaml:scenes/tiny.yaml) into a temp dir.
+// VTGEN_ALLOW_NO_SCENE_MODELS=1 turns a missing /scene/models topic into a skipped check.
+import assert from "node:assert/strict";
+import { execFileSync } from "node:child_process";
+import { existsSync, mkdtempSync, readFileSync, rmSync, statSync } from "node:fs";
+import { tmpdir } from "node:os";
+import { basename, delimiter, dirname, join, relative, resolve } from "node:path";
+import { after, before, describe, it, type TestContext } from "node:test";
+import { fileURLToPath } from "node:url";
+
+import {
+  CALIBRATION_SCHEMAS,
+  FOXGLOVE_RENDERABLE_SCHEMAS,
+  IMAGE_SCHEMAS,
+  enumValue,
+  toNanos,
+} from "../src/foxglove.js";
+import {
+  BASE_TOPICS,
+  IMAGE_ENCODINGS,
+  PADS,
+  POINT_FIELDS,
+  POINT_STRIDE,
+  ROBOT_TOPICS,
+  SAMPLE_INFO_KEYS,
+  SAMPLE_INFO_ROBOT_KEYS,
+  SAMPLE_PERIOD_NS,
+  SCENE_SCHEMA,
+  SCENE_TOPIC,
+  SHARD_METADATA_KEYS,
+  TACTILE_RESOLUTION,
+} from "../src/format.js";
+import { checkSceneModels, obj, only, tfTree, unitQuaternion, type ModelInfo, type Obj } from "../src/checks.js";
+import { frameReferences, loadLayout, topicReferences, type LayoutFile } from "../src/layout.js";
+import { readShard, type Decoded, type ShardData } from "../src/shard.js";
+
+// dist/test/foxglove.test.js -> datasets/ts -> datasets -> repository root
+const here = dirname(fileURLToPath(import.meta.url));
+const tsRoot = resolve(here, "..", "..");
+const repoRoot = resolve(tsRoot, "..", "..");
+const layoutPath = process.env.VTGEN_LAYOUT ?? join(repoRoot, "datasets", "foxglove-layout.json");
+const allowNoSceneModels = process.env.VTGEN_ALLOW_NO_SCENE_MODELS === "1";
+
+type Dataset = { name: string; root: string | undefined; shards: string[]; robot: boolean | undefined };
+
+
+// ---- which datasets --------------------------------------------------------------------------
+
+let tempDir: string | undefined;
+
+function datasetFrom(path: string): Dataset {
+  const abs = resolve(path);
+  if (statSync(abs).isFile()) {
+    // a bare shard: <root>/<split>/shard-NNNNN.mcap; the dataset root may be there or not
+    const root = dirname(dirname(abs));
+    return {
+      name: basename(abs),
+      root: existsSync(join(root, "manifest.json")) ? root : undefined,
+      shards: [abs],
+      robot: robotOf(root),
+    };
+  }
+  const manifest = JSON.parse(readFileSync(join(abs, "manifest.json"), "utf8")) as {
+    splits: Record<string, { shards: { file: string; sha256: string | null }[] }>;
+  };
+  const shards: string[] = [];
+  for (const split of Object.values(manifest.splits)) {
+    for (const shard of split.shards) {
+      if (shard.sha256 != null) {
+        shards.push(join(abs, shard.file));
+      }
+    }
+  }
+  return { name: basename(abs), root: abs, shards, robot: robotOf(abs) };
+}
+
+function robotOf(root: string): boolean | undefined {
+  const config = join(root, "config.json");
+  if (!existsSync(config)) {
+    return undefined;
+  }
+  const value = JSON.parse(readFileSync(config, "utf8")) as Obj;
+  return value.robot != undefined;
+}
+
+function datasets(): Dataset[] {
+  const given = process.env.VTGEN_DATASET;
+  if (given != undefined && given !== "") {
+    return given.split(delimiter).filter((p) => p !== "").map(datasetFrom);
+  }
+  const bin = process.env.VTGEN_BIN;
+  if (bin == undefined || bin === "") {
+    throw new Error("set VTGEN_DATASET to a dataset (or shard), or VTGEN_BIN to a vtgen binary to generate one");
+  }
+  tempDir = mkdtempSync(join(tmpdir(), "vtgen-foxglove-"));
+  const scenes = (process.env.VTGEN_SCENES ?? "scenes/tiny-hand.yaml:scenes/tiny.yaml").split(delimiter);
+  return scenes.map((scene) => {
+    const out = join(tempDir!, basename(scene, ".yaml"));
+    execFileSync(bin, ["generate", resolve(repoRoot, scene), "--out", out, "--quiet"], { stdio: "inherit" });
+    return datasetFrom(out);
+  });
+}
+
+const all = datasets();
+after(() => {
+  if (tempDir != undefined && process.env.VTGEN_KEEP !== "1") {
+    rmSync(tempDir, { recursive: true, force: true });
+  }
+});
+
+// ---- helpers ---------------------------------------------------------------------------------
+
+function isRobot(dataset: Dataset, shard: ShardData): boolean {
+  return dataset.robot ?? shard.topics.has("/tactile/points");
+}
+
+function expectedTopics(robot: boolean): Record<string, string> {
+  return robot ? { ...BASE_TOPICS, ...ROBOT_TOPICS } : { ...BASE_TOPICS };
+}
+
+function schemaOf(shard: ShardData, topic: string): string | undefined {
+  const info = shard.topics.get(topic);
+  if (info == undefined) {
+    return undefined;
+  }
+  return info.channel.messageEncoding === "json" ? "json" : info.schema?.name;
+}
+
+function modelsInfo(root: string | undefined): Map<string, ModelInfo> | undefined {
+  if (root == undefined || !existsSync(join(root, "models", "models_info.json"))) {
+    return undefined;
+  }
+  const info = JSON.parse(readFileSync(join(root, "models", "models_info.json"), "utf8")) as { objects: ModelInfo[] };
+  return new Map(info.objects.map((o) => [o.id, o]));
+}
+
+// ---- the layout ------------------------------------------------------------------------------
+
+let layout: LayoutFile;
+let layoutError: unknown;
+try {
+  layout = await loadLayout(layoutPath);
+} catch (err) {
+  layoutError = err;
+}
+
+describe("datasets/foxglove-layout.json", () => {
+  it("is a Foxglove layout (configById, layout tree, globalVariables, userNodes, playbackConfig)", () => {
+    if (layoutError != undefined) {
+      throw layoutError;
+    }
+    const refs = topicReferences(layout);
+    const topics = new Set(refs.map((r) => r.topic));
+    for (const topic of ["/tactile/points", SCENE_TOPIC, "/camera/rgb", "/camera/calibration", "/camera/depth", "/camera/mask", "/sample/info"]) {
+      assert.ok(topics.has(topic), `the layout does not show ${topic}`);
+    }
+    assert.ok([...topics].some((t) => /^\/tactile\/\w+_\w+\/depth$/.test(t)), "the layout shows no phalanx depth image");
+    const threeD = Object.entries(layout.configById).filter(([id]) => id.startsWith("3D!"));
+    assert.equal(threeD.length, 1, "one 3D panel");
+    assert.ok(["camera", "world"].includes(String(threeD[0]![1].followTf)), "the 3D panel follows camera or world");
+  });
+});
+
+// ---- per dataset and shard ---------------------------------------------------------------------
+
+for (const dataset of all) {
+  describe(`dataset ${dataset.name}`, () => {
+    it("has complete shards to read", () => {
+      assert.ok(dataset.shards.length > 0, "no complete shard");
+      for (const shard of dataset.shards) {
+        assert.ok(existsSync(shard), `${shard} is missing`);
+      }
+    });
+
+    const models = modelsInfo(dataset.root);
+
+    for (const shardPath of dataset.shards) {
+      const label = dataset.root != undefined ? relative(dataset.root, shardPath) : basename(shardPath);
+      describe(label, () => {
+        let shard: ShardData;
+        let robot = false;
+        before(async () => {
+          shard = await readShard(shardPath);
+          robot = isRobot(dataset, shard);
+        });
+
+        it("opens with McapIndexedReader: header, one zstd chunk per sample, vtgen.shard metadata", () => {
+          assert.equal(shard.header.profile, "");
+          assert.match(shard.header.library, /^vtgen /);
+          assert.ok(shard.statistics != undefined, "no statistics record in the summary");
+          const meta = shard.metadata.get("vtgen.shard");
+          assert.ok(meta != undefined, "no vtgen.shard metadata record");
+          for (const key of SHARD_METADATA_KEYS) {
+            assert.ok(meta.has(key), `vtgen.shard has no ${key}`);
+          }
+          if (robot) {
+            assert.ok(meta.has("grasp_stats"), "vtgen.shard has no grasp_stats (robot dataset)");
+          }
+          assert.equal(meta.get("format_version"), "1");
+          const first = BigInt(meta.get("first_sample")!);
+          const count = Number(meta.get("sample_count"));
+          assert.equal(shard.chunkIndexes.length, count, "chunks != samples");
+          const starts = shard.chunkIndexes.map((c) => c.messageStartTime).sort((a, b) => (a < b ? -1 : a > b ? 1 : 0));
+          shard.chunkIndexes.forEach((c) => {
+            assert.equal(c.compression, "zstd", "chunk compression");
+            assert.equal(c.messageStartTime, c.messageEndTime, "a chunk spans more than one sample");
+          });
+          starts.forEach((t, k) => assert.equal(t, (first + BigInt(k)) * SAMPLE_PERIOD_NS, `chunk ${k} log time`));
+        });
+
+        it("every channel's schema parses as Foxglove parses it, with the FORMAT.md schema", () => {
+          const problems: string[] = [];
+          for (const info of shard.channels.values()) {
+            if (info.error != undefined) {
+              problems.push(`${info.channel.topic}: ${info.error.message}`);
+            }
+          }
+          assert.deepEqual(problems, []);
+          const expected: Record<string, string> = { ...expectedTopics(robot), [SCENE_TOPIC]: SCENE_SCHEMA };
+          for (const [topic, info] of shard.topics) {
+            const want = expected[topic];
+            assert.ok(want != undefined, `topic ${topic} is not in FORMAT.md`);
+            if (want === "json") {
+              assert.equal(info.channel.messageEncoding, "json", `${topic} message encoding`);
+              assert.equal(info.schema?.encoding, "jsonschema", `${topic} schema encoding`);
+            } else {
+              assert.equal(info.channel.messageEncoding, "protobuf", `${topic} message encoding`);
+              assert.equal(info.schema?.name, want, `${topic} schema name`);
+              assert.ok(FOXGLOVE_RENDERABLE_SCHEMAS.has(want), `${want} is not a schema Foxglove draws`);
+            }
+          }
+        });
+
+        it("every message of every channel decodes", () => {
+          assert.deepEqual(shard.decodeErrors, []);
+          const stats = shard.statistics!;
+          assert.equal(BigInt(shard.messages.length), stats.messageCount, "decoded messages != statistics");
+          const perChannel = new Map<number, number>();
+          for (const m of shard.messages) {
+            perChannel.set(m.channelId, (perChannel.get(m.channelId) ?? 0) + 1);
+          }
+          for (const [id, count] of stats.channelMessageCounts) {
+            assert.equal(BigInt(perChannel.get(id) ?? 0), count, `channel ${id} message count`);
+          }
+        });
+
+        it("each sample has every FORMAT.md topic once, all stamped with its log time", () => {
+          const meta = shard.metadata.get("vtgen.shard")!;
+          const first = BigInt(meta.get("first_sample")!);
+          const count = Number(meta.get("sample_count"));
+          const times = [...shard.samples.keys()];
+          assert.equal(times.length, count, "samples (distinct log times) != sample_count");
+          const topics = Object.keys(expectedTopics(robot));
+          times.forEach((t, k) => {
+            assert.equal(t, (first + BigInt(k)) * SAMPLE_PERIOD_NS, `sample ${k} log time`);
+            const sample = shard.samples.get(t)!;
+            for (const topic of topics) {
+              assert.equal(sample.get(topic)?.length ?? 0, 1, `sample ${k}: ${topic} messages`);
+            }
+            for (const [topic, list] of sample) {
+              assert.ok(topics.includes(topic) || topic === SCENE_TOPIC, `sample ${k}: unexpected topic ${topic}`);
+              assert.ok(list.length === 1, `sample ${k}: ${list.length} messages on ${topic}`);
+              for (const m of list) {
+                assert.equal(m.publishTime, t, `${topic}: publish_time != log_time`);
+                const v = m.value;
+                if ("timestamp" in v) {
+                  assert.equal(toNanos(v.timestamp), t, `${topic}: timestamp != log_time`);
+                }
+                for (const tf of (v.transforms ?? []) as Obj[]) {
+                  assert.equal(toNanos(tf.timestamp), t, `${topic}: transform timestamp != log_time`);
+                }
+                for (const entity of (v.entities ?? []) as Obj[]) {
+                  assert.equal(toNanos(entity.timestamp), t, `${topic}: entity timestamp != log_time`);
+                }
+              }
+            }
+            const info = only(sample, "/sample/info");
+            assert.equal(BigInt(info.index as number), first + BigInt(k), `sample ${k}: /sample/info index`);
+            assert.equal(info.split, meta.get("split"), `sample ${k}: /sample/info split`);
+          });
+        });
+
+        it("RawImage width, height, encoding and step match the data (and FORMAT.md)", () => {
+          let rgb: { width: number; height: number } | undefined;
+          for (const m of shard.messages) {
+            const spec = IMAGE_ENCODINGS[m.topic];
+            if (spec == undefined) {
+              continue;
+            }
+            const img = m.value as { width: number; height: number; encoding: string; step: number; data: Uint8Array; frame_id: string };
+            const where = `${m.topic} @ ${m.logTime}`;
+            assert.equal(img.encoding, spec.encoding, `${where}: encoding`);
+            assert.ok(img.width > 0 && img.height > 0, `${where}: empty image`);
+            assert.equal(img.step, img.width * spec.bytesPerPixel, `${where}: step (no padding)`);
+            assert.equal(img.data.byteLength, img.step * img.height, `${where}: data length != step * height`);
+            if (m.topic.startsWith("/camera/")) {
+              assert.equal(img.frame_id, "camera", `${where}: frame_id`);
+              rgb ??= { width: img.width, height: img.height };
+              assert.deepEqual({ width: img.width, height: img.height }, rgb, `${where}: size differs from the other camera images`);
+            } else {
+              const pad = m.topic.split("/")[2]!;
+              assert.equal(img.frame_id, `${pad}_pad`, `${where}: frame_id`);
+              assert.equal(img.width, TACTILE_RESOLUTION);
+              assert.equal(img.height, TACTILE_RESOLUTION);
+            }
+            if (img.encoding === "32FC1") {
+              const view = new DataView(img.data.buffer, img.data.byteOffset, img.data.byteLength);
+              for (let i = 0; i < img.data.byteLength; i += 4) {
+                const d = view.getFloat32(i, true);
+                assert.ok(!Number.isNaN(d) && d >= (m.topic === "/camera/depth" ? 0 : -1), `${where}: depth ${d}`);
+              }
+            }
+          }
+        });
+
+        it("CameraCalibration, PoseInFrame and PointCloud are what Foxglove needs", () => {
+          for (const [t, sample] of shard.samples) {
+            const where = `sample @ ${t}`;
+            const rgb = only(sample, "/camera/rgb");
+            const cal = only(sample, "/camera/calibration") as {
+              frame_id: string; width: number; height: number; distortion_model: string; D: number[]; K: number[]; R: number[]; P: number[];
+            };
+            assert.equal(cal.frame_id, rgb.frame_id, `${where}: calibration frame != image frame (Foxglove warns)`);
+            assert.equal(cal.width, rgb.width, `${where}: calibration width`);
+            assert.equal(cal.height, rgb.height, `${where}: calibration height`);
+            assert.equal(cal.K.length, 9);
+            assert.equal(cal.R.length, 9);
+            assert.equal(cal.P.length, 12);
+            assert.equal(cal.distortion_model, "plumb_bob");
+            assert.equal(cal.D.length, 5);
+            const [fx, , cx, , fy, cy] = cal.K as [number, number, number, number, number, number];
+            assert.deepEqual(cal.P, [fx, 0, cx, 0, 0, fy, cy, 0, 0, 0, 1, 0], `${where}: P != [K | 0]`);
+            assert.ok(fx > 0 && fy > 0, `${where}: focal lengths`);
+
+            const pose = only(sample, "/object/pose");
+            assert.equal(pose.frame_id, "camera");
+            unitQuaternion(obj(pose.pose).orientation, `${where}: /object/pose`);
+
+            if (robot) {
+              const cloud = only(sample, "/tactile/points");
+              const type = shard.topics.get("/tactile/points")!.parsed as { kind: "protobuf"; type: import("protobufjs").Type };
+              const fieldType = type.type.lookupType("foxglove.PackedElementField");
+              assert.equal(cloud.frame_id, "camera", `${where}: point cloud frame`);
+              assert.equal(cloud.point_stride, POINT_STRIDE, `${where}: point_stride`);
+              const fields = (cloud.fields as Obj[]).map((f) => [f.name, f.offset, f.type]);
+              assert.deepEqual(
+                fields,
+                POINT_FIELDS.map(([name, offset, numeric]) => [name, offset, enumValue(fieldType, "NumericType", numeric)]),
+                `${where}: point fields`,
+              );
+              const cpose = obj(cloud.pose);
+              assert.deepEqual(obj(cpose.orientation), { x: 0, y: 0, z: 0, w: 1 }, `${where}: point cloud pose`);
+              const data = cloud.data as Uint8Array;
+              assert.equal(data.byteLength % POINT_STRIDE, 0, `${where}: point data length`);
+              const view = new DataView(data.buffer, data.byteOffset, data.byteLength);
+              for (let i = 0; i < data.byteLength; i += POINT_STRIDE) {
+                const phalanx = view.getUint32(i + 16, true);
+                assert.ok(phalanx < PADS.length, `${where}: phalanx ${phalanx}`);
+                for (let k = 0; k < 4; k++) {
+                  assert.ok(Number.isFinite(view.getFloat32(i + 4 * k, true)), `${where}: non-finite point value`);
+                }
+              }
+            }
+          }
+        });
+
+        it("/tf is one tree rooted at world holding every frame a message names", () => {
+          for (const [t, sample] of shard.samples) {
+            const where = `sample @ ${t}`;
+            const tree = tfTree(sample, where);
+            const needed = new Set(["world", "camera", "object"]);
+            if (robot) {
+              needed.add("palm");
+              PADS.forEach((pad) => needed.add(`${pad}_pad`));
+            }
+            for (const list of sample.values()) {
+              for (const m of list) {
+                if (typeof m.value.frame_id === "string") {
+                  needed.add(m.value.frame_id);
+                }
+                for (const entity of (m.value.entities ?? []) as Obj[]) {
+                  needed.add(String(entity.frame_id));
+                }
+              }
+            }
+            for (const frame of needed) {
+              assert.ok(tree.frames.has(frame), `${where}: frame ${frame} is not in /tf`);
+            }
+          }
+        });
+
+        it("/sample/info has the FORMAT.md keys and repeats /object/pose", () => {
+          for (const [t, sample] of shard.samples) {
+            const where = `sample @ ${t}`;
+            const info = only(sample, "/sample/info");
+            for (const key of [...SAMPLE_INFO_KEYS, ...(robot ? SAMPLE_INFO_ROBOT_KEYS : [])]) {
+              assert.ok(key in info, `${where}: /sample/info has no ${key}`);
+            }
+            if (robot) {
+              assert.ok((info.phalanges_in_contact as string[]).length >= 2, `${where}: fewer than 2 phalanges in contact`);
+              assert.equal(Object.keys(obj(info.joint_positions)).length, 22, `${where}: joint_positions`);
+            }
+            const tco = obj(info.T_camera_object) as { position: number[]; orientation: number[] };
+            const pose = obj(obj(only(sample, "/object/pose")).pose);
+            const p = obj(pose.position) as { x: number; y: number; z: number };
+            const q = obj(pose.orientation) as { x: number; y: number; z: number; w: number };
+            assert.deepEqual(tco.position, [p.x, p.y, p.z], `${where}: T_camera_object.position`);
+            assert.deepEqual(tco.orientation, [q.x, q.y, q.z, q.w], `${where}: T_camera_object.orientation`);
+            if (models != undefined) {
+              assert.ok(models.has(String(info.object_id)), `${where}: object ${String(info.object_id)} not in models_info.json`);
+            }
+          }
+        });
+
+        it("/scene/models shows Foxglove the object mesh and the robot at every sample, after a seek too", (t: TestContext) => {
+          const scene = shard.topics.get(SCENE_TOPIC);
+          if (scene == undefined && allowNoSceneModels) {
+            t.skip(`no ${SCENE_TOPIC} in this shard (allowed by VTGEN_ALLOW_NO_SCENE_MODELS=1)`);
+            return;
+          }
+          assert.ok(scene != undefined, `no ${SCENE_TOPIC} topic (FORMAT: the object's mesh and the robot, once per shard)`);
+          const updates = shard.messages.filter((m) => m.topic === SCENE_TOPIC);
+          checkSceneModels(shard.samples, updates, robot, models);
+        });
+
+        it("datasets/foxglove-layout.json: every topic it shows is in the shard with a fitting schema, every frame in /tf", (t: TestContext) => {
+          if (layoutError != undefined) {
+            throw layoutError;
+          }
+          const skipped: string[] = [];
+          for (const ref of topicReferences(layout)) {
+            const schema = schemaOf(shard, ref.topic);
+            if (schema == undefined) {
+              if (!robot && ref.topic.startsWith("/tactile/")) {
+                continue; // FORMAT.md: tactile topics only with a robot
+              }
+              if (ref.topic === SCENE_TOPIC && allowNoSceneModels) {
+                skipped.push(ref.topic);
+                continue;
+              }
+              assert.fail(`${ref.panel} shows ${ref.topic}, which is not in the shard`);
+            }
+            const fits =
+              ref.use === "image" ? IMAGE_SCHEMAS.has(schema)
+              : ref.use === "calibration" ? CALIBRATION_SCHEMAS.has(schema)
+              : ref.use === "scene" ? FOXGLOVE_RENDERABLE_SCHEMAS.has(schema)
+              : true;
+            assert.ok(fits, `${ref.panel} uses ${ref.topic} (${schema}) as ${ref.use}`);
+          }
+          const first = shard.samples.values().next().value as Map<string, Decoded[]>;
+          const tree = tfTree(first, "first sample");
+          for (const ref of frameReferences(layout)) {
+            assert.ok(tree.frames.has(ref.frame), `${ref.panel} names frame ${ref.frame}, which is not in /tf`);
+          }
+          for (const [panel, config] of Object.entries(layout.configById)) {
+            const imageMode = (config.imageMode ?? {}) as { imageTopic?: string; calibrationTopic?: string };
+            if (imageMode.imageTopic == undefined || imageMode.calibrationTopic == undefined) {
+              continue;
+            }
+            if (!shard.topics.has(imageMode.imageTopic)) {
+              continue;
+            }
+            const image = only(first, imageMode.imageTopic);
+            const cal = only(first, imageMode.calibrationTopic);
+            assert.equal(image.frame_id, cal.frame_id, `${panel}: image and calibration frames differ`);
+            assert.equal(image.width, cal.width, `${panel}: image and calibration sizes differ`);
+          }
+          if (skipped.length > 0) {
+            t.diagnostic(`not checked (VTGEN_ALLOW_NO_SCENE_MODELS=1): ${[...new Set(skipped)].join(", ")}`);
+          }
+        });
+      });
+    }
+  });
+}
