@@ -31,6 +31,7 @@ pub const PARTIAL_SUFFIX: &str = ".partial";
 pub mod topics {
     pub const RGB: &str = "/camera/rgb";
     pub const DEPTH: &str = "/camera/depth";
+    pub const DEPTH_NOISY: &str = "/camera/depth_noisy";
     pub const MASK: &str = "/camera/mask";
     pub const CALIBRATION: &str = "/camera/calibration";
     pub const OBJECT_POSE: &str = "/object/pose";

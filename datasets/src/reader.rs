@@ -119,7 +119,15 @@ impl ShardReader {
         expect_enc(&rgb, "rgb8")?;
         expect_enc(&depth, "32FC1")?;
         expect_enc(&mask, "mono8")?;
-        let depth = unpad(&depth, 4)?.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+        let floats = |img: &RawImage| -> Result<Vec<f32>> {
+            expect_enc(img, "32FC1")?;
+            Ok(unpad(img, 4)?.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect())
+        };
+        let depth = floats(&depth)?;
+        let depth_noisy = match by_topic.get(topics::DEPTH_NOISY) {
+            Some(raw) => Some(floats(&RawImage::decode(&raw[..]).with_context(ctx)?)?),
+            None => None,
+        };
         let k: [f64; 9] = calib.k.as_slice().try_into().map_err(|_| anyhow!("{}: calibration K has {} values", ctx(), calib.k.len()))?;
         let to_pose = |p: Option<foxglove::schemas::Vector3>, q: Option<foxglove::schemas::Quaternion>| -> Result<Pose> {
             let (p, q) = (
@@ -143,6 +151,7 @@ impl ShardReader {
             height: h,
             rgb: unpad(&rgb, 3)?,
             depth,
+            depth_noisy,
             mask: unpad(&mask, 1)?,
             k,
             t_camera_object: to_pose(p.position, p.orientation)?,

@@ -43,6 +43,8 @@ pub struct Sample {
     pub rgb: Vec<u8>,
     /// z-depth in metres, 0 = no surface.
     pub depth: Vec<f32>,
+    /// The depth as a noisy RGB-D sensor reads it, when the config has a noise model.
+    pub depth_noisy: Option<Vec<f32>>,
     /// Instance ids (FORMAT.md).
     pub mask: Vec<u8>,
     /// Row-major 3x3 intrinsics.

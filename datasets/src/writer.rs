@@ -45,6 +45,8 @@ pub struct ShardReceipt {
 struct Channels {
     rgb: u16,
     depth: u16,
+    /// `/camera/depth_noisy`, added with the first sample that has one.
+    depth_noisy: Option<u16>,
     mask: u16,
     calibration: u16,
     pose: u16,
@@ -123,6 +125,7 @@ impl ShardWriter {
         let channels = Channels {
             rgb: add::<RawImage>(&mut mcap, topics::RGB)?,
             depth: add::<RawImage>(&mut mcap, topics::DEPTH)?,
+            depth_noisy: None,
             mask: add::<RawImage>(&mut mcap, topics::MASK)?,
             calibration: add::<CameraCalibration>(&mut mcap, topics::CALIBRATION)?,
             pose: add::<PoseInFrame>(&mut mcap, topics::OBJECT_POSE)?,
@@ -175,6 +178,20 @@ impl ShardWriter {
         let depth_bytes: Vec<u8> = s.depth.iter().flat_map(|d| d.to_le_bytes()).collect();
         let depth = image("32FC1", w * 4, &depth_bytes).encode_to_vec();
         self.put(self.channels.depth, t, &depth)?;
+        if let Some(noisy) = &s.depth_noisy {
+            anyhow::ensure!(noisy.len() == (w * h) as usize, "noisy depth size does not match {w}x{h}");
+            let ch = match self.channels.depth_noisy {
+                Some(c) => c,
+                None => {
+                    let c = add::<RawImage>(&mut self.mcap, topics::DEPTH_NOISY)?;
+                    self.channels.depth_noisy = Some(c);
+                    c
+                }
+            };
+            let bytes: Vec<u8> = noisy.iter().flat_map(|d| d.to_le_bytes()).collect();
+            let msg = image("32FC1", w * 4, &bytes).encode_to_vec();
+            self.put(ch, t, &msg)?;
+        }
         let mask = image("mono8", w, &s.mask).encode_to_vec();
         self.put(self.channels.mask, t, &mask)?;
         let k = s.k;

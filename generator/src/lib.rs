@@ -18,6 +18,7 @@ pub mod preview;
 pub mod render;
 pub mod sample;
 pub mod scene;
+pub mod sensor_noise;
 pub mod stats;
 pub mod tactile;
 pub mod validate;

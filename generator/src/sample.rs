@@ -7,13 +7,13 @@ use anyhow::{Context, Result};
 use glam::{DAffine3, DMat4, DQuat};
 use vt_dataset::{ColoredMesh, Pose, Sample, SceneModel, TactileData, TactilePointRecord, encode_glb, frames, mask_ids};
 use vt_objects::{Texture, TexturedMesh};
-use vt_randomizers::{Appearance, SampleKey};
+use vt_randomizers::{AppearanceContext, ImageLibrary, ProceduralTexture, SampleKey, SampleStream};
 
 use crate::assets::LoadedObject;
 use crate::config::{Config, LoadedConfig};
 use crate::occlusion::{bin as occlusion_bin, model_points, occlusion_level};
 use crate::plan::SampleRef;
-use crate::render::{Draw, Lighting, MeshHandle, Renderer, View};
+use crate::render::{Draw, Lighting, Material, MeshHandle, Renderer, View};
 use crate::scene::robot::{GraspStats, RobotScene, link_mesh, mask_id as robot_mask_id};
 use crate::scene::sample_scene;
 use crate::tactile::{pad_sizes, sense};
@@ -22,17 +22,68 @@ pub fn pose_of(t: &DAffine3) -> Pose {
     Pose::from_rt(DQuat::from_mat3(&t.matrix3), t.translation)
 }
 
-/// The floor: a large textured quad on z = 0, the texture repeating every `tile` metres.
-fn floor_mesh(appearance: &Appearance) -> TexturedMesh {
+/// The floor: a 6 m textured quad on z = 0, texture coordinates in metres (the renderer scales
+/// them by 1 / tile size).
+fn floor_mesh() -> TexturedMesh {
     let half = 3.0f32;
-    let reps = (2.0 * half as f64 / appearance.floor_tile) as f32;
     let corners = [[-half, -half], [half, -half], [half, half], [-half, half]];
     TexturedMesh {
         positions: corners.iter().map(|c| [c[0], c[1], 0.0]).collect(),
         normals: vec![[0.0, 0.0, 1.0]; 4],
-        uvs: corners.iter().map(|c| [(c[0] / (2.0 * half) + 0.5) * reps, (0.5 - c[1] / (2.0 * half)) * reps]).collect(),
+        uvs: corners.iter().map(|c| [c[0], -c[1]]).collect(),
         indices: vec![0, 1, 2, 0, 2, 3],
-        texture: Texture { width: appearance.floor.width, height: appearance.floor.height, rgba: appearance.floor.rgba.clone() },
+        texture: Texture::solid([128, 128, 128]),
+    }
+}
+
+/// The backdrop: a 6 m × 3 m wall standing on the floor behind the workspace, facing the camera,
+/// texture coordinates in metres.
+fn backdrop_mesh(config: &Config) -> TexturedMesh {
+    let cam = glam::DVec3::from_array(config.camera.position);
+    let at = glam::DVec3::from_array(config.camera.look_at);
+    let forward = ((at - cam) * glam::DVec3::new(1.0, 1.0, 0.0)).normalize_or(glam::DVec3::Y);
+    let side = forward.cross(glam::DVec3::Z);
+    let base = glam::DVec3::new(at.x, at.y, 0.0) + forward * 1.2;
+    let (w, h) = (3.0, 3.0);
+    let corners = [(-w, 0.0), (w, 0.0), (w, h), (-w, h)];
+    TexturedMesh {
+        positions: corners.iter().map(|&(x, z)| (base + side * x + glam::DVec3::Z * z).as_vec3().to_array()).collect(),
+        normals: vec![(-forward).as_vec3().to_array(); 4],
+        uvs: corners.iter().map(|&(x, z)| [x as f32, -(z as f32)]).collect(),
+        indices: vec![0, 1, 2, 0, 2, 3],
+        texture: Texture::solid([196, 198, 200]),
+    }
+}
+
+fn texture_of(t: &ProceduralTexture) -> Texture {
+    Texture { width: t.width, height: t.height, rgba: t.rgba.clone() }
+}
+
+/// glTF roughness/metallic of a catalogue object (what its real surface is made of).
+fn object_material(id: &str) -> Material {
+    let (roughness, metallic) = match id {
+        "005_tomato_soup_can" | "010_potted_meat_can" => (0.35, 0.6), // printed tinplate
+        "025_mug" => (0.2, 0.0),                                       // glazed ceramic
+        "037_scissors" | "042_adjustable_wrench" => (0.3, 0.9),        // steel
+        "006_mustard_bottle" | "035_power_drill" => (0.45, 0.0),       // moulded plastic
+        "011_banana" => (0.55, 0.0),
+        _ => (0.8, 0.0), // cardboard boxes and unknown objects: matte
+    };
+    Material { roughness, metallic }
+}
+
+/// A texture the renderer holds, so that it is uploaded only when it changes.
+#[derive(Default)]
+struct TextureSlot(Option<(ProceduralTexture, f32)>);
+
+impl TextureSlot {
+    fn set(&mut self, r: &mut dyn Renderer, mesh: MeshHandle, t: &ProceduralTexture, tile: f64) -> Result<()> {
+        let scale = (1.0 / tile.max(1e-3)) as f32;
+        if self.0.as_ref().is_none_or(|(old, s)| old != t || *s != scale) {
+            r.set_texture(mesh, &texture_of(t), scale)?;
+            self.0 = Some((t.clone(), scale));
+        }
+        Ok(())
     }
 }
 
@@ -54,6 +105,11 @@ pub struct SampleFactory<'a> {
     renderer: Box<dyn Renderer + 'a>,
     object_meshes: Vec<MeshHandle>,
     floor: MeshHandle,
+    backdrop: MeshHandle,
+    floor_texture: TextureSlot,
+    backdrop_texture: TextureSlot,
+    /// Images for the `image` texture kind of the randomizer.
+    images: ImageLibrary,
     robot: Option<RobotScene>,
     /// (link, mesh, mask id) of every drawn robot link.
     robot_meshes: Vec<(usize, MeshHandle, u8)>,
@@ -84,21 +140,65 @@ pub struct StageTimes {
     pub occlusion: Duration,
 }
 
+/// A distractor object standing on the floor.
+struct PlacedDistractor {
+    object: usize,
+    mask_id: u8,
+    pose: Pose,
+}
+
 impl<'a> SampleFactory<'a> {
+    /// The randomizer's distractors as objects standing upright on the floor (mask ids 2, 3, …),
+    /// leaving out any that would overlap the target's footprint or an earlier distractor.
+    fn place_distractors(&self, scene: &crate::scene::SampledScene, target: usize) -> Vec<PlacedDistractor> {
+        let radius = |o: usize| {
+            let e = self.objects[o].mesh.extents();
+            0.5 * (e.x as f64).hypot(e.y as f64)
+        };
+        let target_xy = scene.t_world_object.translation().truncate();
+        let mut placed: Vec<(PlacedDistractor, glam::DVec2, f64)> = Vec::new();
+        for d in &scene.appearance.distractors {
+            if placed.len() >= 8 {
+                break; // mask ids 2–9
+            }
+            let object = if d.candidate >= target { d.candidate + 1 } else { d.candidate };
+            if object >= self.objects.len() {
+                continue;
+            }
+            let xy = glam::DVec2::from_array(d.position_xy);
+            let r = radius(object);
+            if xy.distance(target_xy) < r + radius(target) || placed.iter().any(|(_, p, pr)| xy.distance(*p) < r + pr) {
+                continue;
+            }
+            let z = 0.5 * self.objects[object].mesh.extents().z as f64;
+            let pose = Pose::from_rt(glam::DQuat::from_rotation_z(d.yaw), xy.extend(z));
+            placed.push((PlacedDistractor { object, mask_id: 2 + placed.len() as u8, pose }, xy, r));
+        }
+        placed.into_iter().map(|p| p.0).collect()
+    }
+
     pub fn new(cfg: &'a LoadedConfig, objects: &'a [LoadedObject], mut renderer: Box<dyn Renderer + 'a>) -> Result<Self> {
         let config = &cfg.config;
-        let floor = renderer.upload_mesh(&floor_mesh(&Appearance::canonical()))?;
+        let floor = renderer.upload_mesh_with(&floor_mesh(), Material { roughness: 0.85, metallic: 0.0 })?;
+        let backdrop = renderer.upload_mesh_with(&backdrop_mesh(config), Material { roughness: 0.95, metallic: 0.0 })?;
         let object_meshes = objects
             .iter()
-            .map(|o| renderer.upload_mesh(&o.mesh).with_context(|| format!("uploading '{}'", o.id)))
+            .map(|o| renderer.upload_mesh_with(&o.mesh, object_material(&o.id)).with_context(|| format!("uploading '{}'", o.id)))
             .collect::<Result<_>>()?;
+        let rnd = &config.randomization;
+        let images = match rnd.floor.image_dir.as_ref().or(rnd.backdrop.image_dir.as_ref()) {
+            Some(dir) if rnd.enabled => ImageLibrary::load(&cfg.resolve(dir)).map_err(|e| anyhow::anyhow!("randomization image_dir: {e}"))?,
+            _ => ImageLibrary::empty(),
+        };
         let robot = config.robot.as_ref().map(|r| RobotScene::new(cfg, r, objects)).transpose()?;
         let mut robot_meshes = Vec::new();
         let mut robot_glbs = Vec::new();
         if let Some(r) = &robot {
             for link in 0..r.model.links.len() {
                 if let (Some(mesh), Some(id)) = (link_mesh(&r.model, link), robot_mask_id(&r.model, link)) {
-                    robot_meshes.push((link, renderer.upload_mesh(&mesh)?, id));
+                    // Matte black hand (white tips), the arm's painted aluminium.
+                    let material = if id < 16 { Material { roughness: 0.45, metallic: 0.3 } } else { Material { roughness: 0.75, metallic: 0.0 } };
+                    robot_meshes.push((link, renderer.upload_mesh_with(&mesh, material)?, id));
                     let name = &r.model.links[link].name;
                     robot_glbs.push(SceneModel { id: format!("robot/{name}"), frame_id: name.clone(), glb: glb_of(&mesh) });
                 }
@@ -113,6 +213,10 @@ impl<'a> SampleFactory<'a> {
             renderer,
             object_meshes,
             floor,
+            backdrop,
+            floor_texture: TextureSlot::default(),
+            backdrop_texture: TextureSlot::default(),
+            images,
             robot,
             robot_meshes,
             object_glbs,
@@ -146,8 +250,22 @@ impl<'a> SampleFactory<'a> {
     pub fn make(&mut self, split: &str, index: u64, r: &SampleRef) -> Result<Sample> {
         let obj = &self.objects[r.object_index as usize];
         let key = SampleKey { seed: self.config.seed, object_id: &obj.id, trajectory: r.trajectory, instance: r.instance };
-        let mut scene = sample_scene(self.config, &key);
-        let mut draws = vec![Draw { mesh: self.floor, t_world_model: DMat4::IDENTITY, mask_id: mask_ids::BACKGROUND }];
+        let ws = &self.config.scene.workspace;
+        let workspace_center = glam::DVec3::from_array(std::array::from_fn(|k| 0.5 * (ws.min[k] + ws.max[k])));
+        let ctx = AppearanceContext {
+            workspace_center,
+            workspace_half_extent: [0.3, 0.2],
+            distractor_candidates: self.objects.len() - 1,
+            images: &self.images,
+        };
+        let mut scene = sample_scene(self.config, &key, &ctx);
+        let a = &scene.appearance;
+        self.floor_texture.set(self.renderer.as_mut(), self.floor, &a.floor, a.floor_tile)?;
+        self.backdrop_texture.set(self.renderer.as_mut(), self.backdrop, &a.backdrop, a.backdrop_tile)?;
+        let mut draws = vec![
+            Draw { mesh: self.floor, t_world_model: DMat4::IDENTITY, mask_id: mask_ids::BACKGROUND },
+            Draw { mesh: self.backdrop, t_world_model: DMat4::IDENTITY, mask_id: mask_ids::BACKGROUND },
+        ];
         let mut robot_info = serde_json::Map::new();
         let mut extra_transforms = Vec::new();
         let mut pad_poses: Option<[DAffine3; 12]> = None;
@@ -196,6 +314,10 @@ impl<'a> SampleFactory<'a> {
             robot_info.insert("joint_positions".into(), serde_json::Value::Object(joints));
             robot_info.insert("T_world_palm".into(), pose_of(&t_world_palm).to_json());
         }
+        let distractors = self.place_distractors(&scene, r.object_index as usize);
+        for d in &distractors {
+            draws.push(Draw { mesh: self.object_meshes[d.object], t_world_model: d.pose.matrix(), mask_id: d.mask_id });
+        }
         draws.push(Draw {
             mesh: self.object_meshes[r.object_index as usize],
             t_world_model: scene.t_world_object.matrix(),
@@ -206,15 +328,26 @@ impl<'a> SampleFactory<'a> {
         let view =
             View { width: cam.width, height: cam.height, k, near: cam.near, far: cam.far, t_world_camera: scene.t_world_camera.matrix() };
         let light = &scene.appearance.light;
-        let ws = &self.config.scene.workspace;
-        let target = glam::DVec3::from_array(std::array::from_fn(|k| 0.5 * (ws.min[k] + ws.max[k])));
         let lighting = Lighting {
+            light_position: light.position,
+            light_target: light.target,
+            light_color: light.color.map(|c| c * light.intensity),
+            cone_deg: light.cone_deg,
+            softness: light.softness,
+            ambient: scene.appearance.ambient,
             background: self.config.scene.background,
-            ..Lighting::spot(light.position, target, light.color.map(|c| c * light.intensity), light.ambient)
+            shadows: true,
         };
         let t0 = Instant::now();
-        let img = self.renderer.render(&view, &lighting, &draws)?;
+        let mut img = self.renderer.render(&view, &lighting, &draws)?;
         self.times.main_render += t0.elapsed();
+        // Sensor noise on copies: the clean depth stays the ground truth.
+        let noise = &cam.noise;
+        let mut noise_rng = SampleStream::sample(&key, "sensor_noise");
+        let depth_noisy = noise.depth.as_ref().map(|d| d.apply(&img.depth, img.width, img.height, [k.fx, k.fy, k.cx, k.cy], &mut noise_rng));
+        if let Some(c) = &noise.color {
+            c.apply(&mut img.rgb, &mut noise_rng);
+        }
         let mut tactile = None;
         if let (Some(robot), Some(pads)) = (&self.robot, pad_poses) {
             let cfg = &robot.config.tactile;
@@ -275,6 +408,10 @@ impl<'a> SampleFactory<'a> {
             "trajectory": r.trajectory,
             "instance": r.instance,
             "randomized": scene.appearance.randomized,
+            "appearance": scene.appearance.info(),
+            "distractors": distractors.iter().map(|d| serde_json::json!({
+                "object_id": self.objects[d.object].id, "mask_id": d.mask_id, "T_world_distractor": d.pose.to_json(),
+            })).collect::<Vec<_>>(),
             "visible_pixels": visible,
             "occlusion": {
                 "level": level,
@@ -296,6 +433,7 @@ impl<'a> SampleFactory<'a> {
             height: img.height,
             rgb: img.rgb,
             depth: img.depth,
+            depth_noisy,
             mask: img.mask,
             k: [k.fx, 0.0, k.cx, 0.0, k.fy, k.cy, 0.0, 0.0, 1.0],
             t_camera_object,

@@ -48,6 +48,7 @@ FORMAT_VERSION = 1
 
 TOPIC_RGB = "/camera/rgb"
 TOPIC_DEPTH = "/camera/depth"
+TOPIC_DEPTH_NOISY = "/camera/depth_noisy"
 TOPIC_MASK = "/camera/mask"
 TOPIC_CALIBRATION = "/camera/calibration"
 TOPIC_POSE = "/object/pose"
@@ -93,6 +94,8 @@ class Sample(Dict[str, Any]):
 
     - ``rgb``: ``(H, W, 3)`` uint8, sRGB colour.
     - ``depth``: ``(H, W)`` float32 z-depth in metres, ``0.0`` where no surface was hit.
+    - ``depth_noisy`` (only when the config has a sensor noise model): ``(H, W)`` float32, the
+      depth as a noisy RGB-D camera reads it (``0.0`` = no reading); ``depth`` stays exact.
     - ``mask``: ``(H, W)`` uint8 instance ids (0 background, 1 target object, see FORMAT.md).
     - ``K``: ``(3, 3)`` float64 camera intrinsics.
     - ``T_camera_object``, ``T_world_camera``, ``T_world_object``: ``(4, 4)`` float64 homogeneous
@@ -341,6 +344,10 @@ class Dataset(Sequence[Sample]):
             index=index,
             split=self.split,
         )
+        if TOPIC_DEPTH_NOISY in decoded:
+            sample["depth_noisy"] = decode_raw_image(
+                decoded[TOPIC_DEPTH_NOISY], expect="32FC1", where=where + f" {TOPIC_DEPTH_NOISY}"
+            )
         if TOPIC_TACTILE_POINTS in decoded:
             sample["tactile"] = _tactile(decoded, where)
         return sample

@@ -24,6 +24,11 @@ export const ROBOT_TOPICS: Record<string, string> = {
   ...Object.fromEntries(PADS.map((pad) => [`/tactile/${pad}/depth`, "foxglove.RawImage"])),
 };
 
+/** Topics of every sample when the config has a depth noise model (camera.noise.depth). */
+export const NOISE_TOPICS: Record<string, string> = {
+  "/camera/depth_noisy": "foxglove.RawImage",
+};
+
 /** Once per shard, in its first sample (and again where the scene changes): Foxglove's 3D models. */
 export const SCENE_TOPIC = "/scene/models";
 export const SCENE_SCHEMA = "foxglove.SceneUpdate";
@@ -31,6 +36,7 @@ export const SCENE_SCHEMA = "foxglove.SceneUpdate";
 export const IMAGE_ENCODINGS: Record<string, { encoding: string; bytesPerPixel: number }> = {
   "/camera/rgb": { encoding: "rgb8", bytesPerPixel: 3 },
   "/camera/depth": { encoding: "32FC1", bytesPerPixel: 4 },
+  "/camera/depth_noisy": { encoding: "32FC1", bytesPerPixel: 4 },
   "/camera/mask": { encoding: "mono8", bytesPerPixel: 1 },
   ...Object.fromEntries(PADS.map((pad) => [`/tactile/${pad}/depth`, { encoding: "32FC1", bytesPerPixel: 4 }])),
 };

@@ -29,6 +29,7 @@ import {
   POINT_FIELDS,
   POINT_STRIDE,
   ROBOT_TOPICS,
+  NOISE_TOPICS,
   SAMPLE_INFO_KEYS,
   SAMPLE_INFO_ROBOT_KEYS,
   SAMPLE_PERIOD_NS,
@@ -121,8 +122,8 @@ function isRobot(dataset: Dataset, shard: ShardData): boolean {
   return dataset.robot ?? shard.topics.has("/tactile/points");
 }
 
-function expectedTopics(robot: boolean): Record<string, string> {
-  return robot ? { ...BASE_TOPICS, ...ROBOT_TOPICS } : { ...BASE_TOPICS };
+function expectedTopics(robot: boolean, noisy = false): Record<string, string> {
+  return { ...BASE_TOPICS, ...(robot ? ROBOT_TOPICS : {}), ...(noisy ? NOISE_TOPICS : {}) };
 }
 
 function schemaOf(shard: ShardData, topic: string): string | undefined {
@@ -223,7 +224,7 @@ for (const dataset of all) {
             }
           }
           assert.deepEqual(problems, []);
-          const expected: Record<string, string> = { ...expectedTopics(robot), [SCENE_TOPIC]: SCENE_SCHEMA };
+          const expected: Record<string, string> = { ...expectedTopics(robot, shard.topics.has("/camera/depth_noisy")), [SCENE_TOPIC]: SCENE_SCHEMA };
           for (const [topic, info] of shard.topics) {
             const want = expected[topic];
             assert.ok(want != undefined, `topic ${topic} is not in FORMAT.md`);
@@ -257,7 +258,7 @@ for (const dataset of all) {
           const count = Number(meta.get("sample_count"));
           const times = [...shard.samples.keys()];
           assert.equal(times.length, count, "samples (distinct log times) != sample_count");
-          const topics = Object.keys(expectedTopics(robot));
+          const topics = Object.keys(expectedTopics(robot, shard.topics.has("/camera/depth_noisy")));
           times.forEach((t, k) => {
             assert.equal(t, (first + BigInt(k)) * SAMPLE_PERIOD_NS, `sample ${k} log time`);
             const sample = shard.samples.get(t)!;

@@ -25,6 +25,9 @@ pub struct Config {
     pub scene: SceneConfig,
     #[serde(default)]
     pub renderer: RendererConfig,
+    /// Domain randomization (`randomizers/README.md`); off by default.
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub randomization: vt_randomizers::RandomizationConfig,
     /// The arm and hand and the grasp loop. Without it, the object floats in front of the camera.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub robot: Option<RobotConfig>,
@@ -316,6 +319,14 @@ pub struct Camera {
     pub near: f64,
     #[serde(default = "default_far")]
     pub far: f64,
+    /// RGB-D sensor noise (off by default): the noisy depth goes to `/camera/depth_noisy`, the
+    /// clean one stays the ground truth.
+    #[serde(default, skip_serializing_if = "is_default")]
+    pub noise: crate::sensor_noise::SensorNoise,
+}
+
+fn is_default<T: Default + PartialEq>(v: &T) -> bool {
+    *v == T::default()
 }
 
 fn default_near() -> f64 {
@@ -555,6 +566,30 @@ impl Config {
             }
         }
         range(&mut p, vec![Key("camera"), Key("near")], c.near, 1e-4, 100.0);
+        if let Some(d) = &c.noise.depth {
+            let k = |f: &'static str| vec![Key("camera"), Key("noise"), Key("depth"), Key(f)];
+            range(&mut p, k("sigma_mm"), d.sigma_mm, 0.0, 100.0);
+            range(&mut p, k("sigma_quadratic_mm"), d.sigma_quadratic_mm, 0.0, 100.0);
+            range(&mut p, k("baseline_m"), d.baseline_m, 0.0, 10.0);
+            range(&mut p, k("subpixel"), d.subpixel, 0.0, 1000.0);
+            range(&mut p, k("edge_mm"), d.edge_mm, 0.0, 10000.0);
+            range(&mut p, k("grazing_deg"), d.grazing_deg, 0.0, 90.0);
+            range(&mut p, k("dropout"), d.dropout, 0.0, 1.0);
+        }
+        if let Some(n) = &c.noise.color {
+            range(&mut p, vec![Key("camera"), Key("noise"), Key("color"), Key("sigma")], n.sigma, 0.0, 255.0);
+            range(&mut p, vec![Key("camera"), Key("noise"), Key("color"), Key("shot")], n.shot, 0.0, 255.0);
+        }
+        range(&mut p, vec![Key("renderer"), Key("shadow_map_size")], self.renderer.shadow_map_size, 256, 8192);
+        for (field, message) in self.randomization.validate() {
+            let mut path = vec![Key("randomization")];
+            // Field paths are static names joined with dots; leaking a few bytes per error is fine.
+            path.extend(field.split('.').map(|k| match k.parse::<usize>() {
+                Ok(i) => Index(i),
+                Err(_) => Key(Box::leak(k.to_string().into_boxed_str())),
+            }));
+            p.push(Problem { path, message });
+        }
         if !(c.far > c.near && c.far <= 1000.0) {
             p.push(Problem {
                 path: vec![Key("camera"), Key("far")],

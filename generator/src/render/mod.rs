@@ -124,8 +124,9 @@ pub trait Renderer {
         self.upload_mesh_with(mesh, Material::default())
     }
     fn upload_mesh_with(&mut self, mesh: &TexturedMesh, material: Material) -> anyhow::Result<MeshHandle>;
-    /// Replaces a mesh's base-colour texture (randomized floors and backdrops).
-    fn set_texture(&mut self, mesh: MeshHandle, texture: &vt_objects::Texture) -> anyhow::Result<()>;
+    /// Replaces a mesh's base-colour texture (randomized floors and backdrops); texture
+    /// coordinates are multiplied by `uv_scale` (the texture repeats that many times per UV unit).
+    fn set_texture(&mut self, mesh: MeshHandle, texture: &vt_objects::Texture, uv_scale: f32) -> anyhow::Result<()>;
     fn render(&mut self, view: &View, lighting: &Lighting, draws: &[Draw]) -> anyhow::Result<RenderOutput>;
     /// The instance mask alone (cheaper: no colour or depth readback), e.g. an object's unoccluded
     /// silhouette.

@@ -22,7 +22,7 @@ struct Instance {
 };
 
 struct MaterialFactors {
-    roughness_metallic: vec4<f32>,
+    roughness_metallic: vec4<f32>,   // z: texture-coordinate scale
 };
 
 @group(0) @binding(0) var<uniform> frame: Frame;
@@ -108,7 +108,7 @@ fn fs_main(i: VsOut) -> FsOut {
     // triangle seen through this pixel centre, so this is the analytic z-depth.
     o.depth = i.cam_pos.z;
     o.mask = inst.mask_id.x;
-    let albedo = textureSample(base_color, base_sampler, i.uv).rgb;
+    let albedo = textureSample(base_color, base_sampler, i.uv * material.roughness_metallic.z).rgb;
     if (frame.light_color.w < 0.5) {
         o.color = vec4<f32>(albedo, 1.0);
         return o;

@@ -59,8 +59,9 @@ struct GpuMesh {
     indices: wgpu::Buffer,
     index_count: u32,
     material: wgpu::BindGroup,
-    /// Roughness and metallic factors (uniform of the material bind group).
+    /// Roughness, metallic and UV scale (uniform of the material bind group).
     factors: wgpu::Buffer,
+    pbr: Material,
     texture: wgpu::Texture,
     /// Triangles grouped into spatial clusters (index range, model-frame bounding box), so that
     /// small views draw only the part of a mesh they can see.
@@ -806,16 +807,26 @@ impl Renderer for WgpuRenderer {
         });
         let factors = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("material factors"),
-            contents: bytemuck::cast_slice(&[material.roughness, material.metallic, 0.0, 0.0]),
-            usage: wgpu::BufferUsages::UNIFORM,
+            contents: bytemuck::cast_slice(&[material.roughness, material.metallic, 1.0, 0.0]),
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
         });
-        let (texture, material) = self.make_material(&mesh.texture, &factors)?;
-        self.meshes.push(GpuMesh { vertices: vbuf, indices: ibuf, index_count: mesh.indices.len() as u32, material, factors, texture, clusters });
+        let (texture, group) = self.make_material(&mesh.texture, &factors)?;
+        self.meshes.push(GpuMesh {
+            vertices: vbuf,
+            indices: ibuf,
+            index_count: mesh.indices.len() as u32,
+            material: group,
+            factors,
+            pbr: material,
+            texture,
+            clusters,
+        });
         Ok(MeshHandle(self.meshes.len() - 1))
     }
 
-    fn set_texture(&mut self, mesh: MeshHandle, texture: &vt_objects::Texture) -> Result<()> {
+    fn set_texture(&mut self, mesh: MeshHandle, texture: &vt_objects::Texture, uv_scale: f32) -> Result<()> {
         let m = self.meshes.get(mesh.0).ok_or_else(|| anyhow!("no mesh {}", mesh.0))?;
+        self.queue.write_buffer(&m.factors, 0, bytemuck::cast_slice(&[m.pbr.roughness, m.pbr.metallic, uv_scale, 0.0]));
         if m.texture.width() == texture.width && m.texture.height() == texture.height {
             write_texture(&self.queue, &m.texture, texture);
             return Ok(());

@@ -6,7 +6,7 @@ pub mod robot;
 use glam::{DMat3, DQuat, DVec3};
 use rand::Rng;
 use vt_dataset::Pose;
-use vt_randomizers::{Appearance, SampleKey, SampleStream};
+use vt_randomizers::{Appearance, AppearanceContext, SampleKey, SampleStream, sample_appearance};
 
 use crate::config::Config;
 
@@ -34,15 +34,20 @@ pub fn uniform_rotation(rng: &mut impl Rng) -> DQuat {
     DQuat::from_xyzw(a * (tau * u2).sin(), a * (tau * u2).cos(), b * (tau * u3).sin(), b * (tau * u3).cos()).normalize()
 }
 
-pub fn sample_scene(config: &Config, key: &SampleKey) -> SampledScene {
+/// The camera, the free object pose (replaced by the grasp loop's when there is a robot) and the
+/// appearance (canonical or randomized, `randomization:`) of one sample.
+pub fn sample_scene(config: &Config, key: &SampleKey, ctx: &AppearanceContext) -> SampledScene {
     let cam = &config.camera;
-    let t_world_camera = look_at(DVec3::from_array(cam.position), DVec3::from_array(cam.look_at));
+    let appearance = sample_appearance(&config.randomization, key, ctx);
+    // Camera jitter: an offset in the camera's own frame.
+    let (dt, dr) = appearance.camera_offset;
+    let t_world_camera = look_at(DVec3::from_array(cam.position), DVec3::from_array(cam.look_at)).compose(&Pose::from_rt(DQuat::from_scaled_axis(dr), dt));
     let mut rng = SampleStream::sample(key, "object_pose");
     let w = &config.scene.workspace;
     let pos =
         DVec3::new(rng.random_range(w.min[0]..=w.max[0]), rng.random_range(w.min[1]..=w.max[1]), rng.random_range(w.min[2]..=w.max[2]));
     let rot = uniform_rotation(&mut rng);
-    SampledScene { t_world_camera, t_world_object: Pose::from_rt(rot, pos), appearance: Appearance::canonical() }
+    SampledScene { t_world_camera, t_world_object: Pose::from_rt(rot, pos), appearance }
 }
 
 #[cfg(test)]
