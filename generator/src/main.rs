@@ -68,6 +68,9 @@ enum Command {
         /// Width of each row in pixels.
         #[arg(long, default_value_t = 960)]
         width: u32,
+        /// Rows side by side.
+        #[arg(long, default_value_t = 1)]
+        columns: u32,
         #[arg(long)]
         ycb_dir: Option<PathBuf>,
     },
@@ -209,9 +212,9 @@ fn run(cli: Cli) -> Result<()> {
             }
             Ok(())
         }
-        Command::Preview { source, n, out, width, ycb_dir } => {
+        Command::Preview { source, n, out, width, columns, ycb_dir } => {
             let samples = vtgen::preview::samples(&source, n, ycb_dir.as_ref())?;
-            vtgen::preview::write_sheet(&samples, &out, width)?;
+            vtgen::preview::write_sheet(&samples, &out, width, columns)?;
             println!("wrote {} ({} samples)", out.display(), samples.len());
             Ok(())
         }

@@ -1,6 +1,7 @@
 //! `vtgen preview`: a contact sheet to look at. One row per sample, cropped around the object: the
 //! RGB image with the object's mask tinted, the tactile points projected as dots and the ground-truth pose drawn as
 //! axes (x red, y green, z blue, 5 cm), next to the depth colour-mapped (near bright, far dark).
+//! A strip on the left of each row tells randomized samples (orange) from canonical ones (grey).
 
 use std::path::Path;
 
@@ -57,10 +58,13 @@ fn line(img: &mut RgbImage, a: (f64, f64), b: (f64, f64), c: [u8; 3]) {
 fn row(s: &Sample) -> RgbImage {
     let (w, h) = (s.width, s.height);
     let mut rgb = RgbImage::from_raw(w, h, s.rgb.clone()).expect("w x h x 3 bytes");
-    for (i, m) in s.mask.iter().enumerate() {
-        if *m == 1 {
-            let p = rgb.get_pixel_mut(i as u32 % w, i as u32 / w);
-            p.0 = [p.0[0] / 2, (p.0[1] / 2).saturating_add(110), p.0[2] / 2];
+    // The object's visible mask as a green outline, so its texture stays visible.
+    let is_object = |x: i64, y: i64| x >= 0 && y >= 0 && x < w as i64 && y < h as i64 && s.mask[(y * w as i64 + x) as usize] == 1;
+    for y in 0..h as i64 {
+        for x in 0..w as i64 {
+            if is_object(x, y) && [(1, 0), (-1, 0), (0, 1), (0, -1)].iter().any(|(dx, dy)| !is_object(x + dx, y + dy)) {
+                rgb.put_pixel(x as u32, y as u32, Rgb([40, 255, 80]));
+            }
         }
     }
     if let Some(t) = &s.tactile {
@@ -122,22 +126,36 @@ fn row(s: &Sample) -> RgbImage {
     out
 }
 
-/// Writes the contact sheet of `samples` (rows scaled to `row_width` pixels wide) as a PNG.
-pub fn write_sheet(samples: &[Sample], out: &Path, row_width: u32) -> Result<()> {
+/// Writes the contact sheet of `samples` (rows scaled to `row_width` pixels wide, in `columns`
+/// columns) as a PNG.
+pub fn write_sheet(samples: &[Sample], out: &Path, row_width: u32, columns: u32) -> Result<()> {
     let rows: Vec<RgbImage> = samples
         .iter()
         .map(|s| {
             let r = row(s);
             let hgt = (r.height() as f64 * row_width as f64 / r.width() as f64).round() as u32;
-            image::imageops::resize(&r, row_width, hgt, image::imageops::FilterType::Triangle)
+            let mut r = image::imageops::resize(&r, row_width, hgt, image::imageops::FilterType::Triangle);
+            // A strip on the left: orange for a randomized sample, light grey for a canonical one.
+            let c = if s.info["randomized"].as_bool().unwrap_or(false) { [255, 140, 0] } else { [210, 210, 210] };
+            for y in 0..hgt {
+                for x in 0..6.min(row_width) {
+                    r.put_pixel(x, y, Rgb(c));
+                }
+            }
+            r
         })
         .collect();
-    let height = rows.iter().map(|r| r.height()).sum::<u32>().max(1);
-    let mut sheet = RgbImage::new(row_width, height);
+    let columns = columns.clamp(1, rows.len().max(1) as u32) as usize;
+    let cells: Vec<&[RgbImage]> = rows.chunks(columns).collect();
+    let height = cells.iter().map(|c| c.iter().map(|r| r.height()).max().unwrap_or(0)).sum::<u32>().max(1);
+    let gap = 4;
+    let mut sheet = RgbImage::from_pixel(columns as u32 * (row_width + gap) - gap, height, Rgb([255, 255, 255]));
     let mut y = 0;
-    for r in &rows {
-        image::imageops::overlay(&mut sheet, r, 0, y as i64);
-        y += r.height();
+    for line in &cells {
+        for (k, r) in line.iter().enumerate() {
+            image::imageops::overlay(&mut sheet, r, (k as u32 * (row_width + gap)) as i64, y as i64);
+        }
+        y += line.iter().map(|r| r.height()).max().unwrap_or(0);
     }
     sheet.save(out).with_context(|| format!("cannot write {}", out.display()))
 }

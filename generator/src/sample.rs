@@ -186,9 +186,11 @@ impl<'a> SampleFactory<'a> {
             .map(|o| renderer.upload_mesh_with(&o.mesh, object_material(&o.id)).with_context(|| format!("uploading '{}'", o.id)))
             .collect::<Result<_>>()?;
         let rnd = &config.randomization;
-        let images = match rnd.floor.image_dir.as_ref().or(rnd.backdrop.image_dir.as_ref()) {
-            Some(dir) if rnd.enabled => ImageLibrary::load(&cfg.resolve(dir)).map_err(|e| anyhow::anyhow!("randomization image_dir: {e}"))?,
-            _ => ImageLibrary::empty(),
+        // Photos for the `image` texture kind: loaded once, resized, shared by every sample.
+        let images = if rnd.enabled {
+            ImageLibrary::for_config(rnd, &cfg.base_dir).map_err(|e| anyhow::anyhow!("{}: randomization: {e}", cfg.path.display()))?
+        } else {
+            ImageLibrary::empty()
         };
         let robot = config.robot.as_ref().map(|r| RobotScene::new(cfg, r, objects)).transpose()?;
         let mut robot_meshes = Vec::new();
