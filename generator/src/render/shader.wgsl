@@ -71,7 +71,7 @@ struct FsOut {
     @location(2) mask: u32,
 };
 
-// Share of a 5x5 PCF kernel lit by the spotlight. The lookup point is pushed off the surface
+// Share of a 3x3 PCF kernel (each tap a bilinear 2x2 comparison) lit by the spotlight. The lookup point is pushed off the surface
 // along the light-facing normal by ~1.5 shadow texels (normal-offset bias: no acne on surfaces
 // grazing the light), which together with the small slope-scaled bias of the shadow pass keeps
 // contact shadows attached (no peter-panning at the finger-object contacts).
@@ -88,12 +88,12 @@ fn shadow_factor(cam_pos: vec3<f32>, n_light: vec3<f32>, dist: f32) -> f32 {
     }
     let size = vec2<f32>(textureDimensions(shadow_map));
     var lit = 0.0;
-    for (var dy = -2; dy <= 2; dy++) {
-        for (var dx = -2; dx <= 2; dx++) {
-            lit += textureSampleCompareLevel(shadow_map, shadow_sampler, uv + vec2<f32>(f32(dx), f32(dy)) / size, ndc.z);
+    for (var dy = -1; dy <= 1; dy++) {
+        for (var dx = -1; dx <= 1; dx++) {
+            lit += textureSampleCompareLevel(shadow_map, shadow_sampler, uv + vec2<f32>(f32(dx), f32(dy)) * (1.5 / size), ndc.z);
         }
     }
-    return lit / 25.0;
+    return lit / 9.0;
 }
 
 fn aces(x: vec3<f32>) -> vec3<f32> {
@@ -134,7 +134,8 @@ fn fs_main(i: VsOut) -> FsOut {
         n_light = -n_light;
     }
     var shadow = 1.0;
-    if (frame.ambient.w > 0.5) {
+    // Only where the light reaches at all: most of the floor and backdrop skip the lookups.
+    if (frame.ambient.w > 0.5 && n_dot_l > 0.0 && spot > 0.0) {
         shadow = shadow_factor(i.cam_pos, n_light, dist);
     }
     // Cook-Torrance: GGX distribution, Smith-Schlick geometry, Schlick Fresnel.

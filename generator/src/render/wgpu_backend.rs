@@ -628,7 +628,10 @@ impl WgpuRenderer {
                 pass.set_viewport(vp[0] as f32, vp[1] as f32, vp[2] as f32, vp[3] as f32, 0.0, 1.0);
                 pass.set_scissor_rect(vp[0], vp[1], vp[2], vp[3]);
                 pass.set_bind_group(0, &self.frame_group, &[(vi as u64 * FRAME_STRIDE) as u32]);
-                for (di, d) in draws.iter().enumerate() {
+                // Last listed first: callers list the environment (floor, backdrop) first and the
+                // object last, so the near things fill the depth buffer early and the early depth
+                // test skips shading the floor and wall behind them.
+                for (di, d) in draws.iter().enumerate().rev() {
                     let m = &self.meshes[d.mesh.0];
                     pass.set_bind_group(1, &self.instance_group, &[((vi * draws.len() + di) as u64 * UNIFORM_STRIDE) as u32]);
                     pass.set_bind_group(2, &m.material, &[]);
