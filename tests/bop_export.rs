@@ -56,3 +56,17 @@ fn bop_pixel_counts_match_the_generators_measurements() {
     let again = run(&["export", "bop", ds.to_str().unwrap(), bop.to_str().unwrap(), "--quiet"]);
     assert!(!again.status.success() && stderr(&again).contains("not empty"), "{}", stderr(&again));
 }
+
+#[test]
+fn exr_depth_holds_the_exact_float_depth() {
+    let ds = reference_dataset();
+    let out = tempdir();
+    let o = run(&["dump", ds.to_str().unwrap(), "--split", "train", "--index", "3", "--out", out.path().to_str().unwrap(), "--exr"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (w, h, z) = vtgen::dump::read_exr_depth(&out.path().join("depth.exr")).unwrap();
+    let reader = vt_dataset::DatasetReader::open(ds).unwrap();
+    let s = reader.shards("train").unwrap().into_iter().find(|s| s.indices().any(|i| i == 3)).unwrap().read(3).unwrap();
+    assert_eq!((w, h), (s.width, s.height));
+    assert!(z.iter().zip(&s.depth).all(|(a, b)| a.to_bits() == b.to_bits()), "bit-exact depth");
+    assert!(s.depth.iter().any(|&d| d > 0.0));
+}

@@ -22,7 +22,35 @@ pub fn write_npy(path: &Path, descr: &str, shape: &[usize], data: &[u8]) -> Resu
     std::fs::write(path, out).with_context(|| format!("cannot write {}", path.display()))
 }
 
-pub fn dump(dataset: &Path, split: &str, index: u64, out: &Path) -> Result<()> {
+/// Writes a float image as a one-channel OpenEXR file (channel `Z`, 32-bit float, lossless ZIP),
+/// for tools that expect depth as EXR (Blender, Nuke, OpenCV).
+pub fn write_exr_depth(path: &Path, width: u32, height: u32, depth: &[f32]) -> Result<()> {
+    use exr::prelude::*;
+    anyhow::ensure!(depth.len() == (width * height) as usize, "depth has {} values for {width}x{height}", depth.len());
+    let channel = AnyChannel::new("Z", FlatSamples::F32(depth.to_vec()));
+    let mut channels = SmallVec::new();
+    channels.push(channel);
+    let layer = Layer::new((width as usize, height as usize), LayerAttributes::named("depth"), Encoding::FAST_LOSSLESS, AnyChannels::sort(channels));
+    Image::from_layer(layer).write().to_file(path).with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// Reads the `Z` channel written by [`write_exr_depth`]: (width, height, values).
+pub fn read_exr_depth(path: &Path) -> Result<(u32, u32, Vec<f32>)> {
+    use exr::prelude::*;
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_file(path)
+        .with_context(|| format!("cannot read {}", path.display()))?;
+    let layer = image.layer_data;
+    let z = layer.channel_data.list.iter().find(|c| c.name == Text::from("Z")).with_context(|| format!("{} has no Z channel", path.display()))?;
+    Ok((layer.size.width() as u32, layer.size.height() as u32, z.sample_data.values_as_f32().collect()))
+}
+
+pub fn dump(dataset: &Path, split: &str, index: u64, out: &Path, exr: bool) -> Result<()> {
     let ds = DatasetReader::open(dataset)?;
     let Some(sm) = ds.manifest().splits.get(split) else {
         bail!("dataset {} has no split '{split}' (use train or test)", dataset.display())
@@ -40,6 +68,15 @@ pub fn dump(dataset: &Path, split: &str, index: u64, out: &Path) -> Result<()> {
     let (h, w) = (s.height as usize, s.width as usize);
     write_npy(&out.join("rgb.npy"), "|u1", &[h, w, 3], &s.rgb)?;
     write_npy(&out.join("depth.npy"), "<f4", &[h, w], bytemuck::cast_slice(&s.depth))?;
+    if exr {
+        write_exr_depth(&out.join("depth.exr"), s.width, s.height, &s.depth)?;
+    }
+    if let Some(noisy) = &s.depth_noisy {
+        write_npy(&out.join("depth_noisy.npy"), "<f4", &[h, w], bytemuck::cast_slice(noisy))?;
+        if exr {
+            write_exr_depth(&out.join("depth_noisy.exr"), s.width, s.height, noisy)?;
+        }
+    }
     write_npy(&out.join("mask.npy"), "|u1", &[h, w], &s.mask)?;
     write_npy(&out.join("K.npy"), "<f8", &[3, 3], bytemuck::cast_slice(&s.k))?;
     // Row-major 4x4 of T_camera_object (glam is column-major).

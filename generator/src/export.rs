@@ -113,7 +113,7 @@ fn keyed(m: &BTreeMap<u64, Value>) -> Value {
 }
 
 /// Exports the dataset at `root` to `out` (created; must be empty or absent).
-pub fn export_bop(root: &Path, out: &Path, renderer: &RendererConfig, quiet: bool) -> Result<ExportSummary> {
+pub fn export_bop(root: &Path, out: &Path, renderer: &RendererConfig, quiet: bool, exr: bool) -> Result<ExportSummary> {
     let ds = DatasetReader::open(root)?;
     if out.exists() && std::fs::read_dir(out).map(|mut d| d.next().is_some()).unwrap_or(true) {
         anyhow::bail!("{} exists and is not empty: choose a new directory for the export", out.display());
@@ -161,7 +161,7 @@ pub fn export_bop(root: &Path, out: &Path, renderer: &RendererConfig, quiet: boo
     for split in SPLITS {
         for shard in ds.shards(split)? {
             let dir = out.join(split).join(format!("{:06}", shard.meta().shard_index));
-            for sub in ["rgb", "depth", "mask", "mask_visib"] {
+            for sub in ["rgb", "depth", "mask", "mask_visib"].into_iter().chain(exr.then_some("depth_exr")) {
                 std::fs::create_dir_all(dir.join(sub)).with_context(|| format!("cannot create {}", dir.join(sub).display()))?;
             }
             let mut scene = Scene::default();
@@ -172,6 +172,9 @@ pub fn export_bop(root: &Path, out: &Path, renderer: &RendererConfig, quiet: boo
                 })? as usize;
                 let amodal = render_alone(&mut r, &s, handles[obj])?;
                 write_image(&mut scene, &dir, &s, obj + 1, &amodal)?;
+                if exr {
+                    crate::dump::write_exr_depth(&dir.join(format!("depth_exr/{index:06}.exr")), s.width, s.height, &s.depth)?;
+                }
                 camera_json.get_or_insert_with(|| {
                     json!({"width": s.width, "height": s.height, "fx": s.fx(), "fy": s.fy(), "cx": s.cx(), "cy": s.cy(), "depth_scale": DEPTH_SCALE})
                 });

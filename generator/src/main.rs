@@ -109,6 +109,9 @@ enum Command {
         index: u64,
         #[arg(long)]
         out: PathBuf,
+        /// Also write the float depth as OpenEXR (depth.exr, channel Z, metres).
+        #[arg(long)]
+        exr: bool,
     },
 }
 
@@ -123,6 +126,9 @@ enum ExportFormat {
         /// No progress bar.
         #[arg(long)]
         quiet: bool,
+        /// Also write the exact float depth as OpenEXR (`depth_exr/IIIIII.exr`, channel Z, metres).
+        #[arg(long)]
+        exr: bool,
     },
 }
 
@@ -271,18 +277,18 @@ fn run(cli: Cli) -> Result<()> {
             println!("wrote {} files to {}: {}", files.len(), out.display(), files.join(", "));
             Ok(())
         }
-        Command::Export { format: ExportFormat::Bop { dataset, out, quiet } } => {
+        Command::Export { format: ExportFormat::Bop { dataset, out, quiet, exr } } => {
             // The renderer the dataset was made with (its adapter choice), for the amodal masks.
             let renderer = std::fs::read(dataset.join("config.json"))
                 .ok()
                 .and_then(|b| serde_json::from_slice::<serde_json::Value>(&b).ok())
                 .and_then(|c| serde_json::from_value(c["renderer"].clone()).ok())
                 .unwrap_or_default();
-            let r = vtgen::export::export_bop(&dataset, &out, &renderer, quiet)?;
+            let r = vtgen::export::export_bop(&dataset, &out, &renderer, quiet, exr)?;
             println!("wrote {}: {} objects, {} scenes, {} images (BOP format)", out.display(), r.objects, r.scenes, r.images);
             Ok(())
         }
-        Command::Dump { dataset, split, index, out } => vtgen::dump::dump(&dataset, &split, index, &out),
+        Command::Dump { dataset, split, index, out, exr } => vtgen::dump::dump(&dataset, &split, index, &out, exr),
     }
 }
 
