@@ -587,7 +587,9 @@ impl WgpuRenderer {
             pass.set_pipeline(&self.shadow_pipeline);
             let vi = views.len();
             pass.set_bind_group(0, &self.frame_group, &[(vi as u64 * FRAME_STRIDE) as u32]);
-            for (di, d) in draws.iter().enumerate() {
+            // The environment (mask id 0: floor, backdrop) receives shadows but casts none onto
+            // anything the camera cares about; leaving it out saves filling the whole map.
+            for (di, d) in draws.iter().enumerate().filter(|(_, d)| d.mask_id != 0) {
                 let m = &self.meshes[d.mesh.0];
                 pass.set_bind_group(1, &self.instance_group, &[((vi * draws.len() + di) as u64 * UNIFORM_STRIDE) as u32]);
                 pass.set_vertex_buffer(0, m.vertices.slice(..));
