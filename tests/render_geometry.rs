@@ -286,3 +286,33 @@ fn a_box_casts_its_shadow_where_geometry_puts_it() {
     let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
     assert!(mean(&lit) > 2.5 * mean(&shadow), "lit {} vs shadow {}", mean(&lit), mean(&shadow));
 }
+
+#[test]
+fn msaa_smooths_colour_edges_and_leaves_depth_and_mask_exact() {
+    let entry = Catalog::builtin().get("009_gelatin_box").unwrap().clone();
+    let cam = look_at(DVec3::new(0.0, -0.6, 0.35), DVec3::new(0.0, 0.0, 0.2));
+    let pose = DMat4::from_rotation_translation(DQuat::from_euler(glam::EulerRot::XYZ, 0.4, -0.3, 0.7), DVec3::new(0.0, 0.0, 0.2));
+    let render = |msaa: u32| {
+        let mut r = WgpuRenderer::new(&RendererConfig { msaa, ..RendererConfig::default() }).unwrap();
+        let m = r.upload_mesh(&procedural_mesh(&entry)).unwrap();
+        r.render(&view(cam.matrix()), &lighting(), &[Draw { mesh: m, t_world_model: pose, mask_id: 1 }]).unwrap()
+    };
+    let (plain, smooth) = (render(1), render(4));
+    assert_eq!(plain.depth, smooth.depth, "depth is exact either way");
+    assert_eq!(plain.mask, smooth.mask, "mask is exact either way");
+    let on_edge = |i: usize| {
+        let (x, y) = ((i as u32 % W) as i64, (i as u32 / W) as i64);
+        (-1..=1).any(|dy| {
+            (-1..=1).any(|dx| {
+                let (u, v) = (x + dx, y + dy);
+                u >= 0 && v >= 0 && u < W as i64 && v < H as i64 && plain.mask[(v * W as i64 + u) as usize] != plain.mask[i]
+            })
+        })
+    };
+    let changed: Vec<usize> = (0..(W * H) as usize).filter(|&i| plain.rgb[3 * i..3 * i + 3] != smooth.rgb[3 * i..3 * i + 3]).collect();
+    let edge_changes = changed.iter().filter(|&&i| on_edge(i)).count();
+    assert!(edge_changes > 50, "anti-aliasing changes the silhouette's pixels ({edge_changes})");
+    // Texture and shading sample at the same pixel centres elsewhere: small differences only.
+    let big_interior = changed.iter().filter(|&&i| !on_edge(i)).filter(|&&i| (0..3).any(|c| plain.rgb[3 * i + c].abs_diff(smooth.rgb[3 * i + c]) > 24)).count();
+    assert!(big_interior < edge_changes / 4, "{big_interior} interior pixels changed much");
+}

@@ -425,6 +425,14 @@ pub struct RendererConfig {
     /// Tone mapping of the linear colour before sRGB encoding: `none` (clamp) or `aces` (filmic).
     #[serde(default)]
     pub tonemapping: ToneMapping,
+    /// Multisample anti-aliasing of the colour image: 1 (off) or 4. Depth and mask stay exact
+    /// (one sample per pixel centre) either way.
+    #[serde(default = "default_msaa")]
+    pub msaa: u32,
+}
+
+fn default_msaa() -> u32 {
+    1
 }
 
 fn default_shadow_map_size() -> u32 {
@@ -433,7 +441,13 @@ fn default_shadow_map_size() -> u32 {
 
 impl Default for RendererConfig {
     fn default() -> Self {
-        RendererConfig { backend: Backend::Auto, adapter: None, shadow_map_size: default_shadow_map_size(), tonemapping: ToneMapping::None }
+        RendererConfig {
+            backend: Backend::Auto,
+            adapter: None,
+            shadow_map_size: default_shadow_map_size(),
+            tonemapping: ToneMapping::None,
+            msaa: default_msaa(),
+        }
     }
 }
 
@@ -581,6 +595,9 @@ impl Config {
             range(&mut p, vec![Key("camera"), Key("noise"), Key("color"), Key("shot")], n.shot, 0.0, 255.0);
         }
         range(&mut p, vec![Key("renderer"), Key("shadow_map_size")], self.renderer.shadow_map_size, 256, 8192);
+        if ![1, 4].contains(&self.renderer.msaa) {
+            p.push(Problem { path: vec![Key("renderer"), Key("msaa")], message: format!("{} is not supported: use 1 (off) or 4", self.renderer.msaa) });
+        }
         for (field, message) in self.randomization.validate() {
             let mut path = vec![Key("randomization")];
             // Field paths are static names joined with dots; leaking a few bytes per error is fine.

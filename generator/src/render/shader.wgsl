@@ -108,10 +108,21 @@ fn fs_main(i: VsOut) -> FsOut {
     // triangle seen through this pixel centre, so this is the analytic z-depth.
     o.depth = i.cam_pos.z;
     o.mask = inst.mask_id.x;
+    o.color = shade(i);
+    return o;
+}
+
+// The multisampled colour pass (`renderer.msaa` > 1): colour only, resolved to the colour target;
+// depth and mask stay exact, from the single-sample pass.
+@fragment
+fn fs_color(i: VsOut) -> @location(0) vec4<f32> {
+    return shade(i);
+}
+
+fn shade(i: VsOut) -> vec4<f32> {
     let albedo = textureSample(base_color, base_sampler, i.uv * material.roughness_metallic.z).rgb;
     if (frame.light_color.w < 0.5) {
-        o.color = vec4<f32>(albedo, 1.0);
-        return o;
+        return vec4<f32>(albedo, 1.0);
     }
     let rough = clamp(material.roughness_metallic.x, 0.04, 1.0);
     let metal = clamp(material.roughness_metallic.y, 0.0, 1.0);
@@ -161,6 +172,5 @@ fn fs_main(i: VsOut) -> FsOut {
     if (frame.spot.z > 0.5) {
         color = aces(color);
     }
-    o.color = vec4<f32>(color, 1.0);
-    return o;
+    return vec4<f32>(color, 1.0);
 }

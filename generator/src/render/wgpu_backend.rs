@@ -123,6 +123,8 @@ struct Targets {
     depth: wgpu::TextureView,
     mask: wgpu::TextureView,
     zbuf: wgpu::TextureView,
+    /// Multisampled colour and z-buffer of the anti-aliased colour pass (msaa > 1).
+    msaa: Option<(wgpu::TextureView, wgpu::TextureView)>,
     color_tex: wgpu::Texture,
     depth_tex: wgpu::Texture,
     mask_tex: wgpu::Texture,
@@ -134,6 +136,9 @@ pub struct WgpuRenderer {
     queue: wgpu::Queue,
     info: wgpu::AdapterInfo,
     pipeline: wgpu::RenderPipeline,
+    /// The multisampled colour-only pass, when `msaa` > 1.
+    msaa_pipeline: Option<wgpu::RenderPipeline>,
+    msaa: u32,
     /// Depth-only pass from the spotlight into `shadow_map`.
     shadow_pipeline: wgpu::RenderPipeline,
     shadow_map: wgpu::TextureView,
@@ -367,7 +372,7 @@ impl WgpuRenderer {
                 module: &shader,
                 entry_point: Some("vs_main"),
                 compilation_options: Default::default(),
-                buffers: &[Some(vertex_layout)],
+                buffers: &[Some(vertex_layout.clone())],
             },
             primitive: wgpu::PrimitiveState {
                 topology: wgpu::PrimitiveTopology::TriangleList,
@@ -391,6 +396,36 @@ impl WgpuRenderer {
             }),
             multiview_mask: None,
             cache: None,
+        });
+        let msaa = if cfg.msaa > 1 { 4 } else { 1 };
+        let msaa_pipeline = (msaa > 1).then(|| {
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some("main view, multisampled colour"),
+                layout: Some(&layout),
+                vertex: wgpu::VertexState {
+                    module: &shader,
+                    entry_point: Some("vs_main"),
+                    compilation_options: Default::default(),
+                    buffers: &[Some(vertex_layout.clone())],
+                },
+                primitive: wgpu::PrimitiveState { topology: wgpu::PrimitiveTopology::TriangleList, cull_mode: None, ..Default::default() },
+                depth_stencil: Some(wgpu::DepthStencilState {
+                    format: ZBUF_FORMAT,
+                    depth_write_enabled: Some(true),
+                    depth_compare: Some(wgpu::CompareFunction::Less),
+                    stencil: Default::default(),
+                    bias: Default::default(),
+                }),
+                multisample: wgpu::MultisampleState { count: msaa, ..Default::default() },
+                fragment: Some(wgpu::FragmentState {
+                    module: &shader,
+                    entry_point: Some("fs_color"),
+                    compilation_options: Default::default(),
+                    targets: &[target(COLOR_FORMAT)],
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
         });
         let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
             label: Some("base colour"),
@@ -441,6 +476,8 @@ impl WgpuRenderer {
             queue,
             info,
             pipeline,
+            msaa_pipeline,
+            msaa,
             shadow_pipeline,
             shadow_map,
             shadow_group,
@@ -475,6 +512,24 @@ impl WgpuRenderer {
             let depth_tex = make("depth", DEPTH_FORMAT);
             let mask_tex = make("mask", MASK_FORMAT);
             let zbuf_tex = make("z-buffer", ZBUF_FORMAT);
+            // Only the main view (slot 0) is anti-aliased; the phalanx depth views are not.
+            let msaa = (slot == 0 && self.msaa > 1).then(|| {
+                let make_ms = |label, format| {
+                    self.device
+                        .create_texture(&wgpu::TextureDescriptor {
+                            label: Some(label),
+                            size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+                            mip_level_count: 1,
+                            sample_count: self.msaa,
+                            dimension: wgpu::TextureDimension::D2,
+                            format,
+                            usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+                            view_formats: &[],
+                        })
+                        .create_view(&Default::default())
+                };
+                (make_ms("colour (multisampled)", COLOR_FORMAT), make_ms("z-buffer (multisampled)", ZBUF_FORMAT))
+            });
             let readback = [4u32, 4, 1].map(|bpp| {
                 self.device.create_buffer(&wgpu::BufferDescriptor {
                     label: Some("readback"),
@@ -490,6 +545,7 @@ impl WgpuRenderer {
                 depth: depth_tex.create_view(&Default::default()),
                 mask: mask_tex.create_view(&Default::default()),
                 zbuf: zbuf_tex.create_view(&Default::default()),
+                msaa,
                 color_tex,
                 depth_tex,
                 mask_tex,
@@ -651,6 +707,43 @@ impl WgpuRenderer {
                         }
                         None => pass.draw_indexed(0..m.index_count, 0, 0..1),
                     }
+                }
+            }
+        }
+        if let (Readback::All, Some(pipeline), Some((ms_color, ms_zbuf))) = (readback, &self.msaa_pipeline, &t.msaa) {
+            // The anti-aliased colour, resolved over the single-sample colour of the pass above.
+            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("colour (multisampled)"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: ms_color,
+                    depth_slice: None,
+                    resolve_target: Some(&t.color),
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color { r: bg[0], g: bg[1], b: bg[2], a: 1.0 }),
+                        store: wgpu::StoreOp::Discard,
+                    },
+                })],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: ms_zbuf,
+                    depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Discard }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(3, &self.shadow_group, &[]);
+            for (vi, (_, _, vp)) in views.iter().enumerate() {
+                pass.set_viewport(vp[0] as f32, vp[1] as f32, vp[2] as f32, vp[3] as f32, 0.0, 1.0);
+                pass.set_bind_group(0, &self.frame_group, &[(vi as u64 * FRAME_STRIDE) as u32]);
+                for (di, d) in draws.iter().enumerate().rev() {
+                    let m = &self.meshes[d.mesh.0];
+                    pass.set_bind_group(1, &self.instance_group, &[((vi * draws.len() + di) as u64 * UNIFORM_STRIDE) as u32]);
+                    pass.set_bind_group(2, &m.material, &[]);
+                    pass.set_vertex_buffer(0, m.vertices.slice(..));
+                    pass.set_index_buffer(m.indices.slice(..), wgpu::IndexFormat::Uint32);
+                    pass.draw_indexed(0..m.index_count, 0, 0..1);
                 }
             }
         }
