@@ -1,0 +1,83 @@
+//! Rotations: the network's unit quaternions as rotation matrices (on tensors, differentiable)
+//! and the host-side conversions of the format's quaternions.
+//!
+//! Convention: the network outputs quaternions as **(w, x, y, z)** (DenseFusion's order); the
+//! dataset stores (x, y, z, w) (FORMAT.md). `R` is the Hamilton rotation matrix, row-major, as
+//! glam's `Mat3::from_quat`.
+
+use burn::prelude::*;
+
+/// Unit quaternions `(.., 4)` in (w, x, y, z) order to row-major rotation matrices `(.., 9)`.
+///
+/// The quaternions must be normalised: the formula is the one of a unit quaternion.
+pub fn quat_to_matrix<const D: usize>(q: Tensor<D>) -> Tensor<D> {
+    let last = D - 1;
+    let c = |i: usize| q.clone().narrow(last, i, 1);
+    let (w, x, y, z) = (c(0), c(1), c(2), c(3));
+    let two = |t: Tensor<D>| t.mul_scalar(2.0);
+    let one_minus = |t: Tensor<D>| t.mul_scalar(-2.0).add_scalar(1.0);
+    let (xx, yy, zz) = (x.clone() * x.clone(), y.clone() * y.clone(), z.clone() * z.clone());
+    let (xy, xz, yz) = (x.clone() * y.clone(), x.clone() * z.clone(), y.clone() * z.clone());
+    let (wx, wy, wz) = (w.clone() * x, w.clone() * y, w * z);
+    Tensor::cat(
+        vec![
+            one_minus(yy.clone() + zz.clone()),
+            two(xy.clone() - wz.clone()),
+            two(xz.clone() + wy.clone()),
+            two(xy + wz),
+            one_minus(xx.clone() + zz),
+            two(yz.clone() - wx.clone()),
+            two(xz - wy),
+            two(yz + wx),
+            one_minus(xx + yy),
+        ],
+        last,
+    )
+}
+
+/// Normalises quaternions along the last axis (the norm clamped away from 0).
+pub fn normalize_quat<const D: usize>(q: Tensor<D>) -> Tensor<D> {
+    let norm = q.clone().square().sum_dim(D - 1).sqrt().clamp_min(1e-8);
+    q / norm
+}
+
+/// A network quaternion (w, x, y, z) as glam's (x, y, z, w), normalised.
+pub fn wxyz_to_quat(q: [f32; 4]) -> glam::DQuat {
+    glam::DQuat::from_xyzw(q[1] as f64, q[2] as f64, q[3] as f64, q[0] as f64).normalize()
+}
+
+/// Row-major 3×3 of a rotation.
+pub fn matrix_rows(q: glam::DQuat) -> [f32; 9] {
+    let m = glam::DMat3::from_quat(q);
+    // glam is column-major: row r, column c is m.col(c)[r].
+    std::array::from_fn(|k| m.col(k % 3)[k / 3] as f32)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::device::cpu;
+
+    #[test]
+    fn quaternion_matrix_matches_glam() {
+        let device = cpu();
+        let qs = [
+            glam::DQuat::IDENTITY,
+            glam::DQuat::from_rotation_z(std::f64::consts::FRAC_PI_2),
+            glam::DQuat::from_euler(glam::EulerRot::XYZ, 0.3, -1.2, 2.5),
+        ];
+        let data: Vec<f32> = qs.iter().flat_map(|q| [q.w as f32, q.x as f32, q.y as f32, q.z as f32]).collect();
+        let m = quat_to_matrix(Tensor::<2>::from_data(TensorData::new(data, [3, 4]), &device));
+        let got: Vec<f32> = m.into_data().iter::<f32>().collect();
+        for (i, q) in qs.iter().enumerate() {
+            let want = matrix_rows(*q);
+            for k in 0..9 {
+                assert!((got[i * 9 + k] - want[k]).abs() < 1e-6, "q {i} entry {k}: {} vs {}", got[i * 9 + k], want[k]);
+            }
+        }
+        // Round trip of the (w, x, y, z) <-> glam conversion.
+        let q = qs[2];
+        let back = wxyz_to_quat([q.w as f32, q.x as f32, q.y as f32, q.z as f32]);
+        assert!(back.angle_between(q) < 1e-6);
+    }
+}

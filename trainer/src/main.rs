@@ -1,0 +1,193 @@
+//! `vtpose`: train, evaluate and benchmark visuotactile pose networks on vtgen datasets.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::{Context, Result, bail};
+use burn::module::Module;
+use clap::{Parser, Subcommand};
+use vt_trainer::bench::{bench_model, table};
+use vt_trainer::config::TrainConfig;
+use vt_trainer::device;
+use vt_trainer::eval::{EvalCommand, evaluate_runs, write_report};
+use vt_trainer::model::Variant;
+use vt_trainer::train::{RunDir, TrainOptions, train};
+
+#[derive(Parser)]
+#[command(
+    name = "vtpose",
+    version,
+    about = "Train and evaluate visuotactile 6D pose networks (Tactile-Channel, DenseFusion baseline) on vtgen datasets"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Train a network from a YAML config into a run directory.
+    Train {
+        config: PathBuf,
+        /// The run directory (default: out/runs/<config name>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Use this dataset instead of the config's.
+        #[arg(long)]
+        dataset: Option<PathBuf>,
+        /// Override the config's model variant (tactile_channel, vision_only, non_siamese, no_global, tactile_only).
+        #[arg(long)]
+        variant: Option<Variant>,
+        /// Override the config's number of epochs.
+        #[arg(long)]
+        epochs: Option<usize>,
+        /// Continue the run in --out from its last completed epoch.
+        #[arg(long, conflicts_with = "overwrite")]
+        resume: bool,
+        /// Replace a run in --out.
+        #[arg(long)]
+        overwrite: bool,
+        /// cpu (ndarray), cuda or cuda:N (build with --features cuda).
+        #[arg(long, default_value = "cpu")]
+        device: String,
+        #[arg(long)]
+        quiet: bool,
+    },
+    /// Evaluate trained runs on a split and write a Markdown report.
+    Eval {
+        /// Run directories (from `vtpose train`).
+        #[arg(required = true)]
+        runs: Vec<PathBuf>,
+        /// Evaluate on this dataset instead of each run's own.
+        #[arg(long)]
+        dataset: Option<PathBuf>,
+        #[arg(long, default_value = "test")]
+        split: String,
+        /// Where report.md, results.json and samples-<run>.csv go.
+        #[arg(long, default_value = "out/eval")]
+        out: PathBuf,
+        /// At most this many samples, evenly spread over the split (0: all).
+        #[arg(long, default_value_t = 0)]
+        max_samples: usize,
+        /// Skip the tactile-point sweep (4, 12, 36, 60, 240 points).
+        #[arg(long)]
+        no_sweep: bool,
+        #[arg(long, default_value = "cpu")]
+        device: String,
+        #[arg(long)]
+        quiet: bool,
+    },
+    /// Time inference (network alone, batch 1) per model.
+    Bench {
+        /// Run directories or config files; none: every variant with the default config.
+        inputs: Vec<PathBuf>,
+        /// With configs or no input: these variants (default: the config's; `all` for every one).
+        #[arg(long, value_delimiter = ',')]
+        variants: Vec<String>,
+        #[arg(long, default_value_t = 20)]
+        iters: usize,
+        #[arg(long, default_value_t = 3)]
+        warmup: usize,
+        #[arg(long, default_value = "cpu")]
+        device: String,
+        /// Print JSON instead of a Markdown table.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+fn main() -> ExitCode {
+    match run(Cli::parse()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(cli: Cli) -> Result<()> {
+    match cli.command {
+        Command::Train { config, out, dataset, variant, epochs, resume, overwrite, device: dev, quiet } => {
+            let mut cfg = TrainConfig::load(&config)?;
+            if let Some(d) = dataset {
+                cfg.dataset = d;
+            }
+            if let Some(v) = variant {
+                cfg.model.variant = v;
+            }
+            if let Some(e) = epochs {
+                cfg.train.epochs = e;
+            }
+            let out = out.unwrap_or_else(|| PathBuf::from("out/runs").join(config.file_stem().unwrap_or_default()));
+            let summary = train(&cfg, &TrainOptions { out, resume, overwrite, device: device::parse(&dev)?, quiet })?;
+            if !quiet {
+                let last = summary.epochs.last();
+                eprintln!(
+                    "vtpose: {} epochs done ({} steps) in {}{}",
+                    summary.state.epochs_done,
+                    summary.state.steps,
+                    summary.run.display(),
+                    last.map_or(String::new(), |r| format!(", last loss {:.5}", r.loss))
+                );
+            }
+            Ok(())
+        }
+        Command::Eval { runs, dataset, split, out, max_samples, no_sweep, device: dev, quiet } => {
+            let device = device::parse(&dev)?;
+            let cmd = EvalCommand { dataset, split: split.clone(), max_samples, sweep: !no_sweep, device: device.clone(), quiet };
+            let evals = evaluate_runs(&runs, &cmd)?;
+            let report = write_report(&evals, &split, &dev, &out)?;
+            if !quiet {
+                eprintln!("vtpose: wrote {}", report.display());
+            }
+            print!("{}", std::fs::read_to_string(&report)?);
+            Ok(())
+        }
+        Command::Bench { inputs, variants, iters, warmup, device: dev, json } => {
+            let device = device::parse(&dev)?;
+            let parse_variants = |default: Variant| -> Result<Vec<Variant>> {
+                match variants.as_slice() {
+                    [] => Ok(vec![default]),
+                    [a] if a == "all" => Ok(Variant::ALL.to_vec()),
+                    list => list.iter().map(|v| v.parse()).collect(),
+                }
+            };
+            let mut rows = Vec::new();
+            let mut configs: Vec<(String, TrainConfig)> = Vec::new();
+            if inputs.is_empty() {
+                configs.push(("default".into(), TrainConfig::new("")));
+                if variants.is_empty() {
+                    configs[0].1.model.variant = Variant::TactileChannel;
+                }
+            }
+            for input in &inputs {
+                let name = input.file_stem().unwrap_or_default().to_string_lossy().into_owned();
+                if input.is_dir() {
+                    let (cfg, _, model) = RunDir(input.clone()).load_model(&device).with_context(|| format!("run {}", input.display()))?;
+                    rows.push(bench_model(&name, &model.valid(), &cfg.data, &device, iters, warmup));
+                } else if input.is_file() {
+                    configs.push((name, TrainConfig::load(input)?));
+                } else {
+                    bail!("{} is neither a run directory nor a config file", input.display());
+                }
+            }
+            let all_variants = inputs.is_empty() && variants.is_empty();
+            for (name, cfg) in &configs {
+                let vs = if all_variants { Variant::ALL.to_vec() } else { parse_variants(cfg.model.variant)? };
+                for v in vs {
+                    let mut m = cfg.model.clone();
+                    m.variant = v;
+                    let model = m.net(1).init(&device);
+                    rows.push(bench_model(&format!("{name}/{v}"), &model, &cfg.data, &device, iters, warmup));
+                }
+            }
+            if json {
+                println!("{}", serde_json::to_string_pretty(&rows)?);
+            } else {
+                print!("{}", table(&rows, &dev));
+            }
+            Ok(())
+        }
+    }
+}

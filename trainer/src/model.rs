@@ -1,0 +1,496 @@
+//! The pose networks: the paper's **Tactile-Channel** network, the vision-only **DenseFusion**
+//! baseline (without refinement) and the paper's ablations, as one configurable [`PoseNet`].
+//!
+//! Per sample the inputs are `n` camera-frame depth points of the object, the RGB crop of the
+//! object's bounding box with each point's pixel in it (`choose`), and `n_t` tactile points
+//! (see [`crate::data`]). The network fuses them in two channels:
+//!
+//! - **visual channel**: a small CNN maps the crop to a per-pixel colour embedding, gathered at the
+//!   points' pixels; colour and depth points each go through a two-stage point-wise MLP, and the
+//!   stages are concatenated per point (DenseFusion's pixel-wise dense fusion);
+//! - **tactile channel**: the tactile points go through their own two-stage point-wise MLP and are
+//!   fused point-wise with the depth embedding. The channel has one entry per depth point, like the
+//!   visual one (the paper: "each output 1000 pose estimates"): entry `i` pairs depth point `i`
+//!   with tactile point `i mod n_t`, so any `n_t` (4 … 1000) feeds the same network;
+//! - **global feature**: the second-stage colour, depth and tactile embeddings of each point go
+//!   through an MLP and are averaged over the points, then appended to every point's features.
+//!
+//! The pose estimator predicts, per point of each channel, a rotation (unit quaternion, (w, x, y,
+//! z)), a translation (an offset from the point's anchor: the depth point in the visual channel,
+//! the tactile point in the tactile channel) and a confidence. The rotation head is **Siamese**:
+//! one set of weights for both channels. Every head has one output slot per object (DenseFusion's
+//! per-class heads) and the sample's object picks its slot. `2 × n` estimates come out; the most
+//! confident is the network's answer ([`PoseOutput::best`]).
+//!
+//! Variants ([`Variant`]): `vision_only` drops the tactile channel (DenseFusion without refinement);
+//! `non_siamese` gives the tactile channel its own rotation head; `no_global` drops the global
+//! feature; `tactile_only` drops the colour input and the visual channel (depth + touch remain).
+//!
+//! The widths are configurable ([`PoseNetConfig`]); the defaults are small enough for a CPU.
+
+use std::str::FromStr;
+
+use burn::nn::conv::{Conv2d, Conv2dConfig};
+use burn::nn::{Linear, LinearConfig, PaddingConfig2d};
+use burn::prelude::*;
+use burn::tensor::Int;
+use burn::tensor::activation::{relu, sigmoid};
+use serde::{Deserialize, Serialize};
+
+use crate::geometry::normalize_quat;
+
+/// Point coordinates enter the network in decimetres (relative to the depth cloud's centroid)
+/// and the translation heads answer in decimetres: object-sized inputs and outputs of order 1,
+/// which the default initialisation and Adam's step size suit (metres train several times slower).
+pub const POINT_SCALE: f32 = 10.0;
+
+/// Which network to build.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Variant {
+    /// The paper's network: visual + tactile channel, global feature, Siamese rotation head.
+    TactileChannel,
+    /// The baseline: DenseFusion (visual channel only), no refinement.
+    VisionOnly,
+    /// Ablation: separate rotation heads for the two channels.
+    NonSiamese,
+    /// Ablation: no global feature.
+    NoGlobal,
+    /// Ablation: no colour; the tactile channel (depth + tactile points) alone.
+    TactileOnly,
+}
+
+impl Variant {
+    pub const ALL: [Variant; 5] =
+        [Variant::TactileChannel, Variant::VisionOnly, Variant::NonSiamese, Variant::NoGlobal, Variant::TactileOnly];
+
+    /// The config name (`tactile_channel`, ...).
+    pub fn name(self) -> &'static str {
+        match self {
+            Variant::TactileChannel => "tactile_channel",
+            Variant::VisionOnly => "vision_only",
+            Variant::NonSiamese => "non_siamese",
+            Variant::NoGlobal => "no_global",
+            Variant::TactileOnly => "tactile_only",
+        }
+    }
+
+    /// The name in reports (the paper's).
+    pub fn label(self) -> &'static str {
+        match self {
+            Variant::TactileChannel => "Tactile-Channel (Siamese)",
+            Variant::VisionOnly => "Vision-only baseline (DenseFusion)",
+            Variant::NonSiamese => "Non-Siamese",
+            Variant::NoGlobal => "No global feature",
+            Variant::TactileOnly => "Tactile-only",
+        }
+    }
+
+    pub fn uses_color(self) -> bool {
+        self != Variant::TactileOnly
+    }
+
+    pub fn uses_tactile(self) -> bool {
+        self != Variant::VisionOnly
+    }
+
+    pub fn global_feature(self) -> bool {
+        self != Variant::NoGlobal
+    }
+
+    /// Estimates per depth point: 2 with both channels, else 1.
+    pub fn channels(self) -> usize {
+        usize::from(self.uses_color()) + usize::from(self.uses_tactile())
+    }
+}
+
+impl FromStr for Variant {
+    type Err = anyhow::Error;
+    fn from_str(s: &str) -> anyhow::Result<Self> {
+        Variant::ALL
+            .into_iter()
+            .find(|v| v.name() == s)
+            .ok_or_else(|| anyhow::anyhow!("unknown model variant '{s}' (expected one of: {})", Variant::ALL.map(|v| v.name()).join(", ")))
+    }
+}
+
+impl std::fmt::Display for Variant {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+// --------------------------------------------------------------------------------------------
+// Building blocks
+// --------------------------------------------------------------------------------------------
+
+/// The colour CNN: a two-level encoder-decoder (full and half resolution, skip connection) that
+/// maps the crop to a per-pixel embedding. A small stand-in for DenseFusion's PSPNet.
+#[derive(Config, Debug)]
+pub struct ColorCnnConfig {
+    /// Widths at full and at half resolution.
+    pub channels: [usize; 2],
+    /// Width of the per-pixel embedding.
+    pub out: usize,
+}
+
+#[derive(Module, Debug)]
+pub struct ColorCnn {
+    conv1: Conv2d,
+    down: Conv2d,
+    conv2: Conv2d,
+    out: Conv2d,
+}
+
+fn conv3(c_in: usize, c_out: usize, stride: usize, device: &Device) -> Conv2d {
+    Conv2dConfig::new([c_in, c_out], [3, 3]).with_stride([stride, stride]).with_padding(PaddingConfig2d::Explicit(1, 1, 1, 1)).init(device)
+}
+
+impl ColorCnnConfig {
+    pub fn init(&self, device: &Device) -> ColorCnn {
+        let [c1, c2] = self.channels;
+        ColorCnn {
+            conv1: conv3(3, c1, 1, device),
+            down: conv3(c1, c2, 2, device),
+            conv2: conv3(c2, c2, 1, device),
+            out: conv3(c2 + c1, self.out, 1, device),
+        }
+    }
+}
+
+impl ColorCnn {
+    /// `(B, 3, S, S)` → `(B, out, S, S)`; `S` even.
+    pub fn forward(&self, img: Tensor<4>) -> Tensor<4> {
+        let e1 = relu(self.conv1.forward(img));
+        let e2 = relu(self.conv2.forward(relu(self.down.forward(e1.clone()))));
+        let up = upsample2(e2);
+        self.out.forward(Tensor::cat(vec![up, e1], 1))
+    }
+}
+
+/// Nearest-neighbour ×2 upsampling by reshape and broadcast (differentiable on every backend).
+fn upsample2(x: Tensor<4>) -> Tensor<4> {
+    let [b, c, h, w] = x.dims();
+    x.reshape([b, c, h, 1, w, 1]).expand([b, c, h, 2, w, 2]).reshape([b, c, 2 * h, 2 * w])
+}
+
+/// Two point-wise layers (DenseFusion's `conv1`/`conv2` 1×1 convolutions), returning both stages.
+#[derive(Config, Debug)]
+pub struct TwoStageConfig {
+    pub d_input: usize,
+    pub dims: [usize; 2],
+}
+
+#[derive(Module, Debug)]
+pub struct TwoStage {
+    stage1: Linear,
+    stage2: Linear,
+}
+
+impl TwoStageConfig {
+    pub fn init(&self, device: &Device) -> TwoStage {
+        TwoStage {
+            stage1: LinearConfig::new(self.d_input, self.dims[0]).init(device),
+            stage2: LinearConfig::new(self.dims[0], self.dims[1]).init(device),
+        }
+    }
+}
+
+impl TwoStage {
+    /// `(B, N, d_input)` → the stage-1 `(B, N, dims[0])` and stage-2 `(B, N, dims[1])` features.
+    pub fn forward(&self, x: Tensor<3>) -> (Tensor<3>, Tensor<3>) {
+        let f1 = relu(self.stage1.forward(x));
+        let f2 = relu(self.stage2.forward(f1.clone()));
+        (f1, f2)
+    }
+}
+
+/// A point-wise MLP: Linear + ReLU per width in `dims`, and with `d_output` a last Linear without
+/// activation (a head).
+#[derive(Config, Debug)]
+pub struct MlpConfig {
+    pub d_input: usize,
+    pub dims: Vec<usize>,
+    pub d_output: Option<usize>,
+}
+
+#[derive(Module, Debug)]
+pub struct Mlp {
+    hidden: Vec<Linear>,
+    output: Option<Linear>,
+}
+
+impl MlpConfig {
+    pub fn init(&self, device: &Device) -> Mlp {
+        let mut d = self.d_input;
+        let hidden = self
+            .dims
+            .iter()
+            .map(|&w| {
+                let l = LinearConfig::new(d, w).init(device);
+                d = w;
+                l
+            })
+            .collect();
+        Mlp { hidden, output: self.d_output.map(|o| LinearConfig::new(d, o).init(device)) }
+    }
+}
+
+impl Mlp {
+    pub fn forward(&self, mut x: Tensor<3>) -> Tensor<3> {
+        for l in &self.hidden {
+            x = relu(l.forward(x));
+        }
+        match &self.output {
+            Some(o) => o.forward(x),
+            None => x,
+        }
+    }
+}
+
+/// The pose heads of one channel: rotation (absent when the channel borrows the Siamese one),
+/// translation and confidence, each with one output slot per object.
+#[derive(Module, Debug)]
+pub struct Heads {
+    rotation: Option<Mlp>,
+    translation: Mlp,
+    confidence: Mlp,
+}
+
+fn heads(d_input: usize, hidden: &[usize], objects: usize, with_rotation: bool, device: &Device) -> Heads {
+    let head = |k: usize| MlpConfig::new(d_input, hidden.to_vec()).with_d_output(Some(objects * k)).init(device);
+    Heads { rotation: with_rotation.then(|| head(4)), translation: head(3), confidence: head(1) }
+}
+
+/// Picks each sample's object slot: `(B, N, O·k)` → `(B, N, k)`.
+fn select_object(out: Tensor<3>, object: &Tensor<1, Int>, k: usize) -> Tensor<3> {
+    let [b, n, ok] = out.dims();
+    let o = ok / k;
+    let idx = object.clone().reshape([b, 1, 1, 1]).expand([b, n, 1, k]);
+    out.reshape([b, n, o, k]).gather(2, idx).reshape([b, n, k])
+}
+
+// --------------------------------------------------------------------------------------------
+// The network
+// --------------------------------------------------------------------------------------------
+
+/// The network's hyper-parameters (see the module docs and [`crate::config::ModelConfig`]).
+#[derive(Config, Debug)]
+pub struct PoseNetConfig {
+    pub variant: Variant,
+    /// Output slots of the heads (objects the network is trained on).
+    pub num_objects: usize,
+    #[config(default = "vec![16, 32]")]
+    pub cnn_channels: Vec<usize>,
+    #[config(default = 32)]
+    pub color_dim: usize,
+    #[config(default = "vec![32, 64]")]
+    pub point_dims: Vec<usize>,
+    #[config(default = "vec![128, 256]")]
+    pub global_dims: Vec<usize>,
+    #[config(default = "vec![128, 64]")]
+    pub head_dims: Vec<usize>,
+}
+
+/// See the module docs.
+#[derive(Module, Debug)]
+pub struct PoseNet {
+    color_cnn: Option<ColorCnn>,
+    color_mlp: Option<TwoStage>,
+    depth_mlp: TwoStage,
+    tactile_mlp: Option<TwoStage>,
+    global: Option<Mlp>,
+    visual: Option<Heads>,
+    tactile: Option<Heads>,
+    #[module(skip)]
+    variant: Variant,
+}
+
+impl PoseNetConfig {
+    pub fn init(&self, device: &Device) -> PoseNet {
+        let v = self.variant;
+        let [p1, p2] = [self.point_dims[0], self.point_dims[1]];
+        let two_stage = |d_input| TwoStageConfig::new(d_input, [p1, p2]).init(device);
+        let global_dim = if v.global_feature() { *self.global_dims.last().expect("validated: >= 1 global width") } else { 0 };
+        // Every channel's point features: [depth stage 1, other stage 1, depth stage 2, other stage 2, global].
+        let point_dim = 2 * p1 + 2 * p2 + global_dim;
+        let global_in = p2 * (1 + v.channels());
+        let o = self.num_objects;
+        let siamese = v != Variant::NonSiamese;
+        PoseNet {
+            color_cnn: v
+                .uses_color()
+                .then(|| ColorCnnConfig::new([self.cnn_channels[0], self.cnn_channels[1]], self.color_dim).init(device)),
+            color_mlp: v.uses_color().then(|| two_stage(self.color_dim)),
+            depth_mlp: two_stage(3),
+            tactile_mlp: v.uses_tactile().then(|| two_stage(3)),
+            global: v.global_feature().then(|| MlpConfig::new(global_in, self.global_dims.clone()).init(device)),
+            visual: v.uses_color().then(|| heads(point_dim, &self.head_dims, o, true, device)),
+            // The tactile channel has its own rotation head unless it shares the visual one.
+            tactile: v.uses_tactile().then(|| heads(point_dim, &self.head_dims, o, !(siamese && v.uses_color()), device)),
+            variant: v,
+        }
+    }
+}
+
+/// One batch of network inputs (see [`crate::data::Batch::inputs`]).
+#[derive(Debug, Clone)]
+pub struct PoseInput {
+    /// `(B, 3, S, S)`: the normalised RGB crops.
+    pub img: Tensor<4>,
+    /// `(B, N)`: each depth point's pixel in the flattened crop.
+    pub choose: Tensor<2, Int>,
+    /// `(B, N, 3)`: camera-frame depth points, metres.
+    pub cloud: Tensor<3>,
+    /// `(B, N_t, 3)`: camera-frame tactile points (zeros without touch).
+    pub tactile: Tensor<3>,
+    /// `(B, 1)`: 1 when the sample has tactile points, else 0 (its tactile estimates are void).
+    pub has_touch: Tensor<2>,
+    /// `(B,)`: the head slot of each sample's object.
+    pub object: Tensor<1, Int>,
+}
+
+/// The `E` pose estimates per sample (visual channel first, then tactile).
+#[derive(Debug, Clone)]
+pub struct PoseOutput {
+    /// `(B, E, 4)`: unit quaternions (w, x, y, z).
+    pub rotation: Tensor<3>,
+    /// `(B, E, 3)`: translations, metres.
+    pub translation: Tensor<3>,
+    /// `(B, E)`: confidences in (0, 1).
+    pub confidence: Tensor<2>,
+    /// `(B, E)`: 1 for a real estimate, 0 for the tactile channel of a sample without touch.
+    pub valid: Tensor<2>,
+}
+
+/// The pose a network picks for one sample: its most confident valid estimate.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Estimate {
+    /// (w, x, y, z).
+    pub rotation: [f32; 4],
+    pub translation: [f32; 3],
+    pub confidence: f32,
+    /// Which estimate: `< n` visual channel (or tactile for `tactile_only`), else tactile.
+    pub index: usize,
+}
+
+impl PoseOutput {
+    /// The most confident valid estimate of every sample (read back to the host).
+    pub fn best(&self) -> Vec<Estimate> {
+        let [b, e, _] = self.rotation.dims();
+        // Void estimates get confidence −1, below any real one.
+        let score = self.confidence.clone() * self.valid.clone() + (self.valid.clone() - 1.0);
+        let idx: Vec<i64> = score.argmax(1).into_data().iter::<i64>().collect();
+        let rot: Vec<f32> = self.rotation.clone().into_data().iter::<f32>().collect();
+        let tra: Vec<f32> = self.translation.clone().into_data().iter::<f32>().collect();
+        let conf: Vec<f32> = self.confidence.clone().into_data().iter::<f32>().collect();
+        (0..b)
+            .map(|s| {
+                let i = idx[s] as usize;
+                let k = s * e + i;
+                Estimate {
+                    rotation: std::array::from_fn(|c| rot[k * 4 + c]),
+                    translation: std::array::from_fn(|c| tra[k * 3 + c]),
+                    confidence: conf[k],
+                    index: i,
+                }
+            })
+            .collect()
+    }
+}
+
+impl PoseNet {
+    pub fn variant(&self) -> Variant {
+        self.variant
+    }
+
+    pub fn forward(&self, input: &PoseInput) -> PoseOutput {
+        let [b, n, _] = input.cloud.dims();
+        let device = input.cloud.device();
+        // The point-wise MLPs see coordinates relative to the depth cloud's centroid, in
+        // decimetres (the anchors of the translations stay absolute): centimetre detail is hard to
+        // resolve in absolute metres ~0.7 m from the camera, and the pose does not depend on where
+        // it is seen.
+        let centroid = input.cloud.clone().mean_dim(1); // (B, 1, 3)
+        let (d1, d2) = self.depth_mlp.forward((input.cloud.clone() - centroid.clone().expand([b, n, 3])).mul_scalar(POINT_SCALE));
+
+        // Visual channel: colour embedding gathered at the points' pixels, fused with depth.
+        let visual = match (&self.color_cnn, &self.color_mlp) {
+            (Some(cnn), Some(mlp)) => {
+                let emb = cnn.forward(input.img.clone());
+                let [_, c, h, w] = emb.dims();
+                let choose = input.choose.clone().reshape([b, 1, n]).expand([b, c, n]);
+                let per_point = emb.reshape([b, c, h * w]).gather(2, choose).swap_dims(1, 2); // (B, N, C)
+                let (c1, c2) = mlp.forward(per_point);
+                Some((c1, c2))
+            }
+            _ => None,
+        };
+
+        // Tactile channel: tactile embeddings, entry i paired with depth point i (tactile i mod n_t).
+        let tactile = self.tactile_mlp.as_ref().map(|mlp| {
+            let [_, nt, _] = input.tactile.dims();
+            // Samples without touch contribute no tactile embedding (their tactile estimates are void).
+            let touch = input.has_touch.clone().reshape([b, 1, 1]);
+            let (t1, t2) = mlp.forward((input.tactile.clone() - centroid.clone().expand([b, nt, 3])).mul_scalar(POINT_SCALE));
+            let mask = |t: Tensor<3>| {
+                let dims = t.dims();
+                t * touch.clone().expand(dims)
+            };
+            let (t1, t2) = (mask(t1), mask(t2));
+            let pairing: Vec<i64> = (0..n).map(|i| (i % nt) as i64).collect();
+            let pairing = Tensor::<1, Int>::from_data(TensorData::new(pairing, [n]), &device);
+            let pick = |t: Tensor<3>| t.select(1, pairing.clone());
+            (pick(t1), pick(t2), pick(input.tactile.clone()))
+        });
+
+        // Global feature: colour, depth and tactile stage-2 embeddings -> MLP -> average pool.
+        let global = self.global.as_ref().map(|mlp| {
+            let mut parts = vec![d2.clone()];
+            if let Some((_, c2)) = &visual {
+                parts.push(c2.clone());
+            }
+            if let Some((_, t2, _)) = &tactile {
+                parts.push(t2.clone());
+            }
+            let g = mlp.forward(Tensor::cat(parts, 2)).mean_dim(1); // (B, 1, G)
+            let gd = g.dims()[2];
+            g.expand([b, n, gd])
+        });
+        let features = |f1: Tensor<3>, f2: Tensor<3>| {
+            let mut parts = vec![d1.clone(), f1, d2.clone(), f2];
+            if let Some(g) = &global {
+                parts.push(g.clone());
+            }
+            Tensor::cat(parts, 2)
+        };
+
+        let mut rotation = Vec::new();
+        let mut translation = Vec::new();
+        let mut confidence = Vec::new();
+        let mut valid = Vec::new();
+        let mut run = |heads: &Heads, shared_rotation: Option<&Mlp>, feats: Tensor<3>, anchor: Tensor<3>, ok: Tensor<2>| {
+            let rot_head = heads.rotation.as_ref().or(shared_rotation).expect("a rotation head");
+            let r = select_object(rot_head.forward(feats.clone()), &input.object, 4);
+            let t = select_object(heads.translation.forward(feats.clone()), &input.object, 3);
+            let c = select_object(heads.confidence.forward(feats), &input.object, 1);
+            rotation.push(normalize_quat(r));
+            translation.push(anchor + t.div_scalar(POINT_SCALE));
+            confidence.push(sigmoid(c).reshape([b, n]));
+            valid.push(ok.expand([b, n]));
+        };
+        if let (Some(heads), Some((c1, c2))) = (&self.visual, visual) {
+            run(heads, None, features(c1, c2), input.cloud.clone(), Tensor::ones([b, 1], &device));
+        }
+        if let (Some(heads), Some((t1, t2, anchor))) = (&self.tactile, tactile) {
+            let shared = self.visual.as_ref().and_then(|v| v.rotation.as_ref());
+            run(heads, shared, features(t1, t2), anchor, input.has_touch.clone());
+        }
+        PoseOutput {
+            rotation: Tensor::cat(rotation, 1),
+            translation: Tensor::cat(translation, 1),
+            confidence: Tensor::cat(confidence, 1),
+            valid: Tensor::cat(valid, 1),
+        }
+    }
+}

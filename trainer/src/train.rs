@@ -1,0 +1,390 @@
+//! Training (`vtpose train`): Adam on the pose loss, a background loader, a progress bar,
+//! checkpoints, `--resume`, and `metrics.csv`.
+//!
+//! A run directory holds everything needed to continue or evaluate a run:
+//!
+//! ```text
+//! RUN/
+//!   config.yaml          the config the run trains with (dataset path absolute)
+//!   state.json           epochs done, steps, the objects of the head slots, the variant
+//!   model.bpk            the latest weights (burn record, burnpack)
+//!   optimizer.bpk        the Adam state of those weights
+//!   checkpoints/epoch-NNNN.bpk   weights after epoch NNNN (every `checkpoint_every` epochs)
+//!   metrics.csv          one row per epoch: loss, distance of the chosen estimates, test metrics
+//! ```
+//!
+//! Resuming reloads weights and optimizer state and continues with the next epoch; the sample
+//! order and every random choice of epoch `k` depend only on the seed and `k`, so a resumed run
+//! sees the same data as an uninterrupted one.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use burn::module::Module;
+use burn::optim::{AdamConfig, GradientsParams};
+use burn::prelude::*;
+use indicatif::{ProgressBar, ProgressStyle};
+use serde::{Deserialize, Serialize};
+
+use crate::config::{AugmentConfig, TrainConfig};
+use crate::data::{Loaded, Loader, Pass, PrepareOptions, SplitSource, load_models, select_objects, shuffled};
+use crate::eval::{self, Summary};
+use crate::loss::pose_loss;
+use crate::model::{PoseNet, Variant};
+
+/// `state.json` of a run directory.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunState {
+    pub epochs_done: usize,
+    pub steps: u64,
+    /// The object of each head slot.
+    pub objects: Vec<String>,
+    pub variant: Variant,
+    /// `vtpose <version>` that wrote the run.
+    pub trainer: String,
+}
+
+/// Files of a run directory.
+#[derive(Debug, Clone)]
+pub struct RunDir(pub PathBuf);
+
+impl RunDir {
+    pub fn config(&self) -> PathBuf {
+        self.0.join("config.yaml")
+    }
+    pub fn state(&self) -> PathBuf {
+        self.0.join("state.json")
+    }
+    pub fn model(&self) -> PathBuf {
+        self.0.join("model.bpk")
+    }
+    pub fn optimizer(&self) -> PathBuf {
+        self.0.join("optimizer.bpk")
+    }
+    pub fn checkpoint(&self, epoch: usize) -> PathBuf {
+        self.0.join("checkpoints").join(format!("epoch-{epoch:04}.bpk"))
+    }
+    pub fn metrics(&self) -> PathBuf {
+        self.0.join("metrics.csv")
+    }
+
+    pub fn load_state(&self) -> Result<RunState> {
+        let text =
+            std::fs::read_to_string(self.state()).with_context(|| format!("{} is not a vtpose run (no state.json)", self.0.display()))?;
+        serde_json::from_str(&text).with_context(|| format!("{} is not a valid state.json", self.state().display()))
+    }
+
+    fn save_state(&self, s: &RunState) -> Result<()> {
+        let tmp = self.0.join(".state.json.tmp");
+        std::fs::write(&tmp, serde_json::to_string_pretty(s)? + "\n")?;
+        std::fs::rename(&tmp, self.state()).with_context(|| format!("cannot write {}", self.state().display()))
+    }
+
+    /// The trained network of this run on `device` (its config, state and weights).
+    pub fn load_model(&self, device: &Device) -> Result<(TrainConfig, RunState, PoseNet)> {
+        let cfg = TrainConfig::load(&self.config())?;
+        let state = self.load_state()?;
+        let model = cfg.model.net(state.objects.len()).init(device);
+        let model = model.try_load_file(self.model()).map_err(|e| anyhow::anyhow!("cannot load {}: {e}", self.model().display()))?;
+        Ok((cfg, state, model))
+    }
+}
+
+/// How to run [`train`].
+#[derive(Debug, Clone)]
+pub struct TrainOptions {
+    pub out: PathBuf,
+    /// Continue the run in `out` (its config must match, except `train.epochs`).
+    pub resume: bool,
+    /// Replace a run in `out`.
+    pub overwrite: bool,
+    /// The device to train on (autodiff is added).
+    pub device: Device,
+    pub quiet: bool,
+}
+
+/// One row of `metrics.csv`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EpochRecord {
+    pub epoch: usize,
+    pub steps: u64,
+    pub samples: usize,
+    /// Samples skipped because the object is not visible.
+    pub skipped: usize,
+    /// Mean training loss over the epoch's batches.
+    pub loss: f64,
+    /// Mean distance `L_i` (eq. 1) of the most confident estimate, cm.
+    pub distance_cm: f64,
+    pub seconds: f64,
+    /// Test-split metrics when evaluated this epoch.
+    pub eval: Option<Summary>,
+}
+
+const CSV_HEADER: &str =
+    "epoch,steps,samples,skipped,loss,distance_cm,seconds,eval_n,eval_position_cm,eval_angle_deg,eval_add_auc,eval_adds_auc";
+
+impl EpochRecord {
+    fn csv(&self) -> String {
+        let e = self.eval.as_ref();
+        let f = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.6}"));
+        format!(
+            "{},{},{},{},{:.6},{:.4},{:.2},{},{},{},{},{}",
+            self.epoch,
+            self.steps,
+            self.samples,
+            self.skipped,
+            self.loss,
+            self.distance_cm,
+            self.seconds,
+            e.map_or(String::new(), |e| e.n.to_string()),
+            f(e.map(|e| e.position_cm.mean)),
+            f(e.map(|e| e.angle_deg.mean)),
+            f(e.map(|e| e.add_auc)),
+            f(e.map(|e| e.adds_auc)),
+        )
+    }
+}
+
+/// What a training run did.
+#[derive(Debug, Clone)]
+pub struct TrainSummary {
+    pub run: PathBuf,
+    pub epochs: Vec<EpochRecord>,
+    pub state: RunState,
+}
+
+/// Trains `cfg` into the run directory `opts.out` (see the module docs).
+pub fn train(cfg: &TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
+    cfg.validate()?;
+    let run = RunDir(opts.out.clone());
+    let mut cfg = cfg.clone();
+    cfg.dataset = std::path::absolute(&cfg.dataset).with_context(|| format!("dataset path {}", cfg.dataset.display()))?;
+    let models = load_models(&cfg.dataset)?;
+    let objects = select_objects(&models, &cfg.objects)?;
+
+    // A fresh run, or the continuation of the one in `out`.
+    let resumed = if run.state().exists() && !opts.overwrite {
+        if !opts.resume {
+            bail!("{} already holds a run: use --resume to continue it or --overwrite to replace it", run.0.display());
+        }
+        let state = run.load_state()?;
+        let saved = TrainConfig::load(&run.config())?;
+        let mut comparable = cfg.clone();
+        comparable.train.epochs = saved.train.epochs;
+        if comparable != saved {
+            bail!("--resume: the config differs from the run's {} (only train.epochs may change)", run.config().display());
+        }
+        if state.objects != objects {
+            bail!("--resume: the run was trained on {:?}, the config selects {:?}", state.objects, objects);
+        }
+        Some(state)
+    } else {
+        if opts.overwrite && run.0.exists() {
+            for f in [run.state(), run.model(), run.optimizer(), run.metrics(), run.config()] {
+                let _ = std::fs::remove_file(f);
+            }
+            let _ = std::fs::remove_dir_all(run.0.join("checkpoints"));
+        }
+        None
+    };
+    std::fs::create_dir_all(run.0.join("checkpoints")).with_context(|| format!("cannot create {}", run.0.display()))?;
+    cfg.save(&run.config())?;
+
+    let device = opts.device.clone().autodiff();
+    device.seed(cfg.train.seed);
+    let mut model = cfg.model.net(objects.len()).init(&device);
+    let mut optim = AdamConfig::new().with_epsilon(1e-8).init(); // PyTorch's Adam, as the paper
+    let mut state = RunState {
+        epochs_done: 0,
+        steps: 0,
+        objects: objects.clone(),
+        variant: cfg.model.variant,
+        trainer: format!("vtpose {}", env!("CARGO_PKG_VERSION")),
+    };
+    if let Some(saved) = resumed {
+        model = model.try_load_file(run.model()).map_err(|e| anyhow::anyhow!("cannot load {}: {e}", run.model().display()))?;
+        optim = optim.load(run.optimizer()).map_err(|e| anyhow::anyhow!("cannot load {}: {e}", run.optimizer().display()))?;
+        state = saved;
+    }
+    if state.epochs_done >= cfg.train.epochs {
+        if !opts.quiet {
+            eprintln!("{}: already trained for {} epochs", run.0.display(), state.epochs_done);
+        }
+        return Ok(TrainSummary { run: run.0, epochs: Vec::new(), state });
+    }
+
+    let mut source = SplitSource::open(&cfg.dataset, "train", &objects, cfg.data.depth, cfg.data.cache)?;
+    if cfg.train.max_train_samples > 0 {
+        source.truncate(cfg.train.max_train_samples);
+    }
+    if source.is_empty() {
+        bail!("{}: the train split has no samples of {:?}", cfg.dataset.display(), objects);
+    }
+    let mut test_source = if cfg.train.eval_every > 0 {
+        let mut s = SplitSource::open(&cfg.dataset, "test", &objects, cfg.data.depth, cfg.data.cache)?;
+        s.spread(cfg.train.eval_samples);
+        Some(s).filter(|s| !s.is_empty())
+    } else {
+        None
+    };
+    let n_train = source.len();
+    let slots = slot_table(&models, &objects);
+    let prep = PrepareOptions {
+        data: cfg.data.clone(),
+        augment: cfg.augment.clone(),
+        seed: cfg.train.seed,
+        split: "train".into(),
+        slots: slots.clone(),
+    };
+    let passes: Vec<Pass> = (state.epochs_done + 1..=cfg.train.epochs)
+        .map(|e| Pass { epoch: e as u64, order: shuffled(n_train, cfg.train.seed, e as u64) })
+        .collect();
+    let loader = Loader::spawn(source, passes, prep, cfg.train.batch_size, cfg.data.prefetch);
+
+    let batches_per_epoch = n_train.div_ceil(cfg.train.batch_size);
+    let bar = if opts.quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(((cfg.train.epochs - state.epochs_done) * batches_per_epoch) as u64)
+    };
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} epoch {msg} [{bar:30}] {pos}/{len} batches, {per_sec}, ETA {eta}")
+            .expect("template")
+            .progress_chars("=> "),
+    );
+    if !opts.quiet {
+        eprintln!(
+            "vtpose: training {} on {} ({} train samples of {}), {} params, device {:?}",
+            cfg.model.variant.label(),
+            cfg.dataset.display(),
+            n_train,
+            objects.join(", "),
+            model.num_params(),
+            opts.device
+        );
+    }
+
+    let mut csv = open_csv(&run.metrics(), state.epochs_done == 0)?;
+    let mut records = Vec::new();
+    let (mut loss_sum, mut dist_sum, mut batches, mut samples) = (0.0, 0.0, 0usize, 0usize);
+    let mut started = Instant::now();
+    while let Some(msg) = loader.recv() {
+        match msg? {
+            Loaded::Batch { epoch, batch } => {
+                let input = batch.inputs(&device);
+                let targets = batch.targets(&device);
+                let out = model.forward(&input);
+                let l = pose_loss(&out, &targets, cfg.train.w);
+                let loss_value: f64 = l.loss.clone().into_scalar::<f32>() as f64;
+                if !loss_value.is_finite() {
+                    bail!("epoch {epoch}: the loss is {loss_value} (diverged); try a lower train.lr");
+                }
+                dist_sum += best_distance(&out, &l.distance) * batch.len() as f64;
+                let grads = GradientsParams::from_grads(l.loss.backward(), &model);
+                model = optim.step(cfg.train.lr, model, grads);
+                loss_sum += loss_value;
+                batches += 1;
+                samples += batch.len();
+                state.steps += 1;
+                bar.set_message(format!("{epoch}/{} loss {:.4}", cfg.train.epochs, loss_sum / batches as f64));
+                bar.inc(1);
+            }
+            Loaded::EndOfPass { epoch, skipped } => {
+                let epoch = epoch as usize;
+                state.epochs_done = epoch;
+                let mut rec = EpochRecord {
+                    epoch,
+                    steps: state.steps,
+                    samples,
+                    skipped: skipped.len(),
+                    loss: loss_sum / batches.max(1) as f64,
+                    distance_cm: 100.0 * dist_sum / samples.max(1) as f64,
+                    seconds: started.elapsed().as_secs_f64(),
+                    eval: None,
+                };
+                let last = epoch == cfg.train.epochs;
+                if cfg.train.eval_every > 0
+                    && (epoch.is_multiple_of(cfg.train.eval_every) || last)
+                    && let Some(src) = test_source.take()
+                {
+                    let eval_opts = eval::EvalOptions::for_config(&cfg, &slots, None).on(&opts.device);
+                    let (results, _, src) = eval::evaluate(&model.valid(), src, &eval_opts)?;
+                    rec.eval = Some(Summary::of(&results));
+                    test_source = Some(src);
+                }
+                // Weights first, then the state that points at them.
+                save_model(&model, &run.model())?;
+                optim.save(run.optimizer()).map_err(|e| anyhow::anyhow!("cannot write {}: {e}", run.optimizer().display()))?;
+                if last || epoch.is_multiple_of(cfg.train.checkpoint_every.max(1)) {
+                    save_model(&model, &run.checkpoint(epoch))?;
+                }
+                run.save_state(&state)?;
+                writeln!(csv, "{}", rec.csv())?;
+                csv.flush()?;
+                if !opts.quiet {
+                    let ev = rec.eval.as_ref().map_or(String::new(), |e| {
+                        format!(
+                            ", test: position {:.2} cm, angle {:.1}°, ADD-S AUC {:.1}",
+                            e.position_cm.mean, e.angle_deg.mean, e.adds_auc
+                        )
+                    });
+                    let line = format!("epoch {epoch}: loss {:.5}, chosen-estimate distance {:.2} cm{ev}", rec.loss, rec.distance_cm);
+                    // indicatif swallows println on a hidden bar (stderr not a terminal).
+                    if bar.is_hidden() { eprintln!("{line}") } else { bar.println(line) }
+                }
+                records.push(rec);
+                (loss_sum, dist_sum, batches, samples) = (0.0, 0.0, 0, 0);
+                started = Instant::now();
+            }
+        }
+    }
+    loader.finish();
+    bar.finish_and_clear();
+    Ok(TrainSummary { run: run.0, epochs: records, state })
+}
+
+/// Head slot of each dataset object (`None`: not trained on).
+pub fn slot_table(models: &[crate::data::ObjectModel], objects: &[String]) -> Vec<Option<usize>> {
+    models.iter().map(|m| objects.iter().position(|o| o == &m.id)).collect()
+}
+
+fn save_model(model: &PoseNet, path: &Path) -> Result<()> {
+    model.clone().save_file(path).map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))
+}
+
+fn open_csv(path: &Path, fresh: bool) -> Result<std::fs::File> {
+    let mut f = std::fs::OpenOptions::new()
+        .create(true)
+        .append(!fresh)
+        .write(true)
+        .truncate(fresh)
+        .open(path)
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    if fresh {
+        writeln!(f, "{CSV_HEADER}")?;
+    }
+    Ok(f)
+}
+
+/// Mean over the batch of the distance `L_i` of each sample's most confident valid estimate.
+fn best_distance(out: &crate::model::PoseOutput, distance: &Tensor<2>) -> f64 {
+    let [b, e] = distance.dims();
+    let conf: Vec<f32> =
+        (out.confidence.clone().detach() * out.valid.clone() + (out.valid.clone() - 1.0)).into_data().iter::<f32>().collect();
+    let dist: Vec<f32> = distance.clone().into_data().iter::<f32>().collect();
+    (0..b)
+        .map(|s| {
+            let row = &conf[s * e..(s + 1) * e];
+            let i = (0..e).max_by(|&a, &c| row[a].total_cmp(&row[c])).unwrap_or(0);
+            dist[s * e + i] as f64
+        })
+        .sum::<f64>()
+        / b.max(1) as f64
+}
+
+/// Augmentation off: what evaluation and benchmarks use.
+pub fn no_augmentation() -> AugmentConfig {
+    AugmentConfig::NONE
+}
