@@ -236,7 +236,10 @@ fn a_box_casts_its_shadow_where_geometry_puts_it() {
     let mut r = WgpuRenderer::new(&RendererConfig::default()).unwrap();
     let floor = r.upload_mesh(&quad(1.5)).unwrap();
     let half = DVec3::new(0.05, 0.05, 0.1);
-    let unit_box = procedural_mesh(&vt_objects::CatalogEntry { extents: (half * 2.0).to_array(), ..Catalog::builtin().get("003_cracker_box").unwrap().clone() });
+    let unit_box = procedural_mesh(&vt_objects::CatalogEntry {
+        extents: (half * 2.0).to_array(),
+        ..Catalog::builtin().get("003_cracker_box").unwrap().clone()
+    });
     let boxm = r.upload_mesh(&unit_box).unwrap();
     let centre = DVec3::new(0.0, 0.0, 0.1);
     let light = DVec3::new(0.35, 0.25, 0.9);
@@ -270,7 +273,8 @@ fn a_box_casts_its_shadow_where_geometry_puts_it() {
         for u in margin..W as i64 - margin {
             let i = (row * W as i64 + u) as usize;
             let Some(c) = class[i] else { continue };
-            let clear = (-margin..=margin).all(|dy| (-margin..=margin).all(|dx| class[((row + dy) * W as i64 + u + dx) as usize] == Some(c)));
+            let clear =
+                (-margin..=margin).all(|dy| (-margin..=margin).all(|dx| class[((row + dy) * W as i64 + u + dx) as usize] == Some(c)));
             if clear {
                 assert_eq!(img.mask[i], 5, "pixel ({u}, {row}) is floor");
                 if c { shadow.push(luma(i)) } else { lit.push(luma(i)) }
@@ -279,7 +283,11 @@ fn a_box_casts_its_shadow_where_geometry_puts_it() {
     }
     assert!(shadow.len() > 500 && lit.len() > 5000, "{} shadow and {} lit pixels to compare", shadow.len(), lit.len());
     let max_shadow = shadow.iter().copied().fold(0.0, f64::max);
-    let lit_sorted = { let mut l = lit.clone(); l.sort_by(f64::total_cmp); l };
+    let lit_sorted = {
+        let mut l = lit.clone();
+        l.sort_by(f64::total_cmp);
+        l
+    };
     // Every shadowed pixel is darker than 99.9% of the lit floor near the box.
     let dark_enough = lit_sorted[lit_sorted.len() / 1000];
     assert!(max_shadow < dark_enough, "shadow up to {max_shadow}, lit floor from {dark_enough}");
@@ -313,6 +321,10 @@ fn msaa_smooths_colour_edges_and_leaves_depth_and_mask_exact() {
     let edge_changes = changed.iter().filter(|&&i| on_edge(i)).count();
     assert!(edge_changes > 50, "anti-aliasing changes the silhouette's pixels ({edge_changes})");
     // Texture and shading sample at the same pixel centres elsewhere: small differences only.
-    let big_interior = changed.iter().filter(|&&i| !on_edge(i)).filter(|&&i| (0..3).any(|c| plain.rgb[3 * i + c].abs_diff(smooth.rgb[3 * i + c]) > 24)).count();
+    let big_interior = changed
+        .iter()
+        .filter(|&&i| !on_edge(i))
+        .filter(|&&i| (0..3).any(|c| plain.rgb[3 * i + c].abs_diff(smooth.rgb[3 * i + c]) > 24))
+        .count();
     assert!(big_interior < edge_changes / 4, "{big_interior} interior pixels changed much");
 }

@@ -36,8 +36,7 @@ fn all_eleven_ycb_objects_load_and_render_textured() {
             far: 5.0,
             t_world_camera: cam.matrix(),
         };
-        let light =
-            Lighting::spot(DVec3::new(0.0, -1.0, 1.0), DVec3::ZERO, [1.0; 3], [0.4; 3]);
+        let light = Lighting::spot(DVec3::new(0.0, -1.0, 1.0), DVec3::ZERO, [1.0; 3], [0.4; 3]);
         let pose = DMat4::from_rotation_translation(DQuat::from_rotation_x(0.4), DVec3::new(0.0, 0.0, 0.12));
         let img = r.render(&v, &light, &[Draw { mesh: h, t_world_model: pose, mask_id: 1 }]).unwrap();
         let px: Vec<[u8; 3]> = img

@@ -30,7 +30,12 @@ pub fn write_exr_depth(path: &Path, width: u32, height: u32, depth: &[f32]) -> R
     let channel = AnyChannel::new("Z", FlatSamples::F32(depth.to_vec()));
     let mut channels = SmallVec::new();
     channels.push(channel);
-    let layer = Layer::new((width as usize, height as usize), LayerAttributes::named("depth"), Encoding::FAST_LOSSLESS, AnyChannels::sort(channels));
+    let layer = Layer::new(
+        (width as usize, height as usize),
+        LayerAttributes::named("depth"),
+        Encoding::FAST_LOSSLESS,
+        AnyChannels::sort(channels),
+    );
     Image::from_layer(layer).write().to_file(path).with_context(|| format!("cannot write {}", path.display()))
 }
 
@@ -46,7 +51,12 @@ pub fn read_exr_depth(path: &Path) -> Result<(u32, u32, Vec<f32>)> {
         .from_file(path)
         .with_context(|| format!("cannot read {}", path.display()))?;
     let layer = image.layer_data;
-    let z = layer.channel_data.list.iter().find(|c| c.name == Text::from("Z")).with_context(|| format!("{} has no Z channel", path.display()))?;
+    let z = layer
+        .channel_data
+        .list
+        .iter()
+        .find(|c| c.name == Text::from("Z"))
+        .with_context(|| format!("{} has no Z channel", path.display()))?;
     Ok((layer.size.width() as u32, layer.size.height() as u32, z.sample_data.values_as_f32().collect()))
 }
 

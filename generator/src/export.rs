@@ -54,7 +54,11 @@ fn model_info(m: &vt_dataset::ModelInfo, lo: DVec3, hi: DVec3) -> Value {
         "continuous_z" => v["symmetries_continuous"] = json!([{"axis": [0, 0, 1], "offset": [0, 0, 0]}]),
         "discrete" => {
             // The model frame is the bounding-box centre, so the flips need no offset.
-            let flips = [DMat3::from_diagonal(DVec3::new(1.0, -1.0, -1.0)), DMat3::from_diagonal(DVec3::new(-1.0, 1.0, -1.0)), DMat3::from_diagonal(DVec3::new(-1.0, -1.0, 1.0))];
+            let flips = [
+                DMat3::from_diagonal(DVec3::new(1.0, -1.0, -1.0)),
+                DMat3::from_diagonal(DVec3::new(-1.0, 1.0, -1.0)),
+                DMat3::from_diagonal(DVec3::new(-1.0, -1.0, 1.0)),
+            ];
             let mats: Vec<Vec<f64>> = flips
                 .iter()
                 .map(|r| {
@@ -120,8 +124,9 @@ pub fn export_bop(root: &Path, out: &Path, renderer: &RendererConfig, quiet: boo
     }
     std::fs::create_dir_all(out.join("models")).with_context(|| format!("cannot create {}", out.join("models").display()))?;
     let info_path = root.join("models/models_info.json");
-    let models: ModelsInfo = serde_json::from_slice(&std::fs::read(&info_path).with_context(|| format!("cannot read {}", info_path.display()))?)
-        .with_context(|| format!("{} is not a models_info.json", info_path.display()))?;
+    let models: ModelsInfo =
+        serde_json::from_slice(&std::fs::read(&info_path).with_context(|| format!("cannot read {}", info_path.display()))?)
+            .with_context(|| format!("{} is not a models_info.json", info_path.display()))?;
 
     // Models in mm, and uploaded for the amodal masks.
     let mut r = WgpuRenderer::new(renderer)?;
@@ -155,7 +160,10 @@ pub fn export_bop(root: &Path, out: &Path, renderer: &RendererConfig, quiet: boo
 
     let total: u64 = SPLITS.iter().map(|s| ds.manifest().splits.get(*s).map(|m| m.samples).unwrap_or(0)).sum();
     let progress = if quiet { ProgressBar::hidden() } else { ProgressBar::new(total) };
-    progress.set_style(ProgressStyle::with_template("{spinner} {elapsed_precise} [{bar:36}] {pos}/{len} images  {per_sec}  ETA {eta}").expect("valid template"));
+    progress.set_style(
+        ProgressStyle::with_template("{spinner} {elapsed_precise} [{bar:36}] {pos}/{len} images  {per_sec}  ETA {eta}")
+            .expect("valid template"),
+    );
     let mut summary = ExportSummary { objects: models.objects.len(), ..Default::default() };
     let mut camera_json: Option<Value> = None;
     for split in SPLITS {
@@ -236,7 +244,9 @@ fn write_image(scene: &mut Scene, dir: &Path, s: &Sample, obj_id: usize, amodal:
         }),
     );
     let t = &s.t_camera_object;
-    scene.gt.insert(im, json!([{"cam_R_m2c": row_major(DMat3::from_quat(t.rotation())), "cam_t_m2c": mm(t.translation()), "obj_id": obj_id}]));
+    scene
+        .gt
+        .insert(im, json!([{"cam_R_m2c": row_major(DMat3::from_quat(t.rotation())), "cam_t_m2c": mm(t.translation()), "obj_id": obj_id}]));
     scene.gt_info.insert(
         im,
         json!([{

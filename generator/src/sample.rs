@@ -63,9 +63,9 @@ fn texture_of(t: &ProceduralTexture) -> Texture {
 fn object_material(id: &str) -> Material {
     let (roughness, metallic) = match id {
         "005_tomato_soup_can" | "010_potted_meat_can" => (0.35, 0.6), // printed tinplate
-        "025_mug" => (0.2, 0.0),                                       // glazed ceramic
-        "037_scissors" | "042_adjustable_wrench" => (0.3, 0.9),        // steel
-        "006_mustard_bottle" | "035_power_drill" => (0.45, 0.0),       // moulded plastic
+        "025_mug" => (0.2, 0.0),                                      // glazed ceramic
+        "037_scissors" | "042_adjustable_wrench" => (0.3, 0.9),       // steel
+        "006_mustard_bottle" | "035_power_drill" => (0.45, 0.0),      // moulded plastic
         "011_banana" => (0.55, 0.0),
         _ => (0.8, 0.0), // cardboard boxes and unknown objects: matte
     };
@@ -199,7 +199,8 @@ impl<'a> SampleFactory<'a> {
             for link in 0..r.model.links.len() {
                 if let (Some(mesh), Some(id)) = (link_mesh(&r.model, link), robot_mask_id(&r.model, link)) {
                     // Matte black hand (white tips), the arm's painted aluminium.
-                    let material = if id < 16 { Material { roughness: 0.45, metallic: 0.3 } } else { Material { roughness: 0.75, metallic: 0.0 } };
+                    let material =
+                        if id < 16 { Material { roughness: 0.45, metallic: 0.3 } } else { Material { roughness: 0.75, metallic: 0.0 } };
                     robot_meshes.push((link, renderer.upload_mesh_with(&mesh, material)?, id));
                     let name = &r.model.links[link].name;
                     robot_glbs.push(SceneModel { id: format!("robot/{name}"), frame_id: name.clone(), glb: glb_of(&mesh) });
@@ -243,8 +244,11 @@ impl<'a> SampleFactory<'a> {
     /// frame and the robot links in theirs.
     pub fn scene_models(&self, object_index: u32) -> Vec<SceneModel> {
         let obj = &self.objects[object_index as usize];
-        let mut models =
-            vec![SceneModel { id: format!("object/{}", obj.id), frame_id: frames::OBJECT.into(), glb: self.object_glbs[object_index as usize].clone() }];
+        let mut models = vec![SceneModel {
+            id: format!("object/{}", obj.id),
+            frame_id: frames::OBJECT.into(),
+            glb: self.object_glbs[object_index as usize].clone(),
+        }];
         models.extend(self.robot_glbs.iter().cloned());
         models
     }
@@ -346,7 +350,8 @@ impl<'a> SampleFactory<'a> {
         // Sensor noise on copies: the clean depth stays the ground truth.
         let noise = &cam.noise;
         let mut noise_rng = SampleStream::sample(&key, "sensor_noise");
-        let depth_noisy = noise.depth.as_ref().map(|d| d.apply(&img.depth, img.width, img.height, [k.fx, k.fy, k.cx, k.cy], &mut noise_rng));
+        let depth_noisy =
+            noise.depth.as_ref().map(|d| d.apply(&img.depth, img.width, img.height, [k.fx, k.fy, k.cx, k.cy], &mut noise_rng));
         if let Some(c) = &noise.color {
             c.apply(&mut img.rgb, &mut noise_rng);
         }

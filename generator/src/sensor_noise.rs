@@ -45,7 +45,15 @@ pub struct DepthNoise {
 impl Default for DepthNoise {
     // Roughly a RealSense D435 at 640×480.
     fn default() -> Self {
-        DepthNoise { sigma_mm: 0.5, sigma_quadratic_mm: 2.5, baseline_m: 0.05, subpixel: 8.0, edge_mm: 10.0, grazing_deg: 80.0, dropout: 0.002 }
+        DepthNoise {
+            sigma_mm: 0.5,
+            sigma_quadratic_mm: 2.5,
+            baseline_m: 0.05,
+            subpixel: 8.0,
+            edge_mm: 10.0,
+            grazing_deg: 80.0,
+            dropout: 0.002,
+        }
     }
 }
 

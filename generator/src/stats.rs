@@ -213,7 +213,13 @@ pub fn write_stats(root: &Path, out: &Path) -> Result<Vec<String>> {
 
     let mut md = String::new();
     writeln!(md, "# Dataset statistics: `{}`\n", root.display())?;
-    writeln!(md, "Made by `vtgen stats`. {} samples, {} of {} shards complete.\n", c.positions.len(), summary.shards_complete, summary.shards)?;
+    writeln!(
+        md,
+        "Made by `vtgen stats`. {} samples, {} of {} shards complete.\n",
+        c.positions.len(),
+        summary.shards_complete,
+        summary.shards
+    )?;
     writeln!(md, "| split | object | samples |\n|---|---|---|")?;
     for (split, objects) in &summary.samples {
         for (o, n) in objects {
@@ -232,7 +238,10 @@ pub fn write_stats(root: &Path, out: &Path) -> Result<Vec<String>> {
         writeln!(md, "| grasps | `{g}` |")?;
     }
     writeln!(md, "\n## Object positions\n\n![positions](positions.svg)\n")?;
-    writeln!(md, "## Rotation coverage\n\nWhere the model's z (blue) and x (red) axes point in the camera frame; the map is equal-area, so uniformly random orientations cover it evenly.\n\n![rotations](rotations.svg)\n")?;
+    writeln!(
+        md,
+        "## Rotation coverage\n\nWhere the model's z (blue) and x (red) axes point in the camera frame; the map is equal-area, so uniformly random orientations cover it evenly.\n\n![rotations](rotations.svg)\n"
+    )?;
     writeln!(md, "## Occlusion\n\n![occlusion](occlusion.svg)\n")?;
     if touch {
         writeln!(md, "## Touch\n\n![tactile points](tactile_points.svg)\n\n![contacts](contacts.svg)\n")?;

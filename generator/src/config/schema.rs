@@ -596,7 +596,10 @@ impl Config {
         }
         range(&mut p, vec![Key("renderer"), Key("shadow_map_size")], self.renderer.shadow_map_size, 256, 8192);
         if ![1, 4].contains(&self.renderer.msaa) {
-            p.push(Problem { path: vec![Key("renderer"), Key("msaa")], message: format!("{} is not supported: use 1 (off) or 4", self.renderer.msaa) });
+            p.push(Problem {
+                path: vec![Key("renderer"), Key("msaa")],
+                message: format!("{} is not supported: use 1 (off) or 4", self.renderer.msaa),
+            });
         }
         for (field, message) in self.randomization.validate() {
             let mut path = vec![Key("randomization")];

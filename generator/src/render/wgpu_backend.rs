@@ -314,29 +314,46 @@ impl WgpuRenderer {
             step_mode: wgpu::VertexStepMode::Vertex,
             attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2],
         };
-        let shadow_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("shadow map"),
-            layout: Some(&shadow_pipeline_layout),
-            vertex: wgpu::VertexState {
-                module: &shader,
-                entry_point: Some("vs_shadow"),
-                compilation_options: Default::default(),
-                buffers: &[Some(vertex_layout.clone())],
-            },
-            primitive: wgpu::PrimitiveState { topology: wgpu::PrimitiveTopology::TriangleList, cull_mode: None, ..Default::default() },
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: SHADOW_FORMAT,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Less),
-                stencil: Default::default(),
-                // A small slope-scaled bias; the normal offset in the lookup does the rest.
-                bias: wgpu::DepthBiasState { constant: 2, slope_scale: 1.5, clamp: 0.0 },
-            }),
-            multisample: Default::default(),
-            fragment: None,
-            multiview_mask: None,
-            cache: None,
-        });
+        // The three pipelines (shadow map, main view, multisampled colour) share the vertex
+        // layout, the triangle lists without culling (scanned and user meshes are not reliably
+        // closed or consistently wound) and a writing Less depth test; they differ in the rest.
+        let make_pipeline = |label: &str,
+                             layout: &wgpu::PipelineLayout,
+                             vertex_entry: &str,
+                             depth: (wgpu::TextureFormat, wgpu::DepthBiasState),
+                             samples: u32,
+                             fragment: Option<(&str, &[Option<wgpu::ColorTargetState>])>| {
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some(label),
+                layout: Some(layout),
+                vertex: wgpu::VertexState {
+                    module: &shader,
+                    entry_point: Some(vertex_entry),
+                    compilation_options: Default::default(),
+                    buffers: &[Some(vertex_layout.clone())],
+                },
+                primitive: wgpu::PrimitiveState { topology: wgpu::PrimitiveTopology::TriangleList, cull_mode: None, ..Default::default() },
+                depth_stencil: Some(wgpu::DepthStencilState {
+                    format: depth.0,
+                    depth_write_enabled: Some(true),
+                    depth_compare: Some(wgpu::CompareFunction::Less),
+                    stencil: Default::default(),
+                    bias: depth.1,
+                }),
+                multisample: wgpu::MultisampleState { count: samples, ..Default::default() },
+                fragment: fragment.map(|(entry, targets)| wgpu::FragmentState {
+                    module: &shader,
+                    entry_point: Some(entry),
+                    compilation_options: Default::default(),
+                    targets,
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+        };
+        // A small slope-scaled bias; the normal offset in the lookup does the rest.
+        let shadow_bias = wgpu::DepthBiasState { constant: 2, slope_scale: 1.5, clamp: 0.0 };
+        let shadow_pipeline = make_pipeline("shadow map", &shadow_pipeline_layout, "vs_shadow", (SHADOW_FORMAT, shadow_bias), 1, None);
         let shadow_size = cfg.shadow_map_size.clamp(256, adapter.limits().max_texture_dimension_2d.min(8192));
         let shadow_tex = device.create_texture(&wgpu::TextureDescriptor {
             label: Some("shadow map"),
@@ -365,67 +382,20 @@ impl WgpuRenderer {
             ],
         });
         let target = |format| Some(wgpu::ColorTargetState { format, blend: None, write_mask: wgpu::ColorWrites::ALL });
-        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("main view"),
-            layout: Some(&layout),
-            vertex: wgpu::VertexState {
-                module: &shader,
-                entry_point: Some("vs_main"),
-                compilation_options: Default::default(),
-                buffers: &[Some(vertex_layout.clone())],
-            },
-            primitive: wgpu::PrimitiveState {
-                topology: wgpu::PrimitiveTopology::TriangleList,
-                // No culling: scanned and user meshes are not reliably closed or consistently wound.
-                cull_mode: None,
-                ..Default::default()
-            },
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: ZBUF_FORMAT,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Less),
-                stencil: Default::default(),
-                bias: Default::default(),
-            }),
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &shader,
-                entry_point: Some("fs_main"),
-                compilation_options: Default::default(),
-                targets: &[target(COLOR_FORMAT), target(DEPTH_FORMAT), target(MASK_FORMAT)],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+        let main_targets = [target(COLOR_FORMAT), target(DEPTH_FORMAT), target(MASK_FORMAT)];
+        let pipeline =
+            make_pipeline("main view", &layout, "vs_main", (ZBUF_FORMAT, Default::default()), 1, Some(("fs_main", &main_targets)));
         let msaa = if cfg.msaa > 1 { 4 } else { 1 };
         let msaa_pipeline = (msaa > 1).then(|| {
-            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some("main view, multisampled colour"),
-                layout: Some(&layout),
-                vertex: wgpu::VertexState {
-                    module: &shader,
-                    entry_point: Some("vs_main"),
-                    compilation_options: Default::default(),
-                    buffers: &[Some(vertex_layout.clone())],
-                },
-                primitive: wgpu::PrimitiveState { topology: wgpu::PrimitiveTopology::TriangleList, cull_mode: None, ..Default::default() },
-                depth_stencil: Some(wgpu::DepthStencilState {
-                    format: ZBUF_FORMAT,
-                    depth_write_enabled: Some(true),
-                    depth_compare: Some(wgpu::CompareFunction::Less),
-                    stencil: Default::default(),
-                    bias: Default::default(),
-                }),
-                multisample: wgpu::MultisampleState { count: msaa, ..Default::default() },
-                fragment: Some(wgpu::FragmentState {
-                    module: &shader,
-                    entry_point: Some("fs_color"),
-                    compilation_options: Default::default(),
-                    targets: &[target(COLOR_FORMAT)],
-                }),
-                multiview_mask: None,
-                cache: None,
-            })
+            let colour = [target(COLOR_FORMAT)];
+            make_pipeline(
+                "main view, multisampled colour",
+                &layout,
+                "vs_main",
+                (ZBUF_FORMAT, Default::default()),
+                msaa,
+                Some(("fs_color", &colour)),
+            )
         });
         let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
             label: Some("base colour"),
@@ -554,6 +524,38 @@ impl WgpuRenderer {
         }
     }
 
+    /// Records `draws` into each of `views` (its viewport and frame record) in an open pass whose
+    /// pipeline and shadow group are set; with `cull`, only the mesh clusters inside each view.
+    fn record_views(&self, pass: &mut wgpu::RenderPass<'_>, views: &[(DMat4, DMat4, [u32; 4])], draws: &[Draw], cull: Option<&[[f64; 4]]>) {
+        for (vi, (_, _, vp)) in views.iter().enumerate() {
+            pass.set_viewport(vp[0] as f32, vp[1] as f32, vp[2] as f32, vp[3] as f32, 0.0, 1.0);
+            pass.set_scissor_rect(vp[0], vp[1], vp[2], vp[3]);
+            pass.set_bind_group(0, &self.frame_group, &[(vi as u64 * FRAME_STRIDE) as u32]);
+            // Last listed first: callers list the environment (floor, backdrop) first and the
+            // object last, so the near things fill the depth buffer early and the early depth
+            // test skips shading the floor and wall behind them.
+            for (di, d) in draws.iter().enumerate().rev() {
+                let m = &self.meshes[d.mesh.0];
+                pass.set_bind_group(1, &self.instance_group, &[((vi * draws.len() + di) as u64 * UNIFORM_STRIDE) as u32]);
+                pass.set_bind_group(2, &m.material, &[]);
+                pass.set_vertex_buffer(0, m.vertices.slice(..));
+                pass.set_index_buffer(m.indices.slice(..), wgpu::IndexFormat::Uint32);
+                match cull {
+                    // Small orthographic views: only the clusters inside the view volume.
+                    Some(c) => {
+                        let mv = views[vi].0.inverse() * d.t_world_model;
+                        for (range, lo, hi) in &m.clusters {
+                            if box_overlaps_view(&mv, *lo, *hi, c[vi]) {
+                                pass.draw_indexed(range.clone(), 0, 0..1);
+                            }
+                        }
+                    }
+                    None => pass.draw_indexed(0..m.index_count, 0, 0..1),
+                }
+            }
+        }
+    }
+
     /// One render pass drawing `draws` into each of `views` (its own viewport of the target in
     /// `slot`), then one readback of the target's colour, depth and mask (depth only if
     /// `depth_only`). Returns (rgba, depth, mask) of the whole target.
@@ -602,7 +604,12 @@ impl WgpuRenderer {
                 light_color: [lighting.light_color[0], lighting.light_color[1], lighting.light_color[2], if lit { 1.0 } else { 0.0 }],
                 ambient: [lighting.ambient[0], lighting.ambient[1], lighting.ambient[2], if shadow.is_some() { 1.0 } else { 0.0 }],
                 light_dir: [axis.x as f32, axis.y as f32, axis.z as f32, outer.cos() as f32],
-                spot: [(outer * lighting.softness.clamp(0.0, 0.999)).cos() as f32, texel as f32, (self.tonemapping == ToneMapping::Aces) as u8 as f32, 0.0],
+                spot: [
+                    (outer * lighting.softness.clamp(0.0, 0.999)).cos() as f32,
+                    texel as f32,
+                    (self.tonemapping == ToneMapping::Aces) as u8 as f32,
+                    0.0,
+                ],
                 up: [up.x as f32, up.y as f32, up.z as f32, 0.0],
                 shadow_vp: mat(shadow_vp),
             };
@@ -682,33 +689,7 @@ impl WgpuRenderer {
             });
             pass.set_pipeline(&self.pipeline);
             pass.set_bind_group(3, &self.shadow_group, &[]);
-            for (vi, (_, _, vp)) in views.iter().enumerate() {
-                pass.set_viewport(vp[0] as f32, vp[1] as f32, vp[2] as f32, vp[3] as f32, 0.0, 1.0);
-                pass.set_scissor_rect(vp[0], vp[1], vp[2], vp[3]);
-                pass.set_bind_group(0, &self.frame_group, &[(vi as u64 * FRAME_STRIDE) as u32]);
-                // Last listed first: callers list the environment (floor, backdrop) first and the
-                // object last, so the near things fill the depth buffer early and the early depth
-                // test skips shading the floor and wall behind them.
-                for (di, d) in draws.iter().enumerate().rev() {
-                    let m = &self.meshes[d.mesh.0];
-                    pass.set_bind_group(1, &self.instance_group, &[((vi * draws.len() + di) as u64 * UNIFORM_STRIDE) as u32]);
-                    pass.set_bind_group(2, &m.material, &[]);
-                    pass.set_vertex_buffer(0, m.vertices.slice(..));
-                    pass.set_index_buffer(m.indices.slice(..), wgpu::IndexFormat::Uint32);
-                    match cull {
-                        // Small orthographic views: only the clusters inside the view volume.
-                        Some(c) => {
-                            let mv = views[vi].0.inverse() * d.t_world_model;
-                            for (range, lo, hi) in &m.clusters {
-                                if box_overlaps_view(&mv, *lo, *hi, c[vi]) {
-                                    pass.draw_indexed(range.clone(), 0, 0..1);
-                                }
-                            }
-                        }
-                        None => pass.draw_indexed(0..m.index_count, 0, 0..1),
-                    }
-                }
-            }
+            self.record_views(&mut pass, views, draws, cull);
         }
         if let (Readback::All, Some(pipeline), Some((ms_color, ms_zbuf))) = (readback, &self.msaa_pipeline, &t.msaa) {
             // The anti-aliased colour, resolved over the single-sample colour of the pass above.
@@ -734,18 +715,7 @@ impl WgpuRenderer {
             });
             pass.set_pipeline(pipeline);
             pass.set_bind_group(3, &self.shadow_group, &[]);
-            for (vi, (_, _, vp)) in views.iter().enumerate() {
-                pass.set_viewport(vp[0] as f32, vp[1] as f32, vp[2] as f32, vp[3] as f32, 0.0, 1.0);
-                pass.set_bind_group(0, &self.frame_group, &[(vi as u64 * FRAME_STRIDE) as u32]);
-                for (di, d) in draws.iter().enumerate().rev() {
-                    let m = &self.meshes[d.mesh.0];
-                    pass.set_bind_group(1, &self.instance_group, &[((vi * draws.len() + di) as u64 * UNIFORM_STRIDE) as u32]);
-                    pass.set_bind_group(2, &m.material, &[]);
-                    pass.set_vertex_buffer(0, m.vertices.slice(..));
-                    pass.set_index_buffer(m.indices.slice(..), wgpu::IndexFormat::Uint32);
-                    pass.draw_indexed(0..m.index_count, 0, 0..1);
-                }
-            }
+            self.record_views(&mut pass, views, draws, None);
         }
         let copies: Vec<(&wgpu::Texture, &wgpu::Buffer, u32)> = match readback {
             Readback::Depth => vec![(&t.depth_tex, &t.readback[1], 4)],

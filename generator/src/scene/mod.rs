@@ -41,7 +41,8 @@ pub fn sample_scene(config: &Config, key: &SampleKey, ctx: &AppearanceContext) -
     let appearance = sample_appearance(&config.randomization, key, ctx);
     // Camera jitter: an offset in the camera's own frame.
     let (dt, dr) = appearance.camera_offset;
-    let t_world_camera = look_at(DVec3::from_array(cam.position), DVec3::from_array(cam.look_at)).compose(&Pose::from_rt(DQuat::from_scaled_axis(dr), dt));
+    let t_world_camera =
+        look_at(DVec3::from_array(cam.position), DVec3::from_array(cam.look_at)).compose(&Pose::from_rt(DQuat::from_scaled_axis(dr), dt));
     let mut rng = SampleStream::sample(key, "object_pose");
     let w = &config.scene.workspace;
     let pos =
