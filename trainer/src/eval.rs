@@ -6,7 +6,8 @@
 //! [`crate::data::EVAL_MODEL_POINTS`] fixed surface points of the object). Summaries give
 //! mean ± standard error, the AUC of ADD and ADD-S for thresholds up to 10 cm (YCB-Video), and
 //! the share of samples with ADD(-S) (ADD-S for symmetric objects) under 2 cm. Samples whose object
-//! has no visible pixel with depth cannot be fed to the network; they are counted, not scored.
+//! has no visible pixel with depth cannot be fed to the network (nor, to the tactile-only network,
+//! samples without touch); they are counted, not scored.
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;

@@ -18,10 +18,12 @@ fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("workspace root").to_path_buf()
 }
 
-/// The tiny-hand dataset, generated on first use (~10 s).
+/// The tiny-hand dataset, generated on first use (~10 s) into `target/tmp/vtpose-tiny-hand-<pid>`.
+/// Each run removes the datasets of earlier test processes that are gone, so one copy (~70 MB)
+/// stays behind at most.
 fn dataset() -> &'static Path {
-    static DIR: OnceLock<(tempfile::TempDir, PathBuf)> = OnceLock::new();
-    &DIR.get_or_init(|| {
+    static DIR: OnceLock<PathBuf> = OnceLock::new();
+    DIR.get_or_init(|| {
         // Mesa's drivers want a runtime directory on headless machines.
         if std::env::var_os("XDG_RUNTIME_DIR").is_none() {
             let xdg = std::env::temp_dir().join("vtgen-xdg-runtime");
@@ -31,22 +33,29 @@ fn dataset() -> &'static Path {
             // SAFETY: the variable is set once, before the renderer (the only reader) starts.
             unsafe { std::env::set_var("XDG_RUNTIME_DIR", &xdg) };
         }
-        let dir = tempfile::Builder::new().prefix("vtpose-test-").tempdir().unwrap();
+        let base = Path::new(env!("CARGO_TARGET_TMPDIR"));
+        for entry in std::fs::read_dir(base).into_iter().flatten().flatten() {
+            let name = entry.file_name().to_string_lossy().into_owned();
+            if let Some(pid) = name.strip_prefix("vtpose-tiny-hand-")
+                && !Path::new("/proc").join(pid).exists()
+            {
+                let _ = std::fs::remove_dir_all(entry.path());
+            }
+        }
+        let out = base.join(format!("vtpose-tiny-hand-{}", std::process::id()));
         let cfg = vtgen::config::LoadedConfig::load(&root().join("scenes/tiny-hand.yaml")).unwrap_or_else(|e| panic!("{e}"));
         let opts = vtgen::pipeline::GenerateOptions {
-            out: dir.path().join("tiny-hand"),
+            out: out.clone(),
             shard: vtgen::plan::ShardSelector::ALL,
             resume: false,
-            overwrite: false,
+            overwrite: true,
             jobs: 1,
             quiet: true,
             ycb_dir: None,
         };
         vtgen::pipeline::generate(&cfg, &opts).unwrap_or_else(|e| panic!("generating tiny-hand: {e:#}"));
-        let path = opts.out;
-        (dir, path)
+        out
     })
-    .1
 }
 
 /// A config small enough to train in seconds on a CPU.
@@ -66,9 +75,11 @@ fn small_config(variant: Variant) -> TrainConfig {
     c
 }
 
-fn run_dir(name: &str) -> PathBuf {
+/// A fresh run directory, deleted when the returned guard drops.
+fn run_dir(name: &str) -> (tempfile::TempDir, PathBuf) {
     let d = tempfile::Builder::new().prefix(&format!("vtpose-run-{name}-")).tempdir().unwrap();
-    d.keep()
+    let p = d.path().join("run");
+    (d, p)
 }
 
 fn quiet(out: PathBuf) -> TrainOptions {
@@ -178,7 +189,7 @@ fn overfits_a_handful_of_samples() {
     cfg.train.epochs = 300;
     cfg.train.lr = 2e-3;
     cfg.train.checkpoint_every = 1000;
-    let out = run_dir("overfit");
+    let (_guard, out) = run_dir("overfit");
     let t0 = std::time::Instant::now();
     let summary = train(&cfg, &quiet(out.clone())).unwrap();
     let losses: Vec<f64> = summary.epochs.iter().map(|e| e.loss).collect();
@@ -219,8 +230,10 @@ fn overfits_a_handful_of_samples() {
 #[test]
 fn every_variant_trains_and_evaluates() {
     let mut runs = Vec::new();
+    let mut guards = Vec::new();
     for v in Variant::ALL {
-        let out = run_dir(v.name());
+        let (guard, out) = run_dir(v.name());
+        guards.push(guard);
         let s = train(&small_config(v), &quiet(out.clone())).unwrap_or_else(|e| panic!("{v}: {e:#}"));
         assert_eq!(s.epochs.len(), 2, "{v}");
         assert!(s.epochs.iter().all(|e| e.loss.is_finite() && e.loss > 0.0), "{v}: {:?}", s.epochs);
@@ -261,10 +274,10 @@ fn every_variant_trains_and_evaluates() {
 fn resume_continues_where_the_run_stopped() {
     let cfg = small_config(Variant::TactileChannel);
     // Two epochs at once...
-    let straight = run_dir("straight");
+    let (_g1, straight) = run_dir("straight");
     train(&cfg, &quiet(straight.clone())).unwrap();
     // ... and one epoch, then --resume with epochs = 2.
-    let split = run_dir("split");
+    let (_g2, split) = run_dir("split");
     let mut one = cfg.clone();
     one.train.epochs = 1;
     train(&one, &quiet(split.clone())).unwrap();
