@@ -239,3 +239,30 @@ fn inspect_summarises_a_robot_dataset() {
     assert!(r["contact_share"].as_object().unwrap().values().map(|v| v.as_f64().unwrap()).sum::<f64>() >= 2.0);
     assert_eq!(r["grasp"]["trajectories"], 10);
 }
+
+#[test]
+fn the_grasp_check_reports_the_same_trajectories_as_generation() {
+    // `vtgen grasps` simulates the first trajectories exactly as `generate` does: with all 5
+    // trajectories of both objects, its attempts add up to the dataset's manifest figure.
+    let o = run(&["grasps", hand_config().to_str().unwrap(), "--trajectories", "5", "--jobs", "2", "--json", "--quiet", "--min-kept", "1.0"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let r: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(r["physics_backend"], backend().as_str());
+    let objects = r["objects"].as_array().unwrap();
+    assert_eq!(objects.len(), 2);
+    let mut attempts = 0;
+    for ob in objects {
+        assert_eq!(ob["kept"], 5, "{ob}");
+        assert_eq!(ob["instances"], 20);
+        assert!(ob["max_penetration_mm"].as_f64().unwrap() <= 1.0);
+        assert!(ob["min_phalanges_in_contact"].as_u64().unwrap() >= 2);
+        assert!(ob["min_floor_clearance_mm"].as_f64().unwrap() > 5.0);
+        attempts += ob["attempts"].as_u64().unwrap();
+    }
+    let m = vt_dataset::Manifest::load(&hand_dataset().join("manifest.json")).unwrap();
+    assert_eq!(m.grasp.unwrap()["attempts"].as_u64().unwrap(), attempts);
+    // A config without a robot has nothing to check.
+    let o = run(&["grasps", tiny_config().to_str().unwrap(), "--quiet"]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("no `robot:` section"), "{}", stderr(&o));
+}

@@ -10,6 +10,7 @@ mod foxglove_scene;
 mod grasping;
 mod ground_truth;
 mod render_geometry;
+mod scale_out;
 mod sensor_noise;
 mod stats;
 mod validate;

@@ -342,9 +342,13 @@ mod tests {
     use crate::config::{GraspConfig, PhysicsConfig};
     use crate::physics::{PhysicsSettings, RapierHand};
 
+    /// The object's physics shape: the real mesh when `YCB_DIR` is set, else the procedural one.
     pub fn physics_object(id: &str) -> PhysicsObject {
         let e = vt_objects::Catalog::builtin().get(id).unwrap().clone();
-        let m = vt_objects::procedural_mesh(&e);
+        let m = match std::env::var_os("YCB_DIR") {
+            Some(d) => vt_objects::load_mesh(&vt_objects::find_ycb_mesh(std::path::Path::new(&d), id).unwrap()).unwrap(),
+            None => vt_objects::procedural_mesh(&e),
+        };
         PhysicsObject { points: m.positions.clone(), mass: e.mass }
     }
 

@@ -50,11 +50,40 @@ enum Command {
         config: PathBuf,
         #[arg(long, default_value_t = 40)]
         samples: u64,
+        /// Parallel workers, as `generate --jobs`.
+        #[arg(long, default_value_t = 1)]
+        jobs: usize,
         #[arg(long)]
         ycb_dir: Option<PathBuf>,
         /// Print the report as JSON.
         #[arg(long)]
         json: bool,
+    },
+    /// Run the grasp loop alone (no rendering) over the first trajectories of every object and
+    /// report, per object, how many kept the object through all instances, the attempts and
+    /// failures, and the worst recorded instance (penetration, contacts, slip, floor clearance).
+    Grasps {
+        config: PathBuf,
+        /// Trajectories per object.
+        #[arg(long, default_value_t = 20)]
+        trajectories: u32,
+        /// Instances per trajectory (default: the config's).
+        #[arg(long)]
+        instances: Option<u32>,
+        /// Parallel workers (default: the machine's cores).
+        #[arg(long)]
+        jobs: Option<usize>,
+        #[arg(long)]
+        ycb_dir: Option<PathBuf>,
+        /// Fail (exit status 1) when an object keeps fewer than this fraction of its trajectories.
+        #[arg(long)]
+        min_kept: Option<f64>,
+        /// Print the report as JSON.
+        #[arg(long)]
+        json: bool,
+        /// No progress bar.
+        #[arg(long)]
+        quiet: bool,
     },
     /// A contact sheet (PNG) of a config's samples (generated in memory) or of a dataset's: RGB with
     /// mask, tactile points and pose axes, next to the depth.
@@ -197,24 +226,44 @@ fn run(cli: Cli) -> Result<()> {
             println!("output      {}", c.output.dir.display());
             Ok(())
         }
-        Command::Bench { config, samples, ycb_dir, json } => {
+        Command::Bench { config, samples, jobs, ycb_dir, json } => {
             let cfg = LoadedConfig::load(&config)?;
-            let r = vtgen::bench::bench(&cfg, samples, ycb_dir.as_ref())?;
+            let r = vtgen::bench::bench(&cfg, samples, jobs, ycb_dir.as_ref())?;
             if json {
                 println!("{}", serde_json::to_string_pretty(&r)?);
             } else {
-                println!("adapter          {}", r.adapter);
-                println!("samples          {} in {:.2} s: {:.1} samples/s", r.samples, r.seconds, r.samples_per_second);
+                println!("adapter            {}", r.adapter);
+                println!("samples            {} in {:.2} s with {} job(s): {:.1} samples/s", r.samples, r.seconds, r.jobs, r.samples_per_second);
                 let per = |x: f64| 1e3 * x / r.samples as f64;
-                println!("physics          {:7.2} ms/sample", per(r.physics));
-                println!("main render      {:7.2} ms/sample", per(r.main_render));
-                println!(
-                    "tactile render   {:7.2} ms/sample  ({:.0}% of the main render)",
-                    per(r.tactile_render),
-                    100.0 * r.tactile_over_main_render
-                );
-                println!("occlusion        {:7.2} ms/sample", per(r.occlusion));
-                println!("encode + write   {:7.2} ms/sample", per(r.encode_and_write));
+                println!("per sample (summed over jobs):");
+                println!("  physics          {:7.2} ms", per(r.physics));
+                println!("  main render      {:7.2} ms  (readback {:.2} ms of it and the tactile views)", per(r.main_render), per(r.readback));
+                println!("  tactile render   {:7.2} ms  ({:.0}% of the main render)", per(r.tactile_render), 100.0 * r.tactile_over_main_render);
+                println!("  tactile points   {:7.2} ms", per(r.tactile_extraction));
+                println!("  occlusion        {:7.2} ms", per(r.occlusion));
+                println!("  encode + write   {:7.2} ms  (writer thread, overlapped)", per(r.encode_and_write));
+                println!("peak RSS           {:.0} MiB", r.peak_rss_mib);
+                for s in &r.skipped_trajectories {
+                    println!("skipped            {s}");
+                }
+            }
+            Ok(())
+        }
+        Command::Grasps { config, trajectories, instances, jobs, ycb_dir, min_kept, json, quiet } => {
+            let cfg = LoadedConfig::load(&config)?;
+            let objects = vtgen::assets::load_objects(&cfg, ycb_dir.as_ref())?;
+            let jobs = jobs.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+            let opts = vtgen::grasp_check::GraspCheckOptions { trajectories, instances, jobs, quiet };
+            let r = vtgen::grasp_check::check_grasps(&cfg, &objects, &opts)?;
+            if json {
+                println!("{}", serde_json::to_string_pretty(&r)?);
+            } else {
+                print!("{}", r.markdown());
+            }
+            if let Some(min) = min_kept
+                && r.worst_kept_fraction() < min
+            {
+                anyhow::bail!("an object kept {:.1}% of its trajectories, below --min-kept {min}", 100.0 * r.worst_kept_fraction());
             }
             Ok(())
         }

@@ -10,7 +10,7 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use sha2::{Digest, Sha256};
-use vt_dataset::{Compression, Manifest, ModelInfo, ModelsInfo, ShardEntry, ShardMeta, ShardReceipt, ShardWriter, SplitManifest, mask_ids};
+use vt_dataset::{Compression, Manifest, ModelInfo, ModelsInfo, ShardEntry, ShardMeta, ShardReceipt, SplitManifest, mask_ids};
 
 use crate::assets::{LoadedObject, load_objects};
 use crate::config::{CompressionKind, Config, LoadedConfig};
@@ -18,6 +18,7 @@ use crate::plan::{Plan, SPLITS, ShardPlan, ShardSelector};
 use crate::render::WgpuRenderer;
 use crate::sample::SampleFactory;
 use crate::scene::robot::GraspStats;
+use crate::writer_thread::WriterThread;
 
 pub const GENERATOR: &str = concat!("vtgen ", env!("CARGO_PKG_VERSION"));
 
@@ -109,6 +110,16 @@ fn prepare_output(out: &Path, config_json: &str, plan: &Plan, opts: &GenerateOpt
 /// previous manifest, same size) are reused; unknown complete shards are hashed. Parallel `--shard`
 /// processes on one directory each rewrite it this way, so the last one to finish lists them all.
 fn update_manifest(out: &Path, config: &Config, config_sha: &str, plan: &Plan, receipts: &[(String, ShardReceipt)]) -> Result<Manifest> {
+    // Parallel `--shard` processes finishing together take turns (an advisory lock, released
+    // when the file closes), so none writes a manifest that misses a shard another just listed.
+    let lock_path = out.join(".manifest.lock");
+    let lock = std::fs::OpenOptions::new()
+        .create(true)
+        .truncate(false)
+        .write(true)
+        .open(&lock_path)
+        .with_context(|| format!("cannot open {}", lock_path.display()))?;
+    lock.lock().with_context(|| format!("cannot lock {}", lock_path.display()))?;
     let mut known: BTreeMap<String, (u64, String)> = BTreeMap::new();
     if let Ok(old) = Manifest::load(&out.join("manifest.json"))
         && old.config_sha256 == config_sha
@@ -199,7 +210,7 @@ fn write_shard(
     abort: &AtomicBool,
 ) -> Result<Option<ShardReceipt>> {
     let path = out.join(shard.file());
-    let mut writer = ShardWriter::create(&path, meta, compression)?;
+    let mut writer = WriterThread::create(&path, meta, compression)?;
     factory.shard_stats = GraspStats::default();
     factory.occlusion_histogram = [0; 3];
     for (k, r) in shard.samples.iter().enumerate() {
@@ -208,17 +219,17 @@ fn write_shard(
         }
         let index = shard.first_sample + k as u64;
         if k == 0 || shard.samples[k - 1].object_index != r.object_index {
-            writer.set_scene(factory.scene_models(r.object_index));
+            writer.set_scene(factory.scene_models(r.object_index))?;
         }
         let sample = factory.make(shard.split, index, r).with_context(|| format!("{} sample {index}", shard.split))?;
-        writer.write_sample(&sample).with_context(|| format!("writing {}", path.display()))?;
+        writer.write_sample(sample)?;
         progress.inc(1);
     }
-    writer.set_metadata("occlusion_histogram", serde_json::to_string(&factory.occlusion_histogram)?);
+    writer.set_metadata("occlusion_histogram", serde_json::to_string(&factory.occlusion_histogram)?)?;
     if factory.has_robot() {
-        writer.set_metadata("grasp_stats", serde_json::to_string(&factory.shard_stats)?);
+        writer.set_metadata("grasp_stats", serde_json::to_string(&factory.shard_stats)?)?;
     }
-    Ok(Some(writer.finish()?))
+    Ok(Some(writer.finish()?.0))
 }
 
 /// Generates the dataset (or this process's `--shard` part of it).

@@ -134,8 +134,10 @@ pub struct StageTimes {
     /// Grasp-loop simulation (whole trajectories, when their first sample is made).
     pub physics: Duration,
     pub main_render: Duration,
-    /// The 12 phalanx depth views and the tactile point extraction.
-    pub tactile: Duration,
+    /// The 12 phalanx depth views (one submission).
+    pub tactile_render: Duration,
+    /// Contact pixels to tactile points.
+    pub tactile_extract: Duration,
     /// Occlusion level and the object's unoccluded silhouette.
     pub occlusion: Duration,
 }
@@ -230,6 +232,11 @@ impl<'a> SampleFactory<'a> {
             occlusion_histogram: [0; 3],
             times: StageTimes::default(),
         })
+    }
+
+    /// Time the renderer spent copying images out of readback buffers so far.
+    pub fn readback_time(&self) -> Duration {
+        self.renderer.readback_time()
     }
 
     pub fn renderer_name(&self) -> String {
@@ -362,7 +369,8 @@ impl<'a> SampleFactory<'a> {
             let t_camera_world = scene.t_world_camera.inverse().matrix();
             let t0 = Instant::now();
             let reading = sense(self.renderer.as_mut(), cfg, &self.pad_sizes, &pads, object, &DAffine3::from_mat4(t_camera_world))?;
-            self.times.tactile += t0.elapsed();
+            self.times.tactile_render += reading.render_time;
+            self.times.tactile_extract += t0.elapsed() - reading.render_time;
             let names = vt_robot::phalanx_names();
             let counts: serde_json::Map<String, serde_json::Value> =
                 names.iter().zip(reading.counts).map(|(n, c)| (n.clone(), c.into())).collect();

@@ -27,6 +27,8 @@ pub struct TactileReading {
     pub depth: Vec<Vec<f32>>,
     pub points: Vec<TactilePoint>,
     pub counts: [u32; 12],
+    /// Time the 12 depth views took to render (the rest of `sense` is point extraction).
+    pub render_time: std::time::Duration,
 }
 
 /// Sensing area of each phalanx pad: (length along the finger, width across it), metres: the
@@ -71,7 +73,9 @@ pub fn sense(
             perspective_standoff: standoff,
         })
         .collect();
+    let t0 = std::time::Instant::now();
     let depth = renderer.render_depth_views(&views, &[object])?;
+    let render_time = t0.elapsed();
     let mut points = Vec::new();
     let mut counts = [0u32; 12];
     for k in 0..12 {
@@ -92,7 +96,7 @@ pub fn sense(
             counts[k] += 1;
         }
     }
-    Ok(TactileReading { depth, points, counts })
+    Ok(TactileReading { depth, points, counts, render_time })
 }
 
 /// The pixels (u, v) of an `n x n` pad depth image that a sensor model reports as contacts. Every

@@ -134,6 +134,11 @@ pub trait Renderer {
     /// Renders several depth views of the same draws in one submission; z-depth per view, row-major,
     /// `+inf` where no surface is within range.
     fn render_depth_views(&mut self, views: &[DepthView], draws: &[Draw]) -> anyhow::Result<Vec<Vec<f32>>>;
+    /// Time spent copying images out of mapped readback buffers since the renderer was made
+    /// (part of every render call's time), for `vtgen bench`.
+    fn readback_time(&self) -> std::time::Duration {
+        std::time::Duration::ZERO
+    }
 }
 
 /// Orthographic projection of a depth view: x right, y down (as OpenCV), z forward.

@@ -154,6 +154,8 @@ pub struct WgpuRenderer {
     meshes: Vec<GpuMesh>,
     /// Render targets: [main view, tactile atlas], created on first use at their size.
     targets: [Option<Targets>; 2],
+    /// Time spent copying out of mapped readback buffers (`Renderer::readback_time`).
+    readback: std::time::Duration,
 }
 
 fn backends(b: Backend) -> wgpu::Backends {
@@ -461,6 +463,7 @@ impl WgpuRenderer {
             instance_group,
             meshes: Vec::new(),
             targets: [None, None],
+            readback: std::time::Duration::ZERO,
         })
     }
 
@@ -741,6 +744,7 @@ impl WgpuRenderer {
             });
         }
         self.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| anyhow!("GPU wait failed: {e}"))?;
+        let t_read = std::time::Instant::now();
         let read = |buf: &wgpu::Buffer, bpp: u32| -> Result<Vec<u8>> {
             let data = buf.slice(..).get_mapped_range().map_err(|e| anyhow!("readback failed: {e:?}"))?;
             let row = (w * bpp) as usize;
@@ -764,6 +768,7 @@ impl WgpuRenderer {
         for (_, b, _) in &copies {
             b.unmap();
         }
+        self.readback += t_read.elapsed();
         Ok(out)
     }
 }
@@ -851,6 +856,10 @@ fn mat(m: DMat4) -> [[f32; 4]; 4] {
 }
 
 impl Renderer for WgpuRenderer {
+    fn readback_time(&self) -> std::time::Duration {
+        self.readback
+    }
+
     fn describe(&self) -> String {
         describe_adapter(&self.info)
     }

@@ -1,0 +1,255 @@
+//! `vtgen grasps`: the grasp loop alone (no rendering), over the first trajectories of every
+//! object of a config, exactly as `generate` simulates them. It reports per object how many
+//! trajectories kept the object through all their instances, the attempts and failures that took,
+//! and the worst recorded instance (penetration, contacts, slip, floor clearance): the figures of
+//! the robot issue's acceptance test, in a minute per object instead of a full generation.
+
+use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Mutex, mpsc};
+use std::time::Instant;
+
+use anyhow::{Result, bail};
+use glam::DVec3;
+use indicatif::{ProgressBar, ProgressStyle};
+use serde::Serialize;
+
+use crate::assets::LoadedObject;
+use crate::config::LoadedConfig;
+use crate::scene::robot::RobotScene;
+
+/// What to check.
+#[derive(Debug, Clone)]
+pub struct GraspCheckOptions {
+    /// Trajectories per object (the first ones of the config's plan).
+    pub trajectories: u32,
+    /// Instances per trajectory (default: the config's).
+    pub instances: Option<u32>,
+    /// Parallel workers, each with its own physics world.
+    pub jobs: usize,
+    pub quiet: bool,
+}
+
+/// One object's figures.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct ObjectGraspReport {
+    pub object_id: String,
+    pub trajectories: u32,
+    /// Trajectories that kept the object through every instance (retries allowed).
+    pub kept: u32,
+    pub kept_fraction: f64,
+    /// Grasp attempts over all trajectories (1 per trajectory when every first grasp held).
+    pub attempts: u64,
+    /// Failed attempts by kind.
+    pub failures: BTreeMap<String, u64>,
+    pub instances: u64,
+    /// Worst recorded instance: deepest penetration of a hand link into the object (mm), fewest
+    /// phalanges in contact, largest slip since the grasp (mm), lowest object point above the
+    /// floor (mm).
+    pub max_penetration_mm: f64,
+    pub min_phalanges_in_contact: usize,
+    pub max_slip_mm: f64,
+    pub mean_slip_mm: f64,
+    pub min_floor_clearance_mm: f64,
+    /// Physics seconds (summed over workers).
+    pub seconds: f64,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct GraspCheckReport {
+    pub physics_backend: String,
+    pub instances_per_trajectory: u32,
+    pub objects: Vec<ObjectGraspReport>,
+    pub seconds: f64,
+}
+
+impl GraspCheckReport {
+    /// The lowest kept fraction over the objects.
+    pub fn worst_kept_fraction(&self) -> f64 {
+        self.objects.iter().map(|o| o.kept_fraction).fold(1.0, f64::min)
+    }
+
+    /// A Markdown table of the figures.
+    pub fn markdown(&self) -> String {
+        let mut s = format!(
+            "Grasp loop, {} physics, {} instances per trajectory ({:.0} s):\n\n",
+            self.physics_backend, self.instances_per_trajectory, self.seconds
+        );
+        s.push_str("| object | kept | attempts | failures | max penetration (mm) | min contacts | max slip (mm) | mean slip (mm) | min floor clearance (mm) |\n");
+        s.push_str("|---|---|---|---|---|---|---|---|---|\n");
+        for o in &self.objects {
+            let failures: Vec<String> = o.failures.iter().map(|(k, v)| format!("{k} {v}")).collect();
+            s.push_str(&format!(
+                "| {} | {}/{} ({:.0}%) | {} | {} | {:.2} | {} | {:.1} | {:.1} | {:.0} |\n",
+                o.object_id,
+                o.kept,
+                o.trajectories,
+                100.0 * o.kept_fraction,
+                o.attempts,
+                if failures.is_empty() { "none".into() } else { failures.join(", ") },
+                o.max_penetration_mm,
+                o.min_phalanges_in_contact,
+                o.max_slip_mm,
+                o.mean_slip_mm,
+                o.min_floor_clearance_mm,
+            ));
+        }
+        s
+    }
+}
+
+/// One trajectory's outcome.
+struct TrajectoryResult {
+    object: usize,
+    kept: bool,
+    attempts: u64,
+    failures: BTreeMap<String, u64>,
+    instances: u64,
+    max_penetration_mm: f64,
+    min_contacts: usize,
+    max_slip_mm: f64,
+    sum_slip_mm: f64,
+    min_clearance_mm: f64,
+    seconds: f64,
+}
+
+pub fn check_grasps(cfg: &LoadedConfig, objects: &[LoadedObject], opts: &GraspCheckOptions) -> Result<GraspCheckReport> {
+    let config = &cfg.config;
+    let Some(robot_cfg) = &config.robot else {
+        bail!("{}: the config has no `robot:` section, so there is no grasp loop to check", cfg.path.display());
+    };
+    if opts.trajectories == 0 {
+        bail!("--trajectories must be at least 1");
+    }
+    let instances = opts.instances.unwrap_or(config.sampling.instances_per_trajectory);
+    let work: Vec<(usize, u32)> = (0..opts.trajectories).flat_map(|t| (0..objects.len()).map(move |o| (o, t))).collect();
+    let progress = if opts.quiet { ProgressBar::hidden() } else { ProgressBar::new(work.len() as u64) };
+    progress.set_style(
+        ProgressStyle::with_template("{spinner} {elapsed_precise} [{bar:36}] {pos}/{len} trajectories  ETA {eta}  {msg}")
+            .expect("valid template")
+            .progress_chars("=> "),
+    );
+    let started = Instant::now();
+    let next = AtomicUsize::new(0);
+    let backend = Mutex::new(String::new());
+    let (tx, rx) = mpsc::channel::<Result<TrajectoryResult>>();
+    let jobs = opts.jobs.max(1).min(work.len());
+    let mut results = Vec::new();
+    std::thread::scope(|scope| {
+        for _ in 0..jobs {
+            let tx = tx.clone();
+            let (work, next, progress, backend) = (&work, &next, &progress, &backend);
+            scope.spawn(move || {
+                let mut robot = match RobotScene::new(cfg, robot_cfg, objects) {
+                    Ok(r) => r,
+                    Err(e) => {
+                        let _ = tx.send(Err(e));
+                        return;
+                    }
+                };
+                *backend.lock().expect("not poisoned") = robot.backend_name().to_string();
+                loop {
+                    let i = next.fetch_add(1, Ordering::SeqCst);
+                    let Some(&(o, t)) = work.get(i) else { return };
+                    let obj = &objects[o];
+                    progress.set_message(format!("{} #{t}", obj.id));
+                    let t0 = Instant::now();
+                    let result = match robot.trajectory(config.seed, o as u32, &obj.id, t, instances) {
+                        Ok(traj) => {
+                            let traj = traj.clone();
+                            let st = robot.last_stats.clone();
+                            let t_world_base = robot.t_world_base;
+                            let mut r = TrajectoryResult {
+                                object: o,
+                                kept: true,
+                                attempts: st.attempts,
+                                failures: st.failures,
+                                instances: traj.instances.len() as u64,
+                                max_penetration_mm: 0.0,
+                                min_contacts: usize::MAX,
+                                max_slip_mm: 0.0,
+                                sum_slip_mm: 0.0,
+                                min_clearance_mm: f64::MAX,
+                                seconds: 0.0,
+                            };
+                            for s in &traj.instances {
+                                r.max_penetration_mm = r.max_penetration_mm.max(s.penetration * 1e3);
+                                r.min_contacts = r.min_contacts.min(s.contacts.iter().filter(|c| c.is_some()).count());
+                                r.max_slip_mm = r.max_slip_mm.max(s.slip_translation * 1e3);
+                                r.sum_slip_mm += s.slip_translation * 1e3;
+                                let t_world_object = t_world_base * s.t_base_palm * s.t_palm_object;
+                                let lowest = obj
+                                    .mesh
+                                    .positions
+                                    .iter()
+                                    .map(|p| t_world_object.transform_point3(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)).z)
+                                    .fold(f64::MAX, f64::min);
+                                r.min_clearance_mm = r.min_clearance_mm.min(lowest * 1e3);
+                            }
+                            r
+                        }
+                        // Every attempt failed: the trajectory is lost.
+                        Err(_) => TrajectoryResult {
+                            object: o,
+                            kept: false,
+                            attempts: robot_cfg.grasp.max_attempts as u64,
+                            failures: BTreeMap::new(),
+                            instances: 0,
+                            max_penetration_mm: 0.0,
+                            min_contacts: usize::MAX,
+                            max_slip_mm: 0.0,
+                            sum_slip_mm: 0.0,
+                            min_clearance_mm: f64::MAX,
+                            seconds: 0.0,
+                        },
+                    };
+                    progress.inc(1);
+                    let _ = tx.send(Ok(TrajectoryResult { seconds: t0.elapsed().as_secs_f64(), ..result }));
+                }
+            });
+        }
+        drop(tx);
+        results.extend(rx);
+    });
+    progress.finish_and_clear();
+    let mut per_object: Vec<ObjectGraspReport> = objects
+        .iter()
+        .map(|o| ObjectGraspReport {
+            object_id: o.id.clone(),
+            min_phalanges_in_contact: usize::MAX,
+            min_floor_clearance_mm: f64::MAX,
+            ..Default::default()
+        })
+        .collect();
+    for r in results {
+        let r = r?;
+        let o = &mut per_object[r.object];
+        o.trajectories += 1;
+        o.kept += r.kept as u32;
+        o.attempts += r.attempts;
+        for (k, v) in r.failures {
+            *o.failures.entry(k).or_default() += v;
+        }
+        o.instances += r.instances;
+        o.max_penetration_mm = o.max_penetration_mm.max(r.max_penetration_mm);
+        o.min_phalanges_in_contact = o.min_phalanges_in_contact.min(r.min_contacts);
+        o.max_slip_mm = o.max_slip_mm.max(r.max_slip_mm);
+        o.mean_slip_mm += r.sum_slip_mm;
+        o.min_floor_clearance_mm = o.min_floor_clearance_mm.min(r.min_clearance_mm);
+        o.seconds += r.seconds;
+    }
+    for o in &mut per_object {
+        o.kept_fraction = o.kept as f64 / o.trajectories.max(1) as f64;
+        o.mean_slip_mm /= o.instances.max(1) as f64;
+        if o.instances == 0 {
+            o.min_phalanges_in_contact = 0;
+            o.min_floor_clearance_mm = 0.0;
+        }
+    }
+    Ok(GraspCheckReport {
+        physics_backend: backend.into_inner().expect("not poisoned"),
+        instances_per_trajectory: instances,
+        objects: per_object,
+        seconds: started.elapsed().as_secs_f64(),
+    })
+}
