@@ -17,6 +17,6 @@ if [ "${MODE:-shard}" = merge ]; then
   exec "$vtgen" inspect "$out"
 fi
 index="${JOB_COMPLETION_INDEX:?JOB_COMPLETION_INDEX is not set: run in an Indexed Job (completionMode: Indexed)}"
-count="${SHARD_COUNT:?SHARD_COUNT is not set: give it the Job's completions}"
+count="${SHARD_COUNT:?SHARD_COUNT is not set: set it to the completions of the Job}"
 echo "vtgen pod ${index}/${count}: $config -> $out"
 exec "$vtgen" generate "$config" --out "$out" --shard "${index}/${count}" --resume --quiet --jobs "${JOBS:-1}" "${extra[@]}"
