@@ -244,7 +244,8 @@ fn inspect_summarises_a_robot_dataset() {
 fn the_grasp_check_reports_the_same_trajectories_as_generation() {
     // `vtgen grasps` simulates the first trajectories exactly as `generate` does: with all 5
     // trajectories of both objects, its attempts add up to the dataset's manifest figure.
-    let o = run(&["grasps", hand_config().to_str().unwrap(), "--trajectories", "5", "--jobs", "2", "--json", "--quiet", "--min-kept", "1.0"]);
+    let o =
+        run(&["grasps", hand_config().to_str().unwrap(), "--trajectories", "5", "--jobs", "2", "--json", "--quiet", "--min-kept", "1.0"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let r: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(r["physics_backend"], backend().as_str());

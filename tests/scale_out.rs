@@ -62,7 +62,8 @@ fn slurm_array_tasks_in_parallel_union_to_the_single_process_run() {
 fn kubernetes_indexed_pods_in_parallel_union_to_the_single_process_run() {
     let d = tempdir();
     // The manifest's completions and SHARD_COUNT agree, and the pods run the entry point tested here.
-    let job: serde_yaml::Value = serde_yaml::from_str(&std::fs::read_to_string(root().join("deploy/kubernetes/job.yaml")).unwrap()).unwrap();
+    let job: serde_yaml::Value =
+        serde_yaml::from_str(&std::fs::read_to_string(root().join("deploy/kubernetes/job.yaml")).unwrap()).unwrap();
     assert_eq!(job["spec"]["completionMode"].as_str(), Some("Indexed"));
     let completions = job["spec"]["completions"].as_u64().unwrap();
     let env = job["spec"]["template"]["spec"]["containers"][0]["env"].as_sequence().unwrap();
@@ -74,15 +75,11 @@ fn kubernetes_indexed_pods_in_parallel_union_to_the_single_process_run() {
     let n = 2;
     let children: Vec<Child> = (0..n)
         .map(|i| {
-            script(
-                "deploy/kubernetes/run-shard.sh",
-                d.path(),
-                &[("JOB_COMPLETION_INDEX", i.to_string()), ("SHARD_COUNT", n.to_string())],
-            )
-            .stdout(std::process::Stdio::piped())
-            .stderr(std::process::Stdio::piped())
-            .spawn()
-            .unwrap()
+            script("deploy/kubernetes/run-shard.sh", d.path(), &[("JOB_COMPLETION_INDEX", i.to_string()), ("SHARD_COUNT", n.to_string())])
+                .stdout(std::process::Stdio::piped())
+                .stderr(std::process::Stdio::piped())
+                .spawn()
+                .unwrap()
         })
         .collect();
     wait_all(children);
@@ -94,7 +91,10 @@ fn kubernetes_indexed_pods_in_parallel_union_to_the_single_process_run() {
 #[test]
 fn a_pod_without_its_index_says_what_is_missing() {
     let d = tempdir();
-    let o = script("deploy/kubernetes/run-shard.sh", d.path(), &[("SHARD_COUNT", "2".into())]).env_remove("JOB_COMPLETION_INDEX").output().unwrap();
+    let o = script("deploy/kubernetes/run-shard.sh", d.path(), &[("SHARD_COUNT", "2".into())])
+        .env_remove("JOB_COMPLETION_INDEX")
+        .output()
+        .unwrap();
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("JOB_COMPLETION_INDEX"), "{}", String::from_utf8_lossy(&o.stderr));
 }

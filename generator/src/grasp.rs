@@ -50,7 +50,16 @@ pub enum Failure {
     Penetration,
     TouchesFloor,
     Unreachable,
+    /// Not failures of the attempt: an instance whose pose ended with a hand link more than
+    /// `max_penetration` into the object, or fewer than 2 phalanges touching, is not recorded;
+    /// the arm moves on to a fresh random pose for it (counted here).
+    MoveRedoneForPenetration,
+    MoveRedoneForContacts,
+    MoveRedoneForFloor,
 }
+
+/// Fresh arm poses tried for one instance before the attempt is given up.
+const MAX_MOVES_PER_INSTANCE: u32 = 4;
 
 const GRAVITY: DVec3 = DVec3::new(0.0, 0.0, -9.81);
 
@@ -120,7 +129,7 @@ pub fn simulate_trajectory(
     let cfg = ctx.config;
     for attempt in 0..cfg.max_attempts {
         let mut rng = SampleStream::trajectory(seed, object_id, trajectory, &format!("grasp/{attempt}"));
-        match attempt_trajectory(ctx, physics, object, &mut rng, seed, object_id, trajectory, attempt, instances)? {
+        match attempt_trajectory(ctx, physics, object, &mut rng, seed, object_id, trajectory, attempt, instances, failures)? {
             Ok(instances) => {
                 return Ok(Trajectory { instances, attempts: attempt + 1 });
             }
@@ -141,6 +150,7 @@ fn attempt_trajectory(
     trajectory: u32,
     attempt: u32,
     instances: u32,
+    failures: &mut Vec<Failure>,
 ) -> Result<std::result::Result<Vec<InstanceState>, Failure>> {
     let cfg = ctx.config;
     let robot = ctx.robot;
@@ -248,78 +258,28 @@ fn attempt_trajectory(
     let mut out = Vec::with_capacity(instances as usize);
     for instance in 0..instances {
         let key = SampleKey { seed, object_id, trajectory, instance };
-        let mut arm_rng = SampleStream::sample(&key, &format!("arm/{attempt}"));
-        let mut target = None;
-        for _ in 0..20 {
-            let t = ctx.sample_palm(&mut arm_rng);
-            if let Some(qt) = ctx.reach(&t, &q) {
-                target = Some(qt);
-                break;
+        let mut moved = 0;
+        let (obj, contacts, penetration) = loop {
+            // The first move of an instance draws from `arm/<attempt>`, later ones (after a pose
+            // that could not be recorded) from `arm/<attempt>/<move>`.
+            let stream = if moved == 0 { format!("arm/{attempt}") } else { format!("arm/{attempt}/{moved}") };
+            let mut arm_rng = SampleStream::sample(&key, &stream);
+            moved += 1;
+            match move_and_settle(ctx, physics, object, &mut q, &mut arm_rng)? {
+                MoveOutcome::Recordable(obj, contacts, penetration) => break (obj, contacts, penetration),
+                MoveOutcome::Failed(f) => return Ok(Err(f)),
+                MoveOutcome::NotRecordable(f) => {
+                    if moved >= MAX_MOVES_PER_INSTANCE {
+                        return Ok(Err(f));
+                    }
+                    failures.push(match f {
+                        Failure::Penetration => Failure::MoveRedoneForPenetration,
+                        Failure::TouchesFloor => Failure::MoveRedoneForFloor,
+                        _ => Failure::MoveRedoneForContacts,
+                    });
+                }
             }
-        }
-        let Some(q_target) = target else {
-            return Ok(Err(Failure::Unreachable));
         };
-        // Smooth joint-space path; the palm's world motion gives the apparent gravity.
-        let n = steps(cfg.move_seconds);
-        let q_from = q.clone();
-        let palm_at = |s: f64| -> DAffine3 {
-            let w = s * s * (3.0 - 2.0 * s);
-            let qs: Vec<f64> = q_from.iter().zip(&q_target).map(|(a, b)| a + (b - a) * w).collect();
-            ctx.t_world_base * robot.palm_pose(&qs)
-        };
-        let dt = ctx.timestep;
-        let ds = 1.0 / n as f64;
-        for k in 1..=n + steps(cfg.hold_seconds) {
-            let s = (k as f64 * ds).min(1.0);
-            let p = palm_at(s);
-            let acc = if k <= n {
-                let (a, b) = (palm_at((s - ds).max(0.0)).translation, palm_at((s + ds).min(1.0)).translation);
-                (b - 2.0 * p.translation + a) / (dt * dt)
-            } else {
-                DVec3::ZERO
-            };
-            physics.set_gravity(rot(&p).inverse() * (GRAVITY - acc));
-            physics.step();
-        }
-        q = q_target;
-        let contacts = physics.phalanx_contacts();
-        let touching = contacts.iter().filter(|c| c.is_some()).count();
-        if physics.object_pose().translation.length() > 0.25 || touching == 0 {
-            return Ok(Err(Failure::LostDuringMotion));
-        }
-        if touching < 2 {
-            return Ok(Err(Failure::TooFewContacts));
-        }
-        // Squeezing transients settle within a few tens of milliseconds: wait for them.
-        let mut penetration = physics.max_penetration();
-        for _ in 0..10 {
-            if penetration <= cfg.max_penetration {
-                break;
-            }
-            for _ in 0..steps(0.025) {
-                physics.step();
-            }
-            penetration = physics.max_penetration();
-        }
-        if penetration > cfg.max_penetration {
-            return Ok(Err(Failure::Penetration));
-        }
-        let obj = physics.object_pose();
-        let contacts = physics.phalanx_contacts();
-        if contacts.iter().filter(|c| c.is_some()).count() < 2 {
-            return Ok(Err(Failure::TooFewContacts));
-        }
-        // The object must hang free: its lowest point above the floor (z = 0).
-        let t_world_object = ctx.t_world_base * robot.palm_pose(&q) * obj;
-        let lowest = object
-            .points
-            .iter()
-            .map(|p| t_world_object.transform_point3(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)).z)
-            .fold(f64::MAX, f64::min);
-        if lowest < 0.005 {
-            return Ok(Err(Failure::TouchesFloor));
-        }
         let mut qr = q.clone();
         set_hand(robot, &mut qr, &physics.joint_positions());
         let rel = grasped.inverse() * obj;
@@ -334,6 +294,102 @@ fn attempt_trajectory(
         });
     }
     Ok(Ok(out))
+}
+
+/// How one arm move of an instance ended.
+enum MoveOutcome {
+    /// Object pose in the palm, phalanx contacts, deepest penetration: a recordable instance.
+    Recordable(DAffine3, [Option<f64>; 12], f64),
+    /// The pose cannot be recorded (penetration, too few contacts, the object on the floor), but
+    /// the grasp still holds: another move may give a recordable one.
+    NotRecordable(Failure),
+    /// The grasp is lost (or the target unreachable): the attempt ends.
+    Failed(Failure),
+}
+
+/// Moves the arm from `q` to a random reachable palm pose along a simulated smooth joint-space
+/// path (the palm's motion enters as apparent gravity), lets the object settle, and checks the
+/// instance. `q` becomes the target.
+fn move_and_settle(
+    ctx: &GraspContext,
+    physics: &mut dyn HandPhysics,
+    object: &PhysicsObject,
+    q: &mut Vec<f64>,
+    arm_rng: &mut ChaCha8Rng,
+) -> Result<MoveOutcome> {
+    let cfg = ctx.config;
+    let robot = ctx.robot;
+    let steps = |s: f64| (s / ctx.timestep).round().max(1.0) as usize;
+    let mut target = None;
+    for _ in 0..20 {
+        let t = ctx.sample_palm(arm_rng);
+        if let Some(qt) = ctx.reach(&t, q) {
+            target = Some(qt);
+            break;
+        }
+    }
+    let Some(q_target) = target else {
+        return Ok(MoveOutcome::Failed(Failure::Unreachable));
+    };
+    let n = steps(cfg.move_seconds);
+    let q_from = q.clone();
+    let palm_at = |s: f64| -> DAffine3 {
+        let w = s * s * (3.0 - 2.0 * s);
+        let qs: Vec<f64> = q_from.iter().zip(&q_target).map(|(a, b)| a + (b - a) * w).collect();
+        ctx.t_world_base * robot.palm_pose(&qs)
+    };
+    let dt = ctx.timestep;
+    let ds = 1.0 / n as f64;
+    for k in 1..=n + steps(cfg.hold_seconds) {
+        let s = (k as f64 * ds).min(1.0);
+        let p = palm_at(s);
+        let acc = if k <= n {
+            let (a, b) = (palm_at((s - ds).max(0.0)).translation, palm_at((s + ds).min(1.0)).translation);
+            (b - 2.0 * p.translation + a) / (dt * dt)
+        } else {
+            DVec3::ZERO
+        };
+        physics.set_gravity(rot(&p).inverse() * (GRAVITY - acc));
+        physics.step();
+    }
+    *q = q_target;
+    let touching = physics.phalanx_contacts().iter().filter(|c| c.is_some()).count();
+    if physics.object_pose().translation.length() > 0.25 || touching == 0 {
+        return Ok(MoveOutcome::Failed(Failure::LostDuringMotion));
+    }
+    if touching < 2 {
+        return Ok(MoveOutcome::NotRecordable(Failure::TooFewContacts));
+    }
+    // Squeezing transients settle within a few tens of milliseconds: wait for them.
+    let mut penetration = physics.max_penetration();
+    for _ in 0..10 {
+        if penetration <= cfg.max_penetration {
+            break;
+        }
+        for _ in 0..steps(0.025) {
+            physics.step();
+        }
+        penetration = physics.max_penetration();
+    }
+    if penetration > cfg.max_penetration {
+        return Ok(MoveOutcome::NotRecordable(Failure::Penetration));
+    }
+    let obj = physics.object_pose();
+    let contacts = physics.phalanx_contacts();
+    if contacts.iter().filter(|c| c.is_some()).count() < 2 {
+        return Ok(MoveOutcome::NotRecordable(Failure::TooFewContacts));
+    }
+    // The object must hang free: its lowest point above the floor (z = 0).
+    let t_world_object = ctx.t_world_base * robot.palm_pose(q) * obj;
+    let lowest = object
+        .points
+        .iter()
+        .map(|p| t_world_object.transform_point3(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)).z)
+        .fold(f64::MAX, f64::min);
+    if lowest < 0.005 {
+        return Ok(MoveOutcome::NotRecordable(Failure::TouchesFloor));
+    }
+    Ok(MoveOutcome::Recordable(obj, contacts, penetration))
 }
 
 #[cfg(test)]

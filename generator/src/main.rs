@@ -233,12 +233,23 @@ fn run(cli: Cli) -> Result<()> {
                 println!("{}", serde_json::to_string_pretty(&r)?);
             } else {
                 println!("adapter            {}", r.adapter);
-                println!("samples            {} in {:.2} s with {} job(s): {:.1} samples/s", r.samples, r.seconds, r.jobs, r.samples_per_second);
+                println!(
+                    "samples            {} in {:.2} s with {} job(s): {:.1} samples/s",
+                    r.samples, r.seconds, r.jobs, r.samples_per_second
+                );
                 let per = |x: f64| 1e3 * x / r.samples as f64;
                 println!("per sample (summed over jobs):");
                 println!("  physics          {:7.2} ms", per(r.physics));
-                println!("  main render      {:7.2} ms  (readback {:.2} ms of it and the tactile views)", per(r.main_render), per(r.readback));
-                println!("  tactile render   {:7.2} ms  ({:.0}% of the main render)", per(r.tactile_render), 100.0 * r.tactile_over_main_render);
+                println!(
+                    "  main render      {:7.2} ms  (readback {:.2} ms of it and the tactile views)",
+                    per(r.main_render),
+                    per(r.readback)
+                );
+                println!(
+                    "  tactile render   {:7.2} ms  ({:.0}% of the main render)",
+                    per(r.tactile_render),
+                    100.0 * r.tactile_over_main_render
+                );
                 println!("  tactile points   {:7.2} ms", per(r.tactile_extraction));
                 println!("  occlusion        {:7.2} ms", per(r.occlusion));
                 println!("  encode + write   {:7.2} ms  (writer thread, overlapped)", per(r.encode_and_write));

@@ -40,6 +40,10 @@ pub struct RapierHand {
     phalanx_colliders: Vec<Vec<ColliderHandle>>,
     hand_colliders: Vec<ColliderHandle>,
     object: Option<(RigidBodyHandle, ColliderHandle)>,
+    /// The convex hull of the last object reset with, keyed by its points: computing the hull of
+    /// a scanned mesh's ~8 000 vertices costs more than a grasp attempt's first steps, and every
+    /// attempt of a trajectory resets with the same object.
+    hull: Option<(Vec<[f32; 3]>, SharedShape)>,
 }
 
 impl RapierHand {
@@ -52,6 +56,7 @@ impl RapierHand {
             phalanx_colliders: Vec::new(),
             hand_colliders: Vec::new(),
             object: None,
+            hull: None,
         };
         h.build(&[0.0; 16])?;
         Ok(h)
@@ -169,9 +174,13 @@ impl HandPhysics for RapierHand {
         // `new` built the 16 joints: their limits clamp the requested values.
         let q: [f64; 16] = std::array::from_fn(|k| q[k].clamp(self.joints[k].lower, self.joints[k].upper));
         self.build(&q)?;
-        let pts: Vec<Vec3> = object.points.iter().map(|p| Vec3::from_array(*p)).collect();
-        let collider = ColliderBuilder::convex_hull(&pts)
-            .context("the object's points have no convex hull (degenerate mesh)")?
+        if self.hull.as_ref().is_none_or(|(pts, _)| *pts != object.points) {
+            let pts: Vec<Vec3> = object.points.iter().map(|p| Vec3::from_array(*p)).collect();
+            let shape = SharedShape::convex_hull(&pts).context("the object's points have no convex hull (degenerate mesh)")?;
+            self.hull = Some((object.points.clone(), shape));
+        }
+        let shape = self.hull.as_ref().expect("set above").1.clone();
+        let collider = ColliderBuilder::new(shape)
             .mass(object.mass as f32)
             .friction(self.settings.friction as f32)
             .restitution(0.0)
