@@ -192,8 +192,8 @@ pub fn check_grasps(cfg: &LoadedConfig, objects: &[LoadedObject], opts: &GraspCh
                         Err(_) => TrajectoryResult {
                             object: o,
                             kept: false,
-                            attempts: robot_cfg.grasp.max_attempts as u64,
-                            failures: BTreeMap::new(),
+                            attempts: robot.last_stats.attempts,
+                            failures: robot.last_stats.failures.clone(),
                             instances: 0,
                             max_penetration_mm: 0.0,
                             min_contacts: usize::MAX,

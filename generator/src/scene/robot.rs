@@ -206,7 +206,7 @@ impl RobotScene {
                 timestep: self.config.physics.timestep,
             };
             let mut failures: Vec<Failure> = Vec::new();
-            let traj = simulate_trajectory(
+            let result = simulate_trajectory(
                 &ctx,
                 self.physics.as_mut(),
                 &self.objects[object_index as usize],
@@ -215,12 +215,15 @@ impl RobotScene {
                 trajectory,
                 instances,
                 &mut failures,
-            )
-            .with_context(|| format!("grasping {object_id}"))?;
-            let mut st = GraspStats { trajectories: 1, attempts: traj.attempts as u64, ..Default::default() };
+            );
+            let attempts = result.as_ref().map_or(self.config.grasp.max_attempts, |t| t.attempts);
+            let mut st = GraspStats { trajectories: 1, attempts: attempts as u64, ..Default::default() };
             for f in failures {
                 *st.failures.entry(format!("{f:?}")).or_default() += 1;
             }
+            // A lost trajectory's figures stay readable (`vtgen grasps` reports them).
+            self.last_stats = st.clone();
+            let traj = result.with_context(|| format!("grasping {object_id}"))?;
             for s in &traj.instances {
                 st.max_slip_mm = st.max_slip_mm.max(s.slip_translation * 1e3);
                 st.max_penetration_mm = st.max_penetration_mm.max(s.penetration * 1e3);
