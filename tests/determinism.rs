@@ -38,6 +38,20 @@ fn two_full_runs_are_byte_identical() {
 }
 
 #[test]
+fn parallel_workers_write_the_same_bytes_as_one() {
+    // `--jobs 2`: two workers, each with its own renderer (and, on lavapipe, its own share of the
+    // rasterizer threads) and a writer thread: the same files as the single-worker run.
+    let other = tempdir();
+    generate(other.path(), &["--jobs", "2"]);
+    let a = files(reference_dataset());
+    let b = files(other.path());
+    assert_eq!(a.iter().map(|f| &f.0).collect::<Vec<_>>(), b.iter().map(|f| &f.0).collect::<Vec<_>>());
+    for (fa, fb) in a.iter().zip(&b) {
+        assert!(fa.1 == fb.1, "{} differs with --jobs 2", fa.0);
+    }
+}
+
+#[test]
 fn a_shard_job_alone_writes_the_same_bytes_as_the_full_run() {
     let part = tempdir();
     generate(part.path(), &["--shard", "1/2"]);
