@@ -17,6 +17,13 @@ fn script(rel: &str, out: &Path, env: &[(&str, String)]) -> Command {
     c
 }
 
+/// Starts `count` copies of a script at once, copy `i` with the environment `env(i)`.
+fn spawn_all(rel: &str, out: &Path, count: usize, env: impl Fn(usize) -> Vec<(&'static str, String)>) -> Vec<Child> {
+    (0..count)
+        .map(|i| script(rel, out, &env(i)).stdout(std::process::Stdio::piped()).stderr(std::process::Stdio::piped()).spawn().unwrap())
+        .collect()
+}
+
 fn wait_all(children: Vec<Child>) {
     for c in children {
         let o = c.wait_with_output().unwrap();
@@ -38,19 +45,9 @@ fn assert_equals_the_single_process_run(dir: &Path) {
 fn slurm_array_tasks_in_parallel_union_to_the_single_process_run() {
     let d = tempdir();
     let n = 3;
-    let children: Vec<Child> = (0..n)
-        .map(|i| {
-            script(
-                "deploy/slurm/generate.sbatch",
-                d.path(),
-                &[("SLURM_ARRAY_TASK_ID", i.to_string()), ("SLURM_ARRAY_TASK_COUNT", n.to_string())],
-            )
-            .stdout(std::process::Stdio::piped())
-            .stderr(std::process::Stdio::piped())
-            .spawn()
-            .unwrap()
-        })
-        .collect();
+    let children = spawn_all("deploy/slurm/generate.sbatch", d.path(), n, |i| {
+        vec![("SLURM_ARRAY_TASK_ID", i.to_string()), ("SLURM_ARRAY_TASK_COUNT", n.to_string())]
+    });
     wait_all(children);
     let o = script("deploy/slurm/merge.sbatch", d.path(), &[]).output().unwrap();
     assert!(o.status.success(), "merge failed: {}", String::from_utf8_lossy(&o.stderr));
@@ -73,15 +70,9 @@ fn kubernetes_indexed_pods_in_parallel_union_to_the_single_process_run() {
     assert!(dockerfile.contains("deploy/kubernetes/run-shard.sh"));
 
     let n = 2;
-    let children: Vec<Child> = (0..n)
-        .map(|i| {
-            script("deploy/kubernetes/run-shard.sh", d.path(), &[("JOB_COMPLETION_INDEX", i.to_string()), ("SHARD_COUNT", n.to_string())])
-                .stdout(std::process::Stdio::piped())
-                .stderr(std::process::Stdio::piped())
-                .spawn()
-                .unwrap()
-        })
-        .collect();
+    let children = spawn_all("deploy/kubernetes/run-shard.sh", d.path(), n, |i| {
+        vec![("JOB_COMPLETION_INDEX", i.to_string()), ("SHARD_COUNT", n.to_string())]
+    });
     wait_all(children);
     let o = script("deploy/kubernetes/run-shard.sh", d.path(), &[("MODE", "merge".into())]).output().unwrap();
     assert!(o.status.success(), "merge failed: {}", String::from_utf8_lossy(&o.stderr));

@@ -154,57 +154,40 @@ pub fn check_grasps(cfg: &LoadedConfig, objects: &[LoadedObject], opts: &GraspCh
                     let obj = &objects[o];
                     progress.set_message(format!("{} #{t}", obj.id));
                     let t0 = Instant::now();
-                    let result = match robot.trajectory(config.seed, o as u32, &obj.id, t, instances) {
-                        Ok(traj) => {
-                            let traj = traj.clone();
-                            let st = robot.last_stats.clone();
-                            let t_world_base = robot.t_world_base;
-                            let mut r = TrajectoryResult {
-                                object: o,
-                                kept: true,
-                                attempts: st.attempts,
-                                failures: st.failures,
-                                instances: traj.instances.len() as u64,
-                                max_penetration_mm: 0.0,
-                                min_contacts: usize::MAX,
-                                max_slip_mm: 0.0,
-                                sum_slip_mm: 0.0,
-                                min_clearance_mm: f64::MAX,
-                                seconds: 0.0,
-                            };
-                            for s in &traj.instances {
-                                r.max_penetration_mm = r.max_penetration_mm.max(s.penetration * 1e3);
-                                r.min_contacts = r.min_contacts.min(s.contacts.iter().filter(|c| c.is_some()).count());
-                                r.max_slip_mm = r.max_slip_mm.max(s.slip_translation * 1e3);
-                                r.sum_slip_mm += s.slip_translation * 1e3;
-                                let t_world_object = t_world_base * s.t_base_palm * s.t_palm_object;
-                                let lowest = obj
-                                    .mesh
-                                    .positions
-                                    .iter()
-                                    .map(|p| t_world_object.transform_point3(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)).z)
-                                    .fold(f64::MAX, f64::min);
-                                r.min_clearance_mm = r.min_clearance_mm.min(lowest * 1e3);
-                            }
-                            r
-                        }
-                        // Every attempt failed: the trajectory is lost.
-                        Err(_) => TrajectoryResult {
-                            object: o,
-                            kept: false,
-                            attempts: robot.last_stats.attempts,
-                            failures: robot.last_stats.failures.clone(),
-                            instances: 0,
-                            max_penetration_mm: 0.0,
-                            min_contacts: usize::MAX,
-                            max_slip_mm: 0.0,
-                            sum_slip_mm: 0.0,
-                            min_clearance_mm: f64::MAX,
-                            seconds: 0.0,
-                        },
+                    // A lost trajectory (every attempt failed) keeps its attempts and failures.
+                    let outcome = robot.trajectory(config.seed, o as u32, &obj.id, t, instances).map(|traj| traj.clone());
+                    let st = &robot.last_stats;
+                    let mut r = TrajectoryResult {
+                        object: o,
+                        kept: outcome.is_ok(),
+                        attempts: st.attempts,
+                        failures: st.failures.clone(),
+                        instances: 0,
+                        max_penetration_mm: 0.0,
+                        min_contacts: usize::MAX,
+                        max_slip_mm: 0.0,
+                        sum_slip_mm: 0.0,
+                        min_clearance_mm: f64::MAX,
+                        seconds: 0.0,
                     };
+                    for s in outcome.iter().flat_map(|traj| &traj.instances) {
+                        r.instances += 1;
+                        r.max_penetration_mm = r.max_penetration_mm.max(s.penetration * 1e3);
+                        r.min_contacts = r.min_contacts.min(s.contacts.iter().filter(|c| c.is_some()).count());
+                        r.max_slip_mm = r.max_slip_mm.max(s.slip_translation * 1e3);
+                        r.sum_slip_mm += s.slip_translation * 1e3;
+                        let t_world_object = robot.t_world_base * s.t_base_palm * s.t_palm_object;
+                        let lowest = obj
+                            .mesh
+                            .positions
+                            .iter()
+                            .map(|p| t_world_object.transform_point3(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)).z)
+                            .fold(f64::MAX, f64::min);
+                        r.min_clearance_mm = r.min_clearance_mm.min(lowest * 1e3);
+                    }
+                    r.seconds = t0.elapsed().as_secs_f64();
                     progress.inc(1);
-                    let _ = tx.send(Ok(TrajectoryResult { seconds: t0.elapsed().as_secs_f64(), ..result }));
+                    let _ = tx.send(Ok(r));
                 }
             });
         }
