@@ -12,10 +12,10 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Result, bail};
 use serde::Serialize;
-use vt_dataset::{Compression, ShardMeta};
+use vt_dataset::ShardMeta;
 
 use crate::assets::load_objects;
-use crate::config::{CompressionKind, LoadedConfig};
+use crate::config::LoadedConfig;
 use crate::plan::{Plan, SampleRef};
 use crate::render::WgpuRenderer;
 use crate::sample::{SampleFactory, StageTimes};
@@ -92,10 +92,7 @@ pub fn bench(cfg: &LoadedConfig, samples: u64, jobs: usize, ycb_dir: Option<&std
         bail!("the config has no samples");
     }
     let objects = load_objects(cfg, ycb_dir)?;
-    let compression = match cfg.config.output.compression {
-        CompressionKind::Zstd => Compression::Zstd { level: cfg.config.output.zstd_level as u32 },
-        CompressionKind::None => Compression::None,
-    };
+    let compression = cfg.config.output.shard_compression();
     let dir = std::env::temp_dir().join(format!("vtgen-bench-{}", std::process::id()));
     std::fs::create_dir_all(&dir)?;
     let jobs = jobs.max(1).min(work.len());

@@ -13,7 +13,7 @@ use sha2::{Digest, Sha256};
 use vt_dataset::{Compression, Manifest, ModelInfo, ModelsInfo, ShardEntry, ShardMeta, ShardReceipt, SplitManifest, mask_ids};
 
 use crate::assets::{LoadedObject, load_objects};
-use crate::config::{CompressionKind, Config, LoadedConfig};
+use crate::config::{Config, LoadedConfig};
 use crate::plan::{Plan, SPLITS, ShardPlan, ShardSelector};
 use crate::render::WgpuRenderer;
 use crate::sample::SampleFactory;
@@ -268,10 +268,7 @@ pub fn generate(cfg: &LoadedConfig, opts: &GenerateOptions) -> Result<GenerateSu
             .expect("valid template")
             .progress_chars("=> "),
     );
-    let compression = match config.output.compression {
-        CompressionKind::Zstd => Compression::Zstd { level: config.output.zstd_level as u32 },
-        CompressionKind::None => Compression::None,
-    };
+    let compression = config.output.shard_compression();
     let jobs = opts.jobs.max(1).min(todo.len().max(1));
     let next = AtomicUsize::new(0);
     let abort = AtomicBool::new(false);

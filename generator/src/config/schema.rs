@@ -484,6 +484,16 @@ pub struct Output {
     pub zstd_level: i32,
 }
 
+impl Output {
+    /// The shard writer's compression for this output section.
+    pub fn shard_compression(&self) -> vt_dataset::Compression {
+        match self.compression {
+            CompressionKind::Zstd => vt_dataset::Compression::Zstd { level: self.zstd_level as u32 },
+            CompressionKind::None => vt_dataset::Compression::None,
+        }
+    }
+}
+
 fn default_samples_per_shard() -> u32 {
     500
 }
