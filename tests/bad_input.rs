@@ -150,3 +150,23 @@ fn plan_prints_the_dataset_and_writes_nothing() {
     assert!(text.contains("train       32 samples in 4 shard(s)"), "{text}");
     assert!(text.contains("test        8 samples in 1 shard(s)"), "{text}");
 }
+
+/// An adapter that cannot render the float depth/mask targets (Mesa's GL llvmpipe) is refused with
+/// a line that says what to install, not a wgpu panic. Where the GL adapter can render them (a real
+/// GPU), the run simply succeeds.
+#[test]
+fn an_adapter_without_float_targets_gets_a_clear_error() {
+    let d = tempdir();
+    let cfg = d.path().join("gl.yaml");
+    let text = std::fs::read_to_string(tiny_config()).unwrap();
+    std::fs::write(&cfg, format!("{text}\nrenderer:\n  backend: gl\n")).unwrap();
+    let out = d.path().join("out");
+    let o = run(&["generate", cfg.to_str().unwrap(), "--out", out.to_str().unwrap(), "--quiet"]);
+    let err = stderr(&o);
+    assert!(!err.contains("panicked"), "{err}");
+    if !o.status.success() {
+        assert!(err.starts_with("error: ") && err.lines().count() == 1, "one clear line: {err}");
+        assert!(err.contains("R32Float") || err.contains("no graphics adapter"), "{err}");
+        assert!(complete_shards(&out).is_empty(), "no shard may look complete");
+    }
+}

@@ -24,7 +24,8 @@ const FLOAT: u32 = 5126;
 const UNSIGNED_SHORT: u32 = 5123;
 const UNSIGNED_INT: u32 = 5125;
 
-fn srgb_to_linear(c: u8) -> f32 {
+/// An 8-bit sRGB channel as linear intensity (the sRGB transfer function).
+pub fn srgb_to_linear(c: u8) -> f32 {
     let c = c as f32 / 255.0;
     if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
 }
@@ -54,7 +55,7 @@ pub fn encode_glb(mesh: &ColoredMesh) -> Vec<u8> {
     let indices_at = bin.len();
     bin.extend(mesh.indices.iter().flat_map(|i| i.to_le_bytes()));
     let indices_len = bin.len() - indices_at;
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     if n == 0 {
@@ -83,7 +84,7 @@ pub fn encode_glb(mesh: &ColoredMesh) -> Vec<u8> {
         ],
     });
     let mut json_bytes = serde_json::to_vec(&doc).expect("a JSON value serialises");
-    while json_bytes.len() % 4 != 0 {
+    while !json_bytes.len().is_multiple_of(4) {
         json_bytes.push(b' ');
     }
     let total = 12 + 8 + json_bytes.len() + 8 + bin.len();

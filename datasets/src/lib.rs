@@ -11,7 +11,7 @@ mod reader;
 mod sample;
 mod writer;
 
-pub use glb::{ColoredMesh, encode_glb};
+pub use glb::{ColoredMesh, encode_glb, srgb_to_linear};
 pub use manifest::{Manifest, ModelInfo, ModelsInfo, ShardEntry, SplitManifest, sha256_file, write_atomic};
 pub use ply::{PlyMesh, read_ply, write_ply};
 pub use reader::{DatasetReader, ShardReader};

@@ -53,6 +53,8 @@ pub struct ObjectGraspReport {
     pub min_floor_clearance_mm: f64,
     /// Physics seconds (summed over workers).
     pub seconds: f64,
+    /// The trajectories that were not kept, with the reason (`trajectory: error`).
+    pub lost: Vec<String>,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -94,6 +96,11 @@ impl GraspCheckReport {
                 o.min_floor_clearance_mm,
             ));
         }
+        for o in &self.objects {
+            for l in &o.lost {
+                s.push_str(&format!("\nlost: {} trajectory {l}", o.object_id));
+            }
+        }
         s
     }
 }
@@ -101,7 +108,9 @@ impl GraspCheckReport {
 /// One trajectory's outcome.
 struct TrajectoryResult {
     object: usize,
-    kept: bool,
+    trajectory: u32,
+    /// Why the trajectory was lost; `None` when it was kept.
+    lost: Option<String>,
     attempts: u64,
     failures: BTreeMap<String, u64>,
     instances: u64,
@@ -159,7 +168,8 @@ pub fn check_grasps(cfg: &LoadedConfig, objects: &[LoadedObject], opts: &GraspCh
                     let st = &robot.last_stats;
                     let mut r = TrajectoryResult {
                         object: o,
-                        kept: outcome.is_ok(),
+                        trajectory: t,
+                        lost: outcome.as_ref().err().map(|e| format!("{e:#}")),
                         attempts: st.attempts,
                         failures: st.failures.clone(),
                         instances: 0,
@@ -204,11 +214,15 @@ pub fn check_grasps(cfg: &LoadedConfig, objects: &[LoadedObject], opts: &GraspCh
             ..Default::default()
         })
         .collect();
+    let mut results = results.into_iter().collect::<Result<Vec<_>>>()?;
+    results.sort_by_key(|r| (r.object, r.trajectory));
     for r in results {
-        let r = r?;
         let o = &mut per_object[r.object];
         o.trajectories += 1;
-        o.kept += r.kept as u32;
+        match r.lost {
+            None => o.kept += 1,
+            Some(why) => o.lost.push(format!("{}: {why}", r.trajectory)),
+        }
         o.attempts += r.attempts;
         for (k, v) in r.failures {
             *o.failures.entry(k).or_default() += v;

@@ -189,9 +189,16 @@ pub struct GraspConfig {
     /// cannot wrap around them.
     pub max_grasp_depth: f64,
     pub close_seconds: f64,
+    /// After closing: the palm turns from facing up to its sampled orientation over the first
+    /// half, and the object must stay put over the second.
     pub settle_seconds: f64,
+    /// Duration of the arm's move between instances (smoothstep in joint space). Faster moves
+    /// shake heavy objects (the drill, the cracker box) out of the hand.
     pub move_seconds: f64,
     pub hold_seconds: f64,
+    /// Grasp attempts per trajectory (each with fresh randomness) before `generate` gives up
+    /// with an error naming the trajectory. Large objects need many: on the cracker box about 1
+    /// attempt in 28 keeps the object through 100 arm moves.
     pub max_attempts: u32,
     /// Largest accepted penetration of a hand link into the object (m).
     pub max_penetration: f64,
@@ -215,9 +222,9 @@ impl Default for GraspConfig {
             max_grasp_depth: 0.08,
             close_seconds: 0.6,
             settle_seconds: 0.4,
-            move_seconds: 0.5,
+            move_seconds: 1.0,
             hold_seconds: 0.2,
-            max_attempts: 60,
+            max_attempts: 200,
             max_penetration: 0.001,
         }
     }

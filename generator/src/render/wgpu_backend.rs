@@ -5,6 +5,7 @@
 use anyhow::{Context, Result, anyhow, bail};
 use bytemuck::{Pod, Zeroable};
 use glam::DMat4;
+use vt_dataset::srgb_to_linear;
 use vt_objects::TexturedMesh;
 use wgpu::util::DeviceExt;
 
@@ -223,6 +224,21 @@ impl WgpuRenderer {
                 bail!("no adapter name contains '{want}'; found: {}", names.join("; "));
             }
         }
+        // Depth and mask targets are R32Float: an adapter that cannot render to it (Mesa's GL
+        // llvmpipe without overrides) would fail at pipeline creation, deep inside wgpu.
+        let float_target = |a: &wgpu::Adapter| {
+            a.get_texture_format_features(DEPTH_FORMAT).allowed_usages.contains(wgpu::TextureUsages::RENDER_ATTACHMENT)
+        };
+        if !adapters.iter().any(float_target) {
+            let names: Vec<String> = adapters.iter().map(|a| describe_adapter(&a.get_info())).collect();
+            bail!(
+                "no graphics adapter can render to R32Float targets (found: {}). On a machine without a GPU install \
+                 Mesa's CPU Vulkan driver: `sudo apt-get install mesa-vulkan-drivers libvulkan1` (Debian/Ubuntu, \
+                 or run scripts/system-deps)",
+                names.join("; ")
+            );
+        }
+        adapters.retain(float_target);
         adapters.sort_by_key(|a| rank(&a.get_info()));
         let adapter = adapters.into_iter().next().expect("non-empty");
         let info = adapter.get_info();
@@ -998,7 +1014,3 @@ impl Renderer for WgpuRenderer {
     }
 }
 
-fn srgb_to_linear(c: u8) -> f32 {
-    let c = c as f32 / 255.0;
-    if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
-}

@@ -59,11 +59,7 @@ fn dls_step(j: &[[f64; 6]; 6], e: &[f64; 6], lambda: f64) -> [f64; 6] {
         }
     }
     let y: Vec<f64> = (0..6).map(|r| a[r][6] / a[r][r]).collect();
-    let mut dq = [0.0; 6];
-    for k in 0..6 {
-        dq[k] = (0..6).map(|r| j[r][k] * y[r]).sum();
-    }
-    dq
+    std::array::from_fn(|k| (0..6).map(|r| j[r][k] * y[r]).sum())
 }
 
 impl RobotModel {
