@@ -256,13 +256,14 @@ fn attempt_trajectory(
     let turn = DQuat::from_rotation_arc(PALM_UP_GRAVITY.normalize(), gravity_in_palm.normalize());
     let n_settle = steps(cfg.settle_seconds);
     let n_turn = (n_settle / 2).max(1);
-    let mut before = physics.object_pose();
-    for k in 0..n_settle {
-        let f = ((k + 1) as f64 / n_turn as f64).min(1.0);
-        physics.set_gravity(DQuat::IDENTITY.slerp(turn, f) * PALM_UP_GRAVITY);
-        if k + 1 == n_turn {
-            before = physics.object_pose();
-        }
+    let gravity_at = |k: usize| DQuat::IDENTITY.slerp(turn, k as f64 / n_turn as f64) * PALM_UP_GRAVITY;
+    for k in 1..n_turn {
+        physics.set_gravity(gravity_at(k));
+        physics.step();
+    }
+    physics.set_gravity(gravity_at(n_turn));
+    let before = physics.object_pose();
+    for _ in n_turn - 1..n_settle {
         physics.step();
     }
     let held = physics.object_pose();

@@ -217,8 +217,8 @@ impl WgpuRenderer {
                 cfg.backend
             );
         }
+        let names: Vec<String> = adapters.iter().map(|a| describe_adapter(&a.get_info())).collect();
         if let Some(want) = &cfg.adapter {
-            let names: Vec<String> = adapters.iter().map(|a| describe_adapter(&a.get_info())).collect();
             adapters.retain(|a| a.get_info().name.to_lowercase().contains(&want.to_lowercase()));
             if adapters.is_empty() {
                 bail!("no adapter name contains '{want}'; found: {}", names.join("; "));
@@ -226,11 +226,9 @@ impl WgpuRenderer {
         }
         // Depth and mask targets are R32Float: an adapter that cannot render to it (Mesa's GL
         // llvmpipe without overrides) would fail at pipeline creation, deep inside wgpu.
-        let float_target = |a: &wgpu::Adapter| {
-            a.get_texture_format_features(DEPTH_FORMAT).allowed_usages.contains(wgpu::TextureUsages::RENDER_ATTACHMENT)
-        };
+        let float_target =
+            |a: &wgpu::Adapter| a.get_texture_format_features(DEPTH_FORMAT).allowed_usages.contains(wgpu::TextureUsages::RENDER_ATTACHMENT);
         if !adapters.iter().any(float_target) {
-            let names: Vec<String> = adapters.iter().map(|a| describe_adapter(&a.get_info())).collect();
             bail!(
                 "no graphics adapter can render to R32Float targets (found: {}). On a machine without a GPU install \
                  Mesa's CPU Vulkan driver: `sudo apt-get install mesa-vulkan-drivers libvulkan1` (Debian/Ubuntu, \
@@ -1013,4 +1011,3 @@ impl Renderer for WgpuRenderer {
             .collect())
     }
 }
-
