@@ -47,10 +47,20 @@ pub trait HandPhysics {
     fn set_object_damping(&mut self, linear: f64, angular: f64);
     fn step(&mut self);
     fn object_pose(&self) -> DAffine3;
+    /// The object's linear (m/s) and angular (rad/s) speed in the palm frame.
+    fn object_speed(&self) -> (f64, f64);
     fn joint_positions(&self) -> [f64; 16];
     /// For each of the 12 phalanges (`vt_robot::phalanx_names` order): the signed distance of its
     /// closest contact with the object (negative = penetration), None when not touching.
     fn phalanx_contacts(&self) -> [Option<f64>; 12];
     /// Deepest penetration (m, >= 0) of any hand link into the object.
     fn max_penetration(&self) -> f64;
+    /// Remembers the whole simulation state so that `restore` can undo what follows (an arm move
+    /// that dropped the object). Returns false when the backend cannot: callers then go on without
+    /// undo.
+    fn save(&mut self) -> bool {
+        false
+    }
+    /// Back to the state of the last successful `save` (it stays saved).
+    fn restore(&mut self) {}
 }

@@ -31,6 +31,19 @@ struct HandJoint {
     upper: f64,
 }
 
+/// rapier's simulation state: what its snapshots serialize (the pipelines are only workspaces).
+#[derive(Clone)]
+struct WorldState {
+    gravity: Vector,
+    islands: IslandManager,
+    broad_phase: BroadPhaseBvh,
+    narrow_phase: NarrowPhase,
+    bodies: RigidBodySet,
+    colliders: ColliderSet,
+    impulse_joints: ImpulseJointSet,
+    multibody_joints: MultibodyJointSet,
+}
+
 pub struct RapierHand {
     model: RobotModel,
     settings: PhysicsSettings,
@@ -44,6 +57,7 @@ pub struct RapierHand {
     /// a scanned mesh's ~8 000 vertices costs more than a grasp attempt's first steps, and every
     /// attempt of a trajectory resets with the same object.
     hull: Option<(Vec<[f32; 3]>, SharedShape)>,
+    saved: Option<WorldState>,
 }
 
 impl RapierHand {
@@ -57,6 +71,7 @@ impl RapierHand {
             hand_colliders: Vec::new(),
             object: None,
             hull: None,
+            saved: None,
         };
         h.build(&[0.0; 16])?;
         Ok(h)
@@ -151,6 +166,7 @@ impl RapierHand {
         self.hand_colliders = hand_colliders;
         self.phalanx_colliders = phalanx_colliders;
         self.object = None;
+        self.saved = None;
         Ok(())
     }
 
@@ -225,6 +241,12 @@ impl HandPhysics for RapierHand {
         from_pose(self.world.bodies[b].position())
     }
 
+    fn object_speed(&self) -> (f64, f64) {
+        let (b, _) = self.object.expect("reset() places the object");
+        let body = &self.world.bodies[b];
+        (body.linvel().length() as f64, body.angvel().length() as f64)
+    }
+
     fn joint_positions(&self) -> [f64; 16] {
         std::array::from_fn(|k| {
             let hj = &self.joints[k];
@@ -243,5 +265,34 @@ impl HandPhysics for RapierHand {
 
     fn max_penetration(&self) -> f64 {
         self.hand_colliders.iter().filter_map(|&c| self.contact_distance(c)).map(|d| (-d).max(0.0)).fold(0.0, f64::max)
+    }
+
+    fn save(&mut self) -> bool {
+        let w = &self.world;
+        self.saved = Some(WorldState {
+            gravity: w.gravity,
+            islands: w.islands.clone(),
+            broad_phase: w.broad_phase.clone(),
+            narrow_phase: w.narrow_phase.clone(),
+            bodies: w.bodies.clone(),
+            colliders: w.colliders.clone(),
+            impulse_joints: w.impulse_joints.clone(),
+            multibody_joints: w.multibody_joints.clone(),
+        });
+        true
+    }
+
+    fn restore(&mut self) {
+        if let Some(s) = self.saved.clone() {
+            let w = &mut self.world;
+            w.gravity = s.gravity;
+            w.islands = s.islands;
+            w.broad_phase = s.broad_phase;
+            w.narrow_phase = s.narrow_phase;
+            w.bodies = s.bodies;
+            w.colliders = s.colliders;
+            w.impulse_joints = s.impulse_joints;
+            w.multibody_joints = s.multibody_joints;
+        }
     }
 }
