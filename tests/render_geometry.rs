@@ -108,6 +108,33 @@ fn a_box_renders_to_its_analytic_depth_and_coverage() {
 }
 
 #[test]
+fn the_main_pass_silhouette_is_the_object_drawn_alone() {
+    // A box (the target, mask id 1) half hidden behind a plate held in front of it, listed first
+    // and last: the silhouette the main pass counts is exactly the box's coverage with nothing in
+    // front, pixel for pixel what the box alone renders to.
+    let mut r = WgpuRenderer::new(&RendererConfig::default()).unwrap();
+    let entry = Catalog::builtin().get("004_sugar_box").unwrap().clone();
+    let boxm = r.upload_mesh(&procedural_mesh(&entry)).unwrap();
+    let plate = r.upload_mesh(&quad(0.05)).unwrap();
+    let cam = look_at(DVec3::new(0.0, -0.7, 0.4), DVec3::new(0.0, 0.0, 0.2));
+    let v = view(cam.matrix());
+    let pose = DMat4::from_rotation_translation(DQuat::from_euler(glam::EulerRot::XYZ, 0.2, -0.4, 0.7), DVec3::new(0.0, 0.0, 0.2));
+    // The plate faces the camera 20 cm in front of the box, off to one side.
+    let plate_pose = cam.matrix() * DMat4::from_translation(DVec3::new(0.03, 0.0, 0.5));
+    let target = Draw { mesh: boxm, t_world_model: pose, mask_id: 1 };
+    let occluder = Draw { mesh: plate, t_world_model: plate_pose, mask_id: 5 };
+    let alone = r.render_mask(&v, &[target]).unwrap().iter().filter(|&&m| m == 1).count();
+    for draws in [[occluder, target], [target, occluder]] {
+        let img = r.render(&v, &lighting(), &draws).unwrap();
+        let visible = img.mask.iter().filter(|&&m| m == 1).count();
+        let hidden = img.mask.iter().filter(|&&m| m == 5).count();
+        assert!(hidden > 500 && visible > 500, "the plate hides part of the box ({hidden} px plate, {visible} px box)");
+        assert!(visible < alone, "the box is partly hidden ({visible} of {alone} px)");
+        assert_eq!(img.silhouette_pixels, alone, "the silhouette counts every pixel the box covers alone");
+    }
+}
+
+#[test]
 fn the_principal_point_is_at_the_pixel_centre_convention() {
     // A 0.5-pixel square on the optical axis covers exactly pixel (cx, cy): pixel centres sit at
     // integer image coordinates (FORMAT.md). Half a pixel off, it would cover no pixel centre.

@@ -1,10 +1,10 @@
 //! The occlusion level of a sample, as the paper computes it: the object's model points moved by
 //! the ground-truth pose; a point is visible when the main camera's depth point cloud has a point
-//! within ε of it (nearest neighbour in a k-d tree); occlusion = share of model points not visible.
+//! within ε of it (searched in the image window that can hold one); occlusion = share of model
+//! points not visible.
 //! Self-occlusion counts: the far side of an object is never visible.
 
 use glam::DVec3;
-use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use vt_objects::TexturedMesh;
 
 use crate::config::Intrinsics;
@@ -73,15 +73,44 @@ fn depth_cloud(points: &[DVec3], depth: &[f32], width: u32, height: u32, k: &Int
     cloud
 }
 
+/// Whether some depth pixel back-projects to within ε of `p` (camera frame). A point `p + δ` with
+/// |δ| ≤ ε projects within `f ε (z + |x|) / (z (z − ε))` pixels of `p`'s projection along each
+/// image axis, so only the depth pixels in that window (plus one for rounding) can be close
+/// enough: the answer is exact, as a nearest-neighbour search over the whole cloud would give.
+fn has_depth_point_near(p: DVec3, depth: &[f32], width: u32, height: u32, k: &Intrinsics, epsilon: f64) -> bool {
+    let (w, h) = (width as i64, height as i64);
+    let (u_range, v_range) = if p.z > epsilon * 1.001 {
+        let u = k.fx * p.x / p.z + k.cx;
+        let v = k.fy * p.y / p.z + k.cy;
+        let ru = k.fx * epsilon * (p.z + p.x.abs()) / (p.z * (p.z - epsilon)) + 1.0;
+        let rv = k.fy * epsilon * (p.z + p.y.abs()) / (p.z * (p.z - epsilon)) + 1.0;
+        let clamp = |lo: f64, hi: f64, n: i64| ((lo.floor() as i64).max(0), (hi.ceil() as i64).min(n - 1));
+        (clamp(u - ru, u + ru, w), clamp(v - rv, v + rv, h))
+    } else {
+        // Closer to the camera than ε: no useful bound, look everywhere.
+        ((0, w - 1), (0, h - 1))
+    };
+    let eps2 = epsilon * epsilon;
+    for v in v_range.0..=v_range.1 {
+        for u in u_range.0..=u_range.1 {
+            let d = depth[(v * w + u) as usize] as f64;
+            if d > 0.0 && d.is_finite() {
+                let c = DVec3::new((u as f64 - k.cx) * d / k.fx, (v as f64 - k.cy) * d / k.fy, d);
+                if c.distance_squared(p) <= eps2 {
+                    return true;
+                }
+            }
+        }
+    }
+    false
+}
+
 /// Occlusion level (0…1) and the number of visible points, for model points in the camera frame.
 pub fn occlusion_level(points: &[DVec3], depth: &[f32], width: u32, height: u32, k: &Intrinsics, epsilon: f64) -> (f64, usize) {
-    let cloud = depth_cloud(points, depth, width, height, k, 4);
-    if cloud.is_empty() || points.is_empty() {
+    if points.is_empty() {
         return (1.0, 0);
     }
-    let tree: ImmutableKdTree<f64, 3> = ImmutableKdTree::new_from_slice(&cloud);
-    let eps2 = epsilon * epsilon;
-    let visible = points.iter().filter(|p| tree.nearest_one::<SquaredEuclidean>(&[p.x, p.y, p.z]).distance <= eps2).count();
+    let visible = points.iter().filter(|p| has_depth_point_near(**p, depth, width, height, k, epsilon)).count();
     (1.0 - visible as f64 / points.len() as f64, visible)
 }
 

@@ -138,7 +138,8 @@ pub struct StageTimes {
     pub tactile_render: Duration,
     /// Contact pixels to tactile points.
     pub tactile_extract: Duration,
-    /// Occlusion level and the object's unoccluded silhouette.
+    /// Occlusion level (model points against the depth cloud); the object's unoccluded
+    /// silhouette comes with the main render.
     pub occlusion: Duration,
 }
 
@@ -410,8 +411,7 @@ impl<'a> SampleFactory<'a> {
         let eps = self.config.scene.occlusion_epsilon_mm * 1e-3;
         let t0 = Instant::now();
         let (level, visible_points) = occlusion_level(&pts, &img.depth, img.width, img.height, &k, eps);
-        let object_draw = *draws.last().expect("the object is drawn last");
-        let alone = self.renderer.render_mask(&view, &[object_draw])?.iter().filter(|&&m| m == mask_ids::TARGET_OBJECT).count();
+        let alone = img.silhouette_pixels;
         self.times.occlusion += t0.elapsed();
         self.occlusion_histogram[occlusion_bin(level)] += 1;
         let mut info = serde_json::json!({

@@ -201,7 +201,7 @@ pub struct GraspConfig {
     pub hold_seconds: f64,
     /// Grasp attempts per trajectory (each with fresh randomness) before `generate` gives up
     /// with an error naming the trajectory. Large objects need many: on the cracker box about 1
-    /// attempt in 28 keeps the object through 100 arm moves.
+    /// attempt in 29 keeps the object through 100 arm moves.
     pub max_attempts: u32,
     /// Largest accepted penetration of a hand link into the object (m).
     pub max_penetration: f64,

@@ -97,6 +97,9 @@ pub struct RenderOutput {
     /// z-depth in metres, 0 where nothing was drawn.
     pub depth: Vec<f32>,
     pub mask: Vec<u8>,
+    /// Pixels the target object (mask id 1) covers with nothing in front of it: its silhouette
+    /// had it been drawn alone (`render_mask` of it), from the same pass.
+    pub silhouette_pixels: usize,
 }
 
 /// An orthographic depth view (a phalanx camera): looks along +z of `t_world_camera`, covering

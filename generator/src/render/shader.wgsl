@@ -1,6 +1,7 @@
 // Main-view shader: glTF metallic-roughness shading (GGX) of a textured mesh under a spotlight
 // with a filtered shadow map and an ambient hemisphere, in linear light written to an sRGB target;
-// plus the exact z-depth in metres and the instance mask id, in one pass with three colour targets.
+// plus the exact z-depth in metres, the instance mask id and the target object's unoccluded
+// silhouette, in one pass with four colour targets.
 // `vs_shadow` is the depth-only pass that renders the shadow map from the spotlight.
 
 struct Frame {
@@ -69,6 +70,8 @@ struct FsOut {
     @location(0) color: vec4<f32>,
     @location(1) depth: f32,
     @location(2) mask: u32,
+    // 1 where the target object is drawn; only its pipeline writes this target.
+    @location(3) silhouette: u32,
 };
 
 // Share of a 3x3 PCF kernel (each tap a bilinear 2x2 comparison) lit by the spotlight. The lookup point is pushed off the surface
@@ -108,7 +111,13 @@ fn fs_main(i: VsOut) -> FsOut {
     // triangle seen through this pixel centre, so this is the analytic z-depth.
     o.depth = i.cam_pos.z;
     o.mask = inst.mask_id.x;
-    o.color = shade(i);
+    o.silhouette = 1u;
+    // Depth and mask passes (unlit) discard the colour: skip the texture lookup and shading.
+    if (frame.light_color.w < 0.5) {
+        o.color = vec4<f32>(0.0, 0.0, 0.0, 1.0);
+    } else {
+        o.color = shade(i);
+    }
     return o;
 }
 

@@ -15,6 +15,8 @@ use crate::config::{Backend, Intrinsics, RendererConfig, ToneMapping};
 const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Float;
 const MASK_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Uint;
+/// The target object's unoccluded coverage, written in the main pass (see `record_views`).
+const SILHOUETTE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R8Uint;
 const ZBUF_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 const SHADOW_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 /// Instance uniforms live in a buffer at 256-byte strides, frame uniforms at 512 (dynamic offsets).
@@ -123,13 +125,16 @@ struct Targets {
     color: wgpu::TextureView,
     depth: wgpu::TextureView,
     mask: wgpu::TextureView,
+    silhouette: wgpu::TextureView,
     zbuf: wgpu::TextureView,
     /// Multisampled colour and z-buffer of the anti-aliased colour pass (msaa > 1).
     msaa: Option<(wgpu::TextureView, wgpu::TextureView)>,
     color_tex: wgpu::Texture,
     depth_tex: wgpu::Texture,
     mask_tex: wgpu::Texture,
-    readback: [wgpu::Buffer; 3],
+    silhouette_tex: wgpu::Texture,
+    /// Colour, depth, mask, silhouette.
+    readback: [wgpu::Buffer; 4],
 }
 
 pub struct WgpuRenderer {
@@ -137,6 +142,8 @@ pub struct WgpuRenderer {
     queue: wgpu::Queue,
     info: wgpu::AdapterInfo,
     pipeline: wgpu::RenderPipeline,
+    /// `pipeline` that also writes the silhouette target: the target object's draws in the main pass.
+    silhouette_pipeline: wgpu::RenderPipeline,
     /// The multisampled colour-only pass, when `msaa` > 1.
     msaa_pipeline: Option<wgpu::RenderPipeline>,
     msaa: u32,
@@ -398,7 +405,19 @@ impl WgpuRenderer {
             ],
         });
         let target = |format| Some(wgpu::ColorTargetState { format, blend: None, write_mask: wgpu::ColorWrites::ALL });
-        let main_targets = [target(COLOR_FORMAT), target(DEPTH_FORMAT), target(MASK_FORMAT)];
+        // Two pipelines that differ only in whether they write the silhouette target: the target
+        // object's draws come first in the pass with `silhouette_pipeline`, everything else follows
+        // with `pipeline`, which leaves the silhouette alone.
+        let mut main_targets = [target(COLOR_FORMAT), target(DEPTH_FORMAT), target(MASK_FORMAT), target(SILHOUETTE_FORMAT)];
+        let silhouette_pipeline = make_pipeline(
+            "main view, target object",
+            &layout,
+            "vs_main",
+            (ZBUF_FORMAT, Default::default()),
+            1,
+            Some(("fs_main", &main_targets)),
+        );
+        main_targets[3] = Some(wgpu::ColorTargetState { format: SILHOUETTE_FORMAT, blend: None, write_mask: wgpu::ColorWrites::empty() });
         let pipeline =
             make_pipeline("main view", &layout, "vs_main", (ZBUF_FORMAT, Default::default()), 1, Some(("fs_main", &main_targets)));
         let msaa = if cfg.msaa > 1 { 4 } else { 1 };
@@ -462,6 +481,7 @@ impl WgpuRenderer {
             queue,
             info,
             pipeline,
+            silhouette_pipeline,
             msaa_pipeline,
             msaa,
             shadow_pipeline,
@@ -498,6 +518,7 @@ impl WgpuRenderer {
             let color_tex = make("colour", COLOR_FORMAT);
             let depth_tex = make("depth", DEPTH_FORMAT);
             let mask_tex = make("mask", MASK_FORMAT);
+            let silhouette_tex = make("silhouette", SILHOUETTE_FORMAT);
             let zbuf_tex = make("z-buffer", ZBUF_FORMAT);
             // Only the main view (slot 0) is anti-aliased; the phalanx depth views are not.
             let msaa = (slot == 0 && self.msaa > 1).then(|| {
@@ -517,7 +538,7 @@ impl WgpuRenderer {
                 };
                 (make_ms("colour (multisampled)", COLOR_FORMAT), make_ms("z-buffer (multisampled)", ZBUF_FORMAT))
             });
-            let readback = [4u32, 4, 1].map(|bpp| {
+            let readback = [4u32, 4, 1, 1].map(|bpp| {
                 self.device.create_buffer(&wgpu::BufferDescriptor {
                     label: Some("readback"),
                     size: padded_row(width * bpp) as u64 * height as u64,
@@ -531,27 +552,55 @@ impl WgpuRenderer {
                 color: color_tex.create_view(&Default::default()),
                 depth: depth_tex.create_view(&Default::default()),
                 mask: mask_tex.create_view(&Default::default()),
+                silhouette: silhouette_tex.create_view(&Default::default()),
                 zbuf: zbuf_tex.create_view(&Default::default()),
                 msaa,
                 color_tex,
                 depth_tex,
                 mask_tex,
+                silhouette_tex,
                 readback,
             });
         }
     }
 
     /// Records `draws` into each of `views` (its viewport and frame record) in an open pass whose
-    /// pipeline and shadow group are set; with `cull`, only the mesh clusters inside each view.
-    fn record_views(&self, pass: &mut wgpu::RenderPass<'_>, views: &[(DMat4, DMat4, [u32; 4])], draws: &[Draw], cull: Option<&[[f64; 4]]>) {
+    /// shadow group is set; with `cull`, only the mesh clusters inside each view. With
+    /// `pipelines` = (silhouette, rest), the target object's draws (mask id 1) go first with the
+    /// pipeline that also writes the silhouette target: nothing is in the z-buffer yet, so the
+    /// first of its fragments at every pixel it covers passes the depth test, and the silhouette
+    /// is its coverage with nothing in front (what `render_mask` of it alone gives). Without, the
+    /// pass's pipeline is already set.
+    fn record_views(
+        &self,
+        pass: &mut wgpu::RenderPass<'_>,
+        views: &[(DMat4, DMat4, [u32; 4])],
+        draws: &[Draw],
+        cull: Option<&[[f64; 4]]>,
+        pipelines: Option<(&wgpu::RenderPipeline, &wgpu::RenderPipeline)>,
+    ) {
+        // The target object first, then the rest, last listed first: callers list the environment
+        // (floor, backdrop) first and the object last, so the near things fill the depth buffer
+        // early and the early depth test skips shading the floor and wall behind them.
+        let is_target = |d: &Draw| d.mask_id == vt_dataset::mask_ids::TARGET_OBJECT;
+        let order: Vec<usize> = (0..draws.len())
+            .rev()
+            .filter(|&i| is_target(&draws[i]))
+            .chain((0..draws.len()).rev().filter(|&i| !is_target(&draws[i])))
+            .collect();
         for (vi, (_, _, vp)) in views.iter().enumerate() {
             pass.set_viewport(vp[0] as f32, vp[1] as f32, vp[2] as f32, vp[3] as f32, 0.0, 1.0);
             pass.set_scissor_rect(vp[0], vp[1], vp[2], vp[3]);
             pass.set_bind_group(0, &self.frame_group, &[(vi as u64 * FRAME_STRIDE) as u32]);
-            // Last listed first: callers list the environment (floor, backdrop) first and the
-            // object last, so the near things fill the depth buffer early and the early depth
-            // test skips shading the floor and wall behind them.
-            for (di, d) in draws.iter().enumerate().rev() {
+            for (k, &di) in order.iter().enumerate() {
+                let d = &draws[di];
+                if let Some((silhouette, rest)) = pipelines {
+                    if k == 0 && is_target(d) {
+                        pass.set_pipeline(silhouette);
+                    } else if k == 0 || (!is_target(d) && is_target(&draws[order[k - 1]])) {
+                        pass.set_pipeline(rest);
+                    }
+                }
                 let m = &self.meshes[d.mesh.0];
                 pass.set_bind_group(1, &self.instance_group, &[((vi * draws.len() + di) as u64 * UNIFORM_STRIDE) as u32]);
                 pass.set_bind_group(2, &m.material, &[]);
@@ -574,8 +623,8 @@ impl WgpuRenderer {
     }
 
     /// One render pass drawing `draws` into each of `views` (its own viewport of the target in
-    /// `slot`), then one readback of the target's colour, depth and mask (depth only if
-    /// `depth_only`). Returns (rgba, depth, mask) of the whole target.
+    /// `slot`), then one readback of the target's colour, depth, mask and target-object silhouette
+    /// (`readback` says which). Returns (rgba, depth, mask, silhouette) of the whole target.
     fn draw_views(
         &mut self,
         slot: usize,
@@ -585,7 +634,7 @@ impl WgpuRenderer {
         draws: &[Draw],
         readback: Readback,
         cull: Option<&[[f64; 4]]>,
-    ) -> Result<(Vec<u8>, Vec<u8>, Vec<u8>)> {
+    ) -> Result<(Vec<u8>, Vec<u8>, Vec<u8>, Vec<u8>)> {
         // The spotlight's shadow pass draws the scene once more, as an extra view record.
         let shadow = (readback == Readback::All && lighting.shadows).then(|| light_view(lighting));
         let records = views.len() + shadow.is_some() as usize;
@@ -694,6 +743,7 @@ impl WgpuRenderer {
                     color_att(&t.color, wgpu::Color { r: bg[0], g: bg[1], b: bg[2], a: 1.0 }),
                     color_att(&t.depth, wgpu::Color { r: depth_clear, g: 0.0, b: 0.0, a: 0.0 }),
                     color_att(&t.mask, wgpu::Color::TRANSPARENT),
+                    color_att(&t.silhouette, wgpu::Color::TRANSPARENT),
                 ],
                 depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
                     view: &t.zbuf,
@@ -704,9 +754,13 @@ impl WgpuRenderer {
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
-            pass.set_pipeline(&self.pipeline);
             pass.set_bind_group(3, &self.shadow_group, &[]);
-            self.record_views(&mut pass, views, draws, cull);
+            if readback == Readback::All {
+                self.record_views(&mut pass, views, draws, cull, Some((&self.silhouette_pipeline, &self.pipeline)));
+            } else {
+                pass.set_pipeline(&self.pipeline);
+                self.record_views(&mut pass, views, draws, cull, None);
+            }
         }
         if let (Readback::All, Some(pipeline), Some((ms_color, ms_zbuf))) = (readback, &self.msaa_pipeline, &t.msaa) {
             // The anti-aliased colour, resolved over the single-sample colour of the pass above.
@@ -732,12 +786,17 @@ impl WgpuRenderer {
             });
             pass.set_pipeline(pipeline);
             pass.set_bind_group(3, &self.shadow_group, &[]);
-            self.record_views(&mut pass, views, draws, None);
+            self.record_views(&mut pass, views, draws, None, None);
         }
         let copies: Vec<(&wgpu::Texture, &wgpu::Buffer, u32)> = match readback {
             Readback::Depth => vec![(&t.depth_tex, &t.readback[1], 4)],
             Readback::Mask => vec![(&t.mask_tex, &t.readback[2], 1)],
-            Readback::All => vec![(&t.color_tex, &t.readback[0], 4), (&t.depth_tex, &t.readback[1], 4), (&t.mask_tex, &t.readback[2], 1)],
+            Readback::All => vec![
+                (&t.color_tex, &t.readback[0], 4),
+                (&t.depth_tex, &t.readback[1], 4),
+                (&t.mask_tex, &t.readback[2], 1),
+                (&t.silhouette_tex, &t.readback[3], 1),
+            ],
         };
         for (tex, buf, bpp) in &copies {
             enc.copy_texture_to_buffer(
@@ -769,9 +828,10 @@ impl WgpuRenderer {
             }
             Ok(out)
         };
-        let mut out = (Vec::new(), Vec::new(), Vec::new());
+        let mut out = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         if readback == Readback::All {
             out.0 = read(&t.readback[0], 4)?;
+            out.3 = read(&t.readback[3], 1)?;
         }
         if readback != Readback::Mask {
             out.1 = read(&t.readback[1], 4)?;
@@ -931,16 +991,17 @@ impl Renderer for WgpuRenderer {
 
     fn render(&mut self, view: &View, lighting: &Lighting, draws: &[Draw]) -> Result<RenderOutput> {
         let (w, h) = (view.width, view.height);
-        let (rgba, depth, mask) =
+        let (rgba, depth, mask, silhouette) =
             self.draw_views(0, (w, h), &[(view.t_world_camera, projection(view), [0, 0, w, h])], lighting, draws, Readback::All, None)?;
         let rgb = rgba.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect();
-        Ok(RenderOutput { width: w, height: h, rgb, depth: bytemuck::pod_collect_to_vec::<u8, f32>(&depth), mask })
+        let silhouette_pixels = silhouette.iter().filter(|&&s| s != 0).count();
+        Ok(RenderOutput { width: w, height: h, rgb, depth: bytemuck::pod_collect_to_vec::<u8, f32>(&depth), mask, silhouette_pixels })
     }
 
     fn render_mask(&mut self, view: &View, draws: &[Draw]) -> Result<Vec<u8>> {
         let (w, h) = (view.width, view.height);
         let lighting = Lighting::unlit();
-        let (_, _, mask) =
+        let (_, _, mask, _) =
             self.draw_views(0, (w, h), &[(view.t_world_camera, projection(view), [0, 0, w, h])], &lighting, draws, Readback::Mask, None)?;
         Ok(mask)
     }
@@ -992,7 +1053,7 @@ impl Renderer for WgpuRenderer {
                 }
             })
             .collect();
-        let (_, depth, _) = self.draw_views(1, (cols * vw, rows * vh), &specs, &lighting, draws, Readback::Depth, Some(&cull))?;
+        let (_, depth, _, _) = self.draw_views(1, (cols * vw, rows * vh), &specs, &lighting, draws, Readback::Depth, Some(&cull))?;
         let atlas: Vec<f32> = bytemuck::pod_collect_to_vec(&depth);
         let aw = (cols * vw) as usize;
         Ok(specs

@@ -1,0 +1,193 @@
+//! Criterion micro-benchmarks of the sample path's hot stages, each alone: one physics step of the
+//! grasped hand, a grasp trajectory, the main 640x480 render (PBR, shadow map, depth, mask,
+//! silhouette), the 12 phalanx depth views, the occlusion level and writing one sample to a zstd
+//! shard. `cargo bench -p vtgen --bench stages` (rendering runs on whatever adapter wgpu picks:
+//! lavapipe on a machine without a GPU). `vtgen bench` measures the stages inside a real run.
+
+use std::hint::black_box;
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use glam::{DAffine3, DMat4, DQuat, DVec3};
+use vt_dataset::{Compression, Pose, Sample, ShardMeta, ShardWriter, TactileData};
+use vt_objects::{Catalog, Texture, TexturedMesh, procedural_mesh};
+use vt_robot::RobotModel;
+use vtgen::config::{GraspConfig, Intrinsics, PhysicsConfig, RendererConfig};
+use vtgen::grasp::{GraspContext, simulate_trajectory};
+use vtgen::occlusion::{model_points, occlusion_level};
+use vtgen::physics::{HandPhysics, PhysicsObject, PhysicsSettings, RapierHand};
+use vtgen::render::{DepthView, Draw, Lighting, Renderer, View, WgpuRenderer};
+use vtgen::scene::look_at;
+
+const OBJECT: &str = "005_tomato_soup_can";
+
+fn physics_object() -> PhysicsObject {
+    let entry = Catalog::builtin().get(OBJECT).expect("in the catalogue").clone();
+    PhysicsObject { points: procedural_mesh(&entry).positions, mass: entry.mass }
+}
+
+fn settings() -> PhysicsSettings {
+    let pc = PhysicsConfig::default();
+    PhysicsSettings {
+        timestep: pc.timestep,
+        friction: pc.friction,
+        stiffness: pc.stiffness,
+        damping: pc.damping,
+        max_torque: pc.max_torque,
+    }
+}
+
+fn physics(c: &mut Criterion) {
+    let robot = RobotModel::builtin();
+    let object = physics_object();
+    let mut group = c.benchmark_group("physics");
+    // One step with the fingers closed around the can (contacts active), as during an arm move.
+    let mut hand = RapierHand::new(&robot, settings()).expect("hand");
+    let grasp = GraspConfig::default();
+    hand.reset(&object, DAffine3::from_translation(DVec3::new(grasp.palm_surface_x + 0.04, 0.0, 0.06)), &[0.0; 16]).expect("reset");
+    let close: [f64; 16] = std::array::from_fn(|k| grasp.close[k].unwrap_or(0.0));
+    hand.set_targets(&close);
+    hand.set_gravity(DVec3::new(-9.81, 0.0, 0.0));
+    for _ in 0..150 {
+        hand.step();
+    }
+    group.bench_function("step (hand closed on the soup can)", |b| b.iter(|| hand.step()));
+    // A whole trajectory of 5 instances: grasp, then 5 arm moves with their holds and checks.
+    let ctx = GraspContext {
+        robot: &robot,
+        t_world_base: DAffine3::from_rotation_translation(DQuat::from_rotation_z(std::f64::consts::PI), DVec3::new(0.0, 0.5, 0.0)),
+        config: &grasp,
+        timestep: settings().timestep,
+    };
+    group.sample_size(10);
+    group.bench_function("trajectory of 5 instances (soup can)", |b| {
+        b.iter(|| {
+            let mut failures = Vec::new();
+            black_box(simulate_trajectory(&ctx, &mut hand, &object, 1, OBJECT, 0, 5, &mut failures).expect("a grasp holds"))
+        })
+    });
+    group.finish();
+}
+
+fn floor() -> TexturedMesh {
+    let c = [[-3.0f32, -3.0], [3.0, -3.0], [3.0, 3.0], [-3.0, 3.0]];
+    TexturedMesh {
+        positions: c.iter().map(|p| [p[0], p[1], 0.0]).collect(),
+        normals: vec![[0.0, 0.0, 1.0]; 4],
+        uvs: c.iter().map(|p| [p[0], -p[1]]).collect(),
+        indices: vec![0, 1, 2, 0, 2, 3],
+        texture: Texture::solid([150, 140, 130]),
+    }
+}
+
+/// The paper's camera over a floor with the can standing on it at the workspace centre.
+struct Scene {
+    renderer: WgpuRenderer,
+    view: View,
+    draws: Vec<Draw>,
+    lighting: Lighting,
+    t_camera_object: DAffine3,
+    mesh: TexturedMesh,
+}
+
+fn scene() -> Scene {
+    let mut renderer = WgpuRenderer::new(&RendererConfig::default()).expect("an adapter");
+    let entry = Catalog::builtin().get(OBJECT).expect("in the catalogue").clone();
+    let mesh = procedural_mesh(&entry);
+    let floor = renderer.upload_mesh(&floor()).expect("upload");
+    let can = renderer.upload_mesh(&mesh).expect("upload");
+    let cam = look_at(DVec3::new(0.0, -0.75, 0.55), DVec3::new(0.0, 0.0, 0.28));
+    let view = View {
+        width: 640,
+        height: 480,
+        k: Intrinsics { fx: 615.0, fy: 615.0, cx: 319.5, cy: 239.5 },
+        near: 0.05,
+        far: 10.0,
+        t_world_camera: cam.matrix(),
+    };
+    let t_world_object = DAffine3::from_translation(DVec3::new(0.0, 0.0, 0.5 * entry.extents[2]));
+    let draws = vec![
+        Draw { mesh: floor, t_world_model: DMat4::IDENTITY, mask_id: 0 },
+        Draw { mesh: can, t_world_model: DMat4::from(t_world_object), mask_id: 1 },
+    ];
+    let lighting = Lighting::spot(DVec3::new(0.3, -0.3, 1.2), DVec3::new(0.0, 0.0, 0.1), [3.0; 3], [0.3; 3]);
+    let t_camera_object = DAffine3::from_mat4(cam.inverse().matrix()) * t_world_object;
+    Scene { renderer, view, draws, lighting, t_camera_object, mesh }
+}
+
+fn rendering(c: &mut Criterion) {
+    let mut s = scene();
+    let mut group = c.benchmark_group("render");
+    group.sample_size(20);
+    group.bench_function("main view 640x480 (colour, depth, mask, silhouette, shadows)", |b| {
+        b.iter(|| black_box(s.renderer.render(&s.view, &s.lighting, &s.draws).expect("render")))
+    });
+    // 12 pads of 2 cm x 2 cm around the can's side, 1 mm off its surface, looking at it.
+    let can = s.draws[1];
+    let radius = 0.5 * Catalog::builtin().get(OBJECT).expect("in the catalogue").extents[0];
+    let views: Vec<DepthView> = (0..12)
+        .map(|k| {
+            let a = k as f64 * std::f64::consts::TAU / 12.0;
+            let out = DVec3::new(a.cos(), a.sin(), 0.0);
+            let centre = DAffine3::from_mat4(can.t_world_model).transform_point3(out * (radius + 0.001));
+            DepthView {
+                width: 32,
+                height: 32,
+                half_x: 0.01,
+                half_y: 0.01,
+                near: -0.005,
+                far: 0.02,
+                t_world_camera: look_at(centre, centre - out).matrix(),
+                perspective_standoff: None,
+            }
+        })
+        .collect();
+    group.bench_function("12 phalanx depth views 32x32 (one pass)", |b| {
+        b.iter(|| black_box(s.renderer.render_depth_views(&views, &[can]).expect("render")))
+    });
+    group.finish();
+
+    let img = s.renderer.render(&s.view, &s.lighting, &s.draws).expect("render");
+    let points: Vec<DVec3> = model_points(&s.mesh, 2000).iter().map(|p| s.t_camera_object.transform_point3(*p)).collect();
+    c.bench_function("occlusion level (2000 model points, 3 mm)", |b| {
+        b.iter(|| black_box(occlusion_level(&points, &img.depth, img.width, img.height, &s.view.k, 0.003)))
+    });
+
+    let dir = tempfile::tempdir().expect("temp dir");
+    let meta = ShardMeta {
+        generator: "bench".into(),
+        seed: 0,
+        config_sha256: String::new(),
+        split: "bench".into(),
+        shard_index: 0,
+        first_sample: 0,
+        sample_count: u64::MAX,
+        extra: Default::default(),
+    };
+    let mut writer = ShardWriter::create(&dir.path().join("bench.mcap"), &meta, Compression::Zstd { level: 3 }).expect("shard");
+    let identity = Pose::from_rt(DQuat::IDENTITY, DVec3::ZERO);
+    let sample = Sample {
+        index: 0,
+        width: img.width,
+        height: img.height,
+        rgb: img.rgb.clone(),
+        depth: img.depth.clone(),
+        depth_noisy: None,
+        mask: img.mask.clone(),
+        k: [615.0, 0.0, 319.5, 0.0, 615.0, 239.5, 0.0, 0.0, 1.0],
+        t_camera_object: identity,
+        t_world_camera: identity,
+        t_world_object: identity,
+        extra_transforms: Vec::new(),
+        info: serde_json::json!({"split": "bench"}),
+        tactile: Some(TactileData {
+            phalanges: vt_robot::phalanx_names(),
+            resolution: 32,
+            depth: vec![vec![f32::INFINITY; 32 * 32]; 12],
+            points: Vec::new(),
+        }),
+    };
+    c.bench_function("write one 640x480 sample (zstd 3)", |b| b.iter(|| writer.write_sample(black_box(&sample)).expect("write")));
+}
+
+criterion_group!(benches, physics, rendering);
+criterion_main!(benches);
