@@ -634,7 +634,7 @@ impl WgpuRenderer {
         draws: &[Draw],
         readback: Readback,
         cull: Option<&[[f64; 4]]>,
-    ) -> Result<(Vec<u8>, Vec<u8>, Vec<u8>, Vec<u8>)> {
+    ) -> Result<TargetImages> {
         // The spotlight's shadow pass draws the scene once more, as an extra view record.
         let shadow = (readback == Readback::All && lighting.shadows).then(|| light_view(lighting));
         let records = views.len() + shadow.is_some() as usize;
@@ -912,6 +912,9 @@ impl WgpuRenderer {
         Ok((texture, group))
     }
 }
+
+/// Bytes of a pass's targets: rgba, depth, mask, silhouette (empty when not read back).
+type TargetImages = (Vec<u8>, Vec<u8>, Vec<u8>, Vec<u8>);
 
 /// Which targets a pass reads back.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
