@@ -9,13 +9,14 @@ use std::hint::black_box;
 use criterion::{Criterion, criterion_group, criterion_main};
 use glam::{DAffine3, DMat4, DQuat, DVec3};
 use vt_dataset::{Compression, Pose, Sample, ShardMeta, ShardWriter, TactileData};
-use vt_objects::{Catalog, Texture, TexturedMesh, procedural_mesh};
+use vt_objects::{Catalog, TexturedMesh, procedural_mesh};
 use vt_robot::RobotModel;
 use vtgen::config::{GraspConfig, Intrinsics, PhysicsConfig, RendererConfig};
 use vtgen::grasp::{GraspContext, simulate_trajectory};
 use vtgen::occlusion::{model_points, occlusion_level};
 use vtgen::physics::{HandPhysics, PhysicsObject, PhysicsSettings, RapierHand};
 use vtgen::render::{DepthView, Draw, Lighting, Renderer, View, WgpuRenderer};
+use vtgen::sample::floor_mesh;
 use vtgen::scene::look_at;
 
 const OBJECT: &str = "005_tomato_soup_can";
@@ -68,17 +69,6 @@ fn physics(c: &mut Criterion) {
     group.finish();
 }
 
-fn floor() -> TexturedMesh {
-    let c = [[-3.0f32, -3.0], [3.0, -3.0], [3.0, 3.0], [-3.0, 3.0]];
-    TexturedMesh {
-        positions: c.iter().map(|p| [p[0], p[1], 0.0]).collect(),
-        normals: vec![[0.0, 0.0, 1.0]; 4],
-        uvs: c.iter().map(|p| [p[0], -p[1]]).collect(),
-        indices: vec![0, 1, 2, 0, 2, 3],
-        texture: Texture::solid([150, 140, 130]),
-    }
-}
-
 /// The paper's camera over a floor with the can standing on it at the workspace centre.
 struct Scene {
     renderer: WgpuRenderer,
@@ -93,7 +83,7 @@ fn scene() -> Scene {
     let mut renderer = WgpuRenderer::new(&RendererConfig::default()).expect("an adapter");
     let entry = Catalog::builtin().get(OBJECT).expect("in the catalogue").clone();
     let mesh = procedural_mesh(&entry);
-    let floor = renderer.upload_mesh(&floor()).expect("upload");
+    let floor = renderer.upload_mesh(&floor_mesh()).expect("upload");
     let can = renderer.upload_mesh(&mesh).expect("upload");
     let cam = look_at(DVec3::new(0.0, -0.75, 0.55), DVec3::new(0.0, 0.0, 0.28));
     let view = View {

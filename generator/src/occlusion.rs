@@ -50,29 +50,6 @@ pub fn model_points(mesh: &TexturedMesh, n: usize) -> Vec<DVec3> {
         .collect()
 }
 
-/// Back-projects the depth pixels inside the image box that the points project into (plus a
-/// margin): only they can be within ε of a model point.
-fn depth_cloud(points: &[DVec3], depth: &[f32], width: u32, height: u32, k: &Intrinsics, margin: i64) -> Vec<[f64; 3]> {
-    let (mut u0, mut v0, mut u1, mut v1) = (i64::MAX, i64::MAX, i64::MIN, i64::MIN);
-    for p in points.iter().filter(|p| p.z > 1e-6) {
-        let u = (k.fx * p.x / p.z + k.cx).round() as i64;
-        let v = (k.fy * p.y / p.z + k.cy).round() as i64;
-        (u0, v0, u1, v1) = (u0.min(u), v0.min(v), u1.max(u), v1.max(v));
-    }
-    let (u0, v0) = ((u0 - margin).max(0), (v0 - margin).max(0));
-    let (u1, v1) = ((u1 + margin).min(width as i64 - 1), (v1 + margin).min(height as i64 - 1));
-    let mut cloud = Vec::new();
-    for v in v0..=v1 {
-        for u in u0..=u1 {
-            let d = depth[(v * width as i64 + u) as usize] as f64;
-            if d > 0.0 && d.is_finite() {
-                cloud.push([(u as f64 - k.cx) * d / k.fx, (v as f64 - k.cy) * d / k.fy, d]);
-            }
-        }
-    }
-    cloud
-}
-
 /// Whether some depth pixel back-projects to within ε of `p` (camera frame). A point `p + δ` with
 /// |δ| ≤ ε projects within `f ε (z + |x|) / (z (z − ε))` pixels of `p`'s projection along each
 /// image axis, so only the depth pixels in that window (plus one for rounding) can be close
@@ -116,7 +93,14 @@ pub fn occlusion_level(points: &[DVec3], depth: &[f32], width: u32, height: u32,
 
 /// The same by comparing every model point with every depth point (for tests).
 pub fn occlusion_level_brute_force(points: &[DVec3], depth: &[f32], width: u32, height: u32, k: &Intrinsics, epsilon: f64) -> (f64, usize) {
-    let cloud = depth_cloud(points, depth, width, height, k, i64::MAX / 4);
-    let visible = points.iter().filter(|p| cloud.iter().any(|c| DVec3::from_array(*c).distance(**p) <= epsilon)).count();
+    // Every depth pixel back-projected.
+    let cloud: Vec<DVec3> = (0..height as usize)
+        .flat_map(|v| (0..width as usize).map(move |u| (u, v)))
+        .filter_map(|(u, v)| {
+            let d = depth[v * width as usize + u] as f64;
+            (d > 0.0 && d.is_finite()).then(|| DVec3::new((u as f64 - k.cx) * d / k.fx, (v as f64 - k.cy) * d / k.fy, d))
+        })
+        .collect();
+    let visible = points.iter().filter(|p| cloud.iter().any(|c| c.distance(**p) <= epsilon)).count();
     (1.0 - visible as f64 / points.len().max(1) as f64, visible)
 }

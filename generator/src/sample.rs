@@ -24,7 +24,7 @@ pub fn pose_of(t: &DAffine3) -> Pose {
 
 /// The floor: a 6 m textured quad on z = 0, texture coordinates in metres (the renderer scales
 /// them by 1 / tile size).
-fn floor_mesh() -> TexturedMesh {
+pub fn floor_mesh() -> TexturedMesh {
     let half = 3.0f32;
     let corners = [[-half, -half], [half, -half], [half, half], [-half, half]];
     TexturedMesh {

@@ -47,8 +47,6 @@ pub trait HandPhysics {
     fn set_object_damping(&mut self, linear: f64, angular: f64);
     fn step(&mut self);
     fn object_pose(&self) -> DAffine3;
-    /// The object's linear (m/s) and angular (rad/s) speed in the palm frame.
-    fn object_speed(&self) -> (f64, f64);
     fn joint_positions(&self) -> [f64; 16];
     /// For each of the 12 phalanges (`vt_robot::phalanx_names` order): the signed distance of its
     /// closest contact with the object (negative = penetration), None when not touching.

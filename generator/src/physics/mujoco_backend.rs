@@ -260,12 +260,6 @@ impl HandPhysics for MujocoHand {
         DAffine3::from_rotation_translation(DQuat::from_xyzw(q[1], q[2], q[3], q[0]).normalize(), DVec3::from_array(p))
     }
 
-    fn object_speed(&self) -> (f64, f64) {
-        let sim = self.sim();
-        let v = &sim.data.qvel()[sim.object_dof..sim.object_dof + 6];
-        (DVec3::new(v[0], v[1], v[2]).length(), DVec3::new(v[3], v[4], v[5]).length())
-    }
-
     fn joint_positions(&self) -> [f64; 16] {
         let sim = self.sim();
         std::array::from_fn(|k| sim.data.qpos()[sim.hand_qpos[k]])

@@ -241,12 +241,6 @@ impl HandPhysics for RapierHand {
         from_pose(self.world.bodies[b].position())
     }
 
-    fn object_speed(&self) -> (f64, f64) {
-        let (b, _) = self.object.expect("reset() places the object");
-        let body = &self.world.bodies[b];
-        (body.linvel().length() as f64, body.angvel().length() as f64)
-    }
-
     fn joint_positions(&self) -> [f64; 16] {
         std::array::from_fn(|k| {
             let hj = &self.joints[k];
