@@ -1,6 +1,7 @@
 //! Rendering behind a small trait. The wgpu rasterizer is the one backend today; it runs on Mesa's
 //! lavapipe (CPU) and on real GPUs alike.
 
+mod mipmaps;
 mod wgpu_backend;
 
 use glam::DMat4;

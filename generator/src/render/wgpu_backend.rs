@@ -438,6 +438,8 @@ impl WgpuRenderer {
             address_mode_v: wgpu::AddressMode::Repeat,
             mag_filter: wgpu::FilterMode::Linear,
             min_filter: wgpu::FilterMode::Linear,
+            // Trilinear: no visible seam where the floor's texture switches level.
+            mipmap_filter: wgpu::MipmapFilterMode::Linear,
             ..Default::default()
         });
         let frame_buffer = device.create_buffer(&wgpu::BufferDescriptor {
@@ -869,13 +871,22 @@ fn light_view(l: &Lighting) -> (DMat4, DMat4) {
     (t, projection(&v))
 }
 
+/// Uploads `t` and its mip chain (the texture was created with every level).
 fn write_texture(queue: &wgpu::Queue, texture: &wgpu::Texture, t: &vt_objects::Texture) {
-    queue.write_texture(
-        wgpu::TexelCopyTextureInfo { texture, mip_level: 0, origin: wgpu::Origin3d::ZERO, aspect: wgpu::TextureAspect::All },
-        &t.rgba,
-        wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(4 * t.width), rows_per_image: Some(t.height) },
-        wgpu::Extent3d { width: t.width, height: t.height, depth_or_array_layers: 1 },
-    );
+    let levels = super::mipmaps::mip_levels(t);
+    for (mip_level, l) in std::iter::once(t).chain(&levels).enumerate() {
+        queue.write_texture(
+            wgpu::TexelCopyTextureInfo {
+                texture,
+                mip_level: mip_level as u32,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
+            &l.rgba,
+            wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(4 * l.width), rows_per_image: Some(l.height) },
+            wgpu::Extent3d { width: l.width, height: l.height, depth_or_array_layers: 1 },
+        );
+    }
 }
 
 impl WgpuRenderer {
@@ -891,7 +902,7 @@ impl WgpuRenderer {
         let texture = self.device.create_texture(&wgpu::TextureDescriptor {
             label: Some("base colour"),
             size: wgpu::Extent3d { width: t.width, height: t.height, depth_or_array_layers: 1 },
-            mip_level_count: 1,
+            mip_level_count: super::mipmaps::level_count(t.width, t.height),
             sample_count: 1,
             dimension: wgpu::TextureDimension::D2,
             format: wgpu::TextureFormat::Rgba8UnormSrgb,
