@@ -33,7 +33,13 @@ pub struct MujocoHand {
     sim: Option<Sim>,
     damping: (f64, f64),
     mass: f64,
+    /// The state `save` took (MuJoCo's integration state: time, qpos, qvel, act, controls, warm
+    /// start, applied forces) and the gravity then.
+    saved: Option<(Box<[f64]>, [f64; 3])>,
 }
+
+/// Everything `mj_step` integrates from, as `mj_getState` packs it.
+const FULL_STATE: u32 = MjtState::mjSTATE_INTEGRATION as u32;
 
 fn quat_wxyz(t: &DAffine3) -> [f64; 4] {
     let q = DQuat::from_mat3(&DMat3::from(t.matrix3)).normalize();
@@ -42,7 +48,7 @@ fn quat_wxyz(t: &DAffine3) -> [f64; 4] {
 
 impl MujocoHand {
     pub fn new(model: &RobotModel, settings: PhysicsSettings) -> Result<Self> {
-        Ok(MujocoHand { model: model.clone(), settings, sim: None, damping: (0.0, 0.0), mass: 1.0 })
+        Ok(MujocoHand { model: model.clone(), settings, sim: None, damping: (0.0, 0.0), mass: 1.0, saved: None })
     }
 
     /// MJCF of the hand below the palm and one free object.
@@ -202,6 +208,7 @@ impl HandPhysics for MujocoHand {
     fn reset(&mut self, object: &PhysicsObject, object_pose: DAffine3, q: &[f64; 16]) -> Result<()> {
         self.build(object)?;
         self.mass = object.mass;
+        self.saved = None;
         let sim = self.sim.as_mut().expect("built");
         let qp = sim.data.qpos_mut();
         for k in 0..16 {
@@ -271,5 +278,21 @@ impl HandPhysics for MujocoHand {
 
     fn max_penetration(&self) -> f64 {
         self.contact_dists(&self.sim().hand_geoms).map(|d| (-d).max(0.0)).fold(0.0, f64::max)
+    }
+
+    fn save(&mut self) -> bool {
+        let sim = self.sim();
+        self.saved = Some((sim.data.state(FULL_STATE), sim.data.model_opt().gravity));
+        true
+    }
+
+    fn restore(&mut self) {
+        let Some((state, gravity)) = &self.saved else { return };
+        let sim = self.sim.as_mut().expect("built");
+        // The buffer came from `save` on this model, so it has the size mj_setState expects.
+        sim.data.set_state(state, FULL_STATE).expect("a state saved from the same model");
+        sim.data.model_opt_mut().gravity = *gravity;
+        // Positions, contacts and the other derived quantities the checks read, for that state.
+        sim.data.forward();
     }
 }
