@@ -290,21 +290,18 @@ fn attempt_trajectory(
             // redoing one move costs far less than a fresh grasp and every instance before it.
             let undo = physics.save();
             let q_before = q.clone();
-            let redo = match move_and_settle(ctx, physics, object, &mut q, &mut arm_rng)? {
+            // Why this move cannot stand: the attempt's failure if it was the last try, and the
+            // redo counted otherwise.
+            let (failure, redo) = match move_and_settle(ctx, physics, object, &mut q, &mut arm_rng)? {
                 MoveOutcome::Recordable(obj, contacts, penetration) => break (obj, contacts, penetration),
-                MoveOutcome::Failed(Failure::LostDuringMotion) if undo => Failure::MoveRedoneForDrop,
+                MoveOutcome::Failed(Failure::LostDuringMotion) if undo => (Failure::LostDuringMotion, Failure::MoveRedoneForDrop),
                 MoveOutcome::Failed(f) => return Ok(Err(f)),
-                MoveOutcome::NotRecordable(Failure::Penetration) => Failure::MoveRedoneForPenetration,
-                MoveOutcome::NotRecordable(Failure::TouchesFloor) => Failure::MoveRedoneForFloor,
-                MoveOutcome::NotRecordable(_) => Failure::MoveRedoneForContacts,
+                MoveOutcome::NotRecordable(f @ Failure::Penetration) => (f, Failure::MoveRedoneForPenetration),
+                MoveOutcome::NotRecordable(f @ Failure::TouchesFloor) => (f, Failure::MoveRedoneForFloor),
+                MoveOutcome::NotRecordable(f) => (f, Failure::MoveRedoneForContacts),
             };
             if moved >= MAX_MOVES_PER_INSTANCE {
-                return Ok(Err(match redo {
-                    Failure::MoveRedoneForDrop => Failure::LostDuringMotion,
-                    Failure::MoveRedoneForPenetration => Failure::Penetration,
-                    Failure::MoveRedoneForFloor => Failure::TouchesFloor,
-                    _ => Failure::TooFewContacts,
-                }));
+                return Ok(Err(failure));
             }
             failures.push(redo);
             if undo {

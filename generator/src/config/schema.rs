@@ -193,8 +193,8 @@ pub struct GraspConfig {
     /// half, and the object must stay put over the second.
     pub settle_seconds: f64,
     /// Duration of the arm's move between instances (smoothstep in joint space). Faster moves
-    /// shake heavy objects (the drill, the cracker box) out of the hand more often; with rapier a
-    /// move that drops the object is undone and another drawn, so 0.5 s costs fewer simulated
+    /// shake heavy objects (the drill, the cracker box) out of the hand more often; a move that
+    /// drops the object is undone and another drawn (both backends), so 0.5 s costs fewer simulated
     /// steps per recorded instance than 1 s.
     pub move_seconds: f64,
     /// Stillness after each move before the instance is checked and recorded.
