@@ -17,8 +17,9 @@ pub struct Inspection {
     pub bytes: u64,
     /// Samples per split and object.
     pub samples: BTreeMap<String, BTreeMap<String, u64>>,
-    /// Samples per occlusion bin (`occlusion::BINS`).
-    pub occlusion: BTreeMap<String, u64>,
+    /// Samples per split and occlusion bin (`occlusion::BINS`): touch matters most in the heavy
+    /// bin, so its share in the test split says how much a test can show.
+    pub occlusion: BTreeMap<String, BTreeMap<String, u64>>,
     pub randomized_share: f64,
     /// Tactile points per sample (robot datasets): min, median, max.
     pub tactile_points: Option<[u64; 3]>,
@@ -40,11 +41,12 @@ pub fn inspect(root: &Path) -> Result<Inspection> {
     let ds = DatasetReader::open(root)?;
     let entries: Vec<_> = manifest.splits.values().flat_map(|s| &s.shards).collect();
     let mut samples: BTreeMap<String, BTreeMap<String, u64>> = BTreeMap::new();
-    let mut occlusion: BTreeMap<String, u64> = crate::occlusion::BINS.iter().map(|b| (b.to_string(), 0)).collect();
+    let mut occlusion: BTreeMap<String, BTreeMap<String, u64>> = BTreeMap::new();
     let (mut n, mut randomized) = (0u64, 0u64);
     let mut tactile = Vec::new();
     let mut contacts: BTreeMap<String, u64> = BTreeMap::new();
     for split in manifest.splits.keys() {
+        let bins = occlusion.entry(split.clone()).or_insert_with(|| crate::occlusion::BINS.iter().map(|b| (b.to_string(), 0)).collect());
         for shard in ds.shards(split)? {
             for index in shard.indices().collect::<Vec<_>>() {
                 let info = shard.read_info(index)?;
@@ -53,7 +55,7 @@ pub fn inspect(root: &Path) -> Result<Inspection> {
                 *samples.entry(split.clone()).or_default().entry(object).or_default() += 1;
                 randomized += info["randomized"].as_bool().unwrap_or(false) as u64;
                 if let Some(level) = info["occlusion"]["level"].as_f64() {
-                    *occlusion.entry(crate::occlusion::BINS[crate::occlusion::bin(level)].to_string()).or_default() += 1;
+                    *bins.entry(crate::occlusion::BINS[crate::occlusion::bin(level)].to_string()).or_default() += 1;
                 }
                 if let Some(points) = info["tactile"]["points"].as_object() {
                     tactile.push(points.values().filter_map(|v| v.as_u64()).sum());

@@ -303,8 +303,11 @@ fn run(cli: Cli) -> Result<()> {
                 let per: Vec<String> = objects.iter().map(|(o, c)| format!("{o} {c}")).collect();
                 println!("{split:<11} {total} samples: {}", per.join(", "));
             }
-            let occ: Vec<String> = r.occlusion.iter().map(|(b, c)| format!("{b} {c}")).collect();
-            println!("occlusion   {}", occ.join(", "));
+            for (split, bins) in &r.occlusion {
+                let total = bins.values().sum::<u64>().max(1) as f64;
+                let occ: Vec<String> = bins.iter().map(|(b, c)| format!("{b} {c} ({:.1}%)", 100.0 * *c as f64 / total)).collect();
+                println!("occlusion   {split}: {}", occ.join(", "));
+            }
             println!("randomized  {:.1}%", 100.0 * r.randomized_share);
             if let Some([lo, med, hi]) = r.tactile_points {
                 println!("touch       tactile points per sample: min {lo}, median {med}, max {hi}");

@@ -227,8 +227,10 @@ pub fn write_stats(root: &Path, out: &Path) -> Result<Vec<String>> {
         }
     }
     writeln!(md, "\n| figure | value |\n|---|---|")?;
-    for bin in crate::occlusion::BINS {
-        writeln!(md, "| occlusion {bin} | {} |", summary.occlusion.get(bin).copied().unwrap_or(0))?;
+    for (split, bins) in &summary.occlusion {
+        for bin in crate::occlusion::BINS {
+            writeln!(md, "| occlusion {bin} ({split}) | {} |", bins.get(bin).copied().unwrap_or(0))?;
+        }
     }
     writeln!(md, "| randomized share | {:.1}% |", 100.0 * summary.randomized_share)?;
     if let Some([lo, med, hi]) = summary.tactile_points {

@@ -6,7 +6,9 @@
 //! objects: all                       # or a list of object ids: per-object or multi-object training
 //! model:
 //!   variant: tactile_channel         # tactile_channel | vision_only | non_siamese | no_global | tactile_only
-//!   cnn_channels: [16, 32]           # colour CNN widths (small, for CPU)
+//!   encoder: small                   # small | resnet_psp (DenseFusion's PSPNet on a dilated ResNet-18)
+//!   resnet_width: 64                 # resnet_psp: first-stage width (64 = ResNet-18)
+//!   cnn_channels: [16, 32]           # small: widths at full and half resolution
 //!   color_dim: 32                    # per-pixel colour embedding
 //!   point_dims: [32, 64]             # the two point-wise stages (depth, colour, tactile)
 //!   global_dims: [128, 256]          # global feature MLP; the last is the global feature's width
@@ -20,6 +22,7 @@
 //!   resample: true                   # new random points every epoch (false: the same every epoch)
 //! augment: {color_jitter: 0.2, translation_noise_m: 0.03}
 //! train: {epochs: 20, batch_size: 16, lr: 0.0002, w: 0.015, seed: 0}
+//! # symmetric_loss: [005_tomato_soup_can]   # objects trained with the closest-point (ADD-S) loss; the paper: none
 //! ```
 
 use std::path::{Path, PathBuf};
@@ -27,6 +30,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail};
 use serde::{Deserialize, Serialize};
 
+use crate::encoder::EncoderKind;
 use crate::model::{PoseNetConfig, Variant};
 
 /// Tactile point counts of the paper's sweep (Fig. "Effect of number of tactile points").
@@ -84,6 +88,11 @@ mod all_keyword {
 #[serde(deny_unknown_fields, default)]
 pub struct ModelConfig {
     pub variant: Variant,
+    /// The colour encoder: `small` (tests, quick CPU runs) or `resnet_psp` (the paper's).
+    pub encoder: EncoderKind,
+    /// `resnet_psp`: the first stage's width (64 = ResNet-18; smaller for CPU runs).
+    pub resnet_width: usize,
+    /// `small`: widths at full and half resolution.
     pub cnn_channels: [usize; 2],
     pub color_dim: usize,
     pub point_dims: [usize; 2],
@@ -95,6 +104,8 @@ impl Default for ModelConfig {
     fn default() -> Self {
         ModelConfig {
             variant: Variant::TactileChannel,
+            encoder: EncoderKind::Small,
+            resnet_width: 64,
             cnn_channels: [16, 32],
             color_dim: 32,
             point_dims: [32, 64],
@@ -108,6 +119,8 @@ impl ModelConfig {
     /// The burn config of the network, for `num_objects` output slots.
     pub fn net(&self, num_objects: usize) -> PoseNetConfig {
         PoseNetConfig::new(self.variant, num_objects)
+            .with_encoder(self.encoder)
+            .with_resnet_width(self.resnet_width)
             .with_cnn_channels(self.cnn_channels.to_vec())
             .with_color_dim(self.color_dim)
             .with_point_dims(self.point_dims.to_vec())
@@ -193,7 +206,14 @@ pub struct OptimConfig {
     pub w: f64,
     /// Seeds the weights, the sample order and every random choice of the data pipeline.
     pub seed: u64,
-    /// Save a checkpoint every this many epochs (the last epoch always).
+    /// Objects (ids) trained with the closest-point loss (DenseFusion's ADD-S variant): a pose
+    /// that differs from the truth by a symmetry of the object's *shape* costs nothing. The paper
+    /// trains every object with plain ADD (eq. 1): texture breaks the shape's symmetries, and its
+    /// angle metric counts a symmetric twin as an error. List an object only when it really
+    /// looks the same under its symmetry (models_info.json), e.g. an untextured can.
+    pub symmetric_loss: Vec<String>,
+    /// Keep a copy of the weights every this many epochs in `checkpoints/` (the last epoch
+    /// always; `model.bpk` always holds the latest).
     pub checkpoint_every: usize,
     /// Evaluate on the test split every this many epochs (0: never during training).
     pub eval_every: usize,
@@ -211,7 +231,8 @@ impl Default for OptimConfig {
             lr: 2e-4,
             w: 0.015,
             seed: 0,
-            checkpoint_every: 1,
+            symmetric_loss: Vec::new(),
+            checkpoint_every: 10,
             eval_every: 5,
             eval_samples: 0,
             max_train_samples: 0,
@@ -270,11 +291,16 @@ impl TrainConfig {
         if d.n_points == 0 || d.n_model_points == 0 {
             bail!("data.n_points and data.n_model_points must be >= 1");
         }
-        if d.crop_size < 4 || !d.crop_size.is_multiple_of(2) {
-            bail!("data.crop_size must be even and >= 4 (the colour CNN halves it once), got {}", d.crop_size);
+        let multiple = self.model.encoder.crop_multiple();
+        if d.crop_size < 4 || !d.crop_size.is_multiple_of(multiple) {
+            bail!(
+                "data.crop_size must be >= 4 and a multiple of {multiple} (the {:?} colour encoder's stride), got {}",
+                self.model.encoder,
+                d.crop_size
+            );
         }
         let m = &self.model;
-        if m.cnn_channels.contains(&0) || m.color_dim == 0 || m.point_dims.contains(&0) {
+        if m.cnn_channels.contains(&0) || m.resnet_width == 0 || m.color_dim == 0 || m.point_dims.contains(&0) {
             bail!("model widths must be >= 1");
         }
         if m.global_dims.is_empty() || m.global_dims.contains(&0) || m.head_dims.contains(&0) {

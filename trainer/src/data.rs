@@ -278,6 +278,10 @@ pub struct ObjectView {
     pub translation: DVec3,
     /// The paper's occlusion level (NaN when the dataset has none).
     pub occlusion: f32,
+    /// The grasp (trajectory) and the arm pose (instance) of the sample, from `/sample/info`
+    /// (`u32::MAX` when absent): samples of one trajectory share a grasp.
+    pub trajectory: u32,
+    pub instance: u32,
 }
 
 impl ObjectView {
@@ -318,6 +322,7 @@ impl ObjectView {
         };
         let tactile = s.tactile.as_ref().map(|t| t.points.iter().map(|p| p.position).collect()).unwrap_or_default();
         let occlusion = s.info.pointer("/occlusion/level").and_then(|v| v.as_f64()).map_or(f32::NAN, |v| v as f32);
+        let id = |key: &str| s.info.get(key).and_then(|v| v.as_u64()).map_or(u32::MAX, |v| v as u32);
         Ok(ObjectView {
             index: s.index,
             object,
@@ -329,6 +334,8 @@ impl ObjectView {
             rotation: s.t_camera_object.rotation(),
             translation: s.t_camera_object.translation(),
             occlusion,
+            trajectory: id("trajectory"),
+            instance: id("instance"),
         })
     }
 
@@ -344,8 +351,11 @@ pub struct Prepared {
     /// Dataset `object_index` and head slot.
     pub object: usize,
     pub slot: usize,
+    /// Closest-point (ADD-S) loss for this sample.
     pub symmetric: bool,
     pub occlusion: f32,
+    pub trajectory: u32,
+    pub instance: u32,
     /// `(n, 3)` camera-frame points; zeros when `cloud_count == 0`.
     pub cloud: Vec<f32>,
     /// `(n,)` pixel of each point in the flattened `S × S` crop.
@@ -373,6 +383,8 @@ pub struct PrepareOptions {
     pub split: String,
     /// Head slot per dataset object index (`None`: not trained on).
     pub slots: Vec<Option<usize>>,
+    /// Per dataset object index: trained with the closest-point loss (`train.symmetric_loss`).
+    pub closest_point: Vec<bool>,
 }
 
 impl PrepareOptions {
@@ -440,8 +452,10 @@ pub fn prepare(view: &ObjectView, model: &ObjectModel, opts: &PrepareOptions, ep
         index: view.index,
         object: view.object,
         slot: opts.slots[view.object].unwrap_or(0),
-        symmetric: model.symmetric(),
+        symmetric: opts.closest_point.get(view.object).copied().unwrap_or(false),
         occlusion: view.occlusion,
+        trajectory: view.trajectory,
+        instance: view.instance,
         cloud,
         choose,
         img,

@@ -6,10 +6,14 @@
 //!   in its favour, and it trains our networks several times faster (the tests' network: ~50 ms
 //!   per training step vs ~300 ms, mostly the colour CNN's backward pass, in the dev profile);
 //! - `--device ndarray`: the ndarray backend (also built by default);
+//! - `--device wgpu` (or `wgpu:cpu`, `wgpu:discrete`, `wgpu:integrated`): burn's wgpu backend
+//!   (cubecl) on any Vulkan, Metal or DX12 adapter; `wgpu` takes the best one wgpu finds,
+//!   `wgpu:cpu` a CPU implementation such as Mesa's lavapipe (what CI tests). Built by default:
+//!   a GPU trains without a CUDA toolchain or any download;
 //! - `--device cuda[:N]`: CUDA (cargo feature `cuda`, not built by default).
 
 use anyhow::{Result, bail};
-use burn::tensor::Device;
+use burn::tensor::{Device, DeviceKind};
 
 /// The CPU device: burn's `flex` backend (what CI runs).
 pub fn cpu() -> Device {
@@ -22,15 +26,25 @@ pub fn ndarray() -> Device {
     Device::ndarray()
 }
 
-/// The device named on the command line: `cpu`, `cuda` or `cuda:N`.
+/// The device named on the command line (see the module docs).
 pub fn parse(name: &str) -> Result<Device> {
     match name {
         "cpu" | "flex" => Ok(cpu()),
         "ndarray" => Ok(ndarray()),
+        "wgpu" => Ok(Device::wgpu(DeviceKind::DefaultDevice)),
+        "wgpu:cpu" => Ok(Device::wgpu(DeviceKind::Cpu)),
+        "wgpu:discrete" => Ok(Device::wgpu(DeviceKind::DiscreteGpu(0))),
+        "wgpu:integrated" => Ok(Device::wgpu(DeviceKind::IntegratedGpu(0))),
         n if n == "cuda" || n.starts_with("cuda:") => cuda(n.strip_prefix("cuda:").map(str::parse).transpose()?.unwrap_or(0)),
-        other => bail!("unknown device '{other}' (expected cpu, flex, ndarray, cuda or cuda:N)"),
+        other => {
+            bail!("unknown device '{other}' (expected cpu, flex, ndarray, wgpu, wgpu:cpu, wgpu:discrete, wgpu:integrated, cuda or cuda:N)")
+        }
     }
 }
+
+/// What `--device` accepts, for the command-line help.
+pub const DEVICE_HELP: &str = "cpu (burn's flex CPU backend, default), ndarray, wgpu (best Vulkan/Metal/DX12 adapter), \
+     wgpu:cpu (a CPU Vulkan driver such as lavapipe), wgpu:discrete, wgpu:integrated, cuda[:N] (build with --features cuda)";
 
 #[cfg(feature = "cuda")]
 fn cuda(index: usize) -> Result<Device> {

@@ -47,7 +47,15 @@ impl EvalOptions {
             data.n_tactile = nt;
         }
         EvalOptions {
-            prep: PrepareOptions { data, augment: AugmentConfig::NONE, seed: cfg.train.seed, split: "test".into(), slots: slots.to_vec() },
+            // No loss in evaluation: the closest-point choice does not matter.
+            prep: PrepareOptions {
+                data,
+                augment: AugmentConfig::NONE,
+                seed: cfg.train.seed,
+                split: "test".into(),
+                slots: slots.to_vec(),
+                closest_point: Vec::new(),
+            },
             batch_size: cfg.train.batch_size,
             device: crate::device::cpu(),
         }
@@ -64,6 +72,9 @@ impl EvalOptions {
 pub struct SampleResult {
     pub index: u64,
     pub object: String,
+    /// The sample's grasp and arm pose (`u32::MAX` when the dataset does not say).
+    pub trajectory: u32,
+    pub instance: u32,
     pub symmetric: bool,
     pub occlusion: f32,
     pub tactile_points: usize,
@@ -116,6 +127,8 @@ pub fn evaluate(model: &PoseNet, source: SplitSource, opts: &EvalOptions) -> Res
                     results.push(SampleResult {
                         index: p.index,
                         object: m.id.clone(),
+                        trajectory: p.trajectory,
+                        instance: p.instance,
                         symmetric: m.symmetric(),
                         occlusion: p.occlusion,
                         tactile_points: p.tactile_count,
@@ -273,17 +286,30 @@ pub fn write_report(evals: &[ModelEval], split: &str, device: &str, out: &Path) 
             })
         })
         .collect();
-    std::fs::write(out.join("results.json"), serde_json::to_string_pretty(&summaries)? + "\n")?;
+    let paired: Vec<serde_json::Value> = comparisons(evals)
+        .into_iter()
+        .filter_map(|(t, v)| {
+            crate::compare::paired(&t.results, &v.results).map(|p| {
+                serde_json::json!({"tactile": t.name, "vision": v.name, "position": p.position, "angle": p.angle, "grasps": p.grasps,
+                    "channel_use": crate::compare::channel_use(&t.results)})
+            })
+        })
+        .collect();
+    let all = serde_json::json!({"runs": summaries, "paired": paired});
+    std::fs::write(out.join("results.json"), serde_json::to_string_pretty(&all)? + "\n")?;
+    crate::plots::write_plots(evals, out)?;
     for e in evals {
         let mut csv = String::from(
-            "index,object,symmetric,occlusion,tactile_points,position_cm,angle_deg,angle_sym_deg,add_cm,adds_cm,confidence,tactile_estimate\n",
+            "index,object,trajectory,instance,symmetric,occlusion,tactile_points,position_cm,angle_deg,angle_sym_deg,add_cm,adds_cm,confidence,tactile_estimate\n",
         );
         for r in &e.results {
             writeln!(
                 csv,
-                "{},{},{},{:.4},{},{:.4},{:.3},{:.3},{:.4},{:.4},{:.4},{}",
+                "{},{},{},{},{},{:.4},{},{:.4},{:.3},{:.3},{:.4},{:.4},{:.4},{}",
                 r.index,
                 r.object,
+                r.trajectory,
+                r.instance,
                 r.symmetric,
                 r.occlusion,
                 r.tactile_points,
@@ -411,6 +437,8 @@ pub fn report_markdown(evals: &[ModelEval], split: &str, device: &str) -> String
         }
     }
 
+    touch_section(&mut s, evals);
+
     if evals.iter().any(|e| !e.sweep.is_empty()) {
         let _ = writeln!(s, "\n## Number of tactile points\n");
         let _ = writeln!(
@@ -451,4 +479,80 @@ pub fn report_markdown(evals: &[ModelEval], split: &str, device: &str) -> String
         }
     }
     s
+}
+
+/// The first vision-only evaluation and every tactile one, to compare (see [`crate::compare`]).
+pub fn comparisons(evals: &[ModelEval]) -> Vec<(&ModelEval, &ModelEval)> {
+    let Some(vision) = evals.iter().find(|e| e.variant == Variant::VisionOnly) else { return Vec::new() };
+    evals.iter().filter(|e| e.variant.uses_tactile() && e.variant.uses_color()).map(|t| (t, vision)).collect()
+}
+
+/// "What touch buys": the paired per-grasp comparison and how the tactile network answers.
+fn touch_section(s: &mut String, evals: &[ModelEval]) {
+    let pairs = comparisons(evals);
+    if pairs.is_empty() {
+        return;
+    }
+    let _ = writeln!(s, "\n## What touch buys: paired per grasp\n");
+    let _ = writeln!(
+        s,
+        "Samples of one trajectory share a grasp, so the networks are compared per grasp (object, trajectory): each \
+         network's mean error over the grasp's samples; `better` counts the grasps on which the tactile network's mean \
+         error is lower. p: two-sided exact sign test (ties dropped). Δ: mean over grasps of tactile − vision (negative: touch helps).\n"
+    );
+    let _ = writeln!(s, "| tactile run | vs | grasps | position: better / worse | p | Δ position (cm) | angle: better / worse | p | Δ angle (°) |");
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|");
+    for (t, v) in &pairs {
+        match crate::compare::paired(&t.results, &v.results) {
+            Some(p) => {
+                let _ = writeln!(
+                    s,
+                    "| {} | {} | {} | {} / {} | {:.3} | {:+.3} | {} / {} | {:.3} | {:+.2} |",
+                    t.name,
+                    v.name,
+                    p.grasps.len(),
+                    p.position.better,
+                    p.position.worse,
+                    p.position.p_value,
+                    p.position.mean_difference,
+                    p.angle.better,
+                    p.angle.worse,
+                    p.angle.p_value,
+                    p.angle.mean_difference
+                );
+            }
+            None => {
+                let _ = writeln!(s, "| {} | {} | – (the dataset records no trajectories) | | | | | | |", t.name, v.name);
+            }
+        }
+    }
+    let _ = writeln!(s, "\n## Which channel answers\n");
+    let _ = writeln!(
+        s,
+        "The tactile network picks its most confident estimate from either channel. Share: samples answered by the \
+         tactile channel; the position error and mean confidence of the samples each channel answered.\n"
+    );
+    let _ = writeln!(s, "| run | occlusion | n | tactile share (%) | position, tactile answers (cm) | position, visual answers (cm) | confidence tactile / visual |");
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|");
+    for (t, _) in &pairs {
+        let rows = std::iter::once(("all".to_string(), crate::compare::channel_use(&t.results))).chain(OcclusionBin::ALL.iter().map(|b| {
+            (b.label().to_string(), crate::compare::channel_use(t.results.iter().filter(|r| OcclusionBin::of(r.occlusion) == Some(*b))))
+        }));
+        for (label, u) in rows {
+            if u.n == 0 {
+                continue;
+            }
+            let _ = writeln!(
+                s,
+                "| {} | {label} | {} | {} | {:.3} | {:.3} | {:.3} / {:.3} |",
+                t.name,
+                u.n,
+                pct(u.tactile_share),
+                u.tactile_position_cm,
+                u.visual_position_cm,
+                u.tactile_confidence,
+                u.visual_confidence
+            );
+        }
+    }
 }

@@ -19,12 +19,16 @@
 //! ```
 
 pub mod bench;
+pub mod compare;
 pub mod config;
 pub mod data;
 pub mod device;
+pub mod encoder;
 pub mod eval;
 pub mod geometry;
 pub mod loss;
 pub mod metrics;
 pub mod model;
+pub mod plots;
+pub mod sweep;
 pub mod train;

@@ -11,6 +11,7 @@ use vt_trainer::config::TrainConfig;
 use vt_trainer::device;
 use vt_trainer::eval::{EvalCommand, evaluate_runs, write_report};
 use vt_trainer::model::Variant;
+use vt_trainer::sweep::{SweepOptions, sweep};
 use vt_trainer::train::{RunDir, TrainOptions, train};
 
 #[derive(Parser)]
@@ -28,7 +29,9 @@ struct Cli {
 enum Command {
     /// Train a network from a YAML config into a run directory.
     Train {
-        config: PathBuf,
+        /// The training config (YAML). With --resume it may be left out: the run's own config.yaml is used.
+        #[arg(required_unless_present = "resume")]
+        config: Option<PathBuf>,
         /// The run directory (default: out/runs/<config name>).
         #[arg(long)]
         out: Option<PathBuf>,
@@ -38,17 +41,45 @@ enum Command {
         /// Override the config's model variant (tactile_channel, vision_only, non_siamese, no_global, tactile_only).
         #[arg(long)]
         variant: Option<Variant>,
-        /// Override the config's number of epochs.
+        /// Override the config's number of epochs: the run's total, also with --resume (a run
+        /// that has done 20 epochs resumed with --epochs 30 trains 10 more).
         #[arg(long)]
         epochs: Option<usize>,
-        /// Continue the run in --out from its last completed epoch.
-        #[arg(long, conflicts_with = "overwrite")]
+        /// Continue the run in --out from its last completed epoch (with its own config.yaml
+        /// unless CONFIG is given; --epochs sets the new total).
+        #[arg(long, conflicts_with = "overwrite", requires = "out")]
         resume: bool,
         /// Replace a run in --out.
         #[arg(long)]
         overwrite: bool,
-        /// cpu (ndarray), cuda or cuda:N (build with --features cuda).
-        #[arg(long, default_value = "cpu")]
+        #[arg(long, default_value = "cpu", help = device::DEVICE_HELP)]
+        device: String,
+        #[arg(long)]
+        quiet: bool,
+    },
+    /// The paper's tactile-point experiment: train one network per tactile point count
+    /// (default 4, 12, 36, 60, 240), evaluate each on the test split, write a report.
+    Sweep {
+        /// The training config of a tactile variant (its data.n_tactile is replaced per run).
+        config: PathBuf,
+        /// Where the runs (nt-NNNN/) and the report go (default: out/sweeps/<config name>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        #[arg(long, value_delimiter = ',', default_values_t = vt_trainer::config::TACTILE_SWEEP)]
+        counts: Vec<usize>,
+        /// Use this dataset instead of the config's.
+        #[arg(long)]
+        dataset: Option<PathBuf>,
+        /// Override the config's number of epochs (per run).
+        #[arg(long)]
+        epochs: Option<usize>,
+        /// A trained vision-only run to evaluate alongside.
+        #[arg(long)]
+        baseline: Option<PathBuf>,
+        /// At most this many test samples, evenly spread (0: all).
+        #[arg(long, default_value_t = 0)]
+        max_samples: usize,
+        #[arg(long, default_value = "cpu", help = device::DEVICE_HELP)]
         device: String,
         #[arg(long)]
         quiet: bool,
@@ -69,10 +100,11 @@ enum Command {
         /// At most this many samples, evenly spread over the split (0: all).
         #[arg(long, default_value_t = 0)]
         max_samples: usize,
-        /// Skip the tactile-point sweep (4, 12, 36, 60, 240 points).
+        /// Skip evaluating tactile networks with 4, 12, 36, 60, 240 points (one network, fed
+        /// fewer points; `vtpose sweep` trains one network per count as the paper).
         #[arg(long)]
         no_sweep: bool,
-        #[arg(long, default_value = "cpu")]
+        #[arg(long, default_value = "cpu", help = device::DEVICE_HELP)]
         device: String,
         #[arg(long)]
         quiet: bool,
@@ -88,7 +120,7 @@ enum Command {
         iters: usize,
         #[arg(long, default_value_t = 3)]
         warmup: usize,
-        #[arg(long, default_value = "cpu")]
+        #[arg(long, default_value = "cpu", help = device::DEVICE_HELP)]
         device: String,
         /// Print JSON instead of a Markdown table.
         #[arg(long)]
@@ -109,7 +141,18 @@ fn main() -> ExitCode {
 fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Train { config, out, dataset, variant, epochs, resume, overwrite, device: dev, quiet } => {
-            let mut cfg = TrainConfig::load(&config)?;
+            let out = match (&out, &config) {
+                (Some(o), _) => o.clone(),
+                (None, Some(c)) => PathBuf::from("out/runs").join(c.file_stem().unwrap_or_default()),
+                (None, None) => bail!("--resume needs --out (the run directory)"),
+            };
+            let mut cfg = match &config {
+                Some(c) => TrainConfig::load(c)?,
+                None => {
+                    let run = RunDir(out.clone());
+                    TrainConfig::load(&run.config()).with_context(|| format!("--resume without CONFIG: {} is not a run", out.display()))?
+                }
+            };
             if let Some(d) = dataset {
                 cfg.dataset = d;
             }
@@ -119,7 +162,6 @@ fn run(cli: Cli) -> Result<()> {
             if let Some(e) = epochs {
                 cfg.train.epochs = e;
             }
-            let out = out.unwrap_or_else(|| PathBuf::from("out/runs").join(config.file_stem().unwrap_or_default()));
             let summary = train(&cfg, &TrainOptions { out, resume, overwrite, device: device::parse(&dev)?, quiet })?;
             if !quiet {
                 let last = summary.epochs.last();
@@ -130,6 +172,22 @@ fn run(cli: Cli) -> Result<()> {
                     summary.run.display(),
                     last.map_or(String::new(), |r| format!(", last loss {:.5}", r.loss))
                 );
+            }
+            Ok(())
+        }
+        Command::Sweep { config, out, counts, dataset, epochs, baseline, max_samples, device: dev, quiet } => {
+            let mut cfg = TrainConfig::load(&config)?;
+            if let Some(d) = dataset {
+                cfg.dataset = d;
+            }
+            if let Some(e) = epochs {
+                cfg.train.epochs = e;
+            }
+            let out = out.unwrap_or_else(|| PathBuf::from("out/sweeps").join(config.file_stem().unwrap_or_default()));
+            let opts = SweepOptions { counts, out: out.clone(), baseline, max_samples, device: device::parse(&dev)?, quiet };
+            sweep(&cfg, &opts)?;
+            if !quiet {
+                eprintln!("vtpose: wrote {}", out.join("report.md").display());
             }
             Ok(())
         }

@@ -5,8 +5,9 @@
 //! object's bounding box with each point's pixel in it (`choose`), and `n_t` tactile points
 //! (see [`crate::data`]). The network fuses them in two channels:
 //!
-//! - **visual channel**: a small CNN maps the crop to a per-pixel colour embedding, gathered at the
-//!   points' pixels; colour and depth points each go through a two-stage point-wise MLP, and the
+//! - **visual channel**: a colour encoder ([`crate::encoder`]: DenseFusion's PSPNet on a dilated
+//!   ResNet-18, or a small CNN for tests) maps the crop to a per-pixel colour embedding, gathered at
+//!   the points' pixels; colour and depth points each go through a two-stage point-wise MLP, and the
 //!   stages are concatenated per point (DenseFusion's pixel-wise dense fusion);
 //! - **tactile channel**: the tactile points go through their own two-stage point-wise MLP and are
 //!   fused point-wise with the depth embedding. The channel has one entry per depth point, like the
@@ -15,12 +16,15 @@
 //! - **global feature**: the second-stage colour, depth and tactile embeddings of each point go
 //!   through an MLP and are averaged over the points, then appended to every point's features.
 //!
-//! The pose estimator predicts, per point of each channel, a rotation (unit quaternion, (w, x, y,
+//! The pose estimator (§III-B) predicts, per point of each channel, a rotation (unit quaternion, (w, x, y,
 //! z)), a translation (an offset from the point's anchor: the depth point in the visual channel,
 //! the tactile point in the tactile channel) and a confidence. The rotation head is **Siamese**:
 //! one set of weights for both channels. Every head has one output slot per object (DenseFusion's
 //! per-class heads) and the sample's object picks its slot. `2 × n` estimates come out; the most
-//! confident is the network's answer ([`PoseOutput::best`]).
+//! confident is the network's answer ([`PoseOutput::best`]). As in the paper, the rotation and
+//! confidence heads of a channel see that channel's point features and the global feature, while
+//! both channels' **translation heads see the RGB-depth and the tactile-depth features** and the
+//! global feature: a visual estimate of the position can use where the fingers touch the object.
 //!
 //! Variants ([`Variant`]): `vision_only` drops the tactile channel (DenseFusion without refinement);
 //! `non_siamese` gives the tactile channel its own rotation head; `no_global` drops the global
@@ -30,13 +34,13 @@
 
 use std::str::FromStr;
 
-use burn::nn::conv::{Conv2d, Conv2dConfig};
-use burn::nn::{Linear, LinearConfig, PaddingConfig2d};
+use burn::nn::{Linear, LinearConfig};
 use burn::prelude::*;
 use burn::tensor::Int;
 use burn::tensor::activation::{relu, sigmoid};
 use serde::{Deserialize, Serialize};
 
+use crate::encoder::{ColorEncoder, ColorEncoderConfig, EncoderKind};
 use crate::geometry::normalize_quat;
 
 /// Point coordinates enter the network in decimetres (relative to the depth cloud's centroid)
@@ -124,56 +128,6 @@ impl std::fmt::Display for Variant {
 // Building blocks
 // --------------------------------------------------------------------------------------------
 
-/// The colour CNN: a two-level encoder-decoder (full and half resolution, skip connection) that
-/// maps the crop to a per-pixel embedding. A small stand-in for DenseFusion's PSPNet.
-#[derive(Config, Debug)]
-pub struct ColorCnnConfig {
-    /// Widths at full and at half resolution.
-    pub channels: [usize; 2],
-    /// Width of the per-pixel embedding.
-    pub out: usize,
-}
-
-#[derive(Module, Debug)]
-pub struct ColorCnn {
-    conv1: Conv2d,
-    down: Conv2d,
-    conv2: Conv2d,
-    out: Conv2d,
-}
-
-fn conv3(c_in: usize, c_out: usize, stride: usize, device: &Device) -> Conv2d {
-    Conv2dConfig::new([c_in, c_out], [3, 3]).with_stride([stride, stride]).with_padding(PaddingConfig2d::Explicit(1, 1, 1, 1)).init(device)
-}
-
-impl ColorCnnConfig {
-    pub fn init(&self, device: &Device) -> ColorCnn {
-        let [c1, c2] = self.channels;
-        ColorCnn {
-            conv1: conv3(3, c1, 1, device),
-            down: conv3(c1, c2, 2, device),
-            conv2: conv3(c2, c2, 1, device),
-            out: conv3(c2 + c1, self.out, 1, device),
-        }
-    }
-}
-
-impl ColorCnn {
-    /// `(B, 3, S, S)` → `(B, out, S, S)`; `S` even.
-    pub fn forward(&self, img: Tensor<4>) -> Tensor<4> {
-        let e1 = relu(self.conv1.forward(img));
-        let e2 = relu(self.conv2.forward(relu(self.down.forward(e1.clone()))));
-        let up = upsample2(e2);
-        self.out.forward(Tensor::cat(vec![up, e1], 1))
-    }
-}
-
-/// Nearest-neighbour ×2 upsampling by reshape and broadcast (differentiable on every backend).
-fn upsample2(x: Tensor<4>) -> Tensor<4> {
-    let [b, c, h, w] = x.dims();
-    x.reshape([b, c, h, 1, w, 1]).expand([b, c, h, 2, w, 2]).reshape([b, c, 2 * h, 2 * w])
-}
-
 /// Two point-wise layers (DenseFusion's `conv1`/`conv2` 1×1 convolutions), returning both stages.
 #[derive(Config, Debug)]
 pub struct TwoStageConfig {
@@ -257,9 +211,12 @@ pub struct Heads {
     confidence: Mlp,
 }
 
-fn heads(d_input: usize, hidden: &[usize], objects: usize, with_rotation: bool, device: &Device) -> Heads {
-    let head = |k: usize| MlpConfig::new(d_input, hidden.to_vec()).with_d_output(Some(objects * k)).init(device);
-    Heads { rotation: with_rotation.then(|| head(4)), translation: head(3), confidence: head(1) }
+/// `d_own`: the channel's own point features plus the global feature (rotation, confidence);
+/// `d_translation`: what the translation head sees (the paper: both channels' features and the
+/// global feature).
+fn heads(d_own: usize, d_translation: usize, hidden: &[usize], objects: usize, with_rotation: bool, device: &Device) -> Heads {
+    let head = |d_input: usize, k: usize| MlpConfig::new(d_input, hidden.to_vec()).with_d_output(Some(objects * k)).init(device);
+    Heads { rotation: with_rotation.then(|| head(d_own, 4)), translation: head(d_translation, 3), confidence: head(d_own, 1) }
 }
 
 /// Picks each sample's object slot: `(B, N, O·k)` → `(B, N, k)`.
@@ -280,8 +237,15 @@ pub struct PoseNetConfig {
     pub variant: Variant,
     /// Output slots of the heads (objects the network is trained on).
     pub num_objects: usize,
+    /// The colour encoder.
+    #[config(default = "EncoderKind::Small")]
+    pub encoder: EncoderKind,
+    /// Widths of the small encoder.
     #[config(default = "vec![16, 32]")]
     pub cnn_channels: Vec<usize>,
+    /// First-stage width of the ResNet-18 encoder (64: the real ResNet-18).
+    #[config(default = 64)]
+    pub resnet_width: usize,
     #[config(default = 32)]
     pub color_dim: usize,
     #[config(default = "vec![32, 64]")]
@@ -295,7 +259,7 @@ pub struct PoseNetConfig {
 /// See the module docs.
 #[derive(Module, Debug)]
 pub struct PoseNet {
-    color_cnn: Option<ColorCnn>,
+    color_cnn: Option<ColorEncoder>,
     color_mlp: Option<TwoStage>,
     depth_mlp: TwoStage,
     tactile_mlp: Option<TwoStage>,
@@ -312,22 +276,28 @@ impl PoseNetConfig {
         let [p1, p2] = [self.point_dims[0], self.point_dims[1]];
         let two_stage = |d_input| TwoStageConfig::new(d_input, [p1, p2]).init(device);
         let global_dim = if v.global_feature() { *self.global_dims.last().expect("validated: >= 1 global width") } else { 0 };
-        // Every channel's point features: [depth stage 1, other stage 1, depth stage 2, other stage 2, global].
-        let point_dim = 2 * p1 + 2 * p2 + global_dim;
+        // Every channel's point features: [depth stage 1, other stage 1, depth stage 2, other stage 2],
+        // then the global feature. The translation heads see both channels' features (§III-B).
+        let channel_dim = 2 * p1 + 2 * p2;
+        let own_dim = channel_dim + global_dim;
+        let translation_dim = channel_dim * v.channels() + global_dim;
         let global_in = p2 * (1 + v.channels());
         let o = self.num_objects;
         let siamese = v != Variant::NonSiamese;
         PoseNet {
-            color_cnn: v
-                .uses_color()
-                .then(|| ColorCnnConfig::new([self.cnn_channels[0], self.cnn_channels[1]], self.color_dim).init(device)),
+            color_cnn: v.uses_color().then(|| {
+                ColorEncoderConfig::new(self.encoder, [self.cnn_channels[0], self.cnn_channels[1]], self.resnet_width, self.color_dim)
+                    .init(device)
+            }),
             color_mlp: v.uses_color().then(|| two_stage(self.color_dim)),
             depth_mlp: two_stage(3),
             tactile_mlp: v.uses_tactile().then(|| two_stage(3)),
             global: v.global_feature().then(|| MlpConfig::new(global_in, self.global_dims.clone()).init(device)),
-            visual: v.uses_color().then(|| heads(point_dim, &self.head_dims, o, true, device)),
+            visual: v.uses_color().then(|| heads(own_dim, translation_dim, &self.head_dims, o, true, device)),
             // The tactile channel has its own rotation head unless it shares the visual one.
-            tactile: v.uses_tactile().then(|| heads(point_dim, &self.head_dims, o, !(siamese && v.uses_color()), device)),
+            tactile: v
+                .uses_tactile()
+                .then(|| heads(own_dim, translation_dim, &self.head_dims, o, !(siamese && v.uses_color()), device)),
             variant: v,
         }
     }
@@ -457,34 +427,40 @@ impl PoseNet {
             let gd = g.dims()[2];
             g.expand([b, n, gd])
         });
-        let features = |f1: Tensor<3>, f2: Tensor<3>| {
-            let mut parts = vec![d1.clone(), f1, d2.clone(), f2];
+        // Each channel's point features without the global feature: [depth 1, own 1, depth 2, own 2].
+        let visual_feats = visual.map(|(c1, c2)| Tensor::cat(vec![d1.clone(), c1, d2.clone(), c2], 2));
+        let tactile_parts = tactile.map(|(t1, t2, anchor)| (Tensor::cat(vec![d1.clone(), t1, d2.clone(), t2], 2), anchor));
+        let with_global = |mut parts: Vec<Tensor<3>>| {
             if let Some(g) = &global {
                 parts.push(g.clone());
             }
             Tensor::cat(parts, 2)
         };
+        // The paper's translation heads see the RGB-depth, the tactile-depth and the global
+        // features; rotation and confidence see their own channel and the global feature.
+        let translation_in =
+            with_global(visual_feats.iter().cloned().chain(tactile_parts.as_ref().map(|(f, _)| f.clone())).collect::<Vec<_>>());
 
         let mut rotation = Vec::new();
         let mut translation = Vec::new();
         let mut confidence = Vec::new();
         let mut valid = Vec::new();
-        let mut run = |heads: &Heads, shared_rotation: Option<&Mlp>, feats: Tensor<3>, anchor: Tensor<3>, ok: Tensor<2>| {
+        let mut run = |heads: &Heads, shared_rotation: Option<&Mlp>, own: Tensor<3>, anchor: Tensor<3>, ok: Tensor<2>| {
             let rot_head = heads.rotation.as_ref().or(shared_rotation).expect("a rotation head");
-            let r = select_object(rot_head.forward(feats.clone()), &input.object, 4);
-            let t = select_object(heads.translation.forward(feats.clone()), &input.object, 3);
-            let c = select_object(heads.confidence.forward(feats), &input.object, 1);
+            let r = select_object(rot_head.forward(own.clone()), &input.object, 4);
+            let t = select_object(heads.translation.forward(translation_in.clone()), &input.object, 3);
+            let c = select_object(heads.confidence.forward(own), &input.object, 1);
             rotation.push(normalize_quat(r));
             translation.push(anchor + t.div_scalar(POINT_SCALE));
             confidence.push(sigmoid(c).reshape([b, n]));
             valid.push(ok.expand([b, n]));
         };
-        if let (Some(heads), Some((c1, c2))) = (&self.visual, visual) {
-            run(heads, None, features(c1, c2), input.cloud.clone(), Tensor::ones([b, 1], &device));
+        if let (Some(heads), Some(f)) = (&self.visual, visual_feats) {
+            run(heads, None, with_global(vec![f]), input.cloud.clone(), Tensor::ones([b, 1], &device));
         }
-        if let (Some(heads), Some((t1, t2, anchor))) = (&self.tactile, tactile) {
+        if let (Some(heads), Some((f, anchor))) = (&self.tactile, tactile_parts) {
             let shared = self.visual.as_ref().and_then(|v| v.rotation.as_ref());
-            run(heads, shared, features(t1, t2), anchor, input.has_touch.clone());
+            run(heads, shared, with_global(vec![f]), anchor, input.has_touch.clone());
         }
         PoseOutput {
             rotation: Tensor::cat(rotation, 1),
@@ -492,5 +468,49 @@ impl PoseNet {
             confidence: Tensor::cat(confidence, 1),
             valid: Tensor::cat(valid, 1),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::device::cpu;
+    use burn::tensor::Distribution;
+
+    fn input(b: usize, n: usize, nt: usize, s: usize, device: &Device) -> PoseInput {
+        PoseInput {
+            img: Tensor::random([b, 3, s, s], Distribution::Normal(0.0, 1.0), device),
+            choose: Tensor::<1, Int>::arange(0..(b * n) as i64, device).reshape([b, n]).remainder_scalar((s * s) as i64),
+            cloud: Tensor::random([b, n, 3], Distribution::Uniform(0.25, 0.35), device),
+            tactile: Tensor::random([b, nt, 3], Distribution::Uniform(0.25, 0.35), device),
+            has_touch: Tensor::ones([b, 1], device),
+            object: Tensor::<1, Int>::zeros([b], device),
+        }
+    }
+
+    fn values<const D: usize>(t: Tensor<D>) -> Vec<f32> {
+        t.into_data().iter::<f32>().collect()
+    }
+
+    /// The paper's heads: a visual estimate's translation sees the tactile features, its rotation
+    /// and confidence do not (without the global feature, which mixes every channel in).
+    #[test]
+    fn visual_translation_sees_touch_visual_rotation_does_not() {
+        let device = cpu();
+        let (b, n, nt, s) = (2, 16, 8, 16);
+        let net = PoseNetConfig::new(Variant::NoGlobal, 1).with_cnn_channels(vec![4, 8]).with_color_dim(8).init(&device);
+        let a = input(b, n, nt, s, &device);
+        let mut moved = a.clone();
+        moved.tactile = moved.tactile.add_scalar(0.02);
+        let (oa, ob) = (net.forward(&a), net.forward(&moved));
+        let visual = |t: Tensor<3>| t.narrow(1, 0, n);
+        let dr = values((visual(oa.rotation.clone()) - visual(ob.rotation.clone())).abs()).into_iter().fold(0.0, f32::max);
+        let dc = values((oa.confidence.clone().narrow(1, 0, n) - ob.confidence.clone().narrow(1, 0, n)).abs()).into_iter().fold(0.0, f32::max);
+        let dt = values((visual(oa.translation.clone()) - visual(ob.translation.clone())).abs()).into_iter().fold(0.0, f32::max);
+        assert!(dr < 1e-6 && dc < 1e-6, "visual rotation/confidence moved by {dr}/{dc}");
+        assert!(dt > 1e-6, "the visual translation ignores touch");
+        // Shapes: both channels, n estimates each.
+        assert_eq!(oa.rotation.dims(), [b, 2 * n, 4]);
+        assert_eq!(oa.translation.dims(), [b, 2 * n, 3]);
     }
 }

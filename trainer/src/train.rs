@@ -237,6 +237,7 @@ pub fn train(cfg: &TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
         seed: cfg.train.seed,
         split: "train".into(),
         slots: slots.clone(),
+        closest_point: closest_point_table(&models, &cfg.train.symmetric_loss)?,
     };
     let passes: Vec<Pass> = (state.epochs_done + 1..=cfg.train.epochs)
         .map(|e| Pass { epoch: e as u64, order: shuffled(n_train, cfg.train.seed, e as u64) })
@@ -348,6 +349,16 @@ pub fn train(cfg: &TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
 /// Head slot of each dataset object (`None`: not trained on).
 pub fn slot_table(models: &[crate::data::ObjectModel], objects: &[String]) -> Vec<Option<usize>> {
     models.iter().map(|m| objects.iter().position(|o| o == &m.id)).collect()
+}
+
+/// Per dataset object: trained with the closest-point loss (`train.symmetric_loss` lists its id).
+pub fn closest_point_table(models: &[crate::data::ObjectModel], ids: &[String]) -> Result<Vec<bool>> {
+    for id in ids {
+        if !models.iter().any(|m| &m.id == id) {
+            bail!("train.symmetric_loss: '{id}' is not an object of the dataset");
+        }
+    }
+    Ok(models.iter().map(|m| ids.contains(&m.id)).collect())
 }
 
 fn save_model(model: &PoseNet, path: &Path) -> Result<()> {

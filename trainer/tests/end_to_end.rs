@@ -68,6 +68,7 @@ fn small_config(variant: Variant) -> TrainConfig {
         point_dims: [16, 32],
         global_dims: vec![64, 128],
         head_dims: vec![64],
+        ..ModelConfig::default()
     };
     c.data = DataConfig { n_points: 64, n_tactile: 32, n_model_points: 64, crop_size: 32, ..DataConfig::default() };
     c.augment = AugmentConfig::NONE;
@@ -100,6 +101,7 @@ fn data_pipeline_mirrors_the_python_view() {
         seed: 0,
         split: "train".into(),
         slots: slot_table(&models, &objects),
+        closest_point: vec![false; models.len()],
     };
     let mut touched = 0;
     for i in 0..src.len() {
@@ -175,9 +177,9 @@ fn data_pipeline_mirrors_the_python_view() {
 
 /// Trains the small Tactile-Channel network on four samples of `object` (the same points every
 /// epoch, no augmentation) and evaluates it on those samples, trained and untrained.
-/// M = 500 model points as the paper: the closest-point loss of a symmetric object (both
-/// tiny-hand objects are) keeps a floor of about half the model-point spacing when the network
-/// settles on a symmetric twin of the true pose, ~4 mm at M = 500 (~1 cm at M = 64).
+/// M = 500 model points as the paper. With `closest_point` the object is trained with the
+/// closest-point loss (`train.symmetric_loss`), which keeps a floor of about half the model-point
+/// spacing when the network settles on a symmetric twin of the true pose, ~4 mm at M = 500.
 struct Overfit {
     /// The first epoch's loss over the mean of the last ten.
     loss_ratio: f64,
@@ -185,9 +187,12 @@ struct Overfit {
     untrained: Vec<vt_trainer::eval::SampleResult>,
 }
 
-fn overfit(object: &str) -> Overfit {
+fn overfit(object: &str, closest_point: bool) -> Overfit {
     let mut cfg = small_config(Variant::TactileChannel);
     cfg.objects = vt_trainer::config::ObjectSelection::List(vec![object.into()]);
+    if closest_point {
+        cfg.train.symmetric_loss = vec![object.into()];
+    }
     cfg.data.n_points = 32;
     cfg.data.n_model_points = 500;
     cfg.data.resample = false;
@@ -233,7 +238,8 @@ fn overfit(object: &str) -> Overfit {
 
 #[test]
 fn overfits_a_handful_of_samples() {
-    let run = overfit("005_tomato_soup_can");
+    // The soup can's stand-in is a body of revolution: the closest-point loss (opt-in).
+    let run = overfit("005_tomato_soup_can", true);
     assert!(run.loss_ratio >= 5.0, "the loss fell only {:.2}x", run.loss_ratio);
     // Evaluated on the samples it saw, the trained network beats the untrained one widely.
     let (a, b) = (Summary::of(&run.trained), Summary::of(&run.untrained));
@@ -241,16 +247,16 @@ fn overfits_a_handful_of_samples() {
     assert!(a.adds_cm.mean < 0.25 * b.adds_cm.mean, "ADD-S {} vs untrained {}", a.adds_cm, b.adds_cm);
 }
 
-/// A box overfits too: on the gelatin box the trained network's pose is close to the truth up to
-/// the box's symmetry (ADD-S, what the closest-point loss minimizes) and its position is right.
-/// The rotation alone is not asserted: the closest-point loss barely tells a 90° turn about the
-/// box's thin axis (8.9 × 7.3 cm faces) from the truth, and on some data the overfit settles on
-/// such a twin (angles up to symmetry of 1° on one sample and 85–90° on three were seen).
+/// Orientation is learnable: with the paper's loss (plain ADD, the default) the network brings
+/// the gelatin box's angle error on the samples it trained on far below 20°, where the untrained
+/// network is tens of degrees off; the position follows.
 #[test]
-fn overfits_a_box_up_to_its_symmetry() {
-    let run = overfit("009_gelatin_box");
+fn learns_the_orientation_of_a_box_with_the_paper_loss() {
+    let run = overfit("009_gelatin_box", false);
     let (a, b) = (Summary::of(&run.trained), Summary::of(&run.untrained));
-    assert!(a.adds_cm.mean < 0.25 * b.adds_cm.mean, "ADD-S {} vs untrained {}", a.adds_cm, b.adds_cm);
+    assert!(a.angle_deg.mean < 20.0, "angle {} (untrained {})", a.angle_deg, b.angle_deg);
+    assert!(b.angle_deg.mean > 40.0, "the untrained network is already right? {}", b.angle_deg);
+    assert!(a.add_cm.mean < 0.25 * b.add_cm.mean, "ADD {} vs untrained {}", a.add_cm, b.add_cm);
     assert!(a.position_cm.mean < 0.25 * b.position_cm.mean, "position {} vs untrained {}", a.position_cm, b.position_cm);
 }
 
@@ -292,9 +298,70 @@ fn every_variant_trains_and_evaluates() {
         "Vision-only baseline",
         "< 80 %",
         "| 240 |",
+        "## What touch buys: paired per grasp",
+        "## Which channel answers",
     ] {
         assert!(md.contains(section), "report lacks {section}:\n{md}");
     }
+    // Every tactile network (with colour) is paired with the baseline, per grasp.
+    let pairs = vt_trainer::eval::comparisons(&evals);
+    assert_eq!(pairs.len(), 3, "tactile_channel, non_siamese, no_global vs vision_only");
+    let p = vt_trainer::compare::paired(&pairs[0].0.results, &pairs[0].1.results).expect("tiny-hand records trajectories");
+    assert_eq!(p.grasps.iter().map(|g| g.samples).sum::<usize>(), pairs[0].0.results.len());
+    let report_dir = tempfile::Builder::new().prefix("vtpose-report-").tempdir().unwrap();
+    vt_trainer::eval::write_report(&evals, "test", "cpu", report_dir.path()).unwrap();
+    for f in ["report.md", "results.json", "occlusion-position.svg", "occlusion-angle.svg", "objects-position.svg"] {
+        assert!(report_dir.path().join(f).is_file(), "{f}");
+    }
+    let csv = std::fs::read_to_string(report_dir.path().join(format!("samples-{}.csv", evals[0].name))).unwrap();
+    assert!(csv.starts_with("index,object,trajectory,instance,"), "{csv}");
+    assert!(std::fs::read_dir(report_dir.path()).unwrap().flatten().any(|e| e.file_name().to_string_lossy().starts_with("paired-")));
+}
+
+/// The paper's tactile-point experiment: one network trained per count.
+#[test]
+fn sweep_trains_one_network_per_count() {
+    let mut cfg = small_config(Variant::TactileChannel);
+    cfg.train.epochs = 1;
+    let out = tempfile::Builder::new().prefix("vtpose-sweep-").tempdir().unwrap();
+    let opts = vt_trainer::sweep::SweepOptions {
+        counts: vec![4, 12],
+        out: out.path().to_path_buf(),
+        baseline: None,
+        max_samples: 4,
+        device: cpu(),
+        quiet: true,
+    };
+    let evals = vt_trainer::sweep::sweep(&cfg, &opts).unwrap();
+    assert_eq!(evals.iter().map(|e| e.n_tactile).collect::<Vec<_>>(), [4, 12]);
+    for nt in [4, 12] {
+        let run = RunDir(vt_trainer::sweep::run_dir(out.path(), nt));
+        assert_eq!(run.load_state().unwrap().epochs_done, 1);
+        let (c, _, _) = run.load_model(&cpu()).unwrap();
+        assert_eq!(c.data.n_tactile, nt, "each run trained with its own count");
+    }
+    for f in ["report.md", "sweep-position.svg", "sweep-angle.svg"] {
+        assert!(out.path().join(f).is_file(), "{f}");
+    }
+    // Rerun: the finished runs are kept, not retrained.
+    let before = std::fs::metadata(out.path().join("nt-0004/model.bpk")).unwrap().modified().unwrap();
+    vt_trainer::sweep::sweep(&cfg, &opts).unwrap();
+    assert_eq!(std::fs::metadata(out.path().join("nt-0004/model.bpk")).unwrap().modified().unwrap(), before);
+}
+
+/// burn's wgpu backend trains on Mesa's lavapipe (a GPU path CI can run): finite losses that fall.
+#[test]
+fn trains_on_wgpu_lavapipe() {
+    let device = vt_trainer::device::parse("wgpu:cpu").unwrap();
+    let mut cfg = small_config(Variant::TactileChannel);
+    cfg.data.resample = false;
+    cfg.train.max_train_samples = 8;
+    cfg.train.epochs = 8;
+    let (_guard, out) = run_dir("wgpu");
+    let s = train(&cfg, &TrainOptions { device, ..quiet(out) }).unwrap();
+    let losses: Vec<f64> = s.epochs.iter().map(|e| e.loss).collect();
+    assert!(losses.iter().all(|l| l.is_finite()), "{losses:?}");
+    assert!(losses[losses.len() - 1] < 0.8 * losses[0], "the loss did not fall on wgpu: {losses:?}");
 }
 
 #[test]
@@ -353,6 +420,9 @@ fn the_cli_trains_evaluates_and_benchmarks() {
     assert_eq!(row[7], "3", "evaluated 3 test samples during training: {csv}");
     vtpose(&["train", c, "--out", r, "--resume", "--epochs", "2", "--quiet"]);
     assert_eq!(std::fs::read_to_string(run.join("metrics.csv")).unwrap().lines().count(), 3);
+    // --resume without the config: the run's own config.yaml; --epochs is the new total.
+    vtpose(&["train", "--out", r, "--resume", "--epochs", "3", "--quiet"]);
+    assert_eq!(std::fs::read_to_string(run.join("metrics.csv")).unwrap().lines().count(), 4);
     let eval_dir = dir.path().join("eval");
     let md = vtpose(&["eval", r, "--out", eval_dir.to_str().unwrap(), "--max-samples", "3", "--quiet"]);
     assert!(
