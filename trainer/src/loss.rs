@@ -249,6 +249,8 @@ mod tests {
                 slot: 0,
                 symmetric,
                 occlusion: 0.5,
+                trajectory: 0,
+                instance: 0,
                 cloud: vec![],
                 choose: vec![],
                 img: vec![],
