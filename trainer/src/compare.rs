@@ -186,7 +186,8 @@ mod tests {
     fn pairs_by_grasp() {
         // Two grasps of two samples each; touch better on the first, worse on the second.
         let t = [result("a", 0, 1, 1.0, true), result("a", 1, 1, 2.0, false), result("a", 2, 6, 3.0, true), result("a", 3, 6, 3.0, true)];
-        let v = [result("a", 0, 1, 2.0, false), result("a", 1, 1, 2.0, false), result("a", 2, 6, 1.0, false), result("a", 3, 6, 1.0, false)];
+        let v =
+            [result("a", 0, 1, 2.0, false), result("a", 1, 1, 2.0, false), result("a", 2, 6, 1.0, false), result("a", 3, 6, 1.0, false)];
         let p = paired(&t, &v).unwrap();
         assert_eq!(p.grasps.len(), 2);
         assert_eq!((p.grasps[0].tactile_position_cm, p.grasps[0].vision_position_cm), (1.5, 2.0));

@@ -53,12 +53,7 @@ fn conv(c_in: usize, c_out: usize, k: usize, stride: usize, dilation: usize, bia
 }
 
 fn resize(x: Tensor<4>, size: [usize; 2]) -> Tensor<4> {
-    Interpolate2dConfig::new()
-        .with_output_size(Some(size))
-        .with_mode(InterpolateMode::Linear)
-        .with_align_corners(false)
-        .init()
-        .forward(x)
+    Interpolate2dConfig::new().with_output_size(Some(size)).with_mode(InterpolateMode::Linear).with_align_corners(false).init().forward(x)
 }
 
 // --------------------------------------------------------------------------------------------
@@ -188,8 +183,11 @@ impl ResnetPsp {
         }
         let [_, _, fh, fw] = x.dims();
         // Pyramid pooling: every level pooled, projected and brought back to the feature size.
-        let mut levels: Vec<Tensor<4>> =
-            PSP_BINS.iter().zip(&self.pyramid).map(|(&bins, c)| resize(c.forward(adaptive_avg_pool2d(x.clone(), [bins, bins])), [fh, fw])).collect();
+        let mut levels: Vec<Tensor<4>> = PSP_BINS
+            .iter()
+            .zip(&self.pyramid)
+            .map(|(&bins, c)| resize(c.forward(adaptive_avg_pool2d(x.clone(), [bins, bins])), [fh, fw]))
+            .collect();
         levels.push(x);
         let mut y = relu(self.bottleneck.forward(Tensor::cat(levels, 1)));
         // Three ×2 stages back to the crop's resolution (the last one lands exactly on S × S).

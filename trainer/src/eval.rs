@@ -500,7 +500,10 @@ fn touch_section(s: &mut String, evals: &[ModelEval]) {
          network's mean error over the grasp's samples; `better` counts the grasps on which the tactile network's mean \
          error is lower. p: two-sided exact sign test (ties dropped). Δ: mean over grasps of tactile − vision (negative: touch helps).\n"
     );
-    let _ = writeln!(s, "| tactile run | vs | grasps | position: better / worse | p | Δ position (cm) | angle: better / worse | p | Δ angle (°) |");
+    let _ = writeln!(
+        s,
+        "| tactile run | vs | grasps | position: better / worse | p | Δ position (cm) | angle: better / worse | p | Δ angle (°) |"
+    );
     let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|");
     for (t, v) in &pairs {
         match crate::compare::paired(&t.results, &v.results) {
@@ -532,7 +535,10 @@ fn touch_section(s: &mut String, evals: &[ModelEval]) {
         "The tactile network picks its most confident estimate from either channel. Share: samples answered by the \
          tactile channel; the position error and mean confidence of the samples each channel answered.\n"
     );
-    let _ = writeln!(s, "| run | occlusion | n | tactile share (%) | position, tactile answers (cm) | position, visual answers (cm) | confidence tactile / visual |");
+    let _ = writeln!(
+        s,
+        "| run | occlusion | n | tactile share (%) | position, tactile answers (cm) | position, visual answers (cm) | confidence tactile / visual |"
+    );
     let _ = writeln!(s, "|---|---|---|---|---|---|---|");
     for (t, _) in &pairs {
         let rows = std::iter::once(("all".to_string(), crate::compare::channel_use(&t.results))).chain(OcclusionBin::ALL.iter().map(|b| {

@@ -295,9 +295,7 @@ impl PoseNetConfig {
             global: v.global_feature().then(|| MlpConfig::new(global_in, self.global_dims.clone()).init(device)),
             visual: v.uses_color().then(|| heads(own_dim, translation_dim, &self.head_dims, o, true, device)),
             // The tactile channel has its own rotation head unless it shares the visual one.
-            tactile: v
-                .uses_tactile()
-                .then(|| heads(own_dim, translation_dim, &self.head_dims, o, !(siamese && v.uses_color()), device)),
+            tactile: v.uses_tactile().then(|| heads(own_dim, translation_dim, &self.head_dims, o, !(siamese && v.uses_color()), device)),
             variant: v,
         }
     }
@@ -505,7 +503,8 @@ mod tests {
         let (oa, ob) = (net.forward(&a), net.forward(&moved));
         let visual = |t: Tensor<3>| t.narrow(1, 0, n);
         let dr = values((visual(oa.rotation.clone()) - visual(ob.rotation.clone())).abs()).into_iter().fold(0.0, f32::max);
-        let dc = values((oa.confidence.clone().narrow(1, 0, n) - ob.confidence.clone().narrow(1, 0, n)).abs()).into_iter().fold(0.0, f32::max);
+        let dc =
+            values((oa.confidence.clone().narrow(1, 0, n) - ob.confidence.clone().narrow(1, 0, n)).abs()).into_iter().fold(0.0, f32::max);
         let dt = values((visual(oa.translation.clone()) - visual(ob.translation.clone())).abs()).into_iter().fold(0.0, f32::max);
         assert!(dr < 1e-6 && dc < 1e-6, "visual rotation/confidence moved by {dr}/{dc}");
         assert!(dt > 1e-6, "the visual translation ignores touch");

@@ -59,12 +59,7 @@ fn y_axis(s: &mut String, y_max: f64, step: f64, label: &str) -> impl Fn(f64) ->
         );
         v += step;
     }
-    let _ = writeln!(
-        s,
-        r#"<text transform="translate(18,{}) rotate(-90)" text-anchor="middle">{}</text>"#,
-        TOP + plot_h / 2.0,
-        esc(label)
-    );
+    let _ = writeln!(s, r#"<text transform="translate(18,{}) rotate(-90)" text-anchor="middle">{}</text>"#, TOP + plot_h / 2.0, esc(label));
     let _ = writeln!(s, r#"<line x1="{LEFT}" x2="{LEFT}" y1="{TOP}" y2="{}" stroke="black"/>"#, H - BOTTOM);
     y
 }
@@ -164,7 +159,8 @@ pub fn paired_scatter(title: &str, unit: &str, points: &[(f64, f64)], x_name: &s
         let color = if b < a { COLORS[2] } else { COLORS[3] };
         let _ = writeln!(s, r#"<circle cx="{:.1}" cy="{:.1}" r="3.5" fill="{color}" fill-opacity="0.8"/>"#, x(a), y(b));
     }
-    let _ = writeln!(s, r#"<text x="{}" y="{}" text-anchor="middle">{} ({unit})</text>"#, LEFT + plot_w / 2.0, H - BOTTOM + 34.0, esc(x_name));
+    let _ =
+        writeln!(s, r#"<text x="{}" y="{}" text-anchor="middle">{} ({unit})</text>"#, LEFT + plot_w / 2.0, H - BOTTOM + 34.0, esc(x_name));
     let below = points.iter().filter(|(a, b)| b < a).count();
     let _ = writeln!(
         s,
@@ -178,6 +174,9 @@ pub fn paired_scatter(title: &str, unit: &str, points: &[(f64, f64)], x_name: &s
     s
 }
 
+/// One figure of a summary (position, angle, ...).
+type Metric = fn(&Summary) -> MeanSe;
+
 /// Writes `occlusion.svg`, `objects.svg` and, with a tactile and a vision-only run, `paired-*.svg`.
 pub fn write_plots(evals: &[ModelEval], out: &Path) -> Result<()> {
     let write = |name: &str, svg: String| {
@@ -188,12 +187,14 @@ pub fn write_plots(evals: &[ModelEval], out: &Path) -> Result<()> {
     // By occlusion bin (and overall).
     let mut groups = vec!["all".to_string()];
     groups.extend(OcclusionBin::ALL.iter().map(|b| b.label().to_string()));
-    let bins = |e: &ModelEval, f: fn(&Summary) -> MeanSe| -> Vec<MeanSe> {
+    let bins = |e: &ModelEval, f: Metric| -> Vec<MeanSe> {
         std::iter::once(f(&Summary::of(&e.results)))
-            .chain(OcclusionBin::ALL.iter().map(|b| f(&Summary::of(e.results.iter().filter(|r| OcclusionBin::of(r.occlusion) == Some(*b))))))
+            .chain(
+                OcclusionBin::ALL.iter().map(|b| f(&Summary::of(e.results.iter().filter(|r| OcclusionBin::of(r.occlusion) == Some(*b))))),
+            )
             .collect()
     };
-    let series = |f: fn(&Summary) -> MeanSe, by: &dyn Fn(&ModelEval, fn(&Summary) -> MeanSe) -> Vec<MeanSe>| {
+    let series = |f: Metric, by: &dyn Fn(&ModelEval, Metric) -> Vec<MeanSe>| {
         evals.iter().zip(&names).map(|(e, n)| (n.clone(), by(e, f))).collect::<Vec<_>>()
     };
     write(
@@ -202,12 +203,19 @@ pub fn write_plots(evals: &[ModelEval], out: &Path) -> Result<()> {
     )?;
     write("occlusion-angle.svg", bar_chart("Angle error by occlusion level", "angle error (°)", &groups, &series(|s| s.angle_deg, &bins)))?;
     // By object.
-    let objects: Vec<String> =
-        evals.iter().flat_map(|e| e.results.iter().map(|r| r.object.clone())).collect::<std::collections::BTreeSet<_>>().into_iter().collect();
-    let per_object = |e: &ModelEval, f: fn(&Summary) -> MeanSe| -> Vec<MeanSe> {
+    let objects: Vec<String> = evals
+        .iter()
+        .flat_map(|e| e.results.iter().map(|r| r.object.clone()))
+        .collect::<std::collections::BTreeSet<_>>()
+        .into_iter()
+        .collect();
+    let per_object = |e: &ModelEval, f: Metric| -> Vec<MeanSe> {
         objects.iter().map(|o| f(&Summary::of(e.results.iter().filter(|r| &r.object == o)))).collect()
     };
-    write("objects-position.svg", bar_chart("Position error by object", "position error (cm)", &objects, &series(|s| s.position_cm, &per_object)))?;
+    write(
+        "objects-position.svg",
+        bar_chart("Position error by object", "position error (cm)", &objects, &series(|s| s.position_cm, &per_object)),
+    )?;
     // Paired per grasp.
     for (t, v) in comparisons(evals) {
         if let Some(p) = crate::compare::paired(&t.results, &v.results) {
@@ -234,7 +242,8 @@ mod tests {
     #[test]
     fn bars_scale_to_the_data_and_the_svg_is_well_formed() {
         let m = |mean: f64| MeanSe { mean, se: 0.1, n: 10 };
-        let svg = bar_chart("t", "cm", &["a".into(), "b".into()], &[("x".into(), vec![m(1.0), m(3.0)]), ("y".into(), vec![m(2.0), m(0.5)])]);
+        let svg =
+            bar_chart("t", "cm", &["a".into(), "b".into()], &[("x".into(), vec![m(1.0), m(3.0)]), ("y".into(), vec![m(2.0), m(0.5)])]);
         assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"));
         // Four bars with their whiskers, legend squares besides.
         assert_eq!(svg.matches("<title>").count(), 4);

@@ -74,9 +74,15 @@ pub fn sweep(cfg: &TrainConfig, opts: &SweepOptions) -> Result<Vec<ModelEval>> {
     };
     let evals = evaluate_runs(&runs, &cmd)?;
     write_report(&evals, "test", &format!("{:?}", opts.device), &opts.out)?;
-    let groups: Vec<String> = evals.iter().map(|e| if e.variant.uses_tactile() { e.n_tactile.to_string() } else { "vision only".into() }).collect();
+    let groups: Vec<String> =
+        evals.iter().map(|e| if e.variant.uses_tactile() { e.n_tactile.to_string() } else { "vision only".into() }).collect();
     for (file, title, label, f) in [
-        ("sweep-position.svg", "Position error by number of tactile points (one network each)", "position error (cm)", (|s: &Summary| s.position_cm) as fn(&Summary) -> MeanSe),
+        (
+            "sweep-position.svg",
+            "Position error by number of tactile points (one network each)",
+            "position error (cm)",
+            (|s: &Summary| s.position_cm) as fn(&Summary) -> MeanSe,
+        ),
         ("sweep-angle.svg", "Angle error by number of tactile points (one network each)", "angle error (°)", |s: &Summary| s.angle_deg),
     ] {
         let values: Vec<MeanSe> = evals.iter().map(|e| f(&Summary::of(&e.results))).collect();
