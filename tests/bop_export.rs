@@ -52,6 +52,44 @@ fn bop_pixel_counts_match_the_generators_measurements() {
     }
     assert_eq!(images, infos.len());
     assert!(bop.join("models/obj_000001.ply").is_file() && bop.join("camera.json").is_file());
+    // The symmetries are the ones measured on the meshes (models_info.json), in mm, and they hold on
+    // the exported models: the cracker box's three flips, the soup can's revolution axis.
+    let ours: vt_dataset::ModelsInfo = serde_json::from_value(json(&ds.join("models/models_info.json"))).unwrap();
+    let info = json(&bop.join("models/models_info.json"));
+    for m in &ours.objects {
+        let entry = &info[(m.object_index + 1).to_string()];
+        let ply = vt_dataset::read_ply(&bop.join(format!("models/obj_{:06}.ply", m.object_index + 1))).unwrap();
+        let indices: Vec<u32> = ply.triangles.iter().flatten().copied().collect();
+        let check = vt_objects::SymmetryChecker::new(&ply.positions, &indices);
+        let tolerance_mm = 0.01 * entry["diameter"].as_f64().unwrap();
+        let mut transforms = Vec::new();
+        let discrete = entry["symmetries_discrete"].as_array().cloned().unwrap_or_default();
+        assert_eq!(discrete.len(), m.symmetries_discrete.len(), "{}", m.id);
+        for (t, t_m) in discrete.iter().zip(&m.symmetries_discrete) {
+            let t: Vec<f64> = t.as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+            for k in 0..16 {
+                let scale = if k % 4 == 3 && k < 12 { 1000.0 } else { 1.0 };
+                assert!((t[k] - t_m[k] * scale).abs() < 1e-9, "{}: {t:?} vs {t_m:?}", m.id);
+            }
+            transforms.push(glam::DMat4::from_cols_array(&t.try_into().unwrap()).transpose());
+        }
+        let continuous = entry["symmetries_continuous"].as_array().cloned().unwrap_or_default();
+        assert_eq!(continuous.len(), m.symmetries_continuous.len(), "{}", m.id);
+        for c in &continuous {
+            let v = |k: &str| glam::DVec3::from_slice(&c[k].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect::<Vec<_>>());
+            transforms.extend(vt_objects::revolution_turns(&vt_objects::ContinuousAxis { axis: v("axis"), offset: v("offset") }));
+        }
+        for t in &transforms {
+            let d = check.displacement(t);
+            assert!(d.p99 <= tolerance_mm, "{}: a BOP symmetry moves the exported model by {d:?} mm", m.id);
+        }
+        let want = match m.id.as_str() {
+            "003_cracker_box" => (3, 0),
+            "005_tomato_soup_can" => (0, 1),
+            _ => (0, 0),
+        };
+        assert_eq!((discrete.len(), continuous.len()), want, "{}", m.id);
+    }
     // A second export into the same directory is refused, and the first stays intact.
     let again = run(&["export", "bop", ds.to_str().unwrap(), bop.to_str().unwrap(), "--quiet"]);
     assert!(!again.status.success() && stderr(&again).contains("not empty"), "{}", stderr(&again));

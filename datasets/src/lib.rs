@@ -12,7 +12,7 @@ mod sample;
 mod writer;
 
 pub use glb::{ColoredMesh, encode_glb, srgb_to_linear};
-pub use manifest::{Manifest, ModelInfo, ModelsInfo, ShardEntry, SplitManifest, sha256_file, write_atomic};
+pub use manifest::{ContinuousSymmetry, Manifest, ModelInfo, ModelsInfo, ShardEntry, SplitManifest, sha256_file, write_atomic};
 pub use ply::{PlyMesh, read_ply, write_ply};
 pub use reader::{DatasetReader, ShardReader};
 pub use sample::{Pose, Sample, ShardMeta, TactileData, TactilePointRecord};

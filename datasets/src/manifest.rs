@@ -66,12 +66,30 @@ pub struct ModelInfo {
     pub id: String,
     pub object_index: u32,
     pub mask_id: u8,
+    /// The kind of symmetry that holds on the mesh: `none`, `continuous_z` or `discrete` (the
+    /// catalogue's kind, or `none` when none of its symmetries passed the check on the mesh).
     pub symmetry: String,
     pub mass: f64,
     pub extents: [f64; 3],
     pub diameter: f64,
     pub source: String,
     pub file: String,
+    /// The 180° flips that map the mesh onto itself, verified on it: 4×4 rigid transforms in the
+    /// model frame, row-major (BOP's layout), translation in metres. Empty (and absent from the
+    /// file) for other kinds and in datasets written before they were measured.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub symmetries_discrete: Vec<[f64; 16]>,
+    /// The revolution axis that maps the mesh onto itself, verified on it (at most one).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub symmetries_continuous: Vec<ContinuousSymmetry>,
+}
+
+/// A continuous symmetry: revolution about the line through `offset` along `axis` (model frame;
+/// `axis` a unit vector, `offset` a point of the line in metres), as BOP's `symmetries_continuous`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ContinuousSymmetry {
+    pub axis: [f64; 3],
+    pub offset: [f64; 3],
 }
 
 /// Size and SHA-256 (hex) of a file.
@@ -98,4 +116,28 @@ pub fn write_atomic(path: &Path, data: &[u8]) -> Result<()> {
     let tmp = path.with_file_name(format!(".{name}.{}.tmp", std::process::id()));
     std::fs::write(&tmp, data).with_context(|| format!("cannot write {}", tmp.display()))?;
     std::fs::rename(&tmp, path).with_context(|| format!("cannot write {}", path.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn models_info_symmetry_transforms_are_optional() {
+        // A dataset written before the transforms were measured still reads.
+        let old = r#"{"objects": [{"id": "009_gelatin_box", "object_index": 0, "mask_id": 1, "symmetry": "discrete",
+            "mass": 0.097, "extents": [0.09, 0.1, 0.03], "diameter": 0.114, "source": "mesh", "file": "009_gelatin_box.ply"}]}"#;
+        let info: ModelsInfo = serde_json::from_str(old).unwrap();
+        assert!(info.objects[0].symmetries_discrete.is_empty() && info.objects[0].symmetries_continuous.is_empty());
+        // Empty lists are left out; filled ones round-trip.
+        let text = serde_json::to_string(&info).unwrap();
+        assert!(!text.contains("symmetries_"), "{text}");
+        let mut o = info.objects[0].clone();
+        let flip_z = [-1.0, 0.0, 0.0, 0.001, 0.0, -1.0, 0.0, -0.002, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0];
+        o.symmetries_discrete = vec![flip_z];
+        o.symmetries_continuous = vec![ContinuousSymmetry { axis: [0.0, 0.0, 1.0], offset: [0.001, 0.0, 0.0] }];
+        let text = serde_json::to_string(&o).unwrap();
+        assert!(text.contains(r#""symmetries_continuous":[{"axis":[0.0,0.0,1.0],"offset":[0.001,0.0,0.0]}]"#), "{text}");
+        assert_eq!(serde_json::from_str::<ModelInfo>(&text).unwrap(), o);
+    }
 }

@@ -15,8 +15,8 @@ use glam::{DMat3, DMat4, DVec3};
 use image::{GrayImage, ImageBuffer, Luma, RgbImage};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::{Value, json};
-use vt_dataset::{DatasetReader, ModelsInfo, Sample, read_ply, write_ply};
-use vt_objects::{Texture, TexturedMesh};
+use vt_dataset::{ContinuousSymmetry, DatasetReader, ModelsInfo, Sample, read_ply, write_ply};
+use vt_objects::{Symmetry, Texture, TexturedMesh};
 
 use crate::config::{Intrinsics, RendererConfig};
 use crate::plan::SPLITS;
@@ -42,33 +42,36 @@ fn row_major(r: DMat3) -> [f64; 9] {
     [c[0], c[3], c[6], c[1], c[4], c[7], c[2], c[5], c[8]]
 }
 
-/// BOP's `models_info.json` entry: bounding box and diameter in mm, and the symmetries the
-/// catalogue declares (continuous about the model z axis; or the three 180° flips of a box).
-fn model_info(m: &vt_dataset::ModelInfo, lo: DVec3, hi: DVec3) -> Value {
+/// BOP's `models_info.json` entry: bounding box and diameter in mm, and the object's symmetries as
+/// `models_info.json` lists them (measured on the mesh by `generate`), translations and offsets
+/// converted to mm. A dataset written before the transforms were listed has only the kind: they are
+/// derived from its mesh (`positions`, `indices`: the model in metres) here, as `generate` does now.
+fn model_info(m: &vt_dataset::ModelInfo, lo: DVec3, hi: DVec3, positions: &[[f32; 3]], indices: &[u32]) -> Value {
     let mut v = json!({
         "diameter": m.diameter * 1000.0,
         "min_x": lo.x * 1000.0, "min_y": lo.y * 1000.0, "min_z": lo.z * 1000.0,
         "size_x": (hi.x - lo.x) * 1000.0, "size_y": (hi.y - lo.y) * 1000.0, "size_z": (hi.z - lo.z) * 1000.0,
     });
-    match m.symmetry.as_str() {
-        "continuous_z" => v["symmetries_continuous"] = json!([{"axis": [0, 0, 1], "offset": [0, 0, 0]}]),
-        "discrete" => {
-            // The model frame is the bounding-box centre, so the flips need no offset.
-            let flips = [
-                DMat3::from_diagonal(DVec3::new(1.0, -1.0, -1.0)),
-                DMat3::from_diagonal(DVec3::new(-1.0, 1.0, -1.0)),
-                DMat3::from_diagonal(DVec3::new(-1.0, -1.0, 1.0)),
-            ];
-            let mats: Vec<Vec<f64>> = flips
-                .iter()
-                .map(|r| {
-                    let rm = row_major(*r);
-                    vec![rm[0], rm[1], rm[2], 0.0, rm[3], rm[4], rm[5], 0.0, rm[6], rm[7], rm[8], 0.0, 0.0, 0.0, 0.0, 1.0]
-                })
-                .collect();
-            v["symmetries_discrete"] = json!(mats);
+    let listed = !m.symmetries_discrete.is_empty() || !m.symmetries_continuous.is_empty();
+    let (discrete, continuous) = match m.symmetry.parse::<Symmetry>() {
+        Ok(kind) if !listed && kind != Symmetry::None => {
+            let d = vt_objects::derive_symmetries(positions, indices, kind);
+            let continuous =
+                d.continuous.iter().map(|a| ContinuousSymmetry { axis: a.axis.to_array(), offset: a.offset.to_array() }).collect();
+            (d.discrete_row_major(), continuous)
         }
-        _ => {}
+        _ => (m.symmetries_discrete.clone(), m.symmetries_continuous.clone()),
+    };
+    if !discrete.is_empty() {
+        let mm: Vec<Vec<f64>> = discrete
+            .iter()
+            .map(|t| t.iter().enumerate().map(|(k, x)| if k % 4 == 3 && k < 12 { x * 1000.0 } else { *x }).collect())
+            .collect();
+        v["symmetries_discrete"] = json!(mm);
+    }
+    if !continuous.is_empty() {
+        v["symmetries_continuous"] =
+            continuous.iter().map(|c| json!({"axis": c.axis, "offset": c.offset.map(|x| x * 1000.0)})).collect::<Vec<Value>>().into();
     }
     v
 }
@@ -144,8 +147,8 @@ pub fn export_bop(root: &Path, out: &Path, renderer: &RendererConfig, quiet: boo
             let v = glam::Vec3::from(*p).as_dvec3();
             (lo.min(v), hi.max(v))
         });
-        bop_info.insert(obj_id.to_string(), model_info(m, lo, hi));
         ids.insert(obj_id.to_string(), json!(m.id));
+        bop_info.insert(obj_id.to_string(), model_info(m, lo, hi, &ply.positions, &indices));
         let mesh = TexturedMesh {
             positions: ply.positions.clone(),
             normals: ply.normals.clone(),
@@ -269,4 +272,66 @@ fn write_image(scene: &mut Scene, dir: &Path, s: &Sample, obj_id: usize, amodal:
         );
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use vt_objects::{Catalog, procedural_mesh};
+
+    fn info(symmetry: &str) -> vt_dataset::ModelInfo {
+        vt_dataset::ModelInfo {
+            id: "box".into(),
+            object_index: 0,
+            mask_id: 1,
+            symmetry: symmetry.into(),
+            mass: 0.1,
+            extents: [0.1, 0.1, 0.03],
+            diameter: 0.114,
+            source: "procedural".into(),
+            file: "box.ply".into(),
+            symmetries_discrete: Vec::new(),
+            symmetries_continuous: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn bop_symmetries_are_the_listed_ones_in_millimetres() {
+        let mut m = info("discrete");
+        m.symmetries_discrete = vec![[-1.0, 0.0, 0.0, 0.002, 0.0, -1.0, 0.0, -0.0005, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0]];
+        let v = model_info(&m, DVec3::splat(-0.05), DVec3::splat(0.05), &[], &[]);
+        assert_eq!(v["symmetries_discrete"], json!([[-1.0, 0.0, 0.0, 2.0, 0.0, -1.0, 0.0, -0.5, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0]]));
+        assert!(v.get("symmetries_continuous").is_none());
+        let mut m = info("continuous_z");
+        m.symmetries_continuous = vec![ContinuousSymmetry { axis: [0.0, 0.6, 0.8], offset: [0.001, -0.002, 0.0] }];
+        let v = model_info(&m, DVec3::splat(-0.05), DVec3::splat(0.05), &[], &[]);
+        assert_eq!(v["symmetries_continuous"], json!([{"axis": [0.0, 0.6, 0.8], "offset": [1.0, -2.0, 0.0]}]));
+        assert!(v.get("symmetries_discrete").is_none());
+        // A symmetry that did not hold on the mesh is written as `none`: nothing to export.
+        let v = model_info(&info("none"), DVec3::splat(-0.05), DVec3::splat(0.05), &[], &[]);
+        assert!(v.get("symmetries_discrete").is_none() && v.get("symmetries_continuous").is_none());
+    }
+
+    /// A dataset written before the transforms were listed: they come from its mesh, not from the
+    /// model axes (a box turned 13° about z, as the real gelatin box).
+    #[test]
+    fn older_datasets_get_the_symmetries_of_their_mesh() {
+        let mut mesh = procedural_mesh(Catalog::builtin().get("009_gelatin_box").unwrap());
+        let q = glam::Quat::from_rotation_z(13f32.to_radians());
+        for p in &mut mesh.positions {
+            *p = (q * glam::Vec3::from(*p)).into();
+        }
+        mesh.center_on_aabb();
+        let v = model_info(&info("discrete"), DVec3::splat(-0.05), DVec3::splat(0.05), &mesh.positions, &mesh.indices);
+        let flips = v["symmetries_discrete"].as_array().unwrap();
+        assert_eq!(flips.len(), 3);
+        // The flip about the box's x axis: R = 2uuᵀ − I with u = (cos 13°, sin 13°, 0).
+        let (c, s) = (13f64.to_radians().cos(), 13f64.to_radians().sin());
+        let want = [2.0 * c * c - 1.0, 2.0 * c * s, 0.0, 2.0 * c * s, 2.0 * s * s - 1.0, 0.0, 0.0, 0.0, -1.0];
+        let got: Vec<f64> = flips[0].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+        for (k, w) in [0, 1, 2, 4, 5, 6, 8, 9, 10].iter().zip(want) {
+            assert!((got[*k] - w).abs() < 1e-4, "{got:?}");
+        }
+        assert!(got[3].abs() < 0.01 && got[7].abs() < 0.01, "through the box centre (mm): {got:?}");
+    }
 }

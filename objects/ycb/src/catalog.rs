@@ -7,9 +7,12 @@ pub enum Symmetry {
     /// No rotation maps the shape onto itself.
     #[default]
     None,
-    /// A body of revolution about the model z axis.
+    /// A body of revolution about an axis near the model z axis (measured on the mesh,
+    /// `derive_symmetries`).
     ContinuousZ,
-    /// Box-like: 180-degree flips about the model axes map the shape onto itself.
+    /// Box-like: 180-degree flips about the box's axes map the shape onto itself. The flips
+    /// themselves are measured on the mesh (`derive_symmetries`): a scan's faces need not be
+    /// aligned with the model axes.
     Discrete,
 }
 
@@ -20,6 +23,18 @@ impl Symmetry {
             Symmetry::ContinuousZ => "continuous_z",
             Symmetry::Discrete => "discrete",
         }
+    }
+}
+
+impl std::str::FromStr for Symmetry {
+    type Err = String;
+
+    /// The inverse of [`Symmetry::as_str`] (e.g. `symmetry` of `models_info.json`).
+    fn from_str(s: &str) -> Result<Self, String> {
+        [Symmetry::None, Symmetry::ContinuousZ, Symmetry::Discrete]
+            .into_iter()
+            .find(|k| k.as_str() == s)
+            .ok_or_else(|| format!("unknown symmetry '{s}' (none, continuous_z or discrete)"))
     }
 }
 
@@ -107,6 +122,8 @@ mod tests {
         for e in c.entries() {
             assert!(e.mass > 0.0 && e.mass < 2.0, "{}", e.id);
             assert!(e.extents.iter().all(|&x| x > 0.005 && x < 0.3), "{}", e.id);
+            assert_eq!(e.symmetry.as_str().parse::<Symmetry>(), Ok(e.symmetry));
         }
+        assert!("box".parse::<Symmetry>().unwrap_err().contains("'box'"));
     }
 }

@@ -76,46 +76,9 @@ impl TexturedMesh {
         }
     }
 
-    /// Largest distance between two vertices (the BOP "diameter"), metres. Exact for meshes up to
-    /// a few thousand vertices; for larger meshes it is computed on the convex-hull candidates
-    /// (the extreme vertices along 64 directions), which is exact for practical scans to < 0.1 mm.
+    /// Largest distance between two vertices (the BOP "diameter"), metres: see [`diameter_of`].
     pub fn diameter(&self) -> f64 {
-        let pts: Vec<Vec3> = if self.positions.len() <= 3000 {
-            self.positions.iter().map(|p| Vec3::from(*p)).collect()
-        } else {
-            let mut idx = std::collections::BTreeSet::new();
-            let n = 16;
-            for i in 0..n {
-                for j in 0..n {
-                    let th = std::f32::consts::PI * (i as f32 + 0.5) / n as f32;
-                    let ph = 2.0 * std::f32::consts::PI * j as f32 / n as f32;
-                    let d = Vec3::new(th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos());
-                    let (mut best_hi, mut best_lo) = (0usize, 0usize);
-                    let (mut vhi, mut vlo) = (f32::NEG_INFINITY, f32::INFINITY);
-                    for (k, p) in self.positions.iter().enumerate() {
-                        let v = d.dot(Vec3::from(*p));
-                        if v > vhi {
-                            vhi = v;
-                            best_hi = k;
-                        }
-                        if v < vlo {
-                            vlo = v;
-                            best_lo = k;
-                        }
-                    }
-                    idx.insert(best_hi);
-                    idx.insert(best_lo);
-                }
-            }
-            idx.into_iter().map(|k| Vec3::from(self.positions[k])).collect()
-        };
-        let mut best = 0.0f64;
-        for (i, a) in pts.iter().enumerate() {
-            for b in &pts[i + 1..] {
-                best = best.max(a.distance(*b) as f64);
-            }
-        }
-        best
+        diameter_of(&self.positions)
     }
 
     /// Recomputes smooth per-vertex normals from the triangles (area-weighted).
@@ -131,4 +94,46 @@ impl TexturedMesh {
         }
         self.normals = n.into_iter().map(|v| v.normalize_or(Vec3::Z).into()).collect();
     }
+}
+
+/// Largest distance between two vertices (the BOP "diameter"), metres. Exact for meshes up to
+/// a few thousand vertices; for larger meshes it is computed on the convex-hull candidates
+/// (the extreme vertices along 64 directions), which is exact for practical scans to < 0.1 mm.
+pub fn diameter_of(positions: &[[f32; 3]]) -> f64 {
+    let pts: Vec<Vec3> = if positions.len() <= 3000 {
+        positions.iter().map(|p| Vec3::from(*p)).collect()
+    } else {
+        let mut idx = std::collections::BTreeSet::new();
+        let n = 16;
+        for i in 0..n {
+            for j in 0..n {
+                let th = std::f32::consts::PI * (i as f32 + 0.5) / n as f32;
+                let ph = 2.0 * std::f32::consts::PI * j as f32 / n as f32;
+                let d = Vec3::new(th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos());
+                let (mut best_hi, mut best_lo) = (0usize, 0usize);
+                let (mut vhi, mut vlo) = (f32::NEG_INFINITY, f32::INFINITY);
+                for (k, p) in positions.iter().enumerate() {
+                    let v = d.dot(Vec3::from(*p));
+                    if v > vhi {
+                        vhi = v;
+                        best_hi = k;
+                    }
+                    if v < vlo {
+                        vlo = v;
+                        best_lo = k;
+                    }
+                }
+                idx.insert(best_hi);
+                idx.insert(best_lo);
+            }
+        }
+        idx.into_iter().map(|k| Vec3::from(positions[k])).collect()
+    };
+    let mut best = 0.0f64;
+    for (i, a) in pts.iter().enumerate() {
+        for b in &pts[i + 1..] {
+            best = best.max(a.distance(*b) as f64);
+        }
+    }
+    best
 }
