@@ -64,6 +64,8 @@ pub struct ObjectModel {
     pub dataset_index: usize,
     /// `none`, `continuous_z` or `discrete` (models_info.json).
     pub symmetry: String,
+    /// The symmetries the "angle up to symmetry" forgives (mesh-verified when the dataset has them).
+    pub symmetries: crate::metrics::Symmetries,
     /// Largest vertex distance, metres.
     pub diameter: f64,
     vertices: Vec<DVec3>,
@@ -100,6 +102,7 @@ impl ObjectModel {
             id: id.to_string(),
             dataset_index,
             symmetry: symmetry.to_string(),
+            symmetries: crate::metrics::Symmetries::of_kind(symmetry),
             diameter,
             vertices,
             triangles: triangles.to_vec(),
@@ -149,7 +152,9 @@ pub fn load_models(root: &Path) -> Result<Vec<ObjectModel>> {
         .iter()
         .map(|o| {
             let mesh = vt_dataset::read_ply(&dir.join(&o.file))?;
-            Ok(ObjectModel::from_mesh(&o.id, o.object_index as usize, &o.symmetry, o.diameter, &mesh.positions, &mesh.triangles))
+            let mut m = ObjectModel::from_mesh(&o.id, o.object_index as usize, &o.symmetry, o.diameter, &mesh.positions, &mesh.triangles);
+            m.symmetries = crate::metrics::Symmetries::from_models_info(&o.symmetry, &o.symmetries_discrete, &o.symmetries_continuous);
+            Ok(m)
         })
         .collect::<Result<_>>()?;
     models.sort_by_key(|m| m.dataset_index);

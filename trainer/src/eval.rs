@@ -21,7 +21,7 @@ use serde::Serialize;
 use crate::config::{AugmentConfig, TACTILE_SWEEP, TrainConfig};
 use crate::data::{Loaded, Loader, Pass, PrepareOptions, SplitSource, load_models};
 use crate::geometry::wxyz_to_quat;
-use crate::metrics::{MeanSe, OcclusionBin, add, add_s, angle_error_deg, angle_error_symmetric_deg, auc, below, position_error_cm};
+use crate::metrics::{MeanSe, OcclusionBin, add, add_s, angle_error_deg, angle_error_up_to_deg, auc, below, position_error_cm};
 use crate::model::{PoseNet, Variant};
 use crate::train::{RunDir, slot_table};
 
@@ -134,7 +134,7 @@ pub fn evaluate(model: &PoseNet, source: SplitSource, opts: &EvalOptions) -> Res
                         tactile_points: p.tactile_count,
                         position_cm: position_error_cm(t_hat, p.translation),
                         angle_deg: angle_error_deg(q_hat, p.rotation),
-                        angle_sym_deg: angle_error_symmetric_deg(q_hat, p.rotation, &m.symmetry),
+                        angle_sym_deg: angle_error_up_to_deg(q_hat, p.rotation, &m.symmetries),
                         add_m: add(&m.eval_points, q_hat, t_hat, p.rotation, p.translation),
                         adds_m: add_s(&m.eval_points, q_hat, t_hat, p.rotation, p.translation),
                         confidence: est.confidence,
