@@ -101,7 +101,7 @@ fn exr_depth_holds_the_exact_float_depth() {
     let out = tempdir();
     let o = run(&["dump", ds.to_str().unwrap(), "--split", "train", "--index", "3", "--out", out.path().to_str().unwrap(), "--exr"]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let (w, h, z) = vtgen::dump::read_exr_depth(&out.path().join("depth.exr")).unwrap();
+    let (w, h, z) = vtgen::cli::dump::read_exr_depth(&out.path().join("depth.exr")).unwrap();
     let reader = vt_dataset::DatasetReader::open(ds).unwrap();
     let s = reader.shards("train").unwrap().into_iter().find(|s| s.indices().any(|i| i == 3)).unwrap().read(3).unwrap();
     assert_eq!((w, h), (s.width, s.height));

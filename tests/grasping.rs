@@ -167,8 +167,8 @@ fn every_tactile_point_lies_on_the_object_surface_within_its_pad() {
 
 #[test]
 fn the_occlusion_level_agrees_with_brute_force() {
+    use vtgen::annotate::occlusion::{model_points, occlusion_level, occlusion_level_brute_force};
     use vtgen::config::Intrinsics;
-    use vtgen::occlusion::{model_points, occlusion_level, occlusion_level_brute_force};
     let dir = hand_dataset();
     let ds = DatasetReader::open(dir).unwrap();
     let info: vt_dataset::ModelsInfo = serde_json::from_slice(&std::fs::read(dir.join("models/models_info.json")).unwrap()).unwrap();
@@ -211,16 +211,19 @@ fn validate_checks_the_tactile_points_too() {
     // A tactile point moved 10 mm outwards from the object's centre is caught.
     let ds = DatasetReader::open(dir).unwrap();
     let info: vt_dataset::ModelsInfo = serde_json::from_slice(&std::fs::read(dir.join("models/models_info.json")).unwrap()).unwrap();
-    let models: Vec<vtgen::validate::Model> =
-        info.objects.iter().map(|o| vtgen::validate::Model::new(&read_ply(&dir.join("models").join(&o.file)).unwrap()).unwrap()).collect();
+    let models: Vec<vtgen::cli::validate::Model> = info
+        .objects
+        .iter()
+        .map(|o| vtgen::cli::validate::Model::new(&read_ply(&dir.join("models").join(&o.file)).unwrap()).unwrap())
+        .collect();
     let mut s =
         ds.samples("train").unwrap().map(|s| s.unwrap()).find(|s| s.tactile.as_ref().is_some_and(|t| !t.points.is_empty())).unwrap();
-    assert_eq!(vtgen::validate::check_ground_truth(&s, &models), None);
+    assert_eq!(vtgen::cli::validate::check_ground_truth(&s, &models), None);
     let centre = s.t_camera_object.translation();
     let p = &mut s.tactile.as_mut().unwrap().points[0];
     let at = glam::Vec3::from(p.position).as_dvec3();
     p.position = (at + (at - centre).normalize() * 0.01).as_vec3().to_array();
-    let msg = vtgen::validate::check_ground_truth(&s, &models).expect("caught");
+    let msg = vtgen::cli::validate::check_ground_truth(&s, &models).expect("caught");
     assert!(msg.contains("tactile point") && msg.contains("off the object's surface"), "{msg}");
 }
 

@@ -3,7 +3,7 @@
 
 use glam::DVec3;
 use vt_dataset::{DatasetReader, read_ply};
-use vtgen::validate::{reproject, surface_points};
+use vtgen::cli::validate::{reproject, surface_points};
 
 use crate::common::*;
 

@@ -154,7 +154,7 @@ fn the_principal_point_is_at_the_pixel_centre_convention() {
 #[test]
 fn a_pad_pressed_on_a_box_sees_its_whole_footprint_and_a_free_pad_sees_nothing() {
     use vtgen::config::TactileConfig;
-    use vtgen::tactile::sense;
+    use vtgen::sensors::tactile::sense;
     let mut r = WgpuRenderer::new(&RendererConfig::default()).unwrap();
     let entry = Catalog::builtin().get("009_gelatin_box").unwrap().clone();
     let boxm = r.upload_mesh(&procedural_mesh(&entry)).unwrap();
@@ -196,7 +196,7 @@ fn tilted_face() -> (WgpuRenderer, Draw, [glam::DAffine3; 12], DVec3, DVec3) {
 #[test]
 fn the_three_sensor_models_report_the_same_surface_patch() {
     use vtgen::config::{SensorGroups, SensorModel, TactileConfig};
-    use vtgen::tactile::sense;
+    use vtgen::sensors::tactile::sense;
     let (mut r, object, pads, normal, on_face) = tilted_face();
     let sizes = [(0.03, 0.02); 12];
     let mut cloud = |model: SensorModel| {
@@ -223,7 +223,7 @@ fn the_three_sensor_models_report_the_same_surface_patch() {
 #[test]
 fn perspective_pads_see_the_same_surface_as_orthographic_ones() {
     use vtgen::config::{PadProjection, TactileConfig};
-    use vtgen::tactile::sense;
+    use vtgen::sensors::tactile::sense;
     let (mut r, object, pads, normal, on_face) = tilted_face();
     let cfg = TactileConfig { projection: PadProjection::Perspective, ..TactileConfig::default() };
     let persp = sense(&mut r, &cfg, &[(0.03, 0.02); 12], &pads, object, &glam::DAffine3::IDENTITY).unwrap();

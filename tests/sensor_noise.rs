@@ -2,21 +2,21 @@
 //! depth as the model says (within 5σ where it reads, nothing on depth edges), while
 //! `/camera/depth` stays the ground truth (the reprojection check holds on it).
 
-use vtgen::sensor_noise::DepthNoise;
+use vtgen::sensors::rgbd_noise::DepthNoise;
 
 #[test]
 fn noisy_depth_follows_the_model_and_the_clean_depth_stays_exact() {
     let dir = crate::grasping::hand_dataset();
     let model = DepthNoise::default();
     let reader = vt_dataset::DatasetReader::open(dir).unwrap();
-    let models: Vec<vtgen::validate::Model> = ["009_gelatin_box", "005_tomato_soup_can"]
+    let models: Vec<vtgen::cli::validate::Model> = ["009_gelatin_box", "005_tomato_soup_can"]
         .iter()
-        .map(|id| vtgen::validate::Model::new(&vt_dataset::read_ply(&dir.join(format!("models/{id}.ply"))).unwrap()).unwrap())
+        .map(|id| vtgen::cli::validate::Model::new(&vt_dataset::read_ply(&dir.join(format!("models/{id}.ply"))).unwrap()).unwrap())
         .collect();
     let (mut valid, mut edges, mut edges_dropped) = (0usize, 0usize, 0usize);
     for s in reader.samples("train").unwrap() {
         let s = s.unwrap();
-        assert_eq!(vtgen::validate::check_ground_truth(&s, &models), None, "sample {}", s.index);
+        assert_eq!(vtgen::cli::validate::check_ground_truth(&s, &models), None, "sample {}", s.index);
         let noisy = s.depth_noisy.as_ref().expect("tiny-hand has a depth noise model");
         let w = s.width as usize;
         for (i, (&d, &n)) in s.depth.iter().zip(noisy).enumerate() {

@@ -11,9 +11,9 @@ use glam::{DAffine3, DMat4, DQuat, DVec3};
 use vt_dataset::{Compression, Pose, Sample, ShardMeta, ShardWriter, TactileData};
 use vt_objects::{Catalog, TexturedMesh, procedural_mesh};
 use vt_robot::RobotModel;
+use vtgen::annotate::occlusion::{model_points, occlusion_level};
 use vtgen::config::{GraspConfig, Intrinsics, PhysicsConfig, RendererConfig};
-use vtgen::grasp::{GraspContext, simulate_trajectory};
-use vtgen::occlusion::{model_points, occlusion_level};
+use vtgen::physics::grasp::{GraspContext, TrajectoryKey, simulate_trajectory};
 use vtgen::physics::{HandPhysics, PhysicsObject, PhysicsSettings, RapierHand};
 use vtgen::render::{DepthView, Draw, Lighting, Renderer, View, WgpuRenderer};
 use vtgen::sample::floor_mesh;
@@ -58,12 +58,22 @@ fn physics(c: &mut Criterion) {
         t_world_base: DAffine3::from_rotation_translation(DQuat::from_rotation_z(std::f64::consts::PI), DVec3::new(0.0, 0.5, 0.0)),
         config: &grasp,
         timestep: settings().timestep,
+        camera_position: DVec3::new(0.0, -0.75, 0.55),
     };
     group.sample_size(10);
     group.bench_function("trajectory of 5 instances (soup can)", |b| {
         b.iter(|| {
             let mut failures = Vec::new();
-            black_box(simulate_trajectory(&ctx, &mut hand, &object, 1, OBJECT, 0, 5, &mut failures).expect("a grasp holds"))
+            black_box(
+                simulate_trajectory(
+                    &ctx,
+                    &mut hand,
+                    &object,
+                    TrajectoryKey { seed: 1, object_id: OBJECT, trajectory: 0, instances: 5 },
+                    &mut failures,
+                )
+                .expect("a grasp holds"),
+            )
         })
     });
     group.finish();

@@ -1,26 +1,23 @@
 //! vtgen: synthetic visuotactile training data for in-hand 6D object pose estimation.
 //!
-//! Data flows one way: config -> plan -> sampled scene -> render -> sample -> shard writer.
-//! Each stage is a module that can be used and tested alone.
+//! Data flows one way, and the modules follow it (ARCHITECTURE.md has the page-long tour):
+//!
+//! config -> plan -> assets -> scene (camera, appearance) -> physics (grasp loop, arm moves)
+//! -> render (main camera, 12 phalanx views) -> sensors (tactile cloud, RGB-D noise)
+//! -> annotate (occlusion) -> sample (assembles one sample) -> output (shards, manifest).
+//!
+//! `cli` holds the subcommands that read, check or convert datasets. Each stage is a module that
+//! can be used and tested alone; physics and rendering sit behind the `HandPhysics` and
+//! `Renderer` traits.
 
+pub mod annotate;
 pub mod assets;
-pub mod bench;
+pub mod cli;
 pub mod config;
-pub mod dump;
-pub mod export;
-pub mod grasp;
-pub mod grasp_check;
-pub mod inspect;
-pub mod occlusion;
+pub mod output;
 pub mod physics;
-pub mod pipeline;
 pub mod plan;
-pub mod preview;
 pub mod render;
 pub mod sample;
 pub mod scene;
-pub mod sensor_noise;
-pub mod stats;
-pub mod tactile;
-pub mod validate;
-pub mod writer_thread;
+pub mod sensors;

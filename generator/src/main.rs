@@ -4,7 +4,7 @@ use std::process::ExitCode;
 use anyhow::Result;
 use clap::{Parser, Subcommand};
 use vtgen::config::LoadedConfig;
-use vtgen::pipeline::{GenerateOptions, generate};
+use vtgen::output::generate::{GenerateOptions, generate};
 use vtgen::plan::{Plan, SPLITS, ShardSelector};
 
 /// Synthetic visuotactile training data for in-hand 6D object pose estimation.
@@ -224,11 +224,19 @@ fn run(cli: Cli) -> Result<()> {
                 human_bytes(est * 0.4)
             );
             println!("output      {}", c.output.dir.display());
+            if let Some(g) = c.robot.as_ref().map(|r| &r.grasp) {
+                // Occlusion depends on the hand's pose in the picture: measured, not planned.
+                println!(
+                    "occlusion   back of the hand to the camera in {:.0}% of arm moves; `vtgen bench {}` measures the share per occlusion bin",
+                    100.0 * g.back_to_camera_share,
+                    config.display()
+                );
+            }
             Ok(())
         }
         Command::Bench { config, samples, jobs, ycb_dir, json } => {
             let cfg = LoadedConfig::load(&config)?;
-            let r = vtgen::bench::bench(&cfg, samples, jobs, ycb_dir.as_ref())?;
+            let r = vtgen::cli::bench::bench(&cfg, samples, jobs, ycb_dir.as_ref())?;
             if json {
                 println!("{}", serde_json::to_string_pretty(&r)?);
             } else {
@@ -254,6 +262,27 @@ fn run(cli: Cli) -> Result<()> {
                 println!("  occlusion        {:7.2} ms", per(r.occlusion));
                 println!("  encode + write   {:7.2} ms  (writer thread, overlapped)", per(r.encode_and_write));
                 println!("peak RSS           {:.0} MiB", r.peak_rss_mib);
+                let bins = vtgen::annotate::occlusion::BINS;
+                println!("occlusion          {:>8} {:>8} {:>8}  (share of samples per bin)", bins[0], bins[1], bins[2]);
+                let mut all = [0u64; 3];
+                for (id, b) in &r.occlusion_bins {
+                    let n = b.iter().sum::<u64>().max(1) as f64;
+                    println!(
+                        "  {id:<24}{:>7.1}% {:>7.1}% {:>7.1}%",
+                        100.0 * b[0] as f64 / n,
+                        100.0 * b[1] as f64 / n,
+                        100.0 * b[2] as f64 / n
+                    );
+                    all.iter_mut().zip(b).for_each(|(a, x)| *a += x);
+                }
+                let n = all.iter().sum::<u64>().max(1) as f64;
+                println!(
+                    "  {:<24}{:>7.1}% {:>7.1}% {:>7.1}%",
+                    "all",
+                    100.0 * all[0] as f64 / n,
+                    100.0 * all[1] as f64 / n,
+                    100.0 * all[2] as f64 / n
+                );
                 for s in &r.skipped_trajectories {
                     println!("skipped            {s}");
                 }
@@ -264,8 +293,8 @@ fn run(cli: Cli) -> Result<()> {
             let cfg = LoadedConfig::load(&config)?;
             let objects = vtgen::assets::load_objects(&cfg, ycb_dir.as_ref())?;
             let jobs = jobs.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
-            let opts = vtgen::grasp_check::GraspCheckOptions { trajectories, instances, jobs, quiet };
-            let r = vtgen::grasp_check::check_grasps(&cfg, &objects, &opts)?;
+            let opts = vtgen::cli::grasps::GraspCheckOptions { trajectories, instances, jobs, quiet };
+            let r = vtgen::cli::grasps::check_grasps(&cfg, &objects, &opts)?;
             if json {
                 println!("{}", serde_json::to_string_pretty(&r)?);
             } else {
@@ -279,13 +308,13 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Command::Preview { source, n, out, width, columns, ycb_dir } => {
-            let samples = vtgen::preview::samples(&source, n, ycb_dir.as_ref())?;
-            vtgen::preview::write_sheet(&samples, &out, width, columns)?;
+            let samples = vtgen::cli::preview::samples(&source, n, ycb_dir.as_ref())?;
+            vtgen::cli::preview::write_sheet(&samples, &out, width, columns)?;
             println!("wrote {} ({} samples)", out.display(), samples.len());
             Ok(())
         }
         Command::Inspect { dataset, json } => {
-            let r = vtgen::inspect::inspect(&dataset)?;
+            let r = vtgen::cli::inspect::inspect(&dataset)?;
             if json {
                 println!("{}", serde_json::to_string_pretty(&r)?);
                 return Ok(());
@@ -320,7 +349,7 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Command::Validate { dataset, full } => {
-            let r = vtgen::validate::validate(&dataset, full)?;
+            let r = vtgen::cli::validate::validate(&dataset, full)?;
             for p in &r.problems {
                 eprintln!("problem: {p}");
             }
@@ -336,7 +365,7 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Command::Stats { dataset, out } => {
-            let files = vtgen::stats::write_stats(&dataset, &out)?;
+            let files = vtgen::cli::stats::write_stats(&dataset, &out)?;
             println!("wrote {} files to {}: {}", files.len(), out.display(), files.join(", "));
             Ok(())
         }
@@ -347,11 +376,11 @@ fn run(cli: Cli) -> Result<()> {
                 .and_then(|b| serde_json::from_slice::<serde_json::Value>(&b).ok())
                 .and_then(|c| serde_json::from_value(c["renderer"].clone()).ok())
                 .unwrap_or_default();
-            let r = vtgen::export::export_bop(&dataset, &out, &renderer, quiet, exr)?;
+            let r = vtgen::cli::export::export_bop(&dataset, &out, &renderer, quiet, exr)?;
             println!("wrote {}: {} objects, {} scenes, {} images (BOP format)", out.display(), r.objects, r.scenes, r.images);
             Ok(())
         }
-        Command::Dump { dataset, split, index, out, exr } => vtgen::dump::dump(&dataset, &split, index, &out, exr),
+        Command::Dump { dataset, split, index, out, exr } => vtgen::cli::dump::dump(&dataset, &split, index, &out, exr),
     }
 }
 

@@ -9,14 +9,14 @@ use vt_dataset::{ColoredMesh, Pose, Sample, SceneModel, TactileData, TactilePoin
 use vt_objects::{Texture, TexturedMesh};
 use vt_randomizers::{AppearanceContext, ImageLibrary, ProceduralTexture, SampleKey, SampleStream};
 
+use crate::annotate::occlusion::{bin as occlusion_bin, model_points, occlusion_level};
 use crate::assets::LoadedObject;
 use crate::config::{Config, LoadedConfig};
-use crate::occlusion::{bin as occlusion_bin, model_points, occlusion_level};
 use crate::plan::SampleRef;
 use crate::render::{Draw, Lighting, Material, MeshHandle, Renderer, View};
 use crate::scene::robot::{GraspStats, RobotScene, link_mesh, mask_id as robot_mask_id};
 use crate::scene::sample_scene;
-use crate::tactile::{pad_sizes, sense};
+use crate::sensors::tactile::{pad_sizes, sense};
 
 pub fn pose_of(t: &DAffine3) -> Pose {
     Pose::from_rt(DQuat::from_mat3(&t.matrix3), t.translation)

@@ -44,7 +44,7 @@ fn dataset() -> &'static Path {
         }
         let out = base.join(format!("vtpose-tiny-hand-{}", std::process::id()));
         let cfg = vtgen::config::LoadedConfig::load(&root().join("scenes/tiny-hand.yaml")).unwrap_or_else(|e| panic!("{e}"));
-        let opts = vtgen::pipeline::GenerateOptions {
+        let opts = vtgen::output::generate::GenerateOptions {
             out: out.clone(),
             shard: vtgen::plan::ShardSelector::ALL,
             resume: false,
@@ -53,7 +53,7 @@ fn dataset() -> &'static Path {
             quiet: true,
             ycb_dir: None,
         };
-        vtgen::pipeline::generate(&cfg, &opts).unwrap_or_else(|e| panic!("generating tiny-hand: {e:#}"));
+        vtgen::output::generate::generate(&cfg, &opts).unwrap_or_else(|e| panic!("generating tiny-hand: {e:#}"));
         out
     })
 }

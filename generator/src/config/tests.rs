@@ -50,3 +50,22 @@ fn the_config_hash_ignores_where_files_live() {
     let c = LoadedConfig::parse(&text.replace("seed: 7", "seed: 8"), Path::new("x.yaml")).unwrap().config;
     assert_ne!(a.canonical_json(), c.canonical_json());
 }
+
+#[test]
+fn back_to_camera_knob_is_checked_and_leaves_other_configs_unchanged() {
+    let text = std::fs::read_to_string(root().join("scenes/tiny-hand.yaml")).unwrap();
+    assert!(text.contains("    max_tilt_deg: 50\n"));
+    let with = |extra: &str| text.replace("    max_tilt_deg: 50\n", &format!("    max_tilt_deg: 50\n{extra}"));
+    let plain = LoadedConfig::parse(&text, Path::new("x.yaml")).unwrap().config;
+    // The knob at its default is not part of the dataset's definition: older datasets keep their hash.
+    assert!(!plain.canonical_json().contains("back_to_camera"));
+    let half = LoadedConfig::parse(&with("    back_to_camera_share: 0.5\n"), Path::new("x.yaml")).unwrap().config;
+    assert_eq!(half.robot.as_ref().unwrap().grasp.back_to_camera_share, 0.5);
+    assert_ne!(plain.canonical_json(), half.canonical_json());
+    let e = LoadedConfig::parse(&with("    back_to_camera_share: 1.5\n"), Path::new("x.yaml")).unwrap_err().to_string();
+    assert!(e.contains("robot.grasp.back_to_camera_share: 1.5 is out of range"), "{e}");
+    let e = LoadedConfig::parse(&with("    back_to_camera_tilt_deg: [120, 80]\n"), Path::new("x.yaml")).unwrap_err().to_string();
+    assert!(e.contains("robot.grasp.back_to_camera_tilt_deg: [120, 80] is not a range"), "{e}");
+    let paper = LoadedConfig::load(&root().join("scenes/paper.yaml")).unwrap().config;
+    assert_eq!(paper.robot.unwrap().grasp.back_to_camera_share, 0.5);
+}

@@ -4,6 +4,7 @@
 //! the hand when the arm reorients or accelerates. (Rotational fictitious forces, below 1% of g for
 //! the arm's speeds, are neglected.) This keeps the grasp stable and identical for every backend.
 
+pub mod grasp;
 #[cfg(feature = "mujoco")]
 mod mujoco_backend;
 mod rapier_backend;
@@ -54,11 +55,9 @@ pub trait HandPhysics {
     /// Deepest penetration (m, >= 0) of any hand link into the object.
     fn max_penetration(&self) -> f64;
     /// Remembers the whole simulation state so that `restore` can undo what follows (an arm move
-    /// that dropped the object). Returns false when the backend cannot: callers then go on without
-    /// undo.
-    fn save(&mut self) -> bool {
-        false
-    }
-    /// Back to the state of the last successful `save` (it stays saved).
-    fn restore(&mut self) {}
+    /// that dropped the object or ended in a pose that cannot be recorded). Every backend must:
+    /// the grasp loop's redo of a move depends on it, and so do the data's bytes.
+    fn save(&mut self);
+    /// Back to the state of the last `save` (it stays saved).
+    fn restore(&mut self);
 }

@@ -280,10 +280,9 @@ impl HandPhysics for MujocoHand {
         self.contact_dists(&self.sim().hand_geoms).map(|d| (-d).max(0.0)).fold(0.0, f64::max)
     }
 
-    fn save(&mut self) -> bool {
+    fn save(&mut self) {
         let sim = self.sim();
         self.saved = Some((sim.data.state(FULL_STATE), sim.data.model_opt().gravity));
-        true
     }
 
     fn restore(&mut self) {

@@ -261,7 +261,7 @@ impl HandPhysics for RapierHand {
         self.hand_colliders.iter().filter_map(|&c| self.contact_distance(c)).map(|d| (-d).max(0.0)).fold(0.0, f64::max)
     }
 
-    fn save(&mut self) -> bool {
+    fn save(&mut self) {
         let w = &self.world;
         self.saved = Some(WorldState {
             gravity: w.gravity,
@@ -273,7 +273,6 @@ impl HandPhysics for RapierHand {
             impulse_joints: w.impulse_joints.clone(),
             multibody_joints: w.multibody_joints.clone(),
         });
-        true
     }
 
     fn restore(&mut self) {

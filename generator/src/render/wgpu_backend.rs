@@ -68,12 +68,15 @@ struct GpuMesh {
     texture: wgpu::Texture,
     /// Triangles grouped into spatial clusters (index range, model-frame bounding box), so that
     /// small views draw only the part of a mesh they can see.
-    clusters: Vec<(std::ops::Range<u32>, glam::DVec3, glam::DVec3)>,
+    clusters: Vec<Cluster>,
 }
+
+/// A range of a mesh's reordered indices and the bounding box (min, max) of its triangles.
+type Cluster = (std::ops::Range<u32>, glam::DVec3, glam::DVec3);
 
 /// Reorders triangles into the cells of an 8x8x8 grid over the mesh's bounding box and returns the
 /// new indices with each non-empty cell's index range and bounding box.
-fn cluster_triangles(mesh: &TexturedMesh) -> (Vec<u32>, Vec<(std::ops::Range<u32>, glam::DVec3, glam::DVec3)>) {
+fn cluster_triangles(mesh: &TexturedMesh) -> (Vec<u32>, Vec<Cluster>) {
     const N: usize = 8;
     let (lo, hi) = mesh.aabb();
     let (lo, size) = (lo.as_dvec3(), (hi - lo).as_dvec3().max(glam::DVec3::splat(1e-9)));

@@ -9,7 +9,7 @@ use vt_objects::{Texture, TexturedMesh};
 use vt_robot::{ARM_JOINTS, Geometry, RobotModel, hand_joint_names};
 
 use crate::config::{LoadedConfig, RobotConfig};
-use crate::grasp::{Failure, GraspContext, Trajectory, simulate_trajectory};
+use crate::physics::grasp::{Failure, GraspContext, Trajectory, TrajectoryKey, simulate_trajectory};
 use crate::physics::{HandPhysics, PhysicsObject, PhysicsSettings, RapierHand};
 
 /// Mask id of a robot link (FORMAT.md): arm links 10–15 (the base counts with link 1), palm and
@@ -157,6 +157,8 @@ pub struct RobotScene {
     current: Option<((u32, u32), Trajectory)>,
     /// Statistics of the trajectory simulated last (attempts, failures, slip).
     pub last_stats: GraspStats,
+    /// The main camera's position (world), for the back-to-camera arm moves.
+    camera_position: DVec3,
 }
 
 impl RobotScene {
@@ -189,7 +191,16 @@ impl RobotScene {
             DVec3::from_array(robot.base_position),
         );
         let objects = objects.iter().map(|o| PhysicsObject { points: o.mesh.positions.clone(), mass: o.mass }).collect();
-        Ok(RobotScene { model, config: robot.clone(), t_world_base, physics, objects, current: None, last_stats: GraspStats::default() })
+        Ok(RobotScene {
+            model,
+            config: robot.clone(),
+            t_world_base,
+            physics,
+            objects,
+            current: None,
+            last_stats: GraspStats::default(),
+            camera_position: DVec3::from_array(cfg.config.camera.position),
+        })
     }
 
     pub fn backend_name(&self) -> &'static str {
@@ -204,16 +215,14 @@ impl RobotScene {
                 t_world_base: self.t_world_base,
                 config: &self.config.grasp,
                 timestep: self.config.physics.timestep,
+                camera_position: self.camera_position,
             };
             let mut failures: Vec<Failure> = Vec::new();
             let result = simulate_trajectory(
                 &ctx,
                 self.physics.as_mut(),
                 &self.objects[object_index as usize],
-                seed,
-                object_id,
-                trajectory,
-                instances,
+                TrajectoryKey { seed, object_id, trajectory, instances },
                 &mut failures,
             );
             let attempts = result.as_ref().map_or(self.config.grasp.max_attempts, |t| t.attempts);

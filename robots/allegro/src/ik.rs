@@ -48,12 +48,12 @@ fn dls_step(j: &[[f64; 6]; 6], e: &[f64; 6], lambda: f64) -> [f64; 6] {
     for col in 0..6 {
         let piv = (col..6).max_by(|&x, &y| a[x][col].abs().total_cmp(&a[y][col].abs())).unwrap();
         a.swap(col, piv);
-        let p = a[col][col];
-        for r in 0..6 {
+        let pivot_row = a[col];
+        for (r, row) in a.iter_mut().enumerate() {
             if r != col {
-                let f = a[r][col] / p;
-                for c in col..7 {
-                    a[r][c] -= f * a[col][c];
+                let f = row[col] / pivot_row[col];
+                for (x, p) in row[col..].iter_mut().zip(&pivot_row[col..]) {
+                    *x -= f * p;
                 }
             }
         }

@@ -94,6 +94,8 @@ impl RobotModel {
         Self::from_urdf_str(&text, &path.display().to_string())
     }
 
+    // `!(a <= b)` on purpose: a NaN limit or axis must fail the checks too.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
     pub fn from_urdf_str(text: &str, source_name: &str) -> Result<Self, RobotError> {
         let err = |message: String| RobotError { source_name: source_name.to_string(), message };
         let urdf = urdf_rs::read_from_string(text).map_err(|e| err(format!("not valid URDF: {e}")))?;

@@ -10,7 +10,7 @@ use glam::DVec3;
 use plotters::prelude::*;
 use vt_dataset::{DatasetReader, Pose};
 
-use crate::inspect::{Inspection, inspect};
+use crate::cli::inspect::{Inspection, inspect};
 
 /// What the plots are made of: one entry per sample.
 #[derive(Debug, Default)]
@@ -124,8 +124,19 @@ fn plot_rotations(c: &Collected, path: &Path) -> Result<()> {
     root.present().map_err(plot_err)
 }
 
-/// A histogram of `values` over [lo, hi) in `bins` bins, with optional vertical markers.
-fn plot_histogram(values: &[f64], lo: f64, hi: f64, bins: usize, caption: &str, x_desc: &str, markers: &[f64], path: &Path) -> Result<()> {
+/// How a histogram looks: `bins` bins over [lo, hi), captions, and vertical markers at `markers`.
+struct HistogramStyle<'a> {
+    lo: f64,
+    hi: f64,
+    bins: usize,
+    caption: &'a str,
+    x_desc: &'a str,
+    markers: &'a [f64],
+}
+
+/// A histogram of `values`.
+fn plot_histogram(values: &[f64], style: &HistogramStyle, path: &Path) -> Result<()> {
+    let HistogramStyle { lo, hi, bins, caption, x_desc, markers } = *style;
     let mut counts = vec![0u64; bins];
     let w = (hi - lo) / bins as f64;
     for v in values {
@@ -192,21 +203,21 @@ pub fn write_stats(root: &Path, out: &Path) -> Result<Vec<String>> {
     let mut files = vec!["positions.svg".to_string(), "rotations.svg".into(), "occlusion.svg".into()];
     plot_positions(&c, &out.join("positions.svg"))?;
     plot_rotations(&c, &out.join("rotations.svg"))?;
-    plot_histogram(
-        &c.occlusion,
-        0.0,
-        1.0,
-        20,
-        "occlusion level (share of model points not visible); red: the paper's bins at 80% and 85%",
-        "occlusion level",
-        &[0.80, 0.85],
-        &out.join("occlusion.svg"),
-    )?;
+    let occlusion = HistogramStyle {
+        lo: 0.0,
+        hi: 1.0,
+        bins: 20,
+        caption: "occlusion level (share of model points not visible); red: the paper's bins at 80% and 85%",
+        x_desc: "occlusion level",
+        markers: &[0.80, 0.85],
+    };
+    plot_histogram(&c.occlusion, &occlusion, &out.join("occlusion.svg"))?;
     let touch = !c.tactile_points.is_empty();
     if touch {
         let pts: Vec<f64> = c.tactile_points.iter().map(|&v| v as f64).collect();
         let hi = pts.iter().copied().fold(1.0, f64::max) + 1.0;
-        plot_histogram(&pts, 0.0, hi, 30, "tactile points per sample", "tactile points", &[], &out.join("tactile_points.svg"))?;
+        let style = HistogramStyle { lo: 0.0, hi, bins: 30, caption: "tactile points per sample", x_desc: "tactile points", markers: &[] };
+        plot_histogram(&pts, &style, &out.join("tactile_points.svg"))?;
         plot_contacts(&c, c.positions.len(), &out.join("contacts.svg"))?;
         files.extend(["tactile_points.svg".to_string(), "contacts.svg".into()]);
     }
@@ -228,7 +239,7 @@ pub fn write_stats(root: &Path, out: &Path) -> Result<Vec<String>> {
     }
     writeln!(md, "\n| figure | value |\n|---|---|")?;
     for (split, bins) in &summary.occlusion {
-        for bin in crate::occlusion::BINS {
+        for bin in crate::annotate::occlusion::BINS {
             writeln!(md, "| occlusion {bin} ({split}) | {} |", bins.get(bin).copied().unwrap_or(0))?;
         }
     }

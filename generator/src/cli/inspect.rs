@@ -46,7 +46,8 @@ pub fn inspect(root: &Path) -> Result<Inspection> {
     let mut tactile = Vec::new();
     let mut contacts: BTreeMap<String, u64> = BTreeMap::new();
     for split in manifest.splits.keys() {
-        let bins = occlusion.entry(split.clone()).or_insert_with(|| crate::occlusion::BINS.iter().map(|b| (b.to_string(), 0)).collect());
+        let bins =
+            occlusion.entry(split.clone()).or_insert_with(|| crate::annotate::occlusion::BINS.iter().map(|b| (b.to_string(), 0)).collect());
         for shard in ds.shards(split)? {
             for index in shard.indices().collect::<Vec<_>>() {
                 let info = shard.read_info(index)?;
@@ -55,7 +56,7 @@ pub fn inspect(root: &Path) -> Result<Inspection> {
                 *samples.entry(split.clone()).or_default().entry(object).or_default() += 1;
                 randomized += info["randomized"].as_bool().unwrap_or(false) as u64;
                 if let Some(level) = info["occlusion"]["level"].as_f64() {
-                    *bins.entry(crate::occlusion::BINS[crate::occlusion::bin(level)].to_string()).or_default() += 1;
+                    *bins.entry(crate::annotate::occlusion::BINS[crate::annotate::occlusion::bin(level)].to_string()).or_default() += 1;
                 }
                 if let Some(points) = info["tactile"]["points"].as_object() {
                     tactile.push(points.values().filter_map(|v| v.as_u64()).sum());

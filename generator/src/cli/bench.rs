@@ -6,8 +6,7 @@
 //! amortised as in a real run and every object is measured. Nothing is written to the dataset.
 
 use std::collections::BTreeMap;
-use std::sync::Mutex;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
 use anyhow::{Result, bail};
@@ -16,10 +15,11 @@ use vt_dataset::ShardMeta;
 
 use crate::assets::load_objects;
 use crate::config::LoadedConfig;
+use crate::output::workers::run_pool;
+use crate::output::writer_thread::WriterThread;
 use crate::plan::{Plan, SampleRef};
 use crate::render::WgpuRenderer;
 use crate::sample::{SampleFactory, StageTimes};
-use crate::writer_thread::WriterThread;
 
 #[derive(Debug, Clone, Serialize)]
 pub struct BenchReport {
@@ -43,6 +43,9 @@ pub struct BenchReport {
     pub peak_rss_mib: f64,
     /// Trajectories left out because no grasp held (the grasp loop's failures), with the reason.
     pub skipped_trajectories: Vec<String>,
+    /// Samples per object and occlusion bin (`occlusion::BINS`), to tune the camera and the grasp
+    /// knobs towards the occlusion the experiment needs without writing a dataset.
+    pub occlusion_bins: BTreeMap<String, [u64; 3]>,
 }
 
 /// The process's peak resident set size (Linux `VmHWM`), MiB.
@@ -85,6 +88,63 @@ fn add(a: &mut StageTimes, b: &StageTimes) {
     a.occlusion += b.occlusion;
 }
 
+/// What one benchmarked trajectory gave.
+struct TrajectoryRun {
+    object_id: String,
+    samples: u64,
+    /// Why the trajectory was left out (the grasp loop gave up), if it was.
+    skipped: Option<String>,
+    occlusion: [u64; 3],
+}
+
+/// Makes and writes the samples of one trajectory (one shard, as `generate` writes shards of whole
+/// trajectories), adding the writer's time to `write`.
+fn bench_trajectory(
+    cfg: &LoadedConfig,
+    factory: &mut SampleFactory,
+    write: &mut Duration,
+    dir: &std::path::Path,
+    i: usize,
+    traj: &Work,
+) -> Result<Option<TrajectoryRun>> {
+    let meta = ShardMeta {
+        generator: crate::output::generate::GENERATOR.into(),
+        seed: cfg.config.seed,
+        config_sha256: String::new(),
+        split: "bench".into(),
+        shard_index: i as u32,
+        first_sample: 0,
+        sample_count: traj.len() as u64,
+        extra: Default::default(),
+    };
+    let object_index = traj[0].2.object_index;
+    let mut run = TrajectoryRun {
+        object_id: cfg.config.objects[object_index as usize].id().to_string(),
+        samples: 0,
+        skipped: None,
+        occlusion: [0; 3],
+    };
+    let mut writer = WriterThread::create(&dir.join(format!("bench-{i}.mcap")), &meta, cfg.config.output.shard_compression())?;
+    writer.set_scene(factory.scene_models(object_index))?;
+    let before = factory.occlusion_histogram;
+    for (k, (split, index, r)) in traj.iter().enumerate() {
+        match factory.make(split, *index, r) {
+            Ok(s) => writer.write_sample(s)?,
+            // The grasp loop gave up on this trajectory (its first sample simulates it): measure
+            // the others.
+            Err(e) if k == 0 && factory.has_robot() => {
+                run.skipped = Some(format!("{e:#}"));
+                return Ok(Some(run));
+            }
+            Err(e) => return Err(e),
+        }
+        run.samples += 1;
+    }
+    *write += writer.finish()?.1;
+    (0..3).for_each(|k| run.occlusion[k] = factory.occlusion_histogram[k] - before[k]);
+    Ok(Some(run))
+}
+
 pub fn bench(cfg: &LoadedConfig, samples: u64, jobs: usize, ycb_dir: Option<&std::path::PathBuf>) -> Result<BenchReport> {
     let plan = Plan::new(&cfg.config);
     let work = select(&plan, samples);
@@ -92,81 +152,44 @@ pub fn bench(cfg: &LoadedConfig, samples: u64, jobs: usize, ycb_dir: Option<&std
         bail!("the config has no samples");
     }
     let objects = load_objects(cfg, ycb_dir)?;
-    let compression = cfg.config.output.shard_compression();
     let dir = std::env::temp_dir().join(format!("vtgen-bench-{}", std::process::id()));
     std::fs::create_dir_all(&dir)?;
     let jobs = jobs.max(1).min(work.len());
-    let next = AtomicUsize::new(0);
-    let made = AtomicUsize::new(0);
-    let totals = Mutex::new((StageTimes::default(), Duration::ZERO, Duration::ZERO, String::new()));
-    let skipped = Mutex::new(Vec::new());
+    let abort = AtomicBool::new(false);
     let started = Instant::now();
-    let result: Result<()> = std::thread::scope(|scope| {
-        let handles: Vec<_> = (0..jobs)
-            .map(|_| {
-                let (work, next, made, totals, skipped, objects, dir) = (&work, &next, &made, &totals, &skipped, &objects, &dir);
-                scope.spawn(move || -> Result<()> {
-                    let renderer = WgpuRenderer::new(&cfg.config.renderer)?;
-                    let mut factory = SampleFactory::new(cfg, objects, Box::new(renderer))?;
-                    let mut write = Duration::ZERO;
-                    loop {
-                        let i = next.fetch_add(1, Ordering::SeqCst);
-                        let Some(traj) = work.get(i) else { break };
-                        // One shard per trajectory, as `generate` writes shards of whole trajectories.
-                        let meta = ShardMeta {
-                            generator: crate::pipeline::GENERATOR.into(),
-                            seed: cfg.config.seed,
-                            config_sha256: String::new(),
-                            split: "bench".into(),
-                            shard_index: i as u32,
-                            first_sample: 0,
-                            sample_count: traj.len() as u64,
-                            extra: Default::default(),
-                        };
-                        let mut writer = WriterThread::create(&dir.join(format!("bench-{i}.mcap")), &meta, compression)?;
-                        writer.set_scene(factory.scene_models(traj[0].2.object_index))?;
-                        let mut complete = true;
-                        for (k, (split, index, r)) in traj.iter().enumerate() {
-                            match factory.make(split, *index, r) {
-                                Ok(s) => writer.write_sample(s)?,
-                                // The grasp loop gave up on this trajectory (its first sample
-                                // simulates it): measure the others.
-                                Err(e) if k == 0 && factory.has_robot() => {
-                                    skipped.lock().expect("not poisoned").push(format!("{e:#}"));
-                                    complete = false;
-                                    break;
-                                }
-                                Err(e) => return Err(e),
-                            }
-                            made.fetch_add(1, Ordering::SeqCst);
-                        }
-                        if complete {
-                            write += writer.finish()?.1;
-                        }
-                    }
-                    let mut t = totals.lock().expect("not poisoned");
-                    add(&mut t.0, &factory.times);
-                    t.1 += write;
-                    t.2 += factory.readback_time();
-                    t.3 = factory.renderer_name();
-                    Ok(())
-                })
-            })
-            .collect();
-        for h in handles {
-            h.join().map_err(|_| anyhow::anyhow!("a bench worker panicked"))??;
-        }
-        Ok(())
-    });
+    let pooled = run_pool(
+        jobs,
+        &work,
+        &abort,
+        || {
+            let renderer = WgpuRenderer::new(&cfg.config.renderer)?;
+            Ok((SampleFactory::new(cfg, &objects, Box::new(renderer))?, Duration::ZERO))
+        },
+        |(factory, write), i, traj| bench_trajectory(cfg, factory, write, &dir, i, traj),
+        |(factory, write)| Ok((factory.times, write, factory.readback_time(), factory.renderer_name())),
+    );
     let seconds = started.elapsed().as_secs_f64();
     let _ = std::fs::remove_dir_all(&dir);
-    result?;
-    let n = made.load(Ordering::SeqCst) as u64;
-    let skipped = skipped.into_inner().expect("not poisoned");
+    let (done, workers) = pooled.into_result()?;
+    let mut n = 0;
+    let mut skipped = Vec::new();
+    let mut occlusion_bins: BTreeMap<String, [u64; 3]> = BTreeMap::new();
+    for (_, t) in done {
+        n += t.samples;
+        skipped.extend(t.skipped);
+        let b = occlusion_bins.entry(t.object_id).or_default();
+        (0..3).for_each(|k| b[k] += t.occlusion[k]);
+    }
     if n == 0 {
         bail!("no sample could be made: {}", skipped.join("; "));
     }
-    let (t, write, readback, adapter) = totals.into_inner().expect("not poisoned");
+    let (mut t, mut write, mut readback, mut adapter) = (StageTimes::default(), Duration::ZERO, Duration::ZERO, String::new());
+    for (times, w, r, a) in workers {
+        add(&mut t, &times);
+        write += w;
+        readback += r;
+        adapter = a;
+    }
     Ok(BenchReport {
         samples: n,
         jobs,
@@ -183,5 +206,6 @@ pub fn bench(cfg: &LoadedConfig, samples: u64, jobs: usize, ycb_dir: Option<&std
         tactile_over_main_render: t.tactile_render.as_secs_f64() / t.main_render.as_secs_f64().max(1e-12),
         peak_rss_mib: peak_rss_mib(),
         skipped_trajectories: skipped,
+        occlusion_bins,
     })
 }

@@ -5,8 +5,7 @@
 //! the robot issue's acceptance test, in a minute per object instead of a full generation.
 
 use std::collections::BTreeMap;
-use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::{Mutex, mpsc};
+use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
 use anyhow::{Result, bail};
@@ -16,6 +15,7 @@ use serde::Serialize;
 
 use crate::assets::LoadedObject;
 use crate::config::LoadedConfig;
+use crate::output::workers::run_pool;
 use crate::scene::robot::RobotScene;
 
 /// What to check.
@@ -122,6 +122,45 @@ struct TrajectoryResult {
     seconds: f64,
 }
 
+/// Simulates one trajectory as `generate` would and measures its recorded instances. A lost
+/// trajectory (every attempt failed) keeps its attempts and failures.
+fn check_trajectory(robot: &mut RobotScene, seed: u64, obj: &LoadedObject, o: usize, t: u32, instances: u32) -> TrajectoryResult {
+    let t0 = Instant::now();
+    let outcome = robot.trajectory(seed, o as u32, &obj.id, t, instances).cloned();
+    let st = &robot.last_stats;
+    let mut r = TrajectoryResult {
+        object: o,
+        trajectory: t,
+        lost: outcome.as_ref().err().map(|e| format!("{e:#}")),
+        attempts: st.attempts,
+        failures: st.failures.clone(),
+        instances: 0,
+        max_penetration_mm: 0.0,
+        min_contacts: usize::MAX,
+        max_slip_mm: 0.0,
+        sum_slip_mm: 0.0,
+        min_clearance_mm: f64::MAX,
+        seconds: 0.0,
+    };
+    for s in outcome.iter().flat_map(|traj| &traj.instances) {
+        r.instances += 1;
+        r.max_penetration_mm = r.max_penetration_mm.max(s.penetration * 1e3);
+        r.min_contacts = r.min_contacts.min(s.contacts.iter().filter(|c| c.is_some()).count());
+        r.max_slip_mm = r.max_slip_mm.max(s.slip_translation * 1e3);
+        r.sum_slip_mm += s.slip_translation * 1e3;
+        let t_world_object = robot.t_world_base * s.t_base_palm * s.t_palm_object;
+        let lowest = obj
+            .mesh
+            .positions
+            .iter()
+            .map(|p| t_world_object.transform_point3(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)).z)
+            .fold(f64::MAX, f64::min);
+        r.min_clearance_mm = r.min_clearance_mm.min(lowest * 1e3);
+    }
+    r.seconds = t0.elapsed().as_secs_f64();
+    r
+}
+
 pub fn check_grasps(cfg: &LoadedConfig, objects: &[LoadedObject], opts: &GraspCheckOptions) -> Result<GraspCheckReport> {
     let config = &cfg.config;
     let Some(robot_cfg) = &config.robot else {
@@ -139,71 +178,20 @@ pub fn check_grasps(cfg: &LoadedConfig, objects: &[LoadedObject], opts: &GraspCh
             .progress_chars("=> "),
     );
     let started = Instant::now();
-    let next = AtomicUsize::new(0);
-    let backend = Mutex::new(String::new());
-    let (tx, rx) = mpsc::channel::<Result<TrajectoryResult>>();
-    let jobs = opts.jobs.max(1).min(work.len());
-    let mut results = Vec::new();
-    std::thread::scope(|scope| {
-        for _ in 0..jobs {
-            let tx = tx.clone();
-            let (work, next, progress, backend) = (&work, &next, &progress, &backend);
-            scope.spawn(move || {
-                let mut robot = match RobotScene::new(cfg, robot_cfg, objects) {
-                    Ok(r) => r,
-                    Err(e) => {
-                        let _ = tx.send(Err(e));
-                        return;
-                    }
-                };
-                *backend.lock().expect("not poisoned") = robot.backend_name().to_string();
-                loop {
-                    let i = next.fetch_add(1, Ordering::SeqCst);
-                    let Some(&(o, t)) = work.get(i) else { return };
-                    let obj = &objects[o];
-                    progress.set_message(format!("{} #{t}", obj.id));
-                    let t0 = Instant::now();
-                    // A lost trajectory (every attempt failed) keeps its attempts and failures.
-                    let outcome = robot.trajectory(config.seed, o as u32, &obj.id, t, instances).map(|traj| traj.clone());
-                    let st = &robot.last_stats;
-                    let mut r = TrajectoryResult {
-                        object: o,
-                        trajectory: t,
-                        lost: outcome.as_ref().err().map(|e| format!("{e:#}")),
-                        attempts: st.attempts,
-                        failures: st.failures.clone(),
-                        instances: 0,
-                        max_penetration_mm: 0.0,
-                        min_contacts: usize::MAX,
-                        max_slip_mm: 0.0,
-                        sum_slip_mm: 0.0,
-                        min_clearance_mm: f64::MAX,
-                        seconds: 0.0,
-                    };
-                    for s in outcome.iter().flat_map(|traj| &traj.instances) {
-                        r.instances += 1;
-                        r.max_penetration_mm = r.max_penetration_mm.max(s.penetration * 1e3);
-                        r.min_contacts = r.min_contacts.min(s.contacts.iter().filter(|c| c.is_some()).count());
-                        r.max_slip_mm = r.max_slip_mm.max(s.slip_translation * 1e3);
-                        r.sum_slip_mm += s.slip_translation * 1e3;
-                        let t_world_object = robot.t_world_base * s.t_base_palm * s.t_palm_object;
-                        let lowest = obj
-                            .mesh
-                            .positions
-                            .iter()
-                            .map(|p| t_world_object.transform_point3(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)).z)
-                            .fold(f64::MAX, f64::min);
-                        r.min_clearance_mm = r.min_clearance_mm.min(lowest * 1e3);
-                    }
-                    r.seconds = t0.elapsed().as_secs_f64();
-                    progress.inc(1);
-                    let _ = tx.send(Ok(r));
-                }
-            });
-        }
-        drop(tx);
-        results.extend(rx);
-    });
+    let abort = AtomicBool::new(false);
+    let pooled = run_pool(
+        opts.jobs,
+        &work,
+        &abort,
+        || RobotScene::new(cfg, robot_cfg, objects),
+        |robot, _, &(o, t)| {
+            progress.set_message(format!("{} #{t}", objects[o].id));
+            let r = check_trajectory(robot, config.seed, &objects[o], o, t, instances);
+            progress.inc(1);
+            Ok(Some(r))
+        },
+        |robot| Ok(robot.backend_name().to_string()),
+    );
     progress.finish_and_clear();
     let mut per_object: Vec<ObjectGraspReport> = objects
         .iter()
@@ -214,7 +202,8 @@ pub fn check_grasps(cfg: &LoadedConfig, objects: &[LoadedObject], opts: &GraspCh
             ..Default::default()
         })
         .collect();
-    let mut results = results.into_iter().collect::<Result<Vec<_>>>()?;
+    let (results, backends) = pooled.into_result()?;
+    let mut results: Vec<TrajectoryResult> = results.into_iter().map(|(_, r)| r).collect();
     results.sort_by_key(|r| (r.object, r.trajectory));
     for r in results {
         let o = &mut per_object[r.object];
@@ -244,7 +233,7 @@ pub fn check_grasps(cfg: &LoadedConfig, objects: &[LoadedObject], opts: &GraspCh
         }
     }
     Ok(GraspCheckReport {
-        physics_backend: backend.into_inner().expect("not poisoned"),
+        physics_backend: backends.into_iter().next().unwrap_or_default(),
         instances_per_trajectory: instances,
         objects: per_object,
         seconds: started.elapsed().as_secs_f64(),

@@ -3,8 +3,8 @@
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::mpsc;
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
@@ -14,11 +14,12 @@ use vt_dataset::{Compression, Manifest, ModelInfo, ModelsInfo, ShardEntry, Shard
 
 use crate::assets::{LoadedObject, load_objects};
 use crate::config::{Config, LoadedConfig};
+use crate::output::workers::run_pool;
+use crate::output::writer_thread::WriterThread;
 use crate::plan::{Plan, SPLITS, ShardPlan, ShardSelector};
 use crate::render::WgpuRenderer;
 use crate::sample::SampleFactory;
 use crate::scene::robot::GraspStats;
-use crate::writer_thread::WriterThread;
 
 pub const GENERATOR: &str = concat!("vtgen ", env!("CARGO_PKG_VERSION"));
 
@@ -210,7 +211,7 @@ fn update_manifest(out: &Path, config: &Config, config_sha: &str, plan: &Plan, r
         }
     }
     let grasp = config.robot.is_some().then(|| serde_json::to_value(grasp_total)).transpose()?;
-    let occlusion = Some(serde_json::json!({"bins": crate::occlusion::BINS, "counts": histogram}));
+    let occlusion = Some(serde_json::json!({"bins": crate::annotate::occlusion::BINS, "counts": histogram}));
     let m = Manifest {
         format: "vtgen-dataset".into(),
         format_version: vt_dataset::FORMAT_VERSION,
@@ -299,66 +300,37 @@ pub fn generate(cfg: &LoadedConfig, opts: &GenerateOptions) -> Result<GenerateSu
             .progress_chars("=> "),
     );
     let compression = config.output.shard_compression();
-    let jobs = opts.jobs.max(1).min(todo.len().max(1));
-    let next = AtomicUsize::new(0);
     let abort = AtomicBool::new(false);
-    let (tx, rx) = mpsc::channel::<Result<(String, ShardReceipt)>>();
-    let (name_tx, name_rx) = mpsc::channel::<String>();
-    let mut receipts = Vec::new();
-    let mut first_error = None;
-    std::thread::scope(|scope| {
-        for _ in 0..jobs {
-            let (tx, name_tx) = (tx.clone(), name_tx.clone());
-            let (todo, next, abort, progress, objects) = (&todo, &next, &abort, &progress, &objects);
-            let config_sha = &config_sha;
-            scope.spawn(move || {
-                let run = || -> Result<()> {
-                    if next.load(Ordering::SeqCst) >= todo.len() {
-                        return Ok(());
-                    }
-                    let renderer = WgpuRenderer::new(&config.renderer)?;
-                    let mut factory = SampleFactory::new(cfg, objects, Box::new(renderer))?;
-                    let _ = name_tx.send(factory.renderer_name());
-                    loop {
-                        let i = next.fetch_add(1, Ordering::SeqCst);
-                        if i >= todo.len() || abort.load(Ordering::Relaxed) {
-                            return Ok(());
-                        }
-                        let s = todo[i];
-                        let meta = ShardMeta {
-                            generator: GENERATOR.into(),
-                            seed: config.seed,
-                            config_sha256: config_sha.clone(),
-                            split: s.split.into(),
-                            shard_index: s.shard_index,
-                            first_sample: s.first_sample,
-                            sample_count: s.samples.len() as u64,
-                            extra: Default::default(),
-                        };
-                        if let Some(r) = write_shard(&mut factory, out, s, &meta, compression, progress, abort)? {
-                            let _ = tx.send(Ok((s.file(), r)));
-                        }
-                    }
-                };
-                if let Err(e) = run() {
-                    abort.store(true, Ordering::SeqCst);
-                    let _ = tx.send(Err(e));
-                }
-            });
-        }
-        drop(tx);
-        drop(name_tx);
-        for r in rx {
-            match r {
-                Ok(r) => receipts.push(r),
-                Err(e) => {
-                    first_error.get_or_insert(e);
-                }
-            }
-        }
-    });
+    let adapter = Mutex::new(None);
+    let pooled = run_pool(
+        opts.jobs,
+        &todo,
+        &abort,
+        || {
+            let renderer = WgpuRenderer::new(&config.renderer)?;
+            let factory = SampleFactory::new(cfg, &objects, Box::new(renderer))?;
+            adapter.lock().expect("not poisoned").get_or_insert_with(|| factory.renderer_name());
+            Ok(factory)
+        },
+        |factory, _, s| {
+            let meta = ShardMeta {
+                generator: GENERATOR.into(),
+                seed: config.seed,
+                config_sha256: config_sha.clone(),
+                split: s.split.into(),
+                shard_index: s.shard_index,
+                first_sample: s.first_sample,
+                sample_count: s.samples.len() as u64,
+                extra: Default::default(),
+            };
+            Ok(write_shard(factory, out, s, &meta, compression, &progress, &abort)?.map(|r| (s.file(), r)))
+        },
+        |_| Ok(()),
+    );
+    let receipts: Vec<(String, ShardReceipt)> = pooled.results.into_iter().map(|(_, r)| r).collect();
+    let first_error = pooled.error;
     progress.finish_and_clear();
-    let adapter = name_rx.try_iter().next().unwrap_or_else(|| "none (nothing to render)".into());
+    let adapter = adapter.into_inner().expect("not poisoned").unwrap_or_else(|| "none (nothing to render)".into());
     // The manifest is rewritten even after an error, so finished shards are recorded.
     let manifest = update_manifest(out, config, &config_sha, &plan, &receipts)?;
     if let Some(e) = first_error {

@@ -56,7 +56,7 @@ pub enum Failure {
     MoveRedoneForPenetration,
     MoveRedoneForContacts,
     MoveRedoneForFloor,
-    /// A move that dropped the object, undone (backends that can restore a saved state).
+    /// A move that dropped the object, undone.
     MoveRedoneForDrop,
 }
 
@@ -80,6 +80,8 @@ pub struct GraspContext<'a> {
     pub t_world_base: DAffine3,
     pub config: &'a GraspConfig,
     pub timestep: f64,
+    /// The main camera's position (world): back-to-camera moves turn the palm away from it.
+    pub camera_position: DVec3,
 }
 
 impl GraspContext<'_> {
@@ -109,6 +111,36 @@ impl GraspContext<'_> {
         DAffine3::from_rotation_translation(up * roll * DQuat::from_axis_angle(tilt_axis, tilt), p)
     }
 
+    /// The palm pose of an arm move: with probability `back_to_camera_share` the back of the hand
+    /// faces the camera (the palm normal tilted away from it by `back_to_camera_tilt_deg` from
+    /// straight up, rolled about the normal as usual), otherwise `sample_palm`'s cone.
+    fn sample_move_palm(&self, rng: &mut ChaCha8Rng) -> DAffine3 {
+        let share = self.config.back_to_camera_share;
+        // No extra draw without the knob: the data of configs that do not use it stays the same.
+        if share <= 0.0 || rng.random_range(0.0..1.0) >= share {
+            return self.sample_palm(rng);
+        }
+        let mut t = self.sample_palm(rng);
+        // Replace the cone's tilt: up * roll, then a world rotation that takes the normal (world
+        // z) towards the horizontal direction from the camera to the palm.
+        let w = &self.config.palm_workspace;
+        let centre = DVec3::from_array(w.min).lerp(DVec3::from_array(w.max), 0.5);
+        let away = (centre - self.camera_position).with_z(0.0).normalize_or(DVec3::Y);
+        let (lo, hi) = self.config.back_to_camera_tilt_deg;
+        let tilt = if hi > lo { rng.random_range(lo..=hi) } else { lo }.to_radians();
+        let up = DQuat::from_mat3(&DMat3::from_cols(DVec3::Z, DVec3::NEG_X, DVec3::NEG_Y));
+        let max_roll = self.config.max_roll_deg.to_radians();
+        let roll = DQuat::from_rotation_x(rng.random_range(-max_roll..=max_roll));
+        let turn = DQuat::from_axis_angle(DVec3::Z.cross(away).normalize(), tilt);
+        t.matrix3 = DMat3::from_quat(turn * up * roll);
+        t
+    }
+
+    /// Simulation steps in `seconds` (at least one).
+    fn steps(&self, seconds: f64) -> usize {
+        (seconds / self.timestep).round().max(1.0) as usize
+    }
+
     /// IK for a world palm pose, from `q`.
     fn reach(&self, t_world_palm: &DAffine3, q: &[f64]) -> Option<Vec<f64>> {
         let target = self.t_world_base.inverse() * *t_world_palm;
@@ -122,142 +154,195 @@ fn set_hand(robot: &RobotModel, q: &mut [f64], hand: &[f64; 16]) {
     }
 }
 
-/// Simulates trajectory `trajectory` of `object_id` and returns its recorded instances.
+/// Which trajectory of which object, and how many instances it records: the keys of its random
+/// streams (`grasp/<attempt>` per trajectory, `arm/<attempt>…` per instance).
+#[derive(Debug, Clone, Copy)]
+pub struct TrajectoryKey<'a> {
+    pub seed: u64,
+    pub object_id: &'a str,
+    pub trajectory: u32,
+    pub instances: u32,
+}
+
+/// Object orientations drawn before falling back to the thin-axis placement of large objects.
+const ORIENTATION_DRAWS: u32 = 20;
+/// Largest tilt (rad) of a large object's thin axis off the palm normal: more makes them deeper
+/// than the fingers reach.
+const LARGE_OBJECT_MAX_TILT: f64 = 0.05;
+/// Gap (m) between the palm surface and the object's back at placement.
+const PLACEMENT_GAP: f64 = 0.003;
+/// Placement retries, each this much further out along the palm normal (m), while the object
+/// overlaps a link by more than `PLACEMENT_MAX_OVERLAP` (m).
+const PLACEMENT_RETRIES: u32 = 6;
+const PLACEMENT_STEP: f64 = 0.01;
+const PLACEMENT_MAX_OVERLAP: f64 = 0.0015;
+/// The object rests on the open palm this long (s) before the fingers close.
+const REST_SECONDS: f64 = 0.15;
+/// Object damping (linear = angular) while resting, while closing, and from the settle on.
+const REST_DAMPING: f64 = 20.0;
+const CLOSE_DAMPING: f64 = 2.0;
+const HELD_DAMPING: f64 = 0.05;
+/// A settled grasp may not let the object drift more than this (m) while still, and must touch it
+/// with at least this many phalanges.
+const MAX_SETTLE_DRIFT: f64 = 0.02;
+const MIN_TOUCHING_PHALANGES: usize = 2;
+
+/// Simulates a trajectory and returns its recorded instances: attempts with fresh randomness
+/// until one grasp holds through every instance, or `max_attempts` is spent.
 pub fn simulate_trajectory(
     ctx: &GraspContext,
     physics: &mut dyn HandPhysics,
     object: &PhysicsObject,
-    seed: u64,
-    object_id: &str,
-    trajectory: u32,
-    instances: u32,
+    key: TrajectoryKey,
     failures: &mut Vec<Failure>,
 ) -> Result<Trajectory> {
     let cfg = ctx.config;
     for attempt in 0..cfg.max_attempts {
-        let mut rng = SampleStream::trajectory(seed, object_id, trajectory, &format!("grasp/{attempt}"));
-        match attempt_trajectory(ctx, physics, object, &mut rng, seed, object_id, trajectory, attempt, instances, failures)? {
-            Ok(instances) => {
-                return Ok(Trajectory { instances, attempts: attempt + 1 });
-            }
+        match attempt_trajectory(ctx, physics, object, key, attempt, failures)? {
+            Ok(instances) => return Ok(Trajectory { instances, attempts: attempt + 1 }),
             Err(f) => failures.push(f),
         }
     }
-    bail!("{object_id} trajectory {trajectory}: no grasp held in {} attempts ({:?})", cfg.max_attempts, failures.last())
+    bail!("{} trajectory {}: no grasp held in {} attempts ({:?})", key.object_id, key.trajectory, cfg.max_attempts, failures.last())
 }
 
-#[allow(clippy::too_many_arguments)]
+/// One attempt, in its phases: reach the grasp pose, place the object on the open palm, close the
+/// fingers, settle while the palm turns to its pose, then record the instances (arm moves).
 fn attempt_trajectory(
     ctx: &GraspContext,
     physics: &mut dyn HandPhysics,
     object: &PhysicsObject,
-    rng: &mut ChaCha8Rng,
-    seed: u64,
-    object_id: &str,
-    trajectory: u32,
+    key: TrajectoryKey,
     attempt: u32,
-    instances: u32,
     failures: &mut Vec<Failure>,
 ) -> Result<std::result::Result<Vec<InstanceState>, Failure>> {
     let cfg = ctx.config;
-    let robot = ctx.robot;
-    let steps = |s: f64| (s / ctx.timestep).round().max(1.0) as usize;
-    // Grasp pose of the palm, reached by IK.
-    let mut q = ctx.home();
+    let rng = &mut SampleStream::trajectory(key.seed, key.object_id, key.trajectory, &format!("grasp/{attempt}"));
     let t_world_palm = ctx.sample_palm(rng);
-    let Some(q_grasp) = ctx.reach(&t_world_palm, &q) else {
+    let Some(q) = ctx.reach(&t_world_palm, &ctx.home()) else {
         return Ok(Err(Failure::Unreachable));
     };
-    q = q_grasp;
-    // Preshape and object placement against the palm.
     let pre: [f64; 16] = std::array::from_fn(|k| {
         let (lo, hi) = cfg.preshape[k];
         rng.random_range(lo..=hi)
     });
-    // A uniformly random orientation, redrawn (no physics needed) while the object is deeper in
-    // front of the palm than the fingers can wrap around.
-    let depth_along = |r: DQuat| {
-        let xs = object.points.iter().map(|p| (r * DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)).x);
-        let (lo, hi) = xs.fold((f64::MAX, f64::MIN), |(lo, hi), x| (lo.min(x), hi.max(x)));
-        (hi - lo, -lo)
+    if !place_object(ctx, physics, object, rng, &pre)? {
+        return Ok(Err(Failure::InitialOverlap));
+    }
+    close_hand(ctx, physics, &pre);
+    let grasped = match settle(ctx, physics, &t_world_palm) {
+        Ok(pose) => pose,
+        Err(f) => return Ok(Err(f)),
     };
+    record_instances(ctx, physics, object, key, attempt, q, grasped, failures)
+}
+
+/// How far `object` reaches along the palm normal (palm x) turned by `r`: (depth, how far behind
+/// its origin its back is).
+fn depth_along(object: &PhysicsObject, r: DQuat) -> (f64, f64) {
+    let xs = object.points.iter().map(|p| (r * DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)).x);
+    let (lo, hi) = xs.fold((f64::MAX, f64::MIN), |(lo, hi), x| (lo.min(x), hi.max(x)));
+    (hi - lo, -lo)
+}
+
+/// The object's orientation in the palm: uniformly random, redrawn (no physics needed) while the
+/// object is deeper in front of the palm than the fingers can wrap around.
+fn sample_object_orientation(cfg: &GraspConfig, object: &PhysicsObject, rng: &mut ChaCha8Rng) -> DQuat {
     let mut r_obj = uniform_rotation(rng);
-    for _ in 0..20 {
-        if depth_along(r_obj).0 <= cfg.max_grasp_depth {
+    for _ in 0..ORIENTATION_DRAWS {
+        if depth_along(object, r_obj).0 <= cfg.max_grasp_depth {
             break;
         }
         r_obj = uniform_rotation(rng);
     }
-    if depth_along(r_obj).0 > cfg.max_grasp_depth {
-        // Large objects (boxes, the drill) fit the hand in few orientations: turn the model's
-        // thinnest axis onto the palm normal, then spin about it, flip, and tilt by at most 3 degrees (more makes them deeper than the fingers reach).
-        let (lo, hi) = object.points.iter().fold((DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)), |(lo, hi), p| {
-            let v = DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64);
-            (lo.min(v), hi.max(v))
-        });
-        let ext = hi - lo;
-        let thin = if ext.x <= ext.y && ext.x <= ext.z {
-            DVec3::X
-        } else if ext.y <= ext.z {
-            DVec3::Y
-        } else {
-            DVec3::Z
-        };
-        let flip = if rng.random_bool(0.5) { -1.0 } else { 1.0 };
-        let align = DQuat::from_rotation_arc(thin * flip, DVec3::X);
-        let spin = DQuat::from_rotation_x(rng.random_range(0.0..std::f64::consts::TAU));
-        let tilt_axis = DVec3::new(0.0, rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0)).normalize_or(DVec3::Y);
-        let tilt = DQuat::from_axis_angle(tilt_axis, rng.random_range(0.0..0.05));
-        r_obj = tilt * spin * align;
+    if depth_along(object, r_obj).0 <= cfg.max_grasp_depth {
+        return r_obj;
     }
-    let back = depth_along(r_obj).1;
+    // Large objects (boxes, the drill) fit the hand in few orientations: turn the model's thinnest
+    // axis onto the palm normal, then spin about it, flip, and tilt a little.
+    let (lo, hi) = object.points.iter().fold((DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)), |(lo, hi), p| {
+        let v = DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+        (lo.min(v), hi.max(v))
+    });
+    let ext = hi - lo;
+    let thin = if ext.x <= ext.y && ext.x <= ext.z {
+        DVec3::X
+    } else if ext.y <= ext.z {
+        DVec3::Y
+    } else {
+        DVec3::Z
+    };
+    let flip = if rng.random_bool(0.5) { -1.0 } else { 1.0 };
+    let align = DQuat::from_rotation_arc(thin * flip, DVec3::X);
+    let spin = DQuat::from_rotation_x(rng.random_range(0.0..std::f64::consts::TAU));
+    let tilt_axis = DVec3::new(0.0, rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0)).normalize_or(DVec3::Y);
+    let tilt = DQuat::from_axis_angle(tilt_axis, rng.random_range(0.0..LARGE_OBJECT_MAX_TILT));
+    tilt * spin * align
+}
+
+/// Phase 1: the object on the open palm (preshape, palm up) at a random orientation and offset,
+/// resting under gravity. False when it overlaps a link wherever it is put.
+fn place_object(
+    ctx: &GraspContext,
+    physics: &mut dyn HandPhysics,
+    object: &PhysicsObject,
+    rng: &mut ChaCha8Rng,
+    pre: &[f64; 16],
+) -> Result<bool> {
+    let cfg = ctx.config;
+    let r_obj = sample_object_orientation(cfg, object, rng);
+    let back = depth_along(object, r_obj).1;
     let o = &cfg.object_offset;
-    let pos = DVec3::new(cfg.palm_surface_x + 0.003 + back, rng.random_range(o.min[1]..=o.max[1]), rng.random_range(o.min[2]..=o.max[2]));
+    let pos =
+        DVec3::new(cfg.palm_surface_x + PLACEMENT_GAP + back, rng.random_range(o.min[1]..=o.max[1]), rng.random_range(o.min[2]..=o.max[2]));
     // An object spawned inside a link (large objects reach the thumb, which sits in front of the
     // palm) would be launched by the solver: one step finds the overlap, and the object is moved
     // out along the palm normal until it is clear.
-    let mut clear = false;
-    for shift in 0..6 {
-        let p = pos + DVec3::X * (0.01 * shift as f64);
-        physics.reset(object, DAffine3::from_rotation_translation(r_obj, p), &pre)?;
+    for shift in 0..PLACEMENT_RETRIES {
+        let p = pos + DVec3::X * (PLACEMENT_STEP * shift as f64);
+        physics.reset(object, DAffine3::from_rotation_translation(r_obj, p), pre)?;
         // Open hand at the preshape, palm facing up: the object rests on the palm under gravity
         // (along the palm normal, -x in the palm frame), held still by damping. Closing without
         // gravity lets the first finger to touch push the weightless object out of the hand.
-        physics.set_targets(&pre);
+        physics.set_targets(pre);
         physics.set_gravity(PALM_UP_GRAVITY);
-        physics.set_object_damping(20.0, 20.0);
+        physics.set_object_damping(REST_DAMPING, REST_DAMPING);
         physics.step();
-        if physics.max_penetration() <= 0.0015 {
-            clear = true;
-            break;
+        if physics.max_penetration() <= PLACEMENT_MAX_OVERLAP {
+            for _ in 0..ctx.steps(REST_SECONDS) {
+                physics.step();
+            }
+            return Ok(true);
         }
     }
-    if !clear {
-        return Ok(Err(Failure::InitialOverlap));
-    }
-    for _ in 0..steps(0.15) {
-        physics.step();
-    }
-    // Close: every flexion joint towards its closed target, ab/adduction kept.
-    let mut close = pre;
-    for k in 0..16 {
-        if let Some(t) = cfg.close[k] {
-            close[k] = t;
+    Ok(false)
+}
+
+/// Phase 2: every flexion joint towards its closed target, ab/adduction kept.
+fn close_hand(ctx: &GraspContext, physics: &mut dyn HandPhysics, pre: &[f64; 16]) {
+    let mut close = *pre;
+    for (c, t) in close.iter_mut().zip(&ctx.config.close) {
+        if let Some(t) = t {
+            *c = *t;
         }
     }
     physics.set_targets(&close);
-    physics.set_object_damping(2.0, 2.0);
-    for _ in 0..steps(cfg.close_seconds) {
+    physics.set_object_damping(CLOSE_DAMPING, CLOSE_DAMPING);
+    for _ in 0..ctx.steps(ctx.config.close_seconds) {
         physics.step();
     }
-    // Settle: the palm turns from facing up to its sampled orientation over the first half (gravity
-    // turns with it in the palm frame, as a wrist rotation would), then holds still for the second
-    // half. The grasp must hold the object by friction: it may not drift more than 2 cm while
-    // still. Drift during the turn is the object seating itself in the hand, not a lost grasp.
-    physics.set_object_damping(0.05, 0.05);
-    let gravity_in_palm = rot(&t_world_palm).inverse() * GRAVITY;
+}
+
+/// Phase 3: the palm turns from facing up to its sampled orientation over the first half (gravity
+/// turns with it in the palm frame, as a wrist rotation would), then holds still for the second
+/// half. The grasp must hold the object by friction: it may not drift more than
+/// `MAX_SETTLE_DRIFT` while still. Drift during the turn is the object seating itself in the hand,
+/// not a lost grasp. Returns the held object pose (palm frame).
+fn settle(ctx: &GraspContext, physics: &mut dyn HandPhysics, t_world_palm: &DAffine3) -> std::result::Result<DAffine3, Failure> {
+    physics.set_object_damping(HELD_DAMPING, HELD_DAMPING);
+    let gravity_in_palm = rot(t_world_palm).inverse() * GRAVITY;
     let turn = DQuat::from_rotation_arc(PALM_UP_GRAVITY.normalize(), gravity_in_palm.normalize());
-    let n_settle = steps(cfg.settle_seconds);
+    let n_settle = ctx.steps(ctx.config.settle_seconds);
     let n_turn = (n_settle / 2).max(1);
     let gravity_at = |k: usize| DQuat::IDENTITY.slerp(turn, k as f64 / n_turn as f64) * PALM_UP_GRAVITY;
     for k in 1..n_turn {
@@ -271,30 +356,46 @@ fn attempt_trajectory(
     }
     let held = physics.object_pose();
     let touching = physics.phalanx_contacts().iter().filter(|c| c.is_some()).count();
-    if (held.translation - before.translation).length() > 0.02 || touching < 2 {
-        return Ok(Err(Failure::GraspNotHeld));
+    if (held.translation - before.translation).length() > MAX_SETTLE_DRIFT || touching < MIN_TOUCHING_PHALANGES {
+        return Err(Failure::GraspNotHeld);
     }
-    let grasped = held;
-    let mut out = Vec::with_capacity(instances as usize);
-    for instance in 0..instances {
-        let key = SampleKey { seed, object_id, trajectory, instance };
+    Ok(held)
+}
+
+/// Phase 4: one arm move per instance from the settled grasp at joint values `q`; a move that
+/// cannot stand is undone and redrawn, up to `MAX_MOVES_PER_INSTANCE` times.
+#[allow(clippy::too_many_arguments)] // the attempt's state, passed in and out (no hidden fields)
+fn record_instances(
+    ctx: &GraspContext,
+    physics: &mut dyn HandPhysics,
+    object: &PhysicsObject,
+    key: TrajectoryKey,
+    attempt: u32,
+    mut q: Vec<f64>,
+    grasped: DAffine3,
+    failures: &mut Vec<Failure>,
+) -> Result<std::result::Result<Vec<InstanceState>, Failure>> {
+    let robot = ctx.robot;
+    let mut out = Vec::with_capacity(key.instances as usize);
+    for instance in 0..key.instances {
+        let sample_key = SampleKey { seed: key.seed, object_id: key.object_id, trajectory: key.trajectory, instance };
         let mut moved = 0;
         let (obj, contacts, penetration) = loop {
             // The first move of an instance draws from `arm/<attempt>`, later ones (after a pose
             // that could not be recorded) from `arm/<attempt>/<move>`.
             let stream = if moved == 0 { format!("arm/{attempt}") } else { format!("arm/{attempt}/{moved}") };
-            let mut arm_rng = SampleStream::sample(&key, &stream);
+            let mut arm_rng = SampleStream::sample(&sample_key, &stream);
             moved += 1;
             // A move that drops the object or ends in a pose that cannot be recorded is undone
-            // when the backend can (the arm then only takes moves that keep a recordable grasp):
-            // redoing one move costs far less than a fresh grasp and every instance before it.
-            let undo = physics.save();
+            // (the arm then only takes moves that keep a recordable grasp): redoing one move costs
+            // far less than a fresh grasp and every instance before it.
+            physics.save();
             let q_before = q.clone();
             // Why this move cannot stand: the attempt's failure if it was the last try, and the
             // redo counted otherwise.
             let (failure, redo) = match move_and_settle(ctx, physics, object, &mut q, &mut arm_rng)? {
                 MoveOutcome::Recordable(obj, contacts, penetration) => break (obj, contacts, penetration),
-                MoveOutcome::Failed(Failure::LostDuringMotion) if undo => (Failure::LostDuringMotion, Failure::MoveRedoneForDrop),
+                MoveOutcome::Failed(Failure::LostDuringMotion) => (Failure::LostDuringMotion, Failure::MoveRedoneForDrop),
                 MoveOutcome::Failed(f) => return Ok(Err(f)),
                 MoveOutcome::NotRecordable(f @ Failure::Penetration) => (f, Failure::MoveRedoneForPenetration),
                 MoveOutcome::NotRecordable(f @ Failure::TouchesFloor) => (f, Failure::MoveRedoneForFloor),
@@ -304,10 +405,8 @@ fn attempt_trajectory(
                 return Ok(Err(failure));
             }
             failures.push(redo);
-            if undo {
-                physics.restore();
-                q = q_before;
-            }
+            physics.restore();
+            q = q_before;
         };
         let mut qr = q.clone();
         set_hand(robot, &mut qr, &physics.joint_positions());
@@ -326,6 +425,8 @@ fn attempt_trajectory(
 }
 
 /// How one arm move of an instance ended.
+// One value per arm move, moved once: boxing the recordable pose would buy nothing.
+#[allow(clippy::large_enum_variant)]
 enum MoveOutcome {
     /// Object pose in the palm, phalanx contacts, deepest penetration: a recordable instance.
     Recordable(DAffine3, [Option<f64>; 12], f64),
@@ -348,10 +449,10 @@ fn move_and_settle(
 ) -> Result<MoveOutcome> {
     let cfg = ctx.config;
     let robot = ctx.robot;
-    let steps = |s: f64| (s / ctx.timestep).round().max(1.0) as usize;
+    let steps = |s: f64| ctx.steps(s);
     let mut target = None;
     for _ in 0..20 {
-        let t = ctx.sample_palm(arm_rng);
+        let t = ctx.sample_move_palm(arm_rng);
         if let Some(qt) = ctx.reach(&t, q) {
             target = Some(qt);
             break;
@@ -426,6 +527,7 @@ mod tests {
     use super::*;
     use crate::config::{GraspConfig, PhysicsConfig};
     use crate::physics::{PhysicsSettings, RapierHand};
+    use rand::SeedableRng;
 
     /// The object's physics shape: the real mesh when `YCB_DIR` is set, else the procedural one.
     pub fn physics_object(id: &str) -> PhysicsObject {
@@ -435,6 +537,66 @@ mod tests {
             None => vt_objects::procedural_mesh(&e),
         };
         PhysicsObject { points: m.positions.clone(), mass: e.mass }
+    }
+
+    /// The robot base and the camera of `scenes/paper.yaml`.
+    fn paper_context() -> (DAffine3, DVec3) {
+        (
+            DAffine3::from_rotation_translation(DQuat::from_rotation_z(std::f64::consts::PI), DVec3::new(0.0, 0.5, 0.0)),
+            DVec3::new(0.0, -0.75, 0.55),
+        )
+    }
+
+    /// The palm's normal (world) of `n` arm moves drawn with `cfg`.
+    fn move_normals(cfg: &GraspConfig, n: u64) -> Vec<(DVec3, DVec3)> {
+        let robot = RobotModel::builtin();
+        let (t_world_base, camera_position) = paper_context();
+        let ctx = GraspContext { robot: &robot, t_world_base, config: cfg, timestep: 1.0 / 240.0, camera_position };
+        (0..n)
+            .map(|k| {
+                let mut rng = ChaCha8Rng::seed_from_u64(k);
+                let t = ctx.sample_move_palm(&mut rng);
+                (t.matrix3 * DVec3::X, t.translation)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn back_to_camera_moves_turn_the_palm_away_from_the_camera() {
+        let mut cfg = GraspConfig { back_to_camera_share: 0.5, ..GraspConfig::default() };
+        let camera = DVec3::new(0.0, -0.75, 0.55);
+        let normals = move_normals(&cfg, 400);
+        let (lo, hi) = cfg.back_to_camera_tilt_deg;
+        let mut back = 0;
+        for (n, p) in &normals {
+            assert!((n.length() - 1.0).abs() < 1e-9);
+            let tilt = n.z.clamp(-1.0, 1.0).acos().to_degrees();
+            if tilt <= cfg.max_tilt_deg + 1e-9 {
+                continue;
+            }
+            // Outside the cone: a back-to-camera move, tilted within its range, away from the
+            // camera (the normal's horizontal part points from the camera past the palm).
+            back += 1;
+            assert!(tilt >= lo - 1e-9 && tilt <= hi + 1e-9, "tilt {tilt}");
+            let away = (*p - camera).with_z(0.0).normalize();
+            let horizontal = n.with_z(0.0).normalize();
+            assert!(horizontal.dot(away) > 0.99, "normal {n} is not turned away from the camera");
+            // The camera looks at the back of the hand: the palm normal points along its view.
+            assert!(n.dot((*p - camera).normalize()) > 0.0);
+        }
+        // About half of the moves (binomial, 400 draws: 5 standard deviations either way).
+        assert!((150..=250).contains(&back), "{back} of 400 back-to-camera moves");
+        // Without the knob no move leaves the cone, and the draws are those of the plain sampler.
+        cfg.back_to_camera_share = 0.0;
+        let robot = RobotModel::builtin();
+        let (t_world_base, camera_position) = paper_context();
+        let ctx = GraspContext { robot: &robot, t_world_base, config: &cfg, timestep: 1.0 / 240.0, camera_position };
+        for k in 0..50 {
+            let a = ctx.sample_move_palm(&mut ChaCha8Rng::seed_from_u64(k));
+            let b = ctx.sample_palm(&mut ChaCha8Rng::seed_from_u64(k));
+            assert_eq!(a, b);
+            assert!((a.matrix3 * DVec3::X).z >= cfg.max_tilt_deg.to_radians().cos() - 1e-9);
+        }
     }
 
     #[test]
@@ -460,6 +622,7 @@ mod tests {
             t_world_base: DAffine3::from_rotation_translation(DQuat::from_rotation_z(std::f64::consts::PI), DVec3::new(0.0, 0.5, 0.0)),
             config: &cfg,
             timestep: pc.timestep,
+            camera_position: DVec3::new(0.0, -0.75, 0.55),
         };
         // PHYS=mujoco (with --features mujoco) measures the MuJoCo backend instead.
         let mut hand: Box<dyn HandPhysics> = match std::env::var("PHYS").as_deref() {
@@ -478,7 +641,13 @@ mod tests {
             let mut max_slip: f64 = 0.0;
             let mut max_pen: f64 = 0.0;
             for t in 0..n {
-                match simulate_trajectory(&ctx, hand.as_mut(), &obj, 1, &e.id, t, inst, &mut failures) {
+                match simulate_trajectory(
+                    &ctx,
+                    hand.as_mut(),
+                    &obj,
+                    TrajectoryKey { seed: 1, object_id: &e.id, trajectory: t, instances: inst },
+                    &mut failures,
+                ) {
                     Ok(tr) => {
                         ok += 1;
                         attempts += tr.attempts;

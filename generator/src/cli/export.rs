@@ -184,7 +184,7 @@ pub fn export_bop(root: &Path, out: &Path, renderer: &RendererConfig, quiet: boo
                 let amodal = render_alone(&mut r, &s, handles[obj])?;
                 write_image(&mut scene, &dir, &s, obj + 1, &amodal)?;
                 if exr {
-                    crate::dump::write_exr_depth(&dir.join(format!("depth_exr/{index:06}.exr")), s.width, s.height, &s.depth)?;
+                    crate::cli::dump::write_exr_depth(&dir.join(format!("depth_exr/{index:06}.exr")), s.width, s.height, &s.depth)?;
                 }
                 camera_json.get_or_insert_with(|| {
                     json!({"width": s.width, "height": s.height, "fx": s.fx(), "fy": s.fy(), "cx": s.cx(), "cy": s.cy(), "depth_scale": DEPTH_SCALE})

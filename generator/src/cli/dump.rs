@@ -51,12 +51,7 @@ pub fn read_exr_depth(path: &Path) -> Result<(u32, u32, Vec<f32>)> {
         .from_file(path)
         .with_context(|| format!("cannot read {}", path.display()))?;
     let layer = image.layer_data;
-    let z = layer
-        .channel_data
-        .list
-        .iter()
-        .find(|c| c.name == Text::from("Z"))
-        .with_context(|| format!("{} has no Z channel", path.display()))?;
+    let z = layer.channel_data.list.iter().find(|c| c.name.eq("Z")).with_context(|| format!("{} has no Z channel", path.display()))?;
     Ok((layer.size.width() as u32, layer.size.height() as u32, z.sample_data.values_as_f32().collect()))
 }
 
