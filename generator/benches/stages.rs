@@ -27,14 +27,7 @@ fn physics_object() -> PhysicsObject {
 }
 
 fn settings() -> PhysicsSettings {
-    let pc = PhysicsConfig::default();
-    PhysicsSettings {
-        timestep: pc.timestep,
-        friction: pc.friction,
-        stiffness: pc.stiffness,
-        damping: pc.damping,
-        max_torque: pc.max_torque,
-    }
+    PhysicsSettings::from(&PhysicsConfig::default())
 }
 
 fn physics(c: &mut Criterion) {

@@ -102,3 +102,62 @@ impl std::str::FromStr for ShardSelector {
         Ok(ShardSelector { index, count })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn config(trajectories: u32, instances: u32, per_shard: u32) -> Config {
+        let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/tiny.yaml")).unwrap();
+        let mut c = crate::config::LoadedConfig::parse(&text, std::path::Path::new("tiny.yaml")).unwrap().config;
+        c.sampling.trajectories_per_object = trajectories;
+        c.sampling.instances_per_trajectory = instances;
+        c.output.samples_per_shard = per_shard;
+        c
+    }
+
+    #[test]
+    fn every_sample_once_split_by_trajectory_and_shards_in_order() {
+        let c = config(10, 7, 5);
+        let plan = Plan::new(&c);
+        let n_objects = c.objects.len() as u64;
+        assert_eq!(plan.total_samples(), n_objects * 10 * 7);
+        // 4:1 by trajectory: trajectories 4 and 9 of every object are test.
+        assert_eq!(plan.samples_per_split, [n_objects * 8 * 7, n_objects * 2 * 7]);
+        let mut seen = std::collections::BTreeSet::new();
+        for (split_index, split) in SPLITS.iter().enumerate() {
+            let shards: Vec<_> = plan.shards.iter().filter(|s| s.split == *split).collect();
+            let mut next = 0;
+            for (k, s) in shards.iter().enumerate() {
+                assert_eq!((s.shard_index as usize, s.first_sample), (k, next));
+                assert!(!s.samples.is_empty() && s.samples.len() <= 5);
+                next += s.samples.len() as u64;
+                for r in &s.samples {
+                    assert_eq!(is_test(&c, r.trajectory), split_index == 1);
+                    assert!(seen.insert((r.object_index, r.trajectory, r.instance)), "{r:?} twice");
+                }
+            }
+            assert_eq!(next, plan.samples_per_split[split_index]);
+        }
+        assert_eq!(seen.len() as u64, plan.total_samples());
+        // Jobs number the shards train first, then test.
+        assert!(plan.shards.iter().enumerate().all(|(i, s)| s.job == i));
+    }
+
+    #[test]
+    fn shard_selectors_partition_the_shards_and_bad_ones_are_refused() {
+        let plan = Plan::new(&config(10, 7, 3));
+        for n in 1..5 {
+            let mut count = vec![0; plan.shards.len()];
+            for i in 0..n {
+                let sel: ShardSelector = format!("{i}/{n}").parse().unwrap();
+                plan.shards.iter().filter(|s| sel.selects(s)).for_each(|s| count[s.job] += 1);
+            }
+            assert!(count.iter().all(|&c| c == 1), "{n} jobs: {count:?}");
+        }
+        for bad in ["1/1", "0/0", "x/2", "3", "-1/2"] {
+            let e = bad.parse::<ShardSelector>().unwrap_err();
+            assert!(e.contains("is not a shard selector"), "{bad}: {e}");
+        }
+    }
+}

@@ -104,3 +104,67 @@ pub fn occlusion_level_brute_force(points: &[DVec3], depth: &[f32], width: u32, 
     let visible = points.iter().filter(|p| cloud.iter().any(|c| c.distance(**p) <= epsilon)).count();
     (1.0 - visible as f64 / points.len().max(1) as f64, visible)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 64x48 depth image of a wall facing the camera at `wall` m.
+    fn wall(wall: f32) -> (Vec<f32>, Intrinsics) {
+        (vec![wall; 64 * 48], Intrinsics { fx: 60.0, fy: 60.0, cx: 31.5, cy: 23.5 })
+    }
+
+    #[test]
+    fn points_on_the_seen_surface_are_visible_and_points_behind_it_are_not() {
+        let (depth, k) = wall(1.0);
+        // A grid of points on the wall, and the same grid 5 cm behind it.
+        let on: Vec<DVec3> = (0..40).map(|i| DVec3::new(-0.2 + 0.01 * i as f64, 0.1 - 0.005 * i as f64, 1.0)).collect();
+        let behind: Vec<DVec3> = on.iter().map(|p| *p * 1.05).collect();
+        // Pixels are 1.7 cm apart on the wall: every point is within 1.2 cm of one.
+        assert_eq!(occlusion_level(&on, &depth, 64, 48, &k, 0.02), (0.0, 40));
+        assert_eq!(occlusion_level(&behind, &depth, 64, 48, &k, 0.02), (1.0, 0));
+        let half: Vec<DVec3> = on.iter().take(10).chain(behind.iter().take(30)).copied().collect();
+        let (level, visible) = occlusion_level(&half, &depth, 64, 48, &k, 0.02);
+        assert_eq!((level, visible), (0.75, 10));
+        assert_eq!(bin(level), 0);
+        // The windowed search answers as the search over the whole cloud does.
+        for eps in [0.002, 0.01, 0.03, 0.06] {
+            assert_eq!(occlusion_level(&half, &depth, 64, 48, &k, eps), occlusion_level_brute_force(&half, &depth, 64, 48, &k, eps));
+        }
+        // Nothing seen: no depth anywhere.
+        assert_eq!(occlusion_level(&on, &vec![0.0; 64 * 48], 64, 48, &k, 0.02), (1.0, 0));
+    }
+
+    #[test]
+    fn the_paper_bins() {
+        assert_eq!([bin(0.0), bin(0.7999), bin(0.80), bin(0.85), bin(0.8501), bin(1.0)], [0, 0, 1, 1, 2, 2]);
+    }
+
+    #[test]
+    fn model_points_lie_on_the_mesh_and_spread_by_area() {
+        // Two triangles: a unit square at z = 0 (area 1) and a small one at z = 1 (area 0.125).
+        let mesh = TexturedMesh {
+            positions: vec![
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [1.0, 1.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [0.0, 0.0, 1.0],
+                [0.5, 0.0, 1.0],
+                [0.0, 0.5, 1.0],
+            ],
+            normals: vec![[0.0, 0.0, 1.0]; 7],
+            uvs: vec![[0.0, 0.0]; 7],
+            indices: vec![0, 1, 2, 0, 2, 3, 4, 5, 6],
+            texture: vt_objects::Texture::solid([128, 128, 128]),
+        };
+        let pts = model_points(&mesh, 900);
+        assert_eq!(pts, model_points(&mesh, 900));
+        let high = pts.iter().filter(|p| p.z == 1.0).count();
+        assert!(pts.iter().all(|p| p.z == 0.0 || p.z == 1.0));
+        assert!(pts.iter().filter(|p| p.z == 0.0).all(|p| (0.0..=1.0).contains(&p.x) && (0.0..=1.0).contains(&p.y)));
+        assert!(pts.iter().filter(|p| p.z == 1.0).all(|p| p.x + p.y <= 0.5 + 1e-12));
+        // 1/9 of the area: 100 of 900 points, within a low-discrepancy sequence's few.
+        assert!((90..=110).contains(&high), "{high}");
+    }
+}

@@ -9,13 +9,13 @@ use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
 use anyhow::{Result, bail};
-use glam::DVec3;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
 use crate::assets::LoadedObject;
 use crate::config::LoadedConfig;
 use crate::output::workers::run_pool;
+use crate::physics::grasp::floor_clearance;
 use crate::scene::robot::RobotScene;
 
 /// What to check.
@@ -148,13 +148,7 @@ fn check_trajectory(robot: &mut RobotScene, seed: u64, obj: &LoadedObject, o: us
         r.min_contacts = r.min_contacts.min(s.contacts.iter().filter(|c| c.is_some()).count());
         r.max_slip_mm = r.max_slip_mm.max(s.slip_translation * 1e3);
         r.sum_slip_mm += s.slip_translation * 1e3;
-        let t_world_object = robot.t_world_base * s.t_base_palm * s.t_palm_object;
-        let lowest = obj
-            .mesh
-            .positions
-            .iter()
-            .map(|p| t_world_object.transform_point3(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)).z)
-            .fold(f64::MAX, f64::min);
+        let lowest = floor_clearance(&obj.mesh.positions, &(robot.t_world_base * s.t_base_palm * s.t_palm_object));
         r.min_clearance_mm = r.min_clearance_mm.min(lowest * 1e3);
     }
     r.seconds = t0.elapsed().as_secs_f64();

@@ -45,28 +45,30 @@ pub fn inspect(root: &Path) -> Result<Inspection> {
     let (mut n, mut randomized) = (0u64, 0u64);
     let mut tactile = Vec::new();
     let mut contacts: BTreeMap<String, u64> = BTreeMap::new();
+    let bins = crate::annotate::occlusion::BINS;
     for split in manifest.splits.keys() {
-        let bins =
-            occlusion.entry(split.clone()).or_insert_with(|| crate::annotate::occlusion::BINS.iter().map(|b| (b.to_string(), 0)).collect());
-        for shard in ds.shards(split)? {
-            for index in shard.indices().collect::<Vec<_>>() {
-                let info = shard.read_info(index)?;
-                n += 1;
-                let object = info["object_id"].as_str().unwrap_or("?").to_string();
-                *samples.entry(split.clone()).or_default().entry(object).or_default() += 1;
-                randomized += info["randomized"].as_bool().unwrap_or(false) as u64;
-                if let Some(level) = info["occlusion"]["level"].as_f64() {
-                    *bins.entry(crate::annotate::occlusion::BINS[crate::annotate::occlusion::bin(level)].to_string()).or_default() += 1;
-                }
-                if let Some(points) = info["tactile"]["points"].as_object() {
-                    tactile.push(points.values().filter_map(|v| v.as_u64()).sum());
-                }
-                for p in info["phalanges_in_contact"].as_array().into_iter().flatten() {
-                    *contacts.entry(p.as_str().unwrap_or("?").to_string()).or_default() += 1;
-                }
-            }
-        }
+        occlusion.insert(split.clone(), bins.iter().map(|b| (b.to_string(), 0)).collect());
     }
+    super::for_each_info(&ds, |split, _, _, info| {
+        n += 1;
+        let object = info["object_id"].as_str().unwrap_or("?").to_string();
+        *samples.entry(split.to_string()).or_default().entry(object).or_default() += 1;
+        randomized += info["randomized"].as_bool().unwrap_or(false) as u64;
+        if let Some(level) = info["occlusion"]["level"].as_f64() {
+            *occlusion
+                .entry(split.to_string())
+                .or_default()
+                .entry(bins[crate::annotate::occlusion::bin(level)].to_string())
+                .or_default() += 1;
+        }
+        if let Some(points) = info["tactile"]["points"].as_object() {
+            tactile.push(points.values().filter_map(|v| v.as_u64()).sum());
+        }
+        for p in info["phalanges_in_contact"].as_array().into_iter().flatten() {
+            *contacts.entry(p.as_str().unwrap_or("?").to_string()).or_default() += 1;
+        }
+        Ok(())
+    })?;
     Ok(Inspection {
         complete: manifest.complete,
         shards: entries.len(),

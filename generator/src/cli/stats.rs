@@ -31,30 +31,25 @@ fn collect(root: &Path) -> Result<Collected> {
     let mut c = Collected::default();
     let names = vt_robot::phalanx_names();
     let mut contacts = vec![0u64; names.len()];
-    let splits: Vec<String> = ds.manifest().splits.keys().cloned().collect();
-    for split in &splits {
-        for shard in ds.shards(split)? {
-            for index in shard.indices().collect::<Vec<_>>() {
-                let info = shard.read_info(index)?;
-                let pose: Pose = serde_json::from_value(info["T_camera_object"].clone())
-                    .with_context(|| format!("{} sample {index}: T_camera_object", shard.path().display()))?;
-                c.positions.push(pose.translation());
-                c.z_axes.push(pose.rotation() * DVec3::Z);
-                c.x_axes.push(pose.rotation() * DVec3::X);
-                if let Some(l) = info["occlusion"]["level"].as_f64() {
-                    c.occlusion.push(l);
-                }
-                if let Some(points) = info["tactile"]["points"].as_object() {
-                    c.tactile_points.push(points.values().filter_map(|v| v.as_u64()).sum());
-                }
-                for p in info["phalanges_in_contact"].as_array().into_iter().flatten() {
-                    if let Some(k) = names.iter().position(|n| Some(n.as_str()) == p.as_str()) {
-                        contacts[k] += 1;
-                    }
-                }
+    super::for_each_info(&ds, |_, shard, index, info| {
+        let pose: Pose = serde_json::from_value(info["T_camera_object"].clone())
+            .with_context(|| format!("{} sample {index}: T_camera_object", shard.display()))?;
+        c.positions.push(pose.translation());
+        c.z_axes.push(pose.rotation() * DVec3::Z);
+        c.x_axes.push(pose.rotation() * DVec3::X);
+        if let Some(l) = info["occlusion"]["level"].as_f64() {
+            c.occlusion.push(l);
+        }
+        if let Some(points) = info["tactile"]["points"].as_object() {
+            c.tactile_points.push(points.values().filter_map(|v| v.as_u64()).sum());
+        }
+        for p in info["phalanges_in_contact"].as_array().into_iter().flatten() {
+            if let Some(k) = names.iter().position(|n| Some(n.as_str()) == p.as_str()) {
+                contacts[k] += 1;
             }
         }
-    }
+        Ok(())
+    })?;
     c.contacts = names.into_iter().zip(contacts).collect();
     Ok(c)
 }

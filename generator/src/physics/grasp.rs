@@ -510,16 +510,19 @@ fn move_and_settle(
         return Ok(MoveOutcome::NotRecordable(Failure::TooFewContacts));
     }
     // The object must hang free: its lowest point above the floor (z = 0).
-    let t_world_object = ctx.t_world_base * robot.palm_pose(q) * obj;
-    let lowest = object
-        .points
-        .iter()
-        .map(|p| t_world_object.transform_point3(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)).z)
-        .fold(f64::MAX, f64::min);
-    if lowest < 0.005 {
+    if floor_clearance(&object.points, &(ctx.t_world_base * robot.palm_pose(q) * obj)) < MIN_FLOOR_CLEARANCE {
         return Ok(MoveOutcome::NotRecordable(Failure::TouchesFloor));
     }
     Ok(MoveOutcome::Recordable(obj, contacts, penetration))
+}
+
+/// Smallest height (m) of the object above the floor a recorded instance may have.
+const MIN_FLOOR_CLEARANCE: f64 = 0.005;
+
+/// Height above the floor (world z = 0) of the lowest of `points` (model frame) posed by
+/// `t_world_object`.
+pub fn floor_clearance(points: &[[f32; 3]], t_world_object: &DAffine3) -> f64 {
+    points.iter().map(|p| t_world_object.transform_point3(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)).z).fold(f64::MAX, f64::min)
 }
 
 #[cfg(test)]
@@ -599,19 +602,93 @@ mod tests {
         }
     }
 
+    /// The grasp loop over the scripted hand: `cfg` with the paper's robot and camera.
+    fn run_fake(hand: &mut crate::physics::fake::FakeHand, cfg: &GraspConfig, instances: u32) -> (Result<Trajectory>, Vec<Failure>) {
+        let robot = RobotModel::builtin();
+        let (t_world_base, camera_position) = paper_context();
+        let ctx = GraspContext { robot: &robot, t_world_base, config: cfg, timestep: 1.0 / 240.0, camera_position };
+        let object = PhysicsObject {
+            points: vt_objects::procedural_mesh(vt_objects::Catalog::builtin().get("005_tomato_soup_can").unwrap()).positions,
+            mass: 0.35,
+        };
+        let mut failures = Vec::new();
+        let key = TrajectoryKey { seed: 3, object_id: "005_tomato_soup_can", trajectory: 0, instances };
+        (simulate_trajectory(&ctx, hand, &object, key, &mut failures), failures)
+    }
+
+    #[test]
+    fn a_held_object_gives_every_instance_without_slip_and_the_same_key_the_same_trajectory() {
+        let cfg = GraspConfig::default();
+        let mut hand = crate::physics::fake::FakeHand::holding(3);
+        let (t, failures) = run_fake(&mut hand, &cfg, 4);
+        let t = t.unwrap();
+        assert_eq!((t.instances.len(), t.attempts), (4, 1), "{failures:?}");
+        let grasped = t.instances[0].t_palm_object;
+        for i in &t.instances {
+            assert_eq!(i.t_palm_object, grasped);
+            assert_eq!((i.slip_translation, i.slip_rotation), (0.0, 0.0));
+            assert_eq!(i.contacts.iter().filter(|c| c.is_some()).count(), 3);
+            // The recorded hand is the fake's, the arm the IK's: the palm pose follows the joints.
+            assert!(robot_palm_matches(&i.q, &i.t_base_palm));
+        }
+        // Arm moves differ from instance to instance; the same key gives the same trajectory.
+        assert_ne!(t.instances[0].t_base_palm, t.instances[1].t_base_palm);
+        let (again, _) = run_fake(&mut crate::physics::fake::FakeHand::holding(3), &cfg, 4);
+        let again = again.unwrap();
+        assert!(t.instances.iter().zip(&again.instances).all(|(a, b)| a.q == b.q && a.t_palm_object == b.t_palm_object));
+    }
+
+    fn robot_palm_matches(q: &[f64], t_base_palm: &DAffine3) -> bool {
+        RobotModel::builtin().palm_pose(q).abs_diff_eq(*t_base_palm, 1e-12)
+    }
+
+    #[test]
+    fn grasps_that_do_not_hold_fail_each_attempt_and_the_trajectory_names_the_cause() {
+        let cfg = GraspConfig { max_attempts: 3, ..GraspConfig::default() };
+        // The object slides 1 mm per step: more than 2 cm while the hand holds still.
+        let mut sliding = crate::physics::fake::FakeHand::holding(3);
+        sliding.drift_per_step = DVec3::new(0.0, 0.0, 0.001);
+        let (t, failures) = run_fake(&mut sliding, &cfg, 2);
+        let e = t.unwrap_err().to_string();
+        assert!(e.contains("005_tomato_soup_can trajectory 0: no grasp held in 3 attempts"), "{e}");
+        assert!(failures.iter().all(|f| matches!(f, Failure::GraspNotHeld | Failure::Unreachable)), "{failures:?}");
+        assert!(failures.contains(&Failure::GraspNotHeld));
+        // One phalanx alone does not hold an object either.
+        let (t, failures) = run_fake(&mut crate::physics::fake::FakeHand::holding(1), &cfg, 2);
+        assert!(t.is_err());
+        assert!(failures.contains(&Failure::GraspNotHeld), "{failures:?}");
+        // A hand that presses into the object never records an instance (1.2 mm: placed, since
+        // placement tolerates 1.5 mm, but over the 1 mm a recorded instance may have).
+        let mut pressing = crate::physics::fake::FakeHand::holding(3);
+        pressing.penetration = 1.2 * cfg.max_penetration;
+        let (t, failures) = run_fake(&mut pressing, &cfg, 2);
+        assert!(t.is_err());
+        assert!(failures.contains(&Failure::MoveRedoneForPenetration) && failures.contains(&Failure::Penetration), "{failures:?}");
+    }
+
+    #[test]
+    fn a_move_that_drops_the_object_is_undone_and_redrawn() {
+        let cfg = GraspConfig::default();
+        // Steps of placing, resting, closing and settling, then well into the first arm move.
+        let settle_steps = (0.15f64 + cfg.close_seconds + cfg.settle_seconds) * 240.0;
+        let mut hand = crate::physics::fake::FakeHand::holding(3);
+        hand.drop_at_step = Some(settle_steps as u64 + 60);
+        let (t, failures) = run_fake(&mut hand, &cfg, 3);
+        let t = t.unwrap();
+        assert_eq!((t.instances.len(), t.attempts), (3, 1));
+        assert_eq!(failures, vec![Failure::MoveRedoneForDrop]);
+        // The redone move starts from the state saved before the drop: the object is back in the hand.
+        assert!(t.instances.iter().all(|i| i.slip_translation == 0.0));
+    }
+
     #[test]
     #[ignore]
     fn experiment() {
         let robot = RobotModel::builtin();
         let pc = PhysicsConfig::default();
         let env = |k: &str, d: f64| std::env::var(k).ok().and_then(|v| v.parse().ok()).unwrap_or(d);
-        let settings = PhysicsSettings {
-            timestep: pc.timestep,
-            friction: env("F", pc.friction),
-            stiffness: pc.stiffness,
-            damping: pc.damping,
-            max_torque: env("T", pc.max_torque),
-        };
+        let settings =
+            PhysicsSettings { friction: env("F", pc.friction), max_torque: env("T", pc.max_torque), ..PhysicsSettings::from(&pc) };
         let mut cfg = GraspConfig::default();
         cfg.max_tilt_deg = env("TILT", cfg.max_tilt_deg);
         cfg.move_seconds = env("MOVE", cfg.move_seconds);

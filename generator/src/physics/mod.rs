@@ -4,6 +4,8 @@
 //! the hand when the arm reorients or accelerates. (Rotational fictitious forces, below 1% of g for
 //! the arm's speeds, are neglected.) This keeps the grasp stable and identical for every backend.
 
+#[cfg(test)]
+pub(crate) mod fake;
 pub mod grasp;
 #[cfg(feature = "mujoco")]
 mod mujoco_backend;
@@ -32,6 +34,18 @@ pub struct PhysicsSettings {
     pub stiffness: f64,
     pub damping: f64,
     pub max_torque: f64,
+}
+
+impl From<&crate::config::PhysicsConfig> for PhysicsSettings {
+    fn from(pc: &crate::config::PhysicsConfig) -> Self {
+        PhysicsSettings {
+            timestep: pc.timestep,
+            friction: pc.friction,
+            stiffness: pc.stiffness,
+            damping: pc.damping,
+            max_torque: pc.max_torque,
+        }
+    }
 }
 
 /// The simulated hand in the palm frame.

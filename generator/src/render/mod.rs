@@ -1,6 +1,8 @@
 //! Rendering behind a small trait. The wgpu rasterizer is the one backend today; it runs on Mesa's
 //! lavapipe (CPU) and on real GPUs alike.
 
+#[cfg(test)]
+pub(crate) mod fake;
 mod mipmaps;
 mod wgpu_backend;
 

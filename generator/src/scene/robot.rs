@@ -168,13 +168,7 @@ impl RobotScene {
             None => RobotModel::builtin(),
         };
         let pc = &robot.physics;
-        let settings = PhysicsSettings {
-            timestep: pc.timestep,
-            friction: pc.friction,
-            stiffness: pc.stiffness,
-            damping: pc.damping,
-            max_torque: pc.max_torque,
-        };
+        let settings = PhysicsSettings::from(pc);
         let physics: Box<dyn HandPhysics> = match pc.backend {
             crate::config::PhysicsBackend::Rapier => Box::new(RapierHand::new(&model, settings)?),
             #[cfg(feature = "mujoco")]

@@ -125,3 +125,71 @@ pub fn contact_pixels(depth: &[f32], n: u32, model: SensorModel, threshold: f64)
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::MeshHandle;
+    use crate::render::fake::PlaneRenderer;
+    use glam::DQuat;
+
+    /// 12 pads in a row 10 cm above the floor, looking down (z out of the pad = world -z); pad k
+    /// sits `lift(k)` higher.
+    fn pads(lift: impl Fn(usize) -> f64) -> [DAffine3; 12] {
+        std::array::from_fn(|k| {
+            DAffine3::from_rotation_translation(
+                DQuat::from_rotation_x(std::f64::consts::PI),
+                DVec3::new(0.03 * k as f64, 0.0, 0.1 + lift(k)),
+            )
+        })
+    }
+
+    #[test]
+    fn a_surface_within_the_threshold_gives_points_on_it_and_one_beyond_gives_none() {
+        // The object's surface is the plane z = 0.099: 1 mm under the even pads (contact), 4 mm
+        // under the odd ones (over the 2 mm threshold).
+        let mut renderer = PlaneRenderer::new(0.099);
+        let cfg = TactileConfig { resolution: 16, ..TactileConfig::default() };
+        let sizes = [(0.02, 0.01); 12];
+        let t_world_pads = pads(|k| if k % 2 == 0 { 0.0 } else { 0.003 });
+        let object = Draw { mesh: MeshHandle(0), t_world_model: DMat4::IDENTITY, mask_id: 1 };
+        // Points come out in the frame `t_camera_world` maps to: a camera 1 m above, looking down.
+        let t_world_camera = DAffine3::from_rotation_translation(DQuat::from_rotation_x(std::f64::consts::PI), DVec3::new(0.0, 0.0, 1.0));
+        let r = sense(&mut renderer, &cfg, &sizes, &t_world_pads, object, &t_world_camera.inverse()).unwrap();
+        for k in 0..12 {
+            assert_eq!(r.counts[k], if k % 2 == 0 { 256 } else { 0 }, "pad {k}");
+            assert_eq!(r.depth[k].len(), 256);
+        }
+        assert_eq!(r.points.len(), 6 * 256);
+        for p in &r.points {
+            let world = t_world_camera.transform_point3(p.position);
+            let pad = t_world_pads[p.phalanx as usize].translation;
+            // On the surface, under its pad, at the depth it reports.
+            assert!((world.z - 0.099).abs() < 1e-6, "{world}");
+            assert!((world.x - pad.x).abs() <= 0.01 + 1e-9 && (world.y - pad.y).abs() <= 0.005 + 1e-9, "{world} off pad {pad}");
+            assert!((p.distance - 0.001).abs() < 1e-6);
+        }
+        // A taxel array reports one point per fired taxel, on the same surface.
+        let taxels = TactileConfig {
+            sensors: crate::config::SensorGroups { proximal: SensorModel::TaxelArray { rows: 4, cols: 2 }, ..cfg.sensors },
+            ..cfg.clone()
+        };
+        let r = sense(&mut renderer, &taxels, &sizes, &t_world_pads, object, &t_world_camera.inverse()).unwrap();
+        // Proximal pads are 0, 3, 6, 9: in contact are 0 and 6.
+        assert_eq!([r.counts[0], r.counts[3], r.counts[6], r.counts[9]], [8, 0, 8, 0]);
+        assert!(r.points.iter().all(|p| (t_world_camera.transform_point3(p.position).z - 0.099).abs() < 1e-6));
+    }
+
+    #[test]
+    fn contact_rules_of_the_sensor_models() {
+        // A 4x4 pad: a ramp of depths 0..15 mm.
+        let depth: Vec<f32> = (0..16).map(|i| i as f32 * 1e-3).collect();
+        assert_eq!(contact_pixels(&depth, 4, SensorModel::DepthCamera, 0.0025).len(), 3);
+        assert_eq!(contact_pixels(&depth, 4, SensorModel::Gelsight { gel_thickness_mm: 5.5 }, 0.0025).len(), 6);
+        // 2x2 taxels of 2x2 pixels each, closest pixels at 0, 2, 8 and 10 mm: each fires at its
+        // closest pixel.
+        let taxels = SensorModel::TaxelArray { rows: 2, cols: 2 };
+        assert_eq!(contact_pixels(&depth, 4, taxels, 0.0015), vec![(0, 0)]);
+        assert_eq!(contact_pixels(&depth, 4, taxels, 0.0085), vec![(0, 0), (2, 0), (0, 2)]);
+    }
+}

@@ -1,0 +1,88 @@
+//! A scripted `HandPhysics` for unit tests of the grasp loop without a physics engine: the object
+//! stays where it was put (or drifts, or is dropped once, as the test asks), the joints reach their
+//! targets at once, and the contacts are whatever the test sets.
+
+use glam::{DAffine3, DVec3};
+
+use super::{HandPhysics, PhysicsObject};
+
+#[derive(Debug, Clone)]
+pub struct FakeHand {
+    pub object: DAffine3,
+    pub joints: [f64; 16],
+    pub gravity: DVec3,
+    /// Added to the object's position at every step (a grasp that does not hold).
+    pub drift_per_step: DVec3,
+    /// The phalanges' contacts the backend reports.
+    pub contacts: [Option<f64>; 12],
+    pub penetration: f64,
+    /// The object flies out of the hand at this step of the simulation (counted from the start),
+    /// once: a restored state does not drop it again.
+    pub drop_at_step: Option<u64>,
+    pub steps: u64,
+    saved: Option<(DAffine3, [f64; 16], DVec3, u64)>,
+}
+
+impl FakeHand {
+    /// A hand that holds whatever it is given, touching it with `touching` phalanges.
+    pub fn holding(touching: usize) -> Self {
+        FakeHand {
+            object: DAffine3::IDENTITY,
+            joints: [0.0; 16],
+            gravity: DVec3::ZERO,
+            drift_per_step: DVec3::ZERO,
+            contacts: std::array::from_fn(|k| (k < touching).then_some(0.0)),
+            penetration: 0.0,
+            drop_at_step: None,
+            steps: 0,
+            saved: None,
+        }
+    }
+}
+
+impl HandPhysics for FakeHand {
+    fn backend_name(&self) -> &'static str {
+        "fake"
+    }
+    fn reset(&mut self, _object: &PhysicsObject, object_pose: DAffine3, q: &[f64; 16]) -> anyhow::Result<()> {
+        self.object = object_pose;
+        self.joints = *q;
+        Ok(())
+    }
+    fn set_targets(&mut self, targets: &[f64; 16]) {
+        self.joints = *targets;
+    }
+    fn set_gravity(&mut self, g: DVec3) {
+        self.gravity = g;
+    }
+    fn set_object_damping(&mut self, _linear: f64, _angular: f64) {}
+    fn step(&mut self) {
+        self.steps += 1;
+        self.object.translation += self.drift_per_step;
+        if self.drop_at_step == Some(self.steps) {
+            self.drop_at_step = None;
+            self.object.translation += DVec3::new(-1.0, 0.0, 0.0);
+        }
+    }
+    fn object_pose(&self) -> DAffine3 {
+        self.object
+    }
+    fn joint_positions(&self) -> [f64; 16] {
+        self.joints
+    }
+    fn phalanx_contacts(&self) -> [Option<f64>; 12] {
+        // A dropped object touches nothing.
+        if self.object.translation.length() > 0.25 { [None; 12] } else { self.contacts }
+    }
+    fn max_penetration(&self) -> f64 {
+        self.penetration
+    }
+    fn save(&mut self) {
+        self.saved = Some((self.object, self.joints, self.gravity, self.steps));
+    }
+    fn restore(&mut self) {
+        if let Some((object, joints, gravity, steps)) = self.saved {
+            (self.object, self.joints, self.gravity, self.steps) = (object, joints, gravity, steps);
+        }
+    }
+}
