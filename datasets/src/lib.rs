@@ -5,6 +5,7 @@
 //! it; inspection, validation and the trainer read with it), `datasets/python` for Python.
 
 mod glb;
+mod info;
 mod manifest;
 mod ply;
 mod reader;
@@ -12,6 +13,7 @@ mod sample;
 mod writer;
 
 pub use glb::{ColoredMesh, encode_glb, srgb_to_linear};
+pub use info::{OcclusionInfo, PlacedDistractor, RobotInfo, SampleInfo, Split, TouchInfo};
 pub use manifest::{ContinuousSymmetry, Manifest, ModelInfo, ModelsInfo, ShardEntry, SplitManifest, sha256_file, write_atomic};
 pub use ply::{PlyMesh, read_ply, write_ply};
 pub use reader::{DatasetReader, ShardReader};

@@ -84,6 +84,12 @@ impl ShardReader {
         bail!("{}: missing message on {}", ctx(), topics::SAMPLE_INFO)
     }
 
+    /// Reads sample `index`'s `/sample/info` as its type (FORMAT.md).
+    pub fn read_sample_info(&self, index: u64) -> Result<crate::SampleInfo> {
+        serde_json::from_value(self.read_info(index)?)
+            .with_context(|| format!("shard {} sample {index}: /sample/info", self.path.display()))
+    }
+
     /// Reads sample `index` (its index within the split).
     pub fn read(&self, index: u64) -> Result<Sample> {
         let ctx = || format!("shard {} sample {index}", self.path.display());

@@ -82,6 +82,11 @@ pub struct TactileData {
 }
 
 impl Sample {
+    /// `/sample/info` as its type.
+    pub fn sample_info(&self) -> anyhow::Result<crate::SampleInfo> {
+        serde_json::from_value(self.info.clone()).map_err(|e| anyhow::anyhow!("sample {}: /sample/info: {e}", self.index))
+    }
+
     pub fn fx(&self) -> f64 {
         self.k[0]
     }

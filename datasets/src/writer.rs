@@ -55,7 +55,7 @@ struct Channels {
 }
 
 /// JSON schema of `/sample/info` (FORMAT.md). Open for extension: readers ignore unknown keys.
-const SAMPLE_INFO_SCHEMA: &str = r#"{"title":"vtgen.SampleInfo","type":"object","properties":{"split":{"type":"string"},"index":{"type":"integer"},"object_id":{"type":"string"},"object_index":{"type":"integer"},"mask_id":{"type":"integer"},"trajectory":{"type":"integer"},"instance":{"type":"integer"},"randomized":{"type":"boolean"},"visible_pixels":{"type":"integer"},"T_world_camera":{"type":"object"},"T_camera_object":{"type":"object"}},"required":["split","index","object_id","trajectory","instance"]}"#;
+pub(crate) const SAMPLE_INFO_SCHEMA: &str = r#"{"title":"vtgen.SampleInfo","type":"object","properties":{"split":{"type":"string"},"index":{"type":"integer"},"object_id":{"type":"string"},"object_index":{"type":"integer"},"mask_id":{"type":"integer"},"trajectory":{"type":"integer"},"instance":{"type":"integer"},"randomized":{"type":"boolean"},"visible_pixels":{"type":"integer"},"T_world_camera":{"type":"object"},"T_camera_object":{"type":"object"}},"required":["split","index","object_id","trajectory","instance"]}"#;
 
 pub struct ShardWriter {
     mcap: mcap::Writer<BufWriter<File>>,

@@ -1,9 +1,12 @@
 //! The dataset plan: which samples exist, their split, their order and their shard (FORMAT.md,
 //! "Samples, splits and shards"). Pure arithmetic on the config.
 
+pub use vt_dataset::Split;
+
 use crate::config::Config;
 
-pub const SPLITS: [&str; 2] = ["train", "test"];
+/// The splits in the order the plan lists their shards.
+pub const SPLITS: [Split; 2] = Split::ALL;
 
 /// One sample's coordinates.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -18,7 +21,7 @@ pub struct SampleRef {
 pub struct ShardPlan {
     /// Position in the dataset's shard list (train shards, then test shards).
     pub job: usize,
-    pub split: &'static str,
+    pub split: Split,
     pub shard_index: u32,
     pub first_sample: u64,
     pub samples: Vec<SampleRef>,
@@ -26,7 +29,7 @@ pub struct ShardPlan {
 
 impl ShardPlan {
     pub fn file(&self) -> String {
-        vt_dataset::shard_file(self.split, self.shard_index)
+        vt_dataset::shard_file(self.split.as_str(), self.shard_index)
     }
 }
 
@@ -52,7 +55,7 @@ impl Plan {
         for (si, split) in SPLITS.into_iter().enumerate() {
             let mut all = Vec::new();
             for o in 0..config.objects.len() as u32 {
-                for t in (0..s.trajectories_per_object).filter(|&t| is_test(config, t) == (si == 1)) {
+                for t in (0..s.trajectories_per_object).filter(|&t| is_test(config, t) == (split == Split::Test)) {
                     all.extend((0..s.instances_per_trajectory).map(|i| SampleRef { object_index: o, trajectory: t, instance: i }));
                 }
             }

@@ -5,7 +5,10 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 use glam::{DAffine3, DMat4, DQuat};
-use vt_dataset::{ColoredMesh, Pose, Sample, SceneModel, TactileData, TactilePointRecord, encode_glb, frames, mask_ids};
+use vt_dataset::{
+    ColoredMesh, OcclusionInfo, PlacedDistractor, Pose, RobotInfo, Sample, SampleInfo, SceneModel, Split, TactileData, TactilePointRecord,
+    TouchInfo, encode_glb, frames, mask_ids,
+};
 use vt_objects::{Texture, TexturedMesh};
 use vt_randomizers::{AppearanceContext, ImageLibrary, ProceduralTexture, SampleKey, SampleStream};
 
@@ -144,7 +147,7 @@ pub struct StageTimes {
 }
 
 /// A distractor object standing on the floor.
-struct PlacedDistractor {
+struct Distractor {
     object: usize,
     mask_id: u8,
     pose: Pose,
@@ -153,13 +156,13 @@ struct PlacedDistractor {
 impl<'a> SampleFactory<'a> {
     /// The randomizer's distractors as objects standing upright on the floor (mask ids 2, 3, …),
     /// leaving out any that would overlap the target's footprint or an earlier distractor.
-    fn place_distractors(&self, scene: &crate::scene::SampledScene, target: usize) -> Vec<PlacedDistractor> {
+    fn place_distractors(&self, scene: &crate::scene::SampledScene, target: usize) -> Vec<Distractor> {
         let radius = |o: usize| {
             let e = self.objects[o].mesh.extents();
             0.5 * (e.x as f64).hypot(e.y as f64)
         };
         let target_xy = scene.t_world_object.translation().truncate();
-        let mut placed: Vec<(PlacedDistractor, glam::DVec2, f64)> = Vec::new();
+        let mut placed: Vec<(Distractor, glam::DVec2, f64)> = Vec::new();
         for d in &scene.appearance.distractors {
             if placed.len() >= 8 {
                 break; // mask ids 2–9
@@ -175,7 +178,7 @@ impl<'a> SampleFactory<'a> {
             }
             let z = 0.5 * self.objects[object].mesh.extents().z as f64;
             let pose = Pose::from_rt(glam::DQuat::from_rotation_z(d.yaw), xy.extend(z));
-            placed.push((PlacedDistractor { object, mask_id: 2 + placed.len() as u8, pose }, xy, r));
+            placed.push((Distractor { object, mask_id: 2 + placed.len() as u8, pose }, xy, r));
         }
         placed.into_iter().map(|p| p.0).collect()
     }
@@ -261,7 +264,7 @@ impl<'a> SampleFactory<'a> {
         models
     }
 
-    pub fn make(&mut self, split: &str, index: u64, r: &SampleRef) -> Result<Sample> {
+    pub fn make(&mut self, split: Split, index: u64, r: &SampleRef) -> Result<Sample> {
         let obj = &self.objects[r.object_index as usize];
         let key = SampleKey { seed: self.config.seed, object_id: &obj.id, trajectory: r.trajectory, instance: r.instance };
         let ws = &self.config.scene.workspace;
@@ -280,7 +283,7 @@ impl<'a> SampleFactory<'a> {
             Draw { mesh: self.floor, t_world_model: DMat4::IDENTITY, mask_id: mask_ids::BACKGROUND },
             Draw { mesh: self.backdrop, t_world_model: DMat4::IDENTITY, mask_id: mask_ids::BACKGROUND },
         ];
-        let mut robot_info = serde_json::Map::new();
+        let mut robot_info: Option<RobotInfo> = None;
         let mut extra_transforms = Vec::new();
         let mut pad_poses: Option<[DAffine3; 12]> = None;
         if let Some(robot) = &mut self.robot {
@@ -317,16 +320,17 @@ impl<'a> SampleFactory<'a> {
             }
             pad_poses = Some(pads);
             let touching: Vec<&String> = names.iter().zip(&st.contacts).filter(|(_, c)| c.is_some()).map(|(n, _)| n).collect();
-            let joints: serde_json::Map<String, serde_json::Value> =
-                robot.model.dof_names().iter().zip(&st.q).map(|(n, v)| (n.to_string(), serde_json::json!(v))).collect();
-            robot_info.insert("physics_backend".into(), robot.backend_name().into());
-            robot_info.insert("phalanges_in_contact".into(), serde_json::json!(touching));
-            robot_info.insert("slip_mm".into(), serde_json::json!(st.slip_translation * 1e3));
-            robot_info.insert("slip_deg".into(), serde_json::json!(st.slip_rotation.to_degrees()));
-            robot_info.insert("penetration_mm".into(), serde_json::json!(st.penetration * 1e3));
-            robot_info.insert("grasp_attempts".into(), serde_json::json!(attempts));
-            robot_info.insert("joint_positions".into(), serde_json::Value::Object(joints));
-            robot_info.insert("T_world_palm".into(), pose_of(&t_world_palm).to_json());
+            robot_info = Some(RobotInfo {
+                physics_backend: robot.backend_name().into(),
+                phalanges_in_contact: touching.into_iter().cloned().collect(),
+                slip_mm: st.slip_translation * 1e3,
+                slip_deg: st.slip_rotation.to_degrees(),
+                penetration_mm: st.penetration * 1e3,
+                grasp_attempts: attempts,
+                joint_positions: robot.model.dof_names().iter().zip(&st.q).map(|(n, v)| (n.to_string(), *v)).collect(),
+                t_world_palm: pose_of(&t_world_palm),
+                tactile: None,
+            });
         }
         let distractors = self.place_distractors(&scene, r.object_index as usize);
         for d in &distractors {
@@ -373,21 +377,16 @@ impl<'a> SampleFactory<'a> {
             self.times.tactile_render += reading.render_time;
             self.times.tactile_extract += t0.elapsed() - reading.render_time;
             let names = vt_robot::phalanx_names();
-            let counts: serde_json::Map<String, serde_json::Value> =
-                names.iter().zip(reading.counts).map(|(n, c)| (n.clone(), c.into())).collect();
-            let sizes: serde_json::Map<String, serde_json::Value> =
-                names.iter().zip(&self.pad_sizes).map(|(n, (l, w))| (n.clone(), serde_json::json!([l, w]))).collect();
-            robot_info.insert(
-                "tactile".into(),
-                serde_json::json!({
-                    "contact_threshold_mm": cfg.contact_threshold_mm,
-                    "sensors": cfg.sensors,
-                    "near_mm": cfg.near_mm,
-                    "far_mm": cfg.far_mm,
-                    "pads": sizes,
-                    "points": counts,
-                }),
-            );
+            if let Some(info) = robot_info.as_mut() {
+                info.tactile = Some(TouchInfo {
+                    contact_threshold_mm: cfg.contact_threshold_mm,
+                    sensors: serde_json::to_value(cfg.sensors)?,
+                    near_mm: cfg.near_mm,
+                    far_mm: cfg.far_mm,
+                    pads: names.iter().zip(&self.pad_sizes).map(|(n, (l, w))| (n.clone(), [*l, *w])).collect(),
+                    points: names.iter().zip(reading.counts).map(|(n, c)| (n.clone(), c as u64)).collect(),
+                });
+            }
             tactile = Some(TactileData {
                 phalanges: names,
                 resolution: cfg.resolution,
@@ -414,34 +413,33 @@ impl<'a> SampleFactory<'a> {
         let alone = img.silhouette_pixels;
         self.times.occlusion += t0.elapsed();
         self.occlusion_histogram[occlusion_bin(level)] += 1;
-        let mut info = serde_json::json!({
-            "split": split,
-            "index": index,
-            "object_id": obj.id,
-            "object_index": obj.index,
-            "mask_id": mask_ids::TARGET_OBJECT,
-            "trajectory": r.trajectory,
-            "instance": r.instance,
-            "randomized": scene.appearance.randomized,
-            "appearance": scene.appearance.info(),
-            "distractors": distractors.iter().map(|d| serde_json::json!({
-                "object_id": self.objects[d.object].id, "mask_id": d.mask_id, "T_world_distractor": d.pose.to_json(),
-            })).collect::<Vec<_>>(),
-            "visible_pixels": visible,
-            "occlusion": {
-                "level": level,
-                "visible_points": visible_points,
-                "model_points": pts.len(),
-                "epsilon_mm": self.config.scene.occlusion_epsilon_mm,
-                "silhouette_pixels": alone,
-                "silhouette_visible_fraction": if alone > 0 { visible as f64 / alone as f64 } else { 0.0 },
-            },
-            "T_world_camera": scene.t_world_camera.to_json(),
-            "T_camera_object": t_camera_object.to_json(),
-        });
-        if let Some(o) = info.as_object_mut() {
-            o.extend(robot_info);
-        }
+        let info = SampleInfo {
+            split,
+            index,
+            object_id: obj.id.clone(),
+            object_index: obj.index,
+            mask_id: mask_ids::TARGET_OBJECT,
+            trajectory: r.trajectory,
+            instance: r.instance,
+            randomized: scene.appearance.randomized,
+            appearance: serde_json::to_value(scene.appearance.info())?,
+            distractors: distractors
+                .iter()
+                .map(|d| PlacedDistractor { object_id: self.objects[d.object].id.clone(), mask_id: d.mask_id, t_world_distractor: d.pose })
+                .collect(),
+            visible_pixels: visible as u64,
+            occlusion: Some(OcclusionInfo {
+                level,
+                visible_points: visible_points as u64,
+                model_points: pts.len() as u64,
+                epsilon_mm: self.config.scene.occlusion_epsilon_mm,
+                silhouette_pixels: alone as u64,
+                silhouette_visible_fraction: if alone > 0 { visible as f64 / alone as f64 } else { 0.0 },
+            }),
+            t_world_camera: scene.t_world_camera,
+            t_camera_object,
+            robot: robot_info,
+        };
         Ok(Sample {
             index,
             width: img.width,
@@ -455,7 +453,7 @@ impl<'a> SampleFactory<'a> {
             t_world_camera: scene.t_world_camera,
             t_world_object: scene.t_world_object,
             extra_transforms,
-            info,
+            info: info.to_value(),
             tactile,
         })
     }

@@ -644,7 +644,7 @@ impl SplitSource {
         }
         let (shard, index, object) = self.entries[i];
         let sample = self.shards[shard].read(index)?;
-        let id = sample.info.get("object_id").and_then(|v| v.as_str()).unwrap_or_default();
+        let id = sample.sample_info()?.object_id;
         if id != self.models[object].id {
             bail!("{} sample {index}: object '{id}', expected '{}' from the dataset's config.json", self.split, self.models[object].id);
         }

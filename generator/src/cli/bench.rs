@@ -17,7 +17,7 @@ use crate::assets::load_objects;
 use crate::config::LoadedConfig;
 use crate::output::workers::run_pool;
 use crate::output::writer_thread::WriterThread;
-use crate::plan::{Plan, SampleRef};
+use crate::plan::{Plan, SampleRef, Split};
 use crate::render::WgpuRenderer;
 use crate::sample::{SampleFactory, StageTimes};
 
@@ -56,7 +56,7 @@ pub fn peak_rss_mib() -> f64 {
         .map_or(0.0, |kib| kib / 1024.0)
 }
 
-type Work = Vec<(&'static str, u64, SampleRef)>;
+type Work = Vec<(Split, u64, SampleRef)>;
 
 /// Whole trajectories, objects in turn, until `samples` samples (the last one cut short).
 fn select(plan: &Plan, samples: u64) -> Vec<Work> {
@@ -128,7 +128,7 @@ fn bench_trajectory(
     writer.set_scene(factory.scene_models(object_index))?;
     let before = factory.occlusion_histogram;
     for (k, (split, index, r)) in traj.iter().enumerate() {
-        match factory.make(split, *index, r) {
+        match factory.make(*split, *index, r) {
             Ok(s) => writer.write_sample(s)?,
             // The grasp loop gave up on this trajectory (its first sample simulates it): measure
             // the others.

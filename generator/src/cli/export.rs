@@ -161,7 +161,7 @@ pub fn export_bop(root: &Path, out: &Path, renderer: &RendererConfig, quiet: boo
     write_json(&out.join("models/models_info.json"), &Value::Object(bop_info))?;
     write_json(&out.join("vtgen_objects.json"), &json!({"obj_id_to_object_id": ids, "source": root.display().to_string()}))?;
 
-    let total: u64 = SPLITS.iter().map(|s| ds.manifest().splits.get(*s).map(|m| m.samples).unwrap_or(0)).sum();
+    let total: u64 = SPLITS.iter().map(|s| ds.manifest().splits.get(s.as_str()).map(|m| m.samples).unwrap_or(0)).sum();
     let progress = if quiet { ProgressBar::hidden() } else { ProgressBar::new(total) };
     progress.set_style(
         ProgressStyle::with_template("{spinner} {elapsed_precise} [{bar:36}] {pos}/{len} images  {per_sec}  ETA {eta}")
@@ -169,7 +169,7 @@ pub fn export_bop(root: &Path, out: &Path, renderer: &RendererConfig, quiet: boo
     );
     let mut summary = ExportSummary { objects: models.objects.len(), ..Default::default() };
     let mut camera_json: Option<Value> = None;
-    for split in SPLITS {
+    for split in SPLITS.map(|s| s.as_str()) {
         for shard in ds.shards(split)? {
             let dir = out.join(split).join(format!("{:06}", shard.meta().shard_index));
             for sub in ["rgb", "depth", "mask", "mask_visib"].into_iter().chain(exr.then_some("depth_exr")) {
@@ -178,9 +178,10 @@ pub fn export_bop(root: &Path, out: &Path, renderer: &RendererConfig, quiet: boo
             let mut scene = Scene::default();
             for index in shard.indices().collect::<Vec<_>>() {
                 let s = shard.read(index)?;
-                let obj = s.info["object_index"].as_u64().filter(|&o| (o as usize) < handles.len()).with_context(|| {
-                    format!("{} sample {index}: object_index is missing or not in models_info.json", shard.path().display())
-                })? as usize;
+                let obj =
+                    s.sample_info().ok().map(|i| i.object_index as u64).filter(|&o| (o as usize) < handles.len()).with_context(|| {
+                        format!("{} sample {index}: object_index is missing or not in models_info.json", shard.path().display())
+                    })? as usize;
                 let amodal = render_alone(&mut r, &s, handles[obj])?;
                 write_image(&mut scene, &dir, &s, obj + 1, &amodal)?;
                 if exr {

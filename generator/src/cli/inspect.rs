@@ -49,23 +49,19 @@ pub fn inspect(root: &Path) -> Result<Inspection> {
     for split in manifest.splits.keys() {
         occlusion.insert(split.clone(), bins.iter().map(|b| (b.to_string(), 0)).collect());
     }
-    super::for_each_info(&ds, |split, _, _, info| {
+    super::for_each_info(&ds, |split, info| {
         n += 1;
-        let object = info["object_id"].as_str().unwrap_or("?").to_string();
-        *samples.entry(split.to_string()).or_default().entry(object).or_default() += 1;
-        randomized += info["randomized"].as_bool().unwrap_or(false) as u64;
-        if let Some(level) = info["occlusion"]["level"].as_f64() {
-            *occlusion
-                .entry(split.to_string())
-                .or_default()
-                .entry(bins[crate::annotate::occlusion::bin(level)].to_string())
-                .or_default() += 1;
+        *samples.entry(split.to_string()).or_default().entry(info.object_id.clone()).or_default() += 1;
+        randomized += info.randomized as u64;
+        if let Some(o) = &info.occlusion {
+            let bin = bins[crate::annotate::occlusion::bin(o.level)].to_string();
+            *occlusion.entry(split.to_string()).or_default().entry(bin).or_default() += 1;
         }
-        if let Some(points) = info["tactile"]["points"].as_object() {
-            tactile.push(points.values().filter_map(|v| v.as_u64()).sum());
+        if info.robot.as_ref().is_some_and(|r| r.tactile.is_some()) {
+            tactile.push(info.tactile_points());
         }
-        for p in info["phalanges_in_contact"].as_array().into_iter().flatten() {
-            *contacts.entry(p.as_str().unwrap_or("?").to_string()).or_default() += 1;
+        for p in info.phalanges_in_contact() {
+            *contacts.entry(p.clone()).or_default() += 1;
         }
         Ok(())
     })?;

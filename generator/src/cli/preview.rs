@@ -30,7 +30,7 @@ pub fn samples(source: &Path, n: usize, ycb_dir: Option<&std::path::PathBuf>) ->
     let all: Vec<_> =
         plan.shards.iter().flat_map(|s| s.samples.iter().enumerate().map(move |(k, r)| (s.split, s.first_sample + k as u64, *r))).collect();
     let step = (all.len() / n.max(1)).max(1);
-    all.iter().step_by(step).take(n).map(|(split, i, r)| factory.make(split, *i, r)).collect()
+    all.iter().step_by(step).take(n).map(|(split, i, r)| factory.make(*split, *i, r)).collect()
 }
 
 fn project(s: &Sample, p: DVec3) -> Option<(f64, f64)> {
@@ -136,7 +136,7 @@ pub fn write_sheet(samples: &[Sample], out: &Path, row_width: u32, columns: u32)
             let hgt = (r.height() as f64 * row_width as f64 / r.width() as f64).round() as u32;
             let mut r = image::imageops::resize(&r, row_width, hgt, image::imageops::FilterType::Triangle);
             // A strip on the left: orange for a randomized sample, light grey for a canonical one.
-            let c = if s.info["randomized"].as_bool().unwrap_or(false) { [255, 140, 0] } else { [210, 210, 210] };
+            let c = if s.sample_info().is_ok_and(|i| i.randomized) { [255, 140, 0] } else { [210, 210, 210] };
             for y in 0..hgt {
                 for x in 0..6.min(row_width) {
                     r.put_pixel(x, y, Rgb(c));

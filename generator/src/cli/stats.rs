@@ -8,7 +8,7 @@ use std::path::Path;
 use anyhow::{Context, Result, anyhow};
 use glam::DVec3;
 use plotters::prelude::*;
-use vt_dataset::{DatasetReader, Pose};
+use vt_dataset::DatasetReader;
 
 use crate::cli::inspect::{Inspection, inspect};
 
@@ -31,20 +31,19 @@ fn collect(root: &Path) -> Result<Collected> {
     let mut c = Collected::default();
     let names = vt_robot::phalanx_names();
     let mut contacts = vec![0u64; names.len()];
-    super::for_each_info(&ds, |_, shard, index, info| {
-        let pose: Pose = serde_json::from_value(info["T_camera_object"].clone())
-            .with_context(|| format!("{} sample {index}: T_camera_object", shard.display()))?;
+    super::for_each_info(&ds, |_, info| {
+        let pose = info.t_camera_object;
         c.positions.push(pose.translation());
         c.z_axes.push(pose.rotation() * DVec3::Z);
         c.x_axes.push(pose.rotation() * DVec3::X);
-        if let Some(l) = info["occlusion"]["level"].as_f64() {
-            c.occlusion.push(l);
+        if let Some(o) = &info.occlusion {
+            c.occlusion.push(o.level);
         }
-        if let Some(points) = info["tactile"]["points"].as_object() {
-            c.tactile_points.push(points.values().filter_map(|v| v.as_u64()).sum());
+        if info.robot.as_ref().is_some_and(|r| r.tactile.is_some()) {
+            c.tactile_points.push(info.tactile_points());
         }
-        for p in info["phalanges_in_contact"].as_array().into_iter().flatten() {
-            if let Some(k) = names.iter().position(|n| Some(n.as_str()) == p.as_str()) {
+        for p in info.phalanges_in_contact() {
+            if let Some(k) = names.iter().position(|n| n == p) {
                 contacts[k] += 1;
             }
         }

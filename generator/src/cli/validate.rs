@@ -226,8 +226,12 @@ impl Model {
 /// not hold.
 pub fn check_ground_truth(s: &Sample, models: &[Model]) -> Option<String> {
     use rapier3d::parry::query::PointQuery;
-    let Some(obj) = s.info["object_index"].as_u64().map(|o| o as usize).filter(|&o| o < models.len()) else {
-        return Some(format!("{} lacks a valid object_index", topics::SAMPLE_INFO));
+    let info = match s.sample_info() {
+        Ok(info) => info,
+        Err(e) => return Some(format!("{e:#}")),
+    };
+    let Some(obj) = Some(info.object_index as usize).filter(|&o| o < models.len()) else {
+        return Some(format!("{} object_index {} is not in models_info.json", topics::SAMPLE_INFO, info.object_index));
     };
     let model = &models[obj];
     if let Some(t) = &s.tactile {

@@ -107,7 +107,7 @@ fn prepare_output(out: &Path, config_json: &str, plan: &Plan, opts: &GenerateOpt
     if let Ok(existing) = std::fs::read_to_string(&cfg_path) {
         let same = existing == config_json;
         if opts.overwrite {
-            for d in SPLITS.iter().chain(&["models"]) {
+            for d in SPLITS.iter().map(|s| s.as_str()).chain(["models"]) {
                 let p = out.join(d);
                 if p.exists() {
                     std::fs::remove_dir_all(&p).with_context(|| format!("cannot remove {}", p.display()))?;
@@ -317,7 +317,7 @@ pub fn generate(cfg: &LoadedConfig, opts: &GenerateOptions) -> Result<GenerateSu
                 generator: GENERATOR.into(),
                 seed: config.seed,
                 config_sha256: config_sha.clone(),
-                split: s.split.into(),
+                split: s.split.to_string(),
                 shard_index: s.shard_index,
                 first_sample: s.first_sample,
                 sample_count: s.samples.len() as u64,
