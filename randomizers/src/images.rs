@@ -8,7 +8,7 @@ use image::imageops::FilterType;
 use rand::Rng;
 
 use crate::config::{RandomizationConfig, TextureKind};
-use crate::texture::ProceduralTexture;
+use crate::raster::ProceduralTexture;
 
 /// Images decoded to [`ImageLibrary::SIZE`]² RGBA8 (sRGB), in groups, one per folder. Cheap to
 /// clone (the pixels are shared).

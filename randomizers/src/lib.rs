@@ -22,6 +22,7 @@ mod appearance;
 mod color;
 mod config;
 mod images;
+mod raster;
 mod stream;
 mod texture;
 

@@ -23,7 +23,7 @@ use crate::data::{Loaded, Loader, Pass, PrepareOptions, SplitSource, load_models
 use crate::geometry::wxyz_to_quat;
 use crate::metrics::{MeanSe, OcclusionBin, add, add_s, angle_error_deg, angle_error_up_to_deg, auc, below, position_error_cm};
 use crate::model::{PoseNet, Variant};
-use crate::train::{RunDir, slot_table};
+use crate::run::{RunDir, slot_table};
 
 /// ADD/ADD-S AUC range (YCB-Video): 10 cm.
 pub const AUC_MAX_M: f64 = 0.10;

@@ -30,5 +30,6 @@ pub mod loss;
 pub mod metrics;
 pub mod model;
 pub mod plots;
+pub mod run;
 pub mod sweep;
 pub mod train;

@@ -26,71 +26,13 @@ use burn::module::Module;
 use burn::optim::{AdamConfig, GradientsParams};
 use burn::prelude::*;
 use indicatif::{ProgressBar, ProgressStyle};
-use serde::{Deserialize, Serialize};
 
 use crate::config::{AugmentConfig, TrainConfig};
 use crate::data::{Loaded, Loader, Pass, PrepareOptions, SplitSource, load_models, select_objects, shuffled};
 use crate::eval::{self, Summary};
 use crate::loss::pose_loss;
-use crate::model::{PoseNet, Variant};
-
-/// `state.json` of a run directory.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct RunState {
-    pub epochs_done: usize,
-    pub steps: u64,
-    /// The object of each head slot.
-    pub objects: Vec<String>,
-    pub variant: Variant,
-    /// `vtpose <version>` that wrote the run.
-    pub trainer: String,
-}
-
-/// Files of a run directory.
-#[derive(Debug, Clone)]
-pub struct RunDir(pub PathBuf);
-
-impl RunDir {
-    pub fn config(&self) -> PathBuf {
-        self.0.join("config.yaml")
-    }
-    pub fn state(&self) -> PathBuf {
-        self.0.join("state.json")
-    }
-    pub fn model(&self) -> PathBuf {
-        self.0.join("model.bpk")
-    }
-    pub fn optimizer(&self) -> PathBuf {
-        self.0.join("optimizer.bpk")
-    }
-    pub fn checkpoint(&self, epoch: usize) -> PathBuf {
-        self.0.join("checkpoints").join(format!("epoch-{epoch:04}.bpk"))
-    }
-    pub fn metrics(&self) -> PathBuf {
-        self.0.join("metrics.csv")
-    }
-
-    pub fn load_state(&self) -> Result<RunState> {
-        let text =
-            std::fs::read_to_string(self.state()).with_context(|| format!("{} is not a vtpose run (no state.json)", self.0.display()))?;
-        serde_json::from_str(&text).with_context(|| format!("{} is not a valid state.json", self.state().display()))
-    }
-
-    fn save_state(&self, s: &RunState) -> Result<()> {
-        let tmp = self.0.join(".state.json.tmp");
-        std::fs::write(&tmp, serde_json::to_string_pretty(s)? + "\n")?;
-        std::fs::rename(&tmp, self.state()).with_context(|| format!("cannot write {}", self.state().display()))
-    }
-
-    /// The trained network of this run on `device` (its config, state and weights).
-    pub fn load_model(&self, device: &Device) -> Result<(TrainConfig, RunState, PoseNet)> {
-        let cfg = TrainConfig::load(&self.config())?;
-        let state = self.load_state()?;
-        let model = cfg.model.net(state.objects.len()).init(device);
-        let model = model.try_load_file(self.model()).map_err(|e| anyhow::anyhow!("cannot load {}: {e}", self.model().display()))?;
-        Ok((cfg, state, model))
-    }
-}
+use crate::model::PoseNet;
+pub use crate::run::{RunDir, RunState, slot_table};
 
 /// How to run [`train`].
 #[derive(Debug, Clone)]
@@ -344,11 +286,6 @@ pub fn train(cfg: &TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
     loader.finish();
     bar.finish_and_clear();
     Ok(TrainSummary { run: run.0, epochs: records, state })
-}
-
-/// Head slot of each dataset object (`None`: not trained on).
-pub fn slot_table(models: &[crate::data::ObjectModel], objects: &[String]) -> Vec<Option<usize>> {
-    models.iter().map(|m| objects.iter().position(|o| o == &m.id)).collect()
 }
 
 /// Per dataset object: trained with the closest-point loss (`train.symmetric_loss` lists its id).
