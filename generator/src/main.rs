@@ -5,7 +5,7 @@ use anyhow::Result;
 use clap::{Parser, Subcommand};
 use vtgen::config::LoadedConfig;
 use vtgen::output::generate::{GenerateOptions, generate};
-use vtgen::plan::{Plan, SPLITS, ShardSelector};
+use vtgen::plan::ShardSelector;
 
 /// Synthetic visuotactile training data for in-hand 6D object pose estimation.
 #[derive(Parser)]
@@ -161,17 +161,6 @@ enum ExportFormat {
     },
 }
 
-fn human_bytes(b: f64) -> String {
-    let units = ["B", "KB", "MB", "GB", "TB"];
-    let mut v = b;
-    let mut u = 0;
-    while v >= 1000.0 && u < units.len() - 1 {
-        v /= 1000.0;
-        u += 1;
-    }
-    format!("{v:.1} {}", units[u])
-}
-
 fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Generate { config, out, shard, resume, overwrite, jobs, ycb_dir, quiet } => {
@@ -187,7 +176,7 @@ fn run(cli: Cli) -> Result<()> {
                     s.samples,
                     s.shards_written,
                     s.shards_skipped,
-                    human_bytes(s.bytes as f64),
+                    vtgen::cli::human_bytes(s.bytes as f64),
                     s.seconds,
                     s.samples as f64 / s.seconds.max(1e-9)
                 );
@@ -197,41 +186,7 @@ fn run(cli: Cli) -> Result<()> {
         }
         Command::Plan { config } => {
             let cfg = LoadedConfig::load(&config)?;
-            let c = &cfg.config;
-            let plan = Plan::new(c);
-            let s = &c.sampling;
-            println!("config      {}", config.display());
-            println!("objects     {} ({})", c.objects.len(), c.objects.iter().map(|o| o.id()).collect::<Vec<_>>().join(", "));
-            println!(
-                "samples     {} objects x {} trajectories x {} instances = {}",
-                c.objects.len(),
-                s.trajectories_per_object,
-                s.instances_per_trajectory,
-                plan.total_samples()
-            );
-            for (i, split) in SPLITS.iter().enumerate() {
-                let shards = plan.shards.iter().filter(|x| x.split == *split).count();
-                println!("{split:<11} {} samples in {shards} shard(s) of up to {}", plan.samples_per_split[i], plan.samples_per_shard);
-            }
-            let (w, h) = (c.camera.width as f64, c.camera.height as f64);
-            let raw = w * h * (3.0 + 4.0 + 1.0) + 2048.0;
-            // Measured: zstd keeps ~12% of the raw bytes of canonical scenes; randomized textures compress worse.
-            let est = raw * plan.total_samples() as f64;
-            println!(
-                "disk        {} raw; about {} to {} with zstd (estimate)",
-                human_bytes(est),
-                human_bytes(est * 0.1),
-                human_bytes(est * 0.4)
-            );
-            println!("output      {}", c.output.dir.display());
-            if let Some(g) = c.robot.as_ref().map(|r| &r.grasp) {
-                // Occlusion depends on the hand's pose in the picture: measured, not planned.
-                println!(
-                    "occlusion   back of the hand to the camera in {:.0}% of arm moves; `vtgen bench {}` measures the share per occlusion bin",
-                    100.0 * g.back_to_camera_share,
-                    config.display()
-                );
-            }
+            print!("{}", vtgen::cli::plan::describe(&config, &cfg.config));
             Ok(())
         }
         Command::Bench { config, samples, jobs, ycb_dir, json } => {
@@ -240,52 +195,7 @@ fn run(cli: Cli) -> Result<()> {
             if json {
                 println!("{}", serde_json::to_string_pretty(&r)?);
             } else {
-                println!("adapter            {}", r.adapter);
-                println!(
-                    "samples            {} in {:.2} s with {} job(s): {:.1} samples/s",
-                    r.samples, r.seconds, r.jobs, r.samples_per_second
-                );
-                let per = |x: f64| 1e3 * x / r.samples as f64;
-                println!("per sample (summed over jobs):");
-                println!("  physics          {:7.2} ms", per(r.physics));
-                println!(
-                    "  main render      {:7.2} ms  (readback {:.2} ms of it and the tactile views)",
-                    per(r.main_render),
-                    per(r.readback)
-                );
-                println!(
-                    "  tactile render   {:7.2} ms  ({:.0}% of the main render)",
-                    per(r.tactile_render),
-                    100.0 * r.tactile_over_main_render
-                );
-                println!("  tactile points   {:7.2} ms", per(r.tactile_extraction));
-                println!("  occlusion        {:7.2} ms", per(r.occlusion));
-                println!("  encode + write   {:7.2} ms  (writer thread, overlapped)", per(r.encode_and_write));
-                println!("peak RSS           {:.0} MiB", r.peak_rss_mib);
-                let bins = vtgen::annotate::occlusion::BINS;
-                println!("occlusion          {:>8} {:>8} {:>8}  (share of samples per bin)", bins[0], bins[1], bins[2]);
-                let mut all = [0u64; 3];
-                for (id, b) in &r.occlusion_bins {
-                    let n = b.iter().sum::<u64>().max(1) as f64;
-                    println!(
-                        "  {id:<24}{:>7.1}% {:>7.1}% {:>7.1}%",
-                        100.0 * b[0] as f64 / n,
-                        100.0 * b[1] as f64 / n,
-                        100.0 * b[2] as f64 / n
-                    );
-                    all.iter_mut().zip(b).for_each(|(a, x)| *a += x);
-                }
-                let n = all.iter().sum::<u64>().max(1) as f64;
-                println!(
-                    "  {:<24}{:>7.1}% {:>7.1}% {:>7.1}%",
-                    "all",
-                    100.0 * all[0] as f64 / n,
-                    100.0 * all[1] as f64 / n,
-                    100.0 * all[2] as f64 / n
-                );
-                for s in &r.skipped_trajectories {
-                    println!("skipped            {s}");
-                }
+                print!("{r}");
             }
             Ok(())
         }
@@ -317,34 +227,8 @@ fn run(cli: Cli) -> Result<()> {
             let r = vtgen::cli::inspect::inspect(&dataset)?;
             if json {
                 println!("{}", serde_json::to_string_pretty(&r)?);
-                return Ok(());
-            }
-            println!(
-                "dataset     {} ({}; {}/{} shards, {})",
-                dataset.display(),
-                if r.complete { "complete" } else { "incomplete" },
-                r.shards_complete,
-                r.shards,
-                human_bytes(r.bytes as f64)
-            );
-            for (split, objects) in &r.samples {
-                let total: u64 = objects.values().sum();
-                let per: Vec<String> = objects.iter().map(|(o, c)| format!("{o} {c}")).collect();
-                println!("{split:<11} {total} samples: {}", per.join(", "));
-            }
-            for (split, bins) in &r.occlusion {
-                let total = bins.values().sum::<u64>().max(1) as f64;
-                let occ: Vec<String> = bins.iter().map(|(b, c)| format!("{b} {c} ({:.1}%)", 100.0 * *c as f64 / total)).collect();
-                println!("occlusion   {split}: {}", occ.join(", "));
-            }
-            println!("randomized  {:.1}%", 100.0 * r.randomized_share);
-            if let Some([lo, med, hi]) = r.tactile_points {
-                println!("touch       tactile points per sample: min {lo}, median {med}, max {hi}");
-                let c: Vec<String> = r.contact_share.iter().map(|(p, s)| format!("{p} {:.0}%", 100.0 * s)).collect();
-                println!("contacts    {}", c.join(", "));
-            }
-            if let Some(g) = &r.grasp {
-                println!("grasps      {g}");
+            } else {
+                print!("{}", r.text(&dataset));
             }
             Ok(())
         }

@@ -146,6 +146,14 @@ pub struct StageTimes {
     pub occlusion: Duration,
 }
 
+/// The robot as the physics stage left it for one sample: its info, the phalanx pads (world) and
+/// the frames `/tf` carries.
+struct PosedRobot {
+    info: RobotInfo,
+    pads: [DAffine3; 12],
+    transforms: Vec<(String, String, Pose)>,
+}
+
 /// A distractor object standing on the floor.
 struct Distractor {
     object: usize,
@@ -264,155 +272,38 @@ impl<'a> SampleFactory<'a> {
         models
     }
 
+    /// One sample, stage by stage: scene (camera, look) -> physics (the grasp's recorded instance
+    /// poses the object and the robot) -> draw list -> main render (+ RGB-D noise) -> touch ->
+    /// occlusion -> the assembled sample and its `/sample/info`.
     pub fn make(&mut self, split: Split, index: u64, r: &SampleRef) -> Result<Sample> {
-        let obj = &self.objects[r.object_index as usize];
+        let objects = self.objects;
+        let obj = &objects[r.object_index as usize];
         let key = SampleKey { seed: self.config.seed, object_id: &obj.id, trajectory: r.trajectory, instance: r.instance };
-        let ws = &self.config.scene.workspace;
-        let workspace_center = glam::DVec3::from_array(std::array::from_fn(|k| 0.5 * (ws.min[k] + ws.max[k])));
-        let ctx = AppearanceContext {
-            workspace_center,
-            workspace_half_extent: [0.3, 0.2],
-            distractor_candidates: self.objects.len() - 1,
-            images: &self.images,
-        };
-        let mut scene = sample_scene(self.config, &key, &ctx);
-        let a = &scene.appearance;
-        self.floor_texture.set(self.renderer.as_mut(), self.floor, &a.floor, a.floor_tile)?;
-        self.backdrop_texture.set(self.renderer.as_mut(), self.backdrop, &a.backdrop, a.backdrop_tile)?;
+        let mut scene = self.sample_scene(&key)?;
         let mut draws = vec![
             Draw { mesh: self.floor, t_world_model: DMat4::IDENTITY, mask_id: mask_ids::BACKGROUND },
             Draw { mesh: self.backdrop, t_world_model: DMat4::IDENTITY, mask_id: mask_ids::BACKGROUND },
         ];
-        let mut robot_info: Option<RobotInfo> = None;
-        let mut extra_transforms = Vec::new();
-        let mut pad_poses: Option<[DAffine3; 12]> = None;
-        if let Some(robot) = &mut self.robot {
-            // The object's pose is the grasp loop's: recorded after the arm moved and it settled.
-            let instances = self.config.sampling.instances_per_trajectory;
-            let t0 = Instant::now();
-            let traj = robot.trajectory(self.config.seed, r.object_index, &obj.id, r.trajectory, instances)?;
-            self.times.physics += t0.elapsed();
-            let attempts = traj.attempts;
-            let st = traj.instances[r.instance as usize].clone();
-            if r.instance == 0 {
-                self.shard_stats.merge(&robot.last_stats);
-            }
-            let t_world_palm = robot.t_world_base * st.t_base_palm;
-            scene.t_world_object = pose_of(&(t_world_palm * st.t_palm_object));
-            let links = robot.model.forward_kinematics(&st.q);
-            extra_transforms.push((frames::WORLD.to_string(), "palm".to_string(), pose_of(&t_world_palm)));
-            for &(link, mesh, id) in &self.robot_meshes {
-                let t_world_link = robot.t_world_base * links[link];
-                draws.push(Draw { mesh, t_world_model: DMat4::from(t_world_link), mask_id: id });
-                // The link frames carry the robot's meshes in Foxglove (`/scene/models`).
-                let name = &robot.model.links[link].name;
-                if name != "palm" {
-                    extra_transforms.push((frames::WORLD.to_string(), name.clone(), pose_of(&t_world_link)));
-                }
-            }
-            let names = vt_robot::phalanx_names();
-            let pads: [DAffine3; 12] = std::array::from_fn(|k| {
-                let pad = robot.model.link_id(&format!("{}_pad", names[k])).expect("validated at load");
-                robot.t_world_base * links[pad]
-            });
-            for (p, t) in names.iter().zip(&pads) {
-                extra_transforms.push((frames::WORLD.to_string(), format!("{p}_pad"), pose_of(t)));
-            }
-            pad_poses = Some(pads);
-            let touching: Vec<&String> = names.iter().zip(&st.contacts).filter(|(_, c)| c.is_some()).map(|(n, _)| n).collect();
-            robot_info = Some(RobotInfo {
-                physics_backend: robot.backend_name().into(),
-                phalanges_in_contact: touching.into_iter().cloned().collect(),
-                slip_mm: st.slip_translation * 1e3,
-                slip_deg: st.slip_rotation.to_degrees(),
-                penetration_mm: st.penetration * 1e3,
-                grasp_attempts: attempts,
-                joint_positions: robot.model.dof_names().iter().zip(&st.q).map(|(n, v)| (n.to_string(), *v)).collect(),
-                t_world_palm: pose_of(&t_world_palm),
-                tactile: None,
-            });
-        }
+        let mut posed = if self.robot.is_some() { Some(self.pose_robot(r, &obj.id, &mut scene, &mut draws)?) } else { None };
         let distractors = self.place_distractors(&scene, r.object_index as usize);
         for d in &distractors {
             draws.push(Draw { mesh: self.object_meshes[d.object], t_world_model: d.pose.matrix(), mask_id: d.mask_id });
         }
-        draws.push(Draw {
+        let object_draw = Draw {
             mesh: self.object_meshes[r.object_index as usize],
             t_world_model: scene.t_world_object.matrix(),
             mask_id: mask_ids::TARGET_OBJECT,
-        });
-        let cam = &self.config.camera;
-        let k = cam.k();
-        let view =
-            View { width: cam.width, height: cam.height, k, near: cam.near, far: cam.far, t_world_camera: scene.t_world_camera.matrix() };
-        let light = &scene.appearance.light;
-        let lighting = Lighting {
-            light_position: light.position,
-            light_target: light.target,
-            light_color: light.color.map(|c| c * light.intensity),
-            cone_deg: light.cone_deg,
-            softness: light.softness,
-            ambient: scene.appearance.ambient,
-            background: self.config.scene.background,
-            shadows: true,
         };
-        let t0 = Instant::now();
-        let mut img = self.renderer.render(&view, &lighting, &draws)?;
-        self.times.main_render += t0.elapsed();
-        // Sensor noise on copies: the clean depth stays the ground truth.
-        let noise = &cam.noise;
-        let mut noise_rng = SampleStream::sample(&key, "sensor_noise");
-        let depth_noisy =
-            noise.depth.as_ref().map(|d| d.apply(&img.depth, img.width, img.height, [k.fx, k.fy, k.cx, k.cy], &mut noise_rng));
-        if let Some(c) = &noise.color {
-            c.apply(&mut img.rgb, &mut noise_rng);
-        }
-        let mut tactile = None;
-        if let (Some(robot), Some(pads)) = (&self.robot, pad_poses) {
-            let cfg = &robot.config.tactile;
-            let object = *draws.last().expect("the object is drawn last");
-            let t_camera_world = scene.t_world_camera.inverse().matrix();
-            let t0 = Instant::now();
-            let reading = sense(self.renderer.as_mut(), cfg, &self.pad_sizes, &pads, object, &DAffine3::from_mat4(t_camera_world))?;
-            self.times.tactile_render += reading.render_time;
-            self.times.tactile_extract += t0.elapsed() - reading.render_time;
-            let names = vt_robot::phalanx_names();
-            if let Some(info) = robot_info.as_mut() {
-                info.tactile = Some(TouchInfo {
-                    contact_threshold_mm: cfg.contact_threshold_mm,
-                    sensors: serde_json::to_value(cfg.sensors)?,
-                    near_mm: cfg.near_mm,
-                    far_mm: cfg.far_mm,
-                    pads: names.iter().zip(&self.pad_sizes).map(|(n, (l, w))| (n.clone(), [*l, *w])).collect(),
-                    points: names.iter().zip(reading.counts).map(|(n, c)| (n.clone(), c as u64)).collect(),
-                });
-            }
-            tactile = Some(TactileData {
-                phalanges: names,
-                resolution: cfg.resolution,
-                depth: reading.depth,
-                points: reading
-                    .points
-                    .iter()
-                    .map(|p| TactilePointRecord {
-                        position: p.position.as_vec3().to_array(),
-                        distance: p.distance as f32,
-                        phalanx: p.phalanx,
-                    })
-                    .collect(),
-            });
-        }
+        draws.push(object_draw);
+        let (img, depth_noisy) = self.render_main(&scene, &key, &draws)?;
+        let tactile = match posed.as_mut() {
+            Some(p) => Some(self.sense_touch(&scene, object_draw, p)?),
+            None => None,
+        };
         let t_camera_object = scene.t_world_camera.inverse().compose(&scene.t_world_object);
-        let visible = img.mask.iter().filter(|&&m| m == mask_ids::TARGET_OBJECT).count();
-        // Occlusion level (model points vs depth cloud) and the visible share of the silhouette.
-        let pts: Vec<glam::DVec3> =
-            self.model_points[r.object_index as usize].iter().map(|p| t_camera_object.transform_point(*p)).collect();
-        let eps = self.config.scene.occlusion_epsilon_mm * 1e-3;
-        let t0 = Instant::now();
-        let (level, visible_points) = occlusion_level(&pts, &img.depth, img.width, img.height, &k, eps);
-        let alone = img.silhouette_pixels;
-        self.times.occlusion += t0.elapsed();
-        self.occlusion_histogram[occlusion_bin(level)] += 1;
+        let occlusion = self.annotate_occlusion(r.object_index as usize, &t_camera_object, &img);
+        let k = self.config.camera.k();
+        let (robot_info, extra_transforms) = posed.map_or((None, Vec::new()), |p| (Some(p.info), p.transforms));
         let info = SampleInfo {
             split,
             index,
@@ -425,17 +316,10 @@ impl<'a> SampleFactory<'a> {
             appearance: serde_json::to_value(scene.appearance.info())?,
             distractors: distractors
                 .iter()
-                .map(|d| PlacedDistractor { object_id: self.objects[d.object].id.clone(), mask_id: d.mask_id, t_world_distractor: d.pose })
+                .map(|d| PlacedDistractor { object_id: objects[d.object].id.clone(), mask_id: d.mask_id, t_world_distractor: d.pose })
                 .collect(),
-            visible_pixels: visible as u64,
-            occlusion: Some(OcclusionInfo {
-                level,
-                visible_points: visible_points as u64,
-                model_points: pts.len() as u64,
-                epsilon_mm: self.config.scene.occlusion_epsilon_mm,
-                silhouette_pixels: alone as u64,
-                silhouette_visible_fraction: if alone > 0 { visible as f64 / alone as f64 } else { 0.0 },
-            }),
+            visible_pixels: img.mask.iter().filter(|&&m| m == mask_ids::TARGET_OBJECT).count() as u64,
+            occlusion: Some(occlusion),
             t_world_camera: scene.t_world_camera,
             t_camera_object,
             robot: robot_info,
@@ -456,5 +340,165 @@ impl<'a> SampleFactory<'a> {
             info: info.to_value(),
             tactile,
         })
+    }
+
+    /// The scene stage: camera, look and candidate distractors from the sample's key, with the
+    /// floor's and backdrop's textures set in the renderer.
+    fn sample_scene(&mut self, key: &SampleKey) -> Result<crate::scene::SampledScene> {
+        let ws = &self.config.scene.workspace;
+        let workspace_center = glam::DVec3::from_array(std::array::from_fn(|k| 0.5 * (ws.min[k] + ws.max[k])));
+        let ctx = AppearanceContext {
+            workspace_center,
+            workspace_half_extent: [0.3, 0.2],
+            distractor_candidates: self.objects.len() - 1,
+            images: &self.images,
+        };
+        let scene = sample_scene(self.config, key, &ctx);
+        let a = &scene.appearance;
+        self.floor_texture.set(self.renderer.as_mut(), self.floor, &a.floor, a.floor_tile)?;
+        self.backdrop_texture.set(self.renderer.as_mut(), self.backdrop, &a.backdrop, a.backdrop_tile)?;
+        Ok(scene)
+    }
+
+    /// The physics stage: the grasp loop's recorded instance (the trajectory is simulated when its
+    /// first sample is made) poses the object and the robot; the robot's links join the draw list.
+    fn pose_robot(
+        &mut self,
+        r: &SampleRef,
+        object_id: &str,
+        scene: &mut crate::scene::SampledScene,
+        draws: &mut Vec<Draw>,
+    ) -> Result<PosedRobot> {
+        let robot = self.robot.as_mut().expect("called with a robot");
+        let instances = self.config.sampling.instances_per_trajectory;
+        let t0 = Instant::now();
+        let traj = robot.trajectory(self.config.seed, r.object_index, object_id, r.trajectory, instances)?;
+        self.times.physics += t0.elapsed();
+        let attempts = traj.attempts;
+        let st = traj.instances[r.instance as usize].clone();
+        if r.instance == 0 {
+            self.shard_stats.merge(&robot.last_stats);
+        }
+        let t_world_palm = robot.t_world_base * st.t_base_palm;
+        scene.t_world_object = pose_of(&(t_world_palm * st.t_palm_object));
+        let links = robot.model.forward_kinematics(&st.q);
+        let mut transforms = vec![(frames::WORLD.to_string(), "palm".to_string(), pose_of(&t_world_palm))];
+        for &(link, mesh, id) in &self.robot_meshes {
+            let t_world_link = robot.t_world_base * links[link];
+            draws.push(Draw { mesh, t_world_model: DMat4::from(t_world_link), mask_id: id });
+            // The link frames carry the robot's meshes in Foxglove (`/scene/models`).
+            let name = &robot.model.links[link].name;
+            if name != "palm" {
+                transforms.push((frames::WORLD.to_string(), name.clone(), pose_of(&t_world_link)));
+            }
+        }
+        let names = vt_robot::phalanx_names();
+        let pads: [DAffine3; 12] = std::array::from_fn(|k| {
+            let pad = robot.model.link_id(&format!("{}_pad", names[k])).expect("validated at load");
+            robot.t_world_base * links[pad]
+        });
+        for (p, t) in names.iter().zip(&pads) {
+            transforms.push((frames::WORLD.to_string(), format!("{p}_pad"), pose_of(t)));
+        }
+        let info = RobotInfo {
+            physics_backend: robot.backend_name().into(),
+            phalanges_in_contact: names.iter().zip(&st.contacts).filter(|(_, c)| c.is_some()).map(|(n, _)| n.clone()).collect(),
+            slip_mm: st.slip_translation * 1e3,
+            slip_deg: st.slip_rotation.to_degrees(),
+            penetration_mm: st.penetration * 1e3,
+            grasp_attempts: attempts,
+            joint_positions: robot.model.dof_names().iter().zip(&st.q).map(|(n, v)| (n.to_string(), *v)).collect(),
+            t_world_palm: pose_of(&t_world_palm),
+            tactile: None,
+        };
+        Ok(PosedRobot { info, pads, transforms })
+    }
+
+    /// The render stage: the main camera's colour, depth and mask, and the noisy RGB-D reading
+    /// (on copies: the clean depth stays the ground truth).
+    fn render_main(
+        &mut self,
+        scene: &crate::scene::SampledScene,
+        key: &SampleKey,
+        draws: &[Draw],
+    ) -> Result<(crate::render::RenderOutput, Option<Vec<f32>>)> {
+        let cam = &self.config.camera;
+        let k = cam.k();
+        let view =
+            View { width: cam.width, height: cam.height, k, near: cam.near, far: cam.far, t_world_camera: scene.t_world_camera.matrix() };
+        let light = &scene.appearance.light;
+        let lighting = Lighting {
+            light_position: light.position,
+            light_target: light.target,
+            light_color: light.color.map(|c| c * light.intensity),
+            cone_deg: light.cone_deg,
+            softness: light.softness,
+            ambient: scene.appearance.ambient,
+            background: self.config.scene.background,
+            shadows: true,
+        };
+        let t0 = Instant::now();
+        let mut img = self.renderer.render(&view, &lighting, draws)?;
+        self.times.main_render += t0.elapsed();
+        let noise = &cam.noise;
+        let mut noise_rng = SampleStream::sample(key, "sensor_noise");
+        let depth_noisy =
+            noise.depth.as_ref().map(|d| d.apply(&img.depth, img.width, img.height, [k.fx, k.fy, k.cx, k.cy], &mut noise_rng));
+        if let Some(c) = &noise.color {
+            c.apply(&mut img.rgb, &mut noise_rng);
+        }
+        Ok((img, depth_noisy))
+    }
+
+    /// The touch stage: the 12 phalanx views of the object alone and the tactile point cloud (in
+    /// the main camera frame); its settings and counts go into the robot's info.
+    fn sense_touch(&mut self, scene: &crate::scene::SampledScene, object: Draw, posed: &mut PosedRobot) -> Result<TactileData> {
+        let cfg = &self.robot.as_ref().expect("called with a robot").config.tactile;
+        let t_camera_world = scene.t_world_camera.inverse().matrix();
+        let t0 = Instant::now();
+        let reading = sense(self.renderer.as_mut(), cfg, &self.pad_sizes, &posed.pads, object, &DAffine3::from_mat4(t_camera_world))?;
+        self.times.tactile_render += reading.render_time;
+        self.times.tactile_extract += t0.elapsed() - reading.render_time;
+        let names = vt_robot::phalanx_names();
+        posed.info.tactile = Some(TouchInfo {
+            contact_threshold_mm: cfg.contact_threshold_mm,
+            sensors: serde_json::to_value(cfg.sensors)?,
+            near_mm: cfg.near_mm,
+            far_mm: cfg.far_mm,
+            pads: names.iter().zip(&self.pad_sizes).map(|(n, (l, w))| (n.clone(), [*l, *w])).collect(),
+            points: names.iter().zip(reading.counts).map(|(n, c)| (n.clone(), c as u64)).collect(),
+        });
+        Ok(TactileData {
+            phalanges: names,
+            resolution: cfg.resolution,
+            depth: reading.depth,
+            points: reading
+                .points
+                .iter()
+                .map(|p| TactilePointRecord { position: p.position.as_vec3().to_array(), distance: p.distance as f32, phalanx: p.phalanx })
+                .collect(),
+        })
+    }
+
+    /// The annotate stage: the paper's occlusion level (model points vs the depth cloud) and the
+    /// visible share of the object's silhouette.
+    fn annotate_occlusion(&mut self, object_index: usize, t_camera_object: &Pose, img: &crate::render::RenderOutput) -> OcclusionInfo {
+        let k = self.config.camera.k();
+        let pts: Vec<glam::DVec3> = self.model_points[object_index].iter().map(|p| t_camera_object.transform_point(*p)).collect();
+        let eps = self.config.scene.occlusion_epsilon_mm * 1e-3;
+        let t0 = Instant::now();
+        let (level, visible_points) = occlusion_level(&pts, &img.depth, img.width, img.height, &k, eps);
+        self.times.occlusion += t0.elapsed();
+        self.occlusion_histogram[occlusion_bin(level)] += 1;
+        let visible = img.mask.iter().filter(|&&m| m == mask_ids::TARGET_OBJECT).count();
+        let alone = img.silhouette_pixels;
+        OcclusionInfo {
+            level,
+            visible_points: visible_points as u64,
+            model_points: pts.len() as u64,
+            epsilon_mm: self.config.scene.occlusion_epsilon_mm,
+            silhouette_pixels: alone as u64,
+            silhouette_visible_fraction: if alone > 0 { visible as f64 / alone as f64 } else { 0.0 },
+        }
     }
 }

@@ -48,6 +48,50 @@ pub struct BenchReport {
     pub occlusion_bins: BTreeMap<String, [u64; 3]>,
 }
 
+impl std::fmt::Display for BenchReport {
+    /// The report as `vtgen bench` prints it: samples/s, milliseconds per sample and stage, peak
+    /// RSS, and the share of samples per occlusion bin and object.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let r = self;
+        writeln!(f, "adapter            {}", r.adapter)?;
+        writeln!(
+            f,
+            "samples            {} in {:.2} s with {} job(s): {:.1} samples/s",
+            r.samples, r.seconds, r.jobs, r.samples_per_second
+        )?;
+        let per = |x: f64| 1e3 * x / r.samples as f64;
+        writeln!(f, "per sample (summed over jobs):")?;
+        writeln!(f, "  physics          {:7.2} ms", per(r.physics))?;
+        writeln!(f, "  main render      {:7.2} ms  (readback {:.2} ms of it and the tactile views)", per(r.main_render), per(r.readback))?;
+        writeln!(
+            f,
+            "  tactile render   {:7.2} ms  ({:.0}% of the main render)",
+            per(r.tactile_render),
+            100.0 * r.tactile_over_main_render
+        )?;
+        writeln!(f, "  tactile points   {:7.2} ms", per(r.tactile_extraction))?;
+        writeln!(f, "  occlusion        {:7.2} ms", per(r.occlusion))?;
+        writeln!(f, "  encode + write   {:7.2} ms  (writer thread, overlapped)", per(r.encode_and_write))?;
+        writeln!(f, "peak RSS           {:.0} MiB", r.peak_rss_mib)?;
+        let bins = crate::annotate::occlusion::BINS;
+        writeln!(f, "occlusion          {:>8} {:>8} {:>8}  (share of samples per bin)", bins[0], bins[1], bins[2])?;
+        let share = |b: &[u64; 3]| {
+            let n = b.iter().sum::<u64>().max(1) as f64;
+            format!("{:>7.1}% {:>7.1}% {:>7.1}%", 100.0 * b[0] as f64 / n, 100.0 * b[1] as f64 / n, 100.0 * b[2] as f64 / n)
+        };
+        let mut all = [0u64; 3];
+        for (id, b) in &r.occlusion_bins {
+            writeln!(f, "  {id:<24}{}", share(b))?;
+            all.iter_mut().zip(b).for_each(|(a, x)| *a += x);
+        }
+        writeln!(f, "  {:<24}{}", "all", share(&all))?;
+        for s in &r.skipped_trajectories {
+            writeln!(f, "skipped            {s}")?;
+        }
+        Ok(())
+    }
+}
+
 /// The process's peak resident set size (Linux `VmHWM`), MiB.
 pub fn peak_rss_mib() -> f64 {
     std::fs::read_to_string("/proc/self/status")

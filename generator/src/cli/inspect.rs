@@ -78,3 +78,38 @@ pub fn inspect(root: &Path) -> Result<Inspection> {
         grasp: manifest.grasp.clone(),
     })
 }
+
+impl Inspection {
+    /// The summary as `vtgen inspect` prints it (`dataset` is the directory inspected).
+    pub fn text(&self, dataset: &Path) -> String {
+        let r = self;
+        let mut out = vec![format!(
+            "dataset     {} ({}; {}/{} shards, {})",
+            dataset.display(),
+            if r.complete { "complete" } else { "incomplete" },
+            r.shards_complete,
+            r.shards,
+            super::human_bytes(r.bytes as f64)
+        )];
+        for (split, objects) in &r.samples {
+            let total: u64 = objects.values().sum();
+            let per: Vec<String> = objects.iter().map(|(o, c)| format!("{o} {c}")).collect();
+            out.push(format!("{split:<11} {total} samples: {}", per.join(", ")));
+        }
+        for (split, bins) in &r.occlusion {
+            let total = bins.values().sum::<u64>().max(1) as f64;
+            let occ: Vec<String> = bins.iter().map(|(b, c)| format!("{b} {c} ({:.1}%)", 100.0 * *c as f64 / total)).collect();
+            out.push(format!("occlusion   {split}: {}", occ.join(", ")));
+        }
+        out.push(format!("randomized  {:.1}%", 100.0 * r.randomized_share));
+        if let Some([lo, med, hi]) = r.tactile_points {
+            out.push(format!("touch       tactile points per sample: min {lo}, median {med}, max {hi}"));
+            let c: Vec<String> = r.contact_share.iter().map(|(p, s)| format!("{p} {:.0}%", 100.0 * s)).collect();
+            out.push(format!("contacts    {}", c.join(", ")));
+        }
+        if let Some(g) = &r.grasp {
+            out.push(format!("grasps      {g}"));
+        }
+        out.iter().map(|l| format!("{l}\n")).collect()
+    }
+}

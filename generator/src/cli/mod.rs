@@ -1,4 +1,4 @@
-//! The subcommands that read, check, measure or convert rather than generate: one file each.
+//! The subcommands that plan, read, check, measure or convert rather than generate: one file each.
 //! `generate` itself is the output stage (`crate::output::generate`); `main.rs` parses the
 //! command line and prints what these return.
 
@@ -7,6 +7,7 @@ pub mod dump;
 pub mod export;
 pub mod grasps;
 pub mod inspect;
+pub mod plan;
 pub mod preview;
 pub mod stats;
 pub mod validate;
@@ -26,4 +27,16 @@ pub(crate) fn for_each_info(ds: &DatasetReader, mut f: impl FnMut(&str, &SampleI
         }
     }
     Ok(())
+}
+
+/// `1234567.0` -> `"1.2 MB"` (powers of 1000).
+pub fn human_bytes(b: f64) -> String {
+    let units = ["B", "KB", "MB", "GB", "TB"];
+    let mut v = b;
+    let mut u = 0;
+    while v >= 1000.0 && u < units.len() - 1 {
+        v /= 1000.0;
+        u += 1;
+    }
+    format!("{v:.1} {}", units[u])
 }
