@@ -16,8 +16,25 @@ pub struct LoadedObject {
     pub mass: f64,
     pub symmetry: Symmetry,
     pub mesh: TexturedMesh,
-    /// `procedural` or the mesh path.
-    pub source: String,
+    pub source: MeshSource,
+}
+
+/// Where an object's mesh came from.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum MeshSource {
+    /// The catalogue's built-in stand-in (no YCB directory given).
+    Procedural,
+    /// A mesh file: a YCB download or a custom object's mesh.
+    File(PathBuf),
+}
+
+impl std::fmt::Display for MeshSource {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            MeshSource::Procedural => f.write_str("procedural"),
+            MeshSource::File(p) => write!(f, "{}", p.display()),
+        }
+    }
 }
 
 /// Loads every object of the config. `ycb_dir` (from `--ycb-dir` or the config) selects real meshes
@@ -41,23 +58,16 @@ pub fn load_objects(cfg: &LoadedConfig, ycb_dir: Option<&PathBuf>) -> Result<Vec
                             let tried: Vec<String> = tried.iter().map(|p| p.display().to_string()).collect();
                             anyhow::anyhow!("no mesh for '{id}' in the YCB directory; looked for: {}", tried.join(", "))
                         })?;
-                        (load_mesh(&path)?, path.display().to_string())
+                        (load_mesh(&path)?, MeshSource::File(path))
                     }
-                    None => (procedural_mesh(entry), "procedural".to_string()),
+                    None => (procedural_mesh(entry), MeshSource::Procedural),
                 };
                 LoadedObject { id: id.clone(), index: i as u32, mass: entry.mass, symmetry: entry.symmetry, mesh, source }
             }
             ObjectSpec::Custom(c) => {
                 let path = cfg.resolve(&c.mesh);
                 let mesh = load_mesh(&path)?;
-                LoadedObject {
-                    id: c.id.clone(),
-                    index: i as u32,
-                    mass: c.mass,
-                    symmetry: c.symmetry,
-                    mesh,
-                    source: path.display().to_string(),
-                }
+                LoadedObject { id: c.id.clone(), index: i as u32, mass: c.mass, symmetry: c.symmetry, mesh, source: MeshSource::File(path) }
             }
         };
         let ext = obj.mesh.extents();

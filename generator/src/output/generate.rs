@@ -12,7 +12,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use sha2::{Digest, Sha256};
 use vt_dataset::{Compression, Manifest, ModelInfo, ModelsInfo, ShardEntry, ShardMeta, ShardReceipt, SplitManifest, mask_ids};
 
-use crate::assets::{LoadedObject, load_objects};
+use crate::assets::{LoadedObject, MeshSource, load_objects};
 use crate::config::{Config, LoadedConfig};
 use crate::output::workers::run_pool;
 use crate::output::writer_thread::WriterThread;
@@ -84,7 +84,7 @@ fn write_models(out: &Path, objects: &[LoadedObject]) -> Result<Vec<String>> {
             mass: o.mass,
             extents: [e.x as f64, e.y as f64, e.z as f64],
             diameter: o.mesh.diameter(),
-            source: if o.source == "procedural" { "procedural".into() } else { "mesh".into() },
+            source: if o.source == MeshSource::Procedural { "procedural".into() } else { "mesh".into() },
             file,
             symmetries_discrete: sym.discrete_row_major(),
             symmetries_continuous: sym

@@ -222,7 +222,7 @@ impl RobotScene {
             let attempts = result.as_ref().map_or(self.config.grasp.max_attempts, |t| t.attempts);
             let mut st = GraspStats { trajectories: 1, attempts: attempts as u64, ..Default::default() };
             for f in failures {
-                *st.failures.entry(format!("{f:?}")).or_default() += 1;
+                *st.failures.entry(f.name().to_string()).or_default() += 1;
             }
             // A lost trajectory's figures stay readable (`vtgen grasps` reports them).
             self.last_stats = st.clone();
