@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
-use vt_objects::{Catalog, Symmetry, TexturedMesh, find_ycb_mesh, load_mesh, procedural_mesh};
+use vt_objects::{Catalog, Surface, Symmetry, TexturedMesh, find_ycb_mesh, load_mesh, procedural_mesh};
 
 use crate::config::{LoadedConfig, ObjectSpec};
 
@@ -17,6 +17,8 @@ pub struct LoadedObject {
     pub symmetry: Symmetry,
     pub mesh: TexturedMesh,
     pub source: MeshSource,
+    /// What the surface is made of (the catalogue's; matte for custom objects).
+    pub surface: Surface,
 }
 
 /// Where an object's mesh came from.
@@ -62,12 +64,28 @@ pub fn load_objects(cfg: &LoadedConfig, ycb_dir: Option<&PathBuf>) -> Result<Vec
                     }
                     None => (procedural_mesh(entry), MeshSource::Procedural),
                 };
-                LoadedObject { id: id.clone(), index: i as u32, mass: entry.mass, symmetry: entry.symmetry, mesh, source }
+                LoadedObject {
+                    id: id.clone(),
+                    index: i as u32,
+                    mass: entry.mass,
+                    symmetry: entry.symmetry,
+                    mesh,
+                    source,
+                    surface: entry.surface,
+                }
             }
             ObjectSpec::Custom(c) => {
                 let path = cfg.resolve(&c.mesh);
                 let mesh = load_mesh(&path)?;
-                LoadedObject { id: c.id.clone(), index: i as u32, mass: c.mass, symmetry: c.symmetry, mesh, source: MeshSource::File(path) }
+                LoadedObject {
+                    id: c.id.clone(),
+                    index: i as u32,
+                    mass: c.mass,
+                    symmetry: c.symmetry,
+                    mesh,
+                    source: MeshSource::File(path),
+                    surface: Surface::default(),
+                }
             }
         };
         let ext = obj.mesh.extents();

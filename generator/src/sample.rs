@@ -62,19 +62,6 @@ fn texture_of(t: &ProceduralTexture) -> Texture {
     Texture { width: t.width, height: t.height, rgba: t.rgba.clone() }
 }
 
-/// glTF roughness/metallic of a catalogue object (what its real surface is made of).
-fn object_material(id: &str) -> Material {
-    let (roughness, metallic) = match id {
-        "005_tomato_soup_can" | "010_potted_meat_can" => (0.35, 0.6), // printed tinplate
-        "025_mug" => (0.2, 0.0),                                      // glazed ceramic
-        "037_scissors" | "042_adjustable_wrench" => (0.3, 0.9),       // steel
-        "006_mustard_bottle" | "035_power_drill" => (0.45, 0.0),      // moulded plastic
-        "011_banana" => (0.55, 0.0),
-        _ => (0.8, 0.0), // cardboard boxes and unknown objects: matte
-    };
-    Material { roughness, metallic }
-}
-
 /// A texture the renderer holds, so that it is uploaded only when it changes.
 #[derive(Default)]
 struct TextureSlot(Option<(ProceduralTexture, f32)>);
@@ -197,7 +184,10 @@ impl<'a> SampleFactory<'a> {
         let backdrop = renderer.upload_mesh_with(&backdrop_mesh(config), Material { roughness: 0.95, metallic: 0.0 })?;
         let object_meshes = objects
             .iter()
-            .map(|o| renderer.upload_mesh_with(&o.mesh, object_material(&o.id)).with_context(|| format!("uploading '{}'", o.id)))
+            .map(|o| {
+                let material = Material { roughness: o.surface.roughness, metallic: o.surface.metallic };
+                renderer.upload_mesh_with(&o.mesh, material).with_context(|| format!("uploading '{}'", o.id))
+            })
             .collect::<Result<_>>()?;
         let rnd = &config.randomization;
         // Photos for the `image` texture kind: loaded once, resized, shared by every sample.

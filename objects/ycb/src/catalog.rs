@@ -67,6 +67,24 @@ pub struct CatalogEntry {
     pub shape: Shape,
     /// Primary and secondary colour (sRGB) of the procedural stand-in.
     pub colors: [[u8; 3]; 2],
+    /// What the real surface is made of, as glTF metallic-roughness factors (matte when left out).
+    #[serde(default)]
+    pub surface: Surface,
+}
+
+/// glTF metallic-roughness factors of an object's surface.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Surface {
+    pub roughness: f32,
+    pub metallic: f32,
+}
+
+impl Default for Surface {
+    /// Matte and dielectric: cardboard, paper, and objects nothing is known about.
+    fn default() -> Self {
+        Surface { roughness: 0.8, metallic: 0.0 }
+    }
 }
 
 /// The built-in object catalogue (`objects/ycb/catalog.yaml`, embedded at compile time).
