@@ -15,6 +15,7 @@ use vt_randomizers::{AppearanceContext, ImageLibrary, ProceduralTexture, SampleK
 use crate::annotate::occlusion::{bin as occlusion_bin, model_points, occlusion_level};
 use crate::assets::LoadedObject;
 use crate::config::{Config, LoadedConfig};
+use crate::physics::grasp::Trajectory;
 use crate::plan::SampleRef;
 use crate::render::{Draw, Lighting, Material, MeshHandle, Renderer, View};
 use crate::scene::robot::{GraspStats, RobotScene, link_mesh, mask_id as robot_mask_id};
@@ -108,6 +109,8 @@ pub struct SampleFactory<'a> {
     robot_glbs: Vec<SceneModel>,
     /// Grasp statistics of the trajectories that start in the shard being written.
     pub shard_stats: GraspStats,
+    /// The trajectory being recorded (with a robot).
+    recording: Option<Recording>,
     /// Sensing area of the 12 phalanx pads.
     pad_sizes: [(f64, f64); 12],
     /// Per object: the model points the occlusion level is measured with.
@@ -131,6 +134,15 @@ pub struct StageTimes {
     /// Occlusion level (model points against the depth cloud); the object's unoccluded
     /// silhouette comes with the main render.
     pub occlusion: Duration,
+}
+
+/// The trajectory a worker is recording: simulated when its first sample is made, then read by
+/// the samples that follow.
+struct Recording {
+    /// (object index, trajectory)
+    key: (u32, u32),
+    trajectory: Trajectory,
+    stats: GraspStats,
 }
 
 /// The robot as the physics stage left it for one sample: its info, the phalanx pads (world) and
@@ -229,6 +241,7 @@ impl<'a> SampleFactory<'a> {
             object_glbs,
             robot_glbs,
             shard_stats: GraspStats::default(),
+            recording: None,
             pad_sizes,
             model_points,
             occlusion_histogram: [0; 3],
@@ -361,13 +374,19 @@ impl<'a> SampleFactory<'a> {
     ) -> Result<PosedRobot> {
         let robot = self.robot.as_mut().expect("called with a robot");
         let instances = self.config.sampling.instances_per_trajectory;
-        let t0 = Instant::now();
-        let traj = robot.trajectory(self.config.seed, r.object_index, object_id, r.trajectory, instances)?;
-        self.times.physics += t0.elapsed();
-        let attempts = traj.attempts;
-        let st = traj.instances[r.instance as usize].clone();
+        let key = (r.object_index, r.trajectory);
+        if self.recording.as_ref().map(|rec| rec.key) != Some(key) {
+            let t0 = Instant::now();
+            let sim = robot.simulate(self.config.seed, r.object_index, object_id, r.trajectory, instances);
+            self.times.physics += t0.elapsed();
+            self.recording = Some(Recording { key, trajectory: sim.trajectory?, stats: sim.stats });
+        }
+        let rec = self.recording.as_ref().expect("set above");
+        let attempts = rec.trajectory.attempts;
+        let st = rec.trajectory.instances[r.instance as usize].clone();
+        // A trajectory's figures count in the shard where it starts, whichever worker made it.
         if r.instance == 0 {
-            self.shard_stats.merge(&robot.last_stats);
+            self.shard_stats.merge(&rec.stats);
         }
         let t_world_palm = robot.t_world_base * st.t_base_palm;
         scene.t_world_object = pose_of(&(t_world_palm * st.t_palm_object));

@@ -16,7 +16,7 @@ use crate::assets::LoadedObject;
 use crate::config::LoadedConfig;
 use crate::output::workers::run_pool;
 use crate::physics::grasp::floor_clearance;
-use crate::scene::robot::RobotScene;
+use crate::scene::robot::{RobotScene, Simulated};
 
 /// What to check.
 #[derive(Debug, Clone)]
@@ -126,8 +126,7 @@ struct TrajectoryResult {
 /// trajectory (every attempt failed) keeps its attempts and failures.
 fn check_trajectory(robot: &mut RobotScene, seed: u64, obj: &LoadedObject, o: usize, t: u32, instances: u32) -> TrajectoryResult {
     let t0 = Instant::now();
-    let outcome = robot.trajectory(seed, o as u32, &obj.id, t, instances).cloned();
-    let st = &robot.last_stats;
+    let Simulated { trajectory: outcome, stats: st } = robot.simulate(seed, o as u32, &obj.id, t, instances);
     let mut r = TrajectoryResult {
         object: o,
         trajectory: t,

@@ -147,16 +147,20 @@ impl GraspStats {
     }
 }
 
-/// The robot half of a worker: model, physics, and the trajectory being recorded.
+/// A simulated trajectory and the grasp loop's figures for it.
+pub struct Simulated {
+    pub trajectory: Result<Trajectory>,
+    pub stats: GraspStats,
+}
+
+/// The robot half of a worker: model and physics. The trajectory being recorded is the sample
+/// stage's (`SampleFactory`), which simulates it when its first sample is made.
 pub struct RobotScene {
     pub model: RobotModel,
     pub config: RobotConfig,
     pub t_world_base: DAffine3,
     physics: Box<dyn HandPhysics>,
     objects: Vec<PhysicsObject>,
-    current: Option<((u32, u32), Trajectory)>,
-    /// Statistics of the trajectory simulated last (attempts, failures, slip).
-    pub last_stats: GraspStats,
     /// The main camera's position (world), for the back-to-camera arm moves.
     camera_position: DVec3,
 }
@@ -191,8 +195,6 @@ impl RobotScene {
             t_world_base,
             physics,
             objects,
-            current: None,
-            last_stats: GraspStats::default(),
             camera_position: DVec3::from_array(cfg.config.camera.position),
         })
     }
@@ -201,39 +203,34 @@ impl RobotScene {
         self.physics.backend_name()
     }
 
-    /// The recorded trajectory of (object, trajectory), simulated on first use.
-    pub fn trajectory(&mut self, seed: u64, object_index: u32, object_id: &str, trajectory: u32, instances: u32) -> Result<&Trajectory> {
-        if self.current.as_ref().map(|c| c.0) != Some((object_index, trajectory)) {
-            let ctx = GraspContext {
-                robot: &self.model,
-                t_world_base: self.t_world_base,
-                config: &self.config.grasp,
-                timestep: self.config.physics.timestep,
-                camera_position: self.camera_position,
-            };
-            let mut failures: Vec<Failure> = Vec::new();
-            let result = simulate_trajectory(
-                &ctx,
-                self.physics.as_mut(),
-                &self.objects[object_index as usize],
-                TrajectoryKey { seed, object_id, trajectory, instances },
-                &mut failures,
-            );
-            let attempts = result.as_ref().map_or(self.config.grasp.max_attempts, |t| t.attempts);
-            let mut st = GraspStats { trajectories: 1, attempts: attempts as u64, ..Default::default() };
-            for f in failures {
-                *st.failures.entry(f.name().to_string()).or_default() += 1;
-            }
-            // A lost trajectory's figures stay readable (`vtgen grasps` reports them).
-            self.last_stats = st.clone();
-            let traj = result.with_context(|| format!("grasping {object_id}"))?;
-            for s in &traj.instances {
-                st.max_slip_mm = st.max_slip_mm.max(s.slip_translation * 1e3);
-                st.max_penetration_mm = st.max_penetration_mm.max(s.penetration * 1e3);
-            }
-            self.last_stats = st;
-            self.current = Some(((object_index, trajectory), traj));
+    /// Simulates trajectory `trajectory` of object `object_index` (every attempt until a grasp
+    /// holds through all instances) and returns it with the grasp loop's figures, which a lost
+    /// trajectory keeps too (`vtgen grasps` reports them).
+    pub fn simulate(&mut self, seed: u64, object_index: u32, object_id: &str, trajectory: u32, instances: u32) -> Simulated {
+        let ctx = GraspContext {
+            robot: &self.model,
+            t_world_base: self.t_world_base,
+            config: &self.config.grasp,
+            timestep: self.config.physics.timestep,
+            camera_position: self.camera_position,
+        };
+        let mut failures: Vec<Failure> = Vec::new();
+        let result = simulate_trajectory(
+            &ctx,
+            self.physics.as_mut(),
+            &self.objects[object_index as usize],
+            TrajectoryKey { seed, object_id, trajectory, instances },
+            &mut failures,
+        );
+        let attempts = result.as_ref().map_or(self.config.grasp.max_attempts, |t| t.attempts);
+        let mut stats = GraspStats { trajectories: 1, attempts: attempts as u64, ..Default::default() };
+        for f in failures {
+            *stats.failures.entry(f.name().to_string()).or_default() += 1;
         }
-        Ok(&self.current.as_ref().expect("set above").1)
+        for s in result.iter().flat_map(|t| &t.instances) {
+            stats.max_slip_mm = stats.max_slip_mm.max(s.slip_translation * 1e3);
+            stats.max_penetration_mm = stats.max_penetration_mm.max(s.penetration * 1e3);
+        }
+        Simulated { trajectory: result.with_context(|| format!("grasping {object_id}")), stats }
     }
 }
