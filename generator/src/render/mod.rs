@@ -4,12 +4,12 @@
 #[cfg(test)]
 pub(crate) mod fake;
 mod mipmaps;
-mod wgpu_backend;
+mod wgpu;
 
 use glam::DMat4;
 use vt_objects::TexturedMesh;
 
-pub use wgpu_backend::WgpuRenderer;
+pub use self::wgpu::WgpuRenderer;
 
 use crate::config::Intrinsics;
 

@@ -1,0 +1,102 @@
+//! The render targets of a view slot (colour, z-depth, mask, silhouette, z-buffer) and their
+//! 256-byte-aligned readback.
+
+use super::*;
+
+pub(super) struct Targets {
+    pub(super) width: u32,
+    pub(super) height: u32,
+    pub(super) color: wgpu::TextureView,
+    pub(super) depth: wgpu::TextureView,
+    pub(super) mask: wgpu::TextureView,
+    pub(super) silhouette: wgpu::TextureView,
+    pub(super) zbuf: wgpu::TextureView,
+    /// Multisampled colour and z-buffer of the anti-aliased colour pass (msaa > 1).
+    pub(super) msaa: Option<(wgpu::TextureView, wgpu::TextureView)>,
+    pub(super) color_tex: wgpu::Texture,
+    pub(super) depth_tex: wgpu::Texture,
+    pub(super) mask_tex: wgpu::Texture,
+    pub(super) silhouette_tex: wgpu::Texture,
+    /// Colour, depth, mask, silhouette.
+    pub(super) readback: [wgpu::Buffer; 4],
+}
+
+impl WgpuRenderer {
+    pub(super) fn ensure_targets(&mut self, slot: usize, width: u32, height: u32) {
+        if self.targets[slot].as_ref().is_none_or(|t| t.width != width || t.height != height) {
+            let make = |label, format| {
+                self.device.create_texture(&wgpu::TextureDescriptor {
+                    label: Some(label),
+                    size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+                    mip_level_count: 1,
+                    sample_count: 1,
+                    dimension: wgpu::TextureDimension::D2,
+                    format,
+                    usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+                    view_formats: &[],
+                })
+            };
+            let color_tex = make("colour", COLOR_FORMAT);
+            let depth_tex = make("depth", DEPTH_FORMAT);
+            let mask_tex = make("mask", MASK_FORMAT);
+            let silhouette_tex = make("silhouette", SILHOUETTE_FORMAT);
+            let zbuf_tex = make("z-buffer", ZBUF_FORMAT);
+            // Only the main view (slot 0) is anti-aliased; the phalanx depth views are not.
+            let msaa = (slot == 0 && self.msaa > 1).then(|| {
+                let make_ms = |label, format| {
+                    self.device
+                        .create_texture(&wgpu::TextureDescriptor {
+                            label: Some(label),
+                            size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+                            mip_level_count: 1,
+                            sample_count: self.msaa,
+                            dimension: wgpu::TextureDimension::D2,
+                            format,
+                            usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+                            view_formats: &[],
+                        })
+                        .create_view(&Default::default())
+                };
+                (make_ms("colour (multisampled)", COLOR_FORMAT), make_ms("z-buffer (multisampled)", ZBUF_FORMAT))
+            });
+            let readback = [4u32, 4, 1, 1].map(|bpp| {
+                self.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("readback"),
+                    size: padded_row(width * bpp) as u64 * height as u64,
+                    usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                })
+            });
+            self.targets[slot] = Some(Targets {
+                width,
+                height,
+                color: color_tex.create_view(&Default::default()),
+                depth: depth_tex.create_view(&Default::default()),
+                mask: mask_tex.create_view(&Default::default()),
+                silhouette: silhouette_tex.create_view(&Default::default()),
+                zbuf: zbuf_tex.create_view(&Default::default()),
+                msaa,
+                color_tex,
+                depth_tex,
+                mask_tex,
+                silhouette_tex,
+                readback,
+            });
+        }
+    }
+}
+
+/// Bytes of a pass's targets: rgba, depth, mask, silhouette (empty when not read back).
+pub(super) type TargetImages = (Vec<u8>, Vec<u8>, Vec<u8>, Vec<u8>);
+
+/// Which targets a pass reads back.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Readback {
+    All,
+    Depth,
+    Mask,
+}
+
+pub(super) fn padded_row(bytes: u32) -> u32 {
+    bytes.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT
+}
