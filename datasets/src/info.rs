@@ -145,9 +145,9 @@ impl SampleInfo {
         serde_json::to_value(self).expect("plain data serializes")
     }
 
-    /// Tactile points of the sample, all phalanges together (0 without touch).
-    pub fn tactile_points(&self) -> u64 {
-        self.robot.as_ref().and_then(|r| r.tactile.as_ref()).map_or(0, |t| t.points.values().sum())
+    /// Tactile points of the sample, all phalanges together (`None` without touch).
+    pub fn tactile_points(&self) -> Option<u64> {
+        self.robot.as_ref().and_then(|r| r.tactile.as_ref()).map(|t| t.points.values().sum())
     }
 
     /// Phalanges touching the object (empty without a robot).
@@ -216,8 +216,8 @@ mod tests {
             assert_eq!(v["split"], "test");
             assert_eq!(v["T_camera_object"]["orientation"].as_array().unwrap().len(), 4);
         }
-        assert_eq!(example(true).tactile_points(), 52);
-        assert_eq!(example(false).tactile_points(), 0);
+        assert_eq!(example(true).tactile_points(), Some(52));
+        assert_eq!(example(false).tactile_points(), None);
     }
 
     #[test]

@@ -304,7 +304,8 @@ impl<'a> SampleFactory<'a> {
             None => None,
         };
         let t_camera_object = scene.t_world_camera.inverse().compose(&scene.t_world_object);
-        let occlusion = self.annotate_occlusion(r.object_index as usize, &t_camera_object, &img);
+        let visible_pixels = img.mask.iter().filter(|&&m| m == mask_ids::TARGET_OBJECT).count();
+        let occlusion = self.annotate_occlusion(r.object_index as usize, &t_camera_object, &img, visible_pixels);
         let k = self.config.camera.k();
         let (robot_info, extra_transforms) = posed.map_or((None, Vec::new()), |p| (Some(p.info), p.transforms));
         let info = SampleInfo {
@@ -321,7 +322,7 @@ impl<'a> SampleFactory<'a> {
                 .iter()
                 .map(|d| PlacedDistractor { object_id: objects[d.object].id.clone(), mask_id: d.mask_id, t_world_distractor: d.pose })
                 .collect(),
-            visible_pixels: img.mask.iter().filter(|&&m| m == mask_ids::TARGET_OBJECT).count() as u64,
+            visible_pixels: visible_pixels as u64,
             occlusion: Some(occlusion),
             t_world_camera: scene.t_world_camera,
             t_camera_object,
@@ -490,8 +491,14 @@ impl<'a> SampleFactory<'a> {
     }
 
     /// The annotate stage: the paper's occlusion level (model points vs the depth cloud) and the
-    /// visible share of the object's silhouette.
-    fn annotate_occlusion(&mut self, object_index: usize, t_camera_object: &Pose, img: &crate::render::RenderOutput) -> OcclusionInfo {
+    /// visible share (`visible_pixels` of the mask) of the object's silhouette.
+    fn annotate_occlusion(
+        &mut self,
+        object_index: usize,
+        t_camera_object: &Pose,
+        img: &crate::render::RenderOutput,
+        visible_pixels: usize,
+    ) -> OcclusionInfo {
         let k = self.config.camera.k();
         let pts: Vec<glam::DVec3> = self.model_points[object_index].iter().map(|p| t_camera_object.transform_point(*p)).collect();
         let eps = self.config.scene.occlusion_epsilon_mm * 1e-3;
@@ -499,7 +506,6 @@ impl<'a> SampleFactory<'a> {
         let (level, visible_points) = occlusion_level(&pts, &img.depth, img.width, img.height, &k, eps);
         self.times.occlusion += t0.elapsed();
         self.occlusion_histogram[occlusion_bin(level)] += 1;
-        let visible = img.mask.iter().filter(|&&m| m == mask_ids::TARGET_OBJECT).count();
         let alone = img.silhouette_pixels;
         OcclusionInfo {
             level,
@@ -507,7 +513,7 @@ impl<'a> SampleFactory<'a> {
             model_points: pts.len() as u64,
             epsilon_mm: self.config.scene.occlusion_epsilon_mm,
             silhouette_pixels: alone as u64,
-            silhouette_visible_fraction: if alone > 0 { visible as f64 / alone as f64 } else { 0.0 },
+            silhouette_visible_fraction: if alone > 0 { visible_pixels as f64 / alone as f64 } else { 0.0 },
         }
     }
 }

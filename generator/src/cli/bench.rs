@@ -150,7 +150,7 @@ fn bench_trajectory(
     dir: &std::path::Path,
     i: usize,
     traj: &Work,
-) -> Result<Option<TrajectoryRun>> {
+) -> Result<TrajectoryRun> {
     let meta = ShardMeta {
         generator: crate::output::generate::GENERATOR.into(),
         seed: cfg.config.seed,
@@ -178,7 +178,7 @@ fn bench_trajectory(
             // the others.
             Err(e) if k == 0 && factory.has_robot() => {
                 run.skipped = Some(format!("{e:#}"));
-                return Ok(Some(run));
+                return Ok(run);
             }
             Err(e) => return Err(e),
         }
@@ -186,7 +186,7 @@ fn bench_trajectory(
     }
     *write += writer.finish()?.1;
     (0..3).for_each(|k| run.occlusion[k] = factory.occlusion_histogram[k] - before[k]);
-    Ok(Some(run))
+    Ok(run)
 }
 
 pub fn bench(cfg: &LoadedConfig, samples: u64, jobs: usize, ycb_dir: Option<&std::path::PathBuf>) -> Result<BenchReport> {
@@ -209,7 +209,7 @@ pub fn bench(cfg: &LoadedConfig, samples: u64, jobs: usize, ycb_dir: Option<&std
             let renderer = WgpuRenderer::new(&cfg.config.renderer)?;
             Ok((SampleFactory::new(cfg, &objects, Box::new(renderer))?, Duration::ZERO))
         },
-        |(factory, write), i, traj| bench_trajectory(cfg, factory, write, &dir, i, traj),
+        |(factory, write), i, traj| bench_trajectory(cfg, factory, write, &dir, i, traj).map(Some),
         |(factory, write)| Ok((factory.times, write, factory.readback_time(), factory.renderer_name())),
     );
     let seconds = started.elapsed().as_secs_f64();

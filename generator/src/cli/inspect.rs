@@ -57,9 +57,7 @@ pub fn inspect(root: &Path) -> Result<Inspection> {
             let bin = bins[crate::annotate::occlusion::bin(o.level)].to_string();
             *occlusion.entry(split.to_string()).or_default().entry(bin).or_default() += 1;
         }
-        if info.robot.as_ref().is_some_and(|r| r.tactile.is_some()) {
-            tactile.push(info.tactile_points());
-        }
+        tactile.extend(info.tactile_points());
         for p in info.phalanges_in_contact() {
             *contacts.entry(p.clone()).or_default() += 1;
         }

@@ -39,9 +39,7 @@ fn collect(root: &Path) -> Result<Collected> {
         if let Some(o) = &info.occlusion {
             c.occlusion.push(o.level);
         }
-        if info.robot.as_ref().is_some_and(|r| r.tactile.is_some()) {
-            c.tactile_points.push(info.tactile_points());
-        }
+        c.tactile_points.extend(info.tactile_points());
         for p in info.phalanges_in_contact() {
             if let Some(k) = names.iter().position(|n| n == p) {
                 contacts[k] += 1;
