@@ -10,6 +10,7 @@ mod foxglove_scene;
 mod grasping;
 mod ground_truth;
 mod render_geometry;
+mod robot_meshes;
 mod scale_out;
 mod sensor_noise;
 mod stats;

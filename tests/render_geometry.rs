@@ -4,7 +4,7 @@
 use glam::{DMat4, DQuat, DVec3};
 use vt_objects::{Catalog, TexturedMesh, procedural_mesh};
 use vtgen::config::{Intrinsics, RendererConfig};
-use vtgen::render::{Draw, Lighting, Renderer, View, WgpuRenderer};
+use vtgen::render::{Draw, DrawRole, Lighting, Renderer, View, WgpuRenderer};
 use vtgen::scene::look_at;
 
 const W: u32 = 320;
@@ -70,7 +70,7 @@ fn a_plane_renders_to_its_analytic_depth_and_coverage() {
     let plane = r.upload_mesh(&quad(0.3)).unwrap();
     let cam = look_at(DVec3::new(0.2, -0.9, 0.7), DVec3::new(0.05, 0.0, 0.0));
     let v = view(cam.matrix());
-    let img = r.render(&v, &lighting(), &[Draw { mesh: plane, t_world_model: DMat4::IDENTITY, mask_id: 7 }]).unwrap();
+    let img = r.render(&v, &lighting(), &[Draw { mesh: plane, t_world_model: DMat4::IDENTITY, mask_id: 7, role: DrawRole::Occluder }]).unwrap();
     let (rot, o) = (cam.rotation(), cam.translation());
     let interior = compare(&img, 7, |u, row| {
         let d = rot * ray(&v, u, row);
@@ -90,7 +90,7 @@ fn a_box_renders_to_its_analytic_depth_and_coverage() {
     let cam = look_at(DVec3::new(0.0, -0.7, 0.4), DVec3::new(0.0, 0.0, 0.2));
     let v = view(cam.matrix());
     let pose = DMat4::from_rotation_translation(DQuat::from_euler(glam::EulerRot::XYZ, 0.3, -0.5, 0.9), DVec3::new(0.02, 0.01, 0.22));
-    let img = r.render(&v, &lighting(), &[Draw { mesh: boxm, t_world_model: pose, mask_id: 1 }]).unwrap();
+    let img = r.render(&v, &lighting(), &[Draw { mesh: boxm, t_world_model: pose, mask_id: 1, role: DrawRole::Target }]).unwrap();
     // Slab intersection in the box frame; the hit's camera z is the ray parameter (ray z = 1).
     let to_box = pose.inverse() * cam.matrix();
     let interior = compare(&img, 1, |u, row| {
@@ -121,8 +121,8 @@ fn the_main_pass_silhouette_is_the_object_drawn_alone() {
     let pose = DMat4::from_rotation_translation(DQuat::from_euler(glam::EulerRot::XYZ, 0.2, -0.4, 0.7), DVec3::new(0.0, 0.0, 0.2));
     // The plate faces the camera 20 cm in front of the box, off to one side.
     let plate_pose = cam.matrix() * DMat4::from_translation(DVec3::new(0.03, 0.0, 0.5));
-    let target = Draw { mesh: boxm, t_world_model: pose, mask_id: 1 };
-    let occluder = Draw { mesh: plate, t_world_model: plate_pose, mask_id: 5 };
+    let target = Draw { mesh: boxm, t_world_model: pose, mask_id: 1, role: DrawRole::Target };
+    let occluder = Draw { mesh: plate, t_world_model: plate_pose, mask_id: 5, role: DrawRole::Occluder };
     let alone = r.render_mask(&v, &[target]).unwrap().iter().filter(|&&m| m == 1).count();
     for draws in [[occluder, target], [target, occluder]] {
         let img = r.render(&v, &lighting(), &draws).unwrap();
@@ -144,7 +144,7 @@ fn the_principal_point_is_at_the_pixel_centre_convention() {
     let v = View { k: Intrinsics { fx: 600.0, fy: 600.0, cx: 100.0, cy: 60.0 }, ..view(cam.matrix()) };
     // The square lies in the camera's image plane, 1 m in front of it, centred on the axis.
     let pose = cam.matrix() * DMat4::from_translation(DVec3::new(0.0, 0.0, 1.0));
-    let img = r.render(&v, &lighting(), &[Draw { mesh: dot, t_world_model: pose, mask_id: 3 }]).unwrap();
+    let img = r.render(&v, &lighting(), &[Draw { mesh: dot, t_world_model: pose, mask_id: 3, role: DrawRole::Occluder }]).unwrap();
     let covered: Vec<(u32, u32)> =
         (0..H).flat_map(|y| (0..W).map(move |x| (x, y))).filter(|&(x, y)| img.mask[(y * W + x) as usize] == 3).collect();
     assert_eq!(covered, vec![(100, 60)]);
@@ -165,7 +165,7 @@ fn a_pad_pressed_on_a_box_sees_its_whole_footprint_and_a_free_pad_sees_nothing()
     let pads: [glam::DAffine3; 12] = std::array::from_fn(|k| glam::DAffine3::from_mat4(if k == 0 { pad0 } else { far }));
     let sizes = [(0.03, 0.02); 12];
     let cfg = TactileConfig::default();
-    let object = Draw { mesh: boxm, t_world_model: DMat4::IDENTITY, mask_id: 1 };
+    let object = Draw { mesh: boxm, t_world_model: DMat4::IDENTITY, mask_id: 1, role: DrawRole::Target };
     let reading = sense(&mut r, &cfg, &sizes, &pads, object, &glam::DAffine3::IDENTITY).unwrap();
     assert_eq!(reading.counts[0], 32 * 32, "the whole pad footprint is in contact");
     assert!(reading.depth[0].iter().all(|d| (d - 0.0005).abs() < 1e-5), "flat face at 0.5 mm");
@@ -190,7 +190,7 @@ fn tilted_face() -> (WgpuRenderer, Draw, [glam::DAffine3; 12], DVec3, DVec3) {
     let (normal, on_face) = (tilt * DVec3::Z, pose.transform_point3(DVec3::new(0.0, 0.0, half.z)));
     let pad = DMat4::from_rotation_translation(DQuat::from_rotation_x(std::f64::consts::PI), DVec3::new(0.0, 0.0, 0.0005));
     let pads: [glam::DAffine3; 12] = std::array::from_fn(|_| glam::DAffine3::from_mat4(pad));
-    (r, Draw { mesh: boxm, t_world_model: pose, mask_id: 1 }, pads, normal, on_face)
+    (r, Draw { mesh: boxm, t_world_model: pose, mask_id: 1, role: DrawRole::Target }, pads, normal, on_face)
 }
 
 #[test]
@@ -274,8 +274,8 @@ fn a_box_casts_its_shadow_where_geometry_puts_it() {
     let cam = look_at(DVec3::new(-0.15, -0.75, 0.8), DVec3::new(-0.1, -0.05, 0.0));
     let v = view(cam.matrix());
     let draws = [
-        Draw { mesh: floor, t_world_model: DMat4::IDENTITY, mask_id: 5 },
-        Draw { mesh: boxm, t_world_model: DMat4::from_translation(centre), mask_id: 1 },
+        Draw { mesh: floor, t_world_model: DMat4::IDENTITY, mask_id: 5, role: DrawRole::Occluder },
+        Draw { mesh: boxm, t_world_model: DMat4::from_translation(centre), mask_id: 1, role: DrawRole::Target },
     ];
     let img = r.render(&v, &lighting, &draws).unwrap();
     if let Ok(path) = std::env::var("VTGEN_TEST_SHADOW_PNG") {
@@ -330,7 +330,7 @@ fn msaa_smooths_colour_edges_and_leaves_depth_and_mask_exact() {
     let render = |msaa: u32| {
         let mut r = WgpuRenderer::new(&RendererConfig { msaa, ..RendererConfig::default() }).unwrap();
         let m = r.upload_mesh(&procedural_mesh(&entry)).unwrap();
-        r.render(&view(cam.matrix()), &lighting(), &[Draw { mesh: m, t_world_model: pose, mask_id: 1 }]).unwrap()
+        r.render(&view(cam.matrix()), &lighting(), &[Draw { mesh: m, t_world_model: pose, mask_id: 1, role: DrawRole::Target }]).unwrap()
     };
     let (plain, smooth) = (render(1), render(4));
     assert_eq!(plain.depth, smooth.depth, "depth is exact either way");

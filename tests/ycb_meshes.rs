@@ -4,7 +4,7 @@
 use glam::{DMat4, DQuat, DVec3};
 use vt_objects::{Catalog, find_ycb_mesh, load_mesh};
 use vtgen::config::{Intrinsics, RendererConfig};
-use vtgen::render::{Draw, Lighting, Renderer, View, WgpuRenderer};
+use vtgen::render::{Draw, DrawRole, Lighting, Renderer, View, WgpuRenderer};
 use vtgen::scene::look_at;
 
 #[test]
@@ -38,7 +38,7 @@ fn all_eleven_ycb_objects_load_and_render_textured() {
         };
         let light = Lighting::spot(DVec3::new(0.0, -1.0, 1.0), DVec3::ZERO, [1.0; 3], [0.4; 3]);
         let pose = DMat4::from_rotation_translation(DQuat::from_rotation_x(0.4), DVec3::new(0.0, 0.0, 0.12));
-        let img = r.render(&v, &light, &[Draw { mesh: h, t_world_model: pose, mask_id: 1 }]).unwrap();
+        let img = r.render(&v, &light, &[Draw { mesh: h, t_world_model: pose, mask_id: 1, role: DrawRole::Target }]).unwrap();
         let px: Vec<[u8; 3]> = img
             .mask
             .iter()

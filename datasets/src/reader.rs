@@ -91,6 +91,7 @@ impl ShardReader {
     }
 
     /// Reads sample `index` (its index within the split).
+    // Long on purpose: one topic per block, each decoded and checked against the schema.
     pub fn read(&self, index: u64) -> Result<Sample> {
         let ctx = || format!("shard {} sample {index}", self.path.display());
         let ci = *self.chunks.get(&index).ok_or_else(|| anyhow!("{}: not in this shard", ctx()))?;

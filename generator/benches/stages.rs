@@ -15,7 +15,7 @@ use vtgen::annotate::occlusion::{model_points, occlusion_level};
 use vtgen::config::{GraspConfig, Intrinsics, PhysicsConfig, RendererConfig};
 use vtgen::physics::grasp::{GraspContext, TrajectoryKey, simulate_trajectory};
 use vtgen::physics::{HandPhysics, PhysicsObject, PhysicsSettings, RapierHand};
-use vtgen::render::{DepthView, Draw, Lighting, Renderer, View, WgpuRenderer};
+use vtgen::render::{DepthView, Draw, DrawRole, Lighting, Renderer, View, WgpuRenderer};
 use vtgen::sample::floor_mesh;
 use vtgen::scene::look_at;
 
@@ -99,8 +99,8 @@ fn scene() -> Scene {
     };
     let t_world_object = DAffine3::from_translation(DVec3::new(0.0, 0.0, 0.5 * entry.extents[2]));
     let draws = vec![
-        Draw { mesh: floor, t_world_model: DMat4::IDENTITY, mask_id: 0 },
-        Draw { mesh: can, t_world_model: DMat4::from(t_world_object), mask_id: 1 },
+        Draw { mesh: floor, t_world_model: DMat4::IDENTITY, mask_id: 0, role: DrawRole::Environment },
+        Draw { mesh: can, t_world_model: DMat4::from(t_world_object), mask_id: 1, role: DrawRole::Target },
     ];
     let lighting = Lighting::spot(DVec3::new(0.3, -0.3, 1.2), DVec3::new(0.0, 0.0, 0.1), [3.0; 3], [0.3; 3]);
     let t_camera_object = DAffine3::from_mat4(cam.inverse().matrix()) * t_world_object;

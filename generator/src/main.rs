@@ -13,6 +13,11 @@ use vtgen::plan::ShardSelector;
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// Draw the real robot: a directory with allegro/meshes/*.STL and ur5e/visual/*.obj, as
+    /// `eval "$(scripts/robot-assets)"` fetches (sets VTGEN_ROBOT_ASSETS). Overrides the config's
+    /// robot.assets; without either, the robot is drawn from primitives.
+    #[arg(long, global = true, value_name = "DIR")]
+    robot_assets: Option<PathBuf>,
 }
 
 #[derive(Subcommand)]
@@ -161,6 +166,7 @@ enum ExportFormat {
     },
 }
 
+// Long on purpose: one match arm per subcommand, each a few lines from parsed flags to a library call.
 fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Generate { config, out, shard, resume, overwrite, jobs, ycb_dir, quiet } => {
@@ -320,6 +326,10 @@ fn main() -> ExitCode {
     keep_freed_memory();
     quiet_headless_mesa();
     let cli = Cli::parse();
+    if let Some(dir) = &cli.robot_assets {
+        // SAFETY: at the start of main, before any other thread exists.
+        unsafe { std::env::set_var(vtgen::assets::robot::ROBOT_ASSETS_ENV, dir) };
+    }
     match &cli.command {
         Command::Generate { jobs, .. } | Command::Bench { jobs, .. } => share_cores_with_lavapipe(*jobs),
         _ => {}

@@ -17,7 +17,8 @@ use crate::assets::LoadedObject;
 use crate::config::{Config, LoadedConfig};
 use crate::physics::grasp::Trajectory;
 use crate::plan::SampleRef;
-use crate::render::{Draw, Lighting, Material, MeshHandle, Renderer, View};
+use crate::assets::robot::{ARM_TRIANGLES_PER_LINK, load_robot_meshes, robot_assets_dir};
+use crate::render::{Draw, DrawRole, Lighting, Material, MeshHandle, Renderer, View};
 use crate::scene::robot::{GraspStats, RobotScene, link_mesh, mask_id as robot_mask_id};
 use crate::scene::sample_scene;
 use crate::sensors::tactile::{pad_sizes, sense};
@@ -212,8 +213,22 @@ impl<'a> SampleFactory<'a> {
         let mut robot_meshes = Vec::new();
         let mut robot_glbs = Vec::new();
         if let Some(r) = &robot {
+            let mut real = match robot_assets_dir(cfg) {
+                Some(dir) => load_robot_meshes(&dir, &r.model, ARM_TRIANGLES_PER_LINK)?,
+                None => {
+                    static SAID: std::sync::Once = std::sync::Once::new();
+                    SAID.call_once(|| {
+                        eprintln!(
+                            "vtgen: drawing the robot from primitives (no robot meshes: `eval \"$(scripts/robot-assets)\"` \
+                             or --robot-assets DIR draws the real Allegro hand and UR5e)"
+                        )
+                    });
+                    Default::default()
+                }
+            };
             for link in 0..r.model.links.len() {
-                if let (Some(mesh), Some(id)) = (link_mesh(&r.model, link), robot_mask_id(&r.model, link)) {
+                let mesh = real.remove(&link).or_else(|| link_mesh(&r.model, link));
+                if let (Some(mesh), Some(id)) = (mesh, robot_mask_id(&r.model, link)) {
                     // Matte black hand (white tips), the arm's painted aluminium.
                     let material =
                         if id < 16 { Material { roughness: 0.45, metallic: 0.3 } } else { Material { roughness: 0.75, metallic: 0.0 } };
@@ -284,18 +299,19 @@ impl<'a> SampleFactory<'a> {
         let key = SampleKey { seed: self.config.seed, object_id: &obj.id, trajectory: r.trajectory, instance: r.instance };
         let mut scene = self.sample_scene(&key)?;
         let mut draws = vec![
-            Draw { mesh: self.floor, t_world_model: DMat4::IDENTITY, mask_id: mask_ids::BACKGROUND },
-            Draw { mesh: self.backdrop, t_world_model: DMat4::IDENTITY, mask_id: mask_ids::BACKGROUND },
+            Draw { mesh: self.floor, t_world_model: DMat4::IDENTITY, mask_id: mask_ids::BACKGROUND, role: DrawRole::Environment },
+            Draw { mesh: self.backdrop, t_world_model: DMat4::IDENTITY, mask_id: mask_ids::BACKGROUND, role: DrawRole::Environment },
         ];
         let mut posed = if self.robot.is_some() { Some(self.pose_robot(r, &obj.id, &mut scene, &mut draws)?) } else { None };
         let distractors = self.place_distractors(&scene, r.object_index as usize);
         for d in &distractors {
-            draws.push(Draw { mesh: self.object_meshes[d.object], t_world_model: d.pose.matrix(), mask_id: d.mask_id });
+            draws.push(Draw { mesh: self.object_meshes[d.object], t_world_model: d.pose.matrix(), mask_id: d.mask_id, role: DrawRole::Occluder });
         }
         let object_draw = Draw {
             mesh: self.object_meshes[r.object_index as usize],
             t_world_model: scene.t_world_object.matrix(),
             mask_id: mask_ids::TARGET_OBJECT,
+            role: DrawRole::Target,
         };
         draws.push(object_draw);
         let (img, depth_noisy) = self.render_main(&scene, &key, &draws)?;
@@ -395,7 +411,7 @@ impl<'a> SampleFactory<'a> {
         let mut transforms = vec![(frames::WORLD.to_string(), "palm".to_string(), pose_of(&t_world_palm))];
         for &(link, mesh, id) in &self.robot_meshes {
             let t_world_link = robot.t_world_base * links[link];
-            draws.push(Draw { mesh, t_world_model: DMat4::from(t_world_link), mask_id: id });
+            draws.push(Draw { mesh, t_world_model: DMat4::from(t_world_link), mask_id: id, role: DrawRole::Occluder });
             // The link frames carry the robot's meshes in Foxglove (`/scene/models`).
             let name = &robot.model.links[link].name;
             if name != "palm" {

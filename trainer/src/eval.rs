@@ -341,9 +341,20 @@ fn pct(v: f64) -> String {
     if v.is_nan() { "–".into() } else { format!("{v:.1}") }
 }
 
-/// The Markdown report (see the module docs).
+/// The Markdown report (see the module docs): the metrics, then the same split per object, per
+/// occlusion level, what touch buys, and the tactile-point sweep.
 pub fn report_markdown(evals: &[ModelEval], split: &str, device: &str) -> String {
     let mut s = String::new();
+    report_header(&mut s, evals, split, device);
+    overall_section(&mut s, evals);
+    per_object_section(&mut s, evals);
+    per_occlusion_section(&mut s, evals);
+    touch_section(&mut s, evals);
+    tactile_sweep_section(&mut s, evals);
+    s
+}
+
+fn report_header(s: &mut String, evals: &[ModelEval], split: &str, device: &str) {
     let _ = writeln!(s, "# vtpose evaluation\n");
     let datasets: Vec<String> =
         evals.iter().map(|e| e.dataset.display().to_string()).collect::<std::collections::BTreeSet<_>>().into_iter().collect();
@@ -359,7 +370,10 @@ pub fn report_markdown(evals: &[ModelEval], split: &str, device: &str) -> String
          ADD(-S) < 2 cm: ADD-S for symmetric objects, ADD otherwise (%). Angle up to symmetry (not a paper metric): the \
          smallest angle to a rotation the object's symmetry (models_info.json) makes look the same as the truth.\n"
     );
+}
 
+/// One row per run: every metric over the whole split.
+fn overall_section(s: &mut String, evals: &[ModelEval]) {
     let _ = writeln!(s, "## Overall\n");
     let _ = writeln!(
         s,
@@ -386,7 +400,9 @@ pub fn report_markdown(evals: &[ModelEval], split: &str, device: &str) -> String
             if e.variant.uses_tactile() { pct(m.tactile_chosen) } else { "–".into() }
         );
     }
+}
 
+fn per_object_section(s: &mut String, evals: &[ModelEval]) {
     let _ = writeln!(s, "\n## Per object\n");
     let _ =
         writeln!(s, "| object | run | n | position (cm) | angle (°) | angle up to symmetry (°) | ADD AUC | ADD-S AUC | ADD(-S) < 2 cm |");
@@ -411,7 +427,9 @@ pub fn report_markdown(evals: &[ModelEval], split: &str, device: &str) -> String
             }
         }
     }
+}
 
+fn per_occlusion_section(s: &mut String, evals: &[ModelEval]) {
     let _ = writeln!(s, "\n## Per occlusion level\n");
     let _ = writeln!(s, "The paper's bins of the occlusion level (share of model points the camera does not see).\n");
     let _ = writeln!(s, "| occlusion | run | n | position (cm) | angle (°) | ADD-S AUC | ADD(-S) < 2 cm |");
@@ -436,9 +454,10 @@ pub fn report_markdown(evals: &[ModelEval], split: &str, device: &str) -> String
             }
         }
     }
+}
 
-    touch_section(&mut s, evals);
-
+/// Tactile networks evaluated with other numbers of tactile points (when the sweep ran).
+fn tactile_sweep_section(s: &mut String, evals: &[ModelEval]) {
     if evals.iter().any(|e| !e.sweep.is_empty()) {
         let _ = writeln!(s, "\n## Number of tactile points\n");
         let _ = writeln!(
@@ -478,7 +497,6 @@ pub fn report_markdown(evals: &[ModelEval], split: &str, device: &str) -> String
             );
         }
     }
-    s
 }
 
 /// The first vision-only evaluation and every tactile one, to compare (see [`crate::compare`]).

@@ -138,6 +138,7 @@ fn main() -> ExitCode {
     }
 }
 
+// Long on purpose: one match arm per subcommand, each a few lines from parsed flags to a library call.
 fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Train { config, out, dataset, variant, epochs, resume, overwrite, device: dev, quiet } => {

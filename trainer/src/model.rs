@@ -372,6 +372,8 @@ impl PoseNet {
         self.variant
     }
 
+    // Long on purpose: the paper's Fig. 2 top to bottom (encoders, pixel-wise fusion, global
+    // feature, Siamese heads, confidence); split, its tensor shapes would have to be re-read.
     pub fn forward(&self, input: &PoseInput) -> PoseOutput {
         let [b, n, _] = input.cloud.dims();
         let device = input.cloud.device();

@@ -23,7 +23,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use burn::module::Module;
-use burn::optim::{AdamConfig, GradientsParams};
+use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
 use burn::prelude::*;
 use indicatif::{ProgressBar, ProgressStyle};
 
@@ -68,6 +68,14 @@ const CSV_HEADER: &str =
     "epoch,steps,samples,skipped,loss,distance_cm,seconds,eval_n,eval_position_cm,eval_angle_deg,eval_add_auc,eval_adds_auc";
 
 impl EpochRecord {
+    /// The line printed after the epoch.
+    fn report_line(&self) -> String {
+        let ev = self.eval.as_ref().map_or(String::new(), |e| {
+            format!(", test: position {:.2} cm, angle {:.1}°, ADD-S AUC {:.1}", e.position_cm.mean, e.angle_deg.mean, e.adds_auc)
+        });
+        format!("epoch {}: loss {:.5}, chosen-estimate distance {:.2} cm{ev}", self.epoch, self.loss, self.distance_cm)
+    }
+
     fn csv(&self) -> String {
         let e = self.eval.as_ref();
         let f = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.6}"));
@@ -106,31 +114,7 @@ pub fn train(cfg: &TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
     let models = load_models(&cfg.dataset)?;
     let objects = select_objects(&models, &cfg.objects)?;
 
-    // A fresh run, or the continuation of the one in `out`.
-    let resumed = if run.state().exists() && !opts.overwrite {
-        if !opts.resume {
-            bail!("{} already holds a run: use --resume to continue it or --overwrite to replace it", run.0.display());
-        }
-        let state = run.load_state()?;
-        let saved = TrainConfig::load(&run.config())?;
-        let mut comparable = cfg.clone();
-        comparable.train.epochs = saved.train.epochs;
-        if comparable != saved {
-            bail!("--resume: the config differs from the run's {} (only train.epochs may change)", run.config().display());
-        }
-        if state.objects != objects {
-            bail!("--resume: the run was trained on {:?}, the config selects {:?}", state.objects, objects);
-        }
-        Some(state)
-    } else {
-        if opts.overwrite && run.0.exists() {
-            for f in [run.state(), run.model(), run.optimizer(), run.metrics(), run.config()] {
-                let _ = std::fs::remove_file(f);
-            }
-            let _ = std::fs::remove_dir_all(run.0.join("checkpoints"));
-        }
-        None
-    };
+    let resumed = open_run(&run, &cfg, &objects, opts)?;
     std::fs::create_dir_all(run.0.join("checkpoints")).with_context(|| format!("cannot create {}", run.0.display()))?;
     cfg.save(&run.config())?;
 
@@ -157,20 +141,7 @@ pub fn train(cfg: &TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
         return Ok(TrainSummary { run: run.0, epochs: Vec::new(), state });
     }
 
-    let mut source = SplitSource::open(&cfg.dataset, "train", &objects, cfg.data.depth, cfg.data.cache)?;
-    if cfg.train.max_train_samples > 0 {
-        source.truncate(cfg.train.max_train_samples);
-    }
-    if source.is_empty() {
-        bail!("{}: the train split has no samples of {:?}", cfg.dataset.display(), objects);
-    }
-    let mut test_source = if cfg.train.eval_every > 0 {
-        let mut s = SplitSource::open(&cfg.dataset, "test", &objects, cfg.data.depth, cfg.data.cache)?;
-        s.spread(cfg.train.eval_samples);
-        Some(s).filter(|s| !s.is_empty())
-    } else {
-        None
-    };
+    let (source, mut test_source) = open_sources(&cfg, &objects)?;
     let n_train = source.len();
     let slots = slot_table(&models, &objects);
     let prep = PrepareOptions {
@@ -187,16 +158,7 @@ pub fn train(cfg: &TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
     let loader = Loader::spawn(source, passes, prep, cfg.train.batch_size, cfg.data.prefetch);
 
     let batches_per_epoch = n_train.div_ceil(cfg.train.batch_size);
-    let bar = if opts.quiet {
-        ProgressBar::hidden()
-    } else {
-        ProgressBar::new(((cfg.train.epochs - state.epochs_done) * batches_per_epoch) as u64)
-    };
-    bar.set_style(
-        ProgressStyle::with_template("{spinner} epoch {msg} [{bar:30}] {pos}/{len} batches, {per_sec}, ETA {eta}")
-            .expect("template")
-            .progress_chars("=> "),
-    );
+    let bar = progress_bar(opts.quiet, (cfg.train.epochs - state.epochs_done) * batches_per_epoch);
     if !opts.quiet {
         eprintln!(
             "vtpose: training {} on {} ({} train samples of {}), {} params, device {:?}",
@@ -248,32 +210,15 @@ pub fn train(cfg: &TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
                     eval: None,
                 };
                 let last = epoch == cfg.train.epochs;
-                if cfg.train.eval_every > 0
-                    && (epoch.is_multiple_of(cfg.train.eval_every) || last)
-                    && let Some(src) = test_source.take()
-                {
-                    let eval_opts = eval::EvalOptions::for_config(&cfg, &slots, None).on(&opts.device);
-                    let (results, _, src) = eval::evaluate(&model.valid(), src, &eval_opts)?;
-                    rec.eval = Some(Summary::of(&results));
-                    test_source = Some(src);
+                if cfg.train.eval_every > 0 && (epoch.is_multiple_of(cfg.train.eval_every) || last) {
+                    rec.eval = evaluate_during_training(&model.valid(), &mut test_source, &cfg, &slots, &opts.device)?;
                 }
-                // Weights first, then the state that points at them.
-                save_model(&model, &run.model())?;
-                optim.save(run.optimizer()).map_err(|e| anyhow::anyhow!("cannot write {}: {e}", run.optimizer().display()))?;
-                if last || epoch.is_multiple_of(cfg.train.checkpoint_every.max(1)) {
-                    save_model(&model, &run.checkpoint(epoch))?;
-                }
-                run.save_state(&state)?;
+                let checkpoint = last || epoch.is_multiple_of(cfg.train.checkpoint_every.max(1));
+                save_epoch(&run, &model, &optim, &state, checkpoint)?;
                 writeln!(csv, "{}", rec.csv())?;
                 csv.flush()?;
                 if !opts.quiet {
-                    let ev = rec.eval.as_ref().map_or(String::new(), |e| {
-                        format!(
-                            ", test: position {:.2} cm, angle {:.1}°, ADD-S AUC {:.1}",
-                            e.position_cm.mean, e.angle_deg.mean, e.adds_auc
-                        )
-                    });
-                    let line = format!("epoch {epoch}: loss {:.5}, chosen-estimate distance {:.2} cm{ev}", rec.loss, rec.distance_cm);
+                    let line = rec.report_line();
                     // indicatif swallows println on a hidden bar (stderr not a terminal).
                     if bar.is_hidden() { eprintln!("{line}") } else { bar.println(line) }
                 }
@@ -286,6 +231,91 @@ pub fn train(cfg: &TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
     loader.finish();
     bar.finish_and_clear();
     Ok(TrainSummary { run: run.0, epochs: records, state })
+}
+
+/// A fresh run, or the state of the one in `run` to continue (`--resume`: the config may differ
+/// only in `train.epochs`); `--overwrite` clears a previous run's files first.
+fn open_run(run: &RunDir, cfg: &TrainConfig, objects: &[String], opts: &TrainOptions) -> Result<Option<RunState>> {
+    if !run.state().exists() || opts.overwrite {
+        if opts.overwrite && run.0.exists() {
+            for f in [run.state(), run.model(), run.optimizer(), run.metrics(), run.config()] {
+                let _ = std::fs::remove_file(f);
+            }
+            let _ = std::fs::remove_dir_all(run.0.join("checkpoints"));
+        }
+        return Ok(None);
+    }
+    if !opts.resume {
+        bail!("{} already holds a run: use --resume to continue it or --overwrite to replace it", run.0.display());
+    }
+    let state = run.load_state()?;
+    let saved = TrainConfig::load(&run.config())?;
+    let mut comparable = cfg.clone();
+    comparable.train.epochs = saved.train.epochs;
+    if comparable != saved {
+        bail!("--resume: the config differs from the run's {} (only train.epochs may change)", run.config().display());
+    }
+    if state.objects != objects {
+        bail!("--resume: the run was trained on {:?}, the config selects {:?}", state.objects, objects);
+    }
+    Ok(Some(state))
+}
+
+/// The train split (truncated as the config says) and, when the run evaluates during training,
+/// the evenly spread test samples it evaluates on.
+fn open_sources(cfg: &TrainConfig, objects: &[String]) -> Result<(SplitSource, Option<SplitSource>)> {
+    let mut source = SplitSource::open(&cfg.dataset, "train", objects, cfg.data.depth, cfg.data.cache)?;
+    if cfg.train.max_train_samples > 0 {
+        source.truncate(cfg.train.max_train_samples);
+    }
+    if source.is_empty() {
+        bail!("{}: the train split has no samples of {:?}", cfg.dataset.display(), objects);
+    }
+    let test_source = if cfg.train.eval_every > 0 {
+        let mut s = SplitSource::open(&cfg.dataset, "test", objects, cfg.data.depth, cfg.data.cache)?;
+        s.spread(cfg.train.eval_samples);
+        Some(s).filter(|s| !s.is_empty())
+    } else {
+        None
+    };
+    Ok((source, test_source))
+}
+
+fn progress_bar(quiet: bool, batches: usize) -> ProgressBar {
+    let bar = if quiet { ProgressBar::hidden() } else { ProgressBar::new(batches as u64) };
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} epoch {msg} [{bar:30}] {pos}/{len} batches, {per_sec}, ETA {eta}")
+            .expect("template")
+            .progress_chars("=> "),
+    );
+    bar
+}
+
+/// Weights, optimizer state and (`checkpoint`) a copy of the weights for the epoch just done,
+/// then the run state that points at them: an interrupted save leaves the previous state valid.
+fn save_epoch(run: &RunDir, model: &PoseNet, optim: &ModuleOptimizer, state: &RunState, checkpoint: bool) -> Result<()> {
+    save_model(model, &run.model())?;
+    optim.save(run.optimizer()).map_err(|e| anyhow::anyhow!("cannot write {}: {e}", run.optimizer().display()))?;
+    if checkpoint {
+        save_model(model, &run.checkpoint(state.epochs_done))?;
+    }
+    run.save_state(state)
+}
+
+/// The test metrics of `model` on the held-out samples (None when there are none); the source
+/// is handed back for the next evaluation.
+fn evaluate_during_training(
+    model: &PoseNet,
+    test_source: &mut Option<SplitSource>,
+    cfg: &TrainConfig,
+    slots: &[Option<usize>],
+    device: &Device,
+) -> Result<Option<Summary>> {
+    let Some(src) = test_source.take() else { return Ok(None) };
+    let eval_opts = eval::EvalOptions::for_config(cfg, slots, None).on(device);
+    let (results, _, src) = eval::evaluate(model, src, &eval_opts)?;
+    *test_source = Some(src);
+    Ok(Some(Summary::of(&results)))
 }
 
 /// Per dataset object: trained with the closest-point loss (`train.symmetric_loss` lists its id).

@@ -190,3 +190,59 @@ def test_tactile_data_of_a_robot_dataset(rust_hand_dataset: Path) -> None:
             assert int((t["phalanx"] == k).sum()) == counts[name]
         total += n
     assert total > 0
+
+
+def _shard_summary(root: Path) -> Tuple[Dict[str, str], Dict[str, bytes]]:
+    """(topic -> schema name, schema name -> schema data) of the first shard of a dataset."""
+    from mcap.reader import make_reader
+
+    manifest = json.loads((root / "manifest.json").read_text())
+    entry = next(e for s in manifest["splits"].values() for e in s.get("shards", []))
+    with open(root / entry["file"], "rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None
+    schemas = {s.id: s for s in summary.schemas.values()}
+    topics = {c.topic: schemas[c.schema_id].name for c in summary.channels.values()}
+    return topics, {s.name: s.data for s in schemas.values()}
+
+
+def test_reader_constants_match_what_the_rust_writer_writes(rust_dataset: Path, rust_hand_dataset: Path) -> None:
+    """The Python reader's constants (topics, manifest format, phalanx order, the info fields it
+    reads) checked against shards and the `/sample/info` JSON schema the Rust writer produced."""
+    from vtdata import reader as r
+
+    manifest = json.loads((rust_dataset / "manifest.json").read_text())
+    assert manifest["format"] == r.MANIFEST_FORMAT
+    assert manifest["format_version"] <= r.FORMAT_VERSION
+
+    topics, schemas = _shard_summary(rust_dataset)
+    assert set(r.REQUIRED_TOPICS) <= set(topics), f"the reader requires topics the writer lacks: {topics}"
+    hand_topics, hand_schemas = _shard_summary(rust_hand_dataset)
+    assert r.TOPIC_TACTILE_POINTS in hand_topics
+    assert {f"/tactile/{p}/depth" for p in r.PHALANGES} <= set(hand_topics)
+    known = {v for k, v in vars(r).items() if k.startswith("TOPIC_")}
+    unknown = {t for t in hand_topics if t not in known and not t.startswith("/tactile/")} - {r.TOPIC_SCENE_MODELS}
+    assert not unknown, f"topics the writer writes and the reader names no constant for: {unknown}"
+
+    # The fields of /sample/info the Python side reads (reader, DenseFusion view) are in the schema.
+    info_schema = json.loads(hand_schemas[hand_topics[r.TOPIC_INFO]])
+    props = info_schema["properties"]
+    for key in ("object_id", "object_index", "mask_id", "split", "index", "trajectory", "instance"):
+        assert key in props, f"/sample/info schema has no '{key}'"
+    assert sample_level_keys_are_written(rust_hand_dataset)
+    assert schemas[topics[r.TOPIC_INFO]] == hand_schemas[hand_topics[r.TOPIC_INFO]], "one /sample/info schema"
+
+    # The phalanx order of the tactile index (PHALANGES) is the order the writer uses.
+    ds = vtdata.Dataset(rust_hand_dataset, "train")
+    sample = ds[0]
+    contact = sample["info"]["robot"]["phalanges_in_contact"]
+    assert set(contact) <= set(r.PHALANGES)
+    assert sorted(contact, key=r.PHALANGES.index) == contact, "phalanges_in_contact in the writer's order"
+    idx = set(np.unique(sample["tactile"]["phalanx"]).tolist())
+    assert {r.PHALANGES[i] for i in idx} <= set(contact), "tactile points only on phalanges in contact"
+
+
+def sample_level_keys_are_written(root: Path) -> bool:
+    """The optional info fields the DenseFusion view reads (``occlusion.level``) are written."""
+    info = vtdata.Dataset(root, "train")[0]["info"]
+    return 0.0 <= info["occlusion"]["level"] <= 1.0

@@ -55,6 +55,8 @@ TOPIC_POSE = "/object/pose"
 TOPIC_TF = "/tf"
 TOPIC_INFO = "/sample/info"
 TOPIC_TACTILE_POINTS = "/tactile/points"
+#: The scene's meshes as Foxglove SceneUpdate (for viewing); the reader does not decode it.
+TOPIC_SCENE_MODELS = "/scene/models"
 #: The 12 phalanges in tactile index order (FORMAT.md).
 PHALANGES = tuple(f"{f}_{p}" for f in ("ff", "mf", "rf", "th") for p in ("proximal", "medial", "distal"))
 _TACTILE_DTYPE = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("distance", "<f4"), ("phalanx", "<u4")])

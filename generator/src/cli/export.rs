@@ -20,7 +20,7 @@ use vt_objects::{Symmetry, Texture, TexturedMesh};
 
 use crate::config::{Intrinsics, RendererConfig};
 use crate::plan::SPLITS;
-use crate::render::{Draw, MeshHandle, Renderer, View, WgpuRenderer};
+use crate::render::{Draw, DrawRole, MeshHandle, Renderer, View, WgpuRenderer};
 
 /// BOP depth images are uint16 with `depth_mm = value × depth_scale`: 0.1 mm steps reach 6.55 m.
 pub const DEPTH_SCALE: f64 = 0.1;
@@ -120,6 +120,8 @@ fn keyed(m: &BTreeMap<u64, Value>) -> Value {
 }
 
 /// Exports the dataset at `root` to `out` (created; must be empty or absent).
+// Long on purpose: the BOP directory layout written in its order (models, camera, per-scene
+// files); each step is a few lines of one file's fields.
 pub fn export_bop(root: &Path, out: &Path, renderer: &RendererConfig, quiet: bool, exr: bool) -> Result<ExportSummary> {
     let ds = DatasetReader::open(root)?;
     if out.exists() && std::fs::read_dir(out).map(|mut d| d.next().is_some()).unwrap_or(true) {
@@ -219,7 +221,7 @@ fn render_alone(r: &mut WgpuRenderer, s: &Sample, mesh: MeshHandle) -> Result<Ve
         far: 100.0,
         t_world_camera: DMat4::IDENTITY,
     };
-    r.render_mask(&view, &[Draw { mesh, t_world_model: s.t_camera_object.matrix(), mask_id: vt_dataset::mask_ids::TARGET_OBJECT }])
+    r.render_mask(&view, &[Draw { mesh, t_world_model: s.t_camera_object.matrix(), mask_id: vt_dataset::mask_ids::TARGET_OBJECT, role: DrawRole::Target }])
 }
 
 fn write_image(scene: &mut Scene, dir: &Path, s: &Sample, obj_id: usize, amodal: &[u8]) -> Result<()> {

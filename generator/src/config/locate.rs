@@ -50,6 +50,8 @@ fn node_start(l: &str) -> usize {
 }
 
 /// 1-based (line, column) of the last segment of `path`.
+// Long on purpose: one small YAML scanner (block maps, block and flow sequences) whose states
+// share the cursor.
 pub fn locate(text: &str, path: &[Seg]) -> Option<(usize, usize)> {
     let ls = lines(text);
     // The node being searched: lines [from, to), whose direct children sit at columns > `col`

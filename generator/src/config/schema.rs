@@ -40,6 +40,10 @@ pub struct RobotConfig {
     /// A URDF with the same joint and link names; default: the built-in UR5e + Allegro.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub urdf: Option<PathBuf>,
+    /// The real robot meshes to draw (`scripts/robot-assets`; `VTGEN_ROBOT_ASSETS` or
+    /// `--robot-assets` override it); without them, the URDF's primitives are drawn.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub assets: Option<PathBuf>,
     /// Robot base position (world) and rotation about world z.
     #[serde(default = "default_base_position")]
     pub base_position: [f64; 3],
@@ -559,12 +563,26 @@ fn range<T: PartialOrd + std::fmt::Display>(out: &mut Vec<Problem>, path: Vec<Se
 }
 
 impl Config {
-    /// Every problem of a parsed config, in document order.
-    // `!(a <= b)` on purpose: a NaN in the YAML must fail the checks too.
-    #[allow(clippy::neg_cmp_op_on_partial_ord)]
+    /// Every problem of a parsed config, section by section in document order (the loader
+    /// reports the first).
     pub fn validate(&self) -> Vec<Problem> {
-        use Seg::{Index, Key};
         let mut p = Vec::new();
+        self.validate_objects(&mut p);
+        self.validate_sampling(&mut p);
+        self.validate_camera(&mut p);
+        self.validate_renderer(&mut p);
+        self.validate_randomization(&mut p);
+        self.validate_scene_and_output(&mut p);
+        if let Some(r) = &self.robot {
+            r.validate(&mut p);
+        }
+        p
+    }
+
+    /// Object ids known or well-formed, custom masses in range, no object twice.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
+    fn validate_objects(&self, p: &mut Vec<Problem>) {
+        use Seg::{Index, Key};
         if self.objects.is_empty() {
             p.push(Problem { path: vec![Key("objects")], message: "at least one object is required".into() });
         }
@@ -599,17 +617,28 @@ impl Config {
                 p.push(Problem { path: vec![Key("objects"), Index(i)], message: format!("object '{id}' is listed twice") });
             }
         }
+    }
+
+    /// Counts in range, a split that keeps something.
+    fn validate_sampling(&self, p: &mut Vec<Problem>) {
+        use Seg::Key;
         let s = &self.sampling;
-        range(&mut p, vec![Key("sampling"), Key("trajectories_per_object")], s.trajectories_per_object, 1, 1_000_000);
-        range(&mut p, vec![Key("sampling"), Key("instances_per_trajectory")], s.instances_per_trajectory, 1, 100_000);
-        range(&mut p, vec![Key("sampling"), Key("split"), Key("train")], s.split.train, 0, 1000);
-        range(&mut p, vec![Key("sampling"), Key("split"), Key("test")], s.split.test, 0, 1000);
+        range(p, vec![Key("sampling"), Key("trajectories_per_object")], s.trajectories_per_object, 1, 1_000_000);
+        range(p, vec![Key("sampling"), Key("instances_per_trajectory")], s.instances_per_trajectory, 1, 100_000);
+        range(p, vec![Key("sampling"), Key("split"), Key("train")], s.split.train, 0, 1000);
+        range(p, vec![Key("sampling"), Key("split"), Key("test")], s.split.test, 0, 1000);
         if s.split.train + s.split.test == 0 {
             p.push(Problem { path: vec![Key("sampling"), Key("split")], message: "train + test must be at least 1".into() });
         }
+    }
+
+    /// Image size, intrinsics or field of view, clip planes, noise models, the camera's aim.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
+    fn validate_camera(&self, p: &mut Vec<Problem>) {
+        use Seg::Key;
         let c = &self.camera;
-        range(&mut p, vec![Key("camera"), Key("width")], c.width, 8, 8192);
-        range(&mut p, vec![Key("camera"), Key("height")], c.height, 8, 8192);
+        range(p, vec![Key("camera"), Key("width")], c.width, 8, 8192);
+        range(p, vec![Key("camera"), Key("height")], c.height, 8, 8192);
         match (&c.intrinsics, c.fov_y_deg) {
             (Some(_), Some(_)) => p.push(Problem {
                 path: vec![Key("camera"), Key("fov_y_deg")],
@@ -618,45 +647,29 @@ impl Config {
             (None, None) => {
                 p.push(Problem { path: vec![Key("camera")], message: "camera needs `intrinsics: {fx, fy, cx, cy}` or `fov_y_deg`".into() })
             }
-            (None, Some(f)) => range(&mut p, vec![Key("camera"), Key("fov_y_deg")], f, 1.0, 170.0),
+            (None, Some(f)) => range(p, vec![Key("camera"), Key("fov_y_deg")], f, 1.0, 170.0),
             (Some(k), None) => {
                 for (name, v) in [("fx", k.fx), ("fy", k.fy)] {
-                    range(&mut p, vec![Key("camera"), Key("intrinsics"), Key(name)], v, 1.0, 1e6);
+                    range(p, vec![Key("camera"), Key("intrinsics"), Key(name)], v, 1.0, 1e6);
                 }
-                range(&mut p, vec![Key("camera"), Key("intrinsics"), Key("cx")], k.cx, -0.5, c.width as f64 - 0.5);
-                range(&mut p, vec![Key("camera"), Key("intrinsics"), Key("cy")], k.cy, -0.5, c.height as f64 - 0.5);
+                range(p, vec![Key("camera"), Key("intrinsics"), Key("cx")], k.cx, -0.5, c.width as f64 - 0.5);
+                range(p, vec![Key("camera"), Key("intrinsics"), Key("cy")], k.cy, -0.5, c.height as f64 - 0.5);
             }
         }
-        range(&mut p, vec![Key("camera"), Key("near")], c.near, 1e-4, 100.0);
+        range(p, vec![Key("camera"), Key("near")], c.near, 1e-4, 100.0);
         if let Some(d) = &c.noise.depth {
             let k = |f: &'static str| vec![Key("camera"), Key("noise"), Key("depth"), Key(f)];
-            range(&mut p, k("sigma_mm"), d.sigma_mm, 0.0, 100.0);
-            range(&mut p, k("sigma_quadratic_mm"), d.sigma_quadratic_mm, 0.0, 100.0);
-            range(&mut p, k("baseline_m"), d.baseline_m, 0.0, 10.0);
-            range(&mut p, k("subpixel"), d.subpixel, 0.0, 1000.0);
-            range(&mut p, k("edge_mm"), d.edge_mm, 0.0, 10000.0);
-            range(&mut p, k("grazing_deg"), d.grazing_deg, 0.0, 90.0);
-            range(&mut p, k("dropout"), d.dropout, 0.0, 1.0);
+            range(p, k("sigma_mm"), d.sigma_mm, 0.0, 100.0);
+            range(p, k("sigma_quadratic_mm"), d.sigma_quadratic_mm, 0.0, 100.0);
+            range(p, k("baseline_m"), d.baseline_m, 0.0, 10.0);
+            range(p, k("subpixel"), d.subpixel, 0.0, 1000.0);
+            range(p, k("edge_mm"), d.edge_mm, 0.0, 10000.0);
+            range(p, k("grazing_deg"), d.grazing_deg, 0.0, 90.0);
+            range(p, k("dropout"), d.dropout, 0.0, 1.0);
         }
         if let Some(n) = &c.noise.color {
-            range(&mut p, vec![Key("camera"), Key("noise"), Key("color"), Key("sigma")], n.sigma, 0.0, 255.0);
-            range(&mut p, vec![Key("camera"), Key("noise"), Key("color"), Key("shot")], n.shot, 0.0, 255.0);
-        }
-        range(&mut p, vec![Key("renderer"), Key("shadow_map_size")], self.renderer.shadow_map_size, 256, 8192);
-        if ![1, 4].contains(&self.renderer.msaa) {
-            p.push(Problem {
-                path: vec![Key("renderer"), Key("msaa")],
-                message: format!("{} is not supported: use 1 (off) or 4", self.renderer.msaa),
-            });
-        }
-        for (field, message) in self.randomization.validate() {
-            let mut path = vec![Key("randomization")];
-            // Field paths are static names joined with dots; leaking a few bytes per error is fine.
-            path.extend(field.split('.').map(|k| match k.parse::<usize>() {
-                Ok(i) => Index(i),
-                Err(_) => Key(Box::leak(k.to_string().into_boxed_str())),
-            }));
-            p.push(Problem { path, message });
+            range(p, vec![Key("camera"), Key("noise"), Key("color"), Key("sigma")], n.sigma, 0.0, 255.0);
+            range(p, vec![Key("camera"), Key("noise"), Key("color"), Key("shot")], n.shot, 0.0, 255.0);
         }
         if !(c.far > c.near && c.far <= 1000.0) {
             p.push(Problem {
@@ -673,6 +686,38 @@ impl Config {
                 message: "the camera must not look straight up or down (world z is the up direction)".into(),
             });
         }
+    }
+
+    /// Shadow map size, anti-aliasing.
+    fn validate_renderer(&self, p: &mut Vec<Problem>) {
+        use Seg::Key;
+        range(p, vec![Key("renderer"), Key("shadow_map_size")], self.renderer.shadow_map_size, 256, 8192);
+        if ![1, 4].contains(&self.renderer.msaa) {
+            p.push(Problem {
+                path: vec![Key("renderer"), Key("msaa")],
+                message: format!("{} is not supported: use 1 (off) or 4", self.renderer.msaa),
+            });
+        }
+    }
+
+    /// The randomizers' own checks, under `randomization`.
+    fn validate_randomization(&self, p: &mut Vec<Problem>) {
+        use Seg::{Index, Key};
+        for (field, message) in self.randomization.validate() {
+            let mut path = vec![Key("randomization")];
+            // Field paths are static names joined with dots; leaking a few bytes per error is fine.
+            path.extend(field.split('.').map(|k| match k.parse::<usize>() {
+                Ok(i) => Index(i),
+                Err(_) => Key(Box::leak(k.to_string().into_boxed_str())),
+            }));
+            p.push(Problem { path, message });
+        }
+    }
+
+    /// Workspace above the floor, occlusion sampling, shard size, compression.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
+    fn validate_scene_and_output(&self, p: &mut Vec<Problem>) {
+        use Seg::Key;
         let w = &self.scene.workspace;
         for i in 0..3 {
             if !(w.min[i] <= w.max[i]) {
@@ -688,51 +733,60 @@ impl Config {
                 message: format!("min z = {} must be above the floor (z > 0)", w.min[2]),
             });
         }
-        range(&mut p, vec![Key("scene"), Key("occlusion_points")], self.scene.occlusion_points, 10, 1_000_000);
-        range(&mut p, vec![Key("scene"), Key("occlusion_epsilon_mm")], self.scene.occlusion_epsilon_mm, 0.01, 100.0);
-        range(&mut p, vec![Key("output"), Key("samples_per_shard")], self.output.samples_per_shard, 1, 1_000_000);
-        range(&mut p, vec![Key("output"), Key("zstd_level")], self.output.zstd_level, 1, 19);
-        if let Some(r) = &self.robot {
-            let t = &r.tactile;
-            range(&mut p, vec![Key("robot"), Key("tactile"), Key("resolution")], t.resolution, 4, 256);
-            range(&mut p, vec![Key("robot"), Key("tactile"), Key("contact_threshold_mm")], t.contact_threshold_mm, 0.0, 50.0);
-            if !(t.near_mm < t.far_mm) {
-                p.push(Problem {
-                    path: vec![Key("robot"), Key("tactile"), Key("far_mm")],
-                    message: format!("{} must be above near_mm ({})", t.far_mm, t.near_mm),
-                });
-            }
-            for (group, m) in [("proximal", t.sensors.proximal), ("medial", t.sensors.medial), ("distal", t.sensors.distal)] {
-                let path = vec![Key("robot"), Key("tactile"), Key("sensors"), Key(group)];
-                match m {
-                    SensorModel::TaxelArray { rows, cols } if rows == 0 || cols == 0 || rows > t.resolution || cols > t.resolution => p
-                        .push(Problem {
-                            path,
-                            message: format!("taxel grid {rows}x{cols} is out of range: 1 ..= resolution ({}) per side", t.resolution),
-                        }),
-                    SensorModel::Gelsight { gel_thickness_mm } if !(gel_thickness_mm > 0.0 && gel_thickness_mm <= 20.0) => {
-                        p.push(Problem { path, message: format!("gel_thickness_mm {gel_thickness_mm} is out of range: 0 < t <= 20") })
-                    }
-                    _ => {}
+        range(p, vec![Key("scene"), Key("occlusion_points")], self.scene.occlusion_points, 10, 1_000_000);
+        range(p, vec![Key("scene"), Key("occlusion_epsilon_mm")], self.scene.occlusion_epsilon_mm, 0.01, 100.0);
+        range(p, vec![Key("output"), Key("samples_per_shard")], self.output.samples_per_shard, 1, 1_000_000);
+        range(p, vec![Key("output"), Key("zstd_level")], self.output.zstd_level, 1, 19);
+    }
+}
+
+impl RobotConfig {
+    /// Tactile sensor, physics and grasp-sampling settings in range (paths under `robot`).
+    // `!(a <= b)` on purpose: a NaN in the YAML must fail the checks too.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
+    fn validate(&self, p: &mut Vec<Problem>) {
+        use Seg::Key;
+        let r = self;
+        let t = &r.tactile;
+        range(p, vec![Key("robot"), Key("tactile"), Key("resolution")], t.resolution, 4, 256);
+        range(p, vec![Key("robot"), Key("tactile"), Key("contact_threshold_mm")], t.contact_threshold_mm, 0.0, 50.0);
+        if !(t.near_mm < t.far_mm) {
+            p.push(Problem {
+                path: vec![Key("robot"), Key("tactile"), Key("far_mm")],
+                message: format!("{} must be above near_mm ({})", t.far_mm, t.near_mm),
+            });
+        }
+        for (group, m) in [("proximal", t.sensors.proximal), ("medial", t.sensors.medial), ("distal", t.sensors.distal)] {
+            let path = vec![Key("robot"), Key("tactile"), Key("sensors"), Key(group)];
+            match m {
+                SensorModel::TaxelArray { rows, cols } if rows == 0 || cols == 0 || rows > t.resolution || cols > t.resolution => p
+                    .push(Problem {
+                        path,
+                        message: format!("taxel grid {rows}x{cols} is out of range: 1 ..= resolution ({}) per side", t.resolution),
+                    }),
+                SensorModel::Gelsight { gel_thickness_mm } if !(gel_thickness_mm > 0.0 && gel_thickness_mm <= 20.0) => {
+                    p.push(Problem { path, message: format!("gel_thickness_mm {gel_thickness_mm} is out of range: 0 < t <= 20") })
                 }
-            }
-            range(&mut p, vec![Key("robot"), Key("physics"), Key("timestep")], r.physics.timestep, 1e-4, 0.02);
-            range(&mut p, vec![Key("robot"), Key("physics"), Key("friction")], r.physics.friction, 0.0, 10.0);
-            range(&mut p, vec![Key("robot"), Key("grasp"), Key("max_attempts")], r.grasp.max_attempts, 1, 10_000);
-            range(&mut p, vec![Key("robot"), Key("grasp"), Key("max_tilt_deg")], r.grasp.max_tilt_deg, 0.0, 180.0);
-            range(&mut p, vec![Key("robot"), Key("grasp"), Key("max_roll_deg")], r.grasp.max_roll_deg, 0.0, 180.0);
-            range(&mut p, vec![Key("robot"), Key("grasp"), Key("back_to_camera_share")], r.grasp.back_to_camera_share, 0.0, 1.0);
-            let (lo, hi) = r.grasp.back_to_camera_tilt_deg;
-            if !(0.0..=180.0).contains(&lo) || !(lo..=180.0).contains(&hi) {
-                p.push(Problem {
-                    path: vec![Key("robot"), Key("grasp"), Key("back_to_camera_tilt_deg")],
-                    message: format!("[{lo}, {hi}] is not a range: allowed 0 <= min <= max <= 180"),
-                });
+                _ => {}
             }
         }
-        p
+        range(p, vec![Key("robot"), Key("physics"), Key("timestep")], r.physics.timestep, 1e-4, 0.02);
+        range(p, vec![Key("robot"), Key("physics"), Key("friction")], r.physics.friction, 0.0, 10.0);
+        range(p, vec![Key("robot"), Key("grasp"), Key("max_attempts")], r.grasp.max_attempts, 1, 10_000);
+        range(p, vec![Key("robot"), Key("grasp"), Key("max_tilt_deg")], r.grasp.max_tilt_deg, 0.0, 180.0);
+        range(p, vec![Key("robot"), Key("grasp"), Key("max_roll_deg")], r.grasp.max_roll_deg, 0.0, 180.0);
+        range(p, vec![Key("robot"), Key("grasp"), Key("back_to_camera_share")], r.grasp.back_to_camera_share, 0.0, 1.0);
+        let (lo, hi) = r.grasp.back_to_camera_tilt_deg;
+        if !(0.0..=180.0).contains(&lo) || !(lo..=180.0).contains(&hi) {
+            p.push(Problem {
+                path: vec![Key("robot"), Key("grasp"), Key("back_to_camera_tilt_deg")],
+                message: format!("[{lo}, {hi}] is not a range: allowed 0 <= min <= max <= 180"),
+            });
+        }
     }
+}
 
+impl Config {
     /// Canonical JSON of the dataset's definition: what `config_sha256` hashes. Locations that do
     /// not change the data (output directory, YCB directory) are left out, so the same dataset
     /// generated on machines with different paths carries the same hash and bytes.
@@ -740,6 +794,9 @@ impl Config {
         let mut c = self.clone();
         c.output.dir = PathBuf::new();
         c.ycb_dir = None;
+        if let Some(r) = c.robot.as_mut() {
+            r.assets = None;
+        }
         serde_json::to_string(&c).expect("config serializes")
     }
 }

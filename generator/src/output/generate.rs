@@ -136,6 +136,8 @@ fn prepare_output(out: &Path, config_json: &str, plan: &Plan, opts: &GenerateOpt
 /// Rebuilds `manifest.json` from the shards on disk. Checksums already known (from this run or the
 /// previous manifest, same size) are reused; unknown complete shards are hashed. Parallel `--shard`
 /// processes on one directory each rewrite it this way, so the last one to finish lists them all.
+// Long on purpose: lock, read, reconcile with the shards on disk, write atomically, unlock: one
+// critical section, kept in one function so that nothing runs between its steps.
 fn update_manifest(out: &Path, config: &Config, config_sha: &str, plan: &Plan, receipts: &[(String, ShardReceipt)]) -> Result<Manifest> {
     // Parallel `--shard` processes finishing together take turns (an advisory lock, released
     // when the file closes), so none writes a manifest that misses a shard another just listed.
@@ -260,6 +262,8 @@ fn write_shard(
 }
 
 /// Generates the dataset (or this process's `--shard` part of it).
+// Long on purpose: the run's steps in order (plan, resume check, models, workers, writers,
+// manifest, summary); each is a call, the length is their wiring.
 pub fn generate(cfg: &LoadedConfig, opts: &GenerateOptions) -> Result<GenerateSummary> {
     let started = Instant::now();
     let config = &cfg.config;

@@ -40,7 +40,7 @@ pub struct Trajectory {
     pub attempts: u32,
 }
 
-/// Why an attempt failed, for the run's statistics.
+/// Why an attempt at a trajectory ended without it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Failure {
     InitialOverlap,
@@ -50,32 +50,46 @@ pub enum Failure {
     Penetration,
     TouchesFloor,
     Unreachable,
-    /// Not failures of the attempt: an instance whose pose ended with a hand link more than
-    /// `max_penetration` into the object, or fewer than 2 phalanges touching, is not recorded;
-    /// the arm moves on to a fresh random pose for it (counted here).
-    MoveRedoneForPenetration,
-    MoveRedoneForContacts,
-    MoveRedoneForFloor,
-    /// A move that dropped the object, undone.
-    MoveRedoneForDrop,
 }
 
-impl Failure {
+/// An arm move undone and redrawn from the last recorded state: not a failure, the attempt goes
+/// on. A move that drops the object, or ends with a hand link more than `max_penetration` into
+/// the object, fewer than 2 phalanges touching or the object on the floor, cannot be recorded.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Redo {
+    Drop,
+    Penetration,
+    Contacts,
+    Floor,
+}
+
+/// What the grasp loop counts for the run's statistics: failed attempts and redone moves.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum GraspEvent {
+    Failed(Failure),
+    Redone(Redo),
+}
+
+impl GraspEvent {
     /// The name statistics count it under (`grasp_stats.failures` in shards and the manifest,
-    /// `vtgen grasps`): stable, whatever `Debug` prints.
+    /// `vtgen grasps`): stable, the names earlier datasets carry.
     pub fn name(self) -> &'static str {
         match self {
-            Failure::InitialOverlap => "InitialOverlap",
-            Failure::GraspNotHeld => "GraspNotHeld",
-            Failure::LostDuringMotion => "LostDuringMotion",
-            Failure::TooFewContacts => "TooFewContacts",
-            Failure::Penetration => "Penetration",
-            Failure::TouchesFloor => "TouchesFloor",
-            Failure::Unreachable => "Unreachable",
-            Failure::MoveRedoneForPenetration => "MoveRedoneForPenetration",
-            Failure::MoveRedoneForContacts => "MoveRedoneForContacts",
-            Failure::MoveRedoneForFloor => "MoveRedoneForFloor",
-            Failure::MoveRedoneForDrop => "MoveRedoneForDrop",
+            GraspEvent::Failed(f) => match f {
+                Failure::InitialOverlap => "InitialOverlap",
+                Failure::GraspNotHeld => "GraspNotHeld",
+                Failure::LostDuringMotion => "LostDuringMotion",
+                Failure::TooFewContacts => "TooFewContacts",
+                Failure::Penetration => "Penetration",
+                Failure::TouchesFloor => "TouchesFloor",
+                Failure::Unreachable => "Unreachable",
+            },
+            GraspEvent::Redone(r) => match r {
+                Redo::Penetration => "MoveRedoneForPenetration",
+                Redo::Contacts => "MoveRedoneForContacts",
+                Redo::Floor => "MoveRedoneForFloor",
+                Redo::Drop => "MoveRedoneForDrop",
+            },
         }
     }
 }
@@ -221,16 +235,20 @@ pub fn simulate_trajectory(
     physics: &mut dyn HandPhysics,
     object: &PhysicsObject,
     key: TrajectoryKey,
-    failures: &mut Vec<Failure>,
+    events: &mut Vec<GraspEvent>,
 ) -> Result<Trajectory> {
     let cfg = ctx.config;
+    let mut last = None;
     for attempt in 0..cfg.max_attempts {
-        match attempt_trajectory(ctx, physics, object, key, attempt, failures)? {
+        match attempt_trajectory(ctx, physics, object, key, attempt, events)? {
             Ok(instances) => return Ok(Trajectory { instances, attempts: attempt + 1 }),
-            Err(f) => failures.push(f),
+            Err(f) => {
+                events.push(GraspEvent::Failed(f));
+                last = Some(f);
+            }
         }
     }
-    bail!("{} trajectory {}: no grasp held in {} attempts ({:?})", key.object_id, key.trajectory, cfg.max_attempts, failures.last())
+    bail!("{} trajectory {}: no grasp held in {} attempts ({:?})", key.object_id, key.trajectory, cfg.max_attempts, last)
 }
 
 /// One attempt, in its phases: reach the grasp pose, place the object on the open palm, close the
@@ -241,7 +259,7 @@ fn attempt_trajectory(
     object: &PhysicsObject,
     key: TrajectoryKey,
     attempt: u32,
-    failures: &mut Vec<Failure>,
+    events: &mut Vec<GraspEvent>,
 ) -> Result<std::result::Result<Vec<InstanceState>, Failure>> {
     let cfg = ctx.config;
     let rng = &mut SampleStream::trajectory(key.seed, key.object_id, key.trajectory, &format!("grasp/{attempt}"));
@@ -261,7 +279,7 @@ fn attempt_trajectory(
         Ok(pose) => pose,
         Err(f) => return Ok(Err(f)),
     };
-    record_instances(ctx, physics, object, key, attempt, q, grasped, failures)
+    record_instances(ctx, physics, object, key, attempt, q, grasped, events)
 }
 
 /// How far `object` reaches along the palm normal (palm x) turned by `r`: (depth, how far behind
@@ -400,7 +418,7 @@ fn record_instances(
     attempt: u32,
     mut q: Vec<f64>,
     grasped: DAffine3,
-    failures: &mut Vec<Failure>,
+    events: &mut Vec<GraspEvent>,
 ) -> Result<std::result::Result<Vec<InstanceState>, Failure>> {
     let robot = ctx.robot;
     let mut out = Vec::with_capacity(key.instances as usize);
@@ -422,16 +440,16 @@ fn record_instances(
             // redo counted otherwise.
             let (failure, redo) = match move_and_settle(ctx, physics, object, &mut q, &mut arm_rng)? {
                 MoveOutcome::Recordable(obj, contacts, penetration) => break (obj, contacts, penetration),
-                MoveOutcome::Failed(Failure::LostDuringMotion) => (Failure::LostDuringMotion, Failure::MoveRedoneForDrop),
+                MoveOutcome::Failed(Failure::LostDuringMotion) => (Failure::LostDuringMotion, Redo::Drop),
                 MoveOutcome::Failed(f) => return Ok(Err(f)),
-                MoveOutcome::NotRecordable(f @ Failure::Penetration) => (f, Failure::MoveRedoneForPenetration),
-                MoveOutcome::NotRecordable(f @ Failure::TouchesFloor) => (f, Failure::MoveRedoneForFloor),
-                MoveOutcome::NotRecordable(f) => (f, Failure::MoveRedoneForContacts),
+                MoveOutcome::NotRecordable(f @ Failure::Penetration) => (f, Redo::Penetration),
+                MoveOutcome::NotRecordable(f @ Failure::TouchesFloor) => (f, Redo::Floor),
+                MoveOutcome::NotRecordable(f) => (f, Redo::Contacts),
             };
             if moved >= MAX_MOVES_PER_INSTANCE {
                 return Ok(Err(failure));
             }
-            failures.push(redo);
+            events.push(GraspEvent::Redone(redo));
             physics.restore();
             q = q_before;
         };
@@ -630,7 +648,7 @@ mod tests {
     }
 
     /// The grasp loop over the scripted hand: `cfg` with the paper's robot and camera.
-    fn run_fake(hand: &mut crate::physics::fake::FakeHand, cfg: &GraspConfig, instances: u32) -> (Result<Trajectory>, Vec<Failure>) {
+    fn run_fake(hand: &mut crate::physics::fake::FakeHand, cfg: &GraspConfig, instances: u32) -> (Result<Trajectory>, Vec<GraspEvent>) {
         let robot = RobotModel::builtin();
         let (t_world_base, camera_position) = paper_context();
         let ctx = GraspContext { robot: &robot, t_world_base, config: cfg, timestep: 1.0 / 240.0, camera_position };
@@ -679,19 +697,25 @@ mod tests {
         let (t, failures) = run_fake(&mut sliding, &cfg, 2);
         let e = t.unwrap_err().to_string();
         assert!(e.contains("005_tomato_soup_can trajectory 0: no grasp held in 3 attempts"), "{e}");
-        assert!(failures.iter().all(|f| matches!(f, Failure::GraspNotHeld | Failure::Unreachable)), "{failures:?}");
-        assert!(failures.contains(&Failure::GraspNotHeld));
+        assert!(
+            failures.iter().all(|f| matches!(f, GraspEvent::Failed(Failure::GraspNotHeld | Failure::Unreachable))),
+            "{failures:?}"
+        );
+        assert!(failures.contains(&GraspEvent::Failed(Failure::GraspNotHeld)));
         // One phalanx alone does not hold an object either.
         let (t, failures) = run_fake(&mut crate::physics::fake::FakeHand::holding(1), &cfg, 2);
         assert!(t.is_err());
-        assert!(failures.contains(&Failure::GraspNotHeld), "{failures:?}");
+        assert!(failures.contains(&GraspEvent::Failed(Failure::GraspNotHeld)), "{failures:?}");
         // A hand that presses into the object never records an instance (1.2 mm: placed, since
         // placement tolerates 1.5 mm, but over the 1 mm a recorded instance may have).
         let mut pressing = crate::physics::fake::FakeHand::holding(3);
         pressing.penetration = 1.2 * cfg.max_penetration;
         let (t, failures) = run_fake(&mut pressing, &cfg, 2);
         assert!(t.is_err());
-        assert!(failures.contains(&Failure::MoveRedoneForPenetration) && failures.contains(&Failure::Penetration), "{failures:?}");
+        assert!(
+            failures.contains(&GraspEvent::Redone(Redo::Penetration)) && failures.contains(&GraspEvent::Failed(Failure::Penetration)),
+            "{failures:?}"
+        );
     }
 
     #[test]
@@ -704,29 +728,20 @@ mod tests {
         let (t, failures) = run_fake(&mut hand, &cfg, 3);
         let t = t.unwrap();
         assert_eq!((t.instances.len(), t.attempts), (3, 1));
-        assert_eq!(failures, vec![Failure::MoveRedoneForDrop]);
+        assert_eq!(failures, vec![GraspEvent::Redone(Redo::Drop)]);
         // The redone move starts from the state saved before the drop: the object is back in the hand.
         assert!(t.instances.iter().all(|i| i.slip_translation == 0.0));
     }
 
     #[test]
-    fn failure_names_are_the_ones_earlier_datasets_count_under() {
+    fn event_names_are_the_ones_earlier_datasets_count_under() {
         use Failure::*;
-        let all = [
-            InitialOverlap,
-            GraspNotHeld,
-            LostDuringMotion,
-            TooFewContacts,
-            Penetration,
-            TouchesFloor,
-            Unreachable,
-            MoveRedoneForPenetration,
-            MoveRedoneForContacts,
-            MoveRedoneForFloor,
-            MoveRedoneForDrop,
-        ];
-        for f in all {
-            assert_eq!(f.name(), format!("{f:?}"));
+        let failed = [InitialOverlap, GraspNotHeld, LostDuringMotion, TooFewContacts, Penetration, TouchesFloor, Unreachable];
+        for f in failed {
+            assert_eq!(GraspEvent::Failed(f).name(), format!("{f:?}"));
+        }
+        for r in [Redo::Penetration, Redo::Contacts, Redo::Floor, Redo::Drop] {
+            assert_eq!(GraspEvent::Redone(r).name(), format!("MoveRedoneFor{r:?}"));
         }
     }
 

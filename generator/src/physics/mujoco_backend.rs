@@ -52,6 +52,7 @@ impl MujocoHand {
     }
 
     /// MJCF of the hand below the palm and one free object.
+    // Long on purpose: one MJCF document written top to bottom, as MuJoCo reads it.
     fn mjcf(&self, object: &PhysicsObject) -> String {
         let m = &self.model;
         let s = &self.settings;

@@ -78,6 +78,7 @@ impl RapierHand {
     }
 
     /// Builds the hand at joint values `q` in a fresh world.
+    // Long on purpose: one multibody built link by link (colliders, joints, motors), in one place.
     fn build(&mut self, q: &[f64; 16]) -> Result<()> {
         let m = &self.model;
         let mut world = PhysicsWorld::new();

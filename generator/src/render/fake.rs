@@ -54,7 +54,8 @@ impl Renderer for PlaneRenderer {
         }
         let id = draws.first().map_or(0, |d| d.mask_id);
         let mask: Vec<u8> = depth.iter().map(|&d| if d > 0.0 { id } else { 0 }).collect();
-        let silhouette_pixels = mask.iter().filter(|&&m| m == 1).count();
+        let is_target = draws.first().is_some_and(|d| d.role == super::DrawRole::Target);
+        let silhouette_pixels = if is_target { depth.iter().filter(|&&d| d > 0.0).count() } else { 0 };
         Ok(RenderOutput { width: view.width, height: view.height, rgb: vec![128; w * h * 3], depth, mask, silhouette_pixels })
     }
     fn render_mask(&mut self, view: &View, draws: &[Draw]) -> anyhow::Result<Vec<u8>> {

@@ -82,12 +82,25 @@ impl Default for Material {
     }
 }
 
-/// One mesh placed in the world, with the mask id its pixels get.
+/// One mesh placed in the world, with the mask id its pixels get and its role in the picture.
 #[derive(Debug, Clone, Copy)]
 pub struct Draw {
     pub mesh: MeshHandle,
     pub t_world_model: DMat4,
     pub mask_id: u8,
+    pub role: DrawRole,
+}
+
+/// What a draw is to the renderer. The role, not the mask id (whose meaning belongs to the
+/// dataset), decides the draw order, who casts shadows and whose silhouette is measured.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DrawRole {
+    /// Floor and backdrop: receive shadows but cast none, drawn last (behind everything).
+    Environment,
+    /// The object whose unoccluded silhouette `RenderOutput::silhouette_pixels` counts; drawn first.
+    Target,
+    /// Everything else in front of the environment: hand, arm, distractors.
+    Occluder,
 }
 
 /// The images of one view, row-major, row 0 at the top.
@@ -100,7 +113,7 @@ pub struct RenderOutput {
     /// z-depth in metres, 0 where nothing was drawn.
     pub depth: Vec<f32>,
     pub mask: Vec<u8>,
-    /// Pixels the target object (mask id 1) covers with nothing in front of it: its silhouette
+    /// Pixels the target draw (`DrawRole::Target`) covers with nothing in front of it: its silhouette
     /// had it been drawn alone (`render_mask` of it), from the same pass.
     pub silhouette_pixels: usize,
 }

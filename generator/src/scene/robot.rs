@@ -9,7 +9,7 @@ use vt_objects::{Texture, TexturedMesh};
 use vt_robot::{ARM_JOINTS, Geometry, RobotModel, hand_joint_names};
 
 use crate::config::{LoadedConfig, RobotConfig};
-use crate::physics::grasp::{Failure, GraspContext, Trajectory, TrajectoryKey, simulate_trajectory};
+use crate::physics::grasp::{GraspContext, GraspEvent, Trajectory, TrajectoryKey, simulate_trajectory};
 use crate::physics::{HandPhysics, PhysicsObject, PhysicsSettings, RapierHand};
 
 /// Mask id of a robot link (FORMAT.md): arm links 10–15 (the base counts with link 1), palm and
@@ -214,18 +214,18 @@ impl RobotScene {
             timestep: self.config.physics.timestep,
             camera_position: self.camera_position,
         };
-        let mut failures: Vec<Failure> = Vec::new();
+        let mut events: Vec<GraspEvent> = Vec::new();
         let result = simulate_trajectory(
             &ctx,
             self.physics.as_mut(),
             &self.objects[object_index as usize],
             TrajectoryKey { seed, object_id, trajectory, instances },
-            &mut failures,
+            &mut events,
         );
         let attempts = result.as_ref().map_or(self.config.grasp.max_attempts, |t| t.attempts);
         let mut stats = GraspStats { trajectories: 1, attempts: attempts as u64, ..Default::default() };
-        for f in failures {
-            *stats.failures.entry(f.name().to_string()).or_default() += 1;
+        for e in events {
+            *stats.failures.entry(e.name().to_string()).or_default() += 1;
         }
         for s in result.iter().flat_map(|t| &t.instances) {
             stats.max_slip_mm = stats.max_slip_mm.max(s.slip_translation * 1e3);

@@ -129,7 +129,7 @@ pub fn contact_pixels(depth: &[f32], n: u32, model: SensorModel, threshold: f64)
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::render::MeshHandle;
+    use crate::render::{DrawRole, MeshHandle};
     use crate::render::fake::PlaneRenderer;
     use glam::DQuat;
 
@@ -152,7 +152,7 @@ mod tests {
         let cfg = TactileConfig { resolution: 16, ..TactileConfig::default() };
         let sizes = [(0.02, 0.01); 12];
         let t_world_pads = pads(|k| if k % 2 == 0 { 0.0 } else { 0.003 });
-        let object = Draw { mesh: MeshHandle(0), t_world_model: DMat4::IDENTITY, mask_id: 1 };
+        let object = Draw { mesh: MeshHandle(0), t_world_model: DMat4::IDENTITY, mask_id: 1, role: DrawRole::Target };
         // Points come out in the frame `t_camera_world` maps to: a camera 1 m above, looking down.
         let t_world_camera = DAffine3::from_rotation_translation(DQuat::from_rotation_x(std::f64::consts::PI), DVec3::new(0.0, 0.0, 1.0));
         let r = sense(&mut renderer, &cfg, &sizes, &t_world_pads, object, &t_world_camera.inverse()).unwrap();

@@ -175,6 +175,7 @@ fn arc(center: Vec3, radius: f32, from: f32, to: f32, n: usize, plane: (Vec3, Ve
 }
 
 /// Builds the procedural stand-in of a catalogue object, in the model frame, scaled to its extents.
+// Long on purpose: one arm per object shape in the catalogue, each a few primitives.
 pub fn procedural_mesh(entry: &CatalogEntry) -> TexturedMesh {
     let mut b = Builder::default();
     let seg = 48;

@@ -181,49 +181,28 @@ impl RobotModel {
                 dof: None,
             });
         }
-        let roots: Vec<usize> = (0..links.len()).filter(|&i| links[i].parent_joint.is_none()).collect();
-        let [root] = roots[..] else {
-            let names: Vec<&str> = roots.iter().map(|&i| links[i].name.as_str()).collect();
-            return Err(err(format!("expected one root link, found {}: {}", names.len(), names.join(", "))));
-        };
-        // Topological order from the root (also detects cycles: unreachable links).
-        let mut order = Vec::with_capacity(joints.len());
-        let mut stack = vec![root];
-        while let Some(l) = stack.pop() {
-            for (ji, j) in joints.iter().enumerate() {
-                if j.parent == l {
-                    order.push(ji);
-                    stack.push(j.child);
-                }
-            }
-        }
-        if order.len() != joints.len() {
-            return Err(err("the joints do not form a tree".into()));
-        }
-        let mut remap = vec![0; joints.len()];
-        let mut sorted = Vec::with_capacity(joints.len());
-        for (new, &old) in order.iter().enumerate() {
-            remap[old] = new;
-            sorted.push(joints[old].clone());
-        }
-        for l in &mut links {
-            l.parent_joint = l.parent_joint.map(|j| remap[j]);
-        }
-        let joint_index = joint_index.into_iter().map(|(k, v)| (k, remap[v])).collect();
+        let (root, joints, joint_index) = topological_order(&mut links, joints, joint_index).map_err(err)?;
+        let mut joints = joints;
         let mut dofs = Vec::new();
-        for (i, j) in sorted.iter_mut().enumerate() {
+        for (i, j) in joints.iter_mut().enumerate() {
             if j.kind == JointKind::Revolute {
                 j.dof = Some(dofs.len());
                 dofs.push(i);
             }
         }
-        let model = RobotModel { links, joints: sorted, root, dofs, link_index, joint_index };
-        // What vtgen relies on: the arm chain, the palm, the 16 hand joints and the 12 pads.
+        let model = RobotModel { links, joints, root, dofs, link_index, joint_index };
+        model.check_required().map_err(err)?;
+        Ok(model)
+    }
+
+    /// What vtgen relies on: the arm chain, the palm, the flange, the 16 hand joints and the 12
+    /// phalanges with their pads.
+    fn check_required(&self) -> Result<(), String> {
         for name in ARM_JOINTS.iter().map(|s| s.to_string()).chain(hand_joint_names()) {
-            match model.joint(&name) {
+            match self.joint(&name) {
                 Some(j) if j.kind == JointKind::Revolute => {}
-                Some(_) => return Err(err(format!("joint '{name}' must be revolute"))),
-                None => return Err(err(format!("required joint '{name}' is missing"))),
+                Some(_) => return Err(format!("joint '{name}' must be revolute")),
+                None => return Err(format!("required joint '{name}' is missing")),
             }
         }
         for name in [PALM.to_string(), "flange".to_string()]
@@ -231,11 +210,11 @@ impl RobotModel {
             .chain(phalanx_names())
             .chain(phalanx_names().into_iter().map(|p| format!("{p}_pad")))
         {
-            if model.link(&name).is_none() {
-                return Err(err(format!("required link '{name}' is missing")));
+            if self.link(&name).is_none() {
+                return Err(format!("required link '{name}' is missing"));
             }
         }
-        Ok(model)
+        Ok(())
     }
 
     pub fn link(&self, name: &str) -> Option<&Link> {
@@ -315,4 +294,45 @@ impl RobotModel {
             }
         }
     }
+}
+
+/// The root link and the joints in topological order from it (a joint after the joint of its
+/// parent link), with the links' parent joints and the name index renumbered. Fails unless the
+/// joints form one tree.
+#[allow(clippy::type_complexity)]
+fn topological_order(
+    links: &mut [Link],
+    joints: Vec<Joint>,
+    joint_index: HashMap<String, usize>,
+) -> Result<(usize, Vec<Joint>, HashMap<String, usize>), String> {
+    let roots: Vec<usize> = (0..links.len()).filter(|&i| links[i].parent_joint.is_none()).collect();
+    let [root] = roots[..] else {
+        let names: Vec<&str> = roots.iter().map(|&i| links[i].name.as_str()).collect();
+        return Err(format!("expected one root link, found {}: {}", names.len(), names.join(", ")));
+    };
+    // Depth-first from the root (also detects cycles: unreachable links).
+    let mut order = Vec::with_capacity(joints.len());
+    let mut stack = vec![root];
+    while let Some(l) = stack.pop() {
+        for (ji, j) in joints.iter().enumerate() {
+            if j.parent == l {
+                order.push(ji);
+                stack.push(j.child);
+            }
+        }
+    }
+    if order.len() != joints.len() {
+        return Err("the joints do not form a tree".into());
+    }
+    let mut remap = vec![0; joints.len()];
+    let mut sorted = Vec::with_capacity(joints.len());
+    for (new, &old) in order.iter().enumerate() {
+        remap[old] = new;
+        sorted.push(joints[old].clone());
+    }
+    for l in links.iter_mut() {
+        l.parent_joint = l.parent_joint.map(|j| remap[j]);
+    }
+    let joint_index = joint_index.into_iter().map(|(k, v)| (k, remap[v])).collect();
+    Ok((root, sorted, joint_index))
 }

@@ -1,6 +1,74 @@
-//! Adapter choice: which wgpu backends a config allows and how adapters rank (a GPU first).
+//! Adapter choice: which wgpu backends a config allows, how adapters rank (a GPU first), and
+//! the device opened on the chosen one.
 
 use super::*;
+
+pub(super) struct OpenDevice {
+    pub(super) device: wgpu::Device,
+    pub(super) queue: wgpu::Queue,
+    pub(super) info: wgpu::AdapterInfo,
+    pub(super) max_texture_size: u32,
+}
+
+/// Opens a device on the best adapter the config allows that can render to R32Float targets.
+pub(super) fn open_device(cfg: &RendererConfig) -> Result<OpenDevice> {
+    // With `auto`, the native APIs are probed first and GL only when they offer nothing: GL
+    // needs Mesa overrides for float targets, and probing EGL is noisy on headless machines.
+    let tries = match cfg.backend {
+        Backend::Auto => vec![wgpu::Backends::PRIMARY, wgpu::Backends::SECONDARY],
+        b => vec![backends(b)],
+    };
+    let mut adapters = Vec::new();
+    for b in tries {
+        let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
+        desc.backends = b;
+        let instance = wgpu::Instance::new(desc);
+        adapters = pollster::block_on(instance.enumerate_adapters(b));
+        if !adapters.is_empty() {
+            break;
+        }
+    }
+    if adapters.is_empty() {
+        bail!(
+            "no graphics adapter found for backend {:?}. On a machine without a GPU install Mesa's CPU Vulkan driver: \
+             `sudo apt-get install mesa-vulkan-drivers libvulkan1` (Debian/Ubuntu)",
+            cfg.backend
+        );
+    }
+    let names: Vec<String> = adapters.iter().map(|a| describe_adapter(&a.get_info())).collect();
+    if let Some(want) = &cfg.adapter {
+        adapters.retain(|a| a.get_info().name.to_lowercase().contains(&want.to_lowercase()));
+        if adapters.is_empty() {
+            bail!("no adapter name contains '{want}'; found: {}", names.join("; "));
+        }
+    }
+    // Depth and mask targets are R32Float: an adapter that cannot render to it (Mesa's GL
+    // llvmpipe without overrides) would fail at pipeline creation, deep inside wgpu.
+    let float_target =
+        |a: &wgpu::Adapter| a.get_texture_format_features(DEPTH_FORMAT).allowed_usages.contains(wgpu::TextureUsages::RENDER_ATTACHMENT);
+    if !adapters.iter().any(float_target) {
+        bail!(
+            "no graphics adapter can render to R32Float targets (found: {}). On a machine without a GPU install \
+             Mesa's CPU Vulkan driver: `sudo apt-get install mesa-vulkan-drivers libvulkan1` (Debian/Ubuntu, \
+             or run scripts/system-deps)",
+            names.join("; ")
+        );
+    }
+    adapters.retain(float_target);
+    adapters.sort_by_key(|a| rank(&a.get_info()));
+    let adapter = adapters.into_iter().next().expect("non-empty");
+    let info = adapter.get_info();
+    let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+        label: Some("vtgen"),
+        required_features: wgpu::Features::empty(),
+        required_limits: wgpu::Limits::downlevel_defaults().using_resolution(adapter.limits()),
+        experimental_features: wgpu::ExperimentalFeatures::disabled(),
+        memory_hints: wgpu::MemoryHints::Performance,
+        trace: wgpu::Trace::Off,
+    }))
+    .with_context(|| format!("cannot open a device on {}", describe_adapter(&info)))?;
+    Ok(OpenDevice { device, queue, info, max_texture_size: adapter.limits().max_texture_dimension_2d })
+}
 
 pub(super) fn backends(b: Backend) -> wgpu::Backends {
     match b {

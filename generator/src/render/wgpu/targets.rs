@@ -17,13 +17,29 @@ pub(super) struct Targets {
     pub(super) depth_tex: wgpu::Texture,
     pub(super) mask_tex: wgpu::Texture,
     pub(super) silhouette_tex: wgpu::Texture,
-    /// Colour, depth, mask, silhouette.
-    pub(super) readback: [wgpu::Buffer; 4],
+    pub(super) readback: Readbacks,
+}
+
+/// Mappable copies of the targets, rows padded to 256 bytes.
+pub(super) struct Readbacks {
+    pub(super) color: wgpu::Buffer,
+    pub(super) depth: wgpu::Buffer,
+    pub(super) mask: wgpu::Buffer,
+    pub(super) silhouette: wgpu::Buffer,
+}
+
+/// The two target sets of a renderer: they differ in size and in anti-aliasing.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Slot {
+    /// The main camera (anti-aliased when msaa > 1).
+    Main = 0,
+    /// The atlas of phalanx depth views.
+    TactileAtlas = 1,
 }
 
 impl WgpuRenderer {
-    pub(super) fn ensure_targets(&mut self, slot: usize, width: u32, height: u32) {
-        if self.targets[slot].as_ref().is_none_or(|t| t.width != width || t.height != height) {
+    pub(super) fn ensure_targets(&mut self, slot: Slot, width: u32, height: u32) {
+        if self.targets[slot as usize].as_ref().is_none_or(|t| t.width != width || t.height != height) {
             let make = |label, format| {
                 self.device.create_texture(&wgpu::TextureDescriptor {
                     label: Some(label),
@@ -41,8 +57,8 @@ impl WgpuRenderer {
             let mask_tex = make("mask", MASK_FORMAT);
             let silhouette_tex = make("silhouette", SILHOUETTE_FORMAT);
             let zbuf_tex = make("z-buffer", ZBUF_FORMAT);
-            // Only the main view (slot 0) is anti-aliased; the phalanx depth views are not.
-            let msaa = (slot == 0 && self.msaa > 1).then(|| {
+            // Only the main view is anti-aliased; the phalanx depth views are not.
+            let msaa = (slot == Slot::Main && self.msaa > 1).then(|| {
                 let make_ms = |label, format| {
                     self.device
                         .create_texture(&wgpu::TextureDescriptor {
@@ -59,15 +75,17 @@ impl WgpuRenderer {
                 };
                 (make_ms("colour (multisampled)", COLOR_FORMAT), make_ms("z-buffer (multisampled)", ZBUF_FORMAT))
             });
-            let readback = [4u32, 4, 1, 1].map(|bpp| {
+            let readback_buffer = |bpp: u32| {
                 self.device.create_buffer(&wgpu::BufferDescriptor {
                     label: Some("readback"),
                     size: padded_row(width * bpp) as u64 * height as u64,
                     usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
                     mapped_at_creation: false,
                 })
-            });
-            self.targets[slot] = Some(Targets {
+            };
+            let readback =
+                Readbacks { color: readback_buffer(4), depth: readback_buffer(4), mask: readback_buffer(1), silhouette: readback_buffer(1) };
+            self.targets[slot as usize] = Some(Targets {
                 width,
                 height,
                 color: color_tex.create_view(&Default::default()),
@@ -86,8 +104,17 @@ impl WgpuRenderer {
     }
 }
 
-/// Bytes of a pass's targets: rgba, depth, mask, silhouette (empty when not read back).
-pub(super) type TargetImages = (Vec<u8>, Vec<u8>, Vec<u8>, Vec<u8>);
+/// Bytes of a submission's targets, row-major without padding (empty when not read back).
+#[derive(Default)]
+pub(super) struct TargetImages {
+    /// sRGB colour, 4 bytes per pixel.
+    pub(super) rgba: Vec<u8>,
+    /// z-depth, f32 little-endian.
+    pub(super) depth: Vec<u8>,
+    pub(super) mask: Vec<u8>,
+    /// Non-zero where the target draw covers the pixel with nothing in front.
+    pub(super) silhouette: Vec<u8>,
+}
 
 /// Which targets a pass reads back.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

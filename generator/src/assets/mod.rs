@@ -1,6 +1,8 @@
 //! Resolves the config's objects to meshes: a YCB download, a custom mesh file, or the built-in
 //! procedural stand-in.
 
+pub mod robot;
+
 use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};

@@ -1,0 +1,168 @@
+//! The real robot meshes (Allegro hand STL, UR5e OBJ; from `ROBOT_ASSETS`, e.g. ../shared/assets,
+//! or `eval "$(scripts/robot-assets)"`; never committed): they load into our link frames, the
+//! simplified arm keeps its silhouette within a pixel at the paper camera, a dataset drawn with
+//! them passes `vtgen validate --full`, and bad mesh directories give one clear error.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use glam::{DAffine3, DMat4, DVec3};
+use vt_objects::TexturedMesh;
+use vt_robot::RobotModel;
+use vtgen::assets::robot::{ARM_TRIANGLES_PER_LINK, load_robot_meshes};
+use vtgen::config::{GraspConfig, Intrinsics, RendererConfig};
+use vtgen::render::{Draw, DrawRole, Renderer, View, WgpuRenderer};
+use vtgen::scene::look_at;
+
+use crate::common::{root, run, stderr, tempdir};
+
+fn assets() -> Option<PathBuf> {
+    let dir = std::env::var_os("ROBOT_ASSETS").map(PathBuf::from);
+    if dir.is_none() {
+        eprintln!("skipped: ROBOT_ASSETS is not set (.ci/run sets it to ../shared/assets)");
+    }
+    dir
+}
+
+fn z_range(m: &TexturedMesh) -> (f32, f32) {
+    m.positions.iter().fold((f32::MAX, f32::MIN), |(lo, hi), p| (lo.min(p[2]), hi.max(p[2])))
+}
+
+#[test]
+fn real_meshes_sit_in_our_link_frames() {
+    let Some(dir) = assets() else { return };
+    let model = RobotModel::builtin();
+    let meshes = load_robot_meshes(&dir, &model, ARM_TRIANGLES_PER_LINK).unwrap();
+    let get = |name: &str| &meshes[&model.link_id(name).unwrap()];
+    // Phalanges run along their link's z from the joint to the next joint (the URDF's lengths),
+    // the distal ones to the end of the fingertip (FACTS: 0.0267 + 0.012 finger, 0.0543 thumb).
+    for (link, length) in [("ff_proximal", 0.054), ("mf_medial", 0.0384), ("ff_distal", 0.0387), ("th_medial", 0.0514), ("th_distal", 0.0543)] {
+        let (lo, hi) = z_range(get(link));
+        // The shells overlap their neighbours at the rounded joints by up to ~1 cm; a frame off by
+        // a joint would be off by 1.6 cm or more.
+        assert!(lo.abs() < 0.012 && (hi as f64 - length).abs() < 0.012, "{link}: z from {lo} to {hi}, length {length}");
+    }
+    // The upper arm runs from the shoulder to the elbow, 0.425 m along -x of our shoulder_lift_link.
+    let upper = get("shoulder_lift_link");
+    let (lo, hi) = upper.positions.iter().fold((f32::MAX, f32::MIN), |(lo, hi), p| (lo.min(p[0]), hi.max(p[0])));
+    assert!((lo + 0.425 + 0.06).abs() < 0.04 && hi.abs() < 0.1, "upper arm x from {lo} to {hi}");
+    assert!(upper.triangle_count() < 40_120 / 4, "simplified: {} triangles", upper.triangle_count());
+    assert!(get("palm").triangle_count() > 3000, "the hand is kept whole");
+}
+
+/// Pixels set in `a` and not in `b` with no pixel of `b` within one pixel.
+fn outside_one_pixel(a: &[u8], b: &[u8], w: usize, h: usize) -> usize {
+    let near_b = |x: usize, y: usize| {
+        (y.saturating_sub(1)..=(y + 1).min(h - 1)).any(|yy| (x.saturating_sub(1)..=(x + 1).min(w - 1)).any(|xx| b[yy * w + xx] != 0))
+    };
+    (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).filter(|&(x, y)| a[y * w + x] != 0 && !near_b(x, y)).count()
+}
+
+#[test]
+fn the_simplified_arm_keeps_its_silhouette_within_a_pixel_at_the_paper_camera() {
+    let Some(dir) = assets() else { return };
+    let model = RobotModel::builtin();
+    let full = load_robot_meshes(&dir, &model, usize::MAX).unwrap();
+    let simplified = load_robot_meshes(&dir, &model, ARM_TRIANGLES_PER_LINK).unwrap();
+    // scenes/paper.yaml: the camera, the robot base, the arm at its home pose.
+    let view = View {
+        width: 640,
+        height: 480,
+        k: Intrinsics { fx: 615.0, fy: 615.0, cx: 319.5, cy: 239.5 },
+        near: 0.05,
+        far: 10.0,
+        t_world_camera: look_at(DVec3::new(0.0, -0.75, 0.55), DVec3::new(0.0, 0.0, 0.28)).matrix(),
+    };
+    let t_world_base = DAffine3::from_rotation_translation(glam::DQuat::from_rotation_z(std::f64::consts::PI), DVec3::new(0.0, 0.5, 0.0));
+    let mut q = model.zero();
+    for (k, d) in model.arm_dofs().into_iter().enumerate() {
+        q[d] = GraspConfig::default().home_arm[k];
+    }
+    let links = model.forward_kinematics(&q);
+    let mut r = WgpuRenderer::new(&RendererConfig::default()).unwrap();
+    let mut checked = 0;
+    for name in ["base_link", "shoulder_pan_link", "shoulder_lift_link", "elbow_link", "wrist_1_link", "wrist_2_link", "wrist_3_link"] {
+        let id = model.link_id(name).unwrap();
+        let pose = DMat4::from(t_world_base * links[id]);
+        let mut mask = |m: &TexturedMesh| {
+            let h = r.upload_mesh(m).unwrap();
+            r.render_mask(&view, &[Draw { mesh: h, t_world_model: pose, mask_id: 1, role: DrawRole::Target }]).unwrap()
+        };
+        let (a, b) = (mask(&full[&id]), mask(&simplified[&id]));
+        let seen = a.iter().filter(|&&m| m != 0).count();
+        let (extra, missing) = (outside_one_pixel(&b, &a, 640, 480), outside_one_pixel(&a, &b, 640, 480));
+        eprintln!(
+            "{name}: {} -> {} triangles, {seen} px, {extra} px added and {missing} lost beyond 1 px",
+            full[&id].triangle_count(),
+            simplified[&id].triangle_count()
+        );
+        assert_eq!((extra, missing), (0, 0), "{name}: the simplified silhouette leaves the full one's by more than 1 px");
+        checked += (seen > 0) as usize;
+    }
+    assert!(checked >= 4, "the arm is in view");
+}
+
+#[test]
+fn a_dataset_drawn_with_the_real_robot_is_valid() {
+    let Some(dir) = assets() else { return };
+    let out = tempdir();
+    let config = root().join("scenes/tiny-hand.yaml");
+    let o = run(&[
+        "generate",
+        config.to_str().unwrap(),
+        "--out",
+        out.path().to_str().unwrap(),
+        "--quiet",
+        "--robot-assets",
+        dir.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("from primitives"), "{}", stderr(&o));
+    let o = run(&["validate", out.path().to_str().unwrap(), "--full"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+fn write(dir: &Path, rel: &str, bytes: &[u8]) {
+    let p = dir.join(rel);
+    std::fs::create_dir_all(p.parent().unwrap()).unwrap();
+    std::fs::write(p, bytes).unwrap();
+}
+
+#[test]
+fn bad_robot_mesh_directories_give_one_clear_error_naming_the_path() {
+    let model = RobotModel::builtin();
+    let err = |dir: &Path| load_robot_meshes(dir, &model, ARM_TRIANGLES_PER_LINK).map(|_: HashMap<_, _>| ()).unwrap_err().to_string();
+    // A directory of another robot (or of nothing).
+    let other = tempdir();
+    write(other.path(), "meshes/panda_link0.dae", b"<COLLADA/>");
+    let e = err(other.path());
+    assert!(e.contains("no Allegro hand meshes") && e.contains("allegro/meshes/base_link.STL") && e.contains("scripts/robot-assets"), "{e}");
+    // A corrupt STL.
+    let corrupt = tempdir();
+    write(corrupt.path(), "allegro/meshes/base_link.STL", b"solid nothing useful\n");
+    write(corrupt.path(), "ur5e/visual/upperarm.obj", b"v 0 0 0\n");
+    let e = err(corrupt.path());
+    assert!(e.contains("base_link.STL") && e.contains("robot mesh"), "{e}");
+    // A missing mesh of an otherwise complete directory.
+    if let Some(dir) = std::env::var_os("ROBOT_ASSETS").map(PathBuf::from) {
+        let partial = tempdir();
+        for sub in ["allegro/meshes", "ur5e/visual"] {
+            std::fs::create_dir_all(partial.path().join(sub)).unwrap();
+            for f in std::fs::read_dir(dir.join(sub)).unwrap() {
+                let f = f.unwrap().path();
+                if f.file_name().unwrap() != "link_14.0.STL" {
+                    std::fs::copy(&f, partial.path().join(sub).join(f.file_name().unwrap())).unwrap();
+                }
+            }
+        }
+        let e = err(partial.path());
+        assert!(e.contains("link_14.0.STL") && e.contains("file not found"), "{e}");
+    }
+    // The CLI: one error line, exit status 1.
+    let config = root().join("scenes/tiny-hand.yaml");
+    let out = tempdir();
+    let o = run(&["generate", config.to_str().unwrap(), "--out", out.path().to_str().unwrap(), "--quiet", "--robot-assets", "/nonexistent/robot"]);
+    assert!(!o.status.success());
+    let s = stderr(&o);
+    assert!(s.contains("/nonexistent/robot") && s.lines().filter(|l| l.starts_with("error:")).count() == 1, "{s}");
+}
