@@ -235,7 +235,7 @@ def test_reader_constants_match_what_the_rust_writer_writes(rust_dataset: Path, 
     # The phalanx order of the tactile index (PHALANGES) is the order the writer uses.
     ds = vtdata.Dataset(rust_hand_dataset, "train")
     sample = ds[0]
-    contact = sample["info"]["robot"]["phalanges_in_contact"]
+    contact = sample["info"]["phalanges_in_contact"]
     assert set(contact) <= set(r.PHALANGES)
     assert sorted(contact, key=r.PHALANGES.index) == contact, "phalanges_in_contact in the writer's order"
     idx = set(np.unique(sample["tactile"]["phalanx"]).tolist())
