@@ -272,3 +272,56 @@ fn the_grasp_check_reports_the_same_trajectories_as_generation() {
     assert!(!o.status.success());
     assert!(stderr(&o).contains("no `robot:` section"), "{}", stderr(&o));
 }
+
+/// How much of the slip in the data could be creep rather than the arm's motion: with the arm
+/// still, a held object should stay put. Measured over 12 grasps (3 objects x 2 trajectories x the
+/// primitive and, with `ROBOT_ASSETS`, the real hand) on the backend under test: most are still
+/// to 0.01 mm over 10 s, a few marginal grasps keep sliding or pivoting slowly (1 to 17 mm in
+/// 10 s on rapier, README "The real robot"). The test holds half of them to < 1 mm and 1° and
+/// bounds the rest, so that a change that makes grasps creep in general fails.
+#[test]
+fn most_held_objects_stay_still_while_the_arm_is_still() {
+    use vtgen::config::{GraspConfig, PhysicsConfig};
+    use vtgen::physics::grasp::{GraspContext, TrajectoryKey, simulate_trajectory};
+    use vtgen::physics::{HandPhysics, PhysicsObject, PhysicsSettings, RapierHand};
+    let builtin = vt_robot::RobotModel::builtin();
+    let mut models = vec![("primitive hand", builtin.clone())];
+    if let Some(dir) = std::env::var_os("ROBOT_ASSETS") {
+        let hand = vtgen::assets::robot::load_hand_meshes(std::path::Path::new(&dir), &builtin).unwrap();
+        models.push(("real hand", vtgen::assets::robot::with_real_hand(&builtin, &hand).unwrap()));
+    }
+    let pc = PhysicsConfig { timestep: 1.0 / 240.0, ..PhysicsConfig::default() };
+    let settings = PhysicsSettings::from(&pc);
+    let cfg = GraspConfig::default();
+    let t_world_base = glam::DAffine3::from_rotation_translation(glam::DQuat::from_rotation_z(std::f64::consts::PI), DVec3::new(0.0, 0.5, 0.0));
+    let catalog = vt_objects::Catalog::builtin();
+    let (mut still, mut total) = (0, 0);
+    for (what, model) in &models {
+        let mut hand: Box<dyn HandPhysics> = match backend().as_str() {
+            #[cfg(feature = "mujoco")]
+            "mujoco" => Box::new(vtgen::physics::MujocoHand::new(model, settings).unwrap()),
+            _ => Box::new(RapierHand::new(model, settings).unwrap()),
+        };
+        let ctx = GraspContext { robot: model, t_world_base, config: &cfg, timestep: pc.timestep, camera_position: DVec3::new(0.0, -0.75, 0.55) };
+        for id in ["005_tomato_soup_can", "009_gelatin_box", "006_mustard_bottle"] {
+            let entry = catalog.get(id).unwrap();
+            let object = PhysicsObject { points: vt_objects::procedural_mesh(entry).positions, mass: entry.mass };
+            for trajectory in 0..2 {
+                let key = TrajectoryKey { seed: 11, object_id: id, trajectory, instances: 1 };
+                simulate_trajectory(&ctx, hand.as_mut(), &object, key, &mut Vec::new()).unwrap();
+                let before = hand.object_pose();
+                for _ in 0..(10.0 / pc.timestep).round() as usize {
+                    hand.step();
+                }
+                let moved = before.inverse() * hand.object_pose();
+                let mm = 1e3 * moved.translation.length();
+                let deg = glam::DQuat::from_mat3(&moved.matrix3).angle_between(glam::DQuat::IDENTITY).to_degrees();
+                eprintln!("{what}, {id} trajectory {trajectory}: {mm:.3} mm, {deg:.3}° in 10 s with the arm still");
+                assert!(mm < 30.0 && deg < 30.0, "{what}, {id} trajectory {trajectory}: moved {mm:.1} mm, {deg:.1}° in 10 s");
+                still += (mm < 1.0 && deg < 1.0) as usize;
+                total += 1;
+            }
+        }
+    }
+    assert!(2 * still >= total, "only {still} of {total} held objects stay within 1 mm and 1° over 10 s");
+}

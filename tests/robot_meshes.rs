@@ -102,24 +102,119 @@ fn the_simplified_arm_keeps_its_silhouette_within_a_pixel_at_the_paper_camera() 
     assert!(checked >= 4, "the arm is in view");
 }
 
+/// `scenes/tiny-hand.yaml` generated with the real robot (once per test run).
+fn real_robot_dataset(assets: &Path) -> &'static Path {
+    static DIR: std::sync::OnceLock<tempfile::TempDir> = std::sync::OnceLock::new();
+    DIR.get_or_init(|| {
+        let out = tempdir();
+        let config = root().join("scenes/tiny-hand.yaml");
+        let o = run(&[
+            "generate",
+            config.to_str().unwrap(),
+            "--out",
+            out.path().to_str().unwrap(),
+            "--quiet",
+            "--robot-assets",
+            assets.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        assert!(!stderr(&o).contains("from primitives"), "{}", stderr(&o));
+        out
+    })
+    .path()
+}
+
 #[test]
 fn a_dataset_drawn_with_the_real_robot_is_valid() {
     let Some(dir) = assets() else { return };
-    let out = tempdir();
-    let config = root().join("scenes/tiny-hand.yaml");
-    let o = run(&[
-        "generate",
-        config.to_str().unwrap(),
-        "--out",
-        out.path().to_str().unwrap(),
-        "--quiet",
-        "--robot-assets",
-        dir.to_str().unwrap(),
-    ]);
+    let out = real_robot_dataset(&dir);
+    let o = run(&["validate", out.to_str().unwrap(), "--full"]);
     assert!(o.status.success(), "{}", stderr(&o));
-    assert!(!stderr(&o).contains("from primitives"), "{}", stderr(&o));
-    let o = run(&["validate", out.path().to_str().unwrap(), "--full"]);
-    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+#[test]
+fn tactile_points_lie_on_the_object_and_at_the_real_finger_surface() {
+    use rapier3d::parry::query::PointQuery;
+    let Some(dir) = assets() else { return };
+    let out = real_robot_dataset(&dir);
+    let model = RobotModel::builtin();
+    let hand = vtgen::assets::robot::load_hand_meshes(&dir, &model).unwrap();
+    let trimesh = |m: &TexturedMesh| {
+        let v = m.positions.iter().map(|p| glam::Vec3::from(*p)).collect();
+        let t = m.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
+        rapier3d::parry::shape::TriMesh::new(v, t).unwrap()
+    };
+    let fingers: HashMap<String, rapier3d::parry::shape::TriMesh> =
+        vt_robot::phalanx_names().into_iter().map(|n| (n.clone(), trimesh(&hand[&model.link_id(&n).unwrap()]))).collect();
+    let info: vt_dataset::ModelsInfo = serde_json::from_slice(&std::fs::read(out.join("models/models_info.json")).unwrap()).unwrap();
+    let objects: Vec<rapier3d::parry::shape::TriMesh> = info
+        .objects
+        .iter()
+        .map(|o| {
+            let m = vt_dataset::read_ply(&out.join("models").join(&o.file)).unwrap();
+            rapier3d::parry::shape::TriMesh::new(m.positions.iter().map(|p| glam::Vec3::from(*p)).collect(), m.triangles.clone()).unwrap()
+        })
+        .collect();
+    let ds = vt_dataset::DatasetReader::open(out).unwrap();
+    let mut finger_mm = Vec::new();
+    for split in ["train", "test"] {
+        for s in ds.samples(split).unwrap() {
+            let s = s.unwrap();
+            let tac = s.tactile.as_ref().unwrap();
+            let frames: HashMap<&str, vt_dataset::Pose> = s.extra_transforms.iter().map(|(_, c, p)| (c.as_str(), *p)).collect();
+            let object = &objects[s.info["object_index"].as_u64().unwrap() as usize];
+            let to_object = s.t_camera_object.inverse();
+            for p in &tac.points {
+                let on_object = object.distance_to_local_point(to_object.transform_point(glam::Vec3::from(p.position).as_dvec3()).as_vec3(), false);
+                assert!(on_object <= 1e-3, "{split} {}: tactile point {:.2} mm off the object", s.index, on_object * 1e3);
+                let name = &tac.phalanges[p.phalanx as usize];
+                // Camera frame -> world -> the phalanx's link frame.
+                let world = s.t_world_camera.transform_point(glam::Vec3::from(p.position).as_dvec3());
+                let local = frames[name.as_str()].inverse().transform_point(world);
+                finger_mm.push(1e3 * fingers[name].distance_to_local_point(local.as_vec3(), false) as f64);
+            }
+        }
+    }
+    assert!(finger_mm.len() > 100, "{} tactile points", finger_mm.len());
+    finger_mm.sort_by(f64::total_cmp);
+    let pct = |q: f64| finger_mm[((finger_mm.len() - 1) as f64 * q) as usize];
+    eprintln!(
+        "{} tactile points; distance to the real finger surface: median {:.2} mm, 90% {:.2} mm, max {:.2} mm",
+        finger_mm.len(),
+        pct(0.5),
+        pct(0.9),
+        pct(1.0)
+    );
+    // A pixel is a contact when the object is within 2 mm (contact_threshold_mm) of the finger's
+    // real surface under it, along the pad's normal: the points are where the drawn finger
+    // touches the object (half a pixel of the 32x32 pad for the raster).
+    assert!(pct(1.0) <= 2.0 + 0.5, "median {:.2} mm, max {:.2} mm", pct(0.5), pct(1.0));
+}
+
+#[test]
+fn each_pad_sits_on_its_phalanx_real_surface() {
+    use rapier3d::parry::query::PointQuery;
+    let Some(dir) = assets() else { return };
+    let model = RobotModel::builtin();
+    let hand = vtgen::assets::robot::load_hand_meshes(&dir, &model).unwrap();
+    let real = vtgen::assets::robot::with_real_hand(&model, &hand).unwrap();
+    let q = real.zero();
+    let links = real.forward_kinematics(&q);
+    for name in vt_robot::phalanx_names() {
+        let id = real.link_id(&name).unwrap();
+        let pad = real.link_id(&format!("{name}_pad")).unwrap();
+        let t_link_pad = links[id].inverse() * links[pad];
+        let m = &hand[&id];
+        let trimesh = rapier3d::parry::shape::TriMesh::new(
+            m.positions.iter().map(|p| glam::Vec3::from(*p)).collect(),
+            m.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect(),
+        )
+        .unwrap();
+        let d = trimesh.distance_to_local_point(t_link_pad.translation.as_vec3(), false) as f64;
+        assert!(d <= 1e-3, "{name}: the pad origin is {:.2} mm from the real finger surface", d * 1e3);
+        // z out of the finger: the palmar side (+x of the link), as the URDF's pads.
+        assert!((t_link_pad.transform_vector3(DVec3::Z) - DVec3::X).length() < 1e-9, "{name}");
+    }
 }
 
 fn write(dir: &Path, rel: &str, bytes: &[u8]) {

@@ -17,14 +17,28 @@ use crate::assets::LoadedObject;
 use crate::config::{Config, LoadedConfig};
 use crate::physics::grasp::Trajectory;
 use crate::plan::SampleRef;
-use crate::assets::robot::{ARM_TRIANGLES_PER_LINK, load_robot_meshes, robot_assets_dir};
+use crate::assets::robot::{ARM_TRIANGLES_PER_LINK, load_arm_meshes, robot_assets_dir};
 use crate::render::{Draw, DrawRole, Lighting, Material, MeshHandle, Renderer, View};
 use crate::scene::robot::{GraspStats, RobotScene, link_mesh, mask_id as robot_mask_id};
 use crate::scene::sample_scene;
-use crate::sensors::tactile::{pad_sizes, sense};
+use crate::sensors::tactile::{FingerSurface, finger_surface, pad_sizes, sense};
 
 pub fn pose_of(t: &DAffine3) -> Pose {
     Pose::from_rt(DQuat::from_mat3(&t.matrix3), t.translation)
+}
+
+/// The real fingers' surface under the 12 pads, when the robot has its real hand meshes.
+fn finger_surfaces(robot: &RobotScene, pads: &[(f64, f64); 12]) -> Option<FingerSurface> {
+    let hand = robot.hand_meshes.as_ref()?;
+    let m = &robot.model;
+    let n = robot.config.tactile.resolution;
+    let names = vt_robot::phalanx_names();
+    Some(std::array::from_fn(|k| {
+        let link = m.link_id(&names[k]).expect("validated at load");
+        let pad = m.link_id(&format!("{}_pad", names[k])).expect("validated at load");
+        let t_link_pad = m.joints[m.links[pad].parent_joint.expect("a pad is fixed to its phalanx")].origin;
+        finger_surface(&hand[&link], &t_link_pad, pads[k], n)
+    }))
 }
 
 /// The floor: a 6 m textured quad on z = 0, texture coordinates in metres (the renderer scales
@@ -114,6 +128,8 @@ pub struct SampleFactory<'a> {
     recording: Option<Recording>,
     /// Sensing area of the 12 phalanx pads.
     pad_sizes: [(f64, f64); 12],
+    /// The real fingers' surface under the pads (with robot meshes).
+    finger_surface: Option<FingerSurface>,
     /// Per object: the model points the occlusion level is measured with.
     model_points: Vec<Vec<glam::DVec3>>,
     /// Occlusion-level histogram (`occlusion::BINS`) of the shard being written.
@@ -214,7 +230,11 @@ impl<'a> SampleFactory<'a> {
         let mut robot_glbs = Vec::new();
         if let Some(r) = &robot {
             let mut real = match robot_assets_dir(cfg) {
-                Some(dir) => load_robot_meshes(&dir, &r.model, ARM_TRIANGLES_PER_LINK)?,
+                Some(dir) => {
+                    let mut meshes = load_arm_meshes(&dir, &r.model, ARM_TRIANGLES_PER_LINK)?;
+                    meshes.extend(r.hand_meshes.clone().unwrap_or_default());
+                    meshes
+                }
                 None => {
                     static SAID: std::sync::Once = std::sync::Once::new();
                     SAID.call_once(|| {
@@ -240,6 +260,7 @@ impl<'a> SampleFactory<'a> {
         }
         let object_glbs = objects.iter().map(|o| glb_of(&o.mesh)).collect();
         let pad_sizes = robot.as_ref().map(|r| pad_sizes(&r.model)).unwrap_or([(0.0, 0.0); 12]);
+        let finger_surface = robot.as_ref().and_then(|r| finger_surfaces(r, &pad_sizes));
         let model_points = objects.iter().map(|o| model_points(&o.mesh, config.scene.occlusion_points as usize)).collect();
         Ok(SampleFactory {
             config,
@@ -258,6 +279,7 @@ impl<'a> SampleFactory<'a> {
             shard_stats: GraspStats::default(),
             recording: None,
             pad_sizes,
+            finger_surface,
             model_points,
             occlusion_histogram: [0; 3],
             times: StageTimes::default(),
@@ -482,7 +504,8 @@ impl<'a> SampleFactory<'a> {
         let cfg = &self.robot.as_ref().expect("called with a robot").config.tactile;
         let t_camera_world = scene.t_world_camera.inverse().matrix();
         let t0 = Instant::now();
-        let reading = sense(self.renderer.as_mut(), cfg, &self.pad_sizes, &posed.pads, object, &DAffine3::from_mat4(t_camera_world))?;
+        let surface = self.finger_surface.as_ref();
+        let reading = sense(self.renderer.as_mut(), cfg, &self.pad_sizes, &posed.pads, surface, object, &DAffine3::from_mat4(t_camera_world))?;
         self.times.tactile_render += reading.render_time;
         self.times.tactile_extract += t0.elapsed() - reading.render_time;
         let names = vt_robot::phalanx_names();

@@ -128,31 +128,112 @@ pub fn ros_link_offsets(model: &RobotModel) -> Result<Vec<(usize, DAffine3)>> {
     Ok(out)
 }
 
+fn check_layout(dir: &Path, probe: &str, what: &str) -> Result<()> {
+    if !dir.join(probe).is_file() {
+        bail!(
+            "robot assets {}: no {what} meshes ({} is missing). Fetch them with `eval \"$(scripts/robot-assets)\"`, \
+             or point --robot-assets at a directory with allegro/meshes/ and ur5e/visual/",
+            dir.display(),
+            dir.join(probe).display()
+        );
+    }
+    Ok(())
+}
+
 /// The real meshes of every robot link that has one, in the link frame: link index -> mesh.
 /// `arm_triangles` caps each arm link's triangles (simplified at load; the hand is kept whole).
 pub fn load_robot_meshes(dir: &Path, model: &RobotModel, arm_triangles: usize) -> Result<HashMap<usize, TexturedMesh>> {
-    for (probe, what) in [("allegro/meshes/base_link.STL", "Allegro hand"), ("ur5e/visual/upperarm.obj", "UR5e")] {
-        if !dir.join(probe).is_file() {
-            bail!(
-                "robot assets {}: no {what} meshes ({} is missing). Fetch them with `eval \"$(scripts/robot-assets)\"`, \
-                 or point --robot-assets at a directory with allegro/meshes/ and ur5e/visual/",
-                dir.display(),
-                dir.join(probe).display()
-            );
-        }
-    }
+    let mut out = load_hand_meshes(dir, model)?;
+    out.extend(load_arm_meshes(dir, model, arm_triangles)?);
+    Ok(out)
+}
+
+/// The Allegro hand's meshes (palm, bases, phalanges), whole, in our link frames.
+pub fn load_hand_meshes(dir: &Path, model: &RobotModel) -> Result<HashMap<usize, TexturedMesh>> {
+    check_layout(dir, "allegro/meshes/base_link.STL", "Allegro hand")?;
+    check_layout(dir, "ur5e/visual/upperarm.obj", "UR5e")?;
     let mut out = HashMap::new();
     for (id, link) in model.links.iter().enumerate() {
         if let Some(parts) = hand_parts(&link.name) {
             out.insert(id, build_link_mesh(dir, &parts, None)?);
         }
     }
+    Ok(out)
+}
+
+/// The UR5e's meshes, each link simplified to about `arm_triangles`, in our link frames.
+pub fn load_arm_meshes(dir: &Path, model: &RobotModel, arm_triangles: usize) -> Result<HashMap<usize, TexturedMesh>> {
+    check_layout(dir, "ur5e/visual/upperarm.obj", "UR5e")?;
+    let mut out = HashMap::new();
     for (k, (id, offset)) in ros_link_offsets(model)?.into_iter().enumerate() {
         let (_, _, _, file, xyz, r) = ROS_CHAIN[k];
         let part = Part { file: format!("ur5e/visual/{file}"), origin: offset * origin(xyz, r), colour: None };
         out.insert(id, build_link_mesh(dir, &[part], Some(arm_triangles))?);
     }
     Ok(out)
+}
+
+/// The robot with its hand on the real meshes: each hand link collides as the convex hull of its
+/// mesh (for rapier and MuJoCo alike), and each phalanx pad sits on the real palmar surface
+/// ([`pad_on_surface`]). The visual shapes stay the URDF's (the renderer draws the meshes).
+pub fn with_real_hand(model: &RobotModel, hand: &HashMap<usize, TexturedMesh>) -> Result<RobotModel> {
+    let hulls: HashMap<usize, Vec<DVec3>> =
+        hand.iter().map(|(&id, m)| (id, m.positions.iter().map(|p| Vec3::from(*p).as_dvec3()).collect())).collect();
+    let mut out = model.with_mesh_collisions(&hulls);
+    for name in vt_robot::phalanx_names() {
+        let id = model.link_id(&name).with_context(|| format!("robot description has no link '{name}'"))?;
+        let mesh = &hand[&id];
+        let (length, _) = pad_span(model, id, mesh);
+        let origin = pad_on_surface(mesh, 0.5 * length, (0.0, length))
+            .with_context(|| format!("{name}: no palmar surface of the real mesh at mid-length"))?;
+        out.set_fixed_link_origin(&format!("{name}_pad"), origin).map_err(anyhow::Error::msg)?;
+    }
+    Ok(out)
+}
+
+/// A phalanx's sensing span along its z from the joint: to the next joint (proximal, medial: the
+/// pads do not overlap), or to the end of the fingertip (distal); and its width (y extent).
+pub fn pad_span(model: &RobotModel, link: usize, mesh: &TexturedMesh) -> (f64, f64) {
+    let next = model.joints.iter().find(|j| j.parent == link && j.kind == vt_robot::JointKind::Revolute);
+    let (ylo, yhi, zhi) = mesh.positions.iter().fold((f32::MAX, f32::MIN, f32::MIN), |(a, b, c), p| (a.min(p[1]), b.max(p[1]), c.max(p[2])));
+    let length = next.map_or(zhi as f64, |j| j.origin.translation.z);
+    (length, (yhi - ylo) as f64)
+}
+
+/// The pad frame on the palmar (+x) surface of a phalanx, at height `z` along the finger: origin
+/// where the line (y = 0, z) leaves the mesh on the +x side; where the mesh has a bore or a gap
+/// on that line (the thumb's short proximal link is a joint housing open at mid-length), on the
+/// nearest line (y, z) within `span` that meets the surface. z axis along +x (out of the finger),
+/// as the URDF's pads (rpy 0, pi/2, 0).
+pub fn pad_on_surface(mesh: &TexturedMesh, z: f64, span: (f64, f64)) -> Option<DAffine3> {
+    let points: Vec<DVec3> = mesh.positions.iter().map(|p| Vec3::from(*p).as_dvec3()).collect();
+    let exit = |y: f64, z: f64| {
+        mesh.indices
+            .chunks_exact(3)
+            .filter_map(|t| ray_x_hit(DVec3::new(-1.0, y, z), points[t[0] as usize], points[t[1] as usize], points[t[2] as usize]))
+            .reduce(f64::max)
+    };
+    // Candidate lines by distance from (0, z), 0.5 mm apart.
+    let mut lines: Vec<(f64, f64)> = (-8..=8)
+        .flat_map(|i| (-80..=80).map(move |j| (i as f64 * 5e-4, z + j as f64 * 5e-4)))
+        .filter(|&(_, zz)| zz >= span.0 && zz <= span.1)
+        .collect();
+    lines.sort_by(|a, b| (a.0.hypot(a.1 - z)).total_cmp(&b.0.hypot(b.1 - z)));
+    let (y, z, x) = lines.into_iter().find_map(|(y, zz)| exit(y, zz).map(|x| (y, zz, x)))?;
+    Some(DAffine3::from_rotation_translation(DQuat::from_rotation_y(std::f64::consts::FRAC_PI_2), DVec3::new(x, y, z)))
+}
+
+/// Where the ray from `o` along +x crosses triangle (a, b, c): its x, if it does.
+fn ray_x_hit(o: DVec3, a: DVec3, b: DVec3, c: DVec3) -> Option<f64> {
+    // Project onto the (y, z) plane: barycentric coordinates of (o.y, o.z) in the triangle.
+    let (ab, ac, ao) = (b - a, c - a, o - a);
+    let det = ab.y * ac.z - ab.z * ac.y;
+    if det.abs() < 1e-18 {
+        return None;
+    }
+    let u = (ao.y * ac.z - ao.z * ac.y) / det;
+    let v = (ab.y * ao.z - ab.z * ao.y) / det;
+    (u >= 0.0 && v >= 0.0 && u + v <= 1.0).then(|| a.x + u * ab.x + v * ac.x)
 }
 
 /// Triangles of one mesh file in its own frame, with a colour per triangle (linear RGB).

@@ -69,21 +69,37 @@ impl MujocoHand {
         for p in &object.points {
             let _ = write!(x, "{} {} {} ", p[0], p[1], p[2]);
         }
-        x.push_str("\"/></asset><worldbody>");
+        x.push_str("\"/>");
+        // The real hand's links collide as the convex hulls of their meshes (MuJoCo takes the
+        // hull of a mesh's vertices for collision).
+        for link in &m.links {
+            for (i, sh) in link.collisions.iter().enumerate() {
+                if let Geometry::ConvexHull { points } = &sh.geometry {
+                    let _ = write!(x, r#"<mesh name="{}_{i}" vertex=""#, link.name);
+                    for p in points.iter() {
+                        let _ = write!(x, "{} {} {} ", p.x, p.y, p.z);
+                    }
+                    x.push_str("\"/>");
+                }
+            }
+        }
+        x.push_str("</asset><worldbody>");
         // Hand geoms collide with the object only (contype 1 / conaffinity 2, the object 2 / 1).
         let geoms = |x: &mut String, link: usize| {
             for (i, sh) in m.links[link].collisions.iter().enumerate() {
-                let (kind, size) = match sh.geometry {
-                    Geometry::Box { size } => ("box", format!("{} {} {}", size.x / 2.0, size.y / 2.0, size.z / 2.0)),
-                    Geometry::Sphere { radius } => ("sphere", format!("{radius}")),
-                    Geometry::Cylinder { radius, length } => ("cylinder", format!("{radius} {}", length / 2.0)),
+                let name = &m.links[link].name;
+                let (kind, size) = match &sh.geometry {
+                    Geometry::Box { size } => ("box", format!(r#"size="{} {} {}""#, size.x / 2.0, size.y / 2.0, size.z / 2.0)),
+                    Geometry::Sphere { radius } => ("sphere", format!(r#"size="{radius}""#)),
+                    Geometry::Cylinder { radius, length } => ("cylinder", format!(r#"size="{radius} {}""#, length / 2.0)),
+                    Geometry::ConvexHull { .. } => ("mesh", format!(r#"mesh="{name}_{i}""#)),
                 };
                 let q = quat_wxyz(&sh.origin);
                 let t = sh.origin.translation;
                 let _ = write!(
                     x,
-                    r#"<geom name="{}_{i}" type="{kind}" size="{size}" pos="{} {} {}" quat="{} {} {} {}" contype="1" conaffinity="2" mass="0"/>"#,
-                    m.links[link].name, t.x, t.y, t.z, q[0], q[1], q[2], q[3]
+                    r#"<geom name="{name}_{i}" type="{kind}" {size} pos="{} {} {}" quat="{} {} {} {}" contype="1" conaffinity="2" mass="0"/>"#,
+                    t.x, t.y, t.z, q[0], q[1], q[2], q[3]
                 );
             }
         };

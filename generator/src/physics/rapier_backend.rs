@@ -111,10 +111,14 @@ impl RapierHand {
             let handle = world.insert_body(rb.pose(pose).can_sleep(false));
             bodies[li] = Some(handle);
             for s in &link.collisions {
-                let shape = match s.geometry {
+                let shape = match &s.geometry {
                     Geometry::Box { size } => ColliderBuilder::cuboid(size.x as f32 / 2.0, size.y as f32 / 2.0, size.z as f32 / 2.0),
-                    Geometry::Sphere { radius } => ColliderBuilder::ball(radius as f32),
-                    Geometry::Cylinder { radius, length } => ColliderBuilder::cylinder(length as f32 / 2.0, radius as f32),
+                    Geometry::Sphere { radius } => ColliderBuilder::ball(*radius as f32),
+                    Geometry::Cylinder { radius, length } => ColliderBuilder::cylinder(*length as f32 / 2.0, *radius as f32),
+                    Geometry::ConvexHull { points } => {
+                        let pts: Vec<Vec3> = points.iter().map(|p| p.as_vec3()).collect();
+                        ColliderBuilder::convex_hull(&pts).with_context(|| format!("link {}: no convex hull of its mesh", link.name))?
+                    }
                 };
                 // Colliders share the link's mass; their density is set so the link mass is exact.
                 let c = shape.position(to_pose(&s.origin)).friction(self.settings.friction as f32).density(0.0).collision_groups(groups);

@@ -8,6 +8,7 @@ use glam::{DAffine3, DQuat, DVec3, Vec3};
 use vt_objects::{Texture, TexturedMesh};
 use vt_robot::{ARM_JOINTS, Geometry, RobotModel, hand_joint_names};
 
+use crate::assets::robot::{load_hand_meshes, robot_assets_dir, with_real_hand};
 use crate::config::{LoadedConfig, RobotConfig};
 use crate::physics::grasp::{GraspContext, GraspEvent, Trajectory, TrajectoryKey, simulate_trajectory};
 use crate::physics::{HandPhysics, PhysicsObject, PhysicsSettings, RapierHand};
@@ -102,6 +103,8 @@ fn primitive(g: &Geometry) -> (Vec<Vec3>, Vec<Vec3>, Vec<u32>) {
                 }
             }
         }
+        // Visual shapes come from the URDF, which has no hulls (real meshes are drawn whole).
+        Geometry::ConvexHull { .. } => {}
         Geometry::Sphere { radius } => {
             let (r, st, sl) = (radius as f32, 12u32, 24u32);
             for i in 0..=st {
@@ -159,6 +162,9 @@ pub struct RobotScene {
     pub model: RobotModel,
     pub config: RobotConfig,
     pub t_world_base: DAffine3,
+    /// The real hand meshes (link frames) when the run has robot assets: the model's hand then
+    /// collides as their convex hulls and its pads sit on their surfaces.
+    pub hand_meshes: Option<std::collections::HashMap<usize, TexturedMesh>>,
     physics: Box<dyn HandPhysics>,
     objects: Vec<PhysicsObject>,
     /// The main camera's position (world), for the back-to-camera arm moves.
@@ -170,6 +176,11 @@ impl RobotScene {
         let model = match &robot.urdf {
             Some(p) => RobotModel::from_urdf_file(&cfg.resolve(p))?,
             None => RobotModel::builtin(),
+        };
+        let hand_meshes = robot_assets_dir(cfg).map(|dir| load_hand_meshes(&dir, &model)).transpose()?;
+        let model = match &hand_meshes {
+            Some(hand) => with_real_hand(&model, hand)?,
+            None => model,
         };
         let pc = &robot.physics;
         let settings = PhysicsSettings::from(pc);
@@ -193,6 +204,7 @@ impl RobotScene {
             model,
             config: robot.clone(),
             t_world_base,
+            hand_meshes,
             physics,
             objects,
             camera_position: DVec3::from_array(cfg.config.camera.position),

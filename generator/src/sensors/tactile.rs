@@ -31,31 +31,71 @@ pub struct TactileReading {
     pub render_time: std::time::Duration,
 }
 
-/// Sensing area of each phalanx pad: (length along the finger, width across it), metres: the
-/// phalanx's collision box, plus the fingertip sphere on the distal phalanges.
+/// Sensing area of each phalanx pad: (length along the finger, width across it), metres. With
+/// primitives: the phalanx's collision box, plus the fingertip sphere on the distal phalanges.
+/// With the real meshes (a convex-hull collision shape): from the joint to the next joint, or to
+/// the end of the fingertip on the distal phalanges, by the mesh's width.
 pub fn pad_sizes(model: &RobotModel) -> [(f64, f64); 12] {
     let names = phalanx_names();
     std::array::from_fn(|k| {
-        let link = model.link(&names[k]).expect("validated at load");
+        let id = model.link_id(&names[k]).expect("validated at load");
+        let link = &model.links[id];
         let (mut len, mut wid) = (0.02, 0.02);
         for s in &link.collisions {
-            match s.geometry {
+            match &s.geometry {
                 Geometry::Box { size } => (len, wid) = (size.z, size.y),
                 Geometry::Sphere { radius } => len += radius,
                 Geometry::Cylinder { .. } => {}
+                Geometry::ConvexHull { points } => {
+                    let next = model.joints.iter().find(|j| j.parent == id && j.kind == vt_robot::JointKind::Revolute);
+                    let (ylo, yhi, zhi) =
+                        points.iter().fold((f64::MAX, f64::MIN, f64::MIN), |(a, b, c), p| (a.min(p.y), b.max(p.y), c.max(p.z)));
+                    (len, wid) = (next.map_or(zhi, |j| j.origin.translation.z), yhi - ylo);
+                }
             }
         }
         (len, wid)
     })
 }
 
+/// Where the finger's real surface lies under each pad pixel: its height along the pad's z (m,
+/// <= 0 behind the pad plane; `-inf` where no finger is under the pixel), `resolution²` per pad,
+/// rows as the pad's depth image. The URDF's flat pads have none: their surface is the plane.
+pub type FingerSurface = [Vec<f32>; 12];
+
+/// The finger surface under each pad pixel of `mesh` (the phalanx's real mesh, link frame), seen
+/// along the pad's -z from the pad frame `t_link_pad`, over the pad's `size` at `n x n` pixels.
+pub fn finger_surface(mesh: &vt_objects::TexturedMesh, t_link_pad: &DAffine3, size: (f64, f64), n: u32) -> Vec<f32> {
+    use rapier3d::parry::query::{Ray, RayCast};
+    let vertices = mesh.positions.iter().map(|p| glam::Vec3::from(*p)).collect();
+    let triangles = mesh.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
+    let Ok(trimesh) = rapier3d::parry::shape::TriMesh::new(vertices, triangles) else { return vec![f32::NEG_INFINITY; (n * n) as usize] };
+    // Rays start this far in front of the pad plane, outside any finger.
+    const ABOVE: f64 = 0.05;
+    let (len, wid) = size;
+    let dir = t_link_pad.transform_vector3(-DVec3::Z).as_vec3();
+    (0..n)
+        .flat_map(|v| (0..n).map(move |u| (u, v)))
+        .map(|(u, v)| {
+            let x = (u as f64 + 0.5 - n as f64 / 2.0) * len / n as f64;
+            let y = (v as f64 + 0.5 - n as f64 / 2.0) * wid / n as f64;
+            let origin = t_link_pad.transform_point3(DVec3::new(x, y, ABOVE)).as_vec3();
+            trimesh.cast_local_ray(&Ray::new(origin, dir), 1.0, false).map_or(f32::NEG_INFINITY, |toi| (ABOVE - toi as f64) as f32)
+        })
+        .collect()
+}
+
 /// Renders the 12 pad views of the object (drawn alone: the hand does not occlude its own pads)
-/// and extracts the tactile points, in the frame `t_camera_world` maps to.
+/// and extracts the tactile points, in the frame `t_camera_world` maps to. With `surface`, a
+/// pixel's contact rule applies to the object's distance from the finger's real surface under it
+/// (not from the pad plane): the points are where the finger touches the object.
+#[allow(clippy::too_many_arguments)] // the stage's explicit inputs, passed in rather than held
 pub fn sense(
     renderer: &mut dyn Renderer,
     cfg: &TactileConfig,
     pads: &[(f64, f64); 12],
     t_world_pads: &[DAffine3; 12],
+    surface: Option<&FingerSurface>,
     object: Draw,
     t_camera_world: &DAffine3,
 ) -> Result<TactileReading> {
@@ -86,7 +126,9 @@ pub fn sense(
             1 => cfg.sensors.medial,
             _ => cfg.sensors.distal,
         };
-        for (u, v) in contact_pixels(&depth[k], n, model, cfg.contact_threshold_mm * 1e-3) {
+        let above_finger: Option<Vec<f32>> = surface.map(|s| depth[k].iter().zip(&s[k]).map(|(d, h)| d - h).collect());
+        let gap = above_finger.as_deref().unwrap_or(&depth[k]);
+        for (u, v) in contact_pixels(gap, n, model, cfg.contact_threshold_mm * 1e-3) {
             let d = depth[k][(v * n + u) as usize] as f64;
             // The pixel's ray meets the pad plane at (x, y); a pinhole's ray spreads with depth.
             let spread = standoff.map_or(1.0, |s| (s + d) / s);
@@ -155,7 +197,7 @@ mod tests {
         let object = Draw { mesh: MeshHandle(0), t_world_model: DMat4::IDENTITY, mask_id: 1, role: DrawRole::Target };
         // Points come out in the frame `t_camera_world` maps to: a camera 1 m above, looking down.
         let t_world_camera = DAffine3::from_rotation_translation(DQuat::from_rotation_x(std::f64::consts::PI), DVec3::new(0.0, 0.0, 1.0));
-        let r = sense(&mut renderer, &cfg, &sizes, &t_world_pads, object, &t_world_camera.inverse()).unwrap();
+        let r = sense(&mut renderer, &cfg, &sizes, &t_world_pads, None, object, &t_world_camera.inverse()).unwrap();
         for k in 0..12 {
             assert_eq!(r.counts[k], if k % 2 == 0 { 256 } else { 0 }, "pad {k}");
             assert_eq!(r.depth[k].len(), 256);
@@ -174,7 +216,7 @@ mod tests {
             sensors: crate::config::SensorGroups { proximal: SensorModel::TaxelArray { rows: 4, cols: 2 }, ..cfg.sensors },
             ..cfg.clone()
         };
-        let r = sense(&mut renderer, &taxels, &sizes, &t_world_pads, object, &t_world_camera.inverse()).unwrap();
+        let r = sense(&mut renderer, &taxels, &sizes, &t_world_pads, None, object, &t_world_camera.inverse()).unwrap();
         // Proximal pads are 0, 3, 6, 9: in contact are 0 and 6.
         assert_eq!([r.counts[0], r.counts[3], r.counts[6], r.counts[9]], [8, 0, 8, 0]);
         assert!(r.points.iter().all(|p| (t_world_camera.transform_point3(p.position).z - 0.099).abs() < 1e-6));

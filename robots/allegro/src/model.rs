@@ -12,15 +12,18 @@ pub struct RobotError {
     pub message: String,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum Geometry {
     Box { size: DVec3 },
     Cylinder { radius: f64, length: f64 },
     Sphere { radius: f64 },
+    /// The convex hull of these points (a real link mesh's vertices: see
+    /// [`RobotModel::with_mesh_collisions`]).
+    ConvexHull { points: std::sync::Arc<Vec<DVec3>> },
 }
 
-/// A primitive placed in its link's frame, with an sRGB-ish colour (0..1, from the URDF material).
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// A shape placed in its link's frame, with an sRGB-ish colour (0..1, from the URDF material).
+#[derive(Debug, Clone, PartialEq)]
 pub struct Shape {
     pub geometry: Geometry,
     pub origin: DAffine3,
@@ -193,6 +196,31 @@ impl RobotModel {
         let model = RobotModel { links, joints, root, dofs, link_index, joint_index };
         model.check_required().map_err(err)?;
         Ok(model)
+    }
+
+    /// This model with the collision shapes of the given links replaced by the convex hull of
+    /// each link's points (link frame): physics then touches the real surfaces the picture shows.
+    pub fn with_mesh_collisions(&self, hulls: &HashMap<usize, Vec<DVec3>>) -> RobotModel {
+        let mut m = self.clone();
+        for (&link, points) in hulls {
+            m.links[link].collisions = vec![Shape {
+                geometry: Geometry::ConvexHull { points: std::sync::Arc::new(points.clone()) },
+                origin: DAffine3::IDENTITY,
+                rgba: [0.0; 4],
+            }];
+        }
+        m
+    }
+
+    /// Moves a fixed child link (a sensor pad) to `origin` in its parent link's frame.
+    pub fn set_fixed_link_origin(&mut self, link: &str, origin: DAffine3) -> Result<(), String> {
+        let id = self.link_id(link).ok_or_else(|| format!("no link '{link}'"))?;
+        let j = self.links[id].parent_joint.ok_or_else(|| format!("link '{link}' is the root"))?;
+        if self.joints[j].kind != JointKind::Fixed {
+            return Err(format!("link '{link}' is not fixed to its parent"));
+        }
+        self.joints[j].origin = origin;
+        Ok(())
     }
 
     /// What vtgen relies on: the arm chain, the palm, the flange, the 16 hand joints and the 12
