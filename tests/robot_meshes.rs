@@ -125,11 +125,26 @@ fn real_robot_dataset(assets: &Path) -> &'static Path {
 }
 
 #[test]
-fn a_dataset_drawn_with_the_real_robot_is_valid() {
+fn a_dataset_drawn_with_the_real_robot_is_valid_and_deterministic() {
     let Some(dir) = assets() else { return };
     let out = real_robot_dataset(&dir);
     let o = run(&["validate", out.to_str().unwrap(), "--full"]);
     assert!(o.status.success(), "{}", stderr(&o));
+    // The same config and meshes give the same bytes, the mesh directory given by the environment.
+    let again = tempdir();
+    let config = root().join("scenes/tiny-hand.yaml");
+    let o = crate::common::vtgen()
+        .args(["generate", config.to_str().unwrap(), "--out", again.path().to_str().unwrap(), "--quiet"])
+        .env("VTGEN_ROBOT_ASSETS", &dir)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (a, b) = (crate::common::files(out), crate::common::files(again.path()));
+    assert_eq!(a.len(), b.len());
+    for ((na, ba), (nb, bb)) in a.iter().zip(&b) {
+        assert_eq!(na, nb);
+        assert!(ba == bb, "{na} differs between two runs with the real robot");
+    }
 }
 
 #[test]

@@ -50,6 +50,11 @@ pub struct ObjectGraspReport {
     pub min_phalanges_in_contact: usize,
     pub max_slip_mm: f64,
     pub mean_slip_mm: f64,
+    /// The slip distribution over the recorded instances (mm since the grasp settled): median and
+    /// 90th percentile, and the share of instances that slipped more than 10 mm.
+    pub median_slip_mm: f64,
+    pub p90_slip_mm: f64,
+    pub over_10mm_share: f64,
     pub min_floor_clearance_mm: f64,
     /// Physics seconds (summed over workers).
     pub seconds: f64,
@@ -77,12 +82,12 @@ impl GraspCheckReport {
             "Grasp loop, {} physics, {} instances per trajectory ({:.0} s):\n\n",
             self.physics_backend, self.instances_per_trajectory, self.seconds
         );
-        s.push_str("| object | kept | attempts | failures | max penetration (mm) | min contacts | max slip (mm) | mean slip (mm) | min floor clearance (mm) |\n");
-        s.push_str("|---|---|---|---|---|---|---|---|---|\n");
+        s.push_str("| object | kept | attempts | failures | max penetration (mm) | min contacts | slip median / 90% / max (mm) | slip > 10 mm | mean slip (mm) | min floor clearance (mm) |\n");
+        s.push_str("|---|---|---|---|---|---|---|---|---|---|\n");
         for o in &self.objects {
             let failures: Vec<String> = o.failures.iter().map(|(k, v)| format!("{k} {v}")).collect();
             s.push_str(&format!(
-                "| {} | {}/{} ({:.0}%) | {} | {} | {:.2} | {} | {:.1} | {:.1} | {:.0} |\n",
+                "| {} | {}/{} ({:.0}%) | {} | {} | {:.2} | {} | {:.1} / {:.1} / {:.1} | {:.1}% | {:.1} | {:.0} |\n",
                 o.object_id,
                 o.kept,
                 o.trajectories,
@@ -91,7 +96,10 @@ impl GraspCheckReport {
                 if failures.is_empty() { "none".into() } else { failures.join(", ") },
                 o.max_penetration_mm,
                 o.min_phalanges_in_contact,
+                o.median_slip_mm,
+                o.p90_slip_mm,
                 o.max_slip_mm,
+                100.0 * o.over_10mm_share,
                 o.mean_slip_mm,
                 o.min_floor_clearance_mm,
             ));
@@ -118,6 +126,7 @@ struct TrajectoryResult {
     min_contacts: usize,
     max_slip_mm: f64,
     sum_slip_mm: f64,
+    slips_mm: Vec<f64>,
     min_clearance_mm: f64,
     seconds: f64,
 }
@@ -138,6 +147,7 @@ fn check_trajectory(robot: &mut RobotScene, seed: u64, obj: &LoadedObject, o: us
         min_contacts: usize::MAX,
         max_slip_mm: 0.0,
         sum_slip_mm: 0.0,
+        slips_mm: Vec::new(),
         min_clearance_mm: f64::MAX,
         seconds: 0.0,
     };
@@ -147,6 +157,7 @@ fn check_trajectory(robot: &mut RobotScene, seed: u64, obj: &LoadedObject, o: us
         r.min_contacts = r.min_contacts.min(s.contacts.iter().filter(|c| c.is_some()).count());
         r.max_slip_mm = r.max_slip_mm.max(s.slip_translation * 1e3);
         r.sum_slip_mm += s.slip_translation * 1e3;
+        r.slips_mm.push(s.slip_translation * 1e3);
         let lowest = floor_clearance(&obj.mesh.positions, &(robot.t_world_base * s.t_base_palm * s.t_palm_object));
         r.min_clearance_mm = r.min_clearance_mm.min(lowest * 1e3);
     }
@@ -198,7 +209,9 @@ pub fn check_grasps(cfg: &LoadedConfig, objects: &[LoadedObject], opts: &GraspCh
     let (results, backends) = pooled.into_result()?;
     let mut results: Vec<TrajectoryResult> = results.into_iter().map(|(_, r)| r).collect();
     results.sort_by_key(|r| (r.object, r.trajectory));
+    let mut slips: Vec<Vec<f64>> = vec![Vec::new(); per_object.len()];
     for r in results {
+        slips[r.object].extend_from_slice(&r.slips_mm);
         let o = &mut per_object[r.object];
         o.trajectories += 1;
         match r.lost {
@@ -217,7 +230,11 @@ pub fn check_grasps(cfg: &LoadedConfig, objects: &[LoadedObject], opts: &GraspCh
         o.min_floor_clearance_mm = o.min_floor_clearance_mm.min(r.min_clearance_mm);
         o.seconds += r.seconds;
     }
-    for o in &mut per_object {
+    for (o, slips) in per_object.iter_mut().zip(&mut slips) {
+        slips.sort_by(f64::total_cmp);
+        let at = |q: f64| slips.get(((slips.len().max(1) - 1) as f64 * q).round() as usize).copied().unwrap_or(0.0);
+        (o.median_slip_mm, o.p90_slip_mm) = (at(0.5), at(0.9));
+        o.over_10mm_share = slips.iter().filter(|&&s| s > 10.0).count() as f64 / slips.len().max(1) as f64;
         o.kept_fraction = o.kept as f64 / o.trajectories.max(1) as f64;
         o.mean_slip_mm /= o.instances.max(1) as f64;
         if o.instances == 0 {
