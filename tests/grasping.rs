@@ -287,7 +287,7 @@ fn most_held_objects_stay_still_while_the_arm_is_still() {
     let builtin = vt_robot::RobotModel::builtin();
     let mut models = vec![("primitive hand", builtin.clone())];
     if let Some(dir) = std::env::var_os("ROBOT_ASSETS") {
-        let hand = vtgen::assets::robot::load_hand_meshes(std::path::Path::new(&dir), &builtin).unwrap();
+        let hand = vtgen::assets::robot::load_hand_meshes(std::path::Path::new(&dir), &builtin, None).unwrap();
         models.push(("real hand", vtgen::assets::robot::with_real_hand(&builtin, &hand).unwrap()));
     }
     let pc = PhysicsConfig { timestep: 1.0 / 240.0, ..PhysicsConfig::default() };

@@ -32,7 +32,7 @@ fn z_range(m: &TexturedMesh) -> (f32, f32) {
 fn real_meshes_sit_in_our_link_frames() {
     let Some(dir) = assets() else { return };
     let model = RobotModel::builtin();
-    let meshes = load_robot_meshes(&dir, &model, ARM_TRIANGLES_PER_LINK).unwrap();
+    let meshes = load_robot_meshes(&dir, &model, false).unwrap();
     let get = |name: &str| &meshes[&model.link_id(name).unwrap()];
     // Phalanges run along their link's z from the joint to the next joint (the URDF's lengths),
     // the distal ones to the end of the fingertip (FACTS: 0.0267 + 0.012 finger, 0.0543 thumb).
@@ -46,8 +46,11 @@ fn real_meshes_sit_in_our_link_frames() {
     let upper = get("shoulder_lift_link");
     let (lo, hi) = upper.positions.iter().fold((f32::MAX, f32::MIN), |(lo, hi), p| (lo.min(p[0]), hi.max(p[0])));
     assert!((lo + 0.425 + 0.06).abs() < 0.04 && hi.abs() < 0.1, "upper arm x from {lo} to {hi}");
-    assert!(upper.triangle_count() < 40_120 / 4, "simplified: {} triangles", upper.triangle_count());
-    assert!(get("palm").triangle_count() > 3000, "the hand is kept whole");
+    assert_eq!(upper.triangle_count(), 40_120, "whole");
+    let drawn = load_robot_meshes(&dir, &model, true).unwrap();
+    let drawn_count = |name: &str| drawn[&model.link_id(name).unwrap()].triangle_count();
+    assert!(drawn_count("shoulder_lift_link") <= 4 * ARM_TRIANGLES_PER_LINK / 3, "simplified: {}", drawn_count("shoulder_lift_link"));
+    assert!(drawn_count("palm") < get("palm").triangle_count(), "the drawn hand is simplified too");
 }
 
 /// Pixels set in `a` and not in `b` with no pixel of `b` within one pixel.
@@ -59,11 +62,11 @@ fn outside_one_pixel(a: &[u8], b: &[u8], w: usize, h: usize) -> usize {
 }
 
 #[test]
-fn the_simplified_arm_keeps_its_silhouette_within_a_pixel_at_the_paper_camera() {
+fn the_simplified_robot_keeps_its_silhouette_within_a_pixel_at_the_paper_camera() {
     let Some(dir) = assets() else { return };
     let model = RobotModel::builtin();
-    let full = load_robot_meshes(&dir, &model, usize::MAX).unwrap();
-    let simplified = load_robot_meshes(&dir, &model, ARM_TRIANGLES_PER_LINK).unwrap();
+    let full = load_robot_meshes(&dir, &model, false).unwrap();
+    let simplified = load_robot_meshes(&dir, &model, true).unwrap();
     // scenes/paper.yaml: the camera, the robot base, the arm at its home pose.
     let view = View {
         width: 640,
@@ -81,7 +84,9 @@ fn the_simplified_arm_keeps_its_silhouette_within_a_pixel_at_the_paper_camera() 
     let links = model.forward_kinematics(&q);
     let mut r = WgpuRenderer::new(&RendererConfig::default()).unwrap();
     let mut checked = 0;
-    for name in ["base_link", "shoulder_pan_link", "shoulder_lift_link", "elbow_link", "wrist_1_link", "wrist_2_link", "wrist_3_link"] {
+    let arm = ["base_link", "shoulder_pan_link", "shoulder_lift_link", "elbow_link", "wrist_1_link", "wrist_2_link", "wrist_3_link"];
+    let hand = ["palm", "ff_base", "ff_proximal", "mf_medial", "rf_distal", "th_base", "th_proximal", "th_medial", "th_distal"];
+    for name in arm.into_iter().chain(hand) {
         let id = model.link_id(name).unwrap();
         let pose = DMat4::from(t_world_base * links[id]);
         let mut mask = |m: &TexturedMesh| {
@@ -153,7 +158,7 @@ fn tactile_points_lie_on_the_object_and_at_the_real_finger_surface() {
     let Some(dir) = assets() else { return };
     let out = real_robot_dataset(&dir);
     let model = RobotModel::builtin();
-    let hand = vtgen::assets::robot::load_hand_meshes(&dir, &model).unwrap();
+    let hand = vtgen::assets::robot::load_hand_meshes(&dir, &model, None).unwrap();
     let trimesh = |m: &TexturedMesh| {
         let v = m.positions.iter().map(|p| glam::Vec3::from(*p)).collect();
         let t = m.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
@@ -211,7 +216,7 @@ fn each_pad_sits_on_its_phalanx_real_surface() {
     use rapier3d::parry::query::PointQuery;
     let Some(dir) = assets() else { return };
     let model = RobotModel::builtin();
-    let hand = vtgen::assets::robot::load_hand_meshes(&dir, &model).unwrap();
+    let hand = vtgen::assets::robot::load_hand_meshes(&dir, &model, None).unwrap();
     let real = vtgen::assets::robot::with_real_hand(&model, &hand).unwrap();
     let q = real.zero();
     let links = real.forward_kinematics(&q);
@@ -241,7 +246,7 @@ fn write(dir: &Path, rel: &str, bytes: &[u8]) {
 #[test]
 fn bad_robot_mesh_directories_give_one_clear_error_naming_the_path() {
     let model = RobotModel::builtin();
-    let err = |dir: &Path| load_robot_meshes(dir, &model, ARM_TRIANGLES_PER_LINK).map(|_: HashMap<_, _>| ()).unwrap_err().to_string();
+    let err = |dir: &Path| load_robot_meshes(dir, &model, true).map(|_: HashMap<_, _>| ()).unwrap_err().to_string();
     // A directory of another robot (or of nothing).
     let other = tempdir();
     write(other.path(), "meshes/panda_link0.dae", b"<COLLADA/>");

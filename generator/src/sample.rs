@@ -17,7 +17,7 @@ use crate::assets::LoadedObject;
 use crate::config::{Config, LoadedConfig};
 use crate::physics::grasp::Trajectory;
 use crate::plan::SampleRef;
-use crate::assets::robot::{ARM_TRIANGLES_PER_LINK, load_arm_meshes, robot_assets_dir};
+use crate::assets::robot::{load_robot_meshes, robot_assets_dir};
 use crate::render::{Draw, DrawRole, Lighting, Material, MeshHandle, Renderer, View};
 use crate::scene::robot::{GraspStats, RobotScene, link_mesh, mask_id as robot_mask_id};
 use crate::scene::sample_scene;
@@ -230,11 +230,7 @@ impl<'a> SampleFactory<'a> {
         let mut robot_glbs = Vec::new();
         if let Some(r) = &robot {
             let mut real = match robot_assets_dir(cfg) {
-                Some(dir) => {
-                    let mut meshes = load_arm_meshes(&dir, &r.model, ARM_TRIANGLES_PER_LINK)?;
-                    meshes.extend(r.hand_meshes.clone().unwrap_or_default());
-                    meshes
-                }
+                Some(dir) => load_robot_meshes(&dir, &r.model, true)?,
                 None => {
                     static SAID: std::sync::Once = std::sync::Once::new();
                     SAID.call_once(|| {

@@ -47,6 +47,9 @@ pub const ROBOT_ASSETS_ENV: &str = "VTGEN_ROBOT_ASSETS";
 /// Triangles per arm link after simplification: the arm is a background occluder seen at a few
 /// hundred pixels; the full meshes have 126 000 triangles in all.
 pub const ARM_TRIANGLES_PER_LINK: usize = 3000;
+/// Triangles per hand mesh file drawn (the physics and the pads use the whole meshes): the
+/// simplifier's error bound keeps the silhouette within a pixel (`tests/robot_meshes.rs`).
+pub const HAND_TRIANGLES_PER_PART: usize = 400;
 
 /// The robot mesh directory a run draws from: `VTGEN_ROBOT_ASSETS` (or `--robot-assets`) over the
 /// config's `robot.assets` (relative to the config file); None: the primitive robot.
@@ -140,22 +143,24 @@ fn check_layout(dir: &Path, probe: &str, what: &str) -> Result<()> {
     Ok(())
 }
 
-/// The real meshes of every robot link that has one, in the link frame: link index -> mesh.
-/// `arm_triangles` caps each arm link's triangles (simplified at load; the hand is kept whole).
-pub fn load_robot_meshes(dir: &Path, model: &RobotModel, arm_triangles: usize) -> Result<HashMap<usize, TexturedMesh>> {
-    let mut out = load_hand_meshes(dir, model)?;
-    out.extend(load_arm_meshes(dir, model, arm_triangles)?);
+/// The real meshes of every robot link that has one, in the link frame, as drawn: link index ->
+/// mesh. `simplified`: the arm links to about `ARM_TRIANGLES_PER_LINK` and the hand's mesh files
+/// to about `HAND_TRIANGLES_PER_PART` triangles (within the simplifier's error bound); else whole.
+pub fn load_robot_meshes(dir: &Path, model: &RobotModel, simplified: bool) -> Result<HashMap<usize, TexturedMesh>> {
+    let mut out = load_hand_meshes(dir, model, simplified.then_some(HAND_TRIANGLES_PER_PART))?;
+    out.extend(load_arm_meshes(dir, model, if simplified { ARM_TRIANGLES_PER_LINK } else { usize::MAX })?);
     Ok(out)
 }
 
-/// The Allegro hand's meshes (palm, bases, phalanges), whole, in our link frames.
-pub fn load_hand_meshes(dir: &Path, model: &RobotModel) -> Result<HashMap<usize, TexturedMesh>> {
+/// The Allegro hand's meshes (palm, bases, phalanges) in our link frames, each mesh file
+/// simplified to about `max_triangles` (None: whole, as the physics and the pads use them).
+pub fn load_hand_meshes(dir: &Path, model: &RobotModel, max_triangles: Option<usize>) -> Result<HashMap<usize, TexturedMesh>> {
     check_layout(dir, "allegro/meshes/base_link.STL", "Allegro hand")?;
     check_layout(dir, "ur5e/visual/upperarm.obj", "UR5e")?;
     let mut out = HashMap::new();
     for (id, link) in model.links.iter().enumerate() {
         if let Some(parts) = hand_parts(&link.name) {
-            out.insert(id, build_link_mesh(dir, &parts, None)?);
+            out.insert(id, build_link_mesh(dir, &parts, max_triangles)?);
         }
     }
     Ok(out)

@@ -177,7 +177,7 @@ impl RobotScene {
             Some(p) => RobotModel::from_urdf_file(&cfg.resolve(p))?,
             None => RobotModel::builtin(),
         };
-        let hand_meshes = robot_assets_dir(cfg).map(|dir| load_hand_meshes(&dir, &model)).transpose()?;
+        let hand_meshes = robot_assets_dir(cfg).map(|dir| load_hand_meshes(&dir, &model, None)).transpose()?;
         let model = match &hand_meshes {
             Some(hand) => with_real_hand(&model, hand)?,
             None => model,
