@@ -99,20 +99,30 @@ fn origin(xyz: [f64; 3], r: [f64; 3]) -> DAffine3 {
     DAffine3::from_rotation_translation(rpy(r[0], r[1], r[2]), DVec3::from_array(xyz))
 }
 
-/// Universal Robots' ROS description of the UR5e, as far as the meshes need it: per arm link
-/// (our URDF's name), the ROS joint origin that leads to it (xyz, rpy) and the mesh's visual
-/// origin in the ROS link (xyz, rpy). From `ur5e.urdf` of airo-models 0.0.12 (its
-/// `base_link_inertia` is our `base_link`: the DH base frame).
-const ROS_CHAIN: [(&str, [f64; 3], [f64; 3], &str, [f64; 3], [f64; 3]); 7] = {
+/// One link of Universal Robots' ROS description of the UR5e, as far as the meshes need it.
+struct RosLink {
+    /// Our URDF's name of the link.
+    link: &'static str,
+    /// The ROS joint origin that leads to it (xyz, rpy).
+    joint: ([f64; 3], [f64; 3]),
+    mesh: &'static str,
+    /// The mesh's visual origin in the ROS link (xyz, rpy).
+    visual: ([f64; 3], [f64; 3]),
+}
+
+/// The UR5e from `ur5e.urdf` of airo-models 0.0.12 (its `base_link_inertia` is our `base_link`:
+/// the DH base frame).
+const ROS_CHAIN: [RosLink; 7] = {
     use std::f64::consts::{FRAC_PI_2 as H, PI};
+    const Z: [f64; 3] = [0.0; 3];
     [
-        ("base_link", [0.0; 3], [0.0; 3], "base.obj", [0.0; 3], [0.0, 0.0, PI]),
-        ("shoulder_pan_link", [0.0, 0.0, 0.1625], [0.0; 3], "shoulder.obj", [0.0; 3], [0.0, 0.0, PI]),
-        ("shoulder_lift_link", [0.0; 3], [H, 0.0, 0.0], "upperarm.obj", [0.0, 0.0, 0.138], [H, 0.0, -H]),
-        ("elbow_link", [-0.425, 0.0, 0.0], [0.0; 3], "forearm.obj", [0.0, 0.0, 0.007], [H, 0.0, -H]),
-        ("wrist_1_link", [-0.3922, 0.0, 0.1333], [0.0; 3], "wrist1.obj", [0.0, 0.0, -0.127], [H, 0.0, 0.0]),
-        ("wrist_2_link", [0.0, -0.0997, 0.0], [H, 0.0, 0.0], "wrist2.obj", [0.0, 0.0, -0.0997], [0.0; 3]),
-        ("wrist_3_link", [0.0, 0.0996, 0.0], [H, PI, PI], "wrist3.obj", [0.0, 0.0, -0.0989], [H, 0.0, 0.0]),
+        RosLink { link: "base_link", joint: (Z, Z), mesh: "base.obj", visual: (Z, [0.0, 0.0, PI]) },
+        RosLink { link: "shoulder_pan_link", joint: ([0.0, 0.0, 0.1625], Z), mesh: "shoulder.obj", visual: (Z, [0.0, 0.0, PI]) },
+        RosLink { link: "shoulder_lift_link", joint: (Z, [H, 0.0, 0.0]), mesh: "upperarm.obj", visual: ([0.0, 0.0, 0.138], [H, 0.0, -H]) },
+        RosLink { link: "elbow_link", joint: ([-0.425, 0.0, 0.0], Z), mesh: "forearm.obj", visual: ([0.0, 0.0, 0.007], [H, 0.0, -H]) },
+        RosLink { link: "wrist_1_link", joint: ([-0.3922, 0.0, 0.1333], Z), mesh: "wrist1.obj", visual: ([0.0, 0.0, -0.127], [H, 0.0, 0.0]) },
+        RosLink { link: "wrist_2_link", joint: ([0.0, -0.0997, 0.0], [H, 0.0, 0.0]), mesh: "wrist2.obj", visual: ([0.0, 0.0, -0.0997], Z) },
+        RosLink { link: "wrist_3_link", joint: ([0.0, 0.0996, 0.0], [H, PI, PI]), mesh: "wrist3.obj", visual: ([0.0, 0.0, -0.0989], [H, 0.0, 0.0]) },
     ]
 };
 
@@ -123,9 +133,9 @@ pub fn ros_link_offsets(model: &RobotModel) -> Result<Vec<(usize, DAffine3)>> {
     let base = model.link_id("base_link").context("robot description has no base_link")?;
     let mut t_base_ros = DAffine3::IDENTITY;
     let mut out = Vec::new();
-    for (link, xyz, r, ..) in ROS_CHAIN {
+    for RosLink { link, joint: (xyz, r), .. } in ROS_CHAIN {
         let id = model.link_id(link).with_context(|| format!("robot description has no link '{link}'"))?;
-        t_base_ros = t_base_ros * origin(xyz, r);
+        t_base_ros *= origin(xyz, r);
         out.push((id, ours[id].inverse() * ours[base] * t_base_ros));
     }
     Ok(out)
@@ -171,8 +181,8 @@ pub fn load_arm_meshes(dir: &Path, model: &RobotModel, arm_triangles: usize) -> 
     check_layout(dir, "ur5e/visual/upperarm.obj", "UR5e")?;
     let mut out = HashMap::new();
     for (k, (id, offset)) in ros_link_offsets(model)?.into_iter().enumerate() {
-        let (_, _, _, file, xyz, r) = ROS_CHAIN[k];
-        let part = Part { file: format!("ur5e/visual/{file}"), origin: offset * origin(xyz, r), colour: None };
+        let RosLink { mesh, visual: (xyz, r), .. } = ROS_CHAIN[k];
+        let part = Part { file: format!("ur5e/visual/{mesh}"), origin: offset * origin(xyz, r), colour: None };
         out.insert(id, build_link_mesh(dir, &[part], Some(arm_triangles))?);
     }
     Ok(out)
@@ -238,7 +248,7 @@ fn ray_x_hit(o: DVec3, a: DVec3, b: DVec3, c: DVec3) -> Option<f64> {
     }
     let u = (ao.y * ac.z - ao.z * ac.y) / det;
     let v = (ab.y * ao.z - ab.z * ao.y) / det;
-    (u >= 0.0 && v >= 0.0 && u + v <= 1.0).then(|| a.x + u * ab.x + v * ac.x)
+    (u >= 0.0 && v >= 0.0 && u + v <= 1.0).then_some(a.x + u * ab.x + v * ac.x)
 }
 
 /// Triangles of one mesh file in its own frame, with a colour per triangle (linear RGB).
@@ -447,10 +457,10 @@ mod tests {
             let base = model.link_id("base_link").unwrap();
             let mut t = ours[base];
             for (i, (id, offset)) in offsets.iter().enumerate() {
-                let (_, xyz, r, ..) = ROS_CHAIN[i];
-                t = t * origin(xyz, r);
+                let RosLink { joint: (xyz, r), .. } = ROS_CHAIN[i];
+                t *= origin(xyz, r);
                 if i > 0 {
-                    t = t * DAffine3::from_rotation_z(q[arm[i - 1]]);
+                    t *= DAffine3::from_rotation_z(q[arm[i - 1]]);
                 }
                 let via_ours = ours[*id] * *offset;
                 assert!(via_ours.translation.distance(t.translation) < 1e-9, "link {i} at q {q:?}");

@@ -197,6 +197,18 @@ pub fn check_grasps(cfg: &LoadedConfig, objects: &[LoadedObject], opts: &GraspCh
         |robot| Ok(robot.backend_name().to_string()),
     );
     progress.finish_and_clear();
+    let (results, backends) = pooled.into_result()?;
+    let per_object = per_object_figures(objects, results.into_iter().map(|(_, r)| r).collect());
+    Ok(GraspCheckReport {
+        physics_backend: backends.into_iter().next().unwrap_or_default(),
+        instances_per_trajectory: instances,
+        objects: per_object,
+        seconds: started.elapsed().as_secs_f64(),
+    })
+}
+
+/// Each object's figures from its trajectories' results.
+fn per_object_figures(objects: &[LoadedObject], mut results: Vec<TrajectoryResult>) -> Vec<ObjectGraspReport> {
     let mut per_object: Vec<ObjectGraspReport> = objects
         .iter()
         .map(|o| ObjectGraspReport {
@@ -206,8 +218,6 @@ pub fn check_grasps(cfg: &LoadedConfig, objects: &[LoadedObject], opts: &GraspCh
             ..Default::default()
         })
         .collect();
-    let (results, backends) = pooled.into_result()?;
-    let mut results: Vec<TrajectoryResult> = results.into_iter().map(|(_, r)| r).collect();
     results.sort_by_key(|r| (r.object, r.trajectory));
     let mut slips: Vec<Vec<f64>> = vec![Vec::new(); per_object.len()];
     for r in results {
@@ -242,10 +252,5 @@ pub fn check_grasps(cfg: &LoadedConfig, objects: &[LoadedObject], opts: &GraspCh
             o.min_floor_clearance_mm = 0.0;
         }
     }
-    Ok(GraspCheckReport {
-        physics_backend: backends.into_iter().next().unwrap_or_default(),
-        instances_per_trajectory: instances,
-        objects: per_object,
-        seconds: started.elapsed().as_secs_f64(),
-    })
+    per_object
 }

@@ -51,6 +51,22 @@ fn quat_wxyz(t: &DAffine3) -> [f64; 4] {
 /// pass removes most of it (8 of 12, the rest 1 to 4 mm; `tests/grasping.rs`).
 const NOSLIP_ITERATIONS: u32 = 10;
 
+/// The real hand's links collide as the convex hulls of their meshes: one `<mesh>` asset per hull
+/// shape, named `<link>_<shape index>` (MuJoCo takes the hull of a mesh's vertices for collision).
+fn write_hull_meshes(x: &mut String, m: &RobotModel) {
+    for link in &m.links {
+        for (i, sh) in link.collisions.iter().enumerate() {
+            if let Geometry::ConvexHull { points } = &sh.geometry {
+                let _ = write!(x, r#"<mesh name="{}_{i}" vertex=""#, link.name);
+                for p in points.iter() {
+                    let _ = write!(x, "{} {} {} ", p.x, p.y, p.z);
+                }
+                x.push_str("\"/>");
+            }
+        }
+    }
+}
+
 impl MujocoHand {
     pub fn new(model: &RobotModel, settings: PhysicsSettings) -> Result<Self> {
         Ok(MujocoHand { model: model.clone(), settings, sim: None, damping: (0.0, 0.0), mass: 1.0, saved: None })
@@ -75,19 +91,7 @@ impl MujocoHand {
             let _ = write!(x, "{} {} {} ", p[0], p[1], p[2]);
         }
         x.push_str("\"/>");
-        // The real hand's links collide as the convex hulls of their meshes (MuJoCo takes the
-        // hull of a mesh's vertices for collision).
-        for link in &m.links {
-            for (i, sh) in link.collisions.iter().enumerate() {
-                if let Geometry::ConvexHull { points } = &sh.geometry {
-                    let _ = write!(x, r#"<mesh name="{}_{i}" vertex=""#, link.name);
-                    for p in points.iter() {
-                        let _ = write!(x, "{} {} {} ", p.x, p.y, p.z);
-                    }
-                    x.push_str("\"/>");
-                }
-            }
-        }
+        write_hull_meshes(&mut x, m);
         x.push_str("</asset><worldbody>");
         // Hand geoms collide with the object only (contype 1 / conaffinity 2, the object 2 / 1).
         let geoms = |x: &mut String, link: usize| {

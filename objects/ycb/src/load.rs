@@ -15,6 +15,9 @@ pub struct MeshError {
     pub message: String,
 }
 
+/// The colour of a mesh whose file names neither a texture nor a base colour.
+const UNTEXTURED_GREY: [u8; 3] = [180, 180, 180];
+
 fn err(path: &Path, message: impl Into<String>) -> MeshError {
     MeshError { path: path.to_path_buf(), message: message.into() }
 }
@@ -79,13 +82,7 @@ fn load_obj(path: &Path) -> Result<TexturedMesh, MeshError> {
     let opts = tobj::LoadOptions { triangulate: true, single_index: true, ..Default::default() };
     let (models, materials) = tobj::load_obj(path, &opts).map_err(|e| err(path, format!("not a valid OBJ file: {e}")))?;
     let materials = materials.unwrap_or_default();
-    let mut mesh = TexturedMesh {
-        positions: Vec::new(),
-        normals: Vec::new(),
-        uvs: Vec::new(),
-        indices: Vec::new(),
-        texture: Texture::solid([180, 180, 180]),
-    };
+    let mut mesh = TexturedMesh::empty(Texture::solid(UNTEXTURED_GREY));
     let mut all_have_normals = true;
     let mut texture_set = false;
     for m in &models {
@@ -123,13 +120,7 @@ fn load_obj(path: &Path) -> Result<TexturedMesh, MeshError> {
 
 fn load_gltf(path: &Path) -> Result<TexturedMesh, MeshError> {
     let (doc, buffers, images) = gltf::import(path).map_err(|e| err(path, format!("not a valid glTF file: {e}")))?;
-    let mut mesh = TexturedMesh {
-        positions: Vec::new(),
-        normals: Vec::new(),
-        uvs: Vec::new(),
-        indices: Vec::new(),
-        texture: Texture::solid([180, 180, 180]),
-    };
+    let mut mesh = TexturedMesh::empty(Texture::solid(UNTEXTURED_GREY));
     let mut texture_set = false;
     let mut all_have_normals = true;
     let scene = doc.default_scene().or_else(|| doc.scenes().next()).ok_or_else(|| err(path, "has no scene"))?;

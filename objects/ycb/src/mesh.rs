@@ -39,6 +39,11 @@ pub struct TexturedMesh {
 }
 
 impl TexturedMesh {
+    /// No triangles yet, drawn with `texture`.
+    pub fn empty(texture: Texture) -> Self {
+        TexturedMesh { positions: Vec::new(), normals: Vec::new(), uvs: Vec::new(), indices: Vec::new(), texture }
+    }
+
     pub fn triangle_count(&self) -> usize {
         self.indices.len() / 3
     }
