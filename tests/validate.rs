@@ -55,6 +55,25 @@ fn a_flipped_byte_inside_a_chunk_is_named_with_its_sample() {
 }
 
 #[test]
+fn a_damaged_chunk_size_is_an_error_not_an_abort() {
+    let d = copy_dataset();
+    let f = d.path().join("train/shard-00001.mcap");
+    let mut bytes = std::fs::read(&f).unwrap();
+    // Walk the records after the 8-byte magic (opcode, u64 length, content) to the first chunk
+    // record (opcode 0x06); its uncompressed size sits 25 bytes in.
+    let mut chunk = 8;
+    while bytes[chunk] != 0x06 {
+        chunk += 9 + u64::from_le_bytes(bytes[chunk + 1..chunk + 9].try_into().unwrap()) as usize;
+    }
+    bytes[chunk + 25..chunk + 33].copy_from_slice(&0x2A2A_2A2A_2A2A_2A2Au64.to_le_bytes());
+    std::fs::write(&f, &bytes).unwrap();
+    let o = run(&["validate", d.path().to_str().unwrap(), "--full"]);
+    assert_eq!(o.status.code(), Some(1), "exits with an error, not a signal: {}", stderr(&o));
+    let out = format!("{}{}", String::from_utf8_lossy(&o.stdout), stderr(&o));
+    assert!(out.contains("train/shard-00001.mcap sample ") && out.contains("the chunk header is damaged"), "{out}");
+}
+
+#[test]
 fn a_shard_missing_from_the_manifest_is_named() {
     let d = copy_dataset();
     let path = d.path().join("manifest.json");

@@ -22,6 +22,10 @@ pub struct ShardReader {
     meta: ShardMeta,
 }
 
+/// The largest uncompressed chunk (one sample) a reader accepts: a 640×480 sample with 12 tactile
+/// views is about 3 MB; 1 GiB leaves room for 4K images and noisy depth.
+pub const MAX_CHUNK_BYTES: u64 = 1 << 30;
+
 impl ShardReader {
     pub fn open(path: &Path) -> Result<Self> {
         let file = File::open(path).with_context(|| format!("cannot open shard {}", path.display()))?;
@@ -50,6 +54,33 @@ impl ShardReader {
         Ok(ShardReader { path: path.to_path_buf(), data, summary, chunks, meta })
     }
 
+    /// Bounds what decompressing chunk `ci` may allocate before the MCAP reader does it: the
+    /// chunk lies inside the file, and the uncompressed size in its header agrees with the summary's
+    /// chunk index and stays under `MAX_CHUNK_BYTES`. (A flipped byte in a chunk header once made
+    /// the reader ask for 3 EB and abort.)
+    fn check_chunk(&self, ci: usize) -> Result<()> {
+        let index = &self.summary.chunk_indexes[ci];
+        let start = index.chunk_start_offset as usize;
+        let end = start.checked_add(index.chunk_length as usize).filter(|&e| e <= self.data.len());
+        let Some(_end) = end else {
+            bail!("chunk {ci} ({} bytes at offset {start}) runs past the end of the file ({} bytes)", index.chunk_length, self.data.len());
+        };
+        // Chunk record: opcode (1), record length (8), message start and end time (8 + 8), then the
+        // uncompressed size (8), little-endian (MCAP spec).
+        let header = self.data.get(start..start + 33).ok_or_else(|| anyhow!("chunk {ci}: header cut off"))?;
+        if header[0] != 0x06 {
+            bail!("chunk {ci}: no chunk record at offset {start} (opcode {:#04x})", header[0]);
+        }
+        let size = u64::from_le_bytes(header[25..33].try_into().expect("8 bytes"));
+        if size != index.uncompressed_size || size > MAX_CHUNK_BYTES {
+            bail!(
+                "chunk {ci}: uncompressed size {size} bytes in its header, {} in the summary (at most {MAX_CHUNK_BYTES}): the chunk header is damaged",
+                index.uncompressed_size
+            );
+        }
+        Ok(())
+    }
+
     pub fn meta(&self) -> &ShardMeta {
         &self.meta
     }
@@ -75,6 +106,7 @@ impl ShardReader {
     pub fn read_info(&self, index: u64) -> Result<serde_json::Value> {
         let ctx = || format!("shard {} sample {index}", self.path.display());
         let ci = *self.chunks.get(&index).ok_or_else(|| anyhow!("{}: not in this shard", ctx()))?;
+        self.check_chunk(ci).with_context(ctx)?;
         for msg in self.summary.stream_chunk(&self.data, &self.summary.chunk_indexes[ci]).with_context(ctx)? {
             let msg = msg.with_context(ctx)?;
             if msg.channel.topic == topics::SAMPLE_INFO {
@@ -95,6 +127,7 @@ impl ShardReader {
     pub fn read(&self, index: u64) -> Result<Sample> {
         let ctx = || format!("shard {} sample {index}", self.path.display());
         let ci = *self.chunks.get(&index).ok_or_else(|| anyhow!("{}: not in this shard", ctx()))?;
+        self.check_chunk(ci).with_context(ctx)?;
         let mut by_topic: BTreeMap<String, Vec<u8>> = BTreeMap::new();
         for msg in self.summary.stream_chunk(&self.data, &self.summary.chunk_indexes[ci]).with_context(ctx)? {
             let msg = msg.with_context(ctx)?;
