@@ -246,3 +246,36 @@ def sample_level_keys_are_written(root: Path) -> bool:
     """The optional info fields the DenseFusion view reads (``occlusion.level``) are written."""
     info = vtdata.Dataset(root, "train")[0]["info"]
     return 0.0 <= info["occlusion"]["level"] <= 1.0
+
+
+def test_damaged_chunks_raise_the_readers_own_error_naming_shard_and_sample(
+    rust_dataset: Path, tmp_path: Path
+) -> None:
+    """A byte flipped inside every sample's chunk of one shard: reading each of its samples raises
+    ``DatasetError`` naming the shard and the sample (never a raw zstd, CRC or protobuf error, and
+    never silently wrong data)."""
+    import shutil
+
+    from mcap.reader import make_reader
+
+    root = tmp_path / "ds"
+    shutil.copytree(rust_dataset, root)
+    manifest = json.loads((root / "manifest.json").read_text())
+    entry = manifest["splits"]["train"]["shards"][0]
+    path = root / entry["file"]
+    with open(path, "rb") as f:
+        summary = make_reader(f).get_summary()
+    data = bytearray(path.read_bytes())
+    chunks = [c for c in summary.chunk_indexes if c.message_index_offsets]
+    for c in chunks:
+        data[c.chunk_start_offset + c.chunk_length // 2] ^= 0x5A
+    path.write_bytes(bytes(data))
+    ds = vtdata.Dataset(root, "train")
+    errors = 0
+    for i in range(len(ds)):
+        try:
+            ds[i]
+        except vtdata.DatasetError as e:
+            assert entry["file"] in str(e) and f"sample {i}" in str(e), e
+            errors += 1
+    assert errors == len(chunks), f"{errors} errors for {len(chunks)} damaged samples"

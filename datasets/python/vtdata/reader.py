@@ -142,8 +142,11 @@ class _OpenShard:
     def __init__(self, path: str) -> None:
         self.file: IO[bytes] = open(path, "rb")
         try:
+            # CRCs checked: a damaged chunk that still decompresses is caught by its checksum.
             self.reader: McapReader = make_reader(
-                self.file, decoder_factories=[_ProtobufDecoderFactory(), _JsonDecoderFactory()]
+                self.file,
+                validate_crcs=True,
+                decoder_factories=[_ProtobufDecoderFactory(), _JsonDecoderFactory()],
             )
         except Exception:
             self.file.close()
@@ -311,13 +314,21 @@ class Dataset(Sequence[Sample]):
                 start_time=log_time, end_time=log_time + 1, log_time_order=False
             )
         decoded: Dict[str, Any] = {}
-        for _schema, channel, _message, value in messages:
-            if channel.topic in decoded and channel.topic in REQUIRED_TOPICS:
-                raise DatasetError(
-                    f"{shard}: sample {index} of split {self.split!r} has more than one "
-                    f"{channel.topic} message"
-                )
-            decoded[channel.topic] = value
+        try:
+            for _schema, channel, _message, value in messages:
+                if channel.topic in decoded and channel.topic in REQUIRED_TOPICS:
+                    raise DatasetError(
+                        f"{shard}: sample {index} of split {self.split!r} has more than one "
+                        f"{channel.topic} message"
+                    )
+                decoded[channel.topic] = value
+        except DatasetError:
+            raise
+        except Exception as e:  # zstd, CRC, record and protobuf errors of a damaged chunk
+            raise DatasetError(
+                f"{shard}: sample {index} of split {self.split!r} is damaged "
+                f"({type(e).__name__}: {e})"
+            ) from e
         missing = [t for t in REQUIRED_TOPICS if t not in decoded]
         if missing:
             raise DatasetError(
