@@ -294,7 +294,8 @@ fn most_held_objects_stay_still_while_the_arm_is_still() {
     let pc = PhysicsConfig { timestep: 1.0 / 240.0, ..PhysicsConfig::default() };
     let settings = PhysicsSettings::from(&pc);
     let cfg = GraspConfig::default();
-    let t_world_base = glam::DAffine3::from_rotation_translation(glam::DQuat::from_rotation_z(std::f64::consts::PI), DVec3::new(0.0, 0.5, 0.0));
+    let t_world_base =
+        glam::DAffine3::from_rotation_translation(glam::DQuat::from_rotation_z(std::f64::consts::PI), DVec3::new(0.0, 0.5, 0.0));
     let catalog = vt_objects::Catalog::builtin();
     let (mut still, mut total) = (0, 0);
     for (what, model) in &models {
@@ -303,7 +304,8 @@ fn most_held_objects_stay_still_while_the_arm_is_still() {
             "mujoco" => Box::new(vtgen::physics::MujocoHand::new(model, settings).unwrap()),
             _ => Box::new(RapierHand::new(model, settings).unwrap()),
         };
-        let ctx = GraspContext { robot: model, t_world_base, config: &cfg, timestep: pc.timestep, camera_position: DVec3::new(0.0, -0.75, 0.55) };
+        let ctx =
+            GraspContext { robot: model, t_world_base, config: &cfg, timestep: pc.timestep, camera_position: DVec3::new(0.0, -0.75, 0.55) };
         for id in ["005_tomato_soup_can", "009_gelatin_box", "006_mustard_bottle"] {
             let entry = catalog.get(id).unwrap();
             let object = PhysicsObject { points: vt_objects::procedural_mesh(entry).positions, mass: entry.mass };

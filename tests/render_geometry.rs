@@ -70,7 +70,8 @@ fn a_plane_renders_to_its_analytic_depth_and_coverage() {
     let plane = r.upload_mesh(&quad(0.3)).unwrap();
     let cam = look_at(DVec3::new(0.2, -0.9, 0.7), DVec3::new(0.05, 0.0, 0.0));
     let v = view(cam.matrix());
-    let img = r.render(&v, &lighting(), &[Draw { mesh: plane, t_world_model: DMat4::IDENTITY, mask_id: 7, role: DrawRole::Occluder }]).unwrap();
+    let img =
+        r.render(&v, &lighting(), &[Draw { mesh: plane, t_world_model: DMat4::IDENTITY, mask_id: 7, role: DrawRole::Occluder }]).unwrap();
     let (rot, o) = (cam.rotation(), cam.translation());
     let interior = compare(&img, 7, |u, row| {
         let d = rot * ray(&v, u, row);

@@ -36,7 +36,9 @@ fn real_meshes_sit_in_our_link_frames() {
     let get = |name: &str| &meshes[&model.link_id(name).unwrap()];
     // Phalanges run along their link's z from the joint to the next joint (the URDF's lengths),
     // the distal ones to the end of the fingertip (FACTS: 0.0267 + 0.012 finger, 0.0543 thumb).
-    for (link, length) in [("ff_proximal", 0.054), ("mf_medial", 0.0384), ("ff_distal", 0.0387), ("th_medial", 0.0514), ("th_distal", 0.0543)] {
+    for (link, length) in
+        [("ff_proximal", 0.054), ("mf_medial", 0.0384), ("ff_distal", 0.0387), ("th_medial", 0.0514), ("th_distal", 0.0543)]
+    {
         let (lo, hi) = z_range(get(link));
         // The shells overlap their neighbours at the rounded joints by up to ~1 cm; a frame off by
         // a joint would be off by 1.6 cm or more.
@@ -185,7 +187,8 @@ fn tactile_points_lie_on_the_object_and_at_the_real_finger_surface() {
             let object = &objects[s.info["object_index"].as_u64().unwrap() as usize];
             let to_object = s.t_camera_object.inverse();
             for p in &tac.points {
-                let on_object = object.distance_to_local_point(to_object.transform_point(glam::Vec3::from(p.position).as_dvec3()).as_vec3(), false);
+                let on_object =
+                    object.distance_to_local_point(to_object.transform_point(glam::Vec3::from(p.position).as_dvec3()).as_vec3(), false);
                 assert!(on_object <= 1e-3, "{split} {}: tactile point {:.2} mm off the object", s.index, on_object * 1e3);
                 let name = &tac.phalanges[p.phalanx as usize];
                 // Camera frame -> world -> the phalanx's link frame.
@@ -251,7 +254,10 @@ fn bad_robot_mesh_directories_give_one_clear_error_naming_the_path() {
     let other = tempdir();
     write(other.path(), "meshes/panda_link0.dae", b"<COLLADA/>");
     let e = err(other.path());
-    assert!(e.contains("no Allegro hand meshes") && e.contains("allegro/meshes/base_link.STL") && e.contains("scripts/robot-assets"), "{e}");
+    assert!(
+        e.contains("no Allegro hand meshes") && e.contains("allegro/meshes/base_link.STL") && e.contains("scripts/robot-assets"),
+        "{e}"
+    );
     // A corrupt STL.
     let corrupt = tempdir();
     write(corrupt.path(), "allegro/meshes/base_link.STL", b"solid nothing useful\n");
@@ -276,7 +282,15 @@ fn bad_robot_mesh_directories_give_one_clear_error_naming_the_path() {
     // The CLI: one error line, exit status 1.
     let config = root().join("scenes/tiny-hand.yaml");
     let out = tempdir();
-    let o = run(&["generate", config.to_str().unwrap(), "--out", out.path().to_str().unwrap(), "--quiet", "--robot-assets", "/nonexistent/robot"]);
+    let o = run(&[
+        "generate",
+        config.to_str().unwrap(),
+        "--out",
+        out.path().to_str().unwrap(),
+        "--quiet",
+        "--robot-assets",
+        "/nonexistent/robot",
+    ]);
     assert!(!o.status.success());
     let s = stderr(&o);
     assert!(s.contains("/nonexistent/robot") && s.lines().filter(|l| l.starts_with("error:")).count() == 1, "{s}");

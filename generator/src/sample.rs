@@ -14,10 +14,10 @@ use vt_randomizers::{AppearanceContext, ImageLibrary, ProceduralTexture, SampleK
 
 use crate::annotate::occlusion::{bin as occlusion_bin, model_points, occlusion_level};
 use crate::assets::LoadedObject;
+use crate::assets::robot::{load_robot_meshes, robot_assets_dir};
 use crate::config::{Config, LoadedConfig};
 use crate::physics::grasp::Trajectory;
 use crate::plan::SampleRef;
-use crate::assets::robot::{load_robot_meshes, robot_assets_dir};
 use crate::render::{Draw, DrawRole, Lighting, Material, MeshHandle, Renderer, View};
 use crate::scene::robot::{GraspStats, RobotScene, link_mesh, mask_id as robot_mask_id};
 use crate::scene::sample_scene;
@@ -323,7 +323,12 @@ impl<'a> SampleFactory<'a> {
         let mut posed = if self.robot.is_some() { Some(self.pose_robot(r, &obj.id, &mut scene, &mut draws)?) } else { None };
         let distractors = self.place_distractors(&scene, r.object_index as usize);
         for d in &distractors {
-            draws.push(Draw { mesh: self.object_meshes[d.object], t_world_model: d.pose.matrix(), mask_id: d.mask_id, role: DrawRole::Occluder });
+            draws.push(Draw {
+                mesh: self.object_meshes[d.object],
+                t_world_model: d.pose.matrix(),
+                mask_id: d.mask_id,
+                role: DrawRole::Occluder,
+            });
         }
         let object_draw = Draw {
             mesh: self.object_meshes[r.object_index as usize],
@@ -501,7 +506,8 @@ impl<'a> SampleFactory<'a> {
         let t_camera_world = scene.t_world_camera.inverse().matrix();
         let t0 = Instant::now();
         let surface = self.finger_surface.as_ref();
-        let reading = sense(self.renderer.as_mut(), cfg, &self.pad_sizes, &posed.pads, surface, object, &DAffine3::from_mat4(t_camera_world))?;
+        let reading =
+            sense(self.renderer.as_mut(), cfg, &self.pad_sizes, &posed.pads, surface, object, &DAffine3::from_mat4(t_camera_world))?;
         self.times.tactile_render += reading.render_time;
         self.times.tactile_extract += t0.elapsed() - reading.render_time;
         let names = vt_robot::phalanx_names();

@@ -120,9 +120,19 @@ const ROS_CHAIN: [RosLink; 7] = {
         RosLink { link: "shoulder_pan_link", joint: ([0.0, 0.0, 0.1625], Z), mesh: "shoulder.obj", visual: (Z, [0.0, 0.0, PI]) },
         RosLink { link: "shoulder_lift_link", joint: (Z, [H, 0.0, 0.0]), mesh: "upperarm.obj", visual: ([0.0, 0.0, 0.138], [H, 0.0, -H]) },
         RosLink { link: "elbow_link", joint: ([-0.425, 0.0, 0.0], Z), mesh: "forearm.obj", visual: ([0.0, 0.0, 0.007], [H, 0.0, -H]) },
-        RosLink { link: "wrist_1_link", joint: ([-0.3922, 0.0, 0.1333], Z), mesh: "wrist1.obj", visual: ([0.0, 0.0, -0.127], [H, 0.0, 0.0]) },
+        RosLink {
+            link: "wrist_1_link",
+            joint: ([-0.3922, 0.0, 0.1333], Z),
+            mesh: "wrist1.obj",
+            visual: ([0.0, 0.0, -0.127], [H, 0.0, 0.0]),
+        },
         RosLink { link: "wrist_2_link", joint: ([0.0, -0.0997, 0.0], [H, 0.0, 0.0]), mesh: "wrist2.obj", visual: ([0.0, 0.0, -0.0997], Z) },
-        RosLink { link: "wrist_3_link", joint: ([0.0, 0.0996, 0.0], [H, PI, PI]), mesh: "wrist3.obj", visual: ([0.0, 0.0, -0.0989], [H, 0.0, 0.0]) },
+        RosLink {
+            link: "wrist_3_link",
+            joint: ([0.0, 0.0996, 0.0], [H, PI, PI]),
+            mesh: "wrist3.obj",
+            visual: ([0.0, 0.0, -0.0989], [H, 0.0, 0.0]),
+        },
     ]
 };
 
@@ -210,7 +220,8 @@ pub fn with_real_hand(model: &RobotModel, hand: &HashMap<usize, TexturedMesh>) -
 /// pads do not overlap), or to the end of the fingertip (distal); and its width (y extent).
 pub fn pad_span(model: &RobotModel, link: usize, mesh: &TexturedMesh) -> (f64, f64) {
     let next = model.joints.iter().find(|j| j.parent == link && j.kind == vt_robot::JointKind::Revolute);
-    let (ylo, yhi, zhi) = mesh.positions.iter().fold((f32::MAX, f32::MIN, f32::MIN), |(a, b, c), p| (a.min(p[1]), b.max(p[1]), c.max(p[2])));
+    let (ylo, yhi, zhi) =
+        mesh.positions.iter().fold((f32::MAX, f32::MIN, f32::MIN), |(a, b, c), p| (a.min(p[1]), b.max(p[1]), c.max(p[2])));
     let length = next.map_or(zhi as f64, |j| j.origin.translation.z);
     (length, (yhi - ylo) as f64)
 }
@@ -425,11 +436,8 @@ fn drawable(positions: &[Vec3], triangles: &[[u32; 3]], colours: &[[f64; 3]]) ->
         let k = palette.iter().position(|c| c == &colours[f]).expect("in the palette");
         let uv = [(k as f32 + 0.5) / palette.len() as f32, 0.5];
         for &v in t {
-            let n: Vec3 = around[v as usize]
-                .iter()
-                .map(|&g| normals[g as usize])
-                .filter(|n| n.normalize_or_zero().dot(own) >= cos_crease)
-                .sum();
+            let n: Vec3 =
+                around[v as usize].iter().map(|&g| normals[g as usize]).filter(|n| n.normalize_or_zero().dot(own) >= cos_crease).sum();
             mesh.positions.push(positions[v as usize].to_array());
             mesh.normals.push(n.normalize_or(own).to_array());
             mesh.uvs.push(uv);
@@ -473,7 +481,20 @@ mod tests {
     fn creased_normals_keep_a_cube_flat_and_the_palette_holds_each_colour_once() {
         let p = [[0., 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.], [0., 0., 1.], [1., 0., 1.], [1., 1., 1.], [0., 1., 1.]]
             .map(Vec3::from_array);
-        let tris = [[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0, 5, 4], [2, 3, 7], [2, 7, 6], [1, 2, 6], [1, 6, 5], [0, 4, 7], [0, 7, 3]];
+        let tris = [
+            [0, 2, 1],
+            [0, 3, 2],
+            [4, 5, 6],
+            [4, 6, 7],
+            [0, 1, 5],
+            [0, 5, 4],
+            [2, 3, 7],
+            [2, 7, 6],
+            [1, 2, 6],
+            [1, 6, 5],
+            [0, 4, 7],
+            [0, 7, 3],
+        ];
         let colours: Vec<[f64; 3]> = (0..12).map(|i| if i < 2 { TIP_WHITE } else { HAND_BLACK }).collect();
         let m = drawable(&p, &tris, &colours);
         assert_eq!((m.positions.len(), m.texture.width), (36, 2));

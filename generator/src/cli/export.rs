@@ -221,7 +221,10 @@ fn render_alone(r: &mut WgpuRenderer, s: &Sample, mesh: MeshHandle) -> Result<Ve
         far: 100.0,
         t_world_camera: DMat4::IDENTITY,
     };
-    r.render_mask(&view, &[Draw { mesh, t_world_model: s.t_camera_object.matrix(), mask_id: vt_dataset::mask_ids::TARGET_OBJECT, role: DrawRole::Target }])
+    r.render_mask(
+        &view,
+        &[Draw { mesh, t_world_model: s.t_camera_object.matrix(), mask_id: vt_dataset::mask_ids::TARGET_OBJECT, role: DrawRole::Target }],
+    )
 }
 
 fn write_image(scene: &mut Scene, dir: &Path, s: &Sample, obj_id: usize, amodal: &[u8]) -> Result<()> {

@@ -759,11 +759,12 @@ impl RobotConfig {
         for (group, m) in [("proximal", t.sensors.proximal), ("medial", t.sensors.medial), ("distal", t.sensors.distal)] {
             let path = vec![Key("robot"), Key("tactile"), Key("sensors"), Key(group)];
             match m {
-                SensorModel::TaxelArray { rows, cols } if rows == 0 || cols == 0 || rows > t.resolution || cols > t.resolution => p
-                    .push(Problem {
+                SensorModel::TaxelArray { rows, cols } if rows == 0 || cols == 0 || rows > t.resolution || cols > t.resolution => {
+                    p.push(Problem {
                         path,
                         message: format!("taxel grid {rows}x{cols} is out of range: 1 ..= resolution ({}) per side", t.resolution),
-                    }),
+                    })
+                }
                 SensorModel::Gelsight { gel_thickness_mm } if !(gel_thickness_mm > 0.0 && gel_thickness_mm <= 20.0) => {
                     p.push(Problem { path, message: format!("gel_thickness_mm {gel_thickness_mm} is out of range: 0 < t <= 20") })
                 }

@@ -697,10 +697,7 @@ mod tests {
         let (t, failures) = run_fake(&mut sliding, &cfg, 2);
         let e = t.unwrap_err().to_string();
         assert!(e.contains("005_tomato_soup_can trajectory 0: no grasp held in 3 attempts"), "{e}");
-        assert!(
-            failures.iter().all(|f| matches!(f, GraspEvent::Failed(Failure::GraspNotHeld | Failure::Unreachable))),
-            "{failures:?}"
-        );
+        assert!(failures.iter().all(|f| matches!(f, GraspEvent::Failed(Failure::GraspNotHeld | Failure::Unreachable))), "{failures:?}");
         assert!(failures.contains(&GraspEvent::Failed(Failure::GraspNotHeld)));
         // One phalanx alone does not hold an object either.
         let (t, failures) = run_fake(&mut crate::physics::fake::FakeHand::holding(1), &cfg, 2);

@@ -171,8 +171,8 @@ pub fn contact_pixels(depth: &[f32], n: u32, model: SensorModel, threshold: f64)
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::render::{DrawRole, MeshHandle};
     use crate::render::fake::PlaneRenderer;
+    use crate::render::{DrawRole, MeshHandle};
     use glam::DQuat;
 
     /// 12 pads in a row 10 cm above the floor, looking down (z out of the pad = world -z); pad k

@@ -14,12 +14,21 @@ pub struct RobotError {
 
 #[derive(Debug, Clone, PartialEq)]
 pub enum Geometry {
-    Box { size: DVec3 },
-    Cylinder { radius: f64, length: f64 },
-    Sphere { radius: f64 },
+    Box {
+        size: DVec3,
+    },
+    Cylinder {
+        radius: f64,
+        length: f64,
+    },
+    Sphere {
+        radius: f64,
+    },
     /// The convex hull of these points (a real link mesh's vertices: see
     /// [`RobotModel::with_mesh_collisions`]).
-    ConvexHull { points: std::sync::Arc<Vec<DVec3>> },
+    ConvexHull {
+        points: std::sync::Arc<Vec<DVec3>>,
+    },
 }
 
 /// A shape placed in its link's frame, with an sRGB-ish colour (0..1, from the URDF material).

@@ -235,7 +235,13 @@ impl Renderer for WgpuRenderer {
                 }
             })
             .collect();
-        let sub = Submission { slot: Slot::TactileAtlas, size: (cols * vw, rows * vh), views: &specs, readback: Readback::Depth, cull: Some(&cull) };
+        let sub = Submission {
+            slot: Slot::TactileAtlas,
+            size: (cols * vw, rows * vh),
+            views: &specs,
+            readback: Readback::Depth,
+            cull: Some(&cull),
+        };
         let atlas: Vec<f32> = bytemuck::pod_collect_to_vec(&self.draw_views(&sub, &lighting, draws)?.depth);
         let aw = (cols * vw) as usize;
         Ok(specs

@@ -314,7 +314,12 @@ fn copy_targets<'t>(
         Readback::Depth => vec![(&t.depth_tex, &rb.depth, 4)],
         Readback::Mask => vec![(&t.mask_tex, &rb.mask, 1)],
         Readback::All => {
-            vec![(&t.color_tex, &rb.color, 4), (&t.depth_tex, &rb.depth, 4), (&t.mask_tex, &rb.mask, 1), (&t.silhouette_tex, &rb.silhouette, 1)]
+            vec![
+                (&t.color_tex, &rb.color, 4),
+                (&t.depth_tex, &rb.depth, 4),
+                (&t.mask_tex, &rb.mask, 1),
+                (&t.silhouette_tex, &rb.silhouette, 1),
+            ]
         }
     };
     for (tex, buf, bpp) in &copies {

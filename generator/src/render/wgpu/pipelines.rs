@@ -172,8 +172,8 @@ impl Pipelines {
         let silhouette = make_pipeline(device, &shader, main_view("main view, target object", 1, ("fs_main", &silhouette_targets)));
         let main = make_pipeline(device, &shader, main_view("main view", 1, ("fs_main", &main_targets)));
         let colour = [target(COLOR_FORMAT)];
-        let msaa = (msaa > 1)
-            .then(|| make_pipeline(device, &shader, main_view("main view, multisampled colour", msaa, ("fs_color", &colour))));
+        let msaa =
+            (msaa > 1).then(|| make_pipeline(device, &shader, main_view("main view, multisampled colour", msaa, ("fs_color", &colour))));
         Pipelines { main, silhouette, msaa, shadow }
     }
 }

@@ -83,8 +83,12 @@ impl WgpuRenderer {
                     mapped_at_creation: false,
                 })
             };
-            let readback =
-                Readbacks { color: readback_buffer(4), depth: readback_buffer(4), mask: readback_buffer(1), silhouette: readback_buffer(1) };
+            let readback = Readbacks {
+                color: readback_buffer(4),
+                depth: readback_buffer(4),
+                mask: readback_buffer(1),
+                silhouette: readback_buffer(1),
+            };
             self.targets[slot as usize] = Some(Targets {
                 width,
                 height,
