@@ -10,7 +10,7 @@ use glam::{DAffine3, DMat4, DVec3};
 use vt_objects::TexturedMesh;
 use vt_robot::RobotModel;
 use vtgen::assets::robot::{ARM_TRIANGLES_PER_LINK, load_robot_meshes};
-use vtgen::config::{GraspConfig, Intrinsics, RendererConfig};
+use vtgen::config::RendererConfig;
 use vtgen::render::{Draw, DrawRole, Renderer, View, WgpuRenderer};
 use vtgen::scene::look_at;
 
@@ -69,19 +69,18 @@ fn the_simplified_robot_keeps_its_silhouette_within_a_pixel_at_the_paper_camera(
     let model = RobotModel::builtin();
     let full = load_robot_meshes(&dir, &model, false).unwrap();
     let simplified = load_robot_meshes(&dir, &model, true).unwrap();
-    // scenes/paper.yaml: the camera, the robot base, the arm at its home pose.
-    let view = View {
-        width: 640,
-        height: 480,
-        k: Intrinsics { fx: 615.0, fy: 615.0, cx: 319.5, cy: 239.5 },
-        near: 0.05,
-        far: 10.0,
-        t_world_camera: look_at(DVec3::new(0.0, -0.75, 0.55), DVec3::new(0.0, 0.0, 0.28)).matrix(),
-    };
-    let t_world_base = DAffine3::from_rotation_translation(glam::DQuat::from_rotation_z(std::f64::consts::PI), DVec3::new(0.0, 0.5, 0.0));
+    // scenes/paper.yaml: its camera, its robot base, the arm at its home pose.
+    let paper = vtgen::config::LoadedConfig::load(&root().join("scenes/paper.yaml")).unwrap().config;
+    let cam = &paper.camera;
+    let view = View::of_camera(cam, look_at(DVec3::from_array(cam.position), DVec3::from_array(cam.look_at)).matrix());
+    let robot = paper.robot.as_ref().unwrap();
+    let t_world_base = DAffine3::from_rotation_translation(
+        glam::DQuat::from_rotation_z(robot.base_yaw_deg.to_radians()),
+        DVec3::from_array(robot.base_position),
+    );
     let mut q = model.zero();
     for (k, d) in model.arm_dofs().into_iter().enumerate() {
-        q[d] = GraspConfig::default().home_arm[k];
+        q[d] = robot.grasp.home_arm[k];
     }
     let links = model.forward_kinematics(&q);
     let mut r = WgpuRenderer::new(&RendererConfig::default()).unwrap();
@@ -97,7 +96,8 @@ fn the_simplified_robot_keeps_its_silhouette_within_a_pixel_at_the_paper_camera(
         };
         let (a, b) = (mask(&full[&id]), mask(&simplified[&id]));
         let seen = a.iter().filter(|&&m| m != 0).count();
-        let (extra, missing) = (outside_one_pixel(&b, &a, 640, 480), outside_one_pixel(&a, &b, 640, 480));
+        let (w, h) = (view.width as usize, view.height as usize);
+        let (extra, missing) = (outside_one_pixel(&b, &a, w, h), outside_one_pixel(&a, &b, w, h));
         eprintln!(
             "{name}: {} -> {} triangles, {seen} px, {extra} px added and {missing} lost beyond 1 px",
             full[&id].triangle_count(),

@@ -471,10 +471,7 @@ impl<'a> SampleFactory<'a> {
         key: &SampleKey,
         draws: &[Draw],
     ) -> Result<(crate::render::RenderOutput, Option<Vec<f32>>)> {
-        let cam = &self.config.camera;
-        let k = cam.k();
-        let view =
-            View { width: cam.width, height: cam.height, k, near: cam.near, far: cam.far, t_world_camera: scene.t_world_camera.matrix() };
+        let view = View::of_camera(&self.config.camera, scene.t_world_camera.matrix());
         let light = &scene.appearance.light;
         let lighting = Lighting {
             light_position: light.position,
@@ -489,8 +486,9 @@ impl<'a> SampleFactory<'a> {
         let t0 = Instant::now();
         let mut img = self.renderer.render(&view, &lighting, draws)?;
         self.times.main_render += t0.elapsed();
-        let noise = &cam.noise;
+        let noise = &self.config.camera.noise;
         let mut noise_rng = SampleStream::sample(key, "sensor_noise");
+        let k = view.k;
         let depth_noisy =
             noise.depth.as_ref().map(|d| d.apply(&img.depth, img.width, img.height, [k.fx, k.fy, k.cx, k.cy], &mut noise_rng));
         if let Some(c) = &noise.color {

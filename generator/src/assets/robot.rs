@@ -11,7 +11,7 @@
 //!   whose joint origins `robots/allegro/ur5e_allegro.urdf` uses unchanged: identity, plus the
 //!   fingertip meshes at the tip joint (0.0267 m, thumb 0.0423 m along the distal link's z);
 //! - each arm mesh sits in its link of Universal Robots' ROS description through that URDF's
-//!   visual origin (`ROS_VISUALS`); the ROS link frames differ from the DH link frames of our
+//!   visual origin (`ROS_CHAIN`); the ROS link frames differ from the DH link frames of our
 //!   URDF by a fixed offset per link, computed from both chains at q = 0 (`ros_link_offsets`,
 //!   unit-tested to hold at any q).
 //!
@@ -24,7 +24,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail};
 use glam::{DAffine3, DQuat, DVec3, Vec3};
 use vt_objects::{Texture, TexturedMesh, linear_to_srgb8};
-use vt_robot::RobotModel;
+use vt_robot::{RobotModel, xyz_rpy};
 
 use crate::config::LoadedConfig;
 
@@ -91,14 +91,6 @@ fn hand_parts(link: &str) -> Option<Vec<Part>> {
     })
 }
 
-fn rpy(r: f64, p: f64, y: f64) -> DQuat {
-    DQuat::from_rotation_z(y) * DQuat::from_rotation_y(p) * DQuat::from_rotation_x(r)
-}
-
-fn origin(xyz: [f64; 3], r: [f64; 3]) -> DAffine3 {
-    DAffine3::from_rotation_translation(rpy(r[0], r[1], r[2]), DVec3::from_array(xyz))
-}
-
 /// One link of Universal Robots' ROS description of the UR5e, as far as the meshes need it.
 struct RosLink {
     /// Our URDF's name of the link.
@@ -145,7 +137,7 @@ pub fn ros_link_offsets(model: &RobotModel) -> Result<Vec<(usize, DAffine3)>> {
     let mut out = Vec::new();
     for RosLink { link, joint: (xyz, r), .. } in ROS_CHAIN {
         let id = model.link_id(link).with_context(|| format!("robot description has no link '{link}'"))?;
-        t_base_ros *= origin(xyz, r);
+        t_base_ros *= xyz_rpy(xyz, r);
         out.push((id, ours[id].inverse() * ours[base] * t_base_ros));
     }
     Ok(out)
@@ -176,7 +168,6 @@ pub fn load_robot_meshes(dir: &Path, model: &RobotModel, simplified: bool) -> Re
 /// simplified to about `max_triangles` (None: whole, as the physics and the pads use them).
 pub fn load_hand_meshes(dir: &Path, model: &RobotModel, max_triangles: Option<usize>) -> Result<HashMap<usize, TexturedMesh>> {
     check_layout(dir, "allegro/meshes/base_link.STL", "Allegro hand")?;
-    check_layout(dir, "ur5e/visual/upperarm.obj", "UR5e")?;
     let mut out = HashMap::new();
     for (id, link) in model.links.iter().enumerate() {
         if let Some(parts) = hand_parts(&link.name) {
@@ -192,38 +183,34 @@ pub fn load_arm_meshes(dir: &Path, model: &RobotModel, arm_triangles: usize) -> 
     let mut out = HashMap::new();
     for (k, (id, offset)) in ros_link_offsets(model)?.into_iter().enumerate() {
         let RosLink { mesh, visual: (xyz, r), .. } = ROS_CHAIN[k];
-        let part = Part { file: format!("ur5e/visual/{mesh}"), origin: offset * origin(xyz, r), colour: None };
+        let part = Part { file: format!("ur5e/visual/{mesh}"), origin: offset * xyz_rpy(xyz, r), colour: None };
         out.insert(id, build_link_mesh(dir, &[part], Some(arm_triangles))?);
     }
     Ok(out)
 }
 
 /// The robot with its hand on the real meshes: each hand link collides as the convex hull of its
-/// mesh (for rapier and MuJoCo alike), and each phalanx pad sits on the real palmar surface
-/// ([`pad_on_surface`]). The visual shapes stay the URDF's (the renderer draws the meshes).
+/// mesh (for rapier and MuJoCo alike; only the hull's vertices are kept), and each phalanx pad
+/// sits on the real palmar surface at mid-length of its sensing span ([`pad_on_surface`]). The
+/// visual shapes stay the URDF's (the renderer draws the meshes).
 pub fn with_real_hand(model: &RobotModel, hand: &HashMap<usize, TexturedMesh>) -> Result<RobotModel> {
-    let hulls: HashMap<usize, Vec<DVec3>> =
-        hand.iter().map(|(&id, m)| (id, m.positions.iter().map(|p| Vec3::from(*p).as_dvec3()).collect())).collect();
+    let hulls: HashMap<usize, Vec<DVec3>> = hand
+        .iter()
+        .map(|(&id, m)| {
+            let points: Vec<Vec3> = m.positions.iter().map(|p| Vec3::from(*p)).collect();
+            (id, rapier3d::parry::transformation::convex_hull(&points).0.iter().map(|p| p.as_dvec3()).collect())
+        })
+        .collect();
     let mut out = model.with_mesh_collisions(&hulls);
-    for name in vt_robot::phalanx_names() {
+    // The pads' spans (joint to joint, distal to the fingertip's end) from the hulls.
+    let spans = crate::sensors::tactile::pad_sizes(&out);
+    for (name, (length, _)) in vt_robot::phalanx_names().into_iter().zip(spans) {
         let id = model.link_id(&name).with_context(|| format!("robot description has no link '{name}'"))?;
-        let mesh = &hand[&id];
-        let (length, _) = pad_span(model, id, mesh);
-        let origin = pad_on_surface(mesh, 0.5 * length, (0.0, length))
+        let origin = pad_on_surface(&hand[&id], 0.5 * length, (0.0, length))
             .with_context(|| format!("{name}: no palmar surface of the real mesh at mid-length"))?;
         out.set_fixed_link_origin(&format!("{name}_pad"), origin).map_err(anyhow::Error::msg)?;
     }
     Ok(out)
-}
-
-/// A phalanx's sensing span along its z from the joint: to the next joint (proximal, medial: the
-/// pads do not overlap), or to the end of the fingertip (distal); and its width (y extent).
-pub fn pad_span(model: &RobotModel, link: usize, mesh: &TexturedMesh) -> (f64, f64) {
-    let next = model.joints.iter().find(|j| j.parent == link && j.kind == vt_robot::JointKind::Revolute);
-    let (ylo, yhi, zhi) =
-        mesh.positions.iter().fold((f32::MAX, f32::MIN, f32::MIN), |(a, b, c), p| (a.min(p[1]), b.max(p[1]), c.max(p[2])));
-    let length = next.map_or(zhi as f64, |j| j.origin.translation.z);
-    (length, (yhi - ylo) as f64)
 }
 
 /// The pad frame on the palmar (+x) surface of a phalanx, at height `z` along the finger: origin
@@ -466,7 +453,7 @@ mod tests {
             let mut t = ours[base];
             for (i, (id, offset)) in offsets.iter().enumerate() {
                 let RosLink { joint: (xyz, r), .. } = ROS_CHAIN[i];
-                t *= origin(xyz, r);
+                t *= xyz_rpy(xyz, r);
                 if i > 0 {
                     t *= DAffine3::from_rotation_z(q[arm[i - 1]]);
                 }

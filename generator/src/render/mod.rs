@@ -28,6 +28,13 @@ pub struct View {
     pub t_world_camera: DMat4,
 }
 
+impl View {
+    /// The config's camera at `t_world_camera`.
+    pub fn of_camera(camera: &crate::config::Camera, t_world_camera: DMat4) -> View {
+        View { width: camera.width, height: camera.height, k: camera.k(), near: camera.near, far: camera.far, t_world_camera }
+    }
+}
+
 /// A spotlight (with shadows) and an ambient hemisphere term, world frame, linear RGB.
 #[derive(Debug, Clone, Copy)]
 pub struct Lighting {

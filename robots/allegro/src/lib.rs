@@ -9,7 +9,7 @@ mod ik;
 mod model;
 
 pub use ik::IkOptions;
-pub use model::{Geometry, Joint, JointKind, Link, RobotError, RobotModel, Shape};
+pub use model::{Geometry, Joint, JointKind, Link, RobotError, RobotModel, Shape, xyz_rpy};
 
 /// The 4 fingers in hand-joint order (index, middle, ring, thumb).
 pub const FINGERS: [&str; 4] = ["ff", "mf", "rf", "th"];

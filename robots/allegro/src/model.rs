@@ -88,10 +88,15 @@ pub struct RobotModel {
 }
 
 fn pose(p: &urdf_rs::Pose) -> DAffine3 {
-    let [r, pch, y] = p.rpy.0;
-    // URDF rpy: fixed-axis roll about x, then pitch about y, then yaw about z: R = Rz * Ry * Rx.
-    let rot = DQuat::from_rotation_z(y) * DQuat::from_rotation_y(pch) * DQuat::from_rotation_x(r);
-    DAffine3::from_rotation_translation(rot, DVec3::from_array(p.xyz.0))
+    xyz_rpy(p.xyz.0, p.rpy.0)
+}
+
+/// A URDF `<origin xyz rpy>`: fixed-axis roll about x, then pitch about y, then yaw about z
+/// (R = Rz * Ry * Rx), then the translation.
+pub fn xyz_rpy(xyz: [f64; 3], rpy: [f64; 3]) -> DAffine3 {
+    let [r, p, y] = rpy;
+    let rot = DQuat::from_rotation_z(y) * DQuat::from_rotation_y(p) * DQuat::from_rotation_x(r);
+    DAffine3::from_rotation_translation(rot, DVec3::from_array(xyz))
 }
 
 impl RobotModel {
