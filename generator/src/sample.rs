@@ -28,17 +28,21 @@ pub fn pose_of(t: &DAffine3) -> Pose {
 }
 
 /// The real fingers' surface under the 12 pads, when the robot has its real hand meshes.
-fn finger_surfaces(robot: &RobotScene, pads: &[(f64, f64); 12]) -> Option<FingerSurface> {
-    let hand = robot.hand_meshes.as_ref()?;
+fn finger_surfaces(robot: &RobotScene, pads: &[(f64, f64); 12]) -> Result<Option<FingerSurface>> {
+    let Some(hand) = robot.hand_meshes.as_ref() else { return Ok(None) };
     let m = &robot.model;
     let n = robot.config.tactile.resolution;
-    let names = vt_robot::phalanx_names();
-    Some(std::array::from_fn(|k| {
-        let link = m.link_id(&names[k]).expect("validated at load");
-        let pad = m.link_id(&format!("{}_pad", names[k])).expect("validated at load");
-        let t_link_pad = m.joints[m.links[pad].parent_joint.expect("a pad is fixed to its phalanx")].origin;
-        finger_surface(&hand[&link], &t_link_pad, pads[k], n)
-    }))
+    let surfaces = vt_robot::phalanx_names()
+        .iter()
+        .zip(pads)
+        .map(|(name, &size)| {
+            let link = m.link_id(name).expect("validated at load");
+            let pad = m.link_id(&format!("{name}_pad")).expect("validated at load");
+            let t_link_pad = m.joints[m.links[pad].parent_joint.expect("a pad is fixed to its phalanx")].origin;
+            finger_surface(&hand[&link], &t_link_pad, size, n).with_context(|| name.clone())
+        })
+        .collect::<Result<Vec<_>>>()?;
+    Ok(Some(surfaces.try_into().expect("12 phalanges")))
 }
 
 /// The floor: a 6 m textured quad on z = 0, texture coordinates in metres (the renderer scales
@@ -256,7 +260,10 @@ impl<'a> SampleFactory<'a> {
         }
         let object_glbs = objects.iter().map(|o| glb_of(&o.mesh)).collect();
         let pad_sizes = robot.as_ref().map(|r| pad_sizes(&r.model)).unwrap_or([(0.0, 0.0); 12]);
-        let finger_surface = robot.as_ref().and_then(|r| finger_surfaces(r, &pad_sizes));
+        let finger_surface = match &robot {
+            Some(r) => finger_surfaces(r, &pad_sizes)?,
+            None => None,
+        };
         let model_points = objects.iter().map(|o| model_points(&o.mesh, config.scene.occlusion_points as usize)).collect();
         Ok(SampleFactory {
             config,

@@ -63,26 +63,31 @@ pub fn pad_sizes(model: &RobotModel) -> [(f64, f64); 12] {
 /// rows as the pad's depth image. The URDF's flat pads have none: their surface is the plane.
 pub type FingerSurface = [Vec<f32>; 12];
 
+/// Where pixel (u, v) of an `n x n` pad camera over a pad of `size` (length, width) looks from,
+/// in the pad frame's (x, y) (FORMAT.md, `/tactile/*`).
+fn pad_pixel(u: u32, v: u32, n: u32, (len, wid): (f64, f64)) -> (f64, f64) {
+    ((u as f64 + 0.5 - n as f64 / 2.0) * len / n as f64, (v as f64 + 0.5 - n as f64 / 2.0) * wid / n as f64)
+}
+
 /// The finger surface under each pad pixel of `mesh` (the phalanx's real mesh, link frame), seen
 /// along the pad's -z from the pad frame `t_link_pad`, over the pad's `size` at `n x n` pixels.
-pub fn finger_surface(mesh: &vt_objects::TexturedMesh, t_link_pad: &DAffine3, size: (f64, f64), n: u32) -> Vec<f32> {
+pub fn finger_surface(mesh: &vt_objects::TexturedMesh, t_link_pad: &DAffine3, size: (f64, f64), n: u32) -> Result<Vec<f32>> {
     use rapier3d::parry::query::{Ray, RayCast};
     let vertices = mesh.positions.iter().map(|p| glam::Vec3::from(*p)).collect();
     let triangles = mesh.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
-    let Ok(trimesh) = rapier3d::parry::shape::TriMesh::new(vertices, triangles) else { return vec![f32::NEG_INFINITY; (n * n) as usize] };
+    let trimesh = rapier3d::parry::shape::TriMesh::new(vertices, triangles)
+        .map_err(|e| anyhow::anyhow!("a finger mesh cannot be ray-cast: {e:?}"))?;
     // Rays start this far in front of the pad plane, outside any finger.
     const ABOVE: f64 = 0.05;
-    let (len, wid) = size;
     let dir = t_link_pad.transform_vector3(-DVec3::Z).as_vec3();
-    (0..n)
+    Ok((0..n)
         .flat_map(|v| (0..n).map(move |u| (u, v)))
         .map(|(u, v)| {
-            let x = (u as f64 + 0.5 - n as f64 / 2.0) * len / n as f64;
-            let y = (v as f64 + 0.5 - n as f64 / 2.0) * wid / n as f64;
+            let (x, y) = pad_pixel(u, v, n, size);
             let origin = t_link_pad.transform_point3(DVec3::new(x, y, ABOVE)).as_vec3();
             trimesh.cast_local_ray(&Ray::new(origin, dir), 1.0, false).map_or(f32::NEG_INFINITY, |toi| (ABOVE - toi as f64) as f32)
         })
-        .collect()
+        .collect())
 }
 
 /// Renders the 12 pad views of the object (drawn alone: the hand does not occlude its own pads)
@@ -119,7 +124,6 @@ pub fn sense(
     let mut points = Vec::new();
     let mut counts = [0u32; 12];
     for k in 0..12 {
-        let (len, wid) = pads[k];
         let to_camera = *t_camera_world * t_world_pads[k];
         let model = match k % 3 {
             0 => cfg.sensors.proximal,
@@ -132,8 +136,8 @@ pub fn sense(
             let d = depth[k][(v * n + u) as usize] as f64;
             // The pixel's ray meets the pad plane at (x, y); a pinhole's ray spreads with depth.
             let spread = standoff.map_or(1.0, |s| (s + d) / s);
-            let x = (u as f64 + 0.5 - n as f64 / 2.0) * len / n as f64 * spread;
-            let y = (v as f64 + 0.5 - n as f64 / 2.0) * wid / n as f64 * spread;
+            let (x, y) = pad_pixel(u, v, n, pads[k]);
+            let (x, y) = (x * spread, y * spread);
             points.push(TactilePoint { position: to_camera.transform_point3(DVec3::new(x, y, d)), distance: d, phalanx: k as u32 });
             counts[k] += 1;
         }
