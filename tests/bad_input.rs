@@ -170,3 +170,35 @@ fn an_adapter_without_float_targets_gets_a_clear_error() {
         assert!(complete_shards(&out).is_empty(), "no shard may look complete");
     }
 }
+
+/// `objects:` alone generates (the paper's defaults fill the rest), `--set` sizes it down, `vtgen
+/// config` prints what was resolved, and a bad override is one line naming the override.
+#[test]
+fn a_config_of_only_objects_generates_and_set_overrides_it() {
+    let d = tempdir();
+    let cfg = d.path().join("mine.yaml");
+    std::fs::write(&cfg, "objects: [005_tomato_soup_can]\n").unwrap();
+    let cfg = cfg.to_str().unwrap();
+    let small =
+        ["--set", "sampling.trajectories_per_object=1", "--set", "sampling.instances_per_trajectory=2", "--set", "camera.width=160"];
+    let o = run(&[&["config", cfg][..], &small].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let resolved = String::from_utf8_lossy(&o.stdout).to_string();
+    for line in ["trajectories_per_object: 1", "instances_per_trajectory: 2", "width: 160", "height: 480", "dir: out/mine"] {
+        assert!(resolved.contains(line), "{line} missing from:\n{resolved}");
+    }
+    let out = d.path().join("out");
+    let o = run(&[&["generate", cfg, "--out", out.to_str().unwrap(), "--quiet"][..], &small].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let manifest: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("manifest.json")).unwrap()).unwrap();
+    assert_eq!(manifest["complete"], true);
+    let samples: u64 = ["train", "test"].iter().map(|s| manifest["splits"][s]["samples"].as_u64().unwrap_or(0)).sum();
+    assert_eq!(samples, 2);
+    let o = run(&["plan", cfg, "--set", "camera.width=wide"]);
+    let err = stderr(&o);
+    assert!(!o.status.success());
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(err.starts_with("error: --set camera.width=wide: camera.width: invalid type: string \"wide\""), "{err}");
+    let o = run(&["inspect", out.to_str().unwrap(), "--set", "seed=1"]);
+    assert!(!o.status.success() && stderr(&o).contains("--set overrides a config's keys"), "{}", stderr(&o));
+}

@@ -29,6 +29,7 @@ fn bop_pixel_counts_match_the_generators_measurements() {
         }
     }
     let mut images = 0;
+    let mut want_targets = Vec::new();
     for split in ["train", "test"] {
         for scene in std::fs::read_dir(bop.join(split)).unwrap() {
             let scene = scene.unwrap().path();
@@ -46,11 +47,36 @@ fn bop_pixel_counts_match_the_generators_measurements() {
                     assert!((t[k].as_f64().unwrap() - 1000.0 * p[k].as_f64().unwrap()).abs() < 1e-6);
                 }
                 assert!(scene.join(format!("depth/{:06}.png", im.parse::<u64>().unwrap())).is_file());
+                // The boxes as bop_toolkit's calc_gt_info computes them from the written masks.
+                let im_id = im.parse::<u64>().unwrap();
+                for (key, mask) in [("bbox_obj", "mask"), ("bbox_visib", "mask_visib")] {
+                    let png = image::open(scene.join(format!("{mask}/{im_id:06}_000000.png"))).unwrap().to_luma8();
+                    assert_eq!(g[key], serde_json::json!(calc_2d_bbox(&png)), "{split} {im} {key}");
+                }
+                if split == "test" && g["px_count_visib"].as_u64().unwrap() > 0 {
+                    let scene_id: u64 = scene.file_name().unwrap().to_str().unwrap().parse().unwrap();
+                    want_targets
+                        .push(serde_json::json!({"im_id": im_id, "inst_count": 1, "obj_id": gt[im][0]["obj_id"], "scene_id": scene_id}));
+                }
                 images += 1;
             }
         }
     }
     assert_eq!(images, infos.len());
+    // Every test image with its object in sight is a BOP19 target; BOP24 lists the same images.
+    let key = |t: &serde_json::Value| (t["scene_id"].as_u64(), t["im_id"].as_u64());
+    let mut targets19 = json(&bop.join("test_targets_bop19.json")).as_array().unwrap().clone();
+    targets19.sort_by_key(key);
+    want_targets.sort_by_key(key);
+    assert!(!want_targets.is_empty());
+    assert_eq!(targets19, want_targets);
+    let targets24 = json(&bop.join("test_targets_bop24.json"));
+    let images24: Vec<_> = targets24.as_array().unwrap().iter().map(key).collect();
+    assert_eq!(images24.len(), targets19.len());
+    assert!(targets19.iter().all(|t| images24.contains(&key(t))));
+    // The exported PLY says its unit.
+    let ply = std::fs::read(bop.join("models/obj_000001.ply")).unwrap();
+    assert!(ply.windows(11).any(|w| w == b"millimetres"));
     assert!(bop.join("models/obj_000001.ply").is_file() && bop.join("camera.json").is_file());
     // The symmetries are the ones measured on the meshes (models_info.json), in mm, and they hold on
     // the exported models: the cracker box's three flips, the soup can's revolution axis.
@@ -93,6 +119,18 @@ fn bop_pixel_counts_match_the_generators_measurements() {
     // A second export into the same directory is refused, and the first stays intact.
     let again = run(&["export", "bop", ds.to_str().unwrap(), bop.to_str().unwrap(), "--quiet"]);
     assert!(!again.status.success() && stderr(&again).contains("not empty"), "{}", stderr(&again));
+}
+
+/// `bop_toolkit_lib.misc.calc_2d_bbox` over a mask's nonzero pixels: `[x, y, max x - min x,
+/// max y - min y]`; `calc_gt_info` writes `[-1, -1, -1, -1]` for an empty mask.
+fn calc_2d_bbox(mask: &image::GrayImage) -> [i64; 4] {
+    let on: Vec<(i64, i64)> = mask.enumerate_pixels().filter(|p| p.2[0] > 0).map(|(x, y, _)| (x as i64, y as i64)).collect();
+    if on.is_empty() {
+        return [-1, -1, -1, -1];
+    }
+    let (xs, ys): (Vec<i64>, Vec<i64>) = on.into_iter().unzip();
+    let (x0, y0) = (*xs.iter().min().unwrap(), *ys.iter().min().unwrap());
+    [x0, y0, xs.iter().max().unwrap() - x0, ys.iter().max().unwrap() - y0]
 }
 
 #[test]

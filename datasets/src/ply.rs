@@ -12,13 +12,25 @@ pub struct PlyMesh {
     pub triangles: Vec<[u32; 3]>,
 }
 
-pub fn write_ply(path: &Path, positions: &[[f32; 3]], normals: &[[f32; 3]], indices: &[u32]) -> Result<()> {
+/// The length unit of a PLY's coordinates, written in its header comment: metres in a dataset's
+/// `models/`, millimetres in a BOP export (as BOP wants).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LengthUnit {
+    Metres,
+    Millimetres,
+}
+
+pub fn write_ply(path: &Path, positions: &[[f32; 3]], normals: &[[f32; 3]], indices: &[u32], unit: LengthUnit) -> Result<()> {
+    let unit = match unit {
+        LengthUnit::Metres => "metres",
+        LengthUnit::Millimetres => "millimetres",
+    };
     let mut out = Vec::with_capacity(positions.len() * 24 + indices.len() * 5 + 256);
     write!(
         out,
-        "ply\nformat binary_little_endian 1.0\ncomment vtgen model frame, metres\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nproperty float nx\nproperty float ny\nproperty float nz\nelement face {}\nproperty list uchar int vertex_indices\nend_header\n",
+        "ply\nformat binary_little_endian 1.0\ncomment vtgen model frame, {unit}\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nproperty float nx\nproperty float ny\nproperty float nz\nelement face {}\nproperty list uchar int vertex_indices\nend_header\n",
         positions.len(),
-        indices.len() / 3
+        indices.len() / 3,
     )?;
     for (p, n) in positions.iter().zip(normals) {
         for v in p.iter().chain(n) {
@@ -106,10 +118,16 @@ mod tests {
         let p = std::env::temp_dir().join(format!("vt-ply-{}.ply", std::process::id()));
         let pos = vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.5]];
         let nrm = vec![[0.0, 0.0, 1.0]; 3];
-        write_ply(&p, &pos, &nrm, &[0, 1, 2]).unwrap();
+        write_ply(&p, &pos, &nrm, &[0, 1, 2], LengthUnit::Metres).unwrap();
         let m = read_ply(&p).unwrap();
         assert_eq!(m.positions, pos);
         assert_eq!(m.normals, nrm);
         assert_eq!(m.triangles, vec![[0, 1, 2]]);
+        // The header says the unit the values are in (BOP exports are in millimetres).
+        write_ply(&p, &pos, &nrm, &[0, 1, 2], LengthUnit::Millimetres).unwrap();
+        let bytes = std::fs::read(&p).unwrap();
+        assert!(bytes.starts_with(b"ply\nformat binary_little_endian 1.0\ncomment vtgen model frame, millimetres\n"));
+        assert_eq!(read_ply(&p).unwrap(), m);
+        std::fs::remove_file(&p).ok();
     }
 }

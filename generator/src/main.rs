@@ -3,7 +3,7 @@ use std::process::ExitCode;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
-use vtgen::config::LoadedConfig;
+use vtgen::config::{LoadedConfig, Override};
 use vtgen::output::generate::{GenerateOptions, generate};
 use vtgen::plan::ShardSelector;
 
@@ -18,6 +18,10 @@ struct Cli {
     /// robot.assets; without either, the robot is drawn from primitives.
     #[arg(long, global = true, value_name = "DIR")]
     robot_assets: Option<PathBuf>,
+    /// Override a config key (repeatable), with the config's own checks, e.g.
+    /// `--set sampling.trajectories_per_object=2 --set sampling.instances_per_trajectory=5`.
+    #[arg(long = "set", global = true, value_name = "KEY=VALUE")]
+    overrides: Vec<Override>,
 }
 
 #[derive(Subcommand)]
@@ -50,6 +54,8 @@ enum Command {
     },
     /// Print what a config would generate (objects, splits, shards, disk size) and write nothing.
     Plan { config: PathBuf },
+    /// Print the config as vtgen reads it: every default filled in and `--set` applied (YAML).
+    Config { config: PathBuf },
     /// Measure samples/s and the time per stage on the config's first samples (writes nothing).
     Bench {
         config: PathBuf,
@@ -163,14 +169,29 @@ enum ExportFormat {
         /// Also write the exact float depth as OpenEXR (`depth_exr/IIIIII.exr`, channel Z, metres).
         #[arg(long)]
         exr: bool,
+        /// List a test image in test_targets_bop19/24.json when its object is visible at least
+        /// this fraction (BOP's datasets use 0.1; default: any visible pixel).
+        #[arg(long, default_value_t = 0.0)]
+        targets_min_visib: f64,
     },
 }
 
 // Long on purpose: one match arm per subcommand, each a few lines from parsed flags to a library call.
 fn run(cli: Cli) -> Result<()> {
+    let load = |config: &PathBuf| LoadedConfig::load_with(config, &cli.overrides);
+    let reads_config = matches!(
+        cli.command,
+        Command::Generate { .. }
+            | Command::Plan { .. }
+            | Command::Config { .. }
+            | Command::Bench { .. }
+            | Command::Grasps { .. }
+            | Command::Preview { .. }
+    );
+    anyhow::ensure!(reads_config || cli.overrides.is_empty(), "--set overrides a config's keys, and this command reads a dataset");
     match cli.command {
         Command::Generate { config, out, shard, resume, overwrite, jobs, ycb_dir, quiet } => {
-            let cfg = LoadedConfig::load(&config)?;
+            let cfg = load(&config)?;
             let out = out.unwrap_or_else(|| cfg.config.output.dir.clone());
             let opts =
                 GenerateOptions { out: out.clone(), shard: shard.unwrap_or(ShardSelector::ALL), resume, overwrite, jobs, quiet, ycb_dir };
@@ -191,12 +212,16 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Command::Plan { config } => {
-            let cfg = LoadedConfig::load(&config)?;
+            let cfg = load(&config)?;
             print!("{}", vtgen::cli::plan::describe(&config, &cfg.config));
             Ok(())
         }
+        Command::Config { config } => {
+            print!("{}", serde_yaml::to_string(&load(&config)?.config)?);
+            Ok(())
+        }
         Command::Bench { config, samples, jobs, ycb_dir, json } => {
-            let cfg = LoadedConfig::load(&config)?;
+            let cfg = load(&config)?;
             let r = vtgen::cli::bench::bench(&cfg, samples, jobs, ycb_dir.as_ref())?;
             if json {
                 println!("{}", serde_json::to_string_pretty(&r)?);
@@ -206,7 +231,7 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Command::Grasps { config, trajectories, instances, jobs, ycb_dir, min_kept, json, quiet } => {
-            let cfg = LoadedConfig::load(&config)?;
+            let cfg = load(&config)?;
             let objects = vtgen::assets::load_objects(&cfg, ycb_dir.as_ref())?;
             let jobs = jobs.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
             let opts = vtgen::cli::grasps::GraspCheckOptions { trajectories, instances, jobs, quiet };
@@ -224,7 +249,7 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Command::Preview { source, n, out, width, columns, ycb_dir } => {
-            let samples = vtgen::cli::preview::samples(&source, n, ycb_dir.as_ref())?;
+            let samples = vtgen::cli::preview::samples(&source, n, ycb_dir.as_ref(), &cli.overrides)?;
             vtgen::cli::preview::write_sheet(&samples, &out, width, columns)?;
             println!("wrote {} ({} samples)", out.display(), samples.len());
             Ok(())
@@ -259,14 +284,20 @@ fn run(cli: Cli) -> Result<()> {
             println!("wrote {} files to {}: {}", files.len(), out.display(), files.join(", "));
             Ok(())
         }
-        Command::Export { format: ExportFormat::Bop { dataset, out, quiet, exr } } => {
+        Command::Export { format: ExportFormat::Bop { dataset, out, quiet, exr, targets_min_visib } } => {
             // The renderer the dataset was made with (its adapter choice), for the amodal masks.
             let renderer = std::fs::read(dataset.join("config.json"))
                 .ok()
                 .and_then(|b| serde_json::from_slice::<serde_json::Value>(&b).ok())
                 .and_then(|c| serde_json::from_value(c["renderer"].clone()).ok())
                 .unwrap_or_default();
-            let r = vtgen::cli::export::export_bop(&dataset, &out, &renderer, quiet, exr)?;
+            let r = vtgen::cli::export::export_bop(
+                &dataset,
+                &out,
+                &renderer,
+                quiet,
+                vtgen::cli::export::BopOptions { exr, targets_min_visib },
+            )?;
             println!("wrote {}: {} objects, {} scenes, {} images (BOP format)", out.display(), r.objects, r.scenes, r.images);
             Ok(())
         }

@@ -108,3 +108,47 @@ def test_ground_truth_reprojects_onto_exported_depth_and_masks(bop: Path, rust_h
                 assert agree.mean() >= 0.99, f"{scene.name}/{im_id}: {agree.mean():.3f} of {len(z)} agree"
                 checked += 1
     assert checked >= 10
+
+
+def test_the_bop_toolkit_reads_the_export(bop: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """With ``bop_toolkit_lib`` importable (it is not on PyPI: put a checkout of
+    github.com/thodan/bop_toolkit on ``PYTHONPATH``), the toolkit's own code reads the export once
+    ``vtdata.bop`` registered it: ``dataset_params``, ``inout.load_scene_gt``, its test targets
+    (``inout.get_im_targets``) and its boxes (``misc.calc_2d_bbox`` over the exported masks, as
+    ``calc_gt_info.py`` computes them)."""
+    pytest.importorskip("bop_toolkit_lib", reason="bop_toolkit_lib is not installed (not on PyPI)")
+    from bop_toolkit_lib import dataset_params, inout, misc
+
+    import vtdata.bop
+
+    datasets = tmp_path / "bop"
+    datasets.mkdir()
+    (datasets / "vtgen").symlink_to(bop)
+    vtdata.bop.register("vtgen")
+    models = dataset_params.get_model_params(str(datasets), "vtgen")
+    info = inout.load_json(models["models_info_path"], keys_to_int=True)
+    assert models["obj_ids"] == sorted(info)
+    for obj_id in models["obj_ids"]:
+        assert Path(models["model_tpath"].format(obj_id=obj_id)).is_file()
+    targets = inout.load_json(str(datasets / "vtgen" / "test_targets_bop19.json"))
+    split = dataset_params.get_split_params(str(datasets), "vtgen", "test")
+    assert split["scene_ids"] and split["im_size"] == tuple(json.loads((bop / "camera.json").read_text())[k] for k in ("width", "height"))
+    expected = []
+    for scene_id in split["scene_ids"]:
+        scene_gt = inout.load_scene_gt(split["scene_gt_tpath"].format(scene_id=scene_id))
+        scene_gt_info = inout.load_json(split["scene_gt_info_tpath"].format(scene_id=scene_id), keys_to_int=True)
+        for im_id, gts in scene_gt.items():
+            im_targets = inout.get_im_targets(gts, scene_gt_info[im_id], 0.0, "localization")
+            expected += [
+                {"im_id": im_id, "inst_count": t["inst_count"], "obj_id": obj_id, "scene_id": scene_id}
+                for obj_id, t in im_targets.items()
+                if scene_gt_info[im_id][0]["px_count_visib"] > 0
+            ]
+            for gt_id, gt_info in enumerate(scene_gt_info[im_id]):
+                for key, tpath in (("bbox_obj", "mask_tpath"), ("bbox_visib", "mask_visib_tpath")):
+                    mask = np.asarray(Image.open(split[tpath].format(scene_id=scene_id, im_id=im_id, gt_id=gt_id)))
+                    ys, xs = mask.nonzero()
+                    box = [-1, -1, -1, -1] if len(xs) == 0 else [int(v) for v in misc.calc_2d_bbox(xs, ys)]
+                    assert gt_info[key] == box, (scene_id, im_id, key)
+    order = lambda t: (t["scene_id"], t["im_id"])  # noqa: E731
+    assert sorted(targets, key=order) == sorted(expected, key=order)

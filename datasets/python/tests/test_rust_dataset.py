@@ -279,3 +279,73 @@ def test_damaged_chunks_raise_the_readers_own_error_naming_shard_and_sample(
             assert entry["file"] in str(e) and f"sample {i}" in str(e), e
             errors += 1
     assert errors == len(chunks), f"{errors} errors for {len(chunks)} damaged samples"
+
+
+def _copy(src: Path, dst: Path) -> Dict[str, object]:
+    """A copy of a dataset and its manifest's first train shard entry."""
+    import shutil
+
+    shutil.copytree(src, dst)
+    return json.loads((dst / "manifest.json").read_text())["splits"]["train"]["shards"][0]
+
+
+def test_a_truncated_shard_is_a_dataset_error_naming_it(rust_dataset: Path, tmp_path: Path) -> None:
+    root = tmp_path / "ds"
+    entry = _copy(rust_dataset, root)
+    path = root / entry["file"]
+    data = path.read_bytes()
+    path.write_bytes(data[: len(data) // 2])
+    with pytest.raises(vtdata.DatasetError, match="truncated or damaged") as err:
+        vtdata.Dataset(root, "train")
+    assert entry["file"] in str(err.value)
+    print(f"truncated shard: {err.value}")
+
+
+def test_a_missing_manifest_is_a_dataset_error_and_a_file_not_found_error(
+    rust_dataset: Path, tmp_path: Path
+) -> None:
+    root = tmp_path / "ds"
+    _copy(rust_dataset, root)
+    (root / "manifest.json").unlink()
+    with pytest.raises(vtdata.DatasetNotFoundError, match="manifest.json is missing") as err:
+        vtdata.Dataset(root, "train")
+    assert isinstance(err.value, vtdata.DatasetError) and isinstance(err.value, FileNotFoundError)
+    print(f"missing manifest: {err.value}")
+
+
+def test_a_shard_from_another_dataset_is_refused(
+    rust_dataset: Path, rust_hand_dataset: Path, tmp_path: Path
+) -> None:
+    """The robot dataset's first train shard copied over the tiny dataset's: same file name, other
+    config. Its ``vtgen.shard`` metadata names another config hash."""
+    import shutil
+
+    root = tmp_path / "ds"
+    entry = _copy(rust_dataset, root)
+    other = json.loads((rust_hand_dataset / "manifest.json").read_text())["splits"]["train"]
+    shutil.copyfile(rust_hand_dataset / other["shards"][0]["file"], root / entry["file"])
+    with pytest.raises(vtdata.DatasetError, match="belongs to another dataset") as err:
+        vtdata.Dataset(root, "train")
+    assert entry["file"] in str(err.value)
+    print(f"foreign shard: {err.value}")
+
+
+def test_verify_checks_every_shard_against_the_manifest(rust_dataset: Path, tmp_path: Path) -> None:
+    """A byte flipped in a shard's first chunk: ``verify=True`` refuses the split up front; without
+    it the split opens (the damage surfaces when that sample is read)."""
+    from mcap.reader import make_reader
+
+    root = tmp_path / "ds"
+    entry = _copy(rust_dataset, root)
+    path = root / entry["file"]
+    with open(path, "rb") as f:
+        chunk = make_reader(f).get_summary().chunk_indexes[0]
+    data = bytearray(path.read_bytes())
+    data[chunk.chunk_start_offset + chunk.chunk_length // 2] ^= 0x01
+    path.write_bytes(bytes(data))
+    assert len(vtdata.Dataset(root, "train")) > 0
+    vtdata.Dataset(root, "test", verify=True)  # the test split is untouched
+    with pytest.raises(vtdata.DatasetError, match="does not match the manifest") as err:
+        vtdata.Dataset(root, "train", verify=True)
+    assert entry["file"] in str(err.value)
+    print(f"verify=True: {err.value}")

@@ -21,6 +21,7 @@ from .ply import PlyError, load_ply
 from .reader import (
     Dataset,
     DatasetError,
+    DatasetNotFoundError,
     Sample,
     decode_raw_image,
     load_models,
@@ -38,6 +39,7 @@ __version__ = "0.1.0"
 __all__ = [
     "Dataset",
     "DatasetError",
+    "DatasetNotFoundError",
     "DenseFusionDataset",
     "DenseFusionView",
     "PlyError",

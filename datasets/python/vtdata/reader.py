@@ -86,7 +86,19 @@ _HAS_NEW_TIME_BOUNDS = (
 
 
 class DatasetError(RuntimeError):
-    """A dataset does not follow the vtgen format (missing or inconsistent files or messages)."""
+    """A dataset does not follow the vtgen format (missing or inconsistent files or messages).
+
+    The one exception type the reader raises for a damaged, incomplete or foreign dataset: a
+    truncated shard, a damaged chunk, a shard from another dataset, a checksum that does not match
+    the manifest. Its message names the file and, when reading a sample, the sample.
+    """
+
+
+class DatasetNotFoundError(DatasetError, FileNotFoundError):
+    """A file the dataset needs is missing: the folder, ``manifest.json``, a shard or a model.
+
+    Both a :class:`DatasetError` and a :class:`FileNotFoundError`.
+    """
 
 
 class Sample(Dict[str, Any]):
@@ -167,7 +179,14 @@ class Dataset(Sequence[Sample]):
     ``Dataset`` is not safe to share between threads of one process.
     """
 
-    def __init__(self, root: PathLike, split: str = "train", *, max_open_files: int = 32) -> None:
+    def __init__(
+        self,
+        root: PathLike,
+        split: str = "train",
+        *,
+        max_open_files: int = 32,
+        verify: bool = False,
+    ) -> None:
         if max_open_files < 1:
             raise ValueError(f"max_open_files must be >= 1, got {max_open_files}")
         self.root = Path(root)
@@ -184,11 +203,13 @@ class Dataset(Sequence[Sample]):
         self.shards: List[str] = []
         # _samples[i] = (shard path, chunk message_start_time) of sample i.
         self._samples: List[Tuple[str, int]] = _build_index(
-            self.root, split, splits[split], self.shards
+            self.root, split, splits[split], self.shards, self.manifest
         )
         self._models: Optional[Dict[str, Dict[str, Any]]] = None
         self._open: "collections.OrderedDict[str, _OpenShard]" = collections.OrderedDict()
         self._open_pid = os.getpid()
+        if verify:
+            self.verify_checksums()
 
     # --- sequence protocol -------------------------------------------------------------------
 
@@ -239,6 +260,8 @@ class Dataset(Sequence[Sample]):
             if expected is None:
                 continue
             path = self.root / entry["file"]
+            if not path.is_file():
+                raise DatasetNotFoundError(f"shard {path} is listed in the manifest but missing on disk")
             digest = hashlib.sha256()
             with open(path, "rb") as f:
                 for block in iter(lambda: f.read(1 << 20), b""):
@@ -493,8 +516,8 @@ def _read_manifest(root: Path) -> Dict[str, Any]:
     path = root / "manifest.json"
     if not path.is_file():
         if not root.is_dir():
-            raise FileNotFoundError(f"dataset folder {root} does not exist")
-        raise FileNotFoundError(f"{path} is missing: {root} is not a vtgen dataset")
+            raise DatasetNotFoundError(f"dataset folder {root} does not exist")
+        raise DatasetNotFoundError(f"{path} is missing: {root} is not a vtgen dataset")
     try:
         with open(path, "r", encoding="utf-8") as f:
             manifest = json.load(f)
@@ -515,8 +538,37 @@ def _read_manifest(root: Path) -> Dict[str, Any]:
     return manifest
 
 
+def _check_shard_belongs(
+    shard: str,
+    meta: Optional[Mapping[str, str]],
+    split: str,
+    entry: Mapping[str, Any],
+    manifest: Mapping[str, Any],
+) -> None:
+    """The shard's ``vtgen.shard`` metadata names this dataset (its config hash), split and shard."""
+    if meta is None:
+        raise DatasetError(f"{shard}: no 'vtgen.shard' metadata record: not a vtgen shard")
+    theirs, ours = meta.get("config_sha256"), manifest.get("config_sha256")
+    if ours is not None and theirs != ours:
+        raise DatasetError(
+            f"{shard}: this shard belongs to another dataset (its config_sha256 is {theirs}, "
+            f"the manifest's {ours})"
+        )
+    where = (meta.get("split"), meta.get("shard_index"))
+    want = (split, str(entry.get("shard_index")))
+    if entry.get("shard_index") is not None and where != want:
+        raise DatasetError(
+            f"{shard}: holds shard {where[1]} of split {where[0]!r}, but the manifest lists it "
+            f"as shard {want[1]} of split {want[0]!r}"
+        )
+
+
 def _build_index(
-    root: Path, split: str, split_entry: Mapping[str, Any], shards_out: List[str]
+    root: Path,
+    split: str,
+    split_entry: Mapping[str, Any],
+    shards_out: List[str],
+    manifest: Mapping[str, Any],
 ) -> List[Tuple[str, int]]:
     """Map every sample of the split to (shard path, log_time) from the shards' chunk indexes."""
     manifest_path = root / "manifest.json"
@@ -526,18 +578,23 @@ def _build_index(
             continue  # listed but not generated yet (interrupted or distributed run)
         path = root / entry["file"]
         if not path.is_file():
-            raise FileNotFoundError(
+            raise DatasetNotFoundError(
                 f"shard {path} is listed in {manifest_path} but missing on disk"
             )
         shard = str(path)
         shards_out.append(shard)
         with open(path, "rb") as f:
             try:
-                summary = make_reader(f).get_summary()
+                reader = make_reader(f)
+                summary = reader.get_summary()
+                metadata = {m.name: m.metadata for m in reader.iter_metadata()}
             except Exception as e:
-                raise DatasetError(f"{shard}: cannot read the MCAP summary: {e}") from e
+                raise DatasetError(
+                    f"{shard}: cannot read the MCAP summary (truncated or damaged file?): {e}"
+                ) from e
         if summary is None:
             raise DatasetError(f"{shard}: MCAP file has no summary section")
+        _check_shard_belongs(shard, metadata.get("vtgen.shard"), split, entry, manifest)
         indices: List[int] = []
         for chunk in summary.chunk_indexes:
             start, end = chunk.message_start_time, chunk.message_end_time
@@ -598,14 +655,14 @@ def load_models(root: PathLike) -> Dict[str, Dict[str, Any]]:
     models_dir = Path(root) / "models"
     info_path = models_dir / "models_info.json"
     if not info_path.is_file():
-        raise FileNotFoundError(f"{info_path} is missing")
+        raise DatasetNotFoundError(f"{info_path} is missing")
     with open(info_path, "r", encoding="utf-8") as f:
         info = json.load(f)
     out: Dict[str, Dict[str, Any]] = {}
     for entry in info.get("objects", []):
         ply_path = models_dir / entry["file"]
         if not ply_path.is_file():
-            raise FileNotFoundError(f"model {ply_path} listed in {info_path} is missing")
+            raise DatasetNotFoundError(f"model {ply_path} listed in {info_path} is missing")
         mesh = load_ply(ply_path)
         if mesh["normals"] is None:
             raise DatasetError(f"{ply_path}: vertices have no nx ny nz normals")

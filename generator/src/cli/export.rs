@@ -15,7 +15,7 @@ use glam::{DMat3, DMat4, DVec3};
 use image::{GrayImage, ImageBuffer, Luma, RgbImage};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::{Value, json};
-use vt_dataset::{ContinuousSymmetry, DatasetReader, ModelsInfo, Sample, read_ply, write_ply};
+use vt_dataset::{ContinuousSymmetry, DatasetReader, LengthUnit, ModelsInfo, Sample, read_ply, write_ply};
 use vt_objects::{Symmetry, Texture, TexturedMesh};
 
 use crate::config::{Intrinsics, RendererConfig};
@@ -76,7 +76,8 @@ fn model_info(m: &vt_dataset::ModelInfo, lo: DVec3, hi: DVec3, positions: &[[f32
     v
 }
 
-/// x, y, width, height of the pixels where `inside` holds; BOP writes `[-1, -1, -1, -1]` for none.
+/// x, y, width, height of the pixels where `inside` holds, as `bop_toolkit`'s `calc_2d_bbox`
+/// measures them (width = max x - min x: a one-pixel box is 0 wide); `[-1, -1, -1, -1]` for none.
 fn bbox(width: u32, height: u32, inside: impl Fn(usize) -> bool) -> [i64; 4] {
     let (mut x0, mut y0, mut x1, mut y1) = (i64::MAX, i64::MAX, -1i64, -1i64);
     for y in 0..height as i64 {
@@ -89,7 +90,7 @@ fn bbox(width: u32, height: u32, inside: impl Fn(usize) -> bool) -> [i64; 4] {
             }
         }
     }
-    if x1 < 0 { [-1, -1, -1, -1] } else { [x0, y0, x1 - x0 + 1, y1 - y0 + 1] }
+    if x1 < 0 { [-1, -1, -1, -1] } else { [x0, y0, x1 - x0, y1 - y0] }
 }
 
 fn save_png<P: image::Pixel<Subpixel = S> + image::PixelWithColorType, S: image::Primitive>(
@@ -119,10 +120,28 @@ fn keyed(m: &BTreeMap<u64, Value>) -> Value {
     Value::Object(m.iter().map(|(k, v)| (k.to_string(), v.clone())).collect())
 }
 
+/// What `export_bop` writes besides the images.
+#[derive(Debug, Clone, Copy)]
+pub struct BopOptions {
+    /// Also write the exact float depth as OpenEXR.
+    pub exr: bool,
+    /// The test targets (`test_targets_bop19.json`, `test_targets_bop24.json`) list the test
+    /// images whose object is visible at least this fraction (and by one pixel); BOP's own
+    /// datasets use 0.1, the paper evaluates up to > 85 % occlusion, hence 0 by default.
+    pub targets_min_visib: f64,
+}
+
+impl Default for BopOptions {
+    fn default() -> Self {
+        BopOptions { exr: false, targets_min_visib: 0.0 }
+    }
+}
+
 /// Exports the dataset at `root` to `out` (created; must be empty or absent).
 // Long on purpose: the BOP directory layout written in its order (models, camera, per-scene
 // files); each step is a few lines of one file's fields.
-pub fn export_bop(root: &Path, out: &Path, renderer: &RendererConfig, quiet: bool, exr: bool) -> Result<ExportSummary> {
+pub fn export_bop(root: &Path, out: &Path, renderer: &RendererConfig, quiet: bool, options: BopOptions) -> Result<ExportSummary> {
+    let BopOptions { exr, targets_min_visib } = options;
     let ds = DatasetReader::open(root)?;
     if out.exists() && std::fs::read_dir(out).map(|mut d| d.next().is_some()).unwrap_or(true) {
         anyhow::bail!("{} exists and is not empty: choose a new directory for the export", out.display());
@@ -144,7 +163,7 @@ pub fn export_bop(root: &Path, out: &Path, renderer: &RendererConfig, quiet: boo
         let obj_id = k + 1;
         let mm_positions: Vec<[f32; 3]> = ply.positions.iter().map(|p| p.map(|v| v * 1000.0)).collect();
         let indices: Vec<u32> = ply.triangles.iter().flatten().copied().collect();
-        write_ply(&out.join(format!("models/obj_{obj_id:06}.ply")), &mm_positions, &ply.normals, &indices)?;
+        write_ply(&out.join(format!("models/obj_{obj_id:06}.ply")), &mm_positions, &ply.normals, &indices, LengthUnit::Millimetres)?;
         let (lo, hi) = ply.positions.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
             let v = glam::Vec3::from(*p).as_dvec3();
             (lo.min(v), hi.max(v))
@@ -171,6 +190,8 @@ pub fn export_bop(root: &Path, out: &Path, renderer: &RendererConfig, quiet: boo
     );
     let mut summary = ExportSummary { objects: models.objects.len(), ..Default::default() };
     let mut camera_json: Option<Value> = None;
+    // BOP19 targets (localization: object and instance count per image), BOP24 (detection: images).
+    let (mut targets19, mut targets24) = (Vec::new(), Vec::new());
     for split in SPLITS.map(|s| s.as_str()) {
         for shard in ds.shards(split)? {
             let dir = out.join(split).join(format!("{:06}", shard.meta().shard_index));
@@ -185,7 +206,12 @@ pub fn export_bop(root: &Path, out: &Path, renderer: &RendererConfig, quiet: boo
                         format!("{} sample {index}: object_index is missing or not in models_info.json", shard.path().display())
                     })? as usize;
                 let amodal = render_alone(&mut r, &s, handles[obj])?;
-                write_image(&mut scene, &dir, &s, obj + 1, &amodal)?;
+                let (px_visib, visib_fract) = write_image(&mut scene, &dir, &s, obj + 1, &amodal)?;
+                if split == "test" && px_visib > 0 && visib_fract >= targets_min_visib {
+                    let scene_id = shard.meta().shard_index;
+                    targets19.push(json!({"im_id": index, "inst_count": 1, "obj_id": obj + 1, "scene_id": scene_id}));
+                    targets24.push(json!({"im_id": index, "scene_id": scene_id}));
+                }
                 if exr {
                     crate::cli::dump::write_exr_depth(&dir.join(format!("depth_exr/{index:06}.exr")), s.width, s.height, &s.depth)?;
                 }
@@ -208,6 +234,8 @@ pub fn export_bop(root: &Path, out: &Path, renderer: &RendererConfig, quiet: boo
     if let Some(c) = camera_json {
         write_json(&out.join("camera.json"), &c)?;
     }
+    write_json(&out.join("test_targets_bop19.json"), &Value::Array(targets19))?;
+    write_json(&out.join("test_targets_bop24.json"), &Value::Array(targets24))?;
     Ok(summary)
 }
 
@@ -227,7 +255,8 @@ fn render_alone(r: &mut WgpuRenderer, s: &Sample, mesh: MeshHandle) -> Result<Ve
     )
 }
 
-fn write_image(scene: &mut Scene, dir: &Path, s: &Sample, obj_id: usize, amodal: &[u8]) -> Result<()> {
+/// Writes one image's files and annotations; returns its visible pixels and visible fraction.
+fn write_image(scene: &mut Scene, dir: &Path, s: &Sample, obj_id: usize, amodal: &[u8]) -> Result<(usize, f64)> {
     let (w, h) = (s.width, s.height);
     let im = s.index;
     let target = vt_dataset::mask_ids::TARGET_OBJECT;
@@ -243,6 +272,7 @@ fn write_image(scene: &mut Scene, dir: &Path, s: &Sample, obj_id: usize, amodal:
     let px_all = full.iter().filter(|&&m| m > 0).count();
     let px_valid = full.iter().zip(&depth).filter(|&(&m, &d)| m > 0 && d > 0).count();
     let px_visib = visible.iter().filter(|&&m| m > 0).count();
+    let visib_fract = if px_all > 0 { px_visib as f64 / px_all as f64 } else { 0.0 };
     let t_world_camera = s.t_world_camera;
     let t_camera_world = t_world_camera.inverse();
     scene.camera.insert(
@@ -262,7 +292,7 @@ fn write_image(scene: &mut Scene, dir: &Path, s: &Sample, obj_id: usize, amodal:
             "bbox_obj": bbox(w, h, |i| full[i] > 0),
             "bbox_visib": bbox(w, h, |i| visible[i] > 0),
             "px_count_all": px_all, "px_count_valid": px_valid, "px_count_visib": px_visib,
-            "visib_fract": if px_all > 0 { px_visib as f64 / px_all as f64 } else { 0.0 },
+            "visib_fract": visib_fract,
         }]),
     );
     if let Some(tac) = &s.tactile {
@@ -277,7 +307,7 @@ fn write_image(scene: &mut Scene, dir: &Path, s: &Sample, obj_id: usize, amodal:
             }),
         );
     }
-    Ok(())
+    Ok((px_visib, visib_fract))
 }
 
 #[cfg(test)]

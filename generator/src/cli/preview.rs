@@ -11,18 +11,20 @@ use image::{Rgb, RgbImage};
 use vt_dataset::{DatasetReader, Sample};
 
 use crate::assets::load_objects;
-use crate::config::LoadedConfig;
+use crate::config::{LoadedConfig, Override};
 use crate::plan::Plan;
 use crate::render::WgpuRenderer;
 use crate::sample::SampleFactory;
 
-/// The first `n` samples of a config (generated in memory) or of a dataset directory's train split.
-pub fn samples(source: &Path, n: usize, ycb_dir: Option<&std::path::PathBuf>) -> Result<Vec<Sample>> {
+/// The first `n` samples of a config (generated in memory, with `overrides` applied) or of a
+/// dataset directory's train split.
+pub fn samples(source: &Path, n: usize, ycb_dir: Option<&std::path::PathBuf>, overrides: &[Override]) -> Result<Vec<Sample>> {
     if source.is_dir() {
+        anyhow::ensure!(overrides.is_empty(), "--set applies to a config, not to the dataset {}", source.display());
         let ds = DatasetReader::open(source)?;
         return ds.samples("train")?.take(n).collect();
     }
-    let cfg = LoadedConfig::load(source)?;
+    let cfg = LoadedConfig::load_with(source, overrides)?;
     let plan = Plan::new(&cfg.config);
     let objects = load_objects(&cfg, ycb_dir)?;
     let mut factory = SampleFactory::new(&cfg, &objects, Box::new(WgpuRenderer::new(&cfg.config.renderer)?))?;

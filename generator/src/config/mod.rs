@@ -2,11 +2,40 @@
 //! field path, and out-of-range values name the allowed range.
 
 mod locate;
+mod overrides;
 mod schema;
 
 use std::path::{Path, PathBuf};
 
+pub use overrides::Override;
 pub use schema::*;
+
+/// A serde_yaml error as a config error at its line and column.
+fn yaml_error(e: serde_path_to_error::Error<serde_yaml::Error>, path: &Path) -> ConfigError {
+    let field = e.path().to_string();
+    let inner = e.into_inner();
+    let loc = inner.location();
+    let mut message = inner.to_string();
+    // serde_yaml appends " at line L column C"; the location is printed up front instead.
+    if let Some(pos) = message.find(" at line ") {
+        message.truncate(pos);
+    }
+    ConfigError {
+        file: path.to_path_buf(),
+        line: loc.as_ref().map(|l| l.line()),
+        column: loc.as_ref().map(|l| l.column()),
+        message: strip_field(message, &field),
+        field,
+    }
+}
+
+/// serde_yaml starts some messages with the field path, which the error prints already.
+fn strip_field(message: String, field: &str) -> String {
+    match message.strip_prefix(&format!("{field}: ")) {
+        Some(rest) if !field.is_empty() && field != "." => rest.to_string(),
+        _ => message,
+    }
+}
 
 /// A config error, formatted `FILE:LINE:COL: FIELD: message`.
 #[derive(Debug, thiserror::Error)]
@@ -42,6 +71,12 @@ pub struct LoadedConfig {
 
 impl LoadedConfig {
     pub fn load(path: &Path) -> Result<Self, ConfigError> {
+        Self::load_with(path, &[])
+    }
+
+    /// Loads `path` with `--set KEY=VALUE` overrides applied on top (Hydra-style: any key, the
+    /// same validation). An error in an overridden field names the override, not a file line.
+    pub fn load_with(path: &Path, overrides: &[Override]) -> Result<Self, ConfigError> {
         let text = std::fs::read_to_string(path).map_err(|e| ConfigError {
             file: path.to_path_buf(),
             line: None,
@@ -49,36 +84,64 @@ impl LoadedConfig {
             field: String::new(),
             message: format!("cannot read config: {e}"),
         })?;
-        Self::parse(&text, path)
+        if overrides.is_empty() { Self::parse(&text, path) } else { Self::parse_with(&text, path, overrides) }
     }
 
     /// Parses config text; `path` is used for messages and to resolve relative paths.
     pub fn parse(text: &str, path: &Path) -> Result<Self, ConfigError> {
         let de = serde_yaml::Deserializer::from_str(text);
-        let config: Config = serde_path_to_error::deserialize(de).map_err(|e| {
-            let field = e.path().to_string();
-            let inner = e.into_inner();
-            let loc = inner.location();
-            let mut message = inner.to_string();
-            // serde_yaml appends " at line L column C"; the location is printed up front instead.
-            if let Some(pos) = message.find(" at line ") {
-                message.truncate(pos);
-            }
-            ConfigError {
-                file: path.to_path_buf(),
-                line: loc.as_ref().map(|l| l.line()),
-                column: loc.as_ref().map(|l| l.column()),
-                field,
-                message,
-            }
-        })?;
+        let config: Config = serde_path_to_error::deserialize(de).map_err(|e| yaml_error(e, path))?;
         let problems = config.validate();
         if let Some(p) = problems.into_iter().next() {
             let (line, column) = locate::locate(text, &p.path).map_or((None, None), |(l, c)| (Some(l), Some(c)));
             return Err(ConfigError { file: path.to_path_buf(), line, column, field: locate::display_path(&p.path), message: p.message });
         }
+        Ok(Self::with_path(config, path))
+    }
+
+    /// `parse` with overrides: the file's YAML tree with each override set into it, then the
+    /// same deserialization and checks.
+    pub fn parse_with(text: &str, path: &Path, overrides: &[Override]) -> Result<Self, ConfigError> {
+        let mut tree: serde_yaml::Value =
+            serde_path_to_error::deserialize(serde_yaml::Deserializer::from_str(text)).map_err(|e| yaml_error(e, path))?;
+        if tree.is_null() {
+            tree = serde_yaml::Value::Mapping(Default::default());
+        }
+        for o in overrides {
+            o.apply(&mut tree)?;
+        }
+        // The override an error falls in, if any; otherwise the file's own error, located.
+        let blame = |field: &str, message: String| {
+            let field_keys = overrides::keys(field);
+            match overrides.iter().rev().find(|o| field_keys.starts_with(&o.keys) || o.keys.starts_with(&field_keys)) {
+                Some(o) => o.error(field, message),
+                None => Self::parse(text, path).err().unwrap_or(ConfigError {
+                    file: path.to_path_buf(),
+                    line: None,
+                    column: None,
+                    field: field.to_string(),
+                    message: format!("{message} (with the --set overrides)"),
+                }),
+            }
+        };
+        let config: Config = serde_path_to_error::deserialize(tree).map_err(|e| {
+            let field = e.path().to_string();
+            let message = strip_field(e.into_inner().to_string(), &field);
+            blame(&field, message)
+        })?;
+        if let Some(p) = config.validate().into_iter().next() {
+            return Err(blame(&locate::display_path(&p.path), p.message));
+        }
+        Ok(Self::with_path(config, path))
+    }
+
+    fn with_path(mut config: Config, path: &Path) -> Self {
+        if config.output.dir.as_os_str().is_empty() {
+            let stem = path.file_stem().map_or_else(|| "dataset".into(), |s| s.to_string_lossy().into_owned());
+            config.output.dir = PathBuf::from("out").join(stem);
+        }
         let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-        Ok(LoadedConfig { config, path: path.to_path_buf(), base_dir })
+        LoadedConfig { config, path: path.to_path_buf(), base_dir }
     }
 
     /// Resolves a path written in the config relative to the config file's directory.

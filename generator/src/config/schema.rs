@@ -9,17 +9,22 @@ use serde::{Deserialize, Serialize};
 
 use super::locate::Seg;
 
+/// Every section but `objects` has a default (the paper's camera, 200 x 100 samples per object,
+/// split 4:1, …), so `objects: [...]` alone is a config; `vtgen config FILE` prints it resolved.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Config {
     /// Root of all randomness: the same seed and config give byte-identical datasets.
+    #[serde(default)]
     pub seed: u64,
     /// Catalogue ids (`003_cracker_box`, …) or custom objects `{id, mesh, …}`.
     pub objects: Vec<ObjectSpec>,
     /// A YCB download (`<dir>/<id>/google_16k/textured.obj`); when absent, procedural stand-ins.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub ycb_dir: Option<PathBuf>,
+    #[serde(default)]
     pub sampling: Sampling,
+    #[serde(default)]
     pub camera: Camera,
     #[serde(default)]
     pub scene: SceneConfig,
@@ -31,6 +36,7 @@ pub struct Config {
     /// The arm and hand and the grasp loop. Without it, the object floats in front of the camera.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub robot: Option<RobotConfig>,
+    #[serde(default)]
     pub output: Output,
 }
 
@@ -319,41 +325,70 @@ impl<'de> Deserialize<'de> for ObjectSpec {
 #[serde(deny_unknown_fields)]
 pub struct Sampling {
     /// Random trajectories per object (the paper: 200).
+    #[serde(default = "default_trajectories")]
     pub trajectories_per_object: u32,
     /// Recorded instances per trajectory (the paper: 100).
+    #[serde(default = "default_instances")]
     pub instances_per_trajectory: u32,
     #[serde(default)]
     pub split: Split,
+}
+
+fn default_trajectories() -> u32 {
+    200
+}
+fn default_instances() -> u32 {
+    100
+}
+
+impl Default for Sampling {
+    fn default() -> Self {
+        Sampling { trajectories_per_object: default_trajectories(), instances_per_trajectory: default_instances(), split: Split::default() }
+    }
 }
 
 /// Train/test ratio, decided per trajectory (FORMAT.md).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Split {
+    #[serde(default = "default_split_train")]
     pub train: u32,
+    #[serde(default = "default_split_test")]
     pub test: u32,
+}
+
+fn default_split_train() -> u32 {
+    4
+}
+fn default_split_test() -> u32 {
+    1
 }
 
 impl Default for Split {
     fn default() -> Self {
-        Split { train: 4, test: 1 }
+        Split { train: default_split_train(), test: default_split_test() }
     }
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Camera {
+    #[serde(default = "default_width")]
     pub width: u32,
+    #[serde(default = "default_height")]
     pub height: u32,
     /// Pinhole intrinsics in pixels (FORMAT.md pixel-centre convention) …
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub intrinsics: Option<Intrinsics>,
-    /// … or a vertical field of view in degrees (square pixels, centred principal point).
+    /// … or a vertical field of view in degrees (square pixels, centred principal point). With
+    /// neither, the paper camera's: a 615 px focal length at 480 rows, scaled with `height`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fov_y_deg: Option<f64>,
     /// Camera position in the world frame (metres).
+    #[serde(default = "default_camera_position")]
     pub position: [f64; 3],
     /// World point the optical axis goes through.
+    #[serde(default = "default_look_at")]
     pub look_at: [f64; 3],
     #[serde(default = "default_near")]
     pub near: f64,
@@ -372,6 +407,37 @@ fn is_default<T: Default + PartialEq>(v: &T) -> bool {
 fn default_near() -> f64 {
     0.05
 }
+fn default_width() -> u32 {
+    640
+}
+fn default_height() -> u32 {
+    480
+}
+/// The paper camera: 0.75 m in front of the robot's workspace, looking down at it.
+fn default_camera_position() -> [f64; 3] {
+    [0.0, -0.75, 0.55]
+}
+fn default_look_at() -> [f64; 3] {
+    [0.0, 0.0, 0.28]
+}
+/// The paper camera's focal length (pixels) at 480 rows.
+const PAPER_FOCAL_PX_AT_480: f64 = 615.0;
+
+impl Default for Camera {
+    fn default() -> Self {
+        Camera {
+            width: default_width(),
+            height: default_height(),
+            intrinsics: None,
+            fov_y_deg: None,
+            position: default_camera_position(),
+            look_at: default_look_at(),
+            near: default_near(),
+            far: default_far(),
+            noise: Default::default(),
+        }
+    }
+}
 fn default_far() -> f64 {
     10.0
 }
@@ -386,16 +452,15 @@ pub struct Intrinsics {
 }
 
 impl Camera {
-    /// The intrinsics, from `intrinsics` or derived from `fov_y_deg`.
+    /// The intrinsics, from `intrinsics`, derived from `fov_y_deg`, or the paper camera's focal
+    /// length scaled to the image (615 px at 640 x 480: the paper's intrinsics exactly).
     pub fn k(&self) -> Intrinsics {
-        match (self.intrinsics, self.fov_y_deg) {
-            (Some(k), _) => k,
-            (None, Some(fov)) => {
-                let f = 0.5 * self.height as f64 / (0.5 * fov.to_radians()).tan();
-                Intrinsics { fx: f, fy: f, cx: (self.width as f64 - 1.0) / 2.0, cy: (self.height as f64 - 1.0) / 2.0 }
-            }
-            (None, None) => unreachable!("validate() requires intrinsics or fov_y_deg"),
-        }
+        let f = match (self.intrinsics, self.fov_y_deg) {
+            (Some(k), _) => return k,
+            (None, Some(fov)) => 0.5 * self.height as f64 / (0.5 * fov.to_radians()).tan(),
+            (None, None) => PAPER_FOCAL_PX_AT_480 * self.height as f64 / 480.0,
+        };
+        Intrinsics { fx: f, fy: f, cx: (self.width as f64 - 1.0) / 2.0, cy: (self.height as f64 - 1.0) / 2.0 }
     }
 }
 
@@ -514,7 +579,9 @@ pub enum Backend {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Output {
-    /// Dataset directory, relative to the current directory (overridable with `--out`).
+    /// Dataset directory, relative to the current directory (overridable with `--out`); default
+    /// `out/<config file name without .yaml>`.
+    #[serde(default)]
     pub dir: PathBuf,
     #[serde(default = "default_samples_per_shard")]
     pub samples_per_shard: u32,
@@ -536,6 +603,17 @@ impl Output {
 
 fn default_samples_per_shard() -> u32 {
     500
+}
+
+impl Default for Output {
+    fn default() -> Self {
+        Output {
+            dir: PathBuf::new(),
+            samples_per_shard: default_samples_per_shard(),
+            compression: CompressionKind::default(),
+            zstd_level: default_zstd_level(),
+        }
+    }
 }
 fn default_zstd_level() -> i32 {
     3
@@ -644,9 +722,7 @@ impl Config {
                 path: vec![Key("camera"), Key("fov_y_deg")],
                 message: "give either intrinsics or fov_y_deg, not both".into(),
             }),
-            (None, None) => {
-                p.push(Problem { path: vec![Key("camera")], message: "camera needs `intrinsics: {fx, fy, cx, cy}` or `fov_y_deg`".into() })
-            }
+            (None, None) => {}
             (None, Some(f)) => range(p, vec![Key("camera"), Key("fov_y_deg")], f, 1.0, 170.0),
             (Some(k), None) => {
                 for (name, v) in [("fx", k.fx), ("fy", k.fy)] {

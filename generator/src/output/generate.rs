@@ -60,7 +60,7 @@ fn write_models(out: &Path, objects: &[LoadedObject]) -> Result<Vec<String>> {
     let mut dropped = Vec::new();
     for o in objects {
         let file = format!("{}.ply", o.id);
-        vt_dataset::write_ply(&dir.join(&file), &o.mesh.positions, &o.mesh.normals, &o.mesh.indices)?;
+        vt_dataset::write_ply(&dir.join(&file), &o.mesh.positions, &o.mesh.normals, &o.mesh.indices, vt_dataset::LengthUnit::Metres)?;
         let e = o.mesh.extents();
         let sym = vt_objects::derive_symmetries(&o.mesh.positions, &o.mesh.indices, o.symmetry);
         for c in sym.dropped() {
