@@ -202,3 +202,44 @@ fn a_config_of_only_objects_generates_and_set_overrides_it() {
     let o = run(&["inspect", out.to_str().unwrap(), "--set", "seed=1"]);
     assert!(!o.status.success() && stderr(&o).contains("--set overrides a config's keys"), "{}", stderr(&o));
 }
+
+/// A full disk (here the file size limit, RLIMIT_FSIZE at 1 MiB, which fails a shard's write as a
+/// full disk does): one line naming the shard and the bytes it needs, no shard that looks
+/// complete and no `.partial` left; `--resume` afterwards completes byte-identical to a run that
+/// never failed.
+#[test]
+fn a_full_disk_stops_cleanly_and_resume_completes_byte_identical() {
+    use std::os::unix::process::CommandExt;
+    let d = tempdir();
+    let out = d.path().join("out");
+    let config = tiny_config();
+    let mut cmd = vtgen();
+    cmd.args(["generate", config.to_str().unwrap(), "--out", out.to_str().unwrap(), "--quiet"]);
+    // SAFETY: only async-signal-safe calls between fork and exec.
+    unsafe {
+        cmd.pre_exec(|| {
+            // Past the limit a write fails with EFBIG instead of killing the process.
+            libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
+            let limit = libc::rlimit { rlim_cur: 1 << 20, rlim_max: 1 << 20 };
+            if libc::setrlimit(libc::RLIMIT_FSIZE, &limit) != 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            Ok(())
+        });
+    }
+    let o = cmd.output().unwrap();
+    let err = stderr(&o);
+    assert!(!o.status.success(), "must fail: {err}");
+    assert_eq!(err.lines().count(), 1, "one line: {err}");
+    assert!(err.starts_with("error: the disk is full writing "), "{err}");
+    assert!(err.contains("shard-00000.mcap: this shard needs about ") && err.contains("--resume"), "{err}");
+    assert!(complete_shards(&out).is_empty(), "no complete-looking shard");
+    assert!(files_named(&out, |n| n.ends_with(".partial")).is_empty(), "the unfinished shard's bytes are freed");
+    generate(&out, &["--resume"]);
+    let (a, b) = (files(&out), files(reference_dataset()));
+    assert_eq!(a.iter().map(|f| &f.0).collect::<Vec<_>>(), b.iter().map(|f| &f.0).collect::<Vec<_>>());
+    for ((name, x), (_, y)) in a.iter().zip(&b) {
+        assert!(x == y, "{name} differs from an uninterrupted run");
+    }
+    eprintln!("{err}");
+}

@@ -31,15 +31,10 @@ pub fn describe(path: &Path, c: &Config) -> String {
         line(format!("{split:<11} {} samples in {shards} shard(s) of up to {}", plan.samples_per_split[i], plan.samples_per_shard));
     }
     let (w, h) = (c.camera.width as f64, c.camera.height as f64);
-    let raw = w * h * (3.0 + 4.0 + 1.0) + 2048.0;
-    // Measured: zstd keeps ~12% of the raw bytes of canonical scenes; randomized textures compress worse.
-    let est = raw * plan.total_samples() as f64;
-    line(format!(
-        "disk        {} raw; about {} to {} with zstd (estimate)",
-        human_bytes(est),
-        human_bytes(est * 0.1),
-        human_bytes(est * 0.4)
-    ));
+    let raw = (w * h * (3.0 + 4.0 + 1.0) + 2048.0) * plan.total_samples() as f64;
+    let (low, high) = crate::plan::bytes_per_sample(c);
+    let n = plan.total_samples() as f64;
+    line(format!("disk        {} raw; about {} to {} written (estimate)", human_bytes(raw), human_bytes(low * n), human_bytes(high * n)));
     line(format!("output      {}", c.output.dir.display()));
     if let Some(g) = c.robot.as_ref().map(|r| &r.grasp) {
         // Occlusion depends on the hand's pose in the picture: measured, not planned.

@@ -229,6 +229,28 @@ fn update_manifest(out: &Path, config: &Config, config_sha: &str, plan: &Plan, r
     Ok(m)
 }
 
+/// Whether an error comes from a full disk, a full quota or the file size limit.
+fn is_disk_full(e: &anyhow::Error) -> bool {
+    e.chain()
+        .filter_map(|c| c.downcast_ref::<std::io::Error>())
+        .any(|io| matches!(io.raw_os_error(), Some(libc::ENOSPC | libc::EFBIG | libc::EDQUOT)))
+}
+
+/// Free bytes for an unprivileged writer on the filesystem holding `dir`, when the OS says.
+fn free_bytes(dir: &Path) -> Option<u64> {
+    use std::os::unix::ffi::OsStrExt;
+    let c = std::ffi::CString::new(dir.as_os_str().as_bytes()).ok()?;
+    let mut s: libc::statvfs = unsafe { std::mem::zeroed() };
+    // SAFETY: a valid NUL-terminated path and a statvfs struct to fill.
+    (unsafe { libc::statvfs(c.as_ptr(), &mut s) } == 0).then(|| s.f_bavail as u64 * s.f_frsize as u64)
+}
+
+/// "a–b" of an estimate of `samples` samples' bytes.
+fn estimate(config: &Config, samples: u64) -> String {
+    let (low, high) = crate::plan::bytes_per_sample(config);
+    format!("{}–{}", crate::cli::human_bytes(low * samples as f64), crate::cli::human_bytes(high * samples as f64))
+}
+
 fn write_shard(
     factory: &mut SampleFactory,
     out: &Path,
@@ -297,6 +319,18 @@ pub fn generate(cfg: &LoadedConfig, opts: &GenerateOptions) -> Result<GenerateSu
         todo.push(*s);
     }
     let total: u64 = todo.iter().map(|s| s.samples.len() as u64).sum();
+    let needed = crate::plan::bytes_per_sample(config).1 * total as f64;
+    if let Some(free) = free_bytes(out)
+        && (free as f64) < needed
+        && !opts.quiet
+    {
+        eprintln!(
+            "warning: {} has {} free and this run may write {} (estimate); a full disk stops it cleanly and --resume continues",
+            out.display(),
+            crate::cli::human_bytes(free as f64),
+            estimate(config, total)
+        );
+    }
     let progress = if opts.quiet { ProgressBar::hidden() } else { ProgressBar::new(total) };
     progress.set_style(
         ProgressStyle::with_template("{spinner} {elapsed_precise} [{bar:36}] {pos}/{len} samples  {per_sec}  ETA {eta}  {msg}")
@@ -327,7 +361,24 @@ pub fn generate(cfg: &LoadedConfig, opts: &GenerateOptions) -> Result<GenerateSu
                 sample_count: s.samples.len() as u64,
                 extra: Default::default(),
             };
-            Ok(write_shard(factory, out, s, &meta, compression, &progress, &abort)?.map(|r| (s.file(), r)))
+            match write_shard(factory, out, s, &meta, compression, &progress, &abort) {
+                Ok(r) => Ok(r.map(|r| (s.file(), r))),
+                Err(e) => {
+                    // The unfinished shard is never complete: its bytes are freed now (a full disk
+                    // needs them), and a resume would redo it anyway.
+                    let path = out.join(s.file());
+                    let _ = std::fs::remove_file(format!("{}{}", path.display(), vt_dataset::PARTIAL_SUFFIX));
+                    if !is_disk_full(&e) {
+                        return Err(e);
+                    }
+                    Err(e.context(format!(
+                        "the disk is full writing {}: this shard needs about {}, the run's unwritten shards about {}; free space, then rerun with --resume (complete shards are kept)",
+                        path.display(),
+                        estimate(config, s.samples.len() as u64),
+                        estimate(config, total)
+                    )))
+                }
+            }
         },
         |_| Ok(()),
     );
@@ -336,10 +387,13 @@ pub fn generate(cfg: &LoadedConfig, opts: &GenerateOptions) -> Result<GenerateSu
     progress.finish_and_clear();
     let adapter = adapter.into_inner().expect("not poisoned").unwrap_or_else(|| "none (nothing to render)".into());
     // The manifest is rewritten even after an error, so finished shards are recorded.
-    let manifest = update_manifest(out, config, &config_sha, &plan, &receipts)?;
+    let manifest = update_manifest(out, config, &config_sha, &plan, &receipts);
+    // The run's own error first: on a full disk the manifest may not be writable either (a
+    // resume rebuilds it from the complete shards).
     if let Some(e) = first_error {
         return Err(e);
     }
+    let manifest = manifest?;
     Ok(GenerateSummary {
         samples: total,
         shards_written: receipts.len(),
