@@ -54,31 +54,71 @@ impl ShardReader {
         Ok(ShardReader { path: path.to_path_buf(), data, summary, chunks, meta })
     }
 
-    /// Bounds what decompressing chunk `ci` may allocate before the MCAP reader does it: the
-    /// chunk lies inside the file, and the uncompressed size in its header agrees with the summary's
-    /// chunk index and stays under `MAX_CHUNK_BYTES`. (A flipped byte in a chunk header once made
-    /// the reader ask for 3 EB and abort.)
-    fn check_chunk(&self, ci: usize) -> Result<()> {
+    /// The messages of chunk `ci` as (topic, payload), decoded with every size bounded before it
+    /// is used: the chunk lies inside the file, its record's lengths agree with the summary, its
+    /// uncompressed size matches the summary and stays under `MAX_CHUNK_BYTES`, it decompresses
+    /// to exactly that size with a matching CRC, and the records inside are read with their lengths
+    /// limited to the decompressed bytes. (A flipped byte in a chunk header once made the reader
+    /// ask for 3 EB and abort; a damaged record length inside a chunk, found by the fuzzer, asked
+    /// for 360 PB.)
+    fn chunk_messages(&self, ci: usize) -> Result<Vec<(String, Vec<u8>)>> {
         let index = &self.summary.chunk_indexes[ci];
         let start = index.chunk_start_offset as usize;
         let end = start.checked_add(index.chunk_length as usize).filter(|&e| e <= self.data.len());
-        let Some(_end) = end else {
+        let Some(end) = end else {
             bail!("chunk {ci} ({} bytes at offset {start}) runs past the end of the file ({} bytes)", index.chunk_length, self.data.len());
         };
-        // Chunk record: opcode (1), record length (8), message start and end time (8 + 8), then the
-        // uncompressed size (8), little-endian (MCAP spec).
-        let header = self.data.get(start..start + 33).ok_or_else(|| anyhow!("chunk {ci}: header cut off"))?;
-        if header[0] != 0x06 {
-            bail!("chunk {ci}: no chunk record at offset {start} (opcode {:#04x})", header[0]);
+        // Chunk record: opcode (1), record length (8), message start and end time (8 + 8), the
+        // uncompressed size (8) and CRC (4), the compression name (u32 length + bytes), the
+        // compressed size (8), then the records, little-endian (MCAP spec).
+        let chunk = &self.data[start..end];
+        let u64_at = |at: usize| chunk.get(at..at + 8).map(|b| u64::from_le_bytes(b.try_into().expect("8 bytes")));
+        let u32_at = |at: usize| chunk.get(at..at + 4).map(|b| u32::from_le_bytes(b.try_into().expect("4 bytes")));
+        let damaged = || anyhow!("chunk {ci}: its header disagrees with the summary (the chunk header is damaged)");
+        if chunk.first() != Some(&0x06) {
+            bail!("chunk {ci}: no chunk record at offset {start}");
         }
-        let size = u64::from_le_bytes(header[25..33].try_into().expect("8 bytes"));
+        let size = u64_at(25).ok_or_else(damaged)?;
         if size != index.uncompressed_size || size > MAX_CHUNK_BYTES {
             bail!(
                 "chunk {ci}: uncompressed size {size} bytes in its header, {} in the summary (at most {MAX_CHUNK_BYTES}): the chunk header is damaged",
                 index.uncompressed_size
             );
         }
-        Ok(())
+        if u64_at(1).ok_or_else(damaged)?.checked_add(9) != Some(index.chunk_length) {
+            return Err(damaged());
+        }
+        let crc = u32_at(33).ok_or_else(damaged)?;
+        let name_length = u32_at(37).map(|n| n as usize).filter(|&n| n <= 64).ok_or_else(damaged)?;
+        let name = chunk.get(41..41 + name_length).ok_or_else(damaged)?;
+        let records_at = 41 + name_length + 8;
+        if u64_at(41 + name_length).ok_or_else(damaged)?.checked_add(records_at as u64) != Some(index.chunk_length) {
+            return Err(damaged());
+        }
+        let compressed = &chunk[records_at..];
+        let records = match name {
+            b"zstd" => zstd::bulk::decompress(compressed, size as usize).map_err(|e| anyhow!("chunk {ci}: zstd: {e}"))?,
+            b"" => compressed.to_vec(),
+            other => bail!("chunk {ci}: compression '{}' is not one vtgen writes", String::from_utf8_lossy(other)),
+        };
+        if records.len() as u64 != size {
+            bail!("chunk {ci}: decompressed to {} bytes, its header says {size}", records.len());
+        }
+        if crc != 0 && crc32fast::hash(&records) != crc {
+            bail!("chunk {ci}: CRC mismatch (the chunk is damaged)");
+        }
+        let mut messages = Vec::new();
+        for record in mcap::read::LinearReader::sans_magic(&records) {
+            if let mcap::records::Record::Message { header, data } = record.with_context(|| format!("chunk {ci}"))? {
+                let channel = self
+                    .summary
+                    .channels
+                    .get(&header.channel_id)
+                    .ok_or_else(|| anyhow!("chunk {ci}: unknown channel {}", header.channel_id))?;
+                messages.push((channel.topic.clone(), data.into_owned()));
+            }
+        }
+        Ok(messages)
     }
 
     pub fn meta(&self) -> &ShardMeta {
@@ -106,11 +146,9 @@ impl ShardReader {
     pub fn read_info(&self, index: u64) -> Result<serde_json::Value> {
         let ctx = || format!("shard {} sample {index}", self.path.display());
         let ci = *self.chunks.get(&index).ok_or_else(|| anyhow!("{}: not in this shard", ctx()))?;
-        self.check_chunk(ci).with_context(ctx)?;
-        for msg in self.summary.stream_chunk(&self.data, &self.summary.chunk_indexes[ci]).with_context(ctx)? {
-            let msg = msg.with_context(ctx)?;
-            if msg.channel.topic == topics::SAMPLE_INFO {
-                return serde_json::from_slice(&msg.data).with_context(ctx);
+        for (topic, data) in self.chunk_messages(ci).with_context(ctx)? {
+            if topic == topics::SAMPLE_INFO {
+                return serde_json::from_slice(&data).with_context(ctx);
             }
         }
         bail!("{}: missing message on {}", ctx(), topics::SAMPLE_INFO)
@@ -127,12 +165,7 @@ impl ShardReader {
     pub fn read(&self, index: u64) -> Result<Sample> {
         let ctx = || format!("shard {} sample {index}", self.path.display());
         let ci = *self.chunks.get(&index).ok_or_else(|| anyhow!("{}: not in this shard", ctx()))?;
-        self.check_chunk(ci).with_context(ctx)?;
-        let mut by_topic: BTreeMap<String, Vec<u8>> = BTreeMap::new();
-        for msg in self.summary.stream_chunk(&self.data, &self.summary.chunk_indexes[ci]).with_context(ctx)? {
-            let msg = msg.with_context(ctx)?;
-            by_topic.insert(msg.channel.topic.clone(), msg.data.into_owned());
-        }
+        let by_topic: BTreeMap<String, Vec<u8>> = self.chunk_messages(ci).with_context(ctx)?.into_iter().collect();
         let get = |topic: &str| by_topic.get(topic).ok_or_else(|| anyhow!("{}: missing message on {topic}", ctx()));
         let rgb = RawImage::decode(&get(topics::RGB)?[..]).with_context(ctx)?;
         let depth = RawImage::decode(&get(topics::DEPTH)?[..]).with_context(ctx)?;

@@ -250,13 +250,15 @@ fn ray_x_hit(o: DVec3, a: DVec3, b: DVec3, c: DVec3) -> Option<f64> {
 }
 
 /// Triangles of one mesh file in its own frame, with a colour per triangle (linear RGB).
-struct RawMesh {
+pub struct RawMesh {
     positions: Vec<Vec3>,
     triangles: Vec<[u32; 3]>,
     colours: Vec<[f64; 3]>,
 }
 
-fn read_stl(path: &Path, colour: [f64; 3]) -> Result<RawMesh> {
+/// One robot mesh part as read from disk: positions, triangles, a colour per triangle.
+/// (Public for the fuzz targets, `tests/fuzz`.)
+pub fn read_stl(path: &Path, colour: [f64; 3]) -> Result<RawMesh> {
     let mut f = std::fs::File::open(path).with_context(|| format!("robot mesh {}: cannot open", path.display()))?;
     let m = stl_io::read_stl(&mut f).map_err(|e| anyhow::anyhow!("robot mesh {}: not a valid STL file: {e}", path.display()))?;
     let positions: Vec<Vec3> = m.vertices.iter().map(|v| Vec3::new(v[0], v[1], v[2])).collect();
@@ -271,10 +273,11 @@ fn read_stl(path: &Path, colour: [f64; 3]) -> Result<RawMesh> {
     Ok(RawMesh { colours: vec![colour; triangles.len()], positions, triangles })
 }
 
-fn read_obj(path: &Path) -> Result<RawMesh> {
+/// An arm mesh part (OBJ + MTL) as read from disk (public for the fuzz targets, `tests/fuzz`).
+pub fn read_obj(path: &Path) -> Result<RawMesh> {
     let opts = tobj::LoadOptions { triangulate: true, single_index: true, ..Default::default() };
     let (models, materials) =
-        tobj::load_obj(path, &opts).map_err(|e| anyhow::anyhow!("robot mesh {}: not a valid OBJ file: {e}", path.display()))?;
+        vt_objects::load_obj_file(path, &opts).map_err(|e| anyhow::anyhow!("robot mesh {}: not a valid OBJ file: {e}", path.display()))?;
     let materials = materials.unwrap_or_default();
     let mut raw = RawMesh { positions: Vec::new(), triangles: Vec::new(), colours: Vec::new() };
     for m in &models {

@@ -12,7 +12,7 @@ mod procedural;
 mod symmetry;
 
 pub use catalog::{Catalog, CatalogEntry, Shape, Surface, Symmetry};
-pub use load::{MeshError, find_ycb_mesh, load_mesh};
+pub use load::{MeshError, find_ycb_mesh, load_mesh, load_obj_file};
 pub use mesh::{Texture, TexturedMesh, diameter_of, linear_to_srgb8};
 pub use procedural::{BOX_FACES, procedural_mesh};
 pub use symmetry::{

@@ -78,9 +78,28 @@ fn load_texture(path: &Path) -> Result<Texture, MeshError> {
     Ok(Texture { width: rgba.width(), height: rgba.height(), rgba: rgba.into_raw() })
 }
 
+/// `tobj::load_obj`, except that an MTL file with a colour line of fewer than three numbers
+/// (`Kd 0.5`), on which tobj 4 panics, is refused as tobj refuses other malformed MTL files (the
+/// materials come back as an error; found by `tests/fuzz`).
+pub fn load_obj_file(path: &Path, opts: &tobj::LoadOptions) -> tobj::LoadResult {
+    let file = std::fs::File::open(path).map_err(|_| tobj::LoadError::OpenFileFailed)?;
+    let dir = path.parent().unwrap_or(Path::new(""));
+    tobj::load_obj_buf(&mut std::io::BufReader::new(file), opts, |mtl| {
+        let text = std::fs::read(dir.join(mtl)).map_err(|_| tobj::LoadError::OpenFileFailed)?;
+        let short_colour = String::from_utf8_lossy(&text).lines().any(|l| {
+            let mut words = l.split_whitespace();
+            matches!(words.next(), Some("Ka" | "Kd" | "Ks" | "Ke")) && words.count() < 3
+        });
+        if short_colour {
+            return Err(tobj::LoadError::MaterialParseError);
+        }
+        tobj::load_mtl_buf(&mut &text[..])
+    })
+}
+
 fn load_obj(path: &Path) -> Result<TexturedMesh, MeshError> {
     let opts = tobj::LoadOptions { triangulate: true, single_index: true, ..Default::default() };
-    let (models, materials) = tobj::load_obj(path, &opts).map_err(|e| err(path, format!("not a valid OBJ file: {e}")))?;
+    let (models, materials) = load_obj_file(path, &opts).map_err(|e| err(path, format!("not a valid OBJ file: {e}")))?;
     let materials = materials.unwrap_or_default();
     let mut mesh = TexturedMesh::empty(Texture::solid(UNTEXTURED_GREY));
     let mut all_have_normals = true;
