@@ -275,11 +275,11 @@ fn the_grasp_check_reports_the_same_trajectories_as_generation() {
 
 /// How much of the slip in the data could be creep rather than the arm's motion: with the arm
 /// still, a held object should stay put. Measured over 12 grasps (3 objects x 2 trajectories x the
-/// primitive and, with `ROBOT_ASSETS`, the real hand) on the backend under test: on rapier 8 of
-/// 12 stay within 1 mm and 1° over 10 s (4 of them within 0.02 mm), the others slide or pivot
-/// 1 to 5 mm or 2 to 3.5°; on MuJoCo, with its noslip pass, 8 of 12 too (1 of 12 without it). The
-/// test holds half of them to 1 mm and 1° and bounds the rest, so that a change that makes grasps
-/// creep in general fails.
+/// primitive and, with `ROBOT_ASSETS`, the real hand) on the backend under test. On rapier, with
+/// four Gauss-Seidel sweeps per solver iteration, all 12 stay within 1 mm and 1° over 10 s (the
+/// worst 0.45 mm, 0.55°; with one sweep 7 of 12 did, the others slid or pivoted 1 to 5 mm or 2 to
+/// 3.5°), and the test holds every one to it. On MuJoCo, with its noslip pass, 8 of 12 (1 of 12
+/// without it): the test holds half of them to 1 mm and 1° there and bounds the rest.
 #[test]
 fn most_held_objects_stay_still_while_the_arm_is_still() {
     use vtgen::config::{GraspConfig, PhysicsConfig};
@@ -326,5 +326,6 @@ fn most_held_objects_stay_still_while_the_arm_is_still() {
             }
         }
     }
-    assert!(2 * still >= total, "only {still} of {total} held objects stay within 1 mm and 1° over 10 s");
+    let required = if backend() == "mujoco" { total.div_ceil(2) } else { total };
+    assert!(still >= required, "only {still} of {total} held objects stay within 1 mm and 1° over 10 s ({required} required)");
 }

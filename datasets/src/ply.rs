@@ -50,15 +50,20 @@ pub fn write_ply(path: &Path, positions: &[[f32; 3]], normals: &[[f32; 3]], indi
 /// vertices and `list uchar int` triangle faces).
 pub fn read_ply(path: &Path) -> Result<PlyMesh> {
     let ctx = || format!("model {}", path.display());
-    let mut r = BufReader::new(std::fs::File::open(path).with_context(ctx)?);
+    let file = std::fs::File::open(path).with_context(ctx)?;
+    let file_len = file.metadata().with_context(ctx)?.len();
+    let mut r = BufReader::new(file);
     let mut props: Vec<String> = Vec::new();
     let (mut nv, mut nf) = (0usize, 0usize);
     let mut in_vertex = false;
+    let mut header_len = 0u64;
     loop {
         let mut line = String::new();
-        if r.read_line(&mut line).with_context(ctx)? == 0 {
+        let n = r.read_line(&mut line).with_context(ctx)?;
+        if n == 0 {
             bail!("{}: header ends early", ctx());
         }
+        header_len += n as u64;
         let w: Vec<&str> = line.split_whitespace().collect();
         match w.as_slice() {
             ["format", f, ..] if *f != "binary_little_endian" => {
@@ -83,6 +88,12 @@ pub fn read_ply(path: &Path) -> Result<PlyMesh> {
     let pos = |n: &str| props.iter().position(|p| p == n);
     let (Some(x), Some(y), Some(z)) = (pos("x"), pos("y"), pos("z")) else { bail!("{}: vertices lack x y z", ctx()) };
     let normal_ix = (pos("nx"), pos("ny"), pos("nz"));
+    // The counts come from the header: they must fit in the file before anything is allocated
+    // for them (a damaged count once asked for 48 GB; found by `tests/fuzz`).
+    let body = (nv as u128) * (props.len() as u128) * 4 + (nf as u128) * 13;
+    if body > (file_len - header_len.min(file_len)) as u128 {
+        bail!("{}: the header announces {nv} vertices and {nf} faces, more than the file's {file_len} bytes hold", ctx());
+    }
     let mut rec = vec![0u8; props.len() * 4];
     let mut mesh = PlyMesh { positions: Vec::with_capacity(nv), normals: Vec::new(), triangles: Vec::with_capacity(nf) };
     for _ in 0..nv {

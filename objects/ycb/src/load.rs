@@ -137,7 +137,28 @@ fn load_obj(path: &Path) -> Result<TexturedMesh, MeshError> {
     Ok(mesh)
 }
 
+/// A binary glTF's header states the file's length, which the gltf crate allocates before reading
+/// (a damaged header asked for 4 GB; found by `tests/fuzz`): it must be the file's own length.
+fn check_glb_header(path: &Path) -> Result<(), MeshError> {
+    use std::io::Read;
+    let mut header = [0u8; 12];
+    let mut f = std::fs::File::open(path).map_err(|e| err(path, format!("cannot open: {e}")))?;
+    if f.read_exact(&mut header).is_err() || &header[..4] != b"glTF" {
+        return Ok(()); // not binary glTF: the JSON form has no such field (gltf reports the rest)
+    }
+    let stated = u32::from_le_bytes(header[8..12].try_into().expect("4 bytes")) as u64;
+    let actual = f.metadata().map_err(|e| err(path, format!("cannot read: {e}")))?.len();
+    if stated != actual {
+        return Err(err(
+            path,
+            format!("not a valid glTF file: its header says {stated} bytes, the file has {actual} (truncated or damaged)"),
+        ));
+    }
+    Ok(())
+}
+
 fn load_gltf(path: &Path) -> Result<TexturedMesh, MeshError> {
+    check_glb_header(path)?;
     let (doc, buffers, images) = gltf::import(path).map_err(|e| err(path, format!("not a valid glTF file: {e}")))?;
     let mut mesh = TexturedMesh::empty(Texture::solid(UNTEXTURED_GREY));
     let mut texture_set = false;
