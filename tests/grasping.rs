@@ -297,7 +297,7 @@ fn most_held_objects_stay_still_while_the_arm_is_still() {
     let t_world_base =
         glam::DAffine3::from_rotation_translation(glam::DQuat::from_rotation_z(std::f64::consts::PI), DVec3::new(0.0, 0.5, 0.0));
     let catalog = vt_objects::Catalog::builtin();
-    let (mut still, mut total) = (0, 0);
+    let (mut still, mut total) = (0usize, 0usize);
     for (what, model) in &models {
         let mut hand: Box<dyn HandPhysics> = match backend().as_str() {
             #[cfg(feature = "mujoco")]
