@@ -26,11 +26,93 @@ pub struct ShardReader {
 /// views is about 3 MB; 1 GiB leaves room for 4K images and noisy depth.
 pub const MAX_CHUNK_BYTES: u64 = 1 << 30;
 
+/// A cursor over one record's body that checks every length prefix against what is left.
+struct Fields<'a> {
+    body: &'a [u8],
+    at: usize,
+}
+
+impl Fields<'_> {
+    fn skip(&mut self, n: usize) -> Option<()> {
+        self.at = self.at.checked_add(n).filter(|&e| e <= self.body.len())?;
+        Some(())
+    }
+    /// A u32 length prefix and that many bytes (a string, byte array or map).
+    fn prefixed(&mut self) -> Option<(usize, usize)> {
+        let n = u32::from_le_bytes(self.body.get(self.at..self.at + 4)?.try_into().ok()?) as usize;
+        self.skip(4)?;
+        let start = self.at;
+        self.skip(n)?;
+        Some((start, n))
+    }
+    /// A string map: a u32 byte length, then key and value strings within it.
+    fn string_map(&mut self) -> Option<()> {
+        let (start, n) = self.prefixed()?;
+        let mut inner = Fields { body: &self.body[start..start + n], at: 0 };
+        while inner.at < n {
+            inner.prefixed()?;
+            inner.prefixed()?;
+        }
+        Some(())
+    }
+}
+
+/// Checks the length prefixes inside the summary section's records (schemas, channels, chunk
+/// and metadata indexes, statistics) against their records before the mcap crate reads them: it
+/// reserves what a u32 prefix says before reading (a damaged one asked for 3.4 GB; found by
+/// `tests/fuzz`). Records of other kinds are left to the crate.
+fn check_summary_lengths(data: &[u8]) -> Result<()> {
+    // The file ends with the footer record (opcode 0x02, length 20) and the 8 magic bytes.
+    let Some(footer) = data.len().checked_sub(8 + 29) else { return Ok(()) };
+    if data[footer] != 0x02 {
+        return Ok(()); // no footer where it should be: the crate reports that
+    }
+    let summary_start = u64::from_le_bytes(data[footer + 9..footer + 17].try_into().expect("8 bytes")) as usize;
+    if summary_start == 0 {
+        return Ok(());
+    }
+    anyhow::ensure!(summary_start <= footer, "the footer puts the summary at byte {summary_start}, past the footer itself");
+    let mut at = summary_start;
+    while at < footer {
+        let opcode = data[at];
+        let len = data.get(at + 1..at + 9).map(|b| u64::from_le_bytes(b.try_into().expect("8 bytes")) as usize);
+        let end = len.and_then(|l| (at + 9).checked_add(l)).filter(|&e| e <= footer);
+        let Some(end) = end else { bail!("summary record at byte {at} runs past the summary section") };
+        let mut f = Fields { body: &data[at + 9..end], at: 0 };
+        let ok = match opcode {
+            0x03 => f.skip(2).and_then(|_| f.prefixed()).and_then(|_| f.prefixed()).and_then(|_| f.prefixed()).map(|_| ()),
+            0x04 => f.skip(4).and_then(|_| f.prefixed()).and_then(|_| f.prefixed()).and_then(|_| f.string_map()),
+            0x08 => f.skip(32).and_then(|_| f.prefixed()).and_then(|_| f.skip(8)).and_then(|_| f.prefixed()).map(|_| ()),
+            0x0A => f.skip(40).and_then(|_| f.prefixed()).and_then(|_| f.prefixed()).map(|_| ()),
+            0x0B => f.skip(8 + 2 + 16 + 16).and_then(|_| f.prefixed()).map(|_| ()),
+            0x0D => f.skip(16).and_then(|_| f.prefixed()).map(|_| ()),
+            _ => Some(()),
+        };
+        if ok.is_none() {
+            bail!("summary record (opcode {opcode:#04x}) at byte {at}: a length inside it runs past the record (damaged)");
+        }
+        at = end;
+    }
+    Ok(())
+}
+
+/// The same check for the metadata record a metadata index points at.
+fn check_metadata_lengths(data: &[u8], index: &mcap::records::MetadataIndex) -> Result<()> {
+    let start = index.offset as usize;
+    let end = start.checked_add(index.length as usize).filter(|&e| e <= data.len() && index.length >= 9);
+    let Some(end) = end else { bail!("the metadata index points past the end of the file") };
+    let mut f = Fields { body: &data[start + 9..end], at: 0 };
+    f.prefixed()
+        .and_then(|_| f.string_map())
+        .ok_or_else(|| anyhow!("metadata record at byte {start}: a length inside it runs past the record (damaged)"))
+}
+
 impl ShardReader {
     pub fn open(path: &Path) -> Result<Self> {
         let file = File::open(path).with_context(|| format!("cannot open shard {}", path.display()))?;
         // SAFETY: shards are immutable once renamed to their final name; the map is read-only.
         let data = unsafe { memmap2::Mmap::map(&file) }.with_context(|| format!("cannot map shard {}", path.display()))?;
+        check_summary_lengths(&data).with_context(|| format!("shard {}: summary section is unreadable", path.display()))?;
         let summary = mcap::Summary::read(&data)
             .with_context(|| format!("shard {}: summary section is unreadable", path.display()))?
             .ok_or_else(|| anyhow!("shard {}: has no summary section (truncated or unfinished)", path.display()))?;
@@ -49,6 +131,7 @@ impl ShardReader {
             .iter()
             .find(|m| m.name == SHARD_METADATA)
             .ok_or_else(|| anyhow!("shard {}: no '{SHARD_METADATA}' metadata", path.display()))?;
+        check_metadata_lengths(&data, meta_index).with_context(|| format!("shard {}: metadata unreadable", path.display()))?;
         let meta = mcap::read::metadata(&data, meta_index).with_context(|| format!("shard {}: metadata unreadable", path.display()))?;
         let meta = ShardMeta::from_map(&meta.metadata).with_context(|| format!("shard {}", path.display()))?;
         Ok(ShardReader { path: path.to_path_buf(), data, summary, chunks, meta })

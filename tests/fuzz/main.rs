@@ -19,8 +19,8 @@
 //! VTGEN_FUZZ_ITERS=100000 VTGEN_FUZZ_SEED=7 cargo test --release -p vtgen --test fuzz -- --nocapture
 //! ```
 //!
-//! Guards: a global allocator that aborts on any single allocation over 4 GiB (a size read from a
-//! damaged file and trusted; see `ALLOCATION_CAP`), naming the target and saving the input; a watchdog that does the same
+//! Guards: a global allocator that aborts on any single allocation over 2 GiB (a size read from a
+//! damaged file and trusted), naming the target and saving the input; a watchdog that does the same
 //! for an input running over `VTGEN_FUZZ_TIMEOUT_S` (default 120 s: a hang, not a slow input).
 
 use std::alloc::{GlobalAlloc, Layout, System};
@@ -29,11 +29,8 @@ use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
-/// Allocations above this are a trusted size field, not data. Just over 4 GiB: the mcap crate
-/// reserves what a string's or map's u32 length prefix in a summary record says before reading it
-/// (a damaged prefix asked for 3.4 GB, found by the long run; the reservation is never touched:
-/// the read then fails and the reader reports the shard). Ours bound every u64 size.
-const ALLOCATION_CAP: usize = (4 << 30) + (1 << 20);
+/// Allocations above this are a trusted size field, not data.
+const ALLOCATION_CAP: usize = 2 << 30;
 
 struct CappedAllocator;
 
