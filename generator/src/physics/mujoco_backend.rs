@@ -6,7 +6,7 @@
 use std::fmt::Write as _;
 
 use anyhow::{Context, Result, anyhow};
-use glam::{DAffine3, DMat3, DQuat, DVec3};
+use glam::{DAffine3, DQuat, DVec3};
 use mujoco_rs::prelude::*;
 use vt_robot::{Geometry, JointKind, RobotModel, hand_joint_names, phalanx_names};
 
@@ -42,7 +42,7 @@ pub struct MujocoHand {
 const FULL_STATE: u32 = MjtState::mjSTATE_INTEGRATION as u32;
 
 fn quat_wxyz(t: &DAffine3) -> [f64; 4] {
-    let q = DQuat::from_mat3(&DMat3::from(t.matrix3)).normalize();
+    let q = DQuat::from_mat3(&t.matrix3).normalize();
     [q.w, q.x, q.y, q.z]
 }
 
@@ -121,7 +121,7 @@ impl MujocoHand {
         x.push_str(r#"<body name="palm">"#);
         geoms(&mut x, palm);
         // Depth-first over the joints below the palm; fixed joints (the sensor pads) are skipped.
-        fn children(m: &RobotModel, link: usize, x: &mut String, geoms: &dyn Fn(&mut String, usize), s: &PhysicsSettings) {
+        fn children(m: &RobotModel, link: usize, x: &mut String, geoms: &dyn Fn(&mut String, usize)) {
             for j in m.joints.iter().filter(|j| j.parent == link && j.kind == JointKind::Revolute) {
                 let c = &m.links[j.child];
                 let q = quat_wxyz(&j.origin);
@@ -150,11 +150,11 @@ impl MujocoHand {
                     j.upper
                 );
                 geoms(x, j.child);
-                children(m, j.child, x, geoms, s);
+                children(m, j.child, x, geoms);
                 x.push_str("</body>");
             }
         }
-        children(m, palm, &mut x, &geoms, s);
+        children(m, palm, &mut x, &geoms);
         x.push_str("</body>");
         let _ = write!(
             x,
