@@ -329,3 +329,54 @@ fn most_held_objects_stay_still_while_the_arm_is_still() {
     }
     assert_eq!(still, total, "only {still} of {total} held objects stay within 1 mm and 1° over 10 s");
 }
+
+/// `randomization.robot_materials` changes only how the robot looks: masks, depth and every pixel
+/// off the robot are the same as without it; robot pixels change in randomized samples, which
+/// record the look, and canonical samples keep the assets' materials.
+#[test]
+fn robot_material_randomization_changes_only_the_robots_pixels() {
+    let d = tempdir();
+    let config = hand_config();
+    let base = [
+        "--set",
+        "randomization.enabled=true",
+        "--set",
+        "sampling.trajectories_per_object=1",
+        "--set",
+        "sampling.instances_per_trajectory=5",
+    ];
+    let generate_with = |name: &str, extra: &[&str]| {
+        let out = d.path().join(name);
+        let args = [&["generate", config.to_str().unwrap(), "--out", out.to_str().unwrap(), "--quiet"][..], &base, extra].concat();
+        let o = run(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        DatasetReader::open(&out).unwrap()
+    };
+    let plain = generate_with("plain", &[]);
+    let varied = generate_with("varied", &["--set", "randomization.robot_materials={roughness: [0.2, 0.9], tint: 0.4}"]);
+    let robot = |m: u8| (10..=32).contains(&m);
+    let (mut randomized, mut changed) = (0, 0);
+    for (a, b) in plain.samples("train").unwrap().zip(varied.samples("train").unwrap()) {
+        let (a, b) = (a.unwrap(), b.unwrap());
+        assert_eq!(a.mask, b.mask);
+        assert!(a.depth.iter().zip(&b.depth).all(|(x, y)| x.to_bits() == y.to_bits()));
+        let info = b.sample_info().unwrap();
+        let look = info.appearance.get("robot").cloned();
+        assert_eq!(look.is_some(), info.randomized, "sample {}: the look is recorded iff randomized", b.index);
+        let mut robot_pixels_differ = false;
+        for (i, &m) in b.mask.iter().enumerate() {
+            let (pa, pb) = (&a.rgb[3 * i..3 * i + 3], &b.rgb[3 * i..3 * i + 3]);
+            if robot(m) {
+                robot_pixels_differ |= pa != pb;
+            } else {
+                assert_eq!(pa, pb, "sample {} pixel {i} (mask {m}) is off the robot", b.index);
+            }
+        }
+        if !info.randomized {
+            assert!(!robot_pixels_differ, "sample {}: canonical samples keep the assets' materials", b.index);
+        }
+        randomized += info.randomized as usize;
+        changed += robot_pixels_differ as usize;
+    }
+    assert!(randomized > 0 && changed == randomized, "{changed} of {randomized} randomized samples show another robot look");
+}

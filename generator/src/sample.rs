@@ -123,6 +123,9 @@ pub struct SampleFactory<'a> {
     robot: Option<RobotScene>,
     /// (link, mesh, mask id) of every drawn robot link.
     robot_meshes: Vec<(usize, MeshHandle, u8)>,
+    /// Every drawn robot link's own texture and material, for `randomization.robot_materials`
+    /// (the randomized look is set per sample, the canonical samples get these back).
+    robot_materials: Vec<(MeshHandle, vt_objects::Texture, Material)>,
     /// The meshes shards carry for Foxglove's 3D view: per object, and the drawn robot links.
     object_glbs: Vec<std::sync::Arc<Vec<u8>>>,
     robot_glbs: Vec<SceneModel>,
@@ -231,6 +234,7 @@ impl<'a> SampleFactory<'a> {
         };
         let robot = config.robot.as_ref().map(|r| RobotScene::new(cfg, r, objects)).transpose()?;
         let mut robot_meshes = Vec::new();
+        let mut robot_materials = Vec::new();
         let mut robot_glbs = Vec::new();
         if let Some(r) = &robot {
             let mut real = match robot_assets_dir(cfg) {
@@ -252,7 +256,11 @@ impl<'a> SampleFactory<'a> {
                     // Matte black hand (white tips), the arm's painted aluminium.
                     let material =
                         if id < 16 { Material { roughness: 0.45, metallic: 0.3 } } else { Material { roughness: 0.75, metallic: 0.0 } };
-                    robot_meshes.push((link, renderer.upload_mesh_with(&mesh, material)?, id));
+                    let handle = renderer.upload_mesh_with(&mesh, material)?;
+                    robot_meshes.push((link, handle, id));
+                    if config.randomization.robot_materials.is_some() {
+                        robot_materials.push((handle, mesh.texture.clone(), material));
+                    }
                     let name = &r.model.links[link].name;
                     robot_glbs.push(SceneModel { id: format!("robot/{name}"), frame_id: name.clone(), glb: glb_of(&mesh) });
                 }
@@ -277,6 +285,7 @@ impl<'a> SampleFactory<'a> {
             images,
             robot,
             robot_meshes,
+            robot_materials,
             object_glbs,
             robot_glbs,
             shard_stats: GraspStats::default(),
@@ -407,6 +416,25 @@ impl<'a> SampleFactory<'a> {
         let a = &scene.appearance;
         self.floor_texture.set(self.renderer.as_mut(), self.floor, &a.floor, a.floor_tile)?;
         self.backdrop_texture.set(self.renderer.as_mut(), self.backdrop, &a.backdrop, a.backdrop_tile)?;
+        // The robot's look: randomized, or its own (empty unless `robot_materials` is configured).
+        for (mesh, texture, material) in &self.robot_materials {
+            match a.robot {
+                Some(look) => {
+                    let mut tinted = texture.clone();
+                    for px in tinted.rgba.chunks_exact_mut(4) {
+                        for (channel, factor) in px.iter_mut().zip(look.tint) {
+                            *channel = (*channel as f32 * factor).round().clamp(0.0, 255.0) as u8;
+                        }
+                    }
+                    self.renderer.set_texture(*mesh, &tinted, 1.0)?;
+                    self.renderer.set_material(*mesh, Material { roughness: look.roughness, metallic: look.metallic })?;
+                }
+                None => {
+                    self.renderer.set_texture(*mesh, texture, 1.0)?;
+                    self.renderer.set_material(*mesh, *material)?;
+                }
+            }
+        }
         Ok(scene)
     }
 

@@ -57,7 +57,16 @@ pub struct Distractor {
     pub yaw: f64,
 }
 
-/// Everything about a sample's look that is not the object or the robot.
+/// The robot's materials in one sample (`randomization.robot_materials`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct RobotLook {
+    pub roughness: f32,
+    pub metallic: f32,
+    /// Factors on the base colour's sRGB channels.
+    pub tint: [f32; 3],
+}
+
+/// Everything about a sample's look that is not the object or the robot's geometry.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Appearance {
     pub light: Spotlight,
@@ -79,6 +88,8 @@ pub struct Appearance {
     pub floor_pattern: TextureSpec,
     /// What `backdrop` was rendered from.
     pub backdrop_pattern: TextureSpec,
+    /// The robot's materials, when randomized (None: the assets' own).
+    pub robot: Option<RobotLook>,
 }
 
 /// An [`Appearance`] without pixels: every sampled number and the texture specs. Small, and
@@ -97,6 +108,9 @@ pub struct AppearanceInfo {
     /// Camera offset rotation vector (radians, camera frame).
     pub camera_rotation: DVec3,
     pub distractors: Vec<Distractor>,
+    /// The robot's materials, when `randomization.robot_materials` is on and the sample randomized.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub robot: Option<RobotLook>,
 }
 
 /// What the sampler needs to know about the scene.
@@ -136,6 +150,7 @@ impl AppearanceInfo {
             camera_translation: DVec3::ZERO,
             camera_rotation: DVec3::ZERO,
             distractors: Vec::new(),
+            robot: None,
         }
     }
 
@@ -153,6 +168,7 @@ impl AppearanceInfo {
             randomized: self.randomized,
             floor_pattern: self.floor.clone(),
             backdrop_pattern: self.backdrop.clone(),
+            robot: self.robot,
         }
     }
 }
@@ -179,6 +195,7 @@ impl Appearance {
             camera_translation: self.camera_offset.0,
             camera_rotation: self.camera_offset.1,
             distractors: self.distractors.clone(),
+            robot: self.robot,
         }
     }
 }
@@ -223,7 +240,8 @@ pub fn sample_appearance(cfg: &RandomizationConfig, key: &SampleKey, ctx: &Appea
 /// samples get the canonical appearance with the light aimed at the workspace centre.
 ///
 /// Each group of parameters has its own stream (`appearance/light`, `appearance/ambient`,
-/// `appearance/floor`, `appearance/backdrop`, `appearance/distractors`, `appearance/camera`), so
+/// `appearance/floor`, `appearance/backdrop`, `appearance/distractors`, `appearance/camera`,
+/// `appearance/robot`), so
 /// changing one range never shifts the numbers of another.
 pub fn sample_appearance_info(cfg: &RandomizationConfig, key: &SampleKey, ctx: &AppearanceContext) -> AppearanceInfo {
     if is_unrandomized(cfg, key) {
@@ -278,6 +296,15 @@ pub fn sample_appearance_info(cfg: &RandomizationConfig, key: &SampleKey, ctx: &
     let angle = j.rotation_deg.to_radians() * rng.random::<f64>();
     let camera_rotation = if angle > 0.0 { unit_vector(&mut rng) * angle } else { DVec3::ZERO };
 
+    let robot = cfg.robot_materials.map(|r| {
+        let mut rng = stream("robot");
+        RobotLook {
+            roughness: uniform(&mut rng, r.roughness) as f32,
+            metallic: uniform(&mut rng, r.metallic) as f32,
+            tint: [0; 3].map(|_| uniform(&mut rng, [1.0 - r.tint, 1.0 + r.tint]) as f32),
+        }
+    });
+
     AppearanceInfo {
         randomized: true,
         light,
@@ -289,6 +316,7 @@ pub fn sample_appearance_info(cfg: &RandomizationConfig, key: &SampleKey, ctx: &
         camera_translation,
         camera_rotation,
         distractors,
+        robot,
     }
 }
 

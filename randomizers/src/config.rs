@@ -31,6 +31,27 @@ pub struct RandomizationConfig {
     /// Side of the square procedural textures in pixels (images from a folder are always
     /// [`ImageLibrary::SIZE`](crate::ImageLibrary::SIZE)). Default 256.
     pub texture_size: u32,
+    /// The robot's materials (hand and arm): off unless the key is given (`robot_materials: {}`
+    /// takes the defaults). Left out of the config when off, so other datasets keep their hash.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub robot_materials: Option<RobotMaterialRandomization>,
+}
+
+/// Per-sample variation of the robot's materials: roughness and metallic drawn from their ranges,
+/// the base colour scaled per channel by a factor in `1 ± tint`. Geometry, masks and depth are
+/// unchanged; canonical samples keep the assets' materials.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RobotMaterialRandomization {
+    pub roughness: [f64; 2],
+    pub metallic: [f64; 2],
+    pub tint: f64,
+}
+
+impl Default for RobotMaterialRandomization {
+    fn default() -> Self {
+        RobotMaterialRandomization { roughness: [0.3, 0.9], metallic: [0.0, 0.5], tint: 0.25 }
+    }
 }
 
 impl Default for RandomizationConfig {
@@ -45,6 +66,7 @@ impl Default for RandomizationConfig {
             distractors: [0, 0],
             camera_jitter: CameraJitter::default(),
             texture_size: 256,
+            robot_materials: None,
         }
     }
 }
@@ -242,6 +264,11 @@ impl RandomizationConfig {
         e.scalar("camera_jitter.translation_m", self.camera_jitter.translation_m, ZERO, Some((1.0, true)), "metres");
         e.scalar("camera_jitter.rotation_deg", self.camera_jitter.rotation_deg, ZERO, Some((90.0, true)), "degrees");
         e.scalar("texture_size", self.texture_size as f64, Some((8.0, true)), Some((4096.0, true)), "pixels");
+        if let Some(r) = &self.robot_materials {
+            e.range("robot_materials.roughness", r.roughness, ZERO, Some((1.0, true)), "");
+            e.range("robot_materials.metallic", r.metallic, ZERO, Some((1.0, true)), "");
+            e.scalar("robot_materials.tint", r.tint, ZERO, Some((1.0, true)), "");
+        }
         e.0
     }
 }
@@ -281,6 +308,7 @@ mod tests {
         c.backdrop.kinds = vec![TextureKind::Image];
         c.camera_jitter.translation_m = -0.01;
         c.texture_size = 4;
+        c.robot_materials = Some(RobotMaterialRandomization { roughness: [0.9, 0.2], metallic: [0.0, 1.5], tint: 2.0 });
         let errs = c.validate();
         let msg =
             |p: &str| errs.iter().find(|(q, _)| q == p).map(|(_, m)| m.clone()).unwrap_or_else(|| panic!("no error for {p}: {errs:?}"));
@@ -298,7 +326,10 @@ mod tests {
         assert_eq!(msg("backdrop.image_dir"), "is required when backdrop.kinds contains image");
         assert!(msg("camera_jitter.translation_m").contains("0 <= x"));
         assert!(msg("texture_size").contains("8 <= x <= 4096"));
-        assert_eq!(errs.len(), 14, "{errs:?}");
+        assert!(msg("robot_materials.roughness").contains("got [0.9, 0.2]"));
+        assert!(msg("robot_materials.metallic").contains("got [0, 1.5]"));
+        assert_eq!(msg("robot_materials.tint"), "must be 0 <= x <= 1, got 2");
+        assert_eq!(errs.len(), 17, "{errs:?}");
         // A valid config stays valid with the image kind once a folder is named.
         let mut ok = RandomizationConfig::default();
         ok.floor.kinds.push(TextureKind::Image);

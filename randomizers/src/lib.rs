@@ -27,11 +27,14 @@ mod stream;
 mod texture;
 
 pub use appearance::{
-    Appearance, AppearanceContext, AppearanceInfo, CANONICAL_TEXTURE_SIZE, Distractor, Spotlight, is_unrandomized, sample_appearance,
-    sample_appearance_info,
+    Appearance, AppearanceContext, AppearanceInfo, CANONICAL_TEXTURE_SIZE, Distractor, RobotLook, Spotlight, is_unrandomized,
+    sample_appearance, sample_appearance_info,
 };
 pub use color::{blackbody_rgb, hsv};
-pub use config::{COLOR_TEMPERATURE_RANGE_K, CameraJitter, LightRandomization, RandomizationConfig, TextureKind, TextureRandomization};
+pub use config::{
+    COLOR_TEMPERATURE_RANGE_K, CameraJitter, LightRandomization, RandomizationConfig, RobotMaterialRandomization, TextureKind,
+    TextureRandomization,
+};
 pub use images::ImageLibrary;
 pub use stream::{SampleKey, SampleStream};
 pub use texture::{ProceduralTexture, TextureSpec, checker_texture};

@@ -35,6 +35,9 @@ impl Renderer for PlaneRenderer {
     fn set_texture(&mut self, _mesh: MeshHandle, _texture: &Texture, _uv_scale: f32) -> anyhow::Result<()> {
         Ok(())
     }
+    fn set_material(&mut self, _mesh: MeshHandle, _material: Material) -> anyhow::Result<()> {
+        Ok(())
+    }
     fn render(&mut self, view: &View, _lighting: &Lighting, draws: &[Draw]) -> anyhow::Result<RenderOutput> {
         let (w, h) = (view.width as usize, view.height as usize);
         let mut depth = vec![0.0f32; w * h];

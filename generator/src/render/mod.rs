@@ -153,6 +153,8 @@ pub trait Renderer {
     /// Replaces a mesh's base-colour texture (randomized floors and backdrops); texture
     /// coordinates are multiplied by `uv_scale` (the texture repeats that many times per UV unit).
     fn set_texture(&mut self, mesh: MeshHandle, texture: &vt_objects::Texture, uv_scale: f32) -> anyhow::Result<()>;
+    /// Replaces a mesh's roughness and metallic factors (randomized robot materials).
+    fn set_material(&mut self, mesh: MeshHandle, material: Material) -> anyhow::Result<()>;
     fn render(&mut self, view: &View, lighting: &Lighting, draws: &[Draw]) -> anyhow::Result<RenderOutput>;
     /// The instance mask alone (cheaper: no colour or depth readback), e.g. an object's unoccluded
     /// silhouette.

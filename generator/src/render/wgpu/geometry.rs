@@ -41,6 +41,8 @@ pub(super) struct GpuMesh {
     /// Roughness, metallic and UV scale (uniform of the material bind group).
     pub(super) factors: wgpu::Buffer,
     pub(super) pbr: Material,
+    /// The texture repeats per UV unit (`set_texture`), kept for `set_material`.
+    pub(super) uv_scale: f32,
     pub(super) texture: wgpu::Texture,
     /// Triangles grouped into spatial clusters (index range, model-frame bounding box), so that
     /// small views draw only the part of a mesh they can see.

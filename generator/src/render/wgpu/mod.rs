@@ -150,6 +150,7 @@ impl Renderer for WgpuRenderer {
             material: group,
             factors,
             pbr: material,
+            uv_scale: 1.0,
             texture,
             clusters,
         });
@@ -157,7 +158,9 @@ impl Renderer for WgpuRenderer {
     }
 
     fn set_texture(&mut self, mesh: MeshHandle, texture: &vt_objects::Texture, uv_scale: f32) -> Result<()> {
-        let m = self.meshes.get(mesh.0).ok_or_else(|| anyhow!("no mesh {}", mesh.0))?;
+        let m = self.meshes.get_mut(mesh.0).ok_or_else(|| anyhow!("no mesh {}", mesh.0))?;
+        m.uv_scale = uv_scale;
+        let m = &self.meshes[mesh.0];
         self.queue.write_buffer(&m.factors, 0, bytemuck::cast_slice(&[m.pbr.roughness, m.pbr.metallic, uv_scale, 0.0]));
         if m.texture.width() == texture.width && m.texture.height() == texture.height {
             write_texture(&self.queue, &m.texture, texture);
@@ -167,6 +170,13 @@ impl Renderer for WgpuRenderer {
         let m = &mut self.meshes[mesh.0];
         m.texture = tex;
         m.material = group;
+        Ok(())
+    }
+
+    fn set_material(&mut self, mesh: MeshHandle, material: Material) -> Result<()> {
+        let m = self.meshes.get_mut(mesh.0).ok_or_else(|| anyhow!("no mesh {}", mesh.0))?;
+        m.pbr = material;
+        self.queue.write_buffer(&m.factors, 0, bytemuck::cast_slice(&[material.roughness, material.metallic, m.uv_scale, 0.0]));
         Ok(())
     }
 
