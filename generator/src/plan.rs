@@ -40,19 +40,22 @@ pub struct Plan {
     pub samples_per_shard: u64,
 }
 
-/// Is trajectory `t` in the test split? Every `train + test` trajectories, the last `test` are.
-/// Bytes one sample takes on disk, low and high estimates, from the image size and compression:
-/// RGB, float depth and mask plus ~2 KiB of metadata raw; zstd keeps 10–40 % of that (measured:
-/// ~14 % on canonical scenes, more with randomized textures).
+/// Uncompressed bytes of one sample: RGB, float depth and mask, plus ~2 KiB of metadata.
+pub fn raw_bytes_per_sample(config: &Config) -> f64 {
+    config.camera.width as f64 * config.camera.height as f64 * (3.0 + 4.0 + 1.0) + 2048.0
+}
+
+/// Bytes one sample takes on disk, low and high estimates: zstd keeps 10–40 % of the raw bytes
+/// (measured: ~14 % on canonical scenes, more with randomized textures).
 pub fn bytes_per_sample(config: &Config) -> (f64, f64) {
-    let (w, h) = (config.camera.width as f64, config.camera.height as f64);
-    let raw = w * h * (3.0 + 4.0 + 1.0) + 2048.0;
+    let raw = raw_bytes_per_sample(config);
     match config.output.compression {
         crate::config::CompressionKind::Zstd => (0.1 * raw, 0.4 * raw),
         crate::config::CompressionKind::None => (raw, raw),
     }
 }
 
+/// Is trajectory `t` in the test split? Every `train + test` trajectories, the last `test` are.
 pub fn is_test(config: &Config, trajectory: u32) -> bool {
     let s = config.sampling.split;
     trajectory % (s.train + s.test) >= s.train

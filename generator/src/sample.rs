@@ -45,6 +45,17 @@ fn finger_surfaces(robot: &RobotScene, pads: &[(f64, f64); 12]) -> Result<Option
     Ok(Some(surfaces.try_into().expect("12 phalanges")))
 }
 
+/// `texture` with each sRGB channel times its factor (alpha kept).
+fn tinted(texture: &vt_objects::Texture, factors: [f32; 3]) -> vt_objects::Texture {
+    let mut t = texture.clone();
+    for px in t.rgba.chunks_exact_mut(4) {
+        for (channel, factor) in px.iter_mut().zip(factors) {
+            *channel = (*channel as f32 * factor).round().clamp(0.0, 255.0) as u8;
+        }
+    }
+    t
+}
+
 /// The floor: a 6 m textured quad on z = 0, texture coordinates in metres (the renderer scales
 /// them by 1 / tile size).
 pub fn floor_mesh() -> TexturedMesh {
@@ -126,6 +137,9 @@ pub struct SampleFactory<'a> {
     /// Every drawn robot link's own texture and material, for `randomization.robot_materials`
     /// (the randomized look is set per sample, the canonical samples get these back).
     robot_materials: Vec<(MeshHandle, vt_objects::Texture, Material)>,
+    /// The robot look the renderer holds now (None: not set yet), so an unchanged one (a run of
+    /// canonical samples) is not uploaded again.
+    robot_look: Option<Option<vt_randomizers::RobotLook>>,
     /// The meshes shards carry for Foxglove's 3D view: per object, and the drawn robot links.
     object_glbs: Vec<std::sync::Arc<Vec<u8>>>,
     robot_glbs: Vec<SceneModel>,
@@ -286,6 +300,7 @@ impl<'a> SampleFactory<'a> {
             robot,
             robot_meshes,
             robot_materials,
+            robot_look: None,
             object_glbs,
             robot_glbs,
             shard_stats: GraspStats::default(),
@@ -417,23 +432,20 @@ impl<'a> SampleFactory<'a> {
         self.floor_texture.set(self.renderer.as_mut(), self.floor, &a.floor, a.floor_tile)?;
         self.backdrop_texture.set(self.renderer.as_mut(), self.backdrop, &a.backdrop, a.backdrop_tile)?;
         // The robot's look: randomized, or its own (empty unless `robot_materials` is configured).
-        for (mesh, texture, material) in &self.robot_materials {
-            match a.robot {
-                Some(look) => {
-                    let mut tinted = texture.clone();
-                    for px in tinted.rgba.chunks_exact_mut(4) {
-                        for (channel, factor) in px.iter_mut().zip(look.tint) {
-                            *channel = (*channel as f32 * factor).round().clamp(0.0, 255.0) as u8;
-                        }
+        if self.robot_look != Some(a.robot) {
+            for (mesh, texture, material) in &self.robot_materials {
+                match a.robot {
+                    Some(look) => {
+                        self.renderer.set_texture(*mesh, &tinted(texture, look.tint), 1.0)?;
+                        self.renderer.set_material(*mesh, Material { roughness: look.roughness, metallic: look.metallic })?;
                     }
-                    self.renderer.set_texture(*mesh, &tinted, 1.0)?;
-                    self.renderer.set_material(*mesh, Material { roughness: look.roughness, metallic: look.metallic })?;
-                }
-                None => {
-                    self.renderer.set_texture(*mesh, texture, 1.0)?;
-                    self.renderer.set_material(*mesh, *material)?;
+                    None => {
+                        self.renderer.set_texture(*mesh, texture, 1.0)?;
+                        self.renderer.set_material(*mesh, *material)?;
+                    }
                 }
             }
+            self.robot_look = Some(a.robot);
         }
         Ok(scene)
     }

@@ -332,8 +332,7 @@ fn targets(work: &Path) -> Vec<Target> {
     let ply_seed = work.join("seed.ply");
     vt_dataset::write_ply(&ply_seed, &soup.positions, &soup.normals, &soup.indices, vt_dataset::LengthUnit::Metres).unwrap();
     let dataset = small_dataset(work);
-    let shard_rel = "train/shard-00000.mcap";
-    let shard_seed = read(&dataset.join(shard_rel));
+    let shard_seed = read(&dataset.join("train/shard-00000.mcap"));
     let mesh_dir = work.join("meshes");
     std::fs::create_dir_all(&mesh_dir).unwrap();
     let mtl_seed = read(&corpus.join("obj/box.mtl"));
@@ -350,7 +349,8 @@ fn targets(work: &Path) -> Vec<Target> {
     let mtl_dir = work.join("mtl");
     std::fs::create_dir_all(&mtl_dir).unwrap();
     std::fs::write(mtl_dir.join("box.obj"), &obj_seed).unwrap();
-    let shard_path = dataset.join(shard_rel);
+    // Outside the dataset: the validate target's dataset keeps its seed train shard.
+    let shard_path = work.join("shard.mcap");
     let validate_root = dataset.clone();
     let validate_shard = dataset.join("test/shard-00000.mcap");
     let validate_seed = read(&validate_shard);

@@ -131,12 +131,6 @@ pub struct BopOptions {
     pub targets_min_visib: f64,
 }
 
-impl Default for BopOptions {
-    fn default() -> Self {
-        BopOptions { exr: false, targets_min_visib: 0.0 }
-    }
-}
-
 /// Exports the dataset at `root` to `out` (created; must be empty or absent).
 // Long on purpose: the BOP directory layout written in its order (models, camera, per-scene
 // files); each step is a few lines of one file's fields.

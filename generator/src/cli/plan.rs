@@ -30,10 +30,9 @@ pub fn describe(path: &Path, c: &Config) -> String {
         let shards = plan.shards.iter().filter(|x| x.split == *split).count();
         line(format!("{split:<11} {} samples in {shards} shard(s) of up to {}", plan.samples_per_split[i], plan.samples_per_shard));
     }
-    let (w, h) = (c.camera.width as f64, c.camera.height as f64);
-    let raw = (w * h * (3.0 + 4.0 + 1.0) + 2048.0) * plan.total_samples() as f64;
-    let (low, high) = crate::plan::bytes_per_sample(c);
     let n = plan.total_samples() as f64;
+    let (low, high) = crate::plan::bytes_per_sample(c);
+    let raw = crate::plan::raw_bytes_per_sample(c) * n;
     line(format!("disk        {} raw; about {} to {} written (estimate)", human_bytes(raw), human_bytes(low * n), human_bytes(high * n)));
     line(format!("output      {}", c.output.dir.display()));
     if let Some(g) = c.robot.as_ref().map(|r| &r.grasp) {
