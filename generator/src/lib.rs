@@ -14,6 +14,7 @@ pub mod annotate;
 pub mod assets;
 pub mod cli;
 pub mod config;
+pub mod cpu_clock;
 pub mod output;
 pub mod physics;
 pub mod plan;

@@ -69,6 +69,10 @@ enum Command {
         /// Print the report as JSON.
         #[arg(long)]
         json: bool,
+        /// Also print the samples/s N cores would give if rendering cost them nothing (a GPU
+        /// rasterizes): N divided by the measured CPU time per sample outside the rasterizer.
+        #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=4096))]
+        predict_cores: Option<u32>,
     },
     /// Run the grasp loop alone (no rendering) over the first trajectories of every object and
     /// report, per object, how many kept the object through all instances, the attempts and
@@ -220,9 +224,9 @@ fn run(cli: Cli) -> Result<()> {
             print!("{}", serde_yaml::to_string(&load(&config)?.config)?);
             Ok(())
         }
-        Command::Bench { config, samples, jobs, ycb_dir, json } => {
+        Command::Bench { config, samples, jobs, ycb_dir, json, predict_cores } => {
             let cfg = load(&config)?;
-            let r = vtgen::cli::bench::bench(&cfg, samples, jobs, ycb_dir.as_ref())?;
+            let r = vtgen::cli::bench::bench(&cfg, samples, jobs, ycb_dir.as_ref(), predict_cores.map(|n| n as usize))?;
             if json {
                 println!("{}", serde_json::to_string_pretty(&r)?);
             } else {

@@ -172,6 +172,14 @@ pub struct StageTimes {
     /// Occlusion level (model points against the depth cloud); the object's unoccluded
     /// silhouette comes with the main render.
     pub occlusion: Duration,
+    /// Physics steps taken (trajectories simulated, failed attempts and redone moves included).
+    pub physics_steps: u64,
+    /// The worker thread's CPU time: in the grasp loop, inside the renderer's calls (submission,
+    /// and the rasterization when lavapipe runs it on the calling thread), and in everything else
+    /// of the sample path (scene and textures, touch, occlusion, assembly).
+    pub physics_cpu: Duration,
+    pub render_call_cpu: Duration,
+    pub other_cpu: Duration,
 }
 
 /// The trajectory a worker is recording: simulated when its first sample is made, then read by
@@ -341,8 +349,19 @@ impl<'a> SampleFactory<'a> {
 
     /// One sample, stage by stage: scene (camera, look) -> physics (the grasp's recorded instance
     /// poses the object and the robot) -> draw list -> main render (+ RGB-D noise) -> touch ->
-    /// occlusion -> the assembled sample and its `/sample/info`.
+    /// occlusion -> the assembled sample and its `/sample/info`. Counts the worker thread's CPU
+    /// time per part (`StageTimes`).
     pub fn make(&mut self, split: Split, index: u64, r: &SampleRef) -> Result<Sample> {
+        let cpu0 = crate::cpu_clock::thread_cpu_time();
+        let (physics0, render0) = (self.times.physics_cpu, self.times.render_call_cpu);
+        let sample = self.make_sample(split, index, r);
+        let inside = (self.times.physics_cpu - physics0) + (self.times.render_call_cpu - render0);
+        self.times.other_cpu += crate::cpu_clock::cpu_since(cpu0).saturating_sub(inside);
+        sample
+    }
+
+    /// The stages of `make`.
+    fn make_sample(&mut self, split: Split, index: u64, r: &SampleRef) -> Result<Sample> {
         let objects = self.objects;
         let obj = &objects[r.object_index as usize];
         let key = SampleKey { seed: self.config.seed, object_id: &obj.id, trajectory: r.trajectory, instance: r.instance };
@@ -463,9 +482,11 @@ impl<'a> SampleFactory<'a> {
         let instances = self.config.sampling.instances_per_trajectory;
         let key = (r.object_index, r.trajectory);
         if self.recording.as_ref().map(|rec| rec.key) != Some(key) {
-            let t0 = Instant::now();
+            let (t0, cpu0, steps0) = (Instant::now(), crate::cpu_clock::thread_cpu_time(), robot.physics_steps());
             let sim = robot.simulate(self.config.seed, r.object_index, object_id, r.trajectory, instances);
             self.times.physics += t0.elapsed();
+            self.times.physics_cpu += crate::cpu_clock::cpu_since(cpu0);
+            self.times.physics_steps += robot.physics_steps() - steps0;
             self.recording = Some(Recording { key, trajectory: sim.trajectory?, stats: sim.stats });
         }
         let rec = self.recording.as_ref().expect("set above");
@@ -530,9 +551,10 @@ impl<'a> SampleFactory<'a> {
             background: self.config.scene.background,
             shadows: true,
         };
-        let t0 = Instant::now();
+        let (t0, cpu0) = (Instant::now(), crate::cpu_clock::thread_cpu_time());
         let mut img = self.renderer.render(&view, &lighting, draws)?;
         self.times.main_render += t0.elapsed();
+        self.times.render_call_cpu += crate::cpu_clock::cpu_since(cpu0);
         let noise = &self.config.camera.noise;
         let mut noise_rng = SampleStream::sample(key, "sensor_noise");
         let k = view.k;
@@ -549,10 +571,12 @@ impl<'a> SampleFactory<'a> {
     fn sense_touch(&mut self, scene: &crate::scene::SampledScene, object: Draw, posed: &mut PosedRobot) -> Result<TactileData> {
         let cfg = &self.robot.as_ref().expect("called with a robot").config.tactile;
         let t_camera_world = scene.t_world_camera.inverse().matrix();
-        let t0 = Instant::now();
+        let (t0, cpu0) = (Instant::now(), crate::cpu_clock::thread_cpu_time());
         let surface = self.finger_surface.as_ref();
         let reading =
             sense(self.renderer.as_mut(), cfg, &self.pad_sizes, &posed.pads, surface, object, &DAffine3::from_mat4(t_camera_world))?;
+        // The extraction (hundredths of a millisecond) is counted with the renderer's call.
+        self.times.render_call_cpu += crate::cpu_clock::cpu_since(cpu0);
         self.times.tactile_render += reading.render_time;
         self.times.tactile_extract += t0.elapsed() - reading.render_time;
         let names = vt_robot::phalanx_names();

@@ -16,7 +16,7 @@ use vt_dataset::ShardMeta;
 use crate::assets::load_objects;
 use crate::config::LoadedConfig;
 use crate::output::workers::run_pool;
-use crate::output::writer_thread::WriterThread;
+use crate::output::writer_thread::{WriterThread, WriterTimes};
 use crate::plan::{Plan, SampleRef, Split};
 use crate::render::WgpuRenderer;
 use crate::sample::{SampleFactory, StageTimes};
@@ -37,6 +37,27 @@ pub struct BenchReport {
     pub tactile_extraction: f64,
     pub occlusion: f64,
     pub encode_and_write: f64,
+    /// Shard bytes per sample (the shards' size over the samples: meshes and summaries included).
+    pub bytes_per_sample: f64,
+    /// Physics steps taken (failed attempts and redone moves included), and the grasp loop's CPU
+    /// seconds per step.
+    pub physics_steps: u64,
+    pub physics_seconds_per_step: f64,
+    /// CPU seconds, summed over threads (`cpu_clock`): the workers' grasp loop, the workers'
+    /// time inside the renderer's calls, the rest of the workers' sample path (scene, textures,
+    /// touch, occlusion, assembly), and the writer threads (encode, zstd, write).
+    pub physics_cpu: f64,
+    pub render_call_cpu: f64,
+    pub other_cpu: f64,
+    pub writer_cpu: f64,
+    /// CPU seconds outside the rasterizer: physics + the rest of the sample path + readback
+    /// handling + the writers. What a machine whose GPU rasterizes must still do on its cores.
+    pub cpu_outside_rasterizer: f64,
+    /// The process's CPU seconds (all threads, lavapipe's included) over the run.
+    pub process_cpu: f64,
+    /// `--predict-cores N`: N and the samples/s N cores would give with a free rasterizer.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub predicted: Option<(usize, f64)>,
     /// Tactile views' time relative to the main render (the 12 views are batched in one pass).
     pub tactile_over_main_render: f64,
     /// Largest resident set of the process (VmHWM), MiB.
@@ -72,6 +93,33 @@ impl std::fmt::Display for BenchReport {
         writeln!(f, "  tactile points   {:7.2} ms", per(r.tactile_extraction))?;
         writeln!(f, "  occlusion        {:7.2} ms", per(r.occlusion))?;
         writeln!(f, "  encode + write   {:7.2} ms  (writer thread, overlapped)", per(r.encode_and_write))?;
+        writeln!(
+            f,
+            "physics steps      {:.0} per sample, {:.1} µs of CPU each",
+            r.physics_steps as f64 / r.samples as f64,
+            1e6 * r.physics_seconds_per_step
+        )?;
+        writeln!(
+            f,
+            "CPU outside the rasterizer {:5.2} ms per sample  (physics {:.2}, scene/touch/occlusion/readback {:.2}, encode + write {:.2})",
+            per(r.cpu_outside_rasterizer),
+            per(r.physics_cpu),
+            per(r.other_cpu + r.readback),
+            per(r.writer_cpu)
+        )?;
+        writeln!(
+            f,
+            "CPU in all        {:6.2} ms per sample  (the rasterizer and the rest: {:.2} ms)",
+            per(r.process_cpu),
+            per(r.process_cpu - r.cpu_outside_rasterizer)
+        )?;
+        if let Some((cores, rate)) = r.predicted {
+            writeln!(
+                f,
+                "predicted          {rate:.0} samples/s on {cores} cores with a free rasterizer (a GPU): {cores} / the CPU outside the rasterizer"
+            )?;
+        }
+        writeln!(f, "shard bytes        {:.2} MB per sample", r.bytes_per_sample / 1e6)?;
         writeln!(f, "peak RSS           {:.0} MiB", r.peak_rss_mib)?;
         let bins = crate::annotate::occlusion::BINS;
         writeln!(f, "occlusion          {:>8} {:>8} {:>8}  (share of samples per bin)", bins[0], bins[1], bins[2])?;
@@ -125,6 +173,10 @@ fn select(plan: &Plan, samples: u64) -> Vec<Work> {
 }
 
 fn add(a: &mut StageTimes, b: &StageTimes) {
+    a.physics_steps += b.physics_steps;
+    a.physics_cpu += b.physics_cpu;
+    a.render_call_cpu += b.render_call_cpu;
+    a.other_cpu += b.other_cpu;
     a.physics += b.physics;
     a.main_render += b.main_render;
     a.tactile_render += b.tactile_render;
@@ -139,6 +191,8 @@ struct TrajectoryRun {
     /// Why the trajectory was left out (the grasp loop gave up), if it was.
     skipped: Option<String>,
     occlusion: [u64; 3],
+    /// Bytes of its shard.
+    bytes: u64,
 }
 
 /// Makes and writes the samples of one trajectory (one shard, as `generate` writes shards of whole
@@ -146,7 +200,7 @@ struct TrajectoryRun {
 fn bench_trajectory(
     cfg: &LoadedConfig,
     factory: &mut SampleFactory,
-    write: &mut Duration,
+    write: &mut WriterTimes,
     dir: &std::path::Path,
     i: usize,
     traj: &Work,
@@ -167,6 +221,7 @@ fn bench_trajectory(
         samples: 0,
         skipped: None,
         occlusion: [0; 3],
+        bytes: 0,
     };
     let mut writer = WriterThread::create(&dir.join(format!("bench-{i}.mcap")), &meta, cfg.config.output.shard_compression())?;
     writer.set_scene(factory.scene_models(object_index))?;
@@ -184,12 +239,23 @@ fn bench_trajectory(
         }
         run.samples += 1;
     }
-    *write += writer.finish()?.1;
+    let (receipt, times) = writer.finish()?;
+    run.bytes = receipt.bytes;
+    write.busy += times.busy;
+    write.cpu += times.cpu;
     (0..3).for_each(|k| run.occlusion[k] = factory.occlusion_histogram[k] - before[k]);
     Ok(run)
 }
 
-pub fn bench(cfg: &LoadedConfig, samples: u64, jobs: usize, ycb_dir: Option<&std::path::PathBuf>) -> Result<BenchReport> {
+/// Runs the benchmark; `predict_cores`: also predict the samples/s of that many cores with a free
+/// rasterizer.
+pub fn bench(
+    cfg: &LoadedConfig,
+    samples: u64,
+    jobs: usize,
+    ycb_dir: Option<&std::path::PathBuf>,
+    predict_cores: Option<usize>,
+) -> Result<BenchReport> {
     let plan = Plan::new(&cfg.config);
     let work = select(&plan, samples);
     if work.is_empty() {
@@ -201,25 +267,32 @@ pub fn bench(cfg: &LoadedConfig, samples: u64, jobs: usize, ycb_dir: Option<&std
     let jobs = jobs.max(1).min(work.len());
     let abort = AtomicBool::new(false);
     let started = Instant::now();
+    let cpu_started = crate::cpu_clock::process_cpu_time();
     let pooled = run_pool(
         jobs,
         &work,
         &abort,
         || {
             let renderer = WgpuRenderer::new(&cfg.config.renderer)?;
-            Ok((SampleFactory::new(cfg, &objects, Box::new(renderer))?, Duration::ZERO))
+            Ok((SampleFactory::new(cfg, &objects, Box::new(renderer))?, WriterTimes::default()))
         },
         |(factory, write), i, traj| bench_trajectory(cfg, factory, write, &dir, i, traj).map(Some),
         |(factory, write)| Ok((factory.times, write, factory.readback_time(), factory.renderer_name())),
     );
     let seconds = started.elapsed().as_secs_f64();
+    let process_cpu = match (cpu_started, crate::cpu_clock::process_cpu_time()) {
+        (Some(a), Some(b)) => (b - a).as_secs_f64(),
+        _ => 0.0,
+    };
     let _ = std::fs::remove_dir_all(&dir);
     let (done, workers) = pooled.into_result()?;
     let mut n = 0;
     let mut skipped = Vec::new();
     let mut occlusion_bins: BTreeMap<String, [u64; 3]> = BTreeMap::new();
+    let mut bytes = 0;
     for (_, t) in done {
         n += t.samples;
+        bytes += t.bytes;
         skipped.extend(t.skipped);
         let b = occlusion_bins.entry(t.object_id).or_default();
         (0..3).for_each(|k| b[k] += t.occlusion[k]);
@@ -227,14 +300,26 @@ pub fn bench(cfg: &LoadedConfig, samples: u64, jobs: usize, ycb_dir: Option<&std
     if n == 0 {
         bail!("no sample could be made: {}", skipped.join("; "));
     }
-    let (mut t, mut write, mut readback, mut adapter) = (StageTimes::default(), Duration::ZERO, Duration::ZERO, String::new());
+    let (mut t, mut write, mut readback, mut adapter) = (StageTimes::default(), WriterTimes::default(), Duration::ZERO, String::new());
     for (times, w, r, a) in workers {
         add(&mut t, &times);
-        write += w;
+        write.busy += w.busy;
+        write.cpu += w.cpu;
         readback += r;
         adapter = a;
     }
+    let cpu_outside = (t.physics_cpu + t.other_cpu + readback + write.cpu).as_secs_f64();
     Ok(BenchReport {
+        bytes_per_sample: bytes as f64 / n as f64,
+        physics_steps: t.physics_steps,
+        physics_seconds_per_step: t.physics_cpu.as_secs_f64() / t.physics_steps.max(1) as f64,
+        physics_cpu: t.physics_cpu.as_secs_f64(),
+        render_call_cpu: t.render_call_cpu.as_secs_f64(),
+        other_cpu: t.other_cpu.as_secs_f64(),
+        writer_cpu: write.cpu.as_secs_f64(),
+        cpu_outside_rasterizer: cpu_outside,
+        process_cpu,
+        predicted: predict_cores.map(|c| (c, c as f64 * n as f64 / cpu_outside.max(1e-9))),
         samples: n,
         jobs,
         adapter,
@@ -246,7 +331,7 @@ pub fn bench(cfg: &LoadedConfig, samples: u64, jobs: usize, ycb_dir: Option<&std
         tactile_render: t.tactile_render.as_secs_f64(),
         tactile_extraction: t.tactile_extract.as_secs_f64(),
         occlusion: t.occlusion.as_secs_f64(),
-        encode_and_write: write.as_secs_f64(),
+        encode_and_write: write.busy.as_secs_f64(),
         tactile_over_main_render: t.tactile_render.as_secs_f64() / t.main_render.as_secs_f64().max(1e-12),
         peak_rss_mib: peak_rss_mib(),
         skipped_trajectories: skipped,

@@ -24,10 +24,18 @@ enum Message {
     Finish,
 }
 
+/// How long a writer thread worked: busy (wall-clock, from a message's arrival to its end) and
+/// its CPU time (encoding, compression, writing).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct WriterTimes {
+    pub busy: Duration,
+    pub cpu: Duration,
+}
+
 /// A `ShardWriter` running on a thread of its own.
 pub struct WriterThread {
     tx: Option<SyncSender<Message>>,
-    handle: Option<JoinHandle<Result<(ShardReceipt, Duration)>>>,
+    handle: Option<JoinHandle<Result<(ShardReceipt, WriterTimes)>>>,
 }
 
 impl WriterThread {
@@ -37,7 +45,8 @@ impl WriterThread {
         let shown = path.display().to_string();
         let handle = std::thread::Builder::new()
             .name("vtgen-writer".into())
-            .spawn(move || -> Result<(ShardReceipt, Duration)> {
+            .spawn(move || -> Result<(ShardReceipt, WriterTimes)> {
+                let cpu0 = crate::cpu_clock::thread_cpu_time();
                 let mut busy = Duration::ZERO;
                 for m in rx {
                     let t0 = Instant::now();
@@ -47,7 +56,8 @@ impl WriterThread {
                         Message::Metadata(k, v) => writer.set_metadata(&k, v),
                         Message::Finish => {
                             let receipt = writer.finish().with_context(|| format!("finishing {shown}"))?;
-                            return Ok((receipt, busy + t0.elapsed()));
+                            let times = WriterTimes { busy: busy + t0.elapsed(), cpu: crate::cpu_clock::cpu_since(cpu0) };
+                            return Ok((receipt, times));
                         }
                     }
                     busy += t0.elapsed();
@@ -79,7 +89,7 @@ impl WriterThread {
         self.send(Message::Metadata(key.into(), value))
     }
 
-    fn join(&mut self) -> Result<(ShardReceipt, Duration)> {
+    fn join(&mut self) -> Result<(ShardReceipt, WriterTimes)> {
         self.tx = None;
         match self.handle.take() {
             Some(h) => h.join().map_err(|_| anyhow!("the writer thread panicked"))?,
@@ -88,8 +98,8 @@ impl WriterThread {
     }
 
     /// Waits for the queue to drain and the shard to be complete (renamed into place). Returns
-    /// the receipt and the time the writer was busy.
-    pub fn finish(mut self) -> Result<(ShardReceipt, Duration)> {
+    /// the receipt and how long the writer worked.
+    pub fn finish(mut self) -> Result<(ShardReceipt, WriterTimes)> {
         self.send(Message::Finish)?;
         self.join()
     }

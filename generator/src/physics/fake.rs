@@ -56,6 +56,9 @@ impl HandPhysics for FakeHand {
         self.gravity = g;
     }
     fn set_object_damping(&mut self, _linear: f64, _angular: f64) {}
+    fn steps_taken(&self) -> u64 {
+        self.steps
+    }
     fn step(&mut self) {
         self.steps += 1;
         self.object.translation += self.drift_per_step;

@@ -526,10 +526,15 @@ fn move_and_settle(
         };
         physics.set_gravity(rot(&p).inverse() * (GRAVITY - acc));
         physics.step();
+        // An object this far from the palm has fallen out of the hand and cannot come back: the
+        // move's outcome is known, and the rest of it (up to 0.7 s) would simulate the fall.
+        if physics.object_pose().translation.length() > LOST_DISTANCE {
+            return Ok(MoveOutcome::Failed(Failure::LostDuringMotion));
+        }
     }
     *q = q_target;
     let touching = physics.phalanx_contacts().iter().filter(|c| c.is_some()).count();
-    if physics.object_pose().translation.length() > 0.25 || touching == 0 {
+    if physics.object_pose().translation.length() > LOST_DISTANCE || touching == 0 {
         return Ok(MoveOutcome::Failed(Failure::LostDuringMotion));
     }
     if touching < 2 {
@@ -560,6 +565,9 @@ fn move_and_settle(
     }
     Ok(MoveOutcome::Recordable(obj, contacts, penetration))
 }
+
+/// Distance (m) from the palm at which an object is lost from the hand.
+const LOST_DISTANCE: f64 = 0.25;
 
 /// Smallest height (m) of the object above the floor a recorded instance may have.
 const MIN_FLOOR_CLEARANCE: f64 = 0.005;

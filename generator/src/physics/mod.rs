@@ -7,6 +7,7 @@
 #[cfg(test)]
 pub(crate) mod fake;
 pub mod grasp;
+mod hull;
 #[cfg(feature = "mujoco")]
 mod mujoco_backend;
 mod rapier_backend;
@@ -61,6 +62,8 @@ pub trait HandPhysics {
     /// Extra damping of the object's motion, e.g. while the fingers close around it.
     fn set_object_damping(&mut self, linear: f64, angular: f64);
     fn step(&mut self);
+    /// Steps taken since the backend was made (for `vtgen bench`'s cost per step).
+    fn steps_taken(&self) -> u64;
     fn object_pose(&self) -> DAffine3;
     fn joint_positions(&self) -> [f64; 16];
     /// For each of the 12 phalanges (`vt_robot::phalanx_names` order): the signed distance of its

@@ -36,6 +36,7 @@ pub struct MujocoHand {
     /// The state `save` took (MuJoCo's integration state: time, qpos, qvel, act, controls, warm
     /// start, applied forces) and the gravity then.
     saved: Option<(Box<[f64]>, [f64; 3])>,
+    steps: u64,
 }
 
 /// Everything `mj_step` integrates from, as `mj_getState` packs it.
@@ -75,7 +76,7 @@ fn write_hull_meshes(x: &mut String, m: &RobotModel) {
 
 impl MujocoHand {
     pub fn new(model: &RobotModel, settings: PhysicsSettings) -> Result<Self> {
-        Ok(MujocoHand { model: model.clone(), settings, sim: None, damping: (0.0, 0.0), mass: 1.0, saved: None })
+        Ok(MujocoHand { model: model.clone(), settings, sim: None, damping: (0.0, 0.0), mass: 1.0, saved: None, steps: 0 })
     }
 
     /// MJCF of the hand below the palm and one free object.
@@ -290,6 +291,11 @@ impl HandPhysics for MujocoHand {
             f[d + 3 + i] = -ang * mass * 0.0025 * v[3 + i];
         }
         sim.data.step();
+        self.steps += 1;
+    }
+
+    fn steps_taken(&self) -> u64 {
+        self.steps
     }
 
     fn object_pose(&self) -> DAffine3 {

@@ -6,6 +6,7 @@ use glam::{DAffine3, DQuat, DVec3, Vec3};
 use rapier3d::prelude::*;
 use vt_robot::{Geometry, RobotModel, hand_joint_names, phalanx_names};
 
+use super::hull::{HULL_TOLERANCE, reduced_hull};
 use super::{HandPhysics, PhysicsObject, PhysicsSettings};
 
 const HAND_GROUP: Group = Group::GROUP_1;
@@ -31,6 +32,19 @@ struct HandJoint {
     upper: f64,
 }
 
+/// A link's collision shape; mesh hulls reduced to few vertices (`hull.rs`). None: a degenerate mesh.
+fn collision_shape(g: &Geometry) -> Option<SharedShape> {
+    Some(match g {
+        Geometry::Box { size } => SharedShape::cuboid(size.x as f32 / 2.0, size.y as f32 / 2.0, size.z as f32 / 2.0),
+        Geometry::Sphere { radius } => SharedShape::ball(*radius as f32),
+        Geometry::Cylinder { radius, length } => SharedShape::cylinder(*length as f32 / 2.0, *radius as f32),
+        Geometry::ConvexHull { points } => {
+            let pts: Vec<Vec3> = points.iter().map(|p| p.as_vec3()).collect();
+            SharedShape::convex_hull(&reduced_hull(&pts, HULL_TOLERANCE))?
+        }
+    })
+}
+
 /// rapier's simulation state: what its snapshots serialize (the pipelines are only workspaces).
 #[derive(Clone)]
 struct WorldState {
@@ -49,6 +63,9 @@ pub struct RapierHand {
     settings: PhysicsSettings,
     world: PhysicsWorld,
     joints: Vec<HandJoint>,
+    /// Each link's collision shapes (`model.links[i].collisions` order), made once: every grasp
+    /// attempt rebuilds the hand, and a mesh link's hull costs more to compute than to simulate.
+    link_shapes: Vec<Vec<SharedShape>>,
     /// Collider handles per phalanx (12) and all hand colliders.
     phalanx_colliders: Vec<Vec<ColliderHandle>>,
     hand_colliders: Vec<ColliderHandle>,
@@ -58,20 +75,33 @@ pub struct RapierHand {
     /// attempt of a trajectory resets with the same object.
     hull: Option<(Vec<[f32; 3]>, SharedShape)>,
     saved: Option<WorldState>,
+    steps: u64,
 }
 
 impl RapierHand {
     pub fn new(model: &RobotModel, settings: PhysicsSettings) -> Result<Self> {
+        let link_shapes = model
+            .links
+            .iter()
+            .map(|link| {
+                link.collisions
+                    .iter()
+                    .map(|s| collision_shape(&s.geometry).with_context(|| format!("link {}: no convex hull of its mesh", link.name)))
+                    .collect::<Result<Vec<_>>>()
+            })
+            .collect::<Result<Vec<_>>>()?;
         let mut h = RapierHand {
             model: model.clone(),
             settings,
             world: PhysicsWorld::new(),
             joints: Vec::new(),
+            link_shapes,
             phalanx_colliders: Vec::new(),
             hand_colliders: Vec::new(),
             object: None,
             hull: None,
             saved: None,
+            steps: 0,
         };
         h.build(&[0.0; 16])?;
         Ok(h)
@@ -117,18 +147,13 @@ impl RapierHand {
             let rb = if li == palm { RigidBodyBuilder::fixed() } else { RigidBodyBuilder::dynamic() };
             let handle = world.insert_body(rb.pose(pose).can_sleep(false));
             bodies[li] = Some(handle);
-            for s in &link.collisions {
-                let shape = match &s.geometry {
-                    Geometry::Box { size } => ColliderBuilder::cuboid(size.x as f32 / 2.0, size.y as f32 / 2.0, size.z as f32 / 2.0),
-                    Geometry::Sphere { radius } => ColliderBuilder::ball(*radius as f32),
-                    Geometry::Cylinder { radius, length } => ColliderBuilder::cylinder(*length as f32 / 2.0, *radius as f32),
-                    Geometry::ConvexHull { points } => {
-                        let pts: Vec<Vec3> = points.iter().map(|p| p.as_vec3()).collect();
-                        ColliderBuilder::convex_hull(&pts).with_context(|| format!("link {}: no convex hull of its mesh", link.name))?
-                    }
-                };
+            for (s, shape) in link.collisions.iter().zip(&self.link_shapes[li]) {
                 // Colliders share the link's mass; their density is set so the link mass is exact.
-                let c = shape.position(to_pose(&s.origin)).friction(self.settings.friction as f32).density(0.0).collision_groups(groups);
+                let c = ColliderBuilder::new(shape.clone())
+                    .position(to_pose(&s.origin))
+                    .friction(self.settings.friction as f32)
+                    .density(0.0)
+                    .collision_groups(groups);
                 let ch = world.insert_collider(c, Some(handle));
                 hand_colliders.push(ch);
                 link_colliders[li].push(ch);
@@ -204,7 +229,8 @@ impl HandPhysics for RapierHand {
         self.build(&q)?;
         if self.hull.as_ref().is_none_or(|(pts, _)| *pts != object.points) {
             let pts: Vec<Vec3> = object.points.iter().map(|p| Vec3::from_array(*p)).collect();
-            let shape = SharedShape::convex_hull(&pts).context("the object's points have no convex hull (degenerate mesh)")?;
+            let shape = SharedShape::convex_hull(&reduced_hull(&pts, HULL_TOLERANCE))
+                .context("the object's points have no convex hull (degenerate mesh)")?;
             self.hull = Some((object.points.clone(), shape));
         }
         let shape = self.hull.as_ref().expect("set above").1.clone();
@@ -246,6 +272,11 @@ impl HandPhysics for RapierHand {
 
     fn step(&mut self) {
         self.world.step();
+        self.steps += 1;
+    }
+
+    fn steps_taken(&self) -> u64 {
+        self.steps
     }
 
     fn object_pose(&self) -> DAffine3 {

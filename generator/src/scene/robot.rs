@@ -215,6 +215,11 @@ impl RobotScene {
         self.physics.backend_name()
     }
 
+    /// Physics steps taken by this worker so far.
+    pub fn physics_steps(&self) -> u64 {
+        self.physics.steps_taken()
+    }
+
     /// Simulates trajectory `trajectory` of object `object_index` (every attempt until a grasp
     /// holds through all instances) and returns it with the grasp loop's figures, which a lost
     /// trajectory keeps too (`vtgen grasps` reports them).

@@ -44,6 +44,11 @@ pub(super) struct GpuMesh {
     /// The texture repeats per UV unit (`set_texture`), kept for `set_material`.
     pub(super) uv_scale: f32,
     pub(super) texture: wgpu::Texture,
+    /// Model-frame bounding box (min, max), to skip draws a view cannot see.
+    pub(super) bounds: (glam::DVec3, glam::DVec3),
+    /// The mesh simplified for the shadow pass (`shadow_lod`), indexing the same vertices.
+    pub(super) shadow_indices: wgpu::Buffer,
+    pub(super) shadow_index_count: u32,
     /// Triangles grouped into spatial clusters (index range, model-frame bounding box), so that
     /// small views draw only the part of a mesh they can see.
     pub(super) clusters: Vec<Cluster>,
@@ -80,6 +85,42 @@ pub(super) fn cluster_triangles(mesh: &TexturedMesh) -> (Vec<u32>, Vec<Cluster>)
         clusters.push((start..indices.len() as u32, a, b));
     }
     (indices, clusters)
+}
+
+/// How far (m) the shadow pass's simplified meshes may stray from the drawn ones: a quarter of a
+/// shadow-map texel at 1 m from the light (2.1 mm for the canonical 45° cone and a 1024² map), so
+/// the shadows do not change while the pass, which is all triangle setup on a CPU rasterizer (its
+/// cost does not depend on the map's size), draws a fraction of the triangles.
+pub(super) const SHADOW_LOD_ERROR: f32 = 5e-4;
+
+/// Indices of `mesh` simplified for the shadow pass, within `SHADOW_LOD_ERROR`: positions are
+/// welded first (texture seams split a scanned mesh's vertices, and the simplifier cannot
+/// collapse across a seam), and the result indexes the mesh's own vertex buffer.
+pub(super) fn shadow_lod(mesh: &TexturedMesh) -> Vec<u32> {
+    let mut first: std::collections::HashMap<[u32; 3], u32> = std::collections::HashMap::new();
+    let welded: Vec<u32> = mesh.indices.iter().map(|&i| *first.entry(mesh.positions[i as usize].map(f32::to_bits)).or_insert(i)).collect();
+    let Ok(adapter) = meshopt::VertexDataAdapter::new(bytemuck::cast_slice(&mesh.positions), 12, 0) else {
+        return mesh.indices.clone();
+    };
+    let lod = meshopt::simplify(&welded, &adapter, 0, SHADOW_LOD_ERROR, meshopt::SimplifyOptions::ErrorAbsolute, None);
+    if lod.is_empty() { mesh.indices.clone() } else { lod }
+}
+
+/// Is the box `[lo, hi]` (model frame) wholly outside the clip volume of `model_view_proj` (wgpu:
+/// -w <= x, y <= w, 0 <= z <= w)? Exact for culling: true only when all eight corners lie beyond
+/// one clip plane, so a skipped draw could not have produced a fragment (corners behind the
+/// camera included: the planes are tested in homogeneous coordinates).
+pub(super) fn box_outside_clip(model_view_proj: &DMat4, lo: glam::DVec3, hi: glam::DVec3) -> bool {
+    let corners: [glam::DVec4; 8] = std::array::from_fn(|k| {
+        let c = glam::DVec3::new(
+            if k & 1 == 0 { lo.x } else { hi.x },
+            if k & 2 == 0 { lo.y } else { hi.y },
+            if k & 4 == 0 { lo.z } else { hi.z },
+        );
+        *model_view_proj * c.extend(1.0)
+    });
+    let all = |f: &dyn Fn(&glam::DVec4) -> bool| corners.iter().all(f);
+    all(&|c| c.x > c.w) || all(&|c| c.x < -c.w) || all(&|c| c.y > c.w) || all(&|c| c.y < -c.w) || all(&|c| c.z > c.w) || all(&|c| c.z < 0.0)
 }
 
 /// Does the box `[lo, hi]` (model frame), seen through `model_view`, overlap the view volume

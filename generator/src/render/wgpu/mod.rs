@@ -137,6 +137,12 @@ impl Renderer for WgpuRenderer {
             contents: bytemuck::cast_slice(&indices),
             usage: wgpu::BufferUsages::INDEX,
         });
+        let shadow_lod = shadow_lod(mesh);
+        let shadow_ibuf = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("shadow indices"),
+            contents: bytemuck::cast_slice(&shadow_lod),
+            usage: wgpu::BufferUsages::INDEX,
+        });
         let factors = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("material factors"),
             contents: bytemuck::cast_slice(&[material.roughness, material.metallic, 1.0, 0.0]),
@@ -147,6 +153,12 @@ impl Renderer for WgpuRenderer {
             vertices: vbuf,
             indices: ibuf,
             index_count: mesh.indices.len() as u32,
+            bounds: {
+                let (lo, hi) = mesh.aabb();
+                (lo.as_dvec3(), hi.as_dvec3())
+            },
+            shadow_indices: shadow_ibuf,
+            shadow_index_count: shadow_lod.len() as u32,
             material: group,
             factors,
             pbr: material,

@@ -51,6 +51,7 @@ impl WgpuRenderer {
             .chain((0..draws.len()).rev().filter(|&i| !is_target(&draws[i])))
             .collect();
         for (vi, view) in views.iter().enumerate() {
+            let view_proj = view.proj * view.t_world_camera.inverse();
             let vp = view.viewport;
             pass.set_viewport(vp[0] as f32, vp[1] as f32, vp[2] as f32, vp[3] as f32, 0.0, 1.0);
             pass.set_scissor_rect(vp[0], vp[1], vp[2], vp[3]);
@@ -65,6 +66,11 @@ impl WgpuRenderer {
                     }
                 }
                 let m = &self.meshes[d.mesh.0];
+                // A mesh wholly outside the view (the arm's base, a distractor off the image)
+                // would only cost vertex shading and clipping.
+                if cull.is_none() && box_outside_clip(&(view_proj * d.t_world_model), m.bounds.0, m.bounds.1) {
+                    continue;
+                }
                 pass.set_bind_group(1, &self.instances.group, &[((vi * draws.len() + di) as u64 * UNIFORM_STRIDE) as u32]);
                 pass.set_bind_group(2, &m.material, &[]);
                 pass.set_vertex_buffer(0, m.vertices.slice(..));
@@ -107,8 +113,8 @@ impl WgpuRenderer {
         let bg = lighting.background.map(|c| srgb_to_linear(c) as f64);
         let background = wgpu::Color { r: bg[0], g: bg[1], b: bg[2], a: 1.0 };
         let mut enc = self.device.create_command_encoder(&Default::default());
-        if shadow.is_some() {
-            self.encode_shadow_pass(&mut enc, sub.views.len(), draws);
+        if let Some((t_world_light, light_proj)) = shadow {
+            self.encode_shadow_pass(&mut enc, sub.views.len(), light_proj * t_world_light.inverse(), draws);
         }
         self.encode_view_pass(&mut enc, t, sub, draws, background);
         if let (Readback::All, Some(pipeline), Some(ms)) = (sub.readback, &self.pipelines.msaa, &t.msaa) {
@@ -200,8 +206,9 @@ impl WgpuRenderer {
         self.queue.write_buffer(&self.instances.buffer, 0, &inst);
     }
 
-    /// The spotlight's depth into the shadow map; `record` is the spotlight's frame record.
-    fn encode_shadow_pass(&self, enc: &mut wgpu::CommandEncoder, record: usize, draws: &[Draw]) {
+    /// The spotlight's depth into the shadow map; `record` is the spotlight's frame record and
+    /// `light_view_proj` its world-to-clip transform (casters outside the cone are skipped).
+    fn encode_shadow_pass(&self, enc: &mut wgpu::CommandEncoder, record: usize, light_view_proj: DMat4, draws: &[Draw]) {
         let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("shadow map"),
             color_attachments: &[],
@@ -220,10 +227,13 @@ impl WgpuRenderer {
         // camera cares about; leaving it out saves filling the whole map.
         for (di, d) in draws.iter().enumerate().filter(|(_, d)| d.role != DrawRole::Environment) {
             let m = &self.meshes[d.mesh.0];
+            if box_outside_clip(&(light_view_proj * d.t_world_model), m.bounds.0, m.bounds.1) {
+                continue;
+            }
             pass.set_bind_group(1, &self.instances.group, &[((record * draws.len() + di) as u64 * UNIFORM_STRIDE) as u32]);
             pass.set_vertex_buffer(0, m.vertices.slice(..));
-            pass.set_index_buffer(m.indices.slice(..), wgpu::IndexFormat::Uint32);
-            pass.draw_indexed(0..m.index_count, 0, 0..1);
+            pass.set_index_buffer(m.shadow_indices.slice(..), wgpu::IndexFormat::Uint32);
+            pass.draw_indexed(0..m.shadow_index_count, 0, 0..1);
         }
     }
 
