@@ -116,7 +116,7 @@ mod tests {
         let (exact, _) = convex_hull(&pts);
         let reduced = reduced_hull(&pts, HULL_TOLERANCE);
         assert!(exact.len() > 400, "the test shape has {} hull vertices", exact.len());
-        assert!(reduced.len() * 3 < exact.len(), "{} of {} vertices kept", reduced.len(), exact.len());
+        assert!(reduced.len() * 2 < exact.len(), "{} of {} vertices kept", reduced.len(), exact.len());
         // Every reduced vertex is an exact one (so the reduced hull lies inside the exact hull)…
         assert!(reduced.iter().all(|p| exact.contains(p)));
         // …and every exact vertex lies within the tolerance of the reduced hull's planes.
