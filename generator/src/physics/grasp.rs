@@ -390,14 +390,24 @@ fn settle(ctx: &GraspContext, physics: &mut dyn HandPhysics, t_world_palm: &DAff
     let n_settle = ctx.steps(ctx.config.settle_seconds);
     let n_turn = (n_settle / 2).max(1);
     let gravity_at = |k: usize| DQuat::IDENTITY.slerp(turn, k as f64 / n_turn as f64) * PALM_UP_GRAVITY;
+    // An object that has fallen `LOST_DISTANCE` from the palm can only fall further (nothing
+    // but the hand is simulated): the grasp has failed, and the rest of the settle would
+    // simulate the fall.
+    let lost = |physics: &dyn HandPhysics| physics.object_pose().translation.length() > LOST_DISTANCE;
     for k in 1..n_turn {
         physics.set_gravity(gravity_at(k));
         physics.step();
+        if lost(physics) {
+            return Err(Failure::GraspNotHeld);
+        }
     }
     physics.set_gravity(gravity_at(n_turn));
     let before = physics.object_pose();
     for _ in n_turn - 1..n_settle {
         physics.step();
+        if lost(physics) {
+            return Err(Failure::GraspNotHeld);
+        }
     }
     let held = physics.object_pose();
     let touching = physics.phalanx_contacts().iter().filter(|c| c.is_some()).count();
@@ -528,6 +538,8 @@ fn move_and_settle(
         physics.step();
         // An object this far from the palm has fallen out of the hand and cannot come back: the
         // move's outcome is known, and the rest of it (up to 0.7 s) would simulate the fall.
+        // (Same outcome, same bytes: the failed move is undone and the next draws from its own
+        // random stream.)
         if physics.object_pose().translation.length() > LOST_DISTANCE {
             return Ok(MoveOutcome::Failed(Failure::LostDuringMotion));
         }
@@ -566,7 +578,8 @@ fn move_and_settle(
     Ok(MoveOutcome::Recordable(obj, contacts, penetration))
 }
 
-/// Distance (m) from the palm at which an object is lost from the hand.
+/// Distance (m) from the palm at which an object is lost from the hand (a move's end check; the
+/// settle and the moves stop as soon as the object is this far).
 const LOST_DISTANCE: f64 = 0.25;
 
 /// Smallest height (m) of the object above the floor a recorded instance may have.

@@ -7,7 +7,6 @@
 #[cfg(test)]
 pub(crate) mod fake;
 pub mod grasp;
-mod hull;
 #[cfg(feature = "mujoco")]
 mod mujoco_backend;
 mod rapier_backend;
