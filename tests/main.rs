@@ -4,6 +4,7 @@
 mod common;
 
 mod bad_input;
+mod bench;
 mod bop_export;
 mod determinism;
 mod foxglove_scene;
