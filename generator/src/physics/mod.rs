@@ -7,6 +7,7 @@
 #[cfg(test)]
 pub(crate) mod fake;
 pub mod grasp;
+mod hull_shape;
 #[cfg(feature = "mujoco")]
 mod mujoco_backend;
 mod rapier_backend;

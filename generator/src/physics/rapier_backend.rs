@@ -6,6 +6,7 @@ use glam::{DAffine3, DQuat, DVec3, Vec3};
 use rapier3d::prelude::*;
 use vt_robot::{Geometry, RobotModel, hand_joint_names, phalanx_names};
 
+use super::hull_shape::WalkedHull;
 use super::{HandPhysics, PhysicsObject, PhysicsSettings};
 
 const HAND_GROUP: Group = Group::GROUP_1;
@@ -31,7 +32,7 @@ struct HandJoint {
     upper: f64,
 }
 
-/// A link's collision shape (a mesh link's: the exact hull of its points). None: a degenerate mesh.
+/// A link's collision shape (a mesh link's: the exact hull of its points, `hull_shape`). None: a degenerate mesh.
 fn collision_shape(g: &Geometry) -> Option<SharedShape> {
     Some(match g {
         Geometry::Box { size } => SharedShape::cuboid(size.x as f32 / 2.0, size.y as f32 / 2.0, size.z as f32 / 2.0),
@@ -39,9 +40,16 @@ fn collision_shape(g: &Geometry) -> Option<SharedShape> {
         Geometry::Cylinder { radius, length } => SharedShape::cylinder(*length as f32 / 2.0, *radius as f32),
         Geometry::ConvexHull { points } => {
             let pts: Vec<Vec3> = points.iter().map(|p| p.as_vec3()).collect();
-            SharedShape::convex_hull(&pts)?
+            hull_shape(&pts)?
         }
     })
+}
+
+/// The exact convex hull of `points` (parry's), as a collider shape whose bounding box and support
+/// points are found by walking its surface (`hull_shape.rs`: the same values, a few dozen vertices
+/// visited instead of all). None: degenerate points.
+fn hull_shape(points: &[Vec3]) -> Option<SharedShape> {
+    Some(SharedShape::new(WalkedHull::from_points(points)?))
 }
 
 /// rapier's simulation state: what its snapshots serialize (the pipelines are only workspaces).
@@ -228,7 +236,7 @@ impl HandPhysics for RapierHand {
         self.build(&q)?;
         if self.hull.as_ref().is_none_or(|(pts, _)| *pts != object.points) {
             let pts: Vec<Vec3> = object.points.iter().map(|p| Vec3::from_array(*p)).collect();
-            let shape = SharedShape::convex_hull(&pts).context("the object's points have no convex hull (degenerate mesh)")?;
+            let shape = hull_shape(&pts).context("the object's points have no convex hull (degenerate mesh)")?;
             self.hull = Some((object.points.clone(), shape));
         }
         let shape = self.hull.as_ref().expect("set above").1.clone();
