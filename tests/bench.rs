@@ -1,6 +1,6 @@
 //! `vtgen bench`'s figures hang together: the CPU outside the rasterizer is the sum of its parts
 //! and no more than the process's CPU, the physics steps and their cost are counted, and
-//! `--predict-cores` is N over that CPU. (No wall-clock expectations: those depend on the machine.)
+//! `--predict-cores` is N over that CPU (and, as a lower bound, over it plus the renderer's calls). (No wall-clock expectations: those depend on the machine.)
 
 use crate::common::{root, run, stderr};
 
@@ -27,6 +27,10 @@ fn bench_reports_cpu_outside_the_rasterizer_and_predicts_from_it() {
     assert_eq!(predicted[0].as_u64(), Some(16));
     let rate = predicted[1].as_f64().unwrap();
     assert!((rate - 16.0 * samples / f("cpu_outside_rasterizer")).abs() < 1e-6 * rate, "{r}");
+    // The lower bound keeps the renderer's calls on the CPU too.
+    let low = f("predicted_with_render_calls");
+    assert!(f("render_call_cpu") > 0.0 && low < rate, "{r}");
+    assert!((low - 16.0 * samples / (f("cpu_outside_rasterizer") + f("render_call_cpu"))).abs() < 1e-6 * low, "{r}");
     assert!(f("bytes_per_sample") > 0.0, "{r}");
 }
 

@@ -58,6 +58,11 @@ pub struct BenchReport {
     /// `--predict-cores N`: N and the samples/s N cores would give with a free rasterizer.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub predicted: Option<(usize, f64)>,
+    /// The same prediction if the workers' calls into the renderer (command encoding, uploads,
+    /// submission: `render_call_cpu`) cost a GPU machine's cores what they cost here: a lower
+    /// bound beside `predicted`'s upper one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub predicted_with_render_calls: Option<f64>,
     /// Tactile views' time relative to the main render (the 12 views are batched in one pass).
     pub tactile_over_main_render: f64,
     /// Largest resident set of the process (VmHWM), MiB.
@@ -117,6 +122,13 @@ impl std::fmt::Display for BenchReport {
             writeln!(
                 f,
                 "predicted          {rate:.0} samples/s on {cores} cores with a free rasterizer (a GPU): {cores} / the CPU outside the rasterizer"
+            )?;
+        }
+        if let (Some(_), Some(rate)) = (r.predicted, r.predicted_with_render_calls) {
+            writeln!(
+                f,
+                "                   {rate:.0} samples/s if the renderer's calls ({:.2} ms per sample) cost the GPU machine's cores as much as here",
+                per(r.render_call_cpu)
             )?;
         }
         writeln!(f, "shard bytes        {:.2} MB per sample", r.bytes_per_sample / 1e6)?;
@@ -320,6 +332,7 @@ pub fn bench(
         cpu_outside_rasterizer: cpu_outside,
         process_cpu,
         predicted: predict_cores.map(|c| (c, c as f64 * n as f64 / cpu_outside.max(1e-9))),
+        predicted_with_render_calls: predict_cores.map(|c| c as f64 * n as f64 / (cpu_outside + t.render_call_cpu.as_secs_f64()).max(1e-9)),
         samples: n,
         jobs,
         adapter,
