@@ -15,15 +15,17 @@
 //! answer (which is almost always still the answer one step later) finds a local maximum; a flood
 //! from it over the vertices within `slack` of the best value found then reaches every vertex
 //! whose *computed* f32 value could be the largest (`slack` covers twice the rounding of a value,
-//! and parry's hulls' tolerance-sized dents). The answer is the maximum over the visited vertices
-//! of the same f32 expressions parry evaluates, ties to the lowest vertex index as parry's linear
-//! scan, so it is parry's answer; the warm start only changes how many vertices are visited.
-//! Unit tests compare both over many poses and directions.
+//! and parry's hulls' tolerance-sized dents). The walk and the flood rank vertices by a cheap key
+//! (for a bounding box, a row of the rotation matrix dotted with the vertex, within a rounding of
+//! parry's transformed coordinate); the answer is the maximum over the flood's region of the same
+//! f32 expressions parry evaluates, ties to the lowest vertex index as parry's linear scan, so it is
+//! parry's answer; the warm start only changes how many vertices are visited. Unit tests compare
+//! both over many poses and directions.
 
 use std::cell::RefCell;
 use std::sync::atomic::{AtomicU32, Ordering};
 
-use glam::Vec3;
+use glam::{Mat3, Vec3};
 use rapier3d::parry::bounding_volume::{Aabb, BoundingSphere};
 use rapier3d::parry::mass_properties::MassProperties;
 use rapier3d::parry::math::{Pose, Real};
@@ -70,27 +72,20 @@ impl Clone for WalkedHull {
 }
 
 /// Per-thread work space of the searches, stamped instead of cleared: a vertex belongs to the
-/// current search (or its transformed point to the current bounding box) when its stamp is the
-/// current one. Sized to the largest hull searched on the thread.
+/// current search's region when its stamp is the current one. Sized to the largest hull searched
+/// on the thread.
 #[derive(Default)]
 struct Scratch {
     /// The flood's region: `region[i] == search`.
     region: Vec<u32>,
     search: u32,
+    /// The region's vertices, in the order reached.
+    members: Vec<u32>,
     stack: Vec<u32>,
-}
-
-/// The vertices transformed by the current bounding-box query (`stamp[i] == query`).
-#[derive(Default)]
-struct Transformed {
-    stamp: Vec<u32>,
-    point: Vec<Vec3>,
-    query: u32,
 }
 
 thread_local! {
     static SCRATCH: RefCell<Scratch> = RefCell::default();
-    static TRANSFORMED: RefCell<Transformed> = RefCell::default();
 }
 
 /// The next stamp of a stamped buffer of `n` entries (cleared on wrap-around).
@@ -138,19 +133,22 @@ impl WalkedHull {
         &self.adjacency[self.offsets[i as usize] as usize..self.offsets[i as usize + 1] as usize]
     }
 
-    /// The largest `value(i)` over the vertices and the lowest index that has it (see the module
-    /// comment for why the walk and the flood find it).
-    fn extreme(&self, hint: &AtomicU32, slack: f32, mut value: impl FnMut(u32) -> f32) -> (f32, u32) {
+    /// The largest `exact(i)` over the vertices and the lowest index that has it. The walk and the
+    /// flood (see the module comment) follow `key`, a cheaper value within a rounding of `exact`
+    /// (`slack` covers both); `exact` is then evaluated on the flood's region only, which holds
+    /// every vertex whose key is within `slack` of the largest, so every vertex that can hold the
+    /// largest `exact`.
+    fn extreme(&self, hint: &AtomicU32, slack: f32, key: impl Fn(u32) -> f32, exact: impl Fn(u32) -> f32) -> (f32, u32) {
         let n = self.hull.points().len();
         // Greedy walk uphill from the last answer.
         let mut at = hint.load(Ordering::Relaxed).min(n as u32 - 1);
-        let mut at_value = value(at);
+        let mut at_key = key(at);
         loop {
             let mut next = None;
             for &j in self.neighbours(at) {
-                let v = value(j);
-                if v > at_value {
-                    (at_value, next) = (v, Some(j));
+                let k = key(j);
+                if k > at_key {
+                    (at_key, next) = (k, Some(j));
                 }
             }
             match next {
@@ -158,16 +156,14 @@ impl WalkedHull {
                 None => break,
             }
         }
-        // Flood over every vertex within `slack` of the best found, keeping the best.
-        let (mut best, mut best_id) = (at_value, at);
-        let consider = |i: u32, v: f32, best: &mut f32, best_id: &mut u32| {
-            if v > *best || (v == *best && i < *best_id) {
-                (*best, *best_id) = (v, i);
-            }
-        };
+        hint.store(at, Ordering::Relaxed);
         SCRATCH.with_borrow_mut(|s| {
+            // Flood over every vertex within `slack` of the best key found.
             let search = next_stamp(&mut s.search, &mut s.region, n);
+            let mut best_key = at_key;
             s.region[at as usize] = search;
+            s.members.clear();
+            s.members.push(at);
             s.stack.clear();
             s.stack.push(at);
             while let Some(i) = s.stack.pop() {
@@ -175,20 +171,25 @@ impl WalkedHull {
                     if s.region[j as usize] == search {
                         continue;
                     }
-                    let v = value(j);
-                    if v >= best - slack {
+                    let k = key(j);
+                    if k >= best_key - slack {
                         s.region[j as usize] = search;
+                        s.members.push(j);
                         s.stack.push(j);
-                        consider(j, v, &mut best, &mut best_id);
+                        best_key = best_key.max(k);
                     }
                 }
             }
-        });
-        for &i in &self.loose {
-            consider(i, value(i), &mut best, &mut best_id);
-        }
-        hint.store(best_id, Ordering::Relaxed);
-        (best, best_id)
+            // The exact values, on the region and the vertices no walk reaches.
+            let (mut best, mut best_id) = (f32::NEG_INFINITY, u32::MAX);
+            for &i in s.members.iter().chain(&self.loose) {
+                let v = exact(i);
+                if v > best || (v == best && i < best_id) {
+                    (best, best_id) = (v, i);
+                }
+            }
+            (best, best_id)
+        })
     }
 
     /// parry's `point_cloud_aabb`: the min and max of `pos * p` over the vertices.
@@ -199,27 +200,18 @@ impl WalkedHull {
         }
         let slack = SLACK * (1.0 + self.radius + pos.translation.abs().max_element());
         let points = self.hull.points();
+        // The search key along axis a: row a of the rotation times p (the translation adds the
+        // same to every vertex); the exact value is parry's `(pos * p)[a]`.
+        let rows = Mat3::from_quat(pos.rotation).transpose();
         let mut lo = [0.0f32; 3];
         let mut hi = [0.0f32; 3];
-        TRANSFORMED.with_borrow_mut(|t| {
-            let query = next_stamp(&mut t.query, &mut t.stamp, n);
-            if t.point.len() < n {
-                t.point.resize(n, Vec3::ZERO);
-            }
-            // Each vertex the six searches look at is transformed once (`pos * p`, as parry).
-            let mut world = |i: u32| {
-                let i = i as usize;
-                if t.stamp[i] != query {
-                    t.stamp[i] = query;
-                    t.point[i] = pos * points[i];
-                }
-                t.point[i]
-            };
-            for axis in 0..3 {
-                hi[axis] = self.extreme(&self.hints[2 * axis], slack, |i| world(i)[axis]).0;
-                lo[axis] = -self.extreme(&self.hints[2 * axis + 1], slack, |i| -world(i)[axis]).0;
-            }
-        });
+        for axis in 0..3 {
+            let row = rows.col(axis);
+            let key = |i: u32| row.dot(points[i as usize]);
+            let exact = |i: u32| (pos * points[i as usize])[axis];
+            hi[axis] = self.extreme(&self.hints[2 * axis], slack, key, exact).0;
+            lo[axis] = -self.extreme(&self.hints[2 * axis + 1], slack, |i| -key(i), |i| -exact(i)).0;
+        }
         Aabb::new(Vec3::from_array(lo), Vec3::from_array(hi))
     }
 
@@ -231,7 +223,8 @@ impl WalkedHull {
             return self.hull.local_support_point(dir);
         }
         let slack = SLACK * (1.0 + self.radius) * dir.length();
-        let (_, i) = self.extreme(&self.hints[6], slack, |i| points[i as usize].dot(dir));
+        let dot = |i: u32| points[i as usize].dot(dir);
+        let (_, i) = self.extreme(&self.hints[6], slack, dot, dot);
         points[i as usize]
     }
 }
