@@ -124,7 +124,7 @@ impl std::fmt::Display for BenchReport {
                 "predicted          {rate:.0} samples/s on {cores} cores with a free rasterizer (a GPU): {cores} / the CPU outside the rasterizer"
             )?;
         }
-        if let (Some(_), Some(rate)) = (r.predicted, r.predicted_with_render_calls) {
+        if let Some(rate) = r.predicted_with_render_calls {
             writeln!(
                 f,
                 "                   {rate:.0} samples/s if the renderer's calls ({:.2} ms per sample) cost the GPU machine's cores as much as here",

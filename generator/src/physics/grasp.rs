@@ -390,10 +390,8 @@ fn settle(ctx: &GraspContext, physics: &mut dyn HandPhysics, t_world_palm: &DAff
     let n_settle = ctx.steps(ctx.config.settle_seconds);
     let n_turn = (n_settle / 2).max(1);
     let gravity_at = |k: usize| DQuat::IDENTITY.slerp(turn, k as f64 / n_turn as f64) * PALM_UP_GRAVITY;
-    // An object that has fallen `LOST_DISTANCE` from the palm can only fall further (nothing
-    // but the hand is simulated): the grasp has failed, and the rest of the settle would
-    // simulate the fall.
-    let lost = |physics: &dyn HandPhysics| physics.object_pose().translation.length() > LOST_DISTANCE;
+    // A lost object can only fall further (nothing but the hand is simulated): the grasp has
+    // failed, and the rest of the settle would simulate the fall.
     for k in 1..n_turn {
         physics.set_gravity(gravity_at(k));
         physics.step();
@@ -540,13 +538,13 @@ fn move_and_settle(
         // move's outcome is known, and the rest of it (up to 0.7 s) would simulate the fall.
         // (Same outcome, same bytes: the failed move is undone and the next draws from its own
         // random stream.)
-        if physics.object_pose().translation.length() > LOST_DISTANCE {
+        if lost(physics) {
             return Ok(MoveOutcome::Failed(Failure::LostDuringMotion));
         }
     }
     *q = q_target;
     let touching = physics.phalanx_contacts().iter().filter(|c| c.is_some()).count();
-    if physics.object_pose().translation.length() > LOST_DISTANCE || touching == 0 {
+    if lost(physics) || touching == 0 {
         return Ok(MoveOutcome::Failed(Failure::LostDuringMotion));
     }
     if touching < 2 {
@@ -581,6 +579,11 @@ fn move_and_settle(
 /// Distance (m) from the palm at which an object is lost from the hand (a move's end check; the
 /// settle and the moves stop as soon as the object is this far).
 const LOST_DISTANCE: f64 = 0.25;
+
+/// Whether the object has fallen `LOST_DISTANCE` from the palm (out of the hand for good).
+fn lost(physics: &dyn HandPhysics) -> bool {
+    physics.object_pose().translation.length() > LOST_DISTANCE
+}
 
 /// Smallest height (m) of the object above the floor a recorded instance may have.
 const MIN_FLOOR_CLEARANCE: f64 = 0.005;
