@@ -206,7 +206,8 @@ fn a_config_of_only_objects_generates_and_set_overrides_it() {
 /// A full disk (here the file size limit, RLIMIT_FSIZE at 1 MiB, which fails a shard's write as a
 /// full disk does): one line naming the shard and the bytes it needs, no shard that looks
 /// complete and no `.partial` left; `--resume` afterwards completes byte-identical to a run that
-/// never failed.
+/// never failed. Unix only: the file size limit stands in for the full disk.
+#[cfg(unix)]
 #[test]
 fn a_full_disk_stops_cleanly_and_resume_completes_byte_identical() {
     use std::os::unix::process::CommandExt;
@@ -242,4 +243,61 @@ fn a_full_disk_stops_cleanly_and_resume_completes_byte_identical() {
         assert!(x == y, "{name} differs from an uninterrupted run");
     }
     eprintln!("{err}");
+}
+
+/// A YCB download for `scenes/tiny.yaml`'s two objects (boxes, in metres) in YCB's layout.
+fn small_ycb_download(dir: &Path) {
+    for (id, half) in [("003_cracker_box", [0.08, 0.03, 0.1]), ("005_tomato_soup_can", [0.034, 0.034, 0.05])] {
+        let d = dir.join(id).join("google_16k");
+        std::fs::create_dir_all(&d).unwrap();
+        let mut obj = String::new();
+        for k in 0..8 {
+            let s = |bit: usize, h: f64| if k & bit == 0 { -h } else { h };
+            obj += &format!("v {} {} {}\n", s(1, half[0]), s(2, half[1]), s(4, half[2]));
+        }
+        // The six faces, counter-clockwise seen from outside (vertex k has bits x=1, y=2, z=4).
+        for f in ["1 3 4 2", "5 6 8 7", "1 2 6 5", "3 7 8 4", "1 5 7 3", "2 4 8 6"] {
+            obj += &format!("f {f}\n");
+        }
+        std::fs::write(d.join("textured.obj"), obj).unwrap();
+    }
+}
+
+/// `--shard 0/2` with real meshes, then `--shard 1/2` or `--resume` without them (a node without
+/// the YCB download): refused with one line naming both sources, `models/` untouched; the same
+/// download from another directory is the same source and completes the dataset.
+#[test]
+fn shards_of_other_mesh_sources_never_mix_into_a_dataset() {
+    let d = tempdir();
+    let (out, ycb) = (d.path().join("out"), d.path().join("ycb"));
+    small_ycb_download(&ycb);
+    generate(&out, &["--shard", "0/2", "--ycb-dir", ycb.to_str().unwrap()]);
+    let models = files(&out.join("models"));
+    let shards = complete_shards(&out);
+    let config = tiny_config();
+    let args = |extra: &[&str]| {
+        let mut a = vec!["generate", config.to_str().unwrap(), "--out", out.to_str().unwrap(), "--quiet"];
+        a.extend_from_slice(extra);
+        run(&a)
+    };
+    for extra in [&["--shard", "1/2"][..], &["--resume"]] {
+        let o = args(extra);
+        let err = stderr(&o);
+        assert!(!o.status.success(), "{extra:?} must be refused");
+        assert_eq!(err.lines().count(), 1, "one clear line: {err}");
+        assert!(err.contains("meshes came from other sources"), "{err}");
+        assert!(err.contains("dataset mesh 003_cracker_box/google_16k/textured.obj"), "names the dataset's source: {err}");
+        assert!(err.contains("this run procedural stand-in"), "names the run's source: {err}");
+        assert_eq!(files(&out.join("models")), models, "models/ is never rewritten from another source");
+        assert_eq!(complete_shards(&out), shards, "no shard of another source");
+    }
+    // The same meshes from another directory: the same source.
+    let copy = d.path().join("ycb-copy");
+    small_ycb_download(&copy);
+    let o = args(&["--resume", "--ycb-dir", copy.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let m = vt_dataset::Manifest::load(&out.join("manifest.json")).unwrap();
+    assert!(m.complete);
+    let o = run(&["validate", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stdout) + stderr(&o).as_str());
 }

@@ -1,5 +1,5 @@
 //! The real robot meshes (Allegro hand STL, UR5e OBJ; from `ROBOT_ASSETS`, e.g. ../shared/assets,
-//! or `eval "$(scripts/robot-assets)"`; never committed): they load into our link frames, the
+//! or `scripts/robot-assets`; never committed): they load into our link frames, the
 //! simplified arm keeps its silhouette within a pixel at the paper camera, a dataset drawn with
 //! them passes `vtgen validate --full`, and bad mesh directories give one clear error.
 
@@ -137,16 +137,27 @@ fn a_dataset_drawn_with_the_real_robot_is_valid_and_deterministic() {
     let out = real_robot_dataset(&dir);
     let o = run(&["validate", out.to_str().unwrap(), "--full"]);
     assert!(o.status.success(), "{}", stderr(&o));
-    // The same config and meshes give the same bytes, the mesh directory given by the environment.
+    // The same config and meshes give the same bytes, the mesh directory given by the config's
+    // `robot.assets` this time, and a copy of it: the same source in another place.
     let again = tempdir();
-    let config = root().join("scenes/tiny-hand.yaml");
+    let copy = again.path().join("robot-assets");
+    for sub in ["allegro/meshes", "ur5e/visual"] {
+        std::fs::create_dir_all(copy.join(sub)).unwrap();
+        for e in std::fs::read_dir(dir.join(sub)).unwrap() {
+            let p = e.unwrap().path();
+            std::fs::copy(&p, copy.join(sub).join(p.file_name().unwrap())).unwrap();
+        }
+    }
+    let text = std::fs::read_to_string(root().join("scenes/tiny-hand.yaml")).unwrap();
+    let config = again.path().join("tiny-hand.yaml");
+    std::fs::write(&config, text.replacen("robot:\n", &format!("robot:\n  assets: {}\n", copy.display()), 1)).unwrap();
+    let out_again = again.path().join("out");
     let o = crate::common::vtgen()
-        .args(["generate", config.to_str().unwrap(), "--out", again.path().to_str().unwrap(), "--quiet"])
-        .env("VTGEN_ROBOT_ASSETS", &dir)
+        .args(["generate", config.to_str().unwrap(), "--out", out_again.to_str().unwrap(), "--quiet"])
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", stderr(&o));
-    let (a, b) = (crate::common::files(out), crate::common::files(again.path()));
+    let (a, b) = (crate::common::files(out), crate::common::files(&out_again));
     assert_eq!(a.len(), b.len());
     for ((na, ba), (nb, bb)) in a.iter().zip(&b) {
         assert_eq!(na, nb);
@@ -184,7 +195,7 @@ fn tactile_points_lie_on_the_object_and_at_the_real_finger_surface() {
             let s = s.unwrap();
             let tac = s.tactile.as_ref().unwrap();
             let frames: HashMap<&str, vt_dataset::Pose> = s.extra_transforms.iter().map(|(_, c, p)| (c.as_str(), *p)).collect();
-            let object = &objects[s.info["object_index"].as_u64().unwrap() as usize];
+            let object = &objects[s.info.object_index as usize];
             let to_object = s.t_camera_object.inverse();
             for p in &tac.points {
                 let on_object =

@@ -14,7 +14,7 @@ struct Cli {
     #[command(subcommand)]
     command: Command,
     /// Draw the real robot: a directory with allegro/meshes/*.STL and ur5e/visual/*.obj, as
-    /// `eval "$(scripts/robot-assets)"` fetches (sets VTGEN_ROBOT_ASSETS). Overrides the config's
+    /// `scripts/robot-assets` fetches (it prints the directory). Overrides the config's
     /// robot.assets; without either, the robot is drawn from primitives.
     #[arg(long, global = true, value_name = "DIR")]
     robot_assets: Option<PathBuf>,
@@ -182,7 +182,7 @@ enum ExportFormat {
 
 // Long on purpose: one match arm per subcommand, each a few lines from parsed flags to a library call.
 fn run(cli: Cli) -> Result<()> {
-    let load = |config: &PathBuf| LoadedConfig::load_with(config, &cli.overrides);
+    let load = |config: &PathBuf| anyhow::Ok(LoadedConfig::load_with(config, &cli.overrides)?.with_robot_assets(cli.robot_assets.clone()));
     let reads_config = matches!(
         cli.command,
         Command::Generate { .. }
@@ -253,7 +253,7 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Command::Preview { source, n, out, width, columns, ycb_dir } => {
-            let samples = vtgen::cli::preview::samples(&source, n, ycb_dir.as_ref(), &cli.overrides)?;
+            let samples = vtgen::cli::preview::samples(&source, n, ycb_dir.as_ref(), cli.robot_assets.clone(), &cli.overrides)?;
             vtgen::cli::preview::write_sheet(&samples, &out, width, columns)?;
             println!("wrote {} ({} samples)", out.display(), samples.len());
             Ok(())
@@ -317,8 +317,11 @@ fn quiet_headless_mesa() {
     }
     let dir = std::env::temp_dir().join("vtgen-xdg-runtime");
     if std::fs::create_dir_all(&dir).is_ok() {
-        use std::os::unix::fs::PermissionsExt;
-        let _ = std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o700));
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            let _ = std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o700));
+        }
         // SAFETY: called first thing in main, before any other thread exists.
         unsafe { std::env::set_var("XDG_RUNTIME_DIR", &dir) };
     }
@@ -361,10 +364,6 @@ fn main() -> ExitCode {
     keep_freed_memory();
     quiet_headless_mesa();
     let cli = Cli::parse();
-    if let Some(dir) = &cli.robot_assets {
-        // SAFETY: at the start of main, before any other thread exists.
-        unsafe { std::env::set_var(vtgen::assets::robot::ROBOT_ASSETS_ENV, dir) };
-    }
     match &cli.command {
         Command::Generate { jobs, .. } | Command::Bench { jobs, .. } => share_cores_with_lavapipe(*jobs),
         _ => {}

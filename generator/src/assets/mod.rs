@@ -2,6 +2,7 @@
 //! procedural stand-in.
 
 pub mod robot;
+pub mod sources;
 
 use std::path::PathBuf;
 

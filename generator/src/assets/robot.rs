@@ -41,8 +41,8 @@ const MAX_SIMPLIFY_ERROR: f32 = 0.002;
 /// sharp edges that averaged normals would round off).
 const CREASE_DEG: f32 = 40.0;
 
-/// The environment variable naming the robot mesh directory (`--robot-assets` sets it).
-pub const ROBOT_ASSETS_ENV: &str = "VTGEN_ROBOT_ASSETS";
+/// The folders of a robot mesh directory the loaders read (`scripts/robot-assets` fills them).
+pub const MESH_DIRS: [&str; 2] = ["allegro/meshes", "ur5e/visual"];
 
 /// Triangles per arm link after simplification: the arm is a background occluder seen at a few
 /// hundred pixels; the full meshes have 126 000 triangles in all.
@@ -51,11 +51,10 @@ pub const ARM_TRIANGLES_PER_LINK: usize = 3000;
 /// simplifier's error bound keeps the silhouette within a pixel (`tests/robot_meshes.rs`).
 pub const HAND_TRIANGLES_PER_PART: usize = 400;
 
-/// The robot mesh directory a run draws from: `VTGEN_ROBOT_ASSETS` (or `--robot-assets`) over the
-/// config's `robot.assets` (relative to the config file); None: the primitive robot.
+/// The robot mesh directory a run draws from: `--robot-assets` over the config's `robot.assets`
+/// (relative to the config file); None: the primitive robot.
 pub fn robot_assets_dir(cfg: &LoadedConfig) -> Option<PathBuf> {
-    let from_env = std::env::var_os(ROBOT_ASSETS_ENV).filter(|v| !v.is_empty()).map(PathBuf::from);
-    from_env.or_else(|| cfg.config.robot.as_ref()?.assets.as_ref().map(|p| cfg.resolve(p)))
+    cfg.robot_assets.clone()
 }
 
 /// One mesh file placed in a link frame, with the colour it is drawn in (None: the OBJ's own
@@ -146,7 +145,7 @@ pub fn ros_link_offsets(model: &RobotModel) -> Result<Vec<(usize, DAffine3)>> {
 fn check_layout(dir: &Path, probe: &str, what: &str) -> Result<()> {
     if !dir.join(probe).is_file() {
         bail!(
-            "robot assets {}: no {what} meshes ({} is missing). Fetch them with `eval \"$(scripts/robot-assets)\"`, \
+            "robot assets {}: no {what} meshes ({} is missing). Fetch them with `scripts/robot-assets` (it prints the directory), \
              or point --robot-assets at a directory with allegro/meshes/ and ur5e/visual/",
             dir.display(),
             dir.join(probe).display()

@@ -16,15 +16,24 @@ use crate::plan::Plan;
 use crate::render::WgpuRenderer;
 use crate::sample::SampleFactory;
 
-/// The first `n` samples of a config (generated in memory, with `overrides` applied) or of a
-/// dataset directory's train split.
-pub fn samples(source: &Path, n: usize, ycb_dir: Option<&std::path::PathBuf>, overrides: &[Override]) -> Result<Vec<Sample>> {
+/// `n` samples spread over a config's plan (generated in memory, with `overrides` applied and the
+/// robot drawn from `robot_assets` when given) or over a dataset directory's train split.
+pub fn samples(
+    source: &Path,
+    n: usize,
+    ycb_dir: Option<&std::path::PathBuf>,
+    robot_assets: Option<std::path::PathBuf>,
+    overrides: &[Override],
+) -> Result<Vec<Sample>> {
     if source.is_dir() {
         anyhow::ensure!(overrides.is_empty(), "--set applies to a config, not to the dataset {}", source.display());
         let ds = DatasetReader::open(source)?;
-        return ds.samples("train")?.take(n).collect();
+        let shards = ds.shards("train")?;
+        let all: Vec<(usize, u64)> = shards.iter().enumerate().flat_map(|(k, s)| s.indices().map(move |i| (k, i))).collect();
+        let step = (all.len() / n.max(1)).max(1);
+        return all.iter().step_by(step).take(n).map(|&(k, i)| shards[k].read(i)).collect();
     }
-    let cfg = LoadedConfig::load_with(source, overrides)?;
+    let cfg = LoadedConfig::load_with(source, overrides)?.with_robot_assets(robot_assets);
     let plan = Plan::new(&cfg.config);
     let objects = load_objects(&cfg, ycb_dir)?;
     let mut factory = SampleFactory::new(&cfg, &objects, Box::new(WgpuRenderer::new(&cfg.config.renderer)?))?;
@@ -61,7 +70,7 @@ fn row(s: &Sample) -> RgbImage {
     let (w, h) = (s.width, s.height);
     let mut rgb = RgbImage::from_raw(w, h, s.rgb.clone()).expect("w x h x 3 bytes");
     // The object's visible mask as a green outline, so its texture stays visible.
-    let is_object = |x: i64, y: i64| x >= 0 && y >= 0 && x < w as i64 && y < h as i64 && s.mask[(y * w as i64 + x) as usize] == 1;
+    let is_object = |x: i64, y: i64| x >= 0 && y >= 0 && x < w as i64 && y < h as i64 && s.mask[(y * w as i64 + x) as usize] == vt_dataset::mask_ids::TARGET_OBJECT;
     for y in 0..h as i64 {
         for x in 0..w as i64 {
             if is_object(x, y) && [(1, 0), (-1, 0), (0, 1), (0, -1)].iter().any(|(dx, dy)| !is_object(x + dx, y + dy)) {
@@ -138,7 +147,7 @@ pub fn write_sheet(samples: &[Sample], out: &Path, row_width: u32, columns: u32)
             let hgt = (r.height() as f64 * row_width as f64 / r.width() as f64).round() as u32;
             let mut r = image::imageops::resize(&r, row_width, hgt, image::imageops::FilterType::Triangle);
             // A strip on the left: orange for a randomized sample, light grey for a canonical one.
-            let c = if s.sample_info().is_ok_and(|i| i.randomized) { [255, 140, 0] } else { [210, 210, 210] };
+            let c = if s.info.randomized { [255, 140, 0] } else { [210, 210, 210] };
             for y in 0..hgt {
                 for x in 0..6.min(row_width) {
                     r.put_pixel(x, y, Rgb(c));

@@ -67,6 +67,9 @@ pub struct LoadedConfig {
     pub path: PathBuf,
     /// Directory that relative paths in the config are resolved against.
     pub base_dir: PathBuf,
+    /// The real robot meshes to draw: the config's `robot.assets` (resolved), or the directory
+    /// `--robot-assets` passes in (`with_robot_assets`); None: the URDF's primitives.
+    pub robot_assets: Option<PathBuf>,
 }
 
 impl LoadedConfig {
@@ -141,7 +144,17 @@ impl LoadedConfig {
             config.output.dir = PathBuf::from("out").join(stem);
         }
         let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-        LoadedConfig { config, path: path.to_path_buf(), base_dir }
+        let mut loaded = LoadedConfig { config, path: path.to_path_buf(), base_dir, robot_assets: None };
+        loaded.robot_assets = loaded.config.robot.as_ref().and_then(|r| r.assets.as_ref()).map(|p| loaded.resolve(p));
+        loaded
+    }
+
+    /// The run draws the robot meshes in `dir` (`--robot-assets`) instead of the config's.
+    pub fn with_robot_assets(mut self, dir: Option<PathBuf>) -> Self {
+        if dir.is_some() {
+            self.robot_assets = dir;
+        }
+        self
     }
 
     /// Resolves a path written in the config relative to the config file's directory.

@@ -46,8 +46,8 @@ pub struct RobotConfig {
     /// A URDF with the same joint and link names; default: the built-in UR5e + Allegro.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub urdf: Option<PathBuf>,
-    /// The real robot meshes to draw (`scripts/robot-assets`; `VTGEN_ROBOT_ASSETS` or
-    /// `--robot-assets` override it); without them, the URDF's primitives are drawn.
+    /// The real robot meshes to draw (`scripts/robot-assets`; `--robot-assets` overrides it);
+    /// without them, the URDF's primitives are drawn.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub assets: Option<PathBuf>,
     /// Robot base position (world) and rotation about world z.

@@ -12,6 +12,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use sha2::{Digest, Sha256};
 use vt_dataset::{Compression, Manifest, ModelInfo, ModelsInfo, ShardEntry, ShardMeta, ShardReceipt, SplitManifest, mask_ids};
 
+use crate::assets::sources::MeshSources;
 use crate::assets::{LoadedObject, MeshSource, load_objects};
 use crate::config::{Config, LoadedConfig};
 use crate::output::workers::run_pool;
@@ -99,11 +100,14 @@ fn write_models(out: &Path, objects: &[LoadedObject]) -> Result<Vec<String>> {
     Ok(dropped)
 }
 
-/// Prepares the output directory: refuses to mix datasets of different configs, and to redo
-/// complete shards without `--resume` or `--overwrite`.
-fn prepare_output(out: &Path, config_json: &str, plan: &Plan, opts: &GenerateOptions) -> Result<()> {
+/// Prepares the output directory: refuses to mix datasets of different configs or of meshes loaded
+/// from different sources, and to redo complete shards without `--resume` or `--overwrite`. Holds
+/// the directory's lock, so `--shard` processes starting together cannot each claim it.
+fn prepare_output(out: &Path, config_json: &str, sources: &MeshSources, plan: &Plan, opts: &GenerateOptions) -> Result<()> {
     std::fs::create_dir_all(out).with_context(|| format!("cannot create output directory {}", out.display()))?;
+    let _lock = lock_dataset(out)?;
     let cfg_path = out.join("config.json");
+    let sources_path = out.join(vt_dataset::SOURCES_FILE);
     if let Ok(existing) = std::fs::read_to_string(&cfg_path) {
         let same = existing == config_json;
         if opts.overwrite {
@@ -119,6 +123,12 @@ fn prepare_output(out: &Path, config_json: &str, plan: &Plan, opts: &GenerateOpt
                 "{} holds a dataset generated from a different config; choose another --out, or pass --overwrite to replace it",
                 out.display()
             );
+        } else if let Some(diff) = read_sources(&sources_path)?.and_then(|dataset| sources.difference(&dataset)) {
+            bail!(
+                "{} holds a dataset whose meshes came from other sources ({diff}); pass the dataset's --ycb-dir and --robot-assets, \
+                 choose another --out, or pass --overwrite to replace it",
+                out.display()
+            );
         } else if !opts.resume {
             let done = plan.shards.iter().filter(|s| opts.shard.selects(s) && out.join(s.file()).is_file()).count();
             if done > 0 {
@@ -130,17 +140,22 @@ fn prepare_output(out: &Path, config_json: &str, plan: &Plan, opts: &GenerateOpt
         }
     }
     vt_dataset::write_atomic(&cfg_path, config_json.as_bytes())
-        .with_context(|| format!("output directory {} is not writable", out.display()))
+        .with_context(|| format!("output directory {} is not writable", out.display()))?;
+    vt_dataset::write_atomic(&sources_path, (serde_json::to_string_pretty(sources)? + "\n").as_bytes())
 }
 
-/// Rebuilds `manifest.json` from the shards on disk. Checksums already known (from this run or the
-/// previous manifest, same size) are reused; unknown complete shards are hashed. Parallel `--shard`
-/// processes on one directory each rewrite it this way, so the last one to finish lists them all.
-// Long on purpose: lock, read, reconcile with the shards on disk, write atomically, unlock: one
-// critical section, kept in one function so that nothing runs between its steps.
-fn update_manifest(out: &Path, config: &Config, config_sha: &str, plan: &Plan, receipts: &[(String, ShardReceipt)]) -> Result<Manifest> {
-    // Parallel `--shard` processes finishing together take turns (an advisory lock, released
-    // when the file closes), so none writes a manifest that misses a shard another just listed.
+/// The dataset's mesh sources, when it has recorded them.
+fn read_sources(path: &Path) -> Result<Option<MeshSources>> {
+    match std::fs::read_to_string(path) {
+        Ok(text) => serde_json::from_str(&text).map(Some).with_context(|| format!("{} is not a valid sources file", path.display())),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
+        Err(e) => Err(e).with_context(|| format!("cannot read {}", path.display())),
+    }
+}
+
+/// Takes the dataset directory's lock (an advisory lock, released when the file closes), so that
+/// processes of one dataset take turns at claiming the directory and rewriting the manifest.
+fn lock_dataset(out: &Path) -> Result<std::fs::File> {
     let lock_path = out.join(".manifest.lock");
     let lock = std::fs::OpenOptions::new()
         .create(true)
@@ -149,6 +164,18 @@ fn update_manifest(out: &Path, config: &Config, config_sha: &str, plan: &Plan, r
         .open(&lock_path)
         .with_context(|| format!("cannot open {}", lock_path.display()))?;
     lock.lock().with_context(|| format!("cannot lock {}", lock_path.display()))?;
+    Ok(lock)
+}
+
+/// Rebuilds `manifest.json` from the shards on disk. Checksums already known (from this run or the
+/// previous manifest, same size) are reused; unknown complete shards are hashed. Parallel `--shard`
+/// processes on one directory each rewrite it this way, so the last one to finish lists them all.
+// Long on purpose: lock, read, reconcile with the shards on disk, write atomically, unlock: one
+// critical section, kept in one function so that nothing runs between its steps.
+fn update_manifest(out: &Path, config: &Config, config_sha: &str, plan: &Plan, receipts: &[(String, ShardReceipt)]) -> Result<Manifest> {
+    // Parallel `--shard` processes finishing together take turns, so none writes a manifest that
+    // misses a shard another just listed.
+    let _lock = lock_dataset(out)?;
     let mut known: BTreeMap<String, (u64, String)> = BTreeMap::new();
     if let Ok(old) = Manifest::load(&out.join("manifest.json"))
         && old.config_sha256 == config_sha
@@ -231,18 +258,24 @@ fn update_manifest(out: &Path, config: &Config, config_sha: &str, plan: &Plan, r
 
 /// Whether an error comes from a full disk, a full quota or the file size limit.
 fn is_disk_full(e: &anyhow::Error) -> bool {
-    e.chain()
-        .filter_map(|c| c.downcast_ref::<std::io::Error>())
-        .any(|io| matches!(io.raw_os_error(), Some(libc::ENOSPC | libc::EFBIG | libc::EDQUOT)))
+    use std::io::ErrorKind::{FileTooLarge, QuotaExceeded, StorageFull};
+    e.chain().filter_map(|c| c.downcast_ref::<std::io::Error>()).any(|io| matches!(io.kind(), StorageFull | FileTooLarge | QuotaExceeded))
 }
 
 /// Free bytes for an unprivileged writer on the filesystem holding `dir`, when the OS says.
+#[cfg(unix)]
 fn free_bytes(dir: &Path) -> Option<u64> {
     use std::os::unix::ffi::OsStrExt;
     let c = std::ffi::CString::new(dir.as_os_str().as_bytes()).ok()?;
     let mut s: libc::statvfs = unsafe { std::mem::zeroed() };
     // SAFETY: a valid NUL-terminated path and a statvfs struct to fill.
     (unsafe { libc::statvfs(c.as_ptr(), &mut s) } == 0).then(|| s.f_bavail as u64 * s.f_frsize as u64)
+}
+
+/// Elsewhere the run does not warn ahead; a full disk still stops it cleanly.
+#[cfg(not(unix))]
+fn free_bytes(_dir: &Path) -> Option<u64> {
+    None
 }
 
 /// "a–b" of an estimate of `samples` samples' bytes.
@@ -295,7 +328,8 @@ pub fn generate(cfg: &LoadedConfig, opts: &GenerateOptions) -> Result<GenerateSu
     let out = &opts.out;
     // Meshes first: a bad mesh is reported before anything is written.
     let objects = load_objects(cfg, opts.ycb_dir.as_ref())?;
-    prepare_output(out, &config_json, &plan, opts)?;
+    let sources = MeshSources::of(cfg, &objects)?;
+    prepare_output(out, &config_json, &sources, &plan, opts)?;
     for line in write_models(out, &objects)? {
         if !opts.quiet {
             eprintln!("symmetry: {line}");

@@ -1,0 +1,174 @@
+//! Where a run's meshes came from, by the content that was loaded: part of a dataset's identity,
+//! beside its config. Two runs whose objects or robot were loaded from different bytes (real YCB
+//! scans on one node, procedural stand-ins on another; another robot mesh download) make
+//! different data, so `generate` refuses to add one's shards to the other's dataset.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+
+use crate::assets::{LoadedObject, MeshSource};
+use crate::config::LoadedConfig;
+
+/// The mesh sources of a dataset: `sources.json` in its directory (FORMAT.md).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MeshSources {
+    /// Per object id: its mesh as loaded.
+    pub objects: BTreeMap<String, Source>,
+    /// The robot's URDF and meshes as loaded; absent without a robot.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub robot: Option<Source>,
+}
+
+/// One source: what it was read from (for people; no directory, so that the same download in
+/// another place writes the same bytes) and the SHA-256 of what was loaded (the identity).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Source {
+    pub from: String,
+    pub sha256: String,
+}
+
+impl std::fmt::Display for Source {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} (sha256 {})", self.from, &self.sha256[..12.min(self.sha256.len())])
+    }
+}
+
+impl MeshSources {
+    /// The sources of `objects` (as `load_objects` loaded them) and of the config's robot.
+    pub fn of(cfg: &LoadedConfig, objects: &[LoadedObject]) -> Result<Self> {
+        let objects = objects
+            .iter()
+            .map(|o| {
+                let from = match &o.source {
+                    MeshSource::Procedural => "procedural stand-in".to_string(),
+                    MeshSource::File(p) => format!("mesh {}", tail(p, 3)),
+                };
+                (o.id.clone(), Source { from, sha256: mesh_sha256(o) })
+            })
+            .collect();
+        let robot = cfg.config.robot.as_ref().map(|r| robot_source(cfg, r.urdf.as_deref())).transpose()?;
+        Ok(MeshSources { objects, robot })
+    }
+
+    /// The first difference from `other` (the dataset's), as "what: dataset's vs this run's";
+    /// None when both name the same bytes.
+    pub fn difference(&self, dataset: &MeshSources) -> Option<String> {
+        let mut diffs = Vec::new();
+        let ids: std::collections::BTreeSet<&String> = self.objects.keys().chain(dataset.objects.keys()).collect();
+        for id in ids {
+            match (dataset.objects.get(id), self.objects.get(id)) {
+                (Some(a), Some(b)) if a.sha256 == b.sha256 => {}
+                (a, b) => diffs.push(format!("{id}: dataset {} vs this run {}", shown(a), shown(b))),
+            }
+        }
+        if dataset.robot.as_ref().map(|s| &s.sha256) != self.robot.as_ref().map(|s| &s.sha256) {
+            diffs.push(format!("robot: dataset {} vs this run {}", shown(dataset.robot.as_ref()), shown(self.robot.as_ref())));
+        }
+        let first = diffs.first()?.clone();
+        Some(if diffs.len() > 1 { format!("{first} (and {} more)", diffs.len() - 1) } else { first })
+    }
+}
+
+/// The last `n` components of a path, '/'-separated (a YCB object's `<id>/google_16k/textured.obj`).
+fn tail(p: &Path, n: usize) -> String {
+    let parts: Vec<String> = p.components().map(|c| c.as_os_str().to_string_lossy().into_owned()).collect();
+    parts[parts.len().saturating_sub(n)..].join("/")
+}
+
+fn shown(s: Option<&Source>) -> String {
+    s.map_or_else(|| "none".to_string(), ToString::to_string)
+}
+
+/// SHA-256 of the mesh as it is drawn and simulated: vertices, normals, uvs, triangles, texture.
+fn mesh_sha256(o: &LoadedObject) -> String {
+    let m = &o.mesh;
+    let mut h = Sha256::new();
+    h.update(bytemuck::cast_slice::<[f32; 3], u8>(&m.positions));
+    h.update(bytemuck::cast_slice::<[f32; 3], u8>(&m.normals));
+    h.update(bytemuck::cast_slice::<[f32; 2], u8>(&m.uvs));
+    h.update(bytemuck::cast_slice::<u32, u8>(&m.indices));
+    h.update(m.texture.width.to_le_bytes());
+    h.update(m.texture.height.to_le_bytes());
+    h.update(&m.texture.rgba);
+    hex(h)
+}
+
+/// The robot: its URDF text and every file of the robot mesh directories the run reads.
+fn robot_source(cfg: &LoadedConfig, urdf: Option<&Path>) -> Result<Source> {
+    let mut h = Sha256::new();
+    let mut from = Vec::new();
+    match urdf {
+        Some(p) => {
+            let path = cfg.resolve(p);
+            h.update(std::fs::read(&path).with_context(|| format!("cannot read {}", path.display()))?);
+            from.push(format!("URDF {}", tail(&path, 1)));
+        }
+        None => {
+            h.update(vt_robot::BUILTIN_URDF.as_bytes());
+            from.push("built-in URDF".to_string());
+        }
+    }
+    match &cfg.robot_assets {
+        Some(dir) => {
+            for sub in crate::assets::robot::MESH_DIRS {
+                hash_dir(&mut h, dir, &dir.join(sub))?;
+            }
+            from.push("robot meshes".to_string());
+        }
+        None => from.push("primitives".to_string()),
+    }
+    Ok(Source { from: from.join(", "), sha256: hex(h) })
+}
+
+/// Every regular file below `dir` in name order: its path relative to `root`, its length and bytes.
+fn hash_dir(h: &mut Sha256, root: &Path, dir: &Path) -> Result<()> {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return Ok(()); // the mesh loader reports a missing directory with its layout
+    };
+    let mut paths: Vec<_> = entries.filter_map(|e| e.ok().map(|e| e.path())).collect();
+    paths.sort();
+    for p in paths {
+        if p.is_dir() {
+            hash_dir(h, root, &p)?;
+        } else {
+            let bytes = std::fs::read(&p).with_context(|| format!("cannot read {}", p.display()))?;
+            h.update(p.strip_prefix(root).unwrap_or(&p).to_string_lossy().as_bytes());
+            h.update((bytes.len() as u64).to_le_bytes());
+            h.update(&bytes);
+        }
+    }
+    Ok(())
+}
+
+fn hex(h: Sha256) -> String {
+    h.finalize().iter().map(|b| format!("{b:02x}")).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sources(sha: &str, robot: Option<&str>) -> MeshSources {
+        MeshSources {
+            objects: [("005_tomato_soup_can".to_string(), Source { from: "x".into(), sha256: sha.into() })].into(),
+            robot: robot.map(|r| Source { from: "primitives".into(), sha256: r.into() }),
+        }
+    }
+
+    #[test]
+    fn sources_differ_by_content_not_by_path() {
+        let a = sources("aa", Some("rr"));
+        let mut b = a.clone();
+        b.objects.get_mut("005_tomato_soup_can").unwrap().from = "/elsewhere/textured.obj".into();
+        assert_eq!(b.difference(&a), None, "the same bytes from another directory");
+        let c = sources("bb", Some("rr"));
+        let d = c.difference(&a).unwrap();
+        assert!(d.starts_with("005_tomato_soup_can: dataset x (sha256 aa) vs this run x (sha256 bb)"), "{d}");
+        let e = sources("aa", None).difference(&a).unwrap();
+        assert!(e.contains("robot: dataset primitives (sha256 rr) vs this run none"), "{e}");
+    }
+}
