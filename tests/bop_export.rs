@@ -11,6 +11,8 @@ fn json(path: &std::path::Path) -> serde_json::Value {
     serde_json::from_slice(&std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))).unwrap()
 }
 
+// Long on purpose: one walk over the export, each BOP file checked against the sample it came
+// from as it is met.
 #[test]
 fn bop_pixel_counts_match_the_generators_measurements() {
     let ds = reference_dataset();

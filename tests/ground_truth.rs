@@ -18,13 +18,13 @@ pub fn check_dataset(dir: &std::path::Path) {
     for split in ["train", "test"] {
         for s in ds.samples(split).unwrap() {
             let s = s.unwrap();
-            let obj = s.info["object_index"].as_u64().unwrap() as usize;
+            let obj = s.info.object_index as usize;
             // The stored transforms are consistent with each other.
             let composed = s.t_world_camera.inverse().compose(&s.t_world_object);
             assert!((composed.translation() - s.t_camera_object.translation()).length() < 1e-9);
             assert!(composed.rotation().dot(s.t_camera_object.rotation()).abs() > 1.0 - 1e-12);
             let r = reproject(&s, &models[obj], 1);
-            if s.info.get("physics_backend").is_none() {
+            if s.info.robot.is_none() {
                 // Nothing but the object itself can hide it.
                 assert!(r.front_facing > 50, "{split} {}: the object is in view ({} points)", s.index, r.front_facing);
                 assert!(r.visible * 2 >= r.front_facing, "{split} {}: {} of {} facing points visible", s.index, r.visible, r.front_facing);
@@ -59,7 +59,7 @@ fn a_wrong_pose_is_caught() {
     let mut s = ds.samples("train").unwrap().next().unwrap().unwrap();
     let info: vt_dataset::ModelsInfo =
         serde_json::from_slice(&std::fs::read(reference_dataset().join("models/models_info.json")).unwrap()).unwrap();
-    let obj = s.info["object_index"].as_u64().unwrap() as usize;
+    let obj = s.info.object_index as usize;
     let pts = surface_points(&read_ply(&reference_dataset().join("models").join(&info.objects[obj].file)).unwrap(), 3000);
     s.t_camera_object.position[2] -= 0.005;
     let r = reproject(&s, &pts, 1);

@@ -28,6 +28,8 @@ pub const SAMPLE_PERIOD_NS: u64 = 100_000_000;
 pub const SHARD_METADATA: &str = "vtgen.shard";
 /// Suffix of a shard that is still being written.
 pub const PARTIAL_SUFFIX: &str = ".partial";
+/// The dataset's mesh sources (FORMAT.md, "Directory layout"): with `config.json`, its identity.
+pub const SOURCES_FILE: &str = "sources.json";
 
 /// Topic names (FORMAT.md, "MCAP shard").
 pub mod topics {
@@ -58,10 +60,33 @@ pub mod frames {
     pub const OBJECT: &str = "object";
 }
 
-/// Mask ids (FORMAT.md, "Instance mask ids").
+/// Mask ids (FORMAT.md, "Instance mask ids"): every id range of the instance mask, named once.
 pub mod mask_ids {
+    use std::ops::RangeInclusive;
+
+    /// The floor, backdrop and other environment.
     pub const BACKGROUND: u8 = 0;
+    /// The object whose pose is the ground truth.
     pub const TARGET_OBJECT: u8 = 1;
+    /// Distractors: the k-th placed one (`/sample/info` `distractors`) has `start + k`.
+    pub const DISTRACTORS: RangeInclusive<u8> = 2..=9;
+    /// Arm links: the one moved by the k-th arm joint (the base with the first) has `start + k`.
+    pub const ARM_LINKS: RangeInclusive<u8> = 10..=15;
+    /// The palm and the hand adapter.
+    pub const PALM: u8 = 16;
+    /// Hand links: the one moved by the k-th hand joint has `start + k`.
+    pub const HAND_LINKS: RangeInclusive<u8> = 17..=32;
+
+    /// The id of the k-th entry of a range, when the range has one.
+    pub fn nth(range: &RangeInclusive<u8>, k: usize) -> Option<u8> {
+        let id = *range.start() as usize + k;
+        (id <= *range.end() as usize).then_some(id as u8)
+    }
+
+    /// Whether a mask id is a part of the robot.
+    pub fn is_robot(id: u8) -> bool {
+        ARM_LINKS.contains(&id) || id == PALM || HAND_LINKS.contains(&id)
+    }
 }
 
 /// The file name of shard `index` of a split, relative to the dataset root.

@@ -256,7 +256,8 @@ impl ShardReader {
         let calib = CameraCalibration::decode(&get(topics::CALIBRATION)?[..]).with_context(ctx)?;
         let pose = PoseInFrame::decode(&get(topics::OBJECT_POSE)?[..]).with_context(ctx)?;
         let tf = FrameTransforms::decode(&get(topics::TF)?[..]).with_context(ctx)?;
-        let info: serde_json::Value = serde_json::from_slice(get(topics::SAMPLE_INFO)?).with_context(ctx)?;
+        let info: crate::SampleInfo =
+            serde_json::from_slice(get(topics::SAMPLE_INFO)?).with_context(|| format!("{}: {}", ctx(), topics::SAMPLE_INFO))?;
         let (w, h) = (rgb.width, rgb.height);
         let unpad = |img: &RawImage, bpp: usize| -> Result<Vec<u8>> {
             let row = img.width as usize * bpp;

@@ -55,8 +55,8 @@ pub struct Sample {
     /// Further frames for `/tf` (parent, child, `T_parent_child`): the palm and the 12 phalanx
     /// sensor pads when a robot is in the scene.
     pub extra_transforms: Vec<(String, String, Pose)>,
-    /// The `/sample/info` JSON object.
-    pub info: serde_json::Value,
+    /// `/sample/info`.
+    pub info: crate::SampleInfo,
     /// The phalanx cameras and the tactile point cloud, when a robot is in the scene.
     pub tactile: Option<TactileData>,
 }
@@ -82,11 +82,6 @@ pub struct TactileData {
 }
 
 impl Sample {
-    /// `/sample/info` as its type.
-    pub fn sample_info(&self) -> anyhow::Result<crate::SampleInfo> {
-        serde_json::from_value(self.info.clone()).map_err(|e| anyhow::anyhow!("sample {}: /sample/info: {e}", self.index))
-    }
-
     pub fn fx(&self) -> f64 {
         self.k[0]
     }

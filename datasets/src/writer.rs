@@ -218,7 +218,8 @@ impl ShardWriter {
         transforms.extend(s.extra_transforms.iter().map(|(parent, child, p)| transform(t, parent, child, p)));
         let tf = FrameTransforms { transforms }.encode_to_vec();
         self.put(self.channels.tf, t, &tf)?;
-        let info = serde_json::to_vec(&s.info)?;
+        // Through a JSON value, whose object keys are sorted: the bytes do not follow field order.
+        let info = serde_json::to_vec(&s.info.to_value())?;
         self.put(self.channels.info, t, &info)?;
         if let Some(tac) = &s.tactile {
             self.write_tactile(t, tac)?;

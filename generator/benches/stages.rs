@@ -8,7 +8,7 @@ use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use glam::{DAffine3, DMat4, DQuat, DVec3};
-use vt_dataset::{Compression, Pose, Sample, ShardMeta, ShardWriter, TactileData};
+use vt_dataset::{Compression, Pose, Sample, SampleInfo, ShardMeta, ShardWriter, Split, TactileData};
 use vt_objects::{Catalog, TexturedMesh, procedural_mesh};
 use vt_robot::RobotModel;
 use vtgen::annotate::occlusion::{model_points, occlusion_level};
@@ -107,6 +107,7 @@ fn scene() -> Scene {
     Scene { renderer, view, draws, lighting, t_camera_object, mesh }
 }
 
+// Long on purpose: one criterion group per renderer stage on the same scene, listed in order.
 fn rendering(c: &mut Criterion) {
     let mut s = scene();
     let mut group = c.benchmark_group("render");
@@ -171,7 +172,23 @@ fn rendering(c: &mut Criterion) {
         t_world_camera: identity,
         t_world_object: identity,
         extra_transforms: Vec::new(),
-        info: serde_json::json!({"split": "bench"}),
+        info: SampleInfo {
+            split: Split::Train,
+            index: 0,
+            object_id: "005_tomato_soup_can".into(),
+            object_index: 0,
+            mask_id: vt_dataset::mask_ids::TARGET_OBJECT,
+            trajectory: 0,
+            instance: 0,
+            randomized: false,
+            appearance: serde_json::json!({"randomized": false}),
+            distractors: Vec::new(),
+            visible_pixels: 0,
+            occlusion: None,
+            t_world_camera: identity,
+            t_camera_object: identity,
+            robot: None,
+        },
         tactile: Some(TactileData {
             phalanges: vt_robot::phalanx_names(),
             resolution: 32,

@@ -28,8 +28,11 @@ fn dataset() -> &'static Path {
         if std::env::var_os("XDG_RUNTIME_DIR").is_none() {
             let xdg = std::env::temp_dir().join("vtgen-xdg-runtime");
             std::fs::create_dir_all(&xdg).unwrap();
-            use std::os::unix::fs::PermissionsExt;
-            let _ = std::fs::set_permissions(&xdg, std::fs::Permissions::from_mode(0o700));
+            #[cfg(unix)]
+            {
+                use std::os::unix::fs::PermissionsExt;
+                let _ = std::fs::set_permissions(&xdg, std::fs::Permissions::from_mode(0o700));
+            }
             // SAFETY: the variable is set once, before the renderer (the only reader) starts.
             unsafe { std::env::set_var("XDG_RUNTIME_DIR", &xdg) };
         }

@@ -298,11 +298,26 @@ pub fn bench(
     };
     let _ = std::fs::remove_dir_all(&dir);
     let (done, workers) = pooled.into_result()?;
+    let runs: Vec<TrajectoryRun> = done.into_iter().map(|(_, t)| t).collect();
+    report(runs, workers, Measured { jobs, seconds, process_cpu, predict_cores })
+}
+
+/// What `bench` measured around the workers.
+struct Measured {
+    jobs: usize,
+    seconds: f64,
+    process_cpu: f64,
+    predict_cores: Option<usize>,
+}
+
+/// The report of the benchmark's trajectories and of its workers' stage times.
+fn report(runs: Vec<TrajectoryRun>, workers: Vec<(StageTimes, WriterTimes, Duration, String)>, m: Measured) -> Result<BenchReport> {
+    let Measured { jobs, seconds, process_cpu, predict_cores } = m;
     let mut n = 0;
     let mut skipped = Vec::new();
     let mut occlusion_bins: BTreeMap<String, [u64; 3]> = BTreeMap::new();
     let mut bytes = 0;
-    for (_, t) in done {
+    for t in runs {
         n += t.samples;
         bytes += t.bytes;
         skipped.extend(t.skipped);

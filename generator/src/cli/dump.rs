@@ -87,6 +87,6 @@ pub fn dump(dataset: &Path, split: &str, index: u64, out: &Path, exr: bool) -> R
     // Row-major 4x4 of T_camera_object (glam is column-major).
     let m = s.t_camera_object.matrix().transpose().to_cols_array();
     write_npy(&out.join("T_camera_object.npy"), "<f8", &[4, 4], bytemuck::cast_slice(&m))?;
-    std::fs::write(out.join("info.json"), serde_json::to_string_pretty(&s.info)? + "\n")?;
+    std::fs::write(out.join("info.json"), serde_json::to_string_pretty(&s.info.to_value())? + "\n")?;
     Ok(())
 }

@@ -196,7 +196,7 @@ pub fn export_bop(root: &Path, out: &Path, renderer: &RendererConfig, quiet: boo
             for index in shard.indices().collect::<Vec<_>>() {
                 let s = shard.read(index)?;
                 let obj =
-                    s.sample_info().ok().map(|i| i.object_index as u64).filter(|&o| (o as usize) < handles.len()).with_context(|| {
+                    Some(s.info.object_index as u64).filter(|&o| (o as usize) < handles.len()).with_context(|| {
                         format!("{} sample {index}: object_index is missing or not in models_info.json", shard.path().display())
                     })? as usize;
                 let amodal = render_alone(&mut r, &s, handles[obj])?;

@@ -226,10 +226,7 @@ impl Model {
 /// not hold.
 pub fn check_ground_truth(s: &Sample, models: &[Model]) -> Option<String> {
     use rapier3d::parry::query::PointQuery;
-    let info = match s.sample_info() {
-        Ok(info) => info,
-        Err(e) => return Some(format!("{e:#}")),
-    };
+    let info = &s.info;
     let Some(obj) = Some(info.object_index as usize).filter(|&o| o < models.len()) else {
         return Some(format!("{} object_index {} is not in models_info.json", topics::SAMPLE_INFO, info.object_index));
     };

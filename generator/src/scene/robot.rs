@@ -5,6 +5,7 @@ use std::collections::BTreeMap;
 
 use anyhow::{Context, Result};
 use glam::{DAffine3, DQuat, DVec3, Vec3};
+use vt_dataset::mask_ids;
 use vt_objects::{Texture, TexturedMesh};
 use vt_robot::{ARM_JOINTS, Geometry, RobotModel, hand_joint_names};
 
@@ -13,21 +14,21 @@ use crate::config::{LoadedConfig, RobotConfig};
 use crate::physics::grasp::{GraspContext, GraspEvent, Trajectory, TrajectoryKey, simulate_trajectory};
 use crate::physics::{HandPhysics, PhysicsObject, PhysicsSettings, RapierHand};
 
-/// Mask id of a robot link (FORMAT.md): arm links 10–15 (the base counts with link 1), palm and
-/// adapter 16, hand links 17 + the index of the hand joint that moves them. None: not drawn.
+/// Mask id of a robot link (`vt_dataset::mask_ids`): the arm link moved by arm joint k (the base
+/// counts with the first), the palm and adapter, the hand link moved by hand joint k. None: not drawn.
 pub fn mask_id(model: &RobotModel, link: usize) -> Option<u8> {
     let name = model.links[link].name.as_str();
     if name == "base_link" {
-        return Some(10);
+        return Some(*mask_ids::ARM_LINKS.start());
     }
     if name == "palm" || name == "hand_adapter" {
-        return Some(16);
+        return Some(mask_ids::PALM);
     }
     let joint = &model.joints[model.links[link].parent_joint?];
     if let Some(k) = ARM_JOINTS.iter().position(|j| *j == joint.name) {
-        return Some(10 + k as u8);
+        return mask_ids::nth(&mask_ids::ARM_LINKS, k);
     }
-    hand_joint_names().iter().position(|j| *j == joint.name).map(|k| 17 + k as u8)
+    hand_joint_names().iter().position(|j| *j == joint.name).and_then(|k| mask_ids::nth(&mask_ids::HAND_LINKS, k))
 }
 
 /// A link's visual shapes as one mesh (its colours in a small texture, one texel per shape).

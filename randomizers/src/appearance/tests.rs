@@ -214,6 +214,7 @@ fn hue(c: [f32; 3]) -> f32 {
     h / 6.0
 }
 
+// Long on purpose: one loop over 1000 scenes, then one range check per randomized parameter.
 #[test]
 fn over_1000_scenes_every_parameter_covers_its_range() {
     let (_dir, lib, cfg) = with_images();

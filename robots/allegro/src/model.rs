@@ -112,6 +112,8 @@ impl RobotModel {
     }
 
     // `!(a <= b)` on purpose: a NaN limit or axis must fail the checks too.
+    // Long on purpose: one pass over the URDF's links and joints, each check next to the field it
+    // reads, so that every error names its link or joint in the order a reader meets them.
     #[allow(clippy::neg_cmp_op_on_partial_ord)]
     pub fn from_urdf_str(text: &str, source_name: &str) -> Result<Self, RobotError> {
         let err = |message: String| RobotError { source_name: source_name.to_string(), message };

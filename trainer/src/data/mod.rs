@@ -49,8 +49,6 @@ pub const IMAGENET_MEAN: [f32; 3] = [0.485, 0.456, 0.406];
 pub const IMAGENET_STD: [f32; 3] = [0.229, 0.224, 0.225];
 /// Model points per object for the metrics (ADD, ADD-S): fixed, seeded by the object.
 pub const EVAL_MODEL_POINTS: usize = 2000;
-/// The mask id of the target object when `/sample/info` does not say (FORMAT.md).
-const TARGET_MASK_ID: u8 = 1;
 
 mod batch;
 mod loader;

@@ -71,8 +71,8 @@ impl SplitSource {
         }
         let (shard, index, object) = self.entries[i];
         let sample = self.shards[shard].read(index)?;
-        let id = sample.sample_info()?.object_id;
-        if id != self.models[object].id {
+        let id = &sample.info.object_id;
+        if *id != self.models[object].id {
             bail!("{} sample {index}: object '{id}', expected '{}' from the dataset's config.json", self.split, self.models[object].id);
         }
         let view = Arc::new(ObjectView::from_sample(&sample, object, self.depth)?);

@@ -34,7 +34,7 @@ impl ObjectView {
     /// Extracts the view of a full sample.
     pub fn from_sample(s: &vt_dataset::Sample, object: usize, depth: DepthSource) -> Result<Self> {
         let (w, h) = (s.width as usize, s.height as usize);
-        let mask_id = s.info.get("mask_id").and_then(|v| v.as_u64()).map_or(TARGET_MASK_ID, |v| v as u8);
+        let mask_id = s.info.mask_id;
         let depth_img = match depth {
             DepthSource::Exact => &s.depth,
             DepthSource::Noisy => s
@@ -67,8 +67,7 @@ impl ObjectView {
             ([rmin, rmax, cmin, cmax], crop)
         };
         let tactile = s.tactile.as_ref().map(|t| t.points.iter().map(|p| p.position).collect()).unwrap_or_default();
-        let occlusion = s.info.pointer("/occlusion/level").and_then(|v| v.as_f64()).map_or(f32::NAN, |v| v as f32);
-        let id = |key: &str| s.info.get(key).and_then(|v| v.as_u64()).map_or(u32::MAX, |v| v as u32);
+        let occlusion = s.info.occlusion.map_or(f32::NAN, |o| o.level as f32);
         Ok(ObjectView {
             index: s.index,
             object,
@@ -80,8 +79,8 @@ impl ObjectView {
             rotation: s.t_camera_object.rotation(),
             translation: s.t_camera_object.translation(),
             occlusion,
-            trajectory: id("trajectory"),
-            instance: id("instance"),
+            trajectory: s.info.trajectory,
+            instance: s.info.instance,
         })
     }
 
