@@ -54,21 +54,21 @@ fn every_recorded_instance_is_a_plausible_grasp() {
     for split in ["train", "test"] {
         for s in ds.samples(split).unwrap() {
             let s = s.unwrap();
-            let i = &s.info;
-            assert_eq!(i["physics_backend"], backend().as_str());
-            let contacts = i["phalanges_in_contact"].as_array().unwrap();
+            let i = s.info.robot.as_ref().expect("a robot's info");
+            assert_eq!(i.physics_backend, backend().as_str());
+            let contacts = &i.phalanges_in_contact;
             assert!(contacts.len() >= 2, "{split} {}: {} phalanges in contact", s.index, contacts.len());
-            assert!(i["penetration_mm"].as_f64().unwrap() <= 1.0, "{split} {}: penetration", s.index);
-            assert_eq!(i["joint_positions"].as_object().unwrap().len(), 22);
+            assert!(i.penetration_mm <= 1.0, "{split} {}: penetration", s.index);
+            assert_eq!(i.joint_positions.len(), 22);
             // The object hangs free: all of it above the floor.
-            let obj = i["object_index"].as_u64().unwrap() as usize;
+            let obj = s.info.object_index as usize;
             let lowest = models[obj].iter().map(|p| s.t_world_object.transform_point(*p).z).fold(f64::MAX, f64::min);
             assert!(lowest > 0.0, "{split} {}: object reaches z = {lowest}", s.index);
             // Palm, the 12 phalanx pads and the drawn robot links (for the 3D view) are in /tf.
             let frames: Vec<&str> = s.extra_transforms.iter().map(|t| t.1.as_str()).collect();
             assert!(frames.contains(&"palm") && frames.iter().filter(|f| f.ends_with("_pad")).count() == 12, "{frames:?}");
             assert!(frames.len() > 13, "robot link frames: {frames:?}");
-            robot_pixels += s.mask.iter().filter(|&&m| (10..=32).contains(&m)).count();
+            robot_pixels += s.mask.iter().filter(|&&m| vt_dataset::mask_ids::is_robot(m)).count();
             n += 1;
         }
     }
@@ -139,7 +139,7 @@ fn every_tactile_point_lies_on_the_object_surface_within_its_pad() {
             let tac = s.tactile.as_ref().expect("robot samples carry tactile data");
             assert_eq!(tac.phalanges.len(), 12);
             assert!(tac.depth.iter().all(|d| d.len() == 32 * 32));
-            let mesh = &meshes[s.info["object_index"].as_u64().unwrap() as usize];
+            let mesh = &meshes[s.info.object_index as usize];
             let to_object = s.t_camera_object.inverse();
             let pads: std::collections::HashMap<&str, vt_dataset::Pose> =
                 s.extra_transforms.iter().map(|(_, c, p)| (c.as_str(), *p)).collect();
@@ -153,8 +153,7 @@ fn every_tactile_point_lies_on_the_object_surface_within_its_pad() {
                 let name = &tac.phalanges[p.phalanx as usize];
                 let pad = to_camera.compose(&pads[format!("{name}_pad").as_str()]);
                 let local = pad.inverse().transform_point(pc);
-                let (len, wid) =
-                    (s.info["tactile"]["pads"][name][0].as_f64().unwrap(), s.info["tactile"]["pads"][name][1].as_f64().unwrap());
+                let [len, wid] = s.info.robot.as_ref().and_then(|r| r.tactile.as_ref()).expect("touch info").pads[name];
                 assert!(local.x.abs() <= len / 2.0 + 1e-6 && local.y.abs() <= wid / 2.0 + 1e-6 && local.z <= 0.002 + 1e-6, "{local}");
                 assert!((local.z - p.distance as f64).abs() < 1e-5);
                 points += 1;
@@ -175,7 +174,7 @@ fn the_occlusion_level_agrees_with_brute_force() {
     let mut checked = 0;
     for s in ds.samples("train").unwrap().step_by(7).take(3) {
         let s = s.unwrap();
-        let o = &info.objects[s.info["object_index"].as_u64().unwrap() as usize];
+        let o = &info.objects[s.info.object_index as usize];
         let ply = read_ply(&dir.join("models").join(&o.file)).unwrap();
         let mesh = vt_objects::TexturedMesh {
             positions: ply.positions.clone(),
@@ -184,19 +183,19 @@ fn the_occlusion_level_agrees_with_brute_force() {
             indices: ply.triangles.iter().flatten().copied().collect(),
             texture: vt_objects::Texture::solid([0, 0, 0]),
         };
-        let occ = &s.info["occlusion"];
-        let pts: Vec<DVec3> = model_points(&mesh, occ["model_points"].as_u64().unwrap() as usize)
+        let occ = s.info.occlusion.expect("an occlusion level");
+        let pts: Vec<DVec3> = model_points(&mesh, occ.model_points as usize)
             .iter()
             .map(|p| s.t_camera_object.transform_point(*p))
             .collect();
         let k = Intrinsics { fx: s.fx(), fy: s.fy(), cx: s.cx(), cy: s.cy() };
-        let eps = occ["epsilon_mm"].as_f64().unwrap() * 1e-3;
+        let eps = occ.epsilon_mm * 1e-3;
         let (fast, _) = occlusion_level(&pts, &s.depth, s.width, s.height, &k, eps);
         let (brute, _) = occlusion_level_brute_force(&pts, &s.depth, s.width, s.height, &k, eps);
         assert!((fast - brute).abs() <= 0.001, "k-d tree {fast} vs all pairs {brute}");
-        assert_eq!(fast, occ["level"].as_f64().unwrap(), "the stored level is reproducible from the stored data");
+        assert_eq!(fast, occ.level, "the stored level is reproducible from the stored data");
         assert!(fast > 0.3 && fast < 1.0, "self-occlusion alone hides part of the object: {fast}");
-        let sil = occ["silhouette_visible_fraction"].as_f64().unwrap();
+        let sil = occ.silhouette_visible_fraction;
         assert!(sil > 0.0 && sil <= 1.0);
         checked += 1;
     }
@@ -354,13 +353,13 @@ fn robot_material_randomization_changes_only_the_robots_pixels() {
     };
     let plain = generate_with("plain", &[]);
     let varied = generate_with("varied", &["--set", "randomization.robot_materials={roughness: [0.2, 0.9], tint: 0.4}"]);
-    let robot = |m: u8| (10..=32).contains(&m);
+    let robot = vt_dataset::mask_ids::is_robot;
     let (mut randomized, mut changed) = (0, 0);
     for (a, b) in plain.samples("train").unwrap().zip(varied.samples("train").unwrap()) {
         let (a, b) = (a.unwrap(), b.unwrap());
         assert_eq!(a.mask, b.mask);
         assert!(a.depth.iter().zip(&b.depth).all(|(x, y)| x.to_bits() == y.to_bits()));
-        let info = b.sample_info().unwrap();
+        let info = &b.info;
         let look = info.appearance.get("robot").cloned();
         assert_eq!(look.is_some(), info.randomized, "sample {}: the look is recorded iff randomized", b.index);
         let mut robot_pixels_differ = false;
@@ -379,4 +378,32 @@ fn robot_material_randomization_changes_only_the_robots_pixels() {
         changed += robot_pixels_differ as usize;
     }
     assert!(randomized > 0 && changed == randomized, "{changed} of {randomized} randomized samples show another robot look");
+}
+
+/// Touch and contact agree (FORMAT.md, "Touch and contact"): every phalanx with tactile points is
+/// in `phalanges_in_contact`, the per-phalanx counts of `/sample/info` are those of the cloud, and
+/// a listed phalanx without points touches outside its pad's sensing area (counted, not an error).
+#[test]
+fn tactile_points_come_only_from_phalanges_in_contact() {
+    let ds = DatasetReader::open(hand_dataset()).unwrap();
+    let (mut listed, mut listed_without_points, mut with_points) = (0, 0, 0);
+    for split in ["train", "test"] {
+        for s in ds.samples(split).unwrap() {
+            let s = s.unwrap();
+            let robot = s.info.robot.as_ref().expect("a robot's info");
+            let touch = robot.tactile.as_ref().expect("touch info");
+            let tac = s.tactile.as_ref().expect("tactile data");
+            for (k, name) in tac.phalanges.iter().enumerate() {
+                let in_cloud = tac.points.iter().filter(|p| p.phalanx as usize == k).count() as u64;
+                assert_eq!(touch.points[name], in_cloud, "{split} {}: {name}'s count in /sample/info", s.index);
+                let in_contact = robot.phalanges_in_contact.contains(name);
+                assert!(in_cloud == 0 || in_contact, "{split} {}: {name} has {in_cloud} tactile points and no contact", s.index);
+                listed += in_contact as usize;
+                with_points += (in_cloud > 0) as usize;
+                listed_without_points += (in_contact && in_cloud == 0) as usize;
+            }
+        }
+    }
+    assert!(with_points > 0, "touch in the data");
+    eprintln!("{listed} phalanges in contact, {with_points} with tactile points, {listed_without_points} in contact outside their pads");
 }

@@ -207,8 +207,8 @@ struct Distractor {
 }
 
 impl<'a> SampleFactory<'a> {
-    /// The randomizer's distractors as objects standing upright on the floor (mask ids 2, 3, …),
-    /// leaving out any that would overlap the target's footprint or an earlier distractor.
+    /// The randomizer's distractors as objects standing upright on the floor (`mask_ids::DISTRACTORS`
+    /// in order), leaving out any that would overlap the target's footprint or an earlier distractor.
     fn place_distractors(&self, scene: &crate::scene::SampledScene, target: usize) -> Vec<Distractor> {
         let radius = |o: usize| {
             let e = self.objects[o].mesh.extents();
@@ -217,9 +217,9 @@ impl<'a> SampleFactory<'a> {
         let target_xy = scene.t_world_object.translation().truncate();
         let mut placed: Vec<(Distractor, glam::DVec2, f64)> = Vec::new();
         for d in &scene.appearance.distractors {
-            if placed.len() >= 8 {
-                break; // mask ids 2–9
-            }
+            let Some(mask_id) = mask_ids::nth(&mask_ids::DISTRACTORS, placed.len()) else {
+                break; // no mask id left
+            };
             let object = if d.candidate >= target { d.candidate + 1 } else { d.candidate };
             if object >= self.objects.len() {
                 continue;
@@ -231,7 +231,7 @@ impl<'a> SampleFactory<'a> {
             }
             let z = 0.5 * self.objects[object].mesh.extents().z as f64;
             let pose = Pose::from_rt(glam::DQuat::from_rotation_z(d.yaw), xy.extend(z));
-            placed.push((Distractor { object, mask_id: 2 + placed.len() as u8, pose }, xy, r));
+            placed.push((Distractor { object, mask_id, pose }, xy, r));
         }
         placed.into_iter().map(|p| p.0).collect()
     }
@@ -265,8 +265,8 @@ impl<'a> SampleFactory<'a> {
                     static SAID: std::sync::Once = std::sync::Once::new();
                     SAID.call_once(|| {
                         eprintln!(
-                            "vtgen: drawing the robot from primitives (no robot meshes: `eval \"$(scripts/robot-assets)\"` \
-                             or --robot-assets DIR draws the real Allegro hand and UR5e)"
+                            "vtgen: drawing the robot from primitives (no robot meshes: --robot-assets DIR, e.g. \
+                             `--robot-assets \"$(scripts/robot-assets)\"`, draws the real Allegro hand and UR5e)"
                         )
                     });
                     Default::default()
@@ -430,7 +430,7 @@ impl<'a> SampleFactory<'a> {
             t_world_camera: scene.t_world_camera,
             t_world_object: scene.t_world_object,
             extra_transforms,
-            info: info.to_value(),
+            info,
             tactile,
         })
     }
@@ -573,13 +573,14 @@ impl<'a> SampleFactory<'a> {
         let t_camera_world = scene.t_world_camera.inverse().matrix();
         let (t0, cpu0) = (Instant::now(), crate::cpu_clock::thread_cpu_time());
         let surface = self.finger_surface.as_ref();
-        let reading =
-            sense(self.renderer.as_mut(), cfg, &self.pad_sizes, &posed.pads, surface, object, &DAffine3::from_mat4(t_camera_world))?;
+        let names = vt_robot::phalanx_names();
+        let touching: [bool; 12] = std::array::from_fn(|k| posed.info.phalanges_in_contact.contains(&names[k]));
+        let t_camera_world = DAffine3::from_mat4(t_camera_world);
+        let reading = sense(self.renderer.as_mut(), cfg, &self.pad_sizes, &posed.pads, &touching, surface, object, &t_camera_world)?;
         // The extraction (hundredths of a millisecond) is counted with the renderer's call.
         self.times.render_call_cpu += crate::cpu_clock::cpu_since(cpu0);
         self.times.tactile_render += reading.render_time;
         self.times.tactile_extract += t0.elapsed() - reading.render_time;
-        let names = vt_robot::phalanx_names();
         posed.info.tactile = Some(TouchInfo {
             contact_threshold_mm: cfg.contact_threshold_mm,
             sensors: serde_json::to_value(cfg.sensors)?,

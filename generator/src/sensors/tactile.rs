@@ -91,15 +91,18 @@ pub fn finger_surface(mesh: &vt_objects::TexturedMesh, t_link_pad: &DAffine3, si
 }
 
 /// Renders the 12 pad views of the object (drawn alone: the hand does not occlude its own pads)
-/// and extracts the tactile points, in the frame `t_camera_world` maps to. With `surface`, a
-/// pixel's contact rule applies to the object's distance from the finger's real surface under it
-/// (not from the pad plane): the points are where the finger touches the object.
+/// and extracts the tactile points, in the frame `t_camera_world` maps to. Only the pads of the
+/// phalanges `touching` the object (the physics' contacts) report points: a sensor answers to
+/// contact, and an object hovering within the threshold of an untouched pad is not felt. With
+/// `surface`, a pixel's contact rule applies to the object's distance from the finger's real
+/// surface under it (not from the pad plane): the points are where the finger touches the object.
 #[allow(clippy::too_many_arguments)] // the stage's explicit inputs, passed in rather than held
 pub fn sense(
     renderer: &mut dyn Renderer,
     cfg: &TactileConfig,
     pads: &[(f64, f64); 12],
     t_world_pads: &[DAffine3; 12],
+    touching: &[bool; 12],
     surface: Option<&FingerSurface>,
     object: Draw,
     t_camera_world: &DAffine3,
@@ -123,7 +126,7 @@ pub fn sense(
     let render_time = t0.elapsed();
     let mut points = Vec::new();
     let mut counts = [0u32; 12];
-    for k in 0..12 {
+    for k in (0..12).filter(|&k| touching[k]) {
         let to_camera = *t_camera_world * t_world_pads[k];
         let model = match k % 3 {
             0 => cfg.sensors.proximal,
@@ -201,7 +204,7 @@ mod tests {
         let object = Draw { mesh: MeshHandle(0), t_world_model: DMat4::IDENTITY, mask_id: 1, role: DrawRole::Target };
         // Points come out in the frame `t_camera_world` maps to: a camera 1 m above, looking down.
         let t_world_camera = DAffine3::from_rotation_translation(DQuat::from_rotation_x(std::f64::consts::PI), DVec3::new(0.0, 0.0, 1.0));
-        let r = sense(&mut renderer, &cfg, &sizes, &t_world_pads, None, object, &t_world_camera.inverse()).unwrap();
+        let r = sense(&mut renderer, &cfg, &sizes, &t_world_pads, &[true; 12], None, object, &t_world_camera.inverse()).unwrap();
         for k in 0..12 {
             assert_eq!(r.counts[k], if k % 2 == 0 { 256 } else { 0 }, "pad {k}");
             assert_eq!(r.depth[k].len(), 256);
@@ -220,7 +223,7 @@ mod tests {
             sensors: crate::config::SensorGroups { proximal: SensorModel::TaxelArray { rows: 4, cols: 2 }, ..cfg.sensors },
             ..cfg.clone()
         };
-        let r = sense(&mut renderer, &taxels, &sizes, &t_world_pads, None, object, &t_world_camera.inverse()).unwrap();
+        let r = sense(&mut renderer, &taxels, &sizes, &t_world_pads, &[true; 12], None, object, &t_world_camera.inverse()).unwrap();
         // Proximal pads are 0, 3, 6, 9: in contact are 0 and 6.
         assert_eq!([r.counts[0], r.counts[3], r.counts[6], r.counts[9]], [8, 0, 8, 0]);
         assert!(r.points.iter().all(|p| (t_world_camera.transform_point3(p.position).z - 0.099).abs() < 1e-6));
