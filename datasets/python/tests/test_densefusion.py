@@ -303,12 +303,15 @@ def test_tiny_hand_tactile_points_come_from_the_tactile_topic(rust_hand_dataset:
     assert touched > 0, "no tiny-hand sample has tactile points"
 
 
+DOC_WITH_TRAINING_LOOP = REPO_ROOT / "docs" / "data.md"
+
+
 def readme_training_snippet() -> str:
-    """The Python block of the top-level README that trains on the DenseFusion view."""
-    text = (REPO_ROOT / "README.md").read_text(encoding="utf-8")
+    """The Python block of docs/data.md that trains on the DenseFusion view."""
+    text = DOC_WITH_TRAINING_LOOP.read_text(encoding="utf-8")
     blocks = re.findall(r"```python\n(.*?)```", text, re.S)
     blocks = [b for b in blocks if "DenseFusionDataset(" in b]
-    assert len(blocks) == 1, "README.md must have exactly one python block using DenseFusionDataset"
+    assert len(blocks) == 1, "docs/data.md must have exactly one python block using DenseFusionDataset"
     return blocks[0]
 
 
@@ -318,5 +321,5 @@ def test_readme_training_loop_runs_on_tiny(rust_dataset: Path) -> None:
     assert '"out/tiny"' in code
     code = code.replace('"out/tiny"', repr(str(rust_dataset)))
     namespace: Dict[str, Any] = {"__name__": "readme_snippet"}
-    exec(compile(code, str(REPO_ROOT / "README.md"), "exec"), namespace)
+    exec(compile(code, str(DOC_WITH_TRAINING_LOOP), "exec"), namespace)
     assert math.isfinite(namespace["loss"].item())
