@@ -6,6 +6,7 @@ use glam::{DMat3, DMat4, DVec3};
 use super::closest::Bvh;
 use super::linalg::outer;
 use crate::mesh::diameter_of;
+use crate::surface::{RunningSum, SurfaceSampler};
 
 /// Surface samples used to measure a transform ("a few thousand", area-weighted).
 pub const SURFACE_SAMPLES: usize = 4000;
@@ -103,18 +104,15 @@ impl SymmetryChecker {
             // Zero-area triangles add no surface (their points lie on their neighbours' edges).
             .filter(|[a, b, c]| (*b - *a).cross(*c - *a).length_squared() > 0.0)
             .collect();
+        let sampler = SurfaceSampler::new(tris, RunningSum::Areas);
         // Area, centroid and second moment (exact over each triangle).
-        let mut area = 0.0;
+        let area = sampler.total_area();
         let mut first = DVec3::ZERO;
         let mut second = DMat3::ZERO;
-        let mut cumulative = Vec::with_capacity(tris.len());
-        for [a, b, c] in &tris {
-            let ar = 0.5 * (*b - *a).cross(*c - *a).length();
+        for ([a, b, c], &ar) in sampler.triangles().iter().zip(sampler.areas()) {
             let s = *a + *b + *c;
-            area += ar;
             first += ar / 3.0 * s;
             second += (outer(*a, *a) + outer(*b, *b) + outer(*c, *c) + outer(s, s)) * (ar / 12.0);
-            cumulative.push(area);
         }
         let (centroid, covariance) = if area > 0.0 {
             let c = first / area;
@@ -122,20 +120,22 @@ impl SymmetryChecker {
         } else {
             (DVec3::ZERO, DMat3::ZERO)
         };
-        // Area-weighted samples: a triangle by its cumulative area, a point uniformly in it.
+        // Area-weighted samples: a triangle by its running area, a point in it by the square-root
+        // mapping. The search's `<=` and that mapping are this checker's since its first
+        // `models_info.json`: the other samplers' `<` and folded pair would move every sample,
+        // and the derived symmetries' last bits with them.
         let mut rng = SplitMix64(seed);
         let mut pts = Vec::with_capacity(samples);
         if area > 0.0 {
             for _ in 0..samples {
                 let u = rng.next_f64() * area;
-                let k = cumulative.partition_point(|&c| c <= u).min(tris.len() - 1);
-                let [a, b, c] = tris[k];
+                let k = sampler.pick_by(|&c| c <= u);
                 let (r1, r2) = (rng.next_f64(), rng.next_f64());
-                let s = r1.sqrt();
-                pts.push(a * (1.0 - s) + b * (s * (1.0 - r2)) + c * (s * r2));
+                pts.push(sampler.point_sqrt(k, r1, r2));
             }
         }
-        SymmetryChecker { surface: Bvh::new(tris), samples: pts, diameter: diameter_of(positions), centroid, covariance, vertices }
+        let surface = Bvh::new(sampler.triangles().to_vec());
+        SymmetryChecker { surface, samples: pts, diameter: diameter_of(positions), centroid, covariance, vertices }
     }
 
     pub fn diameter(&self) -> f64 {
