@@ -5,7 +5,7 @@
 //! Self-occlusion counts: the far side of an object is never visible.
 
 use glam::DVec3;
-use vt_objects::TexturedMesh;
+use vt_objects::{RunningSum, SurfaceSampler, TexturedMesh};
 
 use crate::config::Intrinsics;
 
@@ -25,27 +25,16 @@ pub fn bin(level: f64) -> usize {
 /// `n` points spread over the mesh surface by area (a fixed, seed-free sequence: the same model
 /// always gives the same points).
 pub fn model_points(mesh: &TexturedMesh, n: usize) -> Vec<DVec3> {
-    let v = |i: u32| glam::Vec3::from(mesh.positions[i as usize]).as_dvec3();
-    let tris: Vec<[DVec3; 3]> = mesh.indices.chunks_exact(3).map(|t| [v(t[0]), v(t[1]), v(t[2])]).collect();
-    let mut cdf = Vec::with_capacity(tris.len());
-    let mut acc = 0.0;
-    for t in &tris {
-        acc += 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length();
-        cdf.push(acc);
+    let surface = SurfaceSampler::from_mesh(&mesh.positions, mesh.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]), RunningSum::Areas);
+    if surface.is_empty() {
+        return Vec::new();
     }
     // A low-discrepancy (R2) sequence: even coverage without a random generator.
     let (a1, a2, a3) = (0.819_172_513_396_164_4, 0.671_043_606_703_789_2, 0.549_730_125_185_948_4);
     (0..n)
         .map(|i| {
             let i = i as f64 + 0.5;
-            let (r0, r1, r2) = ((a1 * i).fract(), (a2 * i).fract(), (a3 * i).fract());
-            let k = cdf.partition_point(|&c| c < r0 * acc).min(tris.len() - 1);
-            let (mut u, mut w) = (r1, r2);
-            if u + w > 1.0 {
-                (u, w) = (1.0 - u, 1.0 - w);
-            }
-            let [a, b, c] = tris[k];
-            a + (b - a) * u + (c - a) * w
+            surface.sample((a1 * i).fract(), (a2 * i).fract(), (a3 * i).fract())
         })
         .collect()
 }

@@ -1,6 +1,8 @@
 //! One object of a dataset's `models/`: its mesh, symmetry and fixed metric points; the objects a
 //! run trains on.
 
+use vt_objects::{RunningSum, SurfaceSampler};
+
 use super::*;
 
 /// One object of `models/`: its mesh, symmetry and fixed metric points.
@@ -16,9 +18,8 @@ pub struct ObjectModel {
     /// Largest vertex distance, metres.
     pub diameter: f64,
     vertices: Vec<DVec3>,
-    triangles: Vec<[u32; 3]>,
-    /// Cumulative triangle areas, normalised to end at 1 (empty: sample vertices instead).
-    cdf: Vec<f64>,
+    /// The triangles and their running areas (no area: sample vertices instead).
+    surface: SurfaceSampler,
     /// `EVAL_MODEL_POINTS` surface points (object frame) the metrics use.
     pub eval_points: Vec<[f32; 3]>,
 }
@@ -33,18 +34,7 @@ impl ObjectModel {
         triangles: &[[u32; 3]],
     ) -> Self {
         let vertices: Vec<DVec3> = positions.iter().map(|p| DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)).collect();
-        let mut cdf = Vec::with_capacity(triangles.len());
-        let mut total = 0.0;
-        for t in triangles {
-            let [a, b, c] = t.map(|i| vertices[i as usize]);
-            total += 0.5 * (b - a).cross(c - a).length();
-            cdf.push(total);
-        }
-        if total > 0.0 {
-            cdf.iter_mut().for_each(|x| *x /= total);
-        } else {
-            cdf.clear();
-        }
+        let surface = SurfaceSampler::from_mesh(positions, triangles.iter().copied(), RunningSum::Areas);
         let mut m = ObjectModel {
             id: id.to_string(),
             dataset_index,
@@ -52,8 +42,7 @@ impl ObjectModel {
             symmetries: crate::metrics::Symmetries::of_kind(symmetry),
             diameter,
             vertices,
-            triangles: triangles.to_vec(),
-            cdf,
+            surface,
             eval_points: Vec::new(),
         };
         let mut rng = ChaCha8Rng::seed_from_u64(0x5eed_0000 + dataset_index as u64);
@@ -69,20 +58,22 @@ impl ObjectModel {
     /// `n` points uniformly distributed over the surface (object frame), as the Python
     /// `sample_surface`: triangles chosen by area, points uniform inside them. A mesh without
     /// (non-degenerate) faces falls back to its vertices.
+    // `!(total > 0.0)` on purpose: a NaN area falls back to the vertices too.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
     pub fn sample_surface(&self, n: usize, rng: &mut impl Rng) -> Vec<[f32; 3]> {
-        if self.cdf.is_empty() {
+        let total = self.surface.total_area();
+        if !(total > 0.0) {
             return draw(rng, self.vertices.len(), n).into_iter().map(|i| self.vertices[i].as_vec3().to_array()).collect();
         }
         (0..n)
             .map(|_| {
                 let u: f64 = rng.random();
-                let k = self.cdf.partition_point(|&c| c < u).min(self.triangles.len() - 1);
-                let [a, b, c] = self.triangles[k].map(|i| self.vertices[i as usize]);
-                let (mut r1, mut r2): (f64, f64) = (rng.random(), rng.random());
-                if r1 + r2 > 1.0 {
-                    (r1, r2) = (1.0 - r1, 1.0 - r2);
-                }
-                (a + r1 * (b - a) + r2 * (c - a)).as_vec3().to_array()
+                // Each running area over the total, compared with `u`: the division is this
+                // sampler's since its first points (the generator's `c < u · total` differs in
+                // the last bits), and the trainer's tests and runs keep their points.
+                let k = self.surface.pick_by(|&c| c / total < u);
+                let (r1, r2): (f64, f64) = (rng.random(), rng.random());
+                self.surface.point(k, r1, r2).as_vec3().to_array()
             })
             .collect()
     }
