@@ -9,19 +9,6 @@ use vt_objects::{RunningSum, SurfaceSampler, TexturedMesh};
 
 use crate::config::Intrinsics;
 
-/// The paper's occlusion bins: below 80%, 80–85%, above 85%.
-pub const BINS: [&str; 3] = ["<80%", "80-85%", ">85%"];
-
-pub fn bin(level: f64) -> usize {
-    if level < 0.80 {
-        0
-    } else if level <= 0.85 {
-        1
-    } else {
-        2
-    }
-}
-
 /// `n` points spread over the mesh surface by area (a fixed, seed-free sequence: the same model
 /// always gives the same points).
 pub fn model_points(mesh: &TexturedMesh, n: usize) -> Vec<DVec3> {
@@ -122,11 +109,6 @@ mod tests {
         }
         // Nothing seen: no depth anywhere.
         assert_eq!(occlusion_level(&on, &vec![0.0; 64 * 48], 64, 48, &k, 0.02), (1.0, 0));
-    }
-
-    #[test]
-    fn the_paper_bins() {
-        assert_eq!([bin(0.0), bin(0.7999), bin(0.80), bin(0.85), bin(0.8501), bin(1.0)], [0, 0, 1, 1, 2, 2]);
     }
 
     #[test]
