@@ -167,7 +167,7 @@ fn a_pad_pressed_on_a_box_sees_its_whole_footprint_and_a_free_pad_sees_nothing()
     let sizes = [(0.03, 0.02); 12];
     let cfg = TactileConfig::default();
     let object = Draw { mesh: boxm, t_world_model: DMat4::IDENTITY, mask_id: 1, role: DrawRole::Target };
-    let reading = sense(&mut r, &cfg, &sizes, &pads, None, object, &glam::DAffine3::IDENTITY).unwrap();
+    let reading = sense(&mut r, &cfg, &sizes, &pads, &[true; 12], None, object, &glam::DAffine3::IDENTITY).unwrap();
     assert_eq!(reading.counts[0], 32 * 32, "the whole pad footprint is in contact");
     assert!(reading.depth[0].iter().all(|d| (d - 0.0005).abs() < 1e-5), "flat face at 0.5 mm");
     assert!(reading.counts[1..].iter().all(|&c| c == 0), "pads away from the object report nothing");
@@ -202,7 +202,7 @@ fn the_three_sensor_models_report_the_same_surface_patch() {
     let sizes = [(0.03, 0.02); 12];
     let mut cloud = |model: SensorModel| {
         let cfg = TactileConfig { sensors: SensorGroups { proximal: model, medial: model, distal: model }, ..TactileConfig::default() };
-        let reading = sense(&mut r, &cfg, &sizes, &pads, None, object, &glam::DAffine3::IDENTITY).unwrap();
+        let reading = sense(&mut r, &cfg, &sizes, &pads, &[true; 12], None, object, &glam::DAffine3::IDENTITY).unwrap();
         reading.points.iter().filter(|p| p.phalanx == 0).map(|p| p.position).collect::<Vec<_>>()
     };
     let camera = cloud(SensorModel::DepthCamera);
@@ -227,8 +227,8 @@ fn perspective_pads_see_the_same_surface_as_orthographic_ones() {
     use vtgen::sensors::tactile::sense;
     let (mut r, object, pads, normal, on_face) = tilted_face();
     let cfg = TactileConfig { projection: PadProjection::Perspective, ..TactileConfig::default() };
-    let persp = sense(&mut r, &cfg, &[(0.03, 0.02); 12], &pads, None, object, &glam::DAffine3::IDENTITY).unwrap();
-    let ortho = sense(&mut r, &TactileConfig::default(), &[(0.03, 0.02); 12], &pads, None, object, &glam::DAffine3::IDENTITY).unwrap();
+    let persp = sense(&mut r, &cfg, &[(0.03, 0.02); 12], &pads, &[true; 12], None, object, &glam::DAffine3::IDENTITY).unwrap();
+    let ortho = sense(&mut r, &TactileConfig::default(), &[(0.03, 0.02); 12], &pads, &[true; 12], None, object, &glam::DAffine3::IDENTITY).unwrap();
     assert!(persp.counts[0] > 100 && persp.counts[0] < 1024);
     for p in persp.points.iter().filter(|p| p.phalanx == 0) {
         assert!(normal.dot(p.position - on_face).abs() < 2e-5, "perspective point {} off the face", p.position);
