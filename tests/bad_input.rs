@@ -68,6 +68,19 @@ fn an_out_of_range_value_names_the_field_and_the_range() {
 }
 
 #[test]
+fn a_grasp_duration_or_finger_gain_out_of_range_names_the_field_and_line() {
+    let hand = std::fs::read_to_string(tiny_config().with_file_name("tiny-hand.yaml")).unwrap();
+    let grasp = "    max_tilt_deg: 50\n";
+    assert!(hand.contains(grasp));
+    let y = hand.replacen(grasp, &format!("{grasp}    move_seconds: -0.5\n"), 1);
+    let line = line_of(&y, "move_seconds");
+    fails(&y, &[&format!("bad.yaml:{line}:5: robot.grasp.move_seconds: -0.5 is out of range: allowed 0 < move_seconds <= 60 s")]);
+    let y = hand.replacen("timestep: 0.0041667}", "timestep: 0.0041667, max_torque: 0}", 1);
+    let line = line_of(&y, "max_torque");
+    fails(&y, &[&format!("bad.yaml:{line}:"), "robot.physics.max_torque: 0 is out of range: allowed 0 < max_torque <= 1000 N·m"]);
+}
+
+#[test]
 fn a_wrong_type_names_the_field() {
     let y = tiny_with("trajectories_per_object: 5", "trajectories_per_object: many");
     let line = line_of(&y, "many");

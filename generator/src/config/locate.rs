@@ -49,72 +49,86 @@ fn node_start(l: &str) -> usize {
     i
 }
 
-/// 1-based (line, column) of the last segment of `path`.
-// Long on purpose: one small YAML scanner (block maps, block and flow sequences) whose states
-// share the cursor.
+/// 1-based (line, column) of the last segment of `path`: the path is followed one segment at a
+/// time, each found inside the lines of the node the previous one named.
 pub fn locate(text: &str, path: &[Seg]) -> Option<(usize, usize)> {
     let ls = lines(text);
-    // The node being searched: lines [from, to), whose direct children sit at columns > `col`
-    // (or at `col` itself for a block sequence written under its key).
-    let (mut from, mut to, mut col): (usize, usize, isize) = (0, ls.len(), -1);
+    let mut node = Node { from: 0, to: ls.len(), col: -1 };
     let mut at = None;
     for (depth, seg) in path.iter().enumerate() {
-        let last = depth + 1 == path.len();
-        let hit = match seg {
-            Seg::Key(k) => (from..to).find_map(|i| {
-                let l = ls[i].text;
-                let s = node_start(l);
-                // Keys of a mapping inside a sequence item start at the item's own column.
-                let after_item = depth > 0 && matches!(path[depth - 1], Seg::Index(_));
-                let deeper = s as isize > col || (after_item && s as isize == col) || (depth == 0 && s == 0);
-                if deeper && l[s..].starts_with(&format!("{k}:")) {
-                    return Some((i, s));
-                }
-                // A one-line flow mapping: `parent: {a: 1, k: 2}`.
-                let open = l.find('{')?;
-                [format!("{{{k}:"), format!(" {k}:"), format!(",{k}:")]
-                    .iter()
-                    .find_map(|p| l[open..].find(p.as_str()).map(|q| (i, open + q + p.len() - k.len() - 1)))
-            }),
-            Seg::Index(n) => {
-                // Block sequence items: `- ` at the first dash indent found in the window.
-                let dashes: Vec<(usize, usize)> = (from..to)
-                    .filter(|&i| ls[i].text.trim_start().starts_with("- ") && ls[i].indent as isize >= col)
-                    .map(|i| (i, ls[i].indent))
-                    .collect();
-                let first = dashes.first().map(|d| d.1);
-                match dashes.into_iter().filter(|d| Some(d.1) == first).nth(*n) {
-                    Some((i, ind)) => Some((i, ind + 2)),
-                    // A flow sequence `[a, b]` on the parent's line: point at the parent.
-                    None => return at,
-                }
-            }
+        let (i, c) = match seg {
+            // Keys of a mapping inside a sequence item start at the item's own column.
+            Seg::Key(k) => find_key(&ls, &node, k, depth > 0 && matches!(path[depth - 1], Seg::Index(_)), depth == 0)?,
+            Seg::Index(n) => match find_item(&ls, &node, *n) {
+                Some(hit) => hit,
+                // A flow sequence `[a, b]` on the parent's line: point at the parent.
+                None => return at,
+            },
         };
-        let (i, c) = hit?;
         at = Some((i + 1, c + 1));
-        if last {
-            break;
+        if depth + 1 < path.len() {
+            node = Node { from: i, to: extent(&ls, i, c, node.to, seg), col: c as isize };
         }
-        // The node's extent: its own line plus the following lines indented deeper than it
-        // (or block-sequence dashes at its own indent, `key:\n- a`).
-        let mut j = i + 1;
-        while j < to {
-            let l = &ls[j];
-            let deeper = match seg {
-                Seg::Key(_) => l.indent > c || (l.indent == c && l.text.trim_start().starts_with("- ")),
-                // The item's mapping continues at the column its first key started.
-                Seg::Index(_) => l.indent >= c,
-            };
-            if !l.text.trim().is_empty() && !deeper {
-                break;
-            }
-            j += 1;
-        }
-        from = i;
-        to = j;
-        col = c as isize;
     }
     at
+}
+
+/// The node being searched: lines [from, to), whose direct children sit at columns > `col` (or at
+/// `col` itself for a block sequence written under its key).
+struct Node {
+    from: usize,
+    to: usize,
+    col: isize,
+}
+
+/// The line and column (0-based) of key `k` among the children of `node`: a block mapping's key
+/// (`after_item`: the first key of a mapping that is a sequence item, at the item's column; `top`:
+/// a key of the document at column 0), or a key of a one-line flow mapping.
+fn find_key(ls: &[Line], node: &Node, k: &str, after_item: bool, top: bool) -> Option<(usize, usize)> {
+    (node.from..node.to).find_map(|i| {
+        let l = ls[i].text;
+        let s = node_start(l);
+        let deeper = s as isize > node.col || (after_item && s as isize == node.col) || (top && s == 0);
+        if deeper && l[s..].starts_with(&format!("{k}:")) {
+            return Some((i, s));
+        }
+        // A one-line flow mapping: `parent: {a: 1, k: 2}`.
+        let open = l.find('{')?;
+        [format!("{{{k}:"), format!(" {k}:"), format!(",{k}:")]
+            .iter()
+            .find_map(|p| l[open..].find(p.as_str()).map(|q| (i, open + q + p.len() - k.len() - 1)))
+    })
+}
+
+/// The line and column (0-based) of block sequence item `n` in `node`: the `n`-th `- ` at the
+/// first dash indent found there.
+fn find_item(ls: &[Line], node: &Node, n: usize) -> Option<(usize, usize)> {
+    let dashes: Vec<(usize, usize)> = (node.from..node.to)
+        .filter(|&i| ls[i].text.trim_start().starts_with("- ") && ls[i].indent as isize >= node.col)
+        .map(|i| (i, ls[i].indent))
+        .collect();
+    let first = dashes.first().map(|d| d.1);
+    dashes.into_iter().filter(|d| Some(d.1) == first).nth(n).map(|(i, ind)| (i, ind + 2))
+}
+
+/// The end (exclusive, at most `to`) of the node `seg` found at line `i`, column `c`: its own line
+/// plus the following lines indented deeper than it (or block-sequence dashes at its own indent,
+/// `key:\n- a`).
+fn extent(ls: &[Line], i: usize, c: usize, to: usize, seg: &Seg) -> usize {
+    let mut j = i + 1;
+    while j < to {
+        let l = &ls[j];
+        let deeper = match seg {
+            Seg::Key(_) => l.indent > c || (l.indent == c && l.text.trim_start().starts_with("- ")),
+            // The item's mapping continues at the column its first key started.
+            Seg::Index(_) => l.indent >= c,
+        };
+        if !l.text.trim().is_empty() && !deeper {
+            break;
+        }
+        j += 1;
+    }
+    j
 }
 
 #[cfg(test)]

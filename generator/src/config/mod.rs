@@ -1,12 +1,15 @@
 //! The YAML config. Parsing rejects unknown keys; every error names the file, line, column and
 //! field path, and out-of-range values name the allowed range.
 
+mod check;
 mod locate;
 mod overrides;
 mod schema;
 
 use std::path::{Path, PathBuf};
 
+pub(crate) use check::field;
+pub use check::{Check, Checks, Problem};
 pub use overrides::Override;
 pub use schema::*;
 

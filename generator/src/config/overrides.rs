@@ -35,8 +35,13 @@ impl FromStr for Override {
         if key.is_empty() || key.split('.').any(|k| k.trim().is_empty()) {
             return Err(format!("`{s}`: the key `{key}` has an empty step"));
         }
+        // Brackets alone (`]`, `[]`) pass the check above but leave no step.
+        let steps = keys(key);
+        if steps.is_empty() {
+            return Err(format!("`{s}`: the key `{key}` names no field"));
+        }
         let value = serde_yaml::from_str(value).map_err(|e| format!("`{s}`: the value is not YAML: {e}"))?;
-        Ok(Override { text: s.to_string(), keys: keys(key), value })
+        Ok(Override { text: s.to_string(), keys: steps, value })
     }
 }
 
@@ -106,6 +111,8 @@ mod tests {
     fn bad_overrides_say_what_is_wrong() {
         assert!("sampling".parse::<Override>().unwrap_err().contains("is not KEY=VALUE"));
         assert!("a..b=1".parse::<Override>().unwrap_err().contains("empty step"));
+        assert!("]=1".parse::<Override>().unwrap_err().contains("names no field"));
+        assert!("[].[]=1".parse::<Override>().unwrap_err().contains("names no field"));
         assert!("a=[1".parse::<Override>().unwrap_err().contains("the value is not YAML"));
         let mut t = tree("seed: 1\nobjects: [a]\n");
         let e = "seed.x=1".parse::<Override>().unwrap().apply(&mut t).unwrap_err().to_string();

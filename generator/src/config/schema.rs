@@ -1,12 +1,16 @@
 //! The config schema. Sections for the robot, physics, tactile sensing and randomization slot in
 //! here as new optional sections; unknown keys are rejected everywhere.
+//!
+//! Each section's default, allowed ranges and checks sit together: the struct, its `Default`, and
+//! its [`Check`] impl (paths derived from the field names, see `check.rs`).
 
 use std::path::PathBuf;
 
-use std::f64::consts::FRAC_PI_2;
+use std::f64::consts::{FRAC_PI_2, PI, TAU};
 
 use serde::{Deserialize, Serialize};
 
+use super::check::{Check, Checks, Problem, field, key};
 use super::locate::Seg;
 
 /// Every section but `objects` has a default (the paper's camera, 200 x 100 samples per object,
@@ -40,6 +44,64 @@ pub struct Config {
     pub output: Output,
 }
 
+impl Config {
+    /// Every problem of a parsed config, section by section (the loader reports the first).
+    pub fn validate(&self) -> Vec<Problem> {
+        let mut out = Vec::new();
+        let c = &mut Checks::new(&mut out);
+        self.check_objects(c);
+        c.section(field!(self.sampling));
+        c.section(field!(self.camera));
+        c.section(field!(self.renderer));
+        self.check_randomization(c);
+        c.section(field!(self.scene));
+        c.section(field!(self.output));
+        c.section(field!(self.robot));
+        out
+    }
+
+    /// Object ids known or well-formed, custom masses in range, no object twice.
+    fn check_objects(&self, c: &mut Checks) {
+        let mut objects = c.key(key!(self.objects));
+        if self.objects.is_empty() {
+            objects.fail("at least one object is required");
+        }
+        let catalog = vt_objects::Catalog::builtin();
+        let mut seen = std::collections::BTreeSet::new();
+        for (i, o) in self.objects.iter().enumerate() {
+            let mut item = objects.index(i);
+            let id = o.id();
+            if let ObjectSpec::Catalog(id) = o
+                && catalog.get(id).is_none()
+            {
+                let known: Vec<&str> = catalog.ids().collect();
+                item.fail(format!("unknown object id '{id}'; the catalogue has: {}", known.join(", ")));
+            }
+            if let ObjectSpec::Custom(custom) = o {
+                custom.check(&mut item);
+            }
+            if !seen.insert(id.to_string()) {
+                item.fail(format!("object '{id}' is listed twice"));
+            }
+        }
+    }
+
+    /// The randomizers' own checks, under `randomization`.
+    fn check_randomization(&self, c: &mut Checks) {
+        use Seg::{Index, Key};
+        let mut randomization = c.key(key!(self.randomization));
+        for (field, message) in self.randomization.validate() {
+            // The randomizers name a field by its dotted path. Field paths are static names;
+            // leaking a few bytes per error is fine.
+            let path = field.split('.').map(|k| match k.parse::<usize>() {
+                Ok(i) => Index(i),
+                Err(_) => Key(Box::leak(k.to_string().into_boxed_str())),
+            });
+            randomization.path(path).fail(message);
+        }
+    }
+}
+
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RobotConfig {
@@ -61,6 +123,19 @@ pub struct RobotConfig {
     pub grasp: GraspConfig,
     #[serde(default)]
     pub tactile: TactileConfig,
+}
+
+impl Check for RobotConfig {
+    fn check(&self, c: &mut Checks) {
+        c.section(field!(self.tactile));
+        c.section(field!(self.physics));
+        c.section(field!(self.grasp));
+        let (base, position) = field!(self.base_position);
+        for (i, v) in position.iter().enumerate() {
+            c.key(base).index(i).within(*v, -100.0, 100.0);
+        }
+        c.range(field!(self.base_yaw_deg), -360.0, 360.0);
+    }
 }
 
 /// The phalanx depth cameras (FORMAT.md, `/tactile/*`).
@@ -103,6 +178,36 @@ impl Default for TactileConfig {
             projection: PadProjection::Orthographic,
             perspective_standoff_mm: 10.0,
         }
+    }
+}
+
+impl Check for TactileConfig {
+    // `!(a < b)` on purpose: a NaN in the YAML must fail the checks too.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
+    fn check(&self, c: &mut Checks) {
+        c.range(field!(self.resolution), 4, 256);
+        c.range(field!(self.contact_threshold_mm), 0.0, 50.0);
+        if !(self.near_mm < self.far_mm) {
+            c.key(key!(self.far_mm)).fail(format!("{} must be above near_mm ({})", self.far_mm, self.near_mm));
+        }
+        let groups = &self.sensors;
+        let mut sensors = c.key(key!(self.sensors));
+        for (group, m) in [field!(groups.proximal), field!(groups.medial), field!(groups.distal)] {
+            match *m {
+                SensorModel::TaxelArray { rows, cols } if rows == 0 || cols == 0 || rows > self.resolution || cols > self.resolution => {
+                    sensors
+                        .key(group)
+                        .fail(format!("taxel grid {rows}x{cols} is out of range: 1 ..= resolution ({}) per side", self.resolution))
+                }
+                SensorModel::Gelsight { gel_thickness_mm } if !(gel_thickness_mm > 0.0 && gel_thickness_mm <= 20.0) => {
+                    sensors.key(group).fail(format!("gel_thickness_mm {gel_thickness_mm} is out of range: 0 < t <= 20"))
+                }
+                _ => {}
+            }
+        }
+        c.range(field!(self.near_mm), -100.0, 100.0);
+        c.range(field!(self.far_mm), -100.0, 1000.0);
+        c.positive(field!(self.perspective_standoff_mm), 100.0, "mm");
     }
 }
 
@@ -173,6 +278,16 @@ impl Default for PhysicsConfig {
             damping: 0.2,
             max_torque: 0.7,
         }
+    }
+}
+
+impl Check for PhysicsConfig {
+    fn check(&self, c: &mut Checks) {
+        c.range(field!(self.timestep), 1e-4, 0.02);
+        c.range(field!(self.friction), 0.0, 10.0);
+        c.positive(field!(self.stiffness), 1e4, "N·m/rad");
+        c.range(field!(self.damping), 0.0, 1e3);
+        c.positive(field!(self.max_torque), 1e3, "N·m");
     }
 }
 
@@ -269,6 +384,43 @@ impl Default for GraspConfig {
     }
 }
 
+impl Check for GraspConfig {
+    fn check(&self, c: &mut Checks) {
+        c.range(field!(self.max_attempts), 1, 10_000);
+        c.range(field!(self.max_tilt_deg), 0.0, 180.0);
+        c.range(field!(self.max_roll_deg), 0.0, 180.0);
+        c.range(field!(self.back_to_camera_share), 0.0, 1.0);
+        c.key(key!(self.back_to_camera_tilt_deg)).ordered_pair(self.back_to_camera_tilt_deg, 0.0, 180.0);
+        // Joint angles (rad): within a turn either way for the arm (the UR5e's limits), half a
+        // turn for the hand. The preshape and the boxes are drawn from: a reversed range would
+        // make the draw panic.
+        let (home, arm) = field!(self.home_arm);
+        for (i, q) in arm.iter().enumerate() {
+            c.key(home).index(i).within(*q, -TAU, TAU);
+        }
+        let (preshape, ranges) = field!(self.preshape);
+        for (i, range) in ranges.iter().enumerate() {
+            c.key(preshape).index(i).ordered_pair(*range, -PI, PI);
+        }
+        let (close, targets) = field!(self.close);
+        for (i, q) in targets.iter().enumerate() {
+            if let Some(q) = q {
+                c.key(close).index(i).within(*q, -PI, PI);
+            }
+        }
+        c.section(field!(self.palm_workspace));
+        c.section(field!(self.object_offset));
+        c.range(field!(self.palm_surface_x), -0.1, 0.1);
+        c.positive(field!(self.max_grasp_depth), 1.0, "m");
+        // Durations (s): a phase of 0 s would still simulate one step, so zero is refused rather
+        // than silently lengthened.
+        for duration in [field!(self.close_seconds), field!(self.settle_seconds), field!(self.move_seconds), field!(self.hold_seconds)] {
+            c.positive(duration, 60.0, "s");
+        }
+        c.range(field!(self.max_penetration), 0.0, 0.1);
+    }
+}
+
 /// A catalogue id, or a custom object with its own mesh.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 #[serde(untagged)]
@@ -291,6 +443,15 @@ pub struct CustomObject {
 
 fn default_mass() -> f64 {
     0.2
+}
+
+impl Check for CustomObject {
+    fn check(&self, c: &mut Checks) {
+        c.positive(field!(self.mass), 100.0, "kg");
+        if self.id.is_empty() || !self.id.chars().all(|ch| ch.is_ascii_alphanumeric() || ch == '_' || ch == '-') {
+            c.key(key!(self.id)).fail(format!("'{}' is not a valid id: use letters, digits, '_' and '-'", self.id));
+        }
+    }
 }
 
 impl ObjectSpec {
@@ -347,6 +508,14 @@ impl Default for Sampling {
     }
 }
 
+impl Check for Sampling {
+    fn check(&self, c: &mut Checks) {
+        c.range(field!(self.trajectories_per_object), 1, 1_000_000);
+        c.range(field!(self.instances_per_trajectory), 1, 100_000);
+        c.section(field!(self.split));
+    }
+}
+
 /// Train/test ratio, decided per trajectory (FORMAT.md).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -367,6 +536,17 @@ fn default_split_test() -> u32 {
 impl Default for Split {
     fn default() -> Self {
         Split { train: default_split_train(), test: default_split_test() }
+    }
+}
+
+impl Check for Split {
+    /// Both in range, and a split that keeps something.
+    fn check(&self, c: &mut Checks) {
+        c.range(field!(self.train), 0, 1000);
+        c.range(field!(self.test), 0, 1000);
+        if self.train == 0 && self.test == 0 {
+            c.fail("train + test must be at least 1");
+        }
     }
 }
 
@@ -464,6 +644,44 @@ impl Camera {
     }
 }
 
+impl Check for Camera {
+    /// Image size, intrinsics or field of view, clip planes, noise models, the camera's aim.
+    // `!(a <= b)` on purpose: a NaN in the YAML must fail the checks too.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
+    fn check(&self, c: &mut Checks) {
+        c.range(field!(self.width), 8, 8192);
+        c.range(field!(self.height), 8, 8192);
+        match (&self.intrinsics, self.fov_y_deg) {
+            (Some(_), Some(_)) => c.key(key!(self.fov_y_deg)).fail("give either intrinsics or fov_y_deg, not both"),
+            (None, None) => {}
+            (None, Some(f)) => c.key(key!(self.fov_y_deg)).within(f, 1.0, 170.0),
+            (Some(k), None) => {
+                let mut intrinsics = c.key(key!(self.intrinsics));
+                intrinsics.range(field!(k.fx), 1.0, 1e6);
+                intrinsics.range(field!(k.fy), 1.0, 1e6);
+                intrinsics.range(field!(k.cx), -0.5, self.width as f64 - 0.5);
+                intrinsics.range(field!(k.cy), -0.5, self.height as f64 - 0.5);
+            }
+        }
+        c.range(field!(self.near), 1e-4, 100.0);
+        c.section(field!(self.noise));
+        if !(self.far > self.near && self.far <= 1000.0) {
+            c.key(key!(self.far)).fail(format!("{} is out of range: allowed near ({}) < far <= 1000", self.far, self.near));
+        }
+        let d: f64 = (0..3).map(|i| (self.look_at[i] - self.position[i]).powi(2)).sum::<f64>().sqrt();
+        if !(d > 1e-6) {
+            c.key(key!(self.look_at)).fail("look_at must differ from position");
+        } else if ((self.look_at[0] - self.position[0]).abs() + (self.look_at[1] - self.position[1]).abs()) < 1e-9 {
+            c.key(key!(self.look_at)).fail("the camera must not look straight up or down (world z is the up direction)");
+        }
+        for (key, point) in [field!(self.position), field!(self.look_at)] {
+            for (i, v) in point.iter().enumerate() {
+                c.key(key).index(i).within(*v, -100.0, 100.0);
+            }
+        }
+    }
+}
+
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SceneConfig {
@@ -503,6 +721,21 @@ fn default_background() -> [u8; 3] {
     [70, 78, 92]
 }
 
+impl Check for SceneConfig {
+    /// A workspace above the floor, occlusion sampling.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
+    fn check(&self, c: &mut Checks) {
+        let w = &self.workspace;
+        let mut workspace = c.key(key!(self.workspace));
+        w.check(&mut workspace);
+        if !(w.min[2] > 0.0) {
+            workspace.key(key!(w.min)).fail(format!("min z = {} must be above the floor (z > 0)", w.min[2]));
+        }
+        c.range(field!(self.occlusion_points), 10, 1_000_000);
+        c.range(field!(self.occlusion_epsilon_mm), 0.01, 100.0);
+    }
+}
+
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Workspace {
@@ -513,6 +746,23 @@ pub struct Workspace {
 impl Default for Workspace {
     fn default() -> Self {
         Workspace { min: [-0.08, -0.08, 0.18], max: [0.08, 0.08, 0.32] }
+    }
+}
+
+impl Check for Workspace {
+    /// A box: `max >= min` on every axis, every corner within 100 m of the origin.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
+    fn check(&self, c: &mut Checks) {
+        for i in 0..3 {
+            if !(self.min[i] <= self.max[i]) {
+                c.key(key!(self.max)).fail(format!("max[{i}] = {} must be >= min[{i}] = {}", self.max[i], self.min[i]));
+            }
+        }
+        for (key, corner) in [field!(self.min), field!(self.max)] {
+            for (i, v) in corner.iter().enumerate() {
+                c.key(key).index(i).within(*v, -100.0, 100.0);
+            }
+        }
     }
 }
 
@@ -552,6 +802,16 @@ impl Default for RendererConfig {
             shadow_map_size: default_shadow_map_size(),
             tonemapping: ToneMapping::None,
             msaa: default_msaa(),
+        }
+    }
+}
+
+impl Check for RendererConfig {
+    /// Shadow map size, anti-aliasing.
+    fn check(&self, c: &mut Checks) {
+        c.range(field!(self.shadow_map_size), 256, 8192);
+        if ![1, 4].contains(&self.msaa) {
+            c.key(key!(self.msaa)).fail(format!("{} is not supported: use 1 (off) or 4", self.msaa));
         }
     }
 }
@@ -619,248 +879,20 @@ fn default_zstd_level() -> i32 {
     3
 }
 
+impl Check for Output {
+    /// Shard size, compression.
+    fn check(&self, c: &mut Checks) {
+        c.range(field!(self.samples_per_shard), 1, 1_000_000);
+        c.range(field!(self.zstd_level), 1, 19);
+    }
+}
+
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum CompressionKind {
     #[default]
     Zstd,
     None,
-}
-
-/// A value that parsed but is not acceptable.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Problem {
-    pub path: Vec<Seg>,
-    pub message: String,
-}
-
-fn range<T: PartialOrd + std::fmt::Display>(out: &mut Vec<Problem>, path: Vec<Seg>, v: T, lo: T, hi: T) {
-    if !(v >= lo && v <= hi) {
-        out.push(Problem { path, message: format!("{v} is out of range: allowed {lo} ..= {hi}") });
-    }
-}
-
-impl Config {
-    /// Every problem of a parsed config, section by section in document order (the loader
-    /// reports the first).
-    pub fn validate(&self) -> Vec<Problem> {
-        let mut p = Vec::new();
-        self.validate_objects(&mut p);
-        self.validate_sampling(&mut p);
-        self.validate_camera(&mut p);
-        self.validate_renderer(&mut p);
-        self.validate_randomization(&mut p);
-        self.validate_scene_and_output(&mut p);
-        if let Some(r) = &self.robot {
-            r.validate(&mut p);
-        }
-        p
-    }
-
-    /// Object ids known or well-formed, custom masses in range, no object twice.
-    #[allow(clippy::neg_cmp_op_on_partial_ord)]
-    fn validate_objects(&self, p: &mut Vec<Problem>) {
-        use Seg::{Index, Key};
-        if self.objects.is_empty() {
-            p.push(Problem { path: vec![Key("objects")], message: "at least one object is required".into() });
-        }
-        let catalog = vt_objects::Catalog::builtin();
-        let mut seen = std::collections::BTreeSet::new();
-        for (i, o) in self.objects.iter().enumerate() {
-            let id = o.id();
-            if let ObjectSpec::Catalog(id) = o
-                && catalog.get(id).is_none()
-            {
-                let known: Vec<&str> = catalog.ids().collect();
-                p.push(Problem {
-                    path: vec![Key("objects"), Index(i)],
-                    message: format!("unknown object id '{id}'; the catalogue has: {}", known.join(", ")),
-                });
-            }
-            if let ObjectSpec::Custom(c) = o {
-                if !(c.mass > 0.0 && c.mass <= 100.0) {
-                    p.push(Problem {
-                        path: vec![Key("objects"), Index(i), Key("mass")],
-                        message: format!("{} is out of range: allowed 0 < mass <= 100 kg", c.mass),
-                    });
-                }
-                if c.id.is_empty() || !c.id.chars().all(|ch| ch.is_ascii_alphanumeric() || ch == '_' || ch == '-') {
-                    p.push(Problem {
-                        path: vec![Key("objects"), Index(i), Key("id")],
-                        message: format!("'{}' is not a valid id: use letters, digits, '_' and '-'", c.id),
-                    });
-                }
-            }
-            if !seen.insert(id.to_string()) {
-                p.push(Problem { path: vec![Key("objects"), Index(i)], message: format!("object '{id}' is listed twice") });
-            }
-        }
-    }
-
-    /// Counts in range, a split that keeps something.
-    fn validate_sampling(&self, p: &mut Vec<Problem>) {
-        use Seg::Key;
-        let s = &self.sampling;
-        range(p, vec![Key("sampling"), Key("trajectories_per_object")], s.trajectories_per_object, 1, 1_000_000);
-        range(p, vec![Key("sampling"), Key("instances_per_trajectory")], s.instances_per_trajectory, 1, 100_000);
-        range(p, vec![Key("sampling"), Key("split"), Key("train")], s.split.train, 0, 1000);
-        range(p, vec![Key("sampling"), Key("split"), Key("test")], s.split.test, 0, 1000);
-        if s.split.train + s.split.test == 0 {
-            p.push(Problem { path: vec![Key("sampling"), Key("split")], message: "train + test must be at least 1".into() });
-        }
-    }
-
-    /// Image size, intrinsics or field of view, clip planes, noise models, the camera's aim.
-    #[allow(clippy::neg_cmp_op_on_partial_ord)]
-    fn validate_camera(&self, p: &mut Vec<Problem>) {
-        use Seg::Key;
-        let c = &self.camera;
-        range(p, vec![Key("camera"), Key("width")], c.width, 8, 8192);
-        range(p, vec![Key("camera"), Key("height")], c.height, 8, 8192);
-        match (&c.intrinsics, c.fov_y_deg) {
-            (Some(_), Some(_)) => p.push(Problem {
-                path: vec![Key("camera"), Key("fov_y_deg")],
-                message: "give either intrinsics or fov_y_deg, not both".into(),
-            }),
-            (None, None) => {}
-            (None, Some(f)) => range(p, vec![Key("camera"), Key("fov_y_deg")], f, 1.0, 170.0),
-            (Some(k), None) => {
-                for (name, v) in [("fx", k.fx), ("fy", k.fy)] {
-                    range(p, vec![Key("camera"), Key("intrinsics"), Key(name)], v, 1.0, 1e6);
-                }
-                range(p, vec![Key("camera"), Key("intrinsics"), Key("cx")], k.cx, -0.5, c.width as f64 - 0.5);
-                range(p, vec![Key("camera"), Key("intrinsics"), Key("cy")], k.cy, -0.5, c.height as f64 - 0.5);
-            }
-        }
-        range(p, vec![Key("camera"), Key("near")], c.near, 1e-4, 100.0);
-        if let Some(d) = &c.noise.depth {
-            let k = |f: &'static str| vec![Key("camera"), Key("noise"), Key("depth"), Key(f)];
-            range(p, k("sigma_mm"), d.sigma_mm, 0.0, 100.0);
-            range(p, k("sigma_quadratic_mm"), d.sigma_quadratic_mm, 0.0, 100.0);
-            range(p, k("baseline_m"), d.baseline_m, 0.0, 10.0);
-            range(p, k("subpixel"), d.subpixel, 0.0, 1000.0);
-            range(p, k("edge_mm"), d.edge_mm, 0.0, 10000.0);
-            range(p, k("grazing_deg"), d.grazing_deg, 0.0, 90.0);
-            range(p, k("dropout"), d.dropout, 0.0, 1.0);
-        }
-        if let Some(n) = &c.noise.color {
-            range(p, vec![Key("camera"), Key("noise"), Key("color"), Key("sigma")], n.sigma, 0.0, 255.0);
-            range(p, vec![Key("camera"), Key("noise"), Key("color"), Key("shot")], n.shot, 0.0, 255.0);
-        }
-        if !(c.far > c.near && c.far <= 1000.0) {
-            p.push(Problem {
-                path: vec![Key("camera"), Key("far")],
-                message: format!("{} is out of range: allowed near ({}) < far <= 1000", c.far, c.near),
-            });
-        }
-        let d: f64 = (0..3).map(|i| (c.look_at[i] - c.position[i]).powi(2)).sum::<f64>().sqrt();
-        if !(d > 1e-6) {
-            p.push(Problem { path: vec![Key("camera"), Key("look_at")], message: "look_at must differ from position".into() });
-        } else if ((c.look_at[0] - c.position[0]).abs() + (c.look_at[1] - c.position[1]).abs()) < 1e-9 {
-            p.push(Problem {
-                path: vec![Key("camera"), Key("look_at")],
-                message: "the camera must not look straight up or down (world z is the up direction)".into(),
-            });
-        }
-    }
-
-    /// Shadow map size, anti-aliasing.
-    fn validate_renderer(&self, p: &mut Vec<Problem>) {
-        use Seg::Key;
-        range(p, vec![Key("renderer"), Key("shadow_map_size")], self.renderer.shadow_map_size, 256, 8192);
-        if ![1, 4].contains(&self.renderer.msaa) {
-            p.push(Problem {
-                path: vec![Key("renderer"), Key("msaa")],
-                message: format!("{} is not supported: use 1 (off) or 4", self.renderer.msaa),
-            });
-        }
-    }
-
-    /// The randomizers' own checks, under `randomization`.
-    fn validate_randomization(&self, p: &mut Vec<Problem>) {
-        use Seg::{Index, Key};
-        for (field, message) in self.randomization.validate() {
-            let mut path = vec![Key("randomization")];
-            // Field paths are static names joined with dots; leaking a few bytes per error is fine.
-            path.extend(field.split('.').map(|k| match k.parse::<usize>() {
-                Ok(i) => Index(i),
-                Err(_) => Key(Box::leak(k.to_string().into_boxed_str())),
-            }));
-            p.push(Problem { path, message });
-        }
-    }
-
-    /// Workspace above the floor, occlusion sampling, shard size, compression.
-    #[allow(clippy::neg_cmp_op_on_partial_ord)]
-    fn validate_scene_and_output(&self, p: &mut Vec<Problem>) {
-        use Seg::Key;
-        let w = &self.scene.workspace;
-        for i in 0..3 {
-            if !(w.min[i] <= w.max[i]) {
-                p.push(Problem {
-                    path: vec![Key("scene"), Key("workspace"), Key("max")],
-                    message: format!("max[{i}] = {} must be >= min[{i}] = {}", w.max[i], w.min[i]),
-                });
-            }
-        }
-        if !(w.min[2] > 0.0) {
-            p.push(Problem {
-                path: vec![Key("scene"), Key("workspace"), Key("min")],
-                message: format!("min z = {} must be above the floor (z > 0)", w.min[2]),
-            });
-        }
-        range(p, vec![Key("scene"), Key("occlusion_points")], self.scene.occlusion_points, 10, 1_000_000);
-        range(p, vec![Key("scene"), Key("occlusion_epsilon_mm")], self.scene.occlusion_epsilon_mm, 0.01, 100.0);
-        range(p, vec![Key("output"), Key("samples_per_shard")], self.output.samples_per_shard, 1, 1_000_000);
-        range(p, vec![Key("output"), Key("zstd_level")], self.output.zstd_level, 1, 19);
-    }
-}
-
-impl RobotConfig {
-    /// Tactile sensor, physics and grasp-sampling settings in range (paths under `robot`).
-    // `!(a <= b)` on purpose: a NaN in the YAML must fail the checks too.
-    #[allow(clippy::neg_cmp_op_on_partial_ord)]
-    fn validate(&self, p: &mut Vec<Problem>) {
-        use Seg::Key;
-        let r = self;
-        let t = &r.tactile;
-        range(p, vec![Key("robot"), Key("tactile"), Key("resolution")], t.resolution, 4, 256);
-        range(p, vec![Key("robot"), Key("tactile"), Key("contact_threshold_mm")], t.contact_threshold_mm, 0.0, 50.0);
-        if !(t.near_mm < t.far_mm) {
-            p.push(Problem {
-                path: vec![Key("robot"), Key("tactile"), Key("far_mm")],
-                message: format!("{} must be above near_mm ({})", t.far_mm, t.near_mm),
-            });
-        }
-        for (group, m) in [("proximal", t.sensors.proximal), ("medial", t.sensors.medial), ("distal", t.sensors.distal)] {
-            let path = vec![Key("robot"), Key("tactile"), Key("sensors"), Key(group)];
-            match m {
-                SensorModel::TaxelArray { rows, cols } if rows == 0 || cols == 0 || rows > t.resolution || cols > t.resolution => {
-                    p.push(Problem {
-                        path,
-                        message: format!("taxel grid {rows}x{cols} is out of range: 1 ..= resolution ({}) per side", t.resolution),
-                    })
-                }
-                SensorModel::Gelsight { gel_thickness_mm } if !(gel_thickness_mm > 0.0 && gel_thickness_mm <= 20.0) => {
-                    p.push(Problem { path, message: format!("gel_thickness_mm {gel_thickness_mm} is out of range: 0 < t <= 20") })
-                }
-                _ => {}
-            }
-        }
-        range(p, vec![Key("robot"), Key("physics"), Key("timestep")], r.physics.timestep, 1e-4, 0.02);
-        range(p, vec![Key("robot"), Key("physics"), Key("friction")], r.physics.friction, 0.0, 10.0);
-        range(p, vec![Key("robot"), Key("grasp"), Key("max_attempts")], r.grasp.max_attempts, 1, 10_000);
-        range(p, vec![Key("robot"), Key("grasp"), Key("max_tilt_deg")], r.grasp.max_tilt_deg, 0.0, 180.0);
-        range(p, vec![Key("robot"), Key("grasp"), Key("max_roll_deg")], r.grasp.max_roll_deg, 0.0, 180.0);
-        range(p, vec![Key("robot"), Key("grasp"), Key("back_to_camera_share")], r.grasp.back_to_camera_share, 0.0, 1.0);
-        let (lo, hi) = r.grasp.back_to_camera_tilt_deg;
-        if !(0.0..=180.0).contains(&lo) || !(lo..=180.0).contains(&hi) {
-            p.push(Problem {
-                path: vec![Key("robot"), Key("grasp"), Key("back_to_camera_tilt_deg")],
-                message: format!("[{lo}, {hi}] is not a range: allowed 0 <= min <= max <= 180"),
-            });
-        }
-    }
 }
 
 impl Config {

@@ -144,3 +144,211 @@ fn type_errors_name_the_field_once() {
     assert!(e.starts_with("x.yaml:3:10: camera.width: invalid type: string \"wide\""), "{e}");
     assert_eq!(e.matches("camera.width").count(), 1, "{e}");
 }
+
+/// The grasp loop's durations and penetration, the finger gains and the hand's joint ranges are
+/// checked like every other knob: the error names the field path and its line.
+#[test]
+fn grasp_and_physics_knobs_are_checked_at_their_line() {
+    let text = std::fs::read_to_string(root().join("scenes/tiny-hand.yaml")).unwrap();
+    // The error for `text` with `from` replaced by `to`, and the line and column of `at` there.
+    let check = |from: &str, to: &str, at: &str, expect: &str| {
+        assert!(text.contains(from), "tiny-hand.yaml contains {from}");
+        let t = text.replacen(from, to, 1);
+        let (line, column) = t.lines().enumerate().find_map(|(i, l)| l.find(at).map(|c| (i + 1, c + 1))).unwrap();
+        let e = LoadedConfig::parse(&t, Path::new("x.yaml")).unwrap_err().to_string();
+        assert_eq!(e, format!("x.yaml:{line}:{column}: {expect}"));
+    };
+    let grasp = "    max_tilt_deg: 50\n";
+    let with = |extra: &str| format!("{grasp}    {extra}\n");
+    check(
+        grasp,
+        &with("move_seconds: -0.5"),
+        "move_seconds",
+        "robot.grasp.move_seconds: -0.5 is out of range: allowed 0 < move_seconds <= 60 s",
+    );
+    check(grasp, &with("hold_seconds: 0"), "hold_seconds", "robot.grasp.hold_seconds: 0 is out of range: allowed 0 < hold_seconds <= 60 s");
+    check(
+        grasp,
+        &with("settle_seconds: .nan"),
+        "settle_seconds",
+        "robot.grasp.settle_seconds: NaN is out of range: allowed 0 < settle_seconds <= 60 s",
+    );
+    check(
+        grasp,
+        &with("close_seconds: 600"),
+        "close_seconds",
+        "robot.grasp.close_seconds: 600 is out of range: allowed 0 < close_seconds <= 60 s",
+    );
+    check(
+        grasp,
+        &with("max_penetration: -0.001"),
+        "max_penetration",
+        "robot.grasp.max_penetration: -0.001 is out of range: allowed 0 ..= 0.1",
+    );
+    check(
+        grasp,
+        &with("max_grasp_depth: 0"),
+        "max_grasp_depth",
+        "robot.grasp.max_grasp_depth: 0 is out of range: allowed 0 < max_grasp_depth <= 1 m",
+    );
+    // A flow sequence: the error points at its key.
+    let pairs: Vec<&str> = (0..16).map(|k| if k == 2 { "[0.3, 0.1]" } else { "[0, 0.2]" }).collect();
+    check(
+        grasp,
+        &with(&format!("preshape: [{}]", pairs.join(", "))),
+        "preshape",
+        "robot.grasp.preshape[2]: [0.3, 0.1] is not a range: allowed -3.141592653589793 <= min <= max <= 3.141592653589793",
+    );
+    let close = "[null, 1.5, 1.5, 1.4, null, 1.5, 1.5, 1.4, null, 1.5, 1.5, 9, 1.35, 0.9, 1.2, 1.2]";
+    check(
+        grasp,
+        &with(&format!("close: {close}")),
+        "close",
+        "robot.grasp.close[11]: 9 is out of range: allowed -3.141592653589793 ..= 3.141592653589793",
+    );
+    check(
+        "max: [0.08, 0.05, 0.32]}",
+        "max: [0.08, -0.06, 0.32]}",
+        "max: [0.08, -0.06",
+        "robot.grasp.palm_workspace.max: max[1] = -0.06 must be >= min[1] = -0.05",
+    );
+    // Keys of a one-line flow mapping.
+    let physics = "physics: {backend: rapier, timestep: 0.0041667}";
+    let physics_with = |extra: &str| format!("physics: {{backend: rapier, timestep: 0.0041667, {extra}}}");
+    check(
+        physics,
+        &physics_with("max_torque: 0"),
+        "max_torque",
+        "robot.physics.max_torque: 0 is out of range: allowed 0 < max_torque <= 1000 N·m",
+    );
+    check(
+        physics,
+        &physics_with("stiffness: -5"),
+        "stiffness",
+        "robot.physics.stiffness: -5 is out of range: allowed 0 < stiffness <= 10000 N·m/rad",
+    );
+    check(physics, &physics_with("damping: -0.1"), "damping", "robot.physics.damping: -0.1 is out of range: allowed 0 ..= 1000");
+    check("base_yaw_deg: 180", "base_yaw_deg: 720", "base_yaw_deg", "robot.base_yaw_deg: 720 is out of range: allowed -360 ..= 360");
+    check(
+        "base_position: [0.0, 0.5, 0.0]",
+        "base_position: [0.0, .inf, 0.0]",
+        "base_position",
+        "robot.base_position[1]: inf is out of range: allowed -100 ..= 100",
+    );
+    check(
+        "    contact_threshold_mm: 2.0\n",
+        "    contact_threshold_mm: 2.0\n    perspective_standoff_mm: 0\n",
+        "perspective_standoff_mm",
+        "robot.tactile.perspective_standoff_mm: 0 is out of range: allowed 0 < perspective_standoff_mm <= 100 mm",
+    );
+    check(
+        "position: [0.0, -0.75, 0.55]",
+        "position: [0.0, -0.75, 1e9]",
+        "position",
+        "camera.position[2]: 1000000000 is out of range: allowed -100 ..= 100",
+    );
+}
+
+/// One step of a path into a YAML tree.
+#[derive(Debug, Clone)]
+enum Step {
+    Key(String),
+    Index(usize),
+}
+
+/// The path as the errors write it: `robot.grasp.preshape[3][0]`.
+fn dotted(path: &[Step]) -> String {
+    let mut s = String::new();
+    for step in path {
+        match step {
+            Step::Key(k) if s.is_empty() => s.push_str(k),
+            Step::Key(k) => s.push_str(&format!(".{k}")),
+            Step::Index(i) => s.push_str(&format!("[{i}]")),
+        }
+    }
+    s
+}
+
+/// Every number of a YAML tree, by path; whether it is an integer.
+fn numbers(v: &serde_yaml::Value, path: &mut Vec<Step>, out: &mut Vec<(Vec<Step>, bool)>) {
+    match v {
+        serde_yaml::Value::Number(n) => out.push((path.clone(), !n.is_f64())),
+        serde_yaml::Value::Sequence(s) => {
+            for (i, x) in s.iter().enumerate() {
+                path.push(Step::Index(i));
+                numbers(x, path, out);
+                path.pop();
+            }
+        }
+        serde_yaml::Value::Mapping(m) => {
+            for (k, x) in m {
+                path.push(Step::Key(k.as_str().unwrap().to_string()));
+                numbers(x, path, out);
+                path.pop();
+            }
+        }
+        _ => {}
+    }
+}
+
+fn at_mut<'a>(v: &'a mut serde_yaml::Value, path: &[Step]) -> &'a mut serde_yaml::Value {
+    path.iter().fold(v, |v, step| match step {
+        Step::Key(k) => v.get_mut(k.as_str()).unwrap(),
+        Step::Index(i) => v.get_mut(*i).unwrap(),
+    })
+}
+
+/// Whether an error at `field` names the knob at `leaf`: the knob itself, the element or section
+/// it is part of (a `[lo, hi]` pair, a sensor model), or the field a cross-field check compares it
+/// with and reports at (`far_mm` above `near_mm`, `look_at` away from `position`, a box's `max`
+/// above its `min`, the light's `position_max` above its `position_min`).
+fn names_knob(field: &str, leaf: &str) -> bool {
+    let parent = |p: &str| p.rfind(['.', '[']).map_or(String::new(), |i| p[..i].to_string());
+    if field == leaf || field == parent(leaf) {
+        return true;
+    }
+    let key_path = leaf.split('[').next().unwrap();
+    [("near_mm", "far_mm"), ("position", "look_at"), ("min", "max"), ("position_min", "position_max")]
+        .iter()
+        .any(|(knob, reported)| key_path.ends_with(&format!(".{knob}")) && field == format!("{}.{reported}", parent(key_path)))
+}
+
+/// Every number of a resolved config with every optional section present is checked: NaN and
+/// ±infinity in any float, the largest u32 in any integer, give an error (never a panic) located
+/// in the file and naming that knob; only the seed takes any integer.
+#[test]
+fn every_numeric_knob_is_checked() {
+    let sections = "robot:\n  grasp: {back_to_camera_share: 0.5, back_to_camera_tilt_deg: [70, 110]}\n  tactile:\n    projection: perspective\n    sensors: {medial: {model: taxel_array, rows: 4, cols: 4}, distal: {model: gelsight, gel_thickness_mm: 1.5}}\n";
+    let objects =
+        "objects: [005_tomato_soup_can, {id: mine, mesh: m.obj, mass: 0.3}]\nrandomization: {enabled: true, robot_materials: {}}\n";
+    let cameras = [
+        "camera:\n  intrinsics: {fx: 615.0, fy: 615.0, cx: 319.5, cy: 239.5}\n  noise: {depth: {}, color: {}}\n",
+        "camera:\n  fov_y_deg: 60\n",
+    ];
+    let mut checked = 0;
+    for camera in cameras {
+        let resolved = LoadedConfig::parse(&format!("{objects}{camera}{sections}"), Path::new("x.yaml")).unwrap().config;
+        let tree = serde_yaml::to_value(&resolved).unwrap();
+        let mut leaves = Vec::new();
+        numbers(&tree, &mut Vec::new(), &mut leaves);
+        for (path, integer) in leaves {
+            let leaf = dotted(&path);
+            let bad: Vec<serde_yaml::Value> =
+                if integer { vec![u32::MAX.into()] } else { [f64::NAN, f64::INFINITY, f64::NEG_INFINITY].map(Into::into).to_vec() };
+            for value in bad {
+                let mut t = tree.clone();
+                *at_mut(&mut t, &path) = value.clone();
+                let text = serde_yaml::to_string(&t).unwrap();
+                match LoadedConfig::parse(&text, Path::new("x.yaml")) {
+                    Ok(_) => assert_eq!(leaf, "seed", "{leaf} = {value:?} is accepted"),
+                    Err(e) => {
+                        assert!(names_knob(&e.field, &leaf), "{leaf} = {value:?}: the error names another field: {e}");
+                        assert!(e.line.is_some(), "{leaf} = {value:?}: the error is not located: {e}");
+                    }
+                }
+                checked += 1;
+            }
+        }
+    }
+    assert!(checked > 200, "{checked}");
+}

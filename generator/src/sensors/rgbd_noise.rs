@@ -13,6 +13,8 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
+use crate::config::{Check, Checks, field};
+
 /// `camera.noise` in the config.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -21,6 +23,13 @@ pub struct SensorNoise {
     pub depth: Option<DepthNoise>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub color: Option<ColorNoise>,
+}
+
+impl Check for SensorNoise {
+    fn check(&self, c: &mut Checks) {
+        c.section(field!(self.depth));
+        c.section(field!(self.color));
+    }
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -57,6 +66,18 @@ impl Default for DepthNoise {
     }
 }
 
+impl Check for DepthNoise {
+    fn check(&self, c: &mut Checks) {
+        c.range(field!(self.sigma_mm), 0.0, 100.0);
+        c.range(field!(self.sigma_quadratic_mm), 0.0, 100.0);
+        c.range(field!(self.baseline_m), 0.0, 10.0);
+        c.range(field!(self.subpixel), 0.0, 1000.0);
+        c.range(field!(self.edge_mm), 0.0, 10000.0);
+        c.range(field!(self.grazing_deg), 0.0, 90.0);
+        c.range(field!(self.dropout), 0.0, 1.0);
+    }
+}
+
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ColorNoise {
@@ -69,6 +90,13 @@ pub struct ColorNoise {
 impl Default for ColorNoise {
     fn default() -> Self {
         ColorNoise { sigma: 1.5, shot: 0.3 }
+    }
+}
+
+impl Check for ColorNoise {
+    fn check(&self, c: &mut Checks) {
+        c.range(field!(self.sigma), 0.0, 255.0);
+        c.range(field!(self.shot), 0.0, 255.0);
     }
 }
 
