@@ -13,7 +13,7 @@ use vt_objects::{RunningSum, SurfaceSampler};
 
 /// Area-weighted points on the mesh surface with their face normals (deterministic).
 pub fn surface_points(mesh: &PlyMesh, n: usize) -> Vec<(DVec3, DVec3)> {
-    let surface = SurfaceSampler::from_mesh(&mesh.positions, mesh.triangles.iter().copied(), RunningSum::Shares);
+    let surface = SurfaceSampler::from_mesh(&mesh.positions, mesh.triangles.iter().copied(), RunningSum::Areas);
     if surface.is_empty() {
         return Vec::new();
     }
@@ -24,12 +24,7 @@ pub fn surface_points(mesh: &PlyMesh, n: usize) -> Vec<(DVec3, DVec3)> {
     };
     (0..n)
         .map(|_| {
-            // A fresh number for every comparison of the binary search, not one per pick: the
-            // pick is then not by area (three equal triangles get 4/27, 2/3 and 5/27 of the
-            // points), and the draws per point follow the standard library's search. Kept, with
-            // the share table, because these are the points `validate` has always checked; one
-            // number per pick (`surface.pick(rnd())`) would change them all.
-            let k = surface.pick_by(|&c| c < rnd());
+            let k = surface.pick(rnd());
             let (u, v) = (rnd(), rnd());
             (surface.point(k, u, v), surface.face_normal(k))
         })
