@@ -7,6 +7,7 @@
 mod glb;
 mod info;
 mod manifest;
+mod occlusion;
 mod ply;
 mod reader;
 mod sample;
@@ -15,6 +16,7 @@ mod writer;
 pub use glb::{ColoredMesh, encode_glb, srgb_to_linear};
 pub use info::{OcclusionInfo, PlacedDistractor, RobotInfo, SampleInfo, Split, TouchInfo};
 pub use manifest::{ContinuousSymmetry, Manifest, ModelInfo, ModelsInfo, ShardEntry, SplitManifest, sha256_file, write_atomic};
+pub use occlusion::OcclusionBin;
 pub use ply::{LengthUnit, PlyMesh, read_ply, write_ply};
 pub use reader::{DatasetReader, ShardReader};
 pub use sample::{Pose, Sample, ShardMeta, TactileData, TactilePointRecord};
