@@ -6,13 +6,13 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result};
 use glam::{DAffine3, DMat4, DQuat};
 use vt_dataset::{
-    ColoredMesh, OcclusionInfo, PlacedDistractor, Pose, RobotInfo, Sample, SampleInfo, SceneModel, Split, TactileData, TactilePointRecord,
-    TouchInfo, encode_glb, frames, mask_ids,
+    ColoredMesh, OcclusionBin, OcclusionInfo, PlacedDistractor, Pose, RobotInfo, Sample, SampleInfo, SceneModel, Split, TactileData,
+    TactilePointRecord, TouchInfo, encode_glb, frames, mask_ids,
 };
 use vt_objects::{Texture, TexturedMesh};
 use vt_randomizers::{AppearanceContext, ImageLibrary, ProceduralTexture, SampleKey, SampleStream};
 
-use crate::annotate::occlusion::{bin as occlusion_bin, model_points, occlusion_level};
+use crate::annotate::occlusion::{model_points, occlusion_level};
 use crate::assets::LoadedObject;
 use crate::assets::robot::{load_robot_meshes, robot_assets_dir};
 use crate::config::{Config, LoadedConfig};
@@ -153,7 +153,7 @@ pub struct SampleFactory<'a> {
     finger_surface: Option<FingerSurface>,
     /// Per object: the model points the occlusion level is measured with.
     model_points: Vec<Vec<glam::DVec3>>,
-    /// Occlusion-level histogram (`occlusion::BINS`) of the shard being written.
+    /// Occlusion-level histogram (`OcclusionBin` order) of the shard being written.
     pub occlusion_histogram: [u64; 3],
     /// Time spent per stage, for `vtgen bench`.
     pub times: StageTimes,
@@ -615,7 +615,9 @@ impl<'a> SampleFactory<'a> {
         let t0 = Instant::now();
         let (level, visible_points) = occlusion_level(&pts, &img.depth, img.width, img.height, &k, eps);
         self.times.occlusion += t0.elapsed();
-        self.occlusion_histogram[occlusion_bin(level)] += 1;
+        if let Some(bin) = OcclusionBin::of(level) {
+            self.occlusion_histogram[bin.index()] += 1;
+        }
         let alone = img.silhouette_pixels;
         OcclusionInfo {
             level,

@@ -9,19 +9,6 @@ use vt_objects::TexturedMesh;
 
 use crate::config::Intrinsics;
 
-/// The paper's occlusion bins: below 80%, 80–85%, above 85%.
-pub const BINS: [&str; 3] = ["<80%", "80-85%", ">85%"];
-
-pub fn bin(level: f64) -> usize {
-    if level < 0.80 {
-        0
-    } else if level <= 0.85 {
-        1
-    } else {
-        2
-    }
-}
-
 /// `n` points spread over the mesh surface by area (a fixed, seed-free sequence: the same model
 /// always gives the same points).
 pub fn model_points(mesh: &TexturedMesh, n: usize) -> Vec<DVec3> {
@@ -126,18 +113,13 @@ mod tests {
         let half: Vec<DVec3> = on.iter().take(10).chain(behind.iter().take(30)).copied().collect();
         let (level, visible) = occlusion_level(&half, &depth, 64, 48, &k, 0.02);
         assert_eq!((level, visible), (0.75, 10));
-        assert_eq!(bin(level), 0);
+        assert_eq!(vt_dataset::OcclusionBin::of(level), Some(vt_dataset::OcclusionBin::Below80));
         // The windowed search answers as the search over the whole cloud does.
         for eps in [0.002, 0.01, 0.03, 0.06] {
             assert_eq!(occlusion_level(&half, &depth, 64, 48, &k, eps), occlusion_level_brute_force(&half, &depth, 64, 48, &k, eps));
         }
         // Nothing seen: no depth anywhere.
         assert_eq!(occlusion_level(&on, &vec![0.0; 64 * 48], 64, 48, &k, 0.02), (1.0, 0));
-    }
-
-    #[test]
-    fn the_paper_bins() {
-        assert_eq!([bin(0.0), bin(0.7999), bin(0.80), bin(0.85), bin(0.8501), bin(1.0)], [0, 0, 1, 1, 2, 2]);
     }
 
     #[test]

@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Result, bail};
 use serde::Serialize;
-use vt_dataset::ShardMeta;
+use vt_dataset::{OcclusionBin, ShardMeta};
 
 use crate::assets::load_objects;
 use crate::config::LoadedConfig;
@@ -69,7 +69,7 @@ pub struct BenchReport {
     pub peak_rss_mib: f64,
     /// Trajectories left out because no grasp held (the grasp loop's failures), with the reason.
     pub skipped_trajectories: Vec<String>,
-    /// Samples per object and occlusion bin (`occlusion::BINS`), to tune the camera and the grasp
+    /// Samples per object and occlusion bin (`OcclusionBin` order), to tune the camera and the grasp
     /// knobs towards the occlusion the experiment needs without writing a dataset.
     pub occlusion_bins: BTreeMap<String, [u64; 3]>,
 }
@@ -133,7 +133,7 @@ impl std::fmt::Display for BenchReport {
         }
         writeln!(f, "shard bytes        {:.2} MB per sample", r.bytes_per_sample / 1e6)?;
         writeln!(f, "peak RSS           {:.0} MiB", r.peak_rss_mib)?;
-        let bins = crate::annotate::occlusion::BINS;
+        let bins = OcclusionBin::ALL.map(OcclusionBin::key);
         writeln!(f, "occlusion          {:>8} {:>8} {:>8}  (share of samples per bin)", bins[0], bins[1], bins[2])?;
         let share = |b: &[u64; 3]| {
             let n = b.iter().sum::<u64>().max(1) as f64;

@@ -7,7 +7,7 @@ use std::path::Path;
 
 use anyhow::Result;
 use serde::Serialize;
-use vt_dataset::{DatasetReader, Manifest};
+use vt_dataset::{DatasetReader, Manifest, OcclusionBin};
 
 #[derive(Debug, Clone, Serialize)]
 pub struct Inspection {
@@ -17,7 +17,7 @@ pub struct Inspection {
     pub bytes: u64,
     /// Samples per split and object.
     pub samples: BTreeMap<String, BTreeMap<String, u64>>,
-    /// Samples per split and occlusion bin (`occlusion::BINS`): touch matters most in the heavy
+    /// Samples per split and occlusion bin (`OcclusionBin::key`): touch matters most in the heavy
     /// bin, so its share in the test split says how much a test can show.
     pub occlusion: BTreeMap<String, BTreeMap<String, u64>>,
     pub randomized_share: f64,
@@ -45,17 +45,15 @@ pub fn inspect(root: &Path) -> Result<Inspection> {
     let (mut n, mut randomized) = (0u64, 0u64);
     let mut tactile = Vec::new();
     let mut contacts: BTreeMap<String, u64> = BTreeMap::new();
-    let bins = crate::annotate::occlusion::BINS;
     for split in manifest.splits.keys() {
-        occlusion.insert(split.clone(), bins.iter().map(|b| (b.to_string(), 0)).collect());
+        occlusion.insert(split.clone(), OcclusionBin::ALL.iter().map(|b| (b.key().to_string(), 0)).collect());
     }
     super::for_each_info(&ds, |split, info| {
         n += 1;
         *samples.entry(split.to_string()).or_default().entry(info.object_id.clone()).or_default() += 1;
         randomized += info.randomized as u64;
-        if let Some(o) = &info.occlusion {
-            let bin = bins[crate::annotate::occlusion::bin(o.level)].to_string();
-            *occlusion.entry(split.to_string()).or_default().entry(bin).or_default() += 1;
+        if let Some(bin) = info.occlusion.and_then(|o| OcclusionBin::of(o.level)) {
+            *occlusion.entry(split.to_string()).or_default().entry(bin.key().to_string()).or_default() += 1;
         }
         tactile.extend(info.tactile_points());
         for p in info.phalanges_in_contact() {

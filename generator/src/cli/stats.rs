@@ -8,7 +8,7 @@ use std::path::Path;
 use anyhow::{Context, Result, anyhow};
 use glam::DVec3;
 use plotters::prelude::*;
-use vt_dataset::DatasetReader;
+use vt_dataset::{DatasetReader, OcclusionBin};
 
 use crate::cli::inspect::{Inspection, inspect};
 
@@ -201,7 +201,7 @@ pub fn write_stats(root: &Path, out: &Path) -> Result<Vec<String>> {
         bins: 20,
         caption: "occlusion level (share of model points not visible); red: the paper's bins at 80% and 85%",
         x_desc: "occlusion level",
-        markers: &[0.80, 0.85],
+        markers: &OcclusionBin::BOUNDS,
     };
     plot_histogram(&c.occlusion, &occlusion, &out.join("occlusion.svg"))?;
     let touch = !c.tactile_points.is_empty();
@@ -231,7 +231,7 @@ pub fn write_stats(root: &Path, out: &Path) -> Result<Vec<String>> {
     }
     writeln!(md, "\n| figure | value |\n|---|---|")?;
     for (split, bins) in &summary.occlusion {
-        for bin in crate::annotate::occlusion::BINS {
+        for bin in OcclusionBin::ALL.map(OcclusionBin::key) {
             writeln!(md, "| occlusion {bin} ({split}) | {} |", bins.get(bin).copied().unwrap_or(0))?;
         }
     }

@@ -10,7 +10,9 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use sha2::{Digest, Sha256};
-use vt_dataset::{Compression, Manifest, ModelInfo, ModelsInfo, ShardEntry, ShardMeta, ShardReceipt, SplitManifest, mask_ids};
+use vt_dataset::{
+    Compression, Manifest, ModelInfo, ModelsInfo, OcclusionBin, ShardEntry, ShardMeta, ShardReceipt, SplitManifest, mask_ids,
+};
 
 use crate::assets::{LoadedObject, MeshSource, load_objects};
 use crate::config::{Config, LoadedConfig};
@@ -213,7 +215,7 @@ fn update_manifest(out: &Path, config: &Config, config_sha: &str, plan: &Plan, r
         }
     }
     let grasp = config.robot.is_some().then(|| serde_json::to_value(grasp_total)).transpose()?;
-    let occlusion = Some(serde_json::json!({"bins": crate::annotate::occlusion::BINS, "counts": histogram}));
+    let occlusion = Some(serde_json::json!({"bins": OcclusionBin::ALL.map(OcclusionBin::key), "counts": histogram}));
     let m = Manifest {
         format: "vtgen-dataset".into(),
         format_version: vt_dataset::FORMAT_VERSION,
