@@ -10,7 +10,7 @@ use burn::tensor::Int;
 use serde::Serialize;
 
 use crate::config::DataConfig;
-use crate::metrics::MeanSe;
+use crate::eval::metrics::MeanSe;
 use crate::model::{PoseInput, PoseNet, Variant};
 
 /// One benchmarked network.

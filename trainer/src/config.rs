@@ -30,7 +30,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail};
 use serde::{Deserialize, Serialize};
 
-use crate::encoder::EncoderKind;
+use crate::model::encoder::EncoderKind;
 use crate::model::{PoseNetConfig, Variant};
 
 /// Tactile point counts of the paper's sweep (Fig. "Effect of number of tactile points").

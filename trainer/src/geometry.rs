@@ -1,11 +1,13 @@
-//! Rotations: the network's unit quaternions as rotation matrices (on tensors, differentiable)
-//! and the host-side conversions of the format's quaternions.
+//! Rotations: the network's unit quaternions as rotation matrices (on tensors, differentiable),
+//! the host-side conversions of the format's quaternions, and an object's symmetries (the
+//! rotations that make it look the same).
 //!
 //! Convention: the network outputs quaternions as **(w, x, y, z)** (DenseFusion's order); the
 //! dataset stores (x, y, z, w) (FORMAT.md). `R` is the Hamilton rotation matrix, row-major, as
 //! glam's `Mat3::from_quat`.
 
 use burn::prelude::*;
+use glam::{DMat3, DQuat, DVec3};
 
 /// Unit quaternions `(.., 4)` in (w, x, y, z) order to row-major rotation matrices `(.., 9)`.
 ///
@@ -51,6 +53,46 @@ pub fn matrix_rows(q: glam::DQuat) -> [f32; 9] {
     let m = glam::DMat3::from_quat(q);
     // glam is column-major: row r, column c is m.col(c)[r].
     std::array::from_fn(|k| m.col(k % 3)[k / 3] as f32)
+}
+
+/// The rotations that make an object look the same (model frame): the discrete symmetries'
+/// rotation parts and, for a body of revolution, its axis.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Symmetries {
+    pub rotations: Vec<DQuat>,
+    pub axis: Option<DVec3>,
+}
+
+impl Symmetries {
+    /// From `models_info.json`: the mesh-verified transforms (row-major 4×4, BOP layout) and
+    /// revolution axes when the dataset has them, else the axis-aligned ones the `symmetry` kind
+    /// names (datasets written before the transforms were measured).
+    pub fn from_models_info(kind: &str, discrete: &[[f64; 16]], continuous: &[vt_dataset::ContinuousSymmetry]) -> Self {
+        if discrete.is_empty() && continuous.is_empty() {
+            return Self::of_kind(kind);
+        }
+        Symmetries {
+            rotations: discrete
+                .iter()
+                .map(|m| DQuat::from_mat3(&DMat3::from_cols_array(&[m[0], m[4], m[8], m[1], m[5], m[9], m[2], m[6], m[10]])).normalize())
+                .collect(),
+            axis: continuous.first().map(|c| DVec3::from_array(c.axis).normalize()),
+        }
+    }
+
+    /// The axis-aligned symmetries a kind names: `continuous_z` (revolution about model z),
+    /// `discrete` (the three 180° flips about the model axes), otherwise none.
+    pub fn of_kind(kind: &str) -> Self {
+        use std::f64::consts::PI;
+        match kind {
+            "continuous_z" => Symmetries { rotations: Vec::new(), axis: Some(DVec3::Z) },
+            "discrete" => Symmetries {
+                rotations: vec![DQuat::from_rotation_x(PI), DQuat::from_rotation_y(PI), DQuat::from_rotation_z(PI)],
+                axis: None,
+            },
+            _ => Symmetries::default(),
+        }
+    }
 }
 
 #[cfg(test)]

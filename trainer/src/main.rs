@@ -5,12 +5,13 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result, bail};
 use burn::module::Module;
-use clap::{Parser, Subcommand};
+use clap::{Args, Parser, Subcommand};
 use vt_trainer::bench::{bench_model, table};
 use vt_trainer::config::TrainConfig;
 use vt_trainer::device;
-use vt_trainer::eval::{EvalCommand, evaluate_runs, write_report};
+use vt_trainer::eval::{EvalCommand, evaluate_runs};
 use vt_trainer::model::Variant;
+use vt_trainer::report::write_report;
 use vt_trainer::sweep::{SweepOptions, sweep};
 use vt_trainer::train::{RunDir, TrainOptions, train};
 
@@ -28,104 +29,116 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Train a network from a YAML config into a run directory.
-    Train {
-        /// The training config (YAML). With --resume it may be left out: the run's own config.yaml is used.
-        #[arg(required_unless_present = "resume")]
-        config: Option<PathBuf>,
-        /// The run directory (default: out/runs/<config name>).
-        #[arg(long)]
-        out: Option<PathBuf>,
-        /// Use this dataset instead of the config's.
-        #[arg(long)]
-        dataset: Option<PathBuf>,
-        /// Override the config's model variant (tactile_channel, vision_only, non_siamese, no_global, tactile_only).
-        #[arg(long)]
-        variant: Option<Variant>,
-        /// Override the config's number of epochs: the run's total, also with --resume (a run
-        /// that has done 20 epochs resumed with --epochs 30 trains 10 more).
-        #[arg(long)]
-        epochs: Option<usize>,
-        /// Continue the run in --out from its last completed epoch (with its own config.yaml
-        /// unless CONFIG is given; --epochs sets the new total).
-        #[arg(long, conflicts_with = "overwrite", requires = "out")]
-        resume: bool,
-        /// Replace a run in --out.
-        #[arg(long)]
-        overwrite: bool,
-        #[arg(long, default_value = "cpu", help = device::DEVICE_HELP)]
-        device: String,
-        #[arg(long)]
-        quiet: bool,
-    },
+    Train(TrainArgs),
     /// The paper's tactile-point experiment: train one network per tactile point count
     /// (default 4, 12, 36, 60, 240), evaluate each on the test split, write a report.
-    Sweep {
-        /// The training config of a tactile variant (its data.n_tactile is replaced per run).
-        config: PathBuf,
-        /// Where the runs (nt-NNNN/) and the report go (default: out/sweeps/<config name>).
-        #[arg(long)]
-        out: Option<PathBuf>,
-        #[arg(long, value_delimiter = ',', default_values_t = vt_trainer::config::TACTILE_SWEEP)]
-        counts: Vec<usize>,
-        /// Use this dataset instead of the config's.
-        #[arg(long)]
-        dataset: Option<PathBuf>,
-        /// Override the config's number of epochs (per run).
-        #[arg(long)]
-        epochs: Option<usize>,
-        /// A trained vision-only run to evaluate alongside.
-        #[arg(long)]
-        baseline: Option<PathBuf>,
-        /// At most this many test samples, evenly spread (0: all).
-        #[arg(long, default_value_t = 0)]
-        max_samples: usize,
-        #[arg(long, default_value = "cpu", help = device::DEVICE_HELP)]
-        device: String,
-        #[arg(long)]
-        quiet: bool,
-    },
+    Sweep(SweepArgs),
     /// Evaluate trained runs on a split and write a Markdown report.
-    Eval {
-        /// Run directories (from `vtpose train`).
-        #[arg(required = true)]
-        runs: Vec<PathBuf>,
-        /// Evaluate on this dataset instead of each run's own.
-        #[arg(long)]
-        dataset: Option<PathBuf>,
-        #[arg(long, default_value = "test")]
-        split: String,
-        /// Where report.md, results.json and samples-<run>.csv go.
-        #[arg(long, default_value = "out/eval")]
-        out: PathBuf,
-        /// At most this many samples, evenly spread over the split (0: all).
-        #[arg(long, default_value_t = 0)]
-        max_samples: usize,
-        /// Skip evaluating tactile networks with 4, 12, 36, 60, 240 points (one network, fed
-        /// fewer points; `vtpose sweep` trains one network per count as the paper).
-        #[arg(long)]
-        no_sweep: bool,
-        #[arg(long, default_value = "cpu", help = device::DEVICE_HELP)]
-        device: String,
-        #[arg(long)]
-        quiet: bool,
-    },
+    Eval(EvalArgs),
     /// Time inference (network alone, batch 1) per model.
-    Bench {
-        /// Run directories or config files; none: every variant with the default config.
-        inputs: Vec<PathBuf>,
-        /// With configs or no input: these variants (default: the config's; `all` for every one).
-        #[arg(long, value_delimiter = ',')]
-        variants: Vec<String>,
-        #[arg(long, default_value_t = 20)]
-        iters: usize,
-        #[arg(long, default_value_t = 3)]
-        warmup: usize,
-        #[arg(long, default_value = "cpu", help = device::DEVICE_HELP)]
-        device: String,
-        /// Print JSON instead of a Markdown table.
-        #[arg(long)]
-        json: bool,
-    },
+    Bench(BenchArgs),
+}
+
+#[derive(Args)]
+struct TrainArgs {
+    /// The training config (YAML). With --resume it may be left out: the run's own config.yaml is used.
+    #[arg(required_unless_present = "resume")]
+    config: Option<PathBuf>,
+    /// The run directory (default: out/runs/<config name>).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Use this dataset instead of the config's.
+    #[arg(long)]
+    dataset: Option<PathBuf>,
+    /// Override the config's model variant (tactile_channel, vision_only, non_siamese, no_global, tactile_only).
+    #[arg(long)]
+    variant: Option<Variant>,
+    /// Override the config's number of epochs: the run's total, also with --resume (a run
+    /// that has done 20 epochs resumed with --epochs 30 trains 10 more).
+    #[arg(long)]
+    epochs: Option<usize>,
+    /// Continue the run in --out from its last completed epoch (with its own config.yaml
+    /// unless CONFIG is given; --epochs sets the new total).
+    #[arg(long, conflicts_with = "overwrite", requires = "out")]
+    resume: bool,
+    /// Replace a run in --out.
+    #[arg(long)]
+    overwrite: bool,
+    #[arg(long, default_value = "cpu", help = device::DEVICE_HELP)]
+    device: String,
+    #[arg(long)]
+    quiet: bool,
+}
+
+#[derive(Args)]
+struct SweepArgs {
+    /// The training config of a tactile variant (its data.n_tactile is replaced per run).
+    config: PathBuf,
+    /// Where the runs (nt-NNNN/) and the report go (default: out/sweeps/<config name>).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    #[arg(long, value_delimiter = ',', default_values_t = vt_trainer::config::TACTILE_SWEEP)]
+    counts: Vec<usize>,
+    /// Use this dataset instead of the config's.
+    #[arg(long)]
+    dataset: Option<PathBuf>,
+    /// Override the config's number of epochs (per run).
+    #[arg(long)]
+    epochs: Option<usize>,
+    /// A trained vision-only run to evaluate alongside.
+    #[arg(long)]
+    baseline: Option<PathBuf>,
+    /// At most this many test samples, evenly spread (0: all).
+    #[arg(long, default_value_t = 0)]
+    max_samples: usize,
+    #[arg(long, default_value = "cpu", help = device::DEVICE_HELP)]
+    device: String,
+    #[arg(long)]
+    quiet: bool,
+}
+
+#[derive(Args)]
+struct EvalArgs {
+    /// Run directories (from `vtpose train`).
+    #[arg(required = true)]
+    runs: Vec<PathBuf>,
+    /// Evaluate on this dataset instead of each run's own.
+    #[arg(long)]
+    dataset: Option<PathBuf>,
+    #[arg(long, default_value = "test")]
+    split: String,
+    /// Where report.md, results.json and samples-<run>.csv go.
+    #[arg(long, default_value = "out/eval")]
+    out: PathBuf,
+    /// At most this many samples, evenly spread over the split (0: all).
+    #[arg(long, default_value_t = 0)]
+    max_samples: usize,
+    /// Skip evaluating tactile networks with 4, 12, 36, 60, 240 points (one network, fed
+    /// fewer points; `vtpose sweep` trains one network per count as the paper).
+    #[arg(long)]
+    no_sweep: bool,
+    #[arg(long, default_value = "cpu", help = device::DEVICE_HELP)]
+    device: String,
+    #[arg(long)]
+    quiet: bool,
+}
+
+#[derive(Args)]
+struct BenchArgs {
+    /// Run directories or config files; none: every variant with the default config.
+    inputs: Vec<PathBuf>,
+    /// With configs or no input: these variants (default: the config's; `all` for every one).
+    #[arg(long, value_delimiter = ',')]
+    variants: Vec<String>,
+    #[arg(long, default_value_t = 20)]
+    iters: usize,
+    #[arg(long, default_value_t = 3)]
+    warmup: usize,
+    #[arg(long, default_value = "cpu", help = device::DEVICE_HELP)]
+    device: String,
+    /// Print JSON instead of a Markdown table.
+    #[arg(long)]
+    json: bool,
 }
 
 fn main() -> ExitCode {
@@ -138,115 +151,126 @@ fn main() -> ExitCode {
     }
 }
 
-// Long on purpose: one match arm per subcommand, each a few lines from parsed flags to a library call.
 fn run(cli: Cli) -> Result<()> {
     match cli.command {
-        Command::Train { config, out, dataset, variant, epochs, resume, overwrite, device: dev, quiet } => {
-            let out = match (&out, &config) {
-                (Some(o), _) => o.clone(),
-                (None, Some(c)) => PathBuf::from("out/runs").join(c.file_stem().unwrap_or_default()),
-                (None, None) => bail!("--resume needs --out (the run directory)"),
-            };
-            let mut cfg = match &config {
-                Some(c) => TrainConfig::load(c)?,
-                None => {
-                    let run = RunDir(out.clone());
-                    TrainConfig::load(&run.config()).with_context(|| format!("--resume without CONFIG: {} is not a run", out.display()))?
-                }
-            };
-            if let Some(d) = dataset {
-                cfg.dataset = d;
-            }
-            if let Some(v) = variant {
-                cfg.model.variant = v;
-            }
-            if let Some(e) = epochs {
-                cfg.train.epochs = e;
-            }
-            let summary = train(&cfg, &TrainOptions { out, resume, overwrite, device: device::parse(&dev)?, quiet })?;
-            if !quiet {
-                let last = summary.epochs.last();
-                eprintln!(
-                    "vtpose: {} epochs done ({} steps) in {}{}",
-                    summary.state.epochs_done,
-                    summary.state.steps,
-                    summary.run.display(),
-                    last.map_or(String::new(), |r| format!(", last loss {:.5}", r.loss))
-                );
-            }
-            Ok(())
+        Command::Train(args) => train_command(args),
+        Command::Sweep(args) => sweep_command(args),
+        Command::Eval(args) => eval_command(args),
+        Command::Bench(args) => bench_command(args),
+    }
+}
+
+fn train_command(args: TrainArgs) -> Result<()> {
+    let TrainArgs { config, out, dataset, variant, epochs, resume, overwrite, device: dev, quiet } = args;
+    let out = match (&out, &config) {
+        (Some(o), _) => o.clone(),
+        (None, Some(c)) => PathBuf::from("out/runs").join(c.file_stem().unwrap_or_default()),
+        (None, None) => bail!("--resume needs --out (the run directory)"),
+    };
+    let mut cfg = match &config {
+        Some(c) => TrainConfig::load(c)?,
+        None => {
+            let run = RunDir(out.clone());
+            TrainConfig::load(&run.config()).with_context(|| format!("--resume without CONFIG: {} is not a run", out.display()))?
         }
-        Command::Sweep { config, out, counts, dataset, epochs, baseline, max_samples, device: dev, quiet } => {
-            let mut cfg = TrainConfig::load(&config)?;
-            if let Some(d) = dataset {
-                cfg.dataset = d;
-            }
-            if let Some(e) = epochs {
-                cfg.train.epochs = e;
-            }
-            let out = out.unwrap_or_else(|| PathBuf::from("out/sweeps").join(config.file_stem().unwrap_or_default()));
-            let opts = SweepOptions { counts, out: out.clone(), baseline, max_samples, device: device::parse(&dev)?, quiet };
-            sweep(&cfg, &opts)?;
-            if !quiet {
-                eprintln!("vtpose: wrote {}", out.join("report.md").display());
-            }
-            Ok(())
+    };
+    if let Some(d) = dataset {
+        cfg.dataset = d;
+    }
+    if let Some(v) = variant {
+        cfg.model.variant = v;
+    }
+    if let Some(e) = epochs {
+        cfg.train.epochs = e;
+    }
+    let summary = train(&cfg, &TrainOptions { out, resume, overwrite, device: device::parse(&dev)?, quiet })?;
+    if !quiet {
+        let last = summary.epochs.last();
+        eprintln!(
+            "vtpose: {} epochs done ({} steps) in {}{}",
+            summary.state.epochs_done,
+            summary.state.steps,
+            summary.run.display(),
+            last.map_or(String::new(), |r| format!(", last loss {:.5}", r.loss))
+        );
+    }
+    Ok(())
+}
+
+fn sweep_command(args: SweepArgs) -> Result<()> {
+    let SweepArgs { config, out, counts, dataset, epochs, baseline, max_samples, device: dev, quiet } = args;
+    let mut cfg = TrainConfig::load(&config)?;
+    if let Some(d) = dataset {
+        cfg.dataset = d;
+    }
+    if let Some(e) = epochs {
+        cfg.train.epochs = e;
+    }
+    let out = out.unwrap_or_else(|| PathBuf::from("out/sweeps").join(config.file_stem().unwrap_or_default()));
+    let opts = SweepOptions { counts, out: out.clone(), baseline, max_samples, device: device::parse(&dev)?, quiet };
+    sweep(&cfg, &opts)?;
+    if !quiet {
+        eprintln!("vtpose: wrote {}", out.join("report.md").display());
+    }
+    Ok(())
+}
+
+fn eval_command(args: EvalArgs) -> Result<()> {
+    let EvalArgs { runs, dataset, split, out, max_samples, no_sweep, device: dev, quiet } = args;
+    let device = device::parse(&dev)?;
+    let cmd = EvalCommand { dataset, split: split.clone(), max_samples, sweep: !no_sweep, device: device.clone(), quiet };
+    let evals = evaluate_runs(&runs, &cmd)?;
+    let report = write_report(&evals, &split, &dev, &out)?;
+    if !quiet {
+        eprintln!("vtpose: wrote {}", report.display());
+    }
+    print!("{}", std::fs::read_to_string(&report)?);
+    Ok(())
+}
+
+fn bench_command(args: BenchArgs) -> Result<()> {
+    let BenchArgs { inputs, variants, iters, warmup, device: dev, json } = args;
+    let device = device::parse(&dev)?;
+    let parse_variants = |default: Variant| -> Result<Vec<Variant>> {
+        match variants.as_slice() {
+            [] => Ok(vec![default]),
+            [a] if a == "all" => Ok(Variant::ALL.to_vec()),
+            list => list.iter().map(|v| v.parse()).collect(),
         }
-        Command::Eval { runs, dataset, split, out, max_samples, no_sweep, device: dev, quiet } => {
-            let device = device::parse(&dev)?;
-            let cmd = EvalCommand { dataset, split: split.clone(), max_samples, sweep: !no_sweep, device: device.clone(), quiet };
-            let evals = evaluate_runs(&runs, &cmd)?;
-            let report = write_report(&evals, &split, &dev, &out)?;
-            if !quiet {
-                eprintln!("vtpose: wrote {}", report.display());
-            }
-            print!("{}", std::fs::read_to_string(&report)?);
-            Ok(())
-        }
-        Command::Bench { inputs, variants, iters, warmup, device: dev, json } => {
-            let device = device::parse(&dev)?;
-            let parse_variants = |default: Variant| -> Result<Vec<Variant>> {
-                match variants.as_slice() {
-                    [] => Ok(vec![default]),
-                    [a] if a == "all" => Ok(Variant::ALL.to_vec()),
-                    list => list.iter().map(|v| v.parse()).collect(),
-                }
-            };
-            let mut rows = Vec::new();
-            let mut configs: Vec<(String, TrainConfig)> = Vec::new();
-            if inputs.is_empty() {
-                configs.push(("default".into(), TrainConfig::new("")));
-                if variants.is_empty() {
-                    configs[0].1.model.variant = Variant::TactileChannel;
-                }
-            }
-            for input in &inputs {
-                let name = input.file_stem().unwrap_or_default().to_string_lossy().into_owned();
-                if input.is_dir() {
-                    let (cfg, _, model) = RunDir(input.clone()).load_model(&device).with_context(|| format!("run {}", input.display()))?;
-                    rows.push(bench_model(&name, &model.valid(), &cfg.data, &device, iters, warmup));
-                } else if input.is_file() {
-                    configs.push((name, TrainConfig::load(input)?));
-                } else {
-                    bail!("{} is neither a run directory nor a config file", input.display());
-                }
-            }
-            let all_variants = inputs.is_empty() && variants.is_empty();
-            for (name, cfg) in &configs {
-                let vs = if all_variants { Variant::ALL.to_vec() } else { parse_variants(cfg.model.variant)? };
-                for v in vs {
-                    let mut m = cfg.model.clone();
-                    m.variant = v;
-                    let model = m.net(1).init(&device);
-                    rows.push(bench_model(&format!("{name}/{v}"), &model, &cfg.data, &device, iters, warmup));
-                }
-            }
-            if json {
-                println!("{}", serde_json::to_string_pretty(&rows)?);
-            } else {
-                print!("{}", table(&rows, &dev));
-            }
-            Ok(())
+    };
+    let mut rows = Vec::new();
+    let mut configs: Vec<(String, TrainConfig)> = Vec::new();
+    if inputs.is_empty() {
+        configs.push(("default".into(), TrainConfig::new("")));
+        if variants.is_empty() {
+            configs[0].1.model.variant = Variant::TactileChannel;
         }
     }
+    for input in &inputs {
+        let name = input.file_stem().unwrap_or_default().to_string_lossy().into_owned();
+        if input.is_dir() {
+            let (cfg, _, model) = RunDir(input.clone()).load_model(&device).with_context(|| format!("run {}", input.display()))?;
+            rows.push(bench_model(&name, &model.valid(), &cfg.data, &device, iters, warmup));
+        } else if input.is_file() {
+            configs.push((name, TrainConfig::load(input)?));
+        } else {
+            bail!("{} is neither a run directory nor a config file", input.display());
+        }
+    }
+    let all_variants = inputs.is_empty() && variants.is_empty();
+    for (name, cfg) in &configs {
+        let vs = if all_variants { Variant::ALL.to_vec() } else { parse_variants(cfg.model.variant)? };
+        for v in vs {
+            let mut m = cfg.model.clone();
+            m.variant = v;
+            let model = m.net(1).init(&device);
+            rows.push(bench_model(&format!("{name}/{v}"), &model, &cfg.data, &device, iters, warmup));
+        }
+    }
+    if json {
+        println!("{}", serde_json::to_string_pretty(&rows)?);
+    } else {
+        print!("{}", table(&rows, &dev));
+    }
+    Ok(())
 }

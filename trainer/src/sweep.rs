@@ -15,9 +15,10 @@ use anyhow::{Result, bail};
 use burn::prelude::Device;
 
 use crate::config::{N_TACTILE_RANGE, TrainConfig};
-use crate::eval::{EvalCommand, ModelEval, Summary, evaluate_runs, write_report};
-use crate::metrics::MeanSe;
-use crate::plots::bar_chart;
+use crate::eval::metrics::MeanSe;
+use crate::eval::{EvalCommand, ModelEval, Summary, evaluate_runs};
+use crate::report::plots::bar_chart;
+use crate::report::write_report;
 use crate::train::{TrainOptions, train};
 
 /// How to run [`sweep`].
@@ -86,7 +87,7 @@ pub fn sweep(cfg: &TrainConfig, opts: &SweepOptions) -> Result<Vec<ModelEval>> {
         ("sweep-angle.svg", "Angle error by number of tactile points (one network each)", "angle error (°)", |s: &Summary| s.angle_deg),
     ] {
         let values: Vec<MeanSe> = evals.iter().map(|e| f(&Summary::of(&e.results))).collect();
-        std::fs::write(opts.out.join(file), bar_chart(title, label, &groups, &[("test split".to_string(), values)]))?;
+        std::fs::write(opts.out.join(file), bar_chart(title, label, &groups, &[("test split".to_string(), values)])?)?;
     }
     Ok(evals)
 }

@@ -28,7 +28,7 @@ use burn::prelude::*;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::config::{AugmentConfig, TrainConfig};
-use crate::data::{Loaded, Loader, Pass, PrepareOptions, SplitSource, load_models, select_objects, shuffled};
+use crate::data::{Batch, Loaded, Loader, ObjectModel, Pass, PrepareOptions, SplitSource, load_models, select_objects, shuffled};
 use crate::eval::{self, Summary};
 use crate::loss::pose_loss;
 use crate::model::PoseNet;
@@ -119,21 +119,7 @@ pub fn train(cfg: &TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
     cfg.save(&run.config())?;
 
     let device = opts.device.clone().autodiff();
-    device.seed(cfg.train.seed);
-    let mut model = cfg.model.net(objects.len()).init(&device);
-    let mut optim = AdamConfig::new().with_epsilon(1e-8).init(); // PyTorch's Adam, as the paper
-    let mut state = RunState {
-        epochs_done: 0,
-        steps: 0,
-        objects: objects.clone(),
-        variant: cfg.model.variant,
-        trainer: format!("vtpose {}", env!("CARGO_PKG_VERSION")),
-    };
-    if let Some(saved) = resumed {
-        model = model.try_load_file(run.model()).map_err(|e| anyhow::anyhow!("cannot load {}: {e}", run.model().display()))?;
-        optim = optim.load(run.optimizer()).map_err(|e| anyhow::anyhow!("cannot load {}: {e}", run.optimizer().display()))?;
-        state = saved;
-    }
+    let (model, optim, state) = init_network(&cfg, &run, &objects, resumed, &device)?;
     if state.epochs_done >= cfg.train.epochs {
         if !opts.quiet {
             eprintln!("{}: already trained for {} epochs", run.0.display(), state.epochs_done);
@@ -141,24 +127,11 @@ pub fn train(cfg: &TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
         return Ok(TrainSummary { run: run.0, epochs: Vec::new(), state });
     }
 
-    let (source, mut test_source) = open_sources(&cfg, &objects)?;
+    let (source, test_source) = open_sources(&cfg, &objects)?;
     let n_train = source.len();
     let slots = slot_table(&models, &objects);
-    let prep = PrepareOptions {
-        data: cfg.data.clone(),
-        augment: cfg.augment.clone(),
-        seed: cfg.train.seed,
-        split: "train".into(),
-        slots: slots.clone(),
-        closest_point: closest_point_table(&models, &cfg.train.symmetric_loss)?,
-    };
-    let passes: Vec<Pass> = (state.epochs_done + 1..=cfg.train.epochs)
-        .map(|e| Pass { epoch: e as u64, order: shuffled(n_train, cfg.train.seed, e as u64) })
-        .collect();
-    let loader = Loader::spawn(source, passes, prep, cfg.train.batch_size, cfg.data.prefetch);
-
-    let batches_per_epoch = n_train.div_ceil(cfg.train.batch_size);
-    let bar = progress_bar(opts.quiet, (cfg.train.epochs - state.epochs_done) * batches_per_epoch);
+    let loader = spawn_loader(&cfg, &models, &slots, source, state.epochs_done)?;
+    let bar = progress_bar(opts.quiet, (cfg.train.epochs - state.epochs_done) * n_train.div_ceil(cfg.train.batch_size));
     if !opts.quiet {
         eprintln!(
             "vtpose: training {} on {} ({} train samples of {}), {} params, device {:?}",
@@ -170,67 +143,172 @@ pub fn train(cfg: &TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
             opts.device
         );
     }
+    let csv = open_csv(&run.metrics(), state.epochs_done == 0)?;
+    let epochs = Epochs { cfg: &cfg, opts, run: &run, slots, test_source, bar, csv, records: Vec::new(), sums: EpochSums::new() };
+    let (records, state) = epochs.run(loader, model, optim, state, &device)?;
+    Ok(TrainSummary { run: run.0, epochs: records, state })
+}
 
-    let mut csv = open_csv(&run.metrics(), state.epochs_done == 0)?;
-    let mut records = Vec::new();
-    let (mut loss_sum, mut dist_sum, mut batches, mut samples) = (0.0, 0.0, 0usize, 0usize);
-    let mut started = Instant::now();
-    while let Some(msg) = loader.recv() {
-        match msg? {
-            Loaded::Batch { epoch, batch } => {
-                let input = batch.inputs(&device);
-                let targets = batch.targets(&device);
-                let out = model.forward(&input);
-                let l = pose_loss(&out, &targets, cfg.train.w);
-                let loss_value: f64 = l.loss.clone().into_scalar::<f32>() as f64;
-                if !loss_value.is_finite() {
-                    bail!("epoch {epoch}: the loss is {loss_value} (diverged); try a lower train.lr");
+/// The network (seeded by `train.seed`), its Adam optimizer and the run state: fresh, or
+/// reloaded from `run` when it is resumed.
+fn init_network(
+    cfg: &TrainConfig,
+    run: &RunDir,
+    objects: &[String],
+    resumed: Option<RunState>,
+    device: &Device,
+) -> Result<(PoseNet, ModuleOptimizer, RunState)> {
+    device.seed(cfg.train.seed);
+    let mut model = cfg.model.net(objects.len()).init(device);
+    let mut optim = AdamConfig::new().with_epsilon(1e-8).init(); // PyTorch's Adam, as the paper
+    let mut state = RunState {
+        epochs_done: 0,
+        steps: 0,
+        objects: objects.to_vec(),
+        variant: cfg.model.variant,
+        trainer: format!("vtpose {}", env!("CARGO_PKG_VERSION")),
+    };
+    if let Some(saved) = resumed {
+        model = model.try_load_file(run.model()).map_err(|e| anyhow::anyhow!("cannot load {}: {e}", run.model().display()))?;
+        optim = optim.load(run.optimizer()).map_err(|e| anyhow::anyhow!("cannot load {}: {e}", run.optimizer().display()))?;
+        state = saved;
+    }
+    Ok((model, optim, state))
+}
+
+/// The background loader over the epochs still to train (each epoch's order from the seed).
+fn spawn_loader(
+    cfg: &TrainConfig,
+    models: &[ObjectModel],
+    slots: &[Option<usize>],
+    source: SplitSource,
+    epochs_done: usize,
+) -> Result<Loader> {
+    let n_train = source.len();
+    let prep = PrepareOptions {
+        data: cfg.data.clone(),
+        augment: cfg.augment.clone(),
+        seed: cfg.train.seed,
+        split: "train".into(),
+        slots: slots.to_vec(),
+        closest_point: closest_point_table(models, &cfg.train.symmetric_loss)?,
+    };
+    let passes: Vec<Pass> = (epochs_done + 1..=cfg.train.epochs)
+        .map(|e| Pass { epoch: e as u64, order: shuffled(n_train, cfg.train.seed, e as u64) })
+        .collect();
+    Ok(Loader::spawn(source, passes, prep, cfg.train.batch_size, cfg.data.prefetch))
+}
+
+/// The running sums of the epoch in progress.
+struct EpochSums {
+    loss: f64,
+    distance: f64,
+    batches: usize,
+    samples: usize,
+    started: Instant,
+}
+
+impl EpochSums {
+    fn new() -> Self {
+        EpochSums { loss: 0.0, distance: 0.0, batches: 0, samples: 0, started: Instant::now() }
+    }
+}
+
+/// The epoch loop: what stays the same over the epochs, and what each one appends.
+struct Epochs<'a> {
+    cfg: &'a TrainConfig,
+    opts: &'a TrainOptions,
+    run: &'a RunDir,
+    slots: Vec<Option<usize>>,
+    /// The held-out samples evaluated during training (handed back after each evaluation).
+    test_source: Option<SplitSource>,
+    bar: ProgressBar,
+    csv: std::fs::File,
+    records: Vec<EpochRecord>,
+    sums: EpochSums,
+}
+
+impl Epochs<'_> {
+    /// Trains on every batch of the loader, closing each epoch at its end of pass.
+    fn run(
+        mut self,
+        loader: Loader,
+        mut model: PoseNet,
+        mut optim: ModuleOptimizer,
+        mut state: RunState,
+        device: &Device,
+    ) -> Result<(Vec<EpochRecord>, RunState)> {
+        while let Some(msg) = loader.recv() {
+            match msg? {
+                Loaded::Batch { epoch, batch } => {
+                    model = self.step(model, &mut optim, epoch, &batch, device)?;
+                    state.steps += 1;
                 }
-                dist_sum += best_distance(&out, &l.distance) * batch.len() as f64;
-                let grads = GradientsParams::from_grads(l.loss.backward(), &model);
-                model = optim.step(cfg.train.lr, model, grads);
-                loss_sum += loss_value;
-                batches += 1;
-                samples += batch.len();
-                state.steps += 1;
-                bar.set_message(format!("{epoch}/{} loss {:.4}", cfg.train.epochs, loss_sum / batches as f64));
-                bar.inc(1);
-            }
-            Loaded::EndOfPass { epoch, skipped } => {
-                let epoch = epoch as usize;
-                state.epochs_done = epoch;
-                let mut rec = EpochRecord {
-                    epoch,
-                    steps: state.steps,
-                    samples,
-                    skipped: skipped.len(),
-                    loss: loss_sum / batches.max(1) as f64,
-                    distance_cm: 100.0 * dist_sum / samples.max(1) as f64,
-                    seconds: started.elapsed().as_secs_f64(),
-                    eval: None,
-                };
-                let last = epoch == cfg.train.epochs;
-                if cfg.train.eval_every > 0 && (epoch.is_multiple_of(cfg.train.eval_every) || last) {
-                    rec.eval = evaluate_during_training(&model.valid(), &mut test_source, &cfg, &slots, &opts.device)?;
+                Loaded::EndOfPass { epoch, skipped } => {
+                    state.epochs_done = epoch as usize;
+                    self.end_epoch(&model, &optim, &state, skipped.len())?;
                 }
-                let checkpoint = last || epoch.is_multiple_of(cfg.train.checkpoint_every.max(1));
-                save_epoch(&run, &model, &optim, &state, checkpoint)?;
-                writeln!(csv, "{}", rec.csv())?;
-                csv.flush()?;
-                if !opts.quiet {
-                    let line = rec.report_line();
-                    // indicatif swallows println on a hidden bar (stderr not a terminal).
-                    if bar.is_hidden() { eprintln!("{line}") } else { bar.println(line) }
-                }
-                records.push(rec);
-                (loss_sum, dist_sum, batches, samples) = (0.0, 0.0, 0, 0);
-                started = Instant::now();
             }
         }
+        loader.finish();
+        self.bar.finish_and_clear();
+        Ok((self.records, state))
     }
-    loader.finish();
-    bar.finish_and_clear();
-    Ok(TrainSummary { run: run.0, epochs: records, state })
+
+    /// One optimizer step on `batch`; returns the updated network.
+    fn step(&mut self, model: PoseNet, optim: &mut ModuleOptimizer, epoch: u64, batch: &Batch, device: &Device) -> Result<PoseNet> {
+        let train = &self.cfg.train;
+        let input = batch.inputs(device);
+        let targets = batch.targets(device);
+        let out = model.forward(&input);
+        let l = pose_loss(&out, &targets, train.w);
+        let loss_value: f64 = l.loss.clone().into_scalar::<f32>() as f64;
+        if !loss_value.is_finite() {
+            bail!("epoch {epoch}: the loss is {loss_value} (diverged); try a lower train.lr");
+        }
+        let sums = &mut self.sums;
+        sums.distance += best_distance(&out, &l.distance) * batch.len() as f64;
+        let grads = GradientsParams::from_grads(l.loss.backward(), &model);
+        let model = optim.step(train.lr, model, grads);
+        sums.loss += loss_value;
+        sums.batches += 1;
+        sums.samples += batch.len();
+        self.bar.set_message(format!("{epoch}/{} loss {:.4}", train.epochs, sums.loss / sums.batches as f64));
+        self.bar.inc(1);
+        Ok(model)
+    }
+
+    /// Closes the epoch `state.epochs_done`: its record (with test metrics when due), the saved
+    /// weights, a `metrics.csv` row and the printed line.
+    fn end_epoch(&mut self, model: &PoseNet, optim: &ModuleOptimizer, state: &RunState, skipped: usize) -> Result<()> {
+        let (train, epoch, sums) = (&self.cfg.train, state.epochs_done, &self.sums);
+        let mut rec = EpochRecord {
+            epoch,
+            steps: state.steps,
+            samples: sums.samples,
+            skipped,
+            loss: sums.loss / sums.batches.max(1) as f64,
+            distance_cm: 100.0 * sums.distance / sums.samples.max(1) as f64,
+            seconds: sums.started.elapsed().as_secs_f64(),
+            eval: None,
+        };
+        let last = epoch == train.epochs;
+        if train.eval_every > 0 && (epoch.is_multiple_of(train.eval_every) || last) {
+            rec.eval = evaluate_during_training(&model.valid(), &mut self.test_source, self.cfg, &self.slots, &self.opts.device)?;
+        }
+        let checkpoint = last || epoch.is_multiple_of(train.checkpoint_every.max(1));
+        save_epoch(self.run, model, optim, state, checkpoint)?;
+        writeln!(self.csv, "{}", rec.csv())?;
+        self.csv.flush()?;
+        if !self.opts.quiet {
+            let line = rec.report_line();
+            // indicatif swallows println on a hidden bar (stderr not a terminal).
+            if self.bar.is_hidden() { eprintln!("{line}") } else { self.bar.println(line) }
+        }
+        self.records.push(rec);
+        self.sums = EpochSums::new();
+        Ok(())
+    }
 }
 
 /// A fresh run, or the state of the one in `run` to continue (`--resume`: the config may differ
@@ -319,7 +397,7 @@ fn evaluate_during_training(
 }
 
 /// Per dataset object: trained with the closest-point loss (`train.symmetric_loss` lists its id).
-pub fn closest_point_table(models: &[crate::data::ObjectModel], ids: &[String]) -> Result<Vec<bool>> {
+pub fn closest_point_table(models: &[ObjectModel], ids: &[String]) -> Result<Vec<bool>> {
     for id in ids {
         if !models.iter().any(|m| &m.id == id) {
             bail!("train.symmetric_loss: '{id}' is not an object of the dataset");

@@ -8,10 +8,11 @@ use std::sync::OnceLock;
 
 use burn::module::Module;
 use vt_trainer::config::{AugmentConfig, DataConfig, ModelConfig, OptimConfig, TrainConfig};
-use vt_trainer::data::{Loaded, Loader, Pass, PrepareOptions, SplitSource, load_models, prepare, select_objects};
+use vt_trainer::data::{Loaded, Loader, ObjectModel, Pass, PrepareOptions, SplitSource, load_models, prepare, select_objects};
 use vt_trainer::device::cpu;
-use vt_trainer::eval::{EvalCommand, EvalOptions, Summary, evaluate, evaluate_runs, report_markdown};
+use vt_trainer::eval::{EvalCommand, EvalOptions, Summary, evaluate, evaluate_runs};
 use vt_trainer::model::Variant;
+use vt_trainer::report::report_markdown;
 use vt_trainer::train::{RunDir, TrainOptions, slot_table, train};
 
 fn root() -> PathBuf {
@@ -90,22 +91,28 @@ fn quiet(out: PathBuf) -> TrainOptions {
     TrainOptions { out, resume: false, overwrite: false, device: cpu(), quiet: true }
 }
 
-#[test]
-fn data_pipeline_mirrors_the_python_view() {
+/// The train split of tiny-hand, every object, with the Python view's sizes and no augmentation.
+fn train_split() -> (Vec<ObjectModel>, SplitSource, PrepareOptions) {
     let ds = dataset();
     let models = load_models(ds).unwrap();
     let objects = select_objects(&models, &vt_trainer::config::ObjectSelection::All).unwrap();
-    let mut src = SplitSource::open(ds, "train", &objects, vt_trainer::config::DepthSource::Exact, true).unwrap();
+    let src = SplitSource::open(ds, "train", &objects, vt_trainer::config::DepthSource::Exact, true).unwrap();
     assert_eq!(src.len(), 32, "tiny-hand: 2 objects x 4 train trajectories x 4 instances");
     let data = DataConfig { n_points: 1000, n_tactile: 240, n_model_points: 500, crop_size: 64, ..DataConfig::default() };
     let opts = PrepareOptions {
-        data: data.clone(),
+        data,
         augment: AugmentConfig::NONE,
         seed: 0,
         split: "train".into(),
         slots: slot_table(&models, &objects),
         closest_point: vec![false; models.len()],
     };
+    (models, src, opts)
+}
+
+#[test]
+fn data_pipeline_mirrors_the_python_view() {
+    let (models, mut src, opts) = train_split();
     let mut touched = 0;
     for i in 0..src.len() {
         let view = src.view(i).unwrap();
@@ -147,8 +154,11 @@ fn data_pipeline_mirrors_the_python_view() {
         assert_ne!(other.cloud, p.cloud);
     }
     assert!(touched >= 24, "most tiny-hand samples have tactile points ({touched}/32)");
+}
 
-    // Augmentation shifts the inputs and the truth together.
+#[test]
+fn augmentation_shifts_the_inputs_and_the_truth_together() {
+    let (models, mut src, opts) = train_split();
     let view = (0..src.len()).map(|i| src.view(i).unwrap()).find(|v| v.visible() && !v.tactile.is_empty()).unwrap();
     let mut aug = opts.clone();
     aug.augment = AugmentConfig { color_jitter: 0.2, translation_noise_m: 0.03 };
@@ -157,8 +167,11 @@ fn data_pipeline_mirrors_the_python_view() {
     assert!(shift.length() > 0.0 && shift.abs().max_element() <= 0.03 + 1e-6);
     assert!((a.cloud[0] - p.cloud[0] - shift.x as f32).abs() < 1e-5 && (a.tactile[2] - p.tactile[2] - shift.z as f32).abs() < 1e-5);
     assert_ne!(a.img, p.img);
+}
 
-    // The background loader batches the same samples.
+#[test]
+fn the_background_loader_batches_every_sample_once() {
+    let (_, src, opts) = train_split();
     let order: Vec<usize> = (0..src.len()).collect();
     let loader = Loader::spawn(src, vec![Pass { epoch: 0, order }], opts, 5, 2);
     let (mut n, mut ends) = (0, 0);
@@ -307,12 +320,12 @@ fn every_variant_trains_and_evaluates() {
         assert!(md.contains(section), "report lacks {section}:\n{md}");
     }
     // Every tactile network (with colour) is paired with the baseline, per grasp.
-    let pairs = vt_trainer::eval::comparisons(&evals);
+    let pairs = vt_trainer::eval::compare::comparisons(&evals);
     assert_eq!(pairs.len(), 3, "tactile_channel, non_siamese, no_global vs vision_only");
-    let p = vt_trainer::compare::paired(&pairs[0].0.results, &pairs[0].1.results).expect("tiny-hand records trajectories");
-    assert_eq!(p.grasps.iter().map(|g| g.samples).sum::<usize>(), pairs[0].0.results.len());
+    let p = pairs[0].paired.as_ref().expect("tiny-hand records trajectories");
+    assert_eq!(p.grasps.iter().map(|g| g.samples).sum::<usize>(), pairs[0].tactile.results.len());
     let report_dir = tempfile::Builder::new().prefix("vtpose-report-").tempdir().unwrap();
-    vt_trainer::eval::write_report(&evals, "test", "cpu", report_dir.path()).unwrap();
+    vt_trainer::report::write_report(&evals, "test", "cpu", report_dir.path()).unwrap();
     for f in ["report.md", "results.json", "occlusion-position.svg", "occlusion-angle.svg", "objects-position.svg"] {
         assert!(report_dir.path().join(f).is_file(), "{f}");
     }

@@ -102,7 +102,7 @@ mod tests {
         let half: Vec<DVec3> = on.iter().take(10).chain(behind.iter().take(30)).copied().collect();
         let (level, visible) = occlusion_level(&half, &depth, 64, 48, &k, 0.02);
         assert_eq!((level, visible), (0.75, 10));
-        assert_eq!(bin(level), 0);
+        assert_eq!(vt_dataset::OcclusionBin::of(level), Some(vt_dataset::OcclusionBin::Below80));
         // The windowed search answers as the search over the whole cloud does.
         for eps in [0.002, 0.01, 0.03, 0.06] {
             assert_eq!(occlusion_level(&half, &depth, 64, 48, &k, eps), occlusion_level_brute_force(&half, &depth, 64, 48, &k, eps));

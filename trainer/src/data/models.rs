@@ -14,7 +14,7 @@ pub struct ObjectModel {
     /// `none`, `continuous_z` or `discrete` (models_info.json).
     pub symmetry: String,
     /// The symmetries the "angle up to symmetry" forgives (mesh-verified when the dataset has them).
-    pub symmetries: crate::metrics::Symmetries,
+    pub symmetries: crate::geometry::Symmetries,
     /// Largest vertex distance, metres.
     pub diameter: f64,
     vertices: Vec<DVec3>,
@@ -39,7 +39,7 @@ impl ObjectModel {
             id: id.to_string(),
             dataset_index,
             symmetry: symmetry.to_string(),
-            symmetries: crate::metrics::Symmetries::of_kind(symmetry),
+            symmetries: crate::geometry::Symmetries::of_kind(symmetry),
             diameter,
             vertices,
             surface,
@@ -91,7 +91,7 @@ pub fn load_models(root: &Path) -> Result<Vec<ObjectModel>> {
         .map(|o| {
             let mesh = vt_dataset::read_ply(&dir.join(&o.file))?;
             let mut m = ObjectModel::from_mesh(&o.id, o.object_index as usize, &o.symmetry, o.diameter, &mesh.positions, &mesh.triangles);
-            m.symmetries = crate::metrics::Symmetries::from_models_info(&o.symmetry, &o.symmetries_discrete, &o.symmetries_continuous);
+            m.symmetries = crate::geometry::Symmetries::from_models_info(&o.symmetry, &o.symmetries_discrete, &o.symmetries_continuous);
             Ok(m)
         })
         .collect::<Result<_>>()?;

@@ -13,7 +13,8 @@ use std::collections::BTreeMap;
 
 use serde::Serialize;
 
-use crate::eval::SampleResult;
+use super::{ModelEval, SampleResult};
+use crate::model::Variant;
 
 /// One grasp's mean errors under both networks.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -112,6 +113,26 @@ pub fn paired(tactile: &[SampleResult], vision: &[SampleResult]) -> Option<Paire
     let position = sign_test(&grasps.iter().map(|g| (g.tactile_position_cm, g.vision_position_cm)).collect::<Vec<_>>());
     let angle = sign_test(&grasps.iter().map(|g| (g.tactile_angle_deg, g.vision_angle_deg)).collect::<Vec<_>>());
     Some(Paired { grasps, position, angle })
+}
+
+/// A tactile network against the vision-only baseline, with their paired comparison: computed
+/// once here for the report's tables, `results.json` and plots.
+#[derive(Debug, Clone)]
+pub struct Comparison<'a> {
+    pub tactile: &'a ModelEval,
+    pub vision: &'a ModelEval,
+    /// `None` when the results carry no trajectory (see [`paired`]).
+    pub paired: Option<Paired>,
+}
+
+/// The first vision-only evaluation against every tactile one that also sees colour.
+pub fn comparisons(evals: &[ModelEval]) -> Vec<Comparison<'_>> {
+    let Some(vision) = evals.iter().find(|e| e.variant == Variant::VisionOnly) else { return Vec::new() };
+    evals
+        .iter()
+        .filter(|e| e.variant.uses_tactile() && e.variant.uses_color())
+        .map(|tactile| Comparison { tactile, vision, paired: paired(&tactile.results, &vision.results) })
+        .collect()
 }
 
 /// How a tactile network answers: which channel's estimate it picks, and how good those are.

@@ -1,8 +1,11 @@
 //! Pose metrics: the paper's position and angle errors (§VI-A), ADD and ADD-S with their AUC as
-//! in YCB-Video (PoseCNN, DenseFusion), mean ± standard error, and the paper's occlusion bins.
+//! in YCB-Video (PoseCNN, DenseFusion), and mean ± standard error. The paper's occlusion bins are
+//! the dataset format's ([`vt_dataset::OcclusionBin`]).
 
 use glam::{DMat3, DQuat, DVec3};
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
+
+use crate::geometry::Symmetries;
 
 /// Euclidean distance of the translations, in **centimetres**.
 pub fn position_error_cm(t_hat: DVec3, t: DVec3) -> f64 {
@@ -14,46 +17,6 @@ pub fn position_error_cm(t_hat: DVec3, t: DVec3) -> f64 {
 pub fn angle_error_deg(q_hat: DQuat, q: DQuat) -> f64 {
     let d = q_hat.normalize().dot(q.normalize());
     (2.0 * d * d - 1.0).clamp(-1.0, 1.0).acos().to_degrees()
-}
-
-/// The rotations that make an object look the same (model frame): the discrete symmetries'
-/// rotation parts and, for a body of revolution, its axis.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct Symmetries {
-    pub rotations: Vec<DQuat>,
-    pub axis: Option<DVec3>,
-}
-
-impl Symmetries {
-    /// From `models_info.json`: the mesh-verified transforms (row-major 4×4, BOP layout) and
-    /// revolution axes when the dataset has them, else the axis-aligned ones the `symmetry` kind
-    /// names (datasets written before the transforms were measured).
-    pub fn from_models_info(kind: &str, discrete: &[[f64; 16]], continuous: &[vt_dataset::ContinuousSymmetry]) -> Self {
-        if discrete.is_empty() && continuous.is_empty() {
-            return Self::of_kind(kind);
-        }
-        Symmetries {
-            rotations: discrete
-                .iter()
-                .map(|m| DQuat::from_mat3(&DMat3::from_cols_array(&[m[0], m[4], m[8], m[1], m[5], m[9], m[2], m[6], m[10]])).normalize())
-                .collect(),
-            axis: continuous.first().map(|c| DVec3::from_array(c.axis).normalize()),
-        }
-    }
-
-    /// The axis-aligned symmetries a kind names: `continuous_z` (revolution about model z),
-    /// `discrete` (the three 180° flips about the model axes), otherwise none.
-    pub fn of_kind(kind: &str) -> Self {
-        use std::f64::consts::PI;
-        match kind {
-            "continuous_z" => Symmetries { rotations: Vec::new(), axis: Some(DVec3::Z) },
-            "discrete" => Symmetries {
-                rotations: vec![DQuat::from_rotation_x(PI), DQuat::from_rotation_y(PI), DQuat::from_rotation_z(PI)],
-                axis: None,
-            },
-            _ => Symmetries::default(),
-        }
-    }
 }
 
 /// The angle error up to the object's symmetries (degrees): the smallest angle between the
@@ -141,39 +104,6 @@ impl std::fmt::Display for MeanSe {
     }
 }
 
-/// The paper's occlusion bins (§VI-A-2): below 80 %, 80–85 %, above 85 %.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub enum OcclusionBin {
-    Below80,
-    From80To85,
-    Above85,
-}
-
-impl OcclusionBin {
-    pub const ALL: [OcclusionBin; 3] = [OcclusionBin::Below80, OcclusionBin::From80To85, OcclusionBin::Above85];
-
-    /// The bin of an occlusion level in [0, 1]; `None` for NaN (a dataset without levels).
-    pub fn of(level: f32) -> Option<OcclusionBin> {
-        if level.is_nan() {
-            None
-        } else if level < 0.80 {
-            Some(OcclusionBin::Below80)
-        } else if level <= 0.85 {
-            Some(OcclusionBin::From80To85)
-        } else {
-            Some(OcclusionBin::Above85)
-        }
-    }
-
-    pub fn label(self) -> &'static str {
-        match self {
-            OcclusionBin::Below80 => "< 80 %",
-            OcclusionBin::From80To85 => "80–85 %",
-            OcclusionBin::Above85 => "> 85 %",
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -257,7 +187,7 @@ mod tests {
     }
 
     #[test]
-    fn auc_mean_se_and_bins() {
+    fn auc_and_mean_se() {
         assert_eq!(auc(&[0.0, 0.0], 0.1), 100.0);
         assert_eq!(auc(&[0.2, 0.1], 0.1), 0.0);
         assert!((auc(&[0.05], 0.1) - 50.0).abs() < 1e-9);
@@ -268,10 +198,5 @@ mod tests {
         // sample sd = sqrt(5/3); se = sd / 2
         assert!((s.se - (5.0f64 / 3.0).sqrt() / 2.0).abs() < 1e-12);
         assert_eq!(format!("{:.1}", s), "2.5 ± 0.6");
-        assert_eq!(OcclusionBin::of(0.5), Some(OcclusionBin::Below80));
-        assert_eq!(OcclusionBin::of(0.8), Some(OcclusionBin::From80To85));
-        assert_eq!(OcclusionBin::of(0.85), Some(OcclusionBin::From80To85));
-        assert_eq!(OcclusionBin::of(0.9), Some(OcclusionBin::Above85));
-        assert_eq!(OcclusionBin::of(f32::NAN), None);
     }
 }

@@ -5,7 +5,7 @@
 //! object's bounding box with each point's pixel in it (`choose`), and `n_t` tactile points
 //! (see [`crate::data`]). The network fuses them in two channels:
 //!
-//! - **visual channel**: a colour encoder ([`crate::encoder`]: DenseFusion's PSPNet on a dilated
+//! - **visual channel**: a colour encoder ([`encoder`]: DenseFusion's PSPNet on a dilated
 //!   ResNet-18, or a small CNN for tests) maps the crop to a per-pixel colour embedding, gathered at
 //!   the points' pixels; colour and depth points each go through a two-stage point-wise MLP, and the
 //!   stages are concatenated per point (DenseFusion's pixel-wise dense fusion);
@@ -32,6 +32,8 @@
 //!
 //! The widths are configurable ([`PoseNetConfig`]); the defaults are small enough for a CPU.
 
+pub mod encoder;
+
 use std::str::FromStr;
 
 use burn::nn::{Linear, LinearConfig};
@@ -40,8 +42,8 @@ use burn::tensor::Int;
 use burn::tensor::activation::{relu, sigmoid};
 use serde::{Deserialize, Serialize};
 
-use crate::encoder::{ColorEncoder, ColorEncoderConfig, EncoderKind};
 use crate::geometry::normalize_quat;
+use encoder::{ColorEncoder, ColorEncoderConfig, EncoderKind};
 
 /// Point coordinates enter the network in decimetres (relative to the depth cloud's centroid)
 /// and the translation heads answer in decimetres: object-sized inputs and outputs of order 1,
@@ -372,64 +374,91 @@ impl PoseNet {
         self.variant
     }
 
-    // Long on purpose: the paper's Fig. 2 top to bottom (encoders, pixel-wise fusion, global
-    // feature, Siamese heads, confidence); split, its tensor shapes would have to be re-read.
+    /// The paper's Fig. 2 top to bottom: the depth embedding, the visual and tactile channels'
+    /// point-wise fusion, the global feature, then the heads' estimates.
     pub fn forward(&self, input: &PoseInput) -> PoseOutput {
         let [b, n, _] = input.cloud.dims();
-        let device = input.cloud.device();
         // The point-wise MLPs see coordinates relative to the depth cloud's centroid, in
         // decimetres (the anchors of the translations stay absolute): centimetre detail is hard to
         // resolve in absolute metres ~0.7 m from the camera, and the pose does not depend on where
         // it is seen.
         let centroid = input.cloud.clone().mean_dim(1); // (B, 1, 3)
         let (d1, d2) = self.depth_mlp.forward((input.cloud.clone() - centroid.clone().expand([b, n, 3])).mul_scalar(POINT_SCALE));
-
-        // Visual channel: colour embedding gathered at the points' pixels, fused with depth.
-        let visual = match (&self.color_cnn, &self.color_mlp) {
-            (Some(cnn), Some(mlp)) => {
-                let emb = cnn.forward(input.img.clone());
-                let [_, c, h, w] = emb.dims();
-                let choose = input.choose.clone().reshape([b, 1, n]).expand([b, c, n]);
-                let per_point = emb.reshape([b, c, h * w]).gather(2, choose).swap_dims(1, 2); // (B, N, C)
-                let (c1, c2) = mlp.forward(per_point);
-                Some((c1, c2))
-            }
-            _ => None,
-        };
-
-        // Tactile channel: tactile embeddings, entry i paired with depth point i (tactile i mod n_t).
-        let tactile = self.tactile_mlp.as_ref().map(|mlp| {
-            let [_, nt, _] = input.tactile.dims();
-            // Samples without touch contribute no tactile embedding (their tactile estimates are void).
-            let touch = input.has_touch.clone().reshape([b, 1, 1]);
-            let (t1, t2) = mlp.forward((input.tactile.clone() - centroid.clone().expand([b, nt, 3])).mul_scalar(POINT_SCALE));
-            let mask = |t: Tensor<3>| {
-                let dims = t.dims();
-                t * touch.clone().expand(dims)
-            };
-            let (t1, t2) = (mask(t1), mask(t2));
-            let pairing: Vec<i64> = (0..n).map(|i| (i % nt) as i64).collect();
-            let pairing = Tensor::<1, Int>::from_data(TensorData::new(pairing, [n]), &device);
-            let pick = |t: Tensor<3>| t.select(1, pairing.clone());
-            (pick(t1), pick(t2), pick(input.tactile.clone()))
-        });
-
-        // Global feature: colour, depth and tactile stage-2 embeddings -> MLP -> average pool.
-        let global = self.global.as_ref().map(|mlp| {
-            let mut parts = vec![d2.clone()];
-            if let Some((_, c2)) = &visual {
-                parts.push(c2.clone());
-            }
-            if let Some((_, t2, _)) = &tactile {
-                parts.push(t2.clone());
-            }
-            let g = mlp.forward(Tensor::cat(parts, 2)).mean_dim(1); // (B, 1, G)
-            let gd = g.dims()[2];
-            g.expand([b, n, gd])
-        });
+        let visual = self.visual_embedding(input);
+        let tactile = self.tactile_embedding(input, &centroid);
+        let global = self.global_feature(&d2, visual.as_ref(), tactile.as_ref());
         // Each channel's point features without the global feature: [depth 1, own 1, depth 2, own 2].
         let visual_feats = visual.map(|(c1, c2)| Tensor::cat(vec![d1.clone(), c1, d2.clone(), c2], 2));
         let tactile_parts = tactile.map(|(t1, t2, anchor)| (Tensor::cat(vec![d1.clone(), t1, d2.clone(), t2], 2), anchor));
+        self.estimates(input, visual_feats, tactile_parts, global)
+    }
+
+    /// Visual channel: the colour embedding gathered at the points' pixels, through the colour
+    /// MLP: stage-1 and stage-2 features `(B, N, p1)`, `(B, N, p2)`; `None` without colour.
+    fn visual_embedding(&self, input: &PoseInput) -> Option<(Tensor<3>, Tensor<3>)> {
+        let (Some(cnn), Some(mlp)) = (&self.color_cnn, &self.color_mlp) else { return None };
+        let [b, n, _] = input.cloud.dims();
+        let emb = cnn.forward(input.img.clone());
+        let [_, c, h, w] = emb.dims();
+        let choose = input.choose.clone().reshape([b, 1, n]).expand([b, c, n]);
+        let per_point = emb.reshape([b, c, h * w]).gather(2, choose).swap_dims(1, 2); // (B, N, C)
+        Some(mlp.forward(per_point))
+    }
+
+    /// Tactile channel: the tactile embeddings with entry `i` paired with depth point `i`
+    /// (tactile point `i mod n_t`): stage-1 `(B, N, p1)`, stage-2 `(B, N, p2)` and the paired
+    /// tactile points `(B, N, 3)` (the anchors of its translations); `None` without touch input.
+    fn tactile_embedding(&self, input: &PoseInput, centroid: &Tensor<3>) -> Option<(Tensor<3>, Tensor<3>, Tensor<3>)> {
+        let mlp = self.tactile_mlp.as_ref()?;
+        let [b, n, _] = input.cloud.dims();
+        let [_, nt, _] = input.tactile.dims();
+        // Samples without touch contribute no tactile embedding (their tactile estimates are void).
+        let touch = input.has_touch.clone().reshape([b, 1, 1]);
+        let (t1, t2) = mlp.forward((input.tactile.clone() - centroid.clone().expand([b, nt, 3])).mul_scalar(POINT_SCALE));
+        let mask = |t: Tensor<3>| {
+            let dims = t.dims();
+            t * touch.clone().expand(dims)
+        };
+        let (t1, t2) = (mask(t1), mask(t2));
+        let pairing: Vec<i64> = (0..n).map(|i| (i % nt) as i64).collect();
+        let pairing = Tensor::<1, Int>::from_data(TensorData::new(pairing, [n]), &input.cloud.device());
+        let pick = |t: Tensor<3>| t.select(1, pairing.clone());
+        Some((pick(t1), pick(t2), pick(input.tactile.clone())))
+    }
+
+    /// Global feature: the colour, depth and tactile stage-2 embeddings through the global MLP,
+    /// averaged over the points and repeated for each: `(B, N, G)`; `None` for `no_global`.
+    fn global_feature(
+        &self,
+        d2: &Tensor<3>,
+        visual: Option<&(Tensor<3>, Tensor<3>)>,
+        tactile: Option<&(Tensor<3>, Tensor<3>, Tensor<3>)>,
+    ) -> Option<Tensor<3>> {
+        let mlp = self.global.as_ref()?;
+        let [b, n, _] = d2.dims();
+        let mut parts = vec![d2.clone()];
+        if let Some((_, c2)) = visual {
+            parts.push(c2.clone());
+        }
+        if let Some((_, t2, _)) = tactile {
+            parts.push(t2.clone());
+        }
+        let g = mlp.forward(Tensor::cat(parts, 2)).mean_dim(1); // (B, 1, G)
+        let gd = g.dims()[2];
+        Some(g.expand([b, n, gd]))
+    }
+
+    /// The heads of each channel on its point features (`visual`; `tactile` with its anchors)
+    /// and the global feature: the visual estimates, then the tactile ones.
+    fn estimates(
+        &self,
+        input: &PoseInput,
+        visual: Option<Tensor<3>>,
+        tactile: Option<(Tensor<3>, Tensor<3>)>,
+        global: Option<Tensor<3>>,
+    ) -> PoseOutput {
+        let [b, n, _] = input.cloud.dims();
+        let device = input.cloud.device();
         let with_global = |mut parts: Vec<Tensor<3>>| {
             if let Some(g) = &global {
                 parts.push(g.clone());
@@ -438,8 +467,7 @@ impl PoseNet {
         };
         // The paper's translation heads see the RGB-depth, the tactile-depth and the global
         // features; rotation and confidence see their own channel and the global feature.
-        let translation_in =
-            with_global(visual_feats.iter().cloned().chain(tactile_parts.as_ref().map(|(f, _)| f.clone())).collect::<Vec<_>>());
+        let translation_in = with_global(visual.iter().cloned().chain(tactile.as_ref().map(|(f, _)| f.clone())).collect::<Vec<_>>());
 
         let mut rotation = Vec::new();
         let mut translation = Vec::new();
@@ -455,10 +483,10 @@ impl PoseNet {
             confidence.push(sigmoid(c).reshape([b, n]));
             valid.push(ok.expand([b, n]));
         };
-        if let (Some(heads), Some(f)) = (&self.visual, visual_feats) {
+        if let (Some(heads), Some(f)) = (&self.visual, visual) {
             run(heads, None, with_global(vec![f]), input.cloud.clone(), Tensor::ones([b, 1], &device));
         }
-        if let (Some(heads), Some((f, anchor))) = (&self.tactile, tactile_parts) {
+        if let (Some(heads), Some((f, anchor))) = (&self.tactile, tactile) {
             let shared = self.visual.as_ref().and_then(|v| v.rotation.as_ref());
             run(heads, shared, with_global(vec![f]), anchor, input.has_touch.clone());
         }

@@ -1,26 +1,38 @@
-//! The report's pictures, as standalone SVG (any browser, GitHub and the README show them): errors
-//! by occlusion bin and by object (bars with standard-error whiskers, one colour per run), and the
-//! paired per-grasp comparison (one dot per grasp: baseline error against tactile error; below
-//! the diagonal touch helped).
+//! The report's pictures, drawn with plotters as standalone SVG (any browser, GitHub and the README
+//! show them): errors by occlusion bin and by object (bars with standard-error whiskers and the
+//! sample count above each, one colour per run), and the paired per-grasp comparison (one dot per
+//! grasp: baseline error against tactile error; below the diagonal touch helped).
 
-use std::fmt::Write as _;
 use std::path::Path;
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, anyhow};
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
+use vt_dataset::OcclusionBin;
 
-use crate::eval::{ModelEval, Summary, comparisons};
-use crate::metrics::{MeanSe, OcclusionBin};
+use crate::eval::compare::Comparison;
+use crate::eval::metrics::MeanSe;
+use crate::eval::{ModelEval, Summary};
 
-const COLORS: [&str; 6] = ["#4c72b0", "#dd8452", "#55a868", "#c44e52", "#8172b3", "#937860"];
-const W: f64 = 720.0;
-const H: f64 = 360.0;
-const LEFT: f64 = 70.0;
-const RIGHT: f64 = 20.0;
-const TOP: f64 = 40.0;
-const BOTTOM: f64 = 70.0;
+/// One colour per run (seaborn's "deep" palette); the scatter's dots: green where touch helped,
+/// red where it did not.
+const COLORS: [RGBColor; 6] = [
+    RGBColor(0x4c, 0x72, 0xb0),
+    RGBColor(0xdd, 0x84, 0x52),
+    RGBColor(0x55, 0xa8, 0x68),
+    RGBColor(0xc4, 0x4e, 0x52),
+    RGBColor(0x81, 0x72, 0xb3),
+    RGBColor(0x93, 0x78, 0x60),
+];
+const SIZE: (u32, u32) = (720, 360);
+/// The strip under a bar chart that holds the legend.
+const LEGEND_H: u32 = 30;
+const FONT: &str = "sans-serif";
 
-fn esc(s: &str) -> String {
-    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
+/// plotters' errors carry the backend's error type; one message is all a user needs.
+fn plot_err<E: std::fmt::Display>(e: E) -> anyhow::Error {
+    anyhow!("drawing a chart: {e}")
 }
 
 /// A "nice" axis maximum and tick step for values up to `max`.
@@ -32,176 +44,177 @@ fn nice_axis(max: f64) -> (f64, f64) {
     ((max / step).ceil() * step, step)
 }
 
-fn header(title: &str) -> String {
-    let mut s = String::new();
-    let _ = writeln!(
-        s,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{H}" viewBox="0 0 {W} {H}" font-family="sans-serif" font-size="12">"#
-    );
-    let _ = writeln!(s, r#"<rect width="{W}" height="{H}" fill="white"/>"#);
-    let _ = writeln!(s, r#"<text x="{}" y="22" text-anchor="middle" font-size="15">{}</text>"#, W / 2.0, esc(title));
-    s
+/// Ticks from 0 to `max` every `step`.
+fn tick_count(max: f64, step: f64) -> usize {
+    (max / step).round() as usize + 1
 }
 
-fn y_axis(s: &mut String, y_max: f64, step: f64, label: &str) -> impl Fn(f64) -> f64 + use<> {
-    let plot_h = H - TOP - BOTTOM;
-    let y = move |v: f64| TOP + plot_h * (1.0 - v / y_max);
-    let mut v = 0.0;
-    while v <= y_max + 1e-9 {
-        let _ = writeln!(
-            s,
-            r##"<line x1="{LEFT}" x2="{}" y1="{1:.1}" y2="{1:.1}" stroke="#ddd"/><text x="{2}" y="{3:.1}" text-anchor="end">{4}</text>"##,
-            W - RIGHT,
-            y(v),
-            LEFT - 6.0,
-            y(v) + 4.0,
-            trim(v)
-        );
-        v += step;
+/// Grouped bars: one group per label, one bar per series (mean with a standard-error whisker,
+/// the number of samples above it).
+pub fn bar_chart(title: &str, y_label: &str, groups: &[String], series: &[(String, Vec<MeanSe>)]) -> Result<String> {
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, SIZE).into_drawing_area();
+        root.fill(&WHITE).map_err(plot_err)?;
+        let (plot, legend_strip) = root.split_vertically(SIZE.1 - LEGEND_H);
+        draw_bars(&plot, title, y_label, groups, series)?;
+        legend(&legend_strip, series.iter().map(|(name, _)| name.as_str()))?;
+        root.present().map_err(plot_err)?;
     }
-    let _ = writeln!(s, r#"<text transform="translate(18,{}) rotate(-90)" text-anchor="middle">{}</text>"#, TOP + plot_h / 2.0, esc(label));
-    let _ = writeln!(s, r#"<line x1="{LEFT}" x2="{LEFT}" y1="{TOP}" y2="{}" stroke="black"/>"#, H - BOTTOM);
-    y
+    Ok(svg)
 }
 
-fn trim(v: f64) -> String {
-    let t = format!("{v:.3}");
-    t.trim_end_matches('0').trim_end_matches('.').to_string()
-}
-
-/// Grouped bars: one group per label, one bar per series (mean with a standard-error whisker).
-pub fn bar_chart(title: &str, y_label: &str, groups: &[String], series: &[(String, Vec<MeanSe>)]) -> String {
-    let mut s = header(title);
+fn draw_bars(
+    area: &DrawingArea<SVGBackend, Shift>,
+    title: &str,
+    y_label: &str,
+    groups: &[String],
+    series: &[(String, Vec<MeanSe>)],
+) -> Result<()> {
     let top = series.iter().flat_map(|(_, v)| v.iter().filter(|m| m.n > 0).map(|m| m.mean + m.se)).fold(0.0, f64::max);
     let (y_max, step) = nice_axis(top * 1.05);
-    let y = y_axis(&mut s, y_max, step, y_label);
-    let plot_w = W - LEFT - RIGHT;
-    let group_w = plot_w / groups.len().max(1) as f64;
-    let bar_w = 0.8 * group_w / series.len().max(1) as f64;
-    for (g, label) in groups.iter().enumerate() {
-        let x0 = LEFT + g as f64 * group_w + 0.1 * group_w;
-        for (k, (_, values)) in series.iter().enumerate() {
-            let Some(m) = values.get(g).filter(|m| m.n > 0 && m.mean.is_finite()) else { continue };
-            let x = x0 + k as f64 * bar_w;
-            let color = COLORS[k % COLORS.len()];
-            let _ = writeln!(
-                s,
-                r#"<rect x="{x:.1}" y="{:.1}" width="{:.1}" height="{:.1}" fill="{color}"><title>{} ± {} (n = {})</title></rect>"#,
-                y(m.mean),
-                bar_w * 0.92,
-                y(0.0) - y(m.mean),
-                trim(m.mean),
-                trim(m.se),
-                m.n
-            );
-            let cx = x + bar_w * 0.46;
-            let _ = writeln!(
-                s,
-                r#"<line x1="{cx:.1}" x2="{cx:.1}" y1="{:.1}" y2="{:.1}" stroke="black"/>"#,
-                y((m.mean + m.se).min(y_max)),
-                y((m.mean - m.se).max(0.0))
-            );
-        }
-        let _ = writeln!(
-            s,
-            r#"<text x="{:.1}" y="{}" text-anchor="middle">{}</text>"#,
-            LEFT + (g as f64 + 0.5) * group_w,
-            H - BOTTOM + 16.0,
-            esc(label)
-        );
+    let n_groups = groups.len().max(1);
+    // Group g is centred on x = g; its bars share 80 % of the unit width.
+    let mut chart = ChartBuilder::on(area)
+        .caption(title, (FONT, 16))
+        .margin(10)
+        .x_label_area_size(24)
+        .y_label_area_size(56)
+        .build_cartesian_2d(-0.5..n_groups as f64 - 0.5, 0.0..y_max)
+        .map_err(plot_err)?;
+    let group_label = |x: &f64| {
+        let g = x.round();
+        if (x - g).abs() < 1e-6 && g >= 0.0 { groups.get(g as usize).cloned().unwrap_or_default() } else { String::new() }
+    };
+    chart
+        .configure_mesh()
+        .disable_x_mesh()
+        .x_labels(n_groups)
+        .x_label_formatter(&group_label)
+        .y_labels(tick_count(y_max, step))
+        .y_desc(y_label)
+        .draw()
+        .map_err(plot_err)?;
+    let bar_w = 0.8 / series.len().max(1) as f64;
+    for (k, (_, values)) in series.iter().enumerate() {
+        let color = COLORS[k % COLORS.len()];
+        let bars: Vec<(f64, &MeanSe)> = values
+            .iter()
+            .enumerate()
+            .filter(|(_, m)| m.n > 0 && m.mean.is_finite())
+            .map(|(g, m)| (g as f64 - 0.4 + k as f64 * bar_w, m))
+            .collect();
+        let centre = |x: f64| x + 0.46 * bar_w;
+        chart
+            .draw_series(bars.iter().map(|&(x, m)| Rectangle::new([(x, 0.0), (x + 0.92 * bar_w, m.mean)], color.filled())))
+            .map_err(plot_err)?;
+        let whisker_top = |m: &MeanSe| (m.mean + m.se).min(y_max);
+        chart
+            .draw_series(
+                bars.iter()
+                    .map(|&(x, m)| PathElement::new(vec![(centre(x), (m.mean - m.se).max(0.0)), (centre(x), whisker_top(m))], BLACK)),
+            )
+            .map_err(plot_err)?;
+        let count_style = TextStyle::from((FONT, 10)).pos(Pos::new(HPos::Center, VPos::Bottom));
+        chart
+            .draw_series(
+                bars.iter().map(|&(x, m)| {
+                    EmptyElement::at((centre(x), whisker_top(m))) + Text::new(m.n.to_string(), (0, -2), count_style.clone())
+                }),
+            )
+            .map_err(plot_err)?;
     }
-    let _ = writeln!(s, r#"<line x1="{LEFT}" x2="{}" y1="{1:.1}" y2="{1:.1}" stroke="black"/>"#, W - RIGHT, y(0.0));
-    legend(&mut s, series.iter().map(|(n, _)| n.as_str()));
-    s.push_str("</svg>\n");
-    s
+    Ok(())
 }
 
-fn legend<'a>(s: &mut String, names: impl Iterator<Item = &'a str>) {
-    let mut x = LEFT;
+/// A colour square and the name of each series, left to right.
+fn legend<'a>(area: &DrawingArea<SVGBackend, Shift>, names: impl Iterator<Item = &'a str>) -> Result<()> {
+    let style = TextStyle::from((FONT, 12)).pos(Pos::new(HPos::Left, VPos::Center));
+    let mut x = 70;
     for (k, name) in names.enumerate() {
-        let _ = writeln!(
-            s,
-            r#"<rect x="{x:.1}" y="{}" width="12" height="12" fill="{}"/><text x="{:.1}" y="{}">{}</text>"#,
-            H - 30.0,
-            COLORS[k % COLORS.len()],
-            x + 16.0,
-            H - 20.0,
-            esc(name)
-        );
-        x += 30.0 + 7.0 * name.chars().count() as f64;
+        area.draw(&Rectangle::new([(x, 9), (x + 12, 21)], COLORS[k % COLORS.len()].filled())).map_err(plot_err)?;
+        area.draw(&Text::new(name.to_string(), (x + 16, 15), style.clone())).map_err(plot_err)?;
+        x += 30 + 7 * name.chars().count() as i32;
     }
+    Ok(())
 }
 
 /// One dot per grasp: the baseline's error (x) against the tactile network's (y), with the
 /// diagonal; dots below it are grasps on which touch helped.
-pub fn paired_scatter(title: &str, unit: &str, points: &[(f64, f64)], x_name: &str, y_name: &str) -> String {
-    let mut s = header(title);
+pub fn paired_scatter(title: &str, unit: &str, points: &[(f64, f64)], x_name: &str, y_name: &str) -> Result<String> {
     let top = points.iter().flat_map(|&(a, b)| [a, b]).fold(0.0, f64::max);
     let (max, step) = nice_axis(top * 1.05);
-    let y = y_axis(&mut s, max, step, &format!("{y_name} ({unit})"));
-    let plot_w = W - LEFT - RIGHT;
-    let x = |v: f64| LEFT + plot_w * v / max;
-    let mut v = 0.0;
-    while v <= max + 1e-9 {
-        let _ = writeln!(s, r#"<text x="{:.1}" y="{}" text-anchor="middle">{}</text>"#, x(v), H - BOTTOM + 16.0, trim(v));
-        v += step;
+    let (better, worse) = (COLORS[2], COLORS[3]);
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, SIZE).into_drawing_area();
+        root.fill(&WHITE).map_err(plot_err)?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(title, (FONT, 16))
+            .margin(10)
+            .x_label_area_size(40)
+            .y_label_area_size(56)
+            .build_cartesian_2d(0.0..max, 0.0..max)
+            .map_err(plot_err)?;
+        chart
+            .configure_mesh()
+            .x_labels(tick_count(max, step))
+            .y_labels(tick_count(max, step))
+            .x_desc(format!("{x_name} ({unit})"))
+            .y_desc(format!("{y_name} ({unit})"))
+            .draw()
+            .map_err(plot_err)?;
+        chart.draw_series(DashedLineSeries::new([(0.0, 0.0), (max, max)], 4, 3, RGBColor(128, 128, 128).into())).map_err(plot_err)?;
+        chart
+            .draw_series(points.iter().map(|&(a, b)| Circle::new((a, b), 3.5, (if b < a { better } else { worse }).mix(0.8).filled())))
+            .map_err(plot_err)?;
+        let below = points.iter().filter(|(a, b)| b < a).count();
+        let note = TextStyle::from((FONT, 12)).color(&better).pos(Pos::new(HPos::Left, VPos::Top));
+        chart
+            .draw_series(std::iter::once(
+                EmptyElement::at((0.0, max))
+                    + Text::new(format!("below the diagonal (touch better): {below} of {}", points.len()), (10, 6), note),
+            ))
+            .map_err(plot_err)?;
+        root.present().map_err(plot_err)?;
     }
-    let _ = writeln!(s, r#"<line x1="{LEFT}" x2="{}" y1="{1:.1}" y2="{1:.1}" stroke="black"/>"#, W - RIGHT, y(0.0));
-    let _ = writeln!(
-        s,
-        r#"<line x1="{:.1}" y1="{:.1}" x2="{:.1}" y2="{:.1}" stroke="grey" stroke-dasharray="4 3"/>"#,
-        x(0.0),
-        y(0.0),
-        x(max),
-        y(max)
-    );
-    for &(a, b) in points {
-        let color = if b < a { COLORS[2] } else { COLORS[3] };
-        let _ = writeln!(s, r#"<circle cx="{:.1}" cy="{:.1}" r="3.5" fill="{color}" fill-opacity="0.8"/>"#, x(a), y(b));
-    }
-    let _ =
-        writeln!(s, r#"<text x="{}" y="{}" text-anchor="middle">{} ({unit})</text>"#, LEFT + plot_w / 2.0, H - BOTTOM + 34.0, esc(x_name));
-    let below = points.iter().filter(|(a, b)| b < a).count();
-    let _ = writeln!(
-        s,
-        r#"<text x="{}" y="{}" fill="{}">below the diagonal (touch better): {below} of {}</text>"#,
-        LEFT + 10.0,
-        TOP + 16.0,
-        COLORS[2],
-        points.len()
-    );
-    s.push_str("</svg>\n");
-    s
+    Ok(svg)
 }
 
 /// One figure of a summary (position, angle, ...).
 type Metric = fn(&Summary) -> MeanSe;
 
-/// Writes `occlusion.svg`, `objects.svg` and, with a tactile and a vision-only run, `paired-*.svg`.
-pub fn write_plots(evals: &[ModelEval], out: &Path) -> Result<()> {
+/// Writes `occlusion-position.svg`, `occlusion-angle.svg`, `objects-position.svg` and, per
+/// tactile network paired with the vision-only one, `paired-<tactile>-vs-<vision>.svg`.
+pub fn write_plots(evals: &[ModelEval], pairs: &[Comparison], out: &Path) -> Result<()> {
     let write = |name: &str, svg: String| {
         let p = out.join(name);
         std::fs::write(&p, svg).with_context(|| format!("cannot write {}", p.display()))
     };
     let names: Vec<String> = evals.iter().map(|e| format!("{} ({})", e.name, e.variant.name())).collect();
+    let series = |f: Metric, by: &dyn Fn(&ModelEval, Metric) -> Vec<MeanSe>| {
+        evals.iter().zip(&names).map(|(e, n)| (n.clone(), by(e, f))).collect::<Vec<_>>()
+    };
     // By occlusion bin (and overall).
     let mut groups = vec!["all".to_string()];
     groups.extend(OcclusionBin::ALL.iter().map(|b| b.label().to_string()));
     let bins = |e: &ModelEval, f: Metric| -> Vec<MeanSe> {
         std::iter::once(f(&Summary::of(&e.results)))
             .chain(
-                OcclusionBin::ALL.iter().map(|b| f(&Summary::of(e.results.iter().filter(|r| OcclusionBin::of(r.occlusion) == Some(*b))))),
+                OcclusionBin::ALL
+                    .iter()
+                    .map(|b| f(&Summary::of(e.results.iter().filter(|r| OcclusionBin::of_f32(r.occlusion) == Some(*b))))),
             )
             .collect()
     };
-    let series = |f: Metric, by: &dyn Fn(&ModelEval, Metric) -> Vec<MeanSe>| {
-        evals.iter().zip(&names).map(|(e, n)| (n.clone(), by(e, f))).collect::<Vec<_>>()
-    };
     write(
         "occlusion-position.svg",
-        bar_chart("Position error by occlusion level", "position error (cm)", &groups, &series(|s| s.position_cm, &bins)),
+        bar_chart("Position error by occlusion level", "position error (cm)", &groups, &series(|s| s.position_cm, &bins))?,
     )?;
-    write("occlusion-angle.svg", bar_chart("Angle error by occlusion level", "angle error (°)", &groups, &series(|s| s.angle_deg, &bins)))?;
+    write(
+        "occlusion-angle.svg",
+        bar_chart("Angle error by occlusion level", "angle error (°)", &groups, &series(|s| s.angle_deg, &bins))?,
+    )?;
     // By object.
     let objects: Vec<String> = evals
         .iter()
@@ -214,23 +227,22 @@ pub fn write_plots(evals: &[ModelEval], out: &Path) -> Result<()> {
     };
     write(
         "objects-position.svg",
-        bar_chart("Position error by object", "position error (cm)", &objects, &series(|s| s.position_cm, &per_object)),
+        bar_chart("Position error by object", "position error (cm)", &objects, &series(|s| s.position_cm, &per_object))?,
     )?;
     // Paired per grasp.
-    for (t, v) in comparisons(evals) {
-        if let Some(p) = crate::compare::paired(&t.results, &v.results) {
-            let pts: Vec<(f64, f64)> = p.grasps.iter().map(|g| (g.vision_position_cm, g.tactile_position_cm)).collect();
-            write(
-                &format!("paired-{}-vs-{}.svg", t.name, v.name),
-                paired_scatter(
-                    &format!("Mean position error per grasp: {} vs {}", t.name, v.name),
-                    "cm",
-                    &pts,
-                    &format!("{} (vision only)", v.name),
-                    &t.name,
-                ),
-            )?;
-        }
+    for Comparison { tactile: t, vision: v, paired } in pairs {
+        let Some(p) = paired else { continue };
+        let pts: Vec<(f64, f64)> = p.grasps.iter().map(|g| (g.vision_position_cm, g.tactile_position_cm)).collect();
+        write(
+            &format!("paired-{}-vs-{}.svg", t.name, v.name),
+            paired_scatter(
+                &format!("Mean position error per grasp: {} vs {}", t.name, v.name),
+                "cm",
+                &pts,
+                &format!("{} (vision only)", v.name),
+                &t.name,
+            )?,
+        )?;
     }
     Ok(())
 }
@@ -241,15 +253,30 @@ mod tests {
 
     #[test]
     fn bars_scale_to_the_data_and_the_svg_is_well_formed() {
-        let m = |mean: f64| MeanSe { mean, se: 0.1, n: 10 };
-        let svg =
-            bar_chart("t", "cm", &["a".into(), "b".into()], &[("x".into(), vec![m(1.0), m(3.0)]), ("y".into(), vec![m(2.0), m(0.5)])]);
+        let m = |mean: f64, n: usize| MeanSe { mean, se: 0.1, n };
+        let svg = bar_chart(
+            "t",
+            "cm",
+            &["a".into(), "< b".into()],
+            &[("x".into(), vec![m(1.0, 10), m(3.0, 11)]), ("y".into(), vec![m(2.0, 12), m(0.5, 13)])],
+        )
+        .unwrap();
         assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"));
-        // Four bars with their whiskers, legend squares besides.
-        assert_eq!(svg.matches("<title>").count(), 4);
+        // Four bars, each with its whisker and sample count; a legend square per series besides.
+        let fill = |c: RGBColor| format!(r##"fill="#{:02X}{:02X}{:02X}""##, c.0, c.1, c.2);
+        assert_eq!(svg.matches(&fill(COLORS[0])).count(), 2 + 1);
+        assert_eq!(svg.matches(&fill(COLORS[1])).count(), 2 + 1);
+        for n in 10..14 {
+            assert!(svg.contains(&format!(">\n{n}\n</text>")), "count {n}:\n{svg}");
+        }
+        // Group labels and legend names, escaped.
+        for text in ["a", "&lt; b", "x", "y"] {
+            assert!(svg.contains(&format!(">\n{text}\n</text>")), "{text}:\n{svg}");
+        }
         assert_eq!(nice_axis(3.1 * 1.05), (4.0, 1.0));
         assert_eq!(nice_axis(0.9), (1.0, 0.2));
-        let sc = paired_scatter("t", "cm", &[(1.0, 0.5), (1.0, 2.0)], "v", "t");
+        let sc = paired_scatter("t", "cm", &[(1.0, 0.5), (1.0, 2.0)], "v", "t").unwrap();
         assert!(sc.contains("1 of 2"));
+        assert_eq!(sc.matches("<circle").count(), 2);
     }
 }

@@ -1,0 +1,255 @@
+//! `report.md`: the summaries of every run overall, per object and per occlusion bin, the paired
+//! comparison with the vision-only baseline ("what touch buys"), which channel answers, and the
+//! tactile-point sweep.
+
+use std::fmt::Write as _;
+
+use vt_dataset::OcclusionBin;
+
+use crate::config::TACTILE_SWEEP;
+use crate::eval::compare::{Comparison, channel_use, comparisons};
+use crate::eval::{ModelEval, Summary};
+
+fn pct(v: f64) -> String {
+    if v.is_nan() { "–".into() } else { format!("{v:.1}") }
+}
+
+/// The Markdown report (see the module docs): the metrics, then the same split per object, per
+/// occlusion level, what touch buys, and the tactile-point sweep.
+pub fn report_markdown(evals: &[ModelEval], split: &str, device: &str) -> String {
+    markdown(evals, &comparisons(evals), split, device)
+}
+
+/// [`report_markdown`] with the comparisons already made.
+pub(super) fn markdown(evals: &[ModelEval], pairs: &[Comparison], split: &str, device: &str) -> String {
+    let mut s = String::new();
+    report_header(&mut s, evals, split, device);
+    overall_section(&mut s, evals);
+    per_object_section(&mut s, evals);
+    per_occlusion_section(&mut s, evals);
+    touch_section(&mut s, pairs);
+    tactile_sweep_section(&mut s, evals);
+    s
+}
+
+fn report_header(s: &mut String, evals: &[ModelEval], split: &str, device: &str) {
+    let _ = writeln!(s, "# vtpose evaluation\n");
+    let datasets: Vec<String> =
+        evals.iter().map(|e| e.dataset.display().to_string()).collect::<std::collections::BTreeSet<_>>().into_iter().collect();
+    let _ = writeln!(
+        s,
+        "Dataset {}, split `{split}`, device `{device}`. Each sample is scored by the network's most confident estimate.",
+        datasets.join(", ")
+    );
+    let _ = writeln!(
+        s,
+        "Errors are mean ± standard error. Position: Euclidean distance (cm); angle: arccos(2⟨q̂,q⟩²−1) (°); \
+         ADD / ADD-S: mean (closest-)model-point distance (cm), AUC up to 10 cm (%) as YCB-Video; \
+         ADD(-S) < 2 cm: ADD-S for symmetric objects, ADD otherwise (%). Angle up to symmetry (not a paper metric): the \
+         smallest angle to a rotation the object's symmetry (models_info.json) makes look the same as the truth.\n"
+    );
+}
+
+/// One row per run: every metric over the whole split.
+fn overall_section(s: &mut String, evals: &[ModelEval]) {
+    let _ = writeln!(s, "## Overall\n");
+    let _ = writeln!(
+        s,
+        "| run | model | n | skipped | position (cm) | angle (°) | angle up to symmetry (°) | ADD (cm) | ADD-S (cm) | ADD AUC | ADD-S AUC | ADD(-S) < 2 cm | tactile estimate chosen |"
+    );
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    for e in evals {
+        let m = Summary::of(&e.results);
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {} | {:.2} | {:.2} | {} | {} | {} | {} | {} | {} |",
+            e.name,
+            e.variant.label(),
+            m.n,
+            e.skipped,
+            m.position_cm,
+            m.angle_deg,
+            m.angle_sym_deg,
+            m.add_cm,
+            m.adds_cm,
+            pct(m.add_auc),
+            pct(m.adds_auc),
+            pct(m.accuracy_2cm),
+            if e.variant.uses_tactile() { pct(m.tactile_chosen) } else { "–".into() }
+        );
+    }
+}
+
+fn per_object_section(s: &mut String, evals: &[ModelEval]) {
+    let _ = writeln!(s, "\n## Per object\n");
+    let _ =
+        writeln!(s, "| object | run | n | position (cm) | angle (°) | angle up to symmetry (°) | ADD AUC | ADD-S AUC | ADD(-S) < 2 cm |");
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|");
+    let objects: std::collections::BTreeSet<String> = evals.iter().flat_map(|e| e.results.iter().map(|r| r.object.clone())).collect();
+    for o in &objects {
+        for e in evals {
+            let m = Summary::of(e.results.iter().filter(|r| &r.object == o));
+            if m.n > 0 {
+                let _ = writeln!(
+                    s,
+                    "| {o} | {} | {} | {} | {:.2} | {:.2} | {} | {} | {} |",
+                    e.name,
+                    m.n,
+                    m.position_cm,
+                    m.angle_deg,
+                    m.angle_sym_deg,
+                    pct(m.add_auc),
+                    pct(m.adds_auc),
+                    pct(m.accuracy_2cm)
+                );
+            }
+        }
+    }
+}
+
+fn per_occlusion_section(s: &mut String, evals: &[ModelEval]) {
+    let _ = writeln!(s, "\n## Per occlusion level\n");
+    let _ = writeln!(s, "The paper's bins of the occlusion level (share of model points the camera does not see).\n");
+    let _ = writeln!(s, "| occlusion | run | n | position (cm) | angle (°) | ADD-S AUC | ADD(-S) < 2 cm |");
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|");
+    for bin in OcclusionBin::ALL {
+        for e in evals {
+            let m = Summary::of(e.results.iter().filter(|r| OcclusionBin::of_f32(r.occlusion) == Some(bin)));
+            if m.n > 0 {
+                let _ = writeln!(
+                    s,
+                    "| {} | {} | {} | {} | {:.2} | {} | {} |",
+                    bin.label(),
+                    e.name,
+                    m.n,
+                    m.position_cm,
+                    m.angle_deg,
+                    pct(m.adds_auc),
+                    pct(m.accuracy_2cm)
+                );
+            } else {
+                let _ = writeln!(s, "| {} | {} | 0 | – | – | – | – |", bin.label(), e.name);
+            }
+        }
+    }
+}
+
+/// Tactile networks evaluated with other numbers of tactile points (when the sweep ran).
+fn tactile_sweep_section(s: &mut String, evals: &[ModelEval]) {
+    if evals.iter().any(|e| !e.sweep.is_empty()) {
+        let _ = writeln!(s, "\n## Number of tactile points\n");
+        let _ = writeln!(
+            s,
+            "Tactile models evaluated with n_t tactile points per sample (trained with their config's n_t); vision-only runs for reference.\n"
+        );
+        let _ = writeln!(s, "| n_t | run | n | position (cm) | angle (°) | ADD-S AUC | ADD(-S) < 2 cm |");
+        let _ = writeln!(s, "|---|---|---|---|---|---|---|");
+        for nt in TACTILE_SWEEP {
+            for e in evals {
+                if let Some((_, r)) = e.sweep.iter().find(|(k, _)| *k == nt) {
+                    let m = Summary::of(r);
+                    let _ = writeln!(
+                        s,
+                        "| {nt} | {} | {} | {} | {:.2} | {} | {} |",
+                        e.name,
+                        m.n,
+                        m.position_cm,
+                        m.angle_deg,
+                        pct(m.adds_auc),
+                        pct(m.accuracy_2cm)
+                    );
+                }
+            }
+        }
+        for e in evals.iter().filter(|e| !e.variant.uses_tactile()) {
+            let m = Summary::of(&e.results);
+            let _ = writeln!(
+                s,
+                "| – | {} (vision only) | {} | {} | {:.2} | {} | {} |",
+                e.name,
+                m.n,
+                m.position_cm,
+                m.angle_deg,
+                pct(m.adds_auc),
+                pct(m.accuracy_2cm)
+            );
+        }
+    }
+}
+
+/// "What touch buys": the paired per-grasp comparison and how the tactile network answers.
+fn touch_section(s: &mut String, pairs: &[Comparison]) {
+    if pairs.is_empty() {
+        return;
+    }
+    let _ = writeln!(s, "\n## What touch buys: paired per grasp\n");
+    let _ = writeln!(
+        s,
+        "Samples of one trajectory share a grasp, so the networks are compared per grasp (object, trajectory): each \
+         network's mean error over the grasp's samples; `better` counts the grasps on which the tactile network's mean \
+         error is lower. p: two-sided exact sign test (ties dropped). Δ: mean over grasps of tactile − vision (negative: touch helps).\n"
+    );
+    let _ = writeln!(
+        s,
+        "| tactile run | vs | grasps | position: better / worse | p | Δ position (cm) | angle: better / worse | p | Δ angle (°) |"
+    );
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|");
+    for Comparison { tactile: t, vision: v, paired } in pairs {
+        match paired {
+            Some(p) => {
+                let _ = writeln!(
+                    s,
+                    "| {} | {} | {} | {} / {} | {:.3} | {:+.3} | {} / {} | {:.3} | {:+.2} |",
+                    t.name,
+                    v.name,
+                    p.grasps.len(),
+                    p.position.better,
+                    p.position.worse,
+                    p.position.p_value,
+                    p.position.mean_difference,
+                    p.angle.better,
+                    p.angle.worse,
+                    p.angle.p_value,
+                    p.angle.mean_difference
+                );
+            }
+            None => {
+                let _ = writeln!(s, "| {} | {} | – (the dataset records no trajectories) | | | | | | |", t.name, v.name);
+            }
+        }
+    }
+    let _ = writeln!(s, "\n## Which channel answers\n");
+    let _ = writeln!(
+        s,
+        "The tactile network picks its most confident estimate from either channel. Share: samples answered by the \
+         tactile channel; the position error and mean confidence of the samples each channel answered.\n"
+    );
+    let _ = writeln!(
+        s,
+        "| run | occlusion | n | tactile share (%) | position, tactile answers (cm) | position, visual answers (cm) | confidence tactile / visual |"
+    );
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|");
+    for Comparison { tactile: t, .. } in pairs {
+        let rows = std::iter::once(("all".to_string(), channel_use(&t.results))).chain(
+            OcclusionBin::ALL
+                .iter()
+                .map(|b| (b.label().to_string(), channel_use(t.results.iter().filter(|r| OcclusionBin::of_f32(r.occlusion) == Some(*b))))),
+        );
+        for (label, u) in rows {
+            if u.n == 0 {
+                continue;
+            }
+            let _ = writeln!(
+                s,
+                "| {} | {label} | {} | {} | {:.3} | {:.3} | {:.3} / {:.3} |",
+                t.name,
+                u.n,
+                pct(u.tactile_share),
+                u.tactile_position_cm,
+                u.visual_position_cm,
+                u.tactile_confidence,
+                u.visual_confidence
+            );
+        }
+    }
+}
