@@ -5,14 +5,14 @@
 //! Self-occlusion counts: the far side of an object is never visible.
 
 use glam::DVec3;
-use vt_objects::{RunningSum, SurfaceSampler, TexturedMesh};
+use vt_objects::{SurfaceSampler, TexturedMesh};
 
 use crate::config::Intrinsics;
 
 /// `n` points spread over the mesh surface by area (a fixed, seed-free sequence: the same model
 /// always gives the same points).
 pub fn model_points(mesh: &TexturedMesh, n: usize) -> Vec<DVec3> {
-    let surface = SurfaceSampler::from_mesh(&mesh.positions, mesh.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]), RunningSum::Areas);
+    let surface = SurfaceSampler::from_mesh(&mesh.positions, mesh.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]));
     if surface.is_empty() {
         return Vec::new();
     }

@@ -9,11 +9,11 @@ use std::path::Path;
 use anyhow::Result;
 use glam::DVec3;
 use vt_dataset::{Manifest, PlyMesh, Sample, ShardReader, read_ply, topics};
-use vt_objects::{RunningSum, SurfaceSampler};
+use vt_objects::SurfaceSampler;
 
 /// Area-weighted points on the mesh surface with their face normals (deterministic).
 pub fn surface_points(mesh: &PlyMesh, n: usize) -> Vec<(DVec3, DVec3)> {
-    let surface = SurfaceSampler::from_mesh(&mesh.positions, mesh.triangles.iter().copied(), RunningSum::Areas);
+    let surface = SurfaceSampler::from_mesh(&mesh.positions, mesh.triangles.iter().copied());
     if surface.is_empty() {
         return Vec::new();
     }

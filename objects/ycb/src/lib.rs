@@ -17,7 +17,7 @@ pub use catalog::{Catalog, CatalogEntry, Shape, Surface, Symmetry};
 pub use load::{MeshError, find_ycb_mesh, load_mesh, load_obj_file};
 pub use mesh::{Texture, TexturedMesh, diameter_of, linear_to_srgb8};
 pub use procedural::{BOX_FACES, procedural_mesh};
-pub use surface::{RunningSum, SurfaceSampler};
+pub use surface::SurfaceSampler;
 pub use symmetry::{
     ContinuousAxis, DerivedSymmetries, Displacement, SAMPLE_SEED, SURFACE_SAMPLES, SymmetryCheck, SymmetryChecker, axis_aligned_transforms,
     derive_symmetries, revolution_turns, row_major4, tolerance,

@@ -6,37 +6,25 @@
 //! uniform numbers from the caller: one picks a triangle by binary search over the running sum,
 //! two place the point in it. The callers draw from their own streams (a low-discrepancy
 //! sequence, an LCG, SplitMix64, ChaCha8), and their points are written to datasets or checked by
-//! tests bit for bit, so the few ways they differ in arithmetic are kept as choices here:
-//! the running sum of areas or of area shares ([`RunningSum`]), the comparison of the binary
-//! search ([`SurfaceSampler::pick_by`]), and the folded or the square-root placement in the
-//! triangle ([`SurfaceSampler::point`], [`SurfaceSampler::point_sqrt`]).
+//! tests bit for bit, so the few ways they differ in arithmetic are kept as choices here: the
+//! comparison of the binary search ([`SurfaceSampler::pick_by`]), and the folded or the
+//! square-root placement in the triangle ([`SurfaceSampler::point`], [`SurfaceSampler::point_sqrt`]).
 
 use glam::{DVec3, Vec3};
-
-/// What the running sum of a [`SurfaceSampler`] adds up.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum RunningSum {
-    /// The triangle areas: it ends at the total area.
-    Areas,
-    /// Each triangle's share of the total area (area / total): it ends at about 1.
-    Shares,
-}
 
 /// A triangle mesh's surface, ready to draw area-weighted points from.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SurfaceSampler {
     triangles: Vec<[DVec3; 3]>,
     areas: Vec<f64>,
-    /// `running[k]`: the sum of `areas[..=k]` (or of their shares, see [`RunningSum`]).
+    /// `running[k]`: the sum of `areas[..=k]`.
     running: Vec<f64>,
-    /// What `running` ends at when the areas are summed exactly: the total area, or 1.
-    end: f64,
     total: f64,
 }
 
 impl SurfaceSampler {
     /// The surface of `triangles` (model frame, f64).
-    pub fn new(triangles: Vec<[DVec3; 3]>, sum: RunningSum) -> Self {
+    pub fn new(triangles: Vec<[DVec3; 3]>) -> Self {
         let areas: Vec<f64> = triangles.iter().map(|&[a, b, c]| 0.5 * (b - a).cross(c - a).length()).collect();
         let mut running = Vec::with_capacity(areas.len());
         let mut acc = 0.0;
@@ -44,26 +32,12 @@ impl SurfaceSampler {
             acc += a;
             running.push(acc);
         }
-        let total = acc;
-        let end = match sum {
-            RunningSum::Areas => total,
-            RunningSum::Shares => {
-                // Each share on its own, then summed (not the running areas over the total: the
-                // last bits differ, and `vtgen validate`'s points with them).
-                let mut acc = 0.0;
-                for (r, a) in running.iter_mut().zip(&areas) {
-                    acc += a / total;
-                    *r = acc;
-                }
-                1.0
-            }
-        };
-        SurfaceSampler { triangles, areas, running, end, total }
+        SurfaceSampler { triangles, areas, running, total: acc }
     }
 
     /// The surface of an indexed mesh: f32 positions (widened exactly to f64) and index triples.
     /// A triangle with an index outside `positions` is left out.
-    pub fn from_mesh(positions: &[[f32; 3]], triangles: impl IntoIterator<Item = [u32; 3]>, sum: RunningSum) -> Self {
+    pub fn from_mesh(positions: &[[f32; 3]], triangles: impl IntoIterator<Item = [u32; 3]>) -> Self {
         let vertex = |i: u32| positions.get(i as usize).map(|p| Vec3::from(*p).as_dvec3());
         let tris = triangles
             .into_iter()
@@ -72,7 +46,7 @@ impl SurfaceSampler {
                 Some([a?, b?, c?])
             })
             .collect();
-        Self::new(tris, sum)
+        Self::new(tris)
     }
 
     pub fn triangles(&self) -> &[[DVec3; 3]] {
@@ -94,9 +68,9 @@ impl SurfaceSampler {
     }
 
     /// The triangle `u` (uniform in [0, 1)) falls in: the first whose running sum reaches `u`
-    /// times the sum's end. Needs a triangle.
+    /// times the total area. Needs a triangle.
     pub fn pick(&self, u: f64) -> usize {
-        self.pick_by(|&running| running < u * self.end)
+        self.pick_by(|&running| running < u * self.total)
     }
 
     /// The first triangle whose running sum `below` rejects (the binary search of
@@ -157,7 +131,7 @@ mod tests {
         let small = [DVec3::ZERO, DVec3::new(2.0, 0.0, 0.0), DVec3::new(0.0, 1.0, 0.0)];
         let line = [DVec3::ZERO, DVec3::X, DVec3::new(2.0, 0.0, 0.0)];
         let large = [DVec3::new(5.0, 0.0, 0.0), DVec3::new(8.0, 0.0, 0.0), DVec3::new(5.0, 2.0, 0.0)];
-        SurfaceSampler::new(vec![small, line, large], RunningSum::Areas)
+        SurfaceSampler::new(vec![small, line, large])
     }
 
     /// Barycentric coordinates of `p` in the z = 0 triangle `t`.
@@ -198,7 +172,7 @@ mod tests {
     fn points_are_uniform_inside_a_triangle() {
         // The unit right triangle split by the line x = 0.5: the part left of it holds 3/4 of
         // the area, for both placements.
-        let s = SurfaceSampler::new(vec![[DVec3::ZERO, DVec3::X, DVec3::Y]], RunningSum::Areas);
+        let s = SurfaceSampler::new(vec![[DVec3::ZERO, DVec3::X, DVec3::Y]]);
         let mut rnd = uniform(11);
         let n = 40_000;
         let (mut folded, mut sqrt) = (0, 0);
@@ -217,20 +191,16 @@ mod tests {
         let areas = SurfaceSampler::from_mesh(
             &[[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 3.0, 0.0]],
             [[0, 1, 2], [0, 1, 3], [0, 1, 9]],
-            RunningSum::Areas,
         );
         // The triangle with index 9 is left out.
         assert_eq!(areas.triangles().len(), 2);
         assert_eq!(areas.running, [1.0, 4.0]);
-        let shares = SurfaceSampler::new(areas.triangles().to_vec(), RunningSum::Shares);
-        assert_eq!(shares.running, [0.25, 1.0]);
-        for s in [&areas, &shares] {
-            assert_eq!([s.pick(0.0), s.pick(0.2499), s.pick(0.25), s.pick(0.2501), s.pick(0.9999)], [0, 0, 0, 1, 1]);
-            // The search's own comparison: `<=` moves a draw on a boundary to the next triangle.
-            assert_eq!(s.pick_by(|&r| r <= 0.25 * s.end), 1);
-            assert_eq!(s.pick_by(|_| true), 1);
-        }
+        let s = &areas;
+        assert_eq!([s.pick(0.0), s.pick(0.2499), s.pick(0.25), s.pick(0.2501), s.pick(0.9999)], [0, 0, 0, 1, 1]);
+        // The search's own comparison: `<=` moves a draw on a boundary to the next triangle.
+        assert_eq!(s.pick_by(|&r| r <= 0.25 * s.total), 1);
+        assert_eq!(s.pick_by(|_| true), 1);
         assert_eq!(areas.sample(0.1, 0.5, 0.25), DVec3::new(1.0, 0.25, 0.0));
-        assert!(SurfaceSampler::from_mesh(&[], [[0, 1, 2]], RunningSum::Areas).is_empty());
+        assert!(SurfaceSampler::from_mesh(&[], [[0, 1, 2]]).is_empty());
     }
 }

@@ -1,7 +1,7 @@
 //! One object of a dataset's `models/`: its mesh, symmetry and fixed metric points; the objects a
 //! run trains on.
 
-use vt_objects::{RunningSum, SurfaceSampler};
+use vt_objects::SurfaceSampler;
 
 use super::*;
 
@@ -34,7 +34,7 @@ impl ObjectModel {
         triangles: &[[u32; 3]],
     ) -> Self {
         let vertices: Vec<DVec3> = positions.iter().map(|p| DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)).collect();
-        let surface = SurfaceSampler::from_mesh(positions, triangles.iter().copied(), RunningSum::Areas);
+        let surface = SurfaceSampler::from_mesh(positions, triangles.iter().copied());
         let mut m = ObjectModel {
             id: id.to_string(),
             dataset_index,

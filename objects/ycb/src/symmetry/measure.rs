@@ -6,7 +6,7 @@ use glam::{DMat3, DMat4, DVec3};
 use super::closest::Bvh;
 use super::linalg::outer;
 use crate::mesh::diameter_of;
-use crate::surface::{RunningSum, SurfaceSampler};
+use crate::surface::SurfaceSampler;
 
 /// Surface samples used to measure a transform ("a few thousand", area-weighted).
 pub const SURFACE_SAMPLES: usize = 4000;
@@ -104,7 +104,7 @@ impl SymmetryChecker {
             // Zero-area triangles add no surface (their points lie on their neighbours' edges).
             .filter(|[a, b, c]| (*b - *a).cross(*c - *a).length_squared() > 0.0)
             .collect();
-        let sampler = SurfaceSampler::new(tris, RunningSum::Areas);
+        let sampler = SurfaceSampler::new(tris);
         // Area, centroid and second moment (exact over each triangle).
         let area = sampler.total_area();
         let mut first = DVec3::ZERO;
