@@ -236,6 +236,9 @@ impl<'a> SampleFactory<'a> {
         placed.into_iter().map(|p| p.0).collect()
     }
 
+    /// A worker's factory: the objects and the robot uploaded to its renderer once.
+    // Long on purpose: one upload per kind of mesh (objects, floor and backdrop, robot links and
+    // their looks, pad surfaces), in the order the renderer's handles are handed out.
     pub fn new(cfg: &'a LoadedConfig, objects: &'a [LoadedObject], mut renderer: Box<dyn Renderer + 'a>) -> Result<Self> {
         let config = &cfg.config;
         let floor = renderer.upload_mesh_with(&floor_mesh(), Material { roughness: 0.85, metallic: 0.0 })?;

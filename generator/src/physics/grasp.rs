@@ -493,6 +493,8 @@ enum MoveOutcome {
 /// Moves the arm from `q` to a random reachable palm pose along a simulated smooth joint-space
 /// path (the palm's motion enters as apparent gravity), lets the object settle, and checks the
 /// instance. `q` becomes the target.
+// Long on purpose: the move's phases in order (draw a reachable pose, follow the path and hold,
+// settle, check the instance), each stepping the same physics and reading the same state.
 fn move_and_settle(
     ctx: &GraspContext,
     physics: &mut dyn HandPhysics,
