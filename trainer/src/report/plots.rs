@@ -49,6 +49,12 @@ fn tick_count(max: f64, step: f64) -> usize {
     (max / step).round() as usize + 1
 }
 
+/// A tick label without trailing zeros (`2.5`, `4`).
+fn trim(v: &f64) -> String {
+    let t = format!("{v:.3}");
+    t.trim_end_matches('0').trim_end_matches('.').to_string()
+}
+
 /// Grouped bars: one group per label, one bar per series (mean with a standard-error whisker,
 /// the number of samples above it).
 pub fn bar_chart(title: &str, y_label: &str, groups: &[String], series: &[(String, Vec<MeanSe>)]) -> Result<String> {
@@ -89,9 +95,11 @@ fn draw_bars(
     chart
         .configure_mesh()
         .disable_x_mesh()
+        .light_line_style(TRANSPARENT)
         .x_labels(n_groups)
         .x_label_formatter(&group_label)
         .y_labels(tick_count(y_max, step))
+        .y_label_formatter(&trim)
         .y_desc(y_label)
         .draw()
         .map_err(plot_err)?;
@@ -127,7 +135,8 @@ fn draw_bars(
     Ok(())
 }
 
-/// A colour square and the name of each series, left to right.
+/// A colour square and the name of each series, left to right; what the numbers above the bars
+/// are, on the right.
 fn legend<'a>(area: &DrawingArea<SVGBackend, Shift>, names: impl Iterator<Item = &'a str>) -> Result<()> {
     let style = TextStyle::from((FONT, 12)).pos(Pos::new(HPos::Left, VPos::Center));
     let mut x = 70;
@@ -136,6 +145,8 @@ fn legend<'a>(area: &DrawingArea<SVGBackend, Shift>, names: impl Iterator<Item =
         area.draw(&Text::new(name.to_string(), (x + 16, 15), style.clone())).map_err(plot_err)?;
         x += 30 + 7 * name.chars().count() as i32;
     }
+    let note = TextStyle::from((FONT, 10)).pos(Pos::new(HPos::Right, VPos::Center));
+    area.draw(&Text::new("above each bar: samples", (SIZE.0 as i32 - 12, 15), note)).map_err(plot_err)?;
     Ok(())
 }
 
@@ -158,8 +169,11 @@ pub fn paired_scatter(title: &str, unit: &str, points: &[(f64, f64)], x_name: &s
             .map_err(plot_err)?;
         chart
             .configure_mesh()
+            .light_line_style(TRANSPARENT)
             .x_labels(tick_count(max, step))
             .y_labels(tick_count(max, step))
+            .x_label_formatter(&trim)
+            .y_label_formatter(&trim)
             .x_desc(format!("{x_name} ({unit})"))
             .y_desc(format!("{y_name} ({unit})"))
             .draw()
