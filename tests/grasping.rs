@@ -184,10 +184,8 @@ fn the_occlusion_level_agrees_with_brute_force() {
             texture: vt_objects::Texture::solid([0, 0, 0]),
         };
         let occ = s.info.occlusion.expect("an occlusion level");
-        let pts: Vec<DVec3> = model_points(&mesh, occ.model_points as usize)
-            .iter()
-            .map(|p| s.t_camera_object.transform_point(*p))
-            .collect();
+        let pts: Vec<DVec3> =
+            model_points(&mesh, occ.model_points as usize).iter().map(|p| s.t_camera_object.transform_point(*p)).collect();
         let k = Intrinsics { fx: s.fx(), fy: s.fy(), cx: s.cx(), cy: s.cy() };
         let eps = occ.epsilon_mm * 1e-3;
         let (fast, _) = occlusion_level(&pts, &s.depth, s.width, s.height, &k, eps);

@@ -228,7 +228,8 @@ fn perspective_pads_see_the_same_surface_as_orthographic_ones() {
     let (mut r, object, pads, normal, on_face) = tilted_face();
     let cfg = TactileConfig { projection: PadProjection::Perspective, ..TactileConfig::default() };
     let persp = sense(&mut r, &cfg, &[(0.03, 0.02); 12], &pads, &[true; 12], None, object, &glam::DAffine3::IDENTITY).unwrap();
-    let ortho = sense(&mut r, &TactileConfig::default(), &[(0.03, 0.02); 12], &pads, &[true; 12], None, object, &glam::DAffine3::IDENTITY).unwrap();
+    let ortho =
+        sense(&mut r, &TactileConfig::default(), &[(0.03, 0.02); 12], &pads, &[true; 12], None, object, &glam::DAffine3::IDENTITY).unwrap();
     assert!(persp.counts[0] > 100 && persp.counts[0] < 1024);
     for p in persp.points.iter().filter(|p| p.phalanx == 0) {
         assert!(normal.dot(p.position - on_face).abs() < 2e-5, "perspective point {} off the face", p.position);

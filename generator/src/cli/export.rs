@@ -195,10 +195,9 @@ pub fn export_bop(root: &Path, out: &Path, renderer: &RendererConfig, quiet: boo
             let mut scene = Scene::default();
             for index in shard.indices().collect::<Vec<_>>() {
                 let s = shard.read(index)?;
-                let obj =
-                    Some(s.info.object_index as u64).filter(|&o| (o as usize) < handles.len()).with_context(|| {
-                        format!("{} sample {index}: object_index is missing or not in models_info.json", shard.path().display())
-                    })? as usize;
+                let obj = Some(s.info.object_index as u64).filter(|&o| (o as usize) < handles.len()).with_context(|| {
+                    format!("{} sample {index}: object_index is missing or not in models_info.json", shard.path().display())
+                })? as usize;
                 let amodal = render_alone(&mut r, &s, handles[obj])?;
                 let (px_visib, visib_fract) = write_image(&mut scene, &dir, &s, obj + 1, &amodal)?;
                 if split == "test" && px_visib > 0 && visib_fract >= targets_min_visib {

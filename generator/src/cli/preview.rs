@@ -70,7 +70,9 @@ fn row(s: &Sample) -> RgbImage {
     let (w, h) = (s.width, s.height);
     let mut rgb = RgbImage::from_raw(w, h, s.rgb.clone()).expect("w x h x 3 bytes");
     // The object's visible mask as a green outline, so its texture stays visible.
-    let is_object = |x: i64, y: i64| x >= 0 && y >= 0 && x < w as i64 && y < h as i64 && s.mask[(y * w as i64 + x) as usize] == vt_dataset::mask_ids::TARGET_OBJECT;
+    let is_object = |x: i64, y: i64| {
+        x >= 0 && y >= 0 && x < w as i64 && y < h as i64 && s.mask[(y * w as i64 + x) as usize] == vt_dataset::mask_ids::TARGET_OBJECT
+    };
     for y in 0..h as i64 {
         for x in 0..w as i64 {
             if is_object(x, y) && [(1, 0), (-1, 0), (0, 1), (0, -1)].iter().any(|(dx, dy)| !is_object(x + dx, y + dy)) {
