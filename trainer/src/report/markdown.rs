@@ -116,22 +116,25 @@ fn per_occlusion_section(s: &mut String, evals: &[ModelEval]) {
         for e in evals {
             let m = Summary::of(e.results.iter().filter(|r| OcclusionBin::of_f32(r.occlusion) == Some(bin)));
             if m.n > 0 {
-                let _ = writeln!(
-                    s,
-                    "| {} | {} | {} | {} | {:.2} | {} | {} |",
-                    bin.label(),
-                    e.name,
-                    m.n,
-                    m.position_cm,
-                    m.angle_deg,
-                    pct(m.adds_auc),
-                    pct(m.accuracy_2cm)
-                );
+                summary_row(s, bin.label(), &e.name, &m);
             } else {
                 let _ = writeln!(s, "| {} | {} | 0 | – | – | – | – |", bin.label(), e.name);
             }
         }
     }
+}
+
+/// One table row: the group, the run, and the run's summary over the group.
+fn summary_row(s: &mut String, group: &str, run: &str, m: &Summary) {
+    let _ = writeln!(
+        s,
+        "| {group} | {run} | {} | {} | {:.2} | {} | {} |",
+        m.n,
+        m.position_cm,
+        m.angle_deg,
+        pct(m.adds_auc),
+        pct(m.accuracy_2cm)
+    );
 }
 
 /// Tactile networks evaluated with other numbers of tactile points (when the sweep ran).
@@ -148,31 +151,13 @@ fn tactile_sweep_section(s: &mut String, evals: &[ModelEval]) {
             for e in evals {
                 if let Some((_, r)) = e.sweep.iter().find(|(k, _)| *k == nt) {
                     let m = Summary::of(r);
-                    let _ = writeln!(
-                        s,
-                        "| {nt} | {} | {} | {} | {:.2} | {} | {} |",
-                        e.name,
-                        m.n,
-                        m.position_cm,
-                        m.angle_deg,
-                        pct(m.adds_auc),
-                        pct(m.accuracy_2cm)
-                    );
+                    summary_row(s, &nt.to_string(), &e.name, &m);
                 }
             }
         }
         for e in evals.iter().filter(|e| !e.variant.uses_tactile()) {
             let m = Summary::of(&e.results);
-            let _ = writeln!(
-                s,
-                "| – | {} (vision only) | {} | {} | {:.2} | {} | {} |",
-                e.name,
-                m.n,
-                m.position_cm,
-                m.angle_deg,
-                pct(m.adds_auc),
-                pct(m.accuracy_2cm)
-            );
+            summary_row(s, "–", &format!("{} (vision only)", e.name), &m);
         }
     }
 }
