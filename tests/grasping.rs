@@ -283,15 +283,16 @@ fn most_held_objects_stay_still_while_the_arm_is_still() {
     use vtgen::config::{GraspConfig, PhysicsConfig};
     use vtgen::physics::grasp::{GraspContext, TrajectoryKey, simulate_trajectory};
     use vtgen::physics::{HandPhysics, PhysicsObject, PhysicsSettings, RapierHand};
-    let builtin = vt_robot::RobotModel::builtin();
+    let builtin = vt_robot::Robot::allegro();
     let mut models = vec![("primitive hand", builtin.clone())];
     if let Some(dir) = std::env::var_os("ROBOT_ASSETS") {
-        let hand = vtgen::assets::robot::load_hand_meshes(std::path::Path::new(&dir), &builtin, None).unwrap();
-        models.push(("real hand", vtgen::assets::robot::with_real_hand(&builtin, &hand).unwrap()));
+        let hand = vtgen::assets::robot::load_hand_meshes(std::path::Path::new(&dir), &builtin.model, None).unwrap();
+        let real = vtgen::assets::robot::with_real_hand(&builtin, &hand).unwrap();
+        models.push(("real hand", vt_robot::Robot { model: real, ..builtin.clone() }));
     }
     let pc = PhysicsConfig { timestep: 1.0 / 240.0, ..PhysicsConfig::default() };
     let settings = PhysicsSettings::from(&pc);
-    let cfg = GraspConfig::default();
+    let cfg = GraspConfig::default().with_robot_defaults(&builtin);
     let t_world_base =
         glam::DAffine3::from_rotation_translation(glam::DQuat::from_rotation_z(std::f64::consts::PI), DVec3::new(0.0, 0.5, 0.0));
     let catalog = vt_objects::Catalog::builtin();

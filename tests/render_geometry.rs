@@ -164,10 +164,9 @@ fn a_pad_pressed_on_a_box_sees_its_whole_footprint_and_a_free_pad_sees_nothing()
     let pad0 = DMat4::from_rotation_translation(DQuat::from_rotation_x(std::f64::consts::PI), DVec3::new(0.0, 0.0, half.z + 0.0005));
     let far = DMat4::from_translation(DVec3::new(0.0, 0.0, 1.0));
     let pads: [glam::DAffine3; 12] = std::array::from_fn(|k| glam::DAffine3::from_mat4(if k == 0 { pad0 } else { far }));
-    let sizes = [(0.03, 0.02); 12];
     let cfg = TactileConfig::default();
     let object = Draw { mesh: boxm, t_world_model: DMat4::IDENTITY, mask_id: 1, role: DrawRole::Target };
-    let reading = sense(&mut r, &cfg, &sizes, &pads, &[true; 12], None, object, &glam::DAffine3::IDENTITY).unwrap();
+    let reading = sense(&mut r, &cfg, &pad_views(&cfg, &pads), None, object, &glam::DAffine3::IDENTITY).unwrap();
     assert_eq!(reading.counts[0], 32 * 32, "the whole pad footprint is in contact");
     assert!(reading.depth[0].iter().all(|d| (d - 0.0005).abs() < 1e-5), "flat face at 0.5 mm");
     assert!(reading.counts[1..].iter().all(|&c| c == 0), "pads away from the object report nothing");
@@ -176,6 +175,13 @@ fn a_pad_pressed_on_a_box_sees_its_whole_footprint_and_a_free_pad_sees_nothing()
     assert!(
         reading.points.iter().all(|p| (p.position.z - half.z).abs() < 1e-5 && p.position.x.abs() <= 0.015 && p.position.y.abs() <= 0.01)
     );
+}
+
+/// 3 x 2 cm pads at `pads`, all touching, each with the config's distal sensor model.
+fn pad_views(cfg: &vtgen::config::TactileConfig, pads: &[glam::DAffine3]) -> Vec<vtgen::sensors::tactile::PadView> {
+    pads.iter()
+        .map(|&t_world_pad| vtgen::sensors::tactile::PadView { size: (0.03, 0.02), model: cfg.sensors.distal, t_world_pad, touching: true })
+        .collect()
 }
 
 /// A gelatin-box face tilted 15 degrees about x crossing the pad plane of 12 identical pads at the
@@ -199,10 +205,9 @@ fn the_three_sensor_models_report_the_same_surface_patch() {
     use vtgen::config::{SensorGroups, SensorModel, TactileConfig};
     use vtgen::sensors::tactile::sense;
     let (mut r, object, pads, normal, on_face) = tilted_face();
-    let sizes = [(0.03, 0.02); 12];
     let mut cloud = |model: SensorModel| {
         let cfg = TactileConfig { sensors: SensorGroups { proximal: model, medial: model, distal: model }, ..TactileConfig::default() };
-        let reading = sense(&mut r, &cfg, &sizes, &pads, &[true; 12], None, object, &glam::DAffine3::IDENTITY).unwrap();
+        let reading = sense(&mut r, &cfg, &pad_views(&cfg, &pads), None, object, &glam::DAffine3::IDENTITY).unwrap();
         reading.points.iter().filter(|p| p.phalanx == 0).map(|p| p.position).collect::<Vec<_>>()
     };
     let camera = cloud(SensorModel::DepthCamera);
@@ -227,9 +232,9 @@ fn perspective_pads_see_the_same_surface_as_orthographic_ones() {
     use vtgen::sensors::tactile::sense;
     let (mut r, object, pads, normal, on_face) = tilted_face();
     let cfg = TactileConfig { projection: PadProjection::Perspective, ..TactileConfig::default() };
-    let persp = sense(&mut r, &cfg, &[(0.03, 0.02); 12], &pads, &[true; 12], None, object, &glam::DAffine3::IDENTITY).unwrap();
-    let ortho =
-        sense(&mut r, &TactileConfig::default(), &[(0.03, 0.02); 12], &pads, &[true; 12], None, object, &glam::DAffine3::IDENTITY).unwrap();
+    let persp = sense(&mut r, &cfg, &pad_views(&cfg, &pads), None, object, &glam::DAffine3::IDENTITY).unwrap();
+    let plain = TactileConfig::default();
+    let ortho = sense(&mut r, &plain, &pad_views(&plain, &pads), None, object, &glam::DAffine3::IDENTITY).unwrap();
     assert!(persp.counts[0] > 100 && persp.counts[0] < 1024);
     for p in persp.points.iter().filter(|p| p.phalanx == 0) {
         assert!(normal.dot(p.position - on_face).abs() < 2e-5, "perspective point {} off the face", p.position);

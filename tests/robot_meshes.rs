@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use glam::{DAffine3, DMat4, DVec3};
 use vt_objects::TexturedMesh;
-use vt_robot::RobotModel;
+use vt_robot::Robot;
 use vtgen::assets::robot::{ARM_TRIANGLES_PER_LINK, load_robot_meshes};
 use vtgen::config::RendererConfig;
 use vtgen::render::{Draw, DrawRole, Renderer, View, WgpuRenderer};
@@ -31,7 +31,8 @@ fn z_range(m: &TexturedMesh) -> (f32, f32) {
 #[test]
 fn real_meshes_sit_in_our_link_frames() {
     let Some(dir) = assets() else { return };
-    let model = RobotModel::builtin();
+    let robot = Robot::allegro();
+    let model = robot.model.clone();
     let meshes = load_robot_meshes(&dir, &model, false).unwrap();
     let get = |name: &str| &meshes[&model.link_id(name).unwrap()];
     // Phalanges run along their link's z from the joint to the next joint (the URDF's lengths),
@@ -66,21 +67,22 @@ fn outside_one_pixel(a: &[u8], b: &[u8], w: usize, h: usize) -> usize {
 #[test]
 fn the_simplified_robot_keeps_its_silhouette_within_a_pixel_at_the_paper_camera() {
     let Some(dir) = assets() else { return };
-    let model = RobotModel::builtin();
+    let robot = Robot::allegro();
+    let model = robot.model.clone();
     let full = load_robot_meshes(&dir, &model, false).unwrap();
     let simplified = load_robot_meshes(&dir, &model, true).unwrap();
     // scenes/paper.yaml: its camera, its robot base, the arm at its home pose.
     let paper = vtgen::config::LoadedConfig::load(&root().join("scenes/paper.yaml")).unwrap().config;
     let cam = &paper.camera;
     let view = View::of_camera(cam, look_at(DVec3::from_array(cam.position), DVec3::from_array(cam.look_at)).matrix());
-    let robot = paper.robot.as_ref().unwrap();
+    let rc = paper.robot.as_ref().unwrap();
     let t_world_base = DAffine3::from_rotation_translation(
-        glam::DQuat::from_rotation_z(robot.base_yaw_deg.to_radians()),
-        DVec3::from_array(robot.base_position),
+        glam::DQuat::from_rotation_z(rc.base_yaw_deg.to_radians()),
+        DVec3::from_array(rc.base_position),
     );
     let mut q = model.zero();
-    for (k, d) in model.arm_dofs().into_iter().enumerate() {
-        q[d] = robot.grasp.home_arm[k];
+    for (&d, &v) in robot.arm_dofs.iter().zip(&rc.grasp.home_arm) {
+        q[d] = v;
     }
     let links = model.forward_kinematics(&q);
     let mut r = WgpuRenderer::new(&RendererConfig::default()).unwrap();
@@ -170,7 +172,8 @@ fn tactile_points_lie_on_the_object_and_at_the_real_finger_surface() {
     use rapier3d::parry::query::PointQuery;
     let Some(dir) = assets() else { return };
     let out = real_robot_dataset(&dir);
-    let model = RobotModel::builtin();
+    let robot = Robot::allegro();
+    let model = robot.model.clone();
     let hand = vtgen::assets::robot::load_hand_meshes(&dir, &model, None).unwrap();
     let trimesh = |m: &TexturedMesh| {
         let v = m.positions.iter().map(|p| glam::Vec3::from(*p)).collect();
@@ -178,7 +181,7 @@ fn tactile_points_lie_on_the_object_and_at_the_real_finger_surface() {
         rapier3d::parry::shape::TriMesh::new(v, t).unwrap()
     };
     let fingers: HashMap<String, rapier3d::parry::shape::TriMesh> =
-        vt_robot::phalanx_names().into_iter().map(|n| (n.clone(), trimesh(&hand[&model.link_id(&n).unwrap()]))).collect();
+        robot.pad_names().into_iter().map(|n| (n.clone(), trimesh(&hand[&model.link_id(&n).unwrap()]))).collect();
     let info: vt_dataset::ModelsInfo = serde_json::from_slice(&std::fs::read(out.join("models/models_info.json")).unwrap()).unwrap();
     let objects: Vec<rapier3d::parry::shape::TriMesh> = info
         .objects
@@ -229,12 +232,13 @@ fn tactile_points_lie_on_the_object_and_at_the_real_finger_surface() {
 fn each_pad_sits_on_its_phalanx_real_surface() {
     use rapier3d::parry::query::PointQuery;
     let Some(dir) = assets() else { return };
-    let model = RobotModel::builtin();
+    let robot = Robot::allegro();
+    let model = robot.model.clone();
     let hand = vtgen::assets::robot::load_hand_meshes(&dir, &model, None).unwrap();
-    let real = vtgen::assets::robot::with_real_hand(&model, &hand).unwrap();
+    let real = vtgen::assets::robot::with_real_hand(&robot, &hand).unwrap();
     let q = real.zero();
     let links = real.forward_kinematics(&q);
-    for name in vt_robot::phalanx_names() {
+    for name in robot.pad_names() {
         let id = real.link_id(&name).unwrap();
         let pad = real.link_id(&format!("{name}_pad")).unwrap();
         let t_link_pad = links[id].inverse() * links[pad];
@@ -259,7 +263,8 @@ fn write(dir: &Path, rel: &str, bytes: &[u8]) {
 
 #[test]
 fn bad_robot_mesh_directories_give_one_clear_error_naming_the_path() {
-    let model = RobotModel::builtin();
+    let robot = Robot::allegro();
+    let model = robot.model.clone();
     let err = |dir: &Path| load_robot_meshes(dir, &model, true).map(|_: HashMap<_, _>| ()).unwrap_err().to_string();
     // A directory of another robot (or of nothing).
     let other = tempdir();

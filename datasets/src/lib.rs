@@ -72,12 +72,20 @@ pub mod mask_ids {
     pub const TARGET_OBJECT: u8 = 1;
     /// Distractors: the k-th placed one (`/sample/info` `distractors`) has `start + k`.
     pub const DISTRACTORS: RangeInclusive<u8> = 2..=9;
-    /// Arm links: the one moved by the k-th arm joint (the base with the first) has `start + k`.
+    /// Arm links: the one moved by the k-th arm joint (the base with the first) has `start + k`
+    /// for the first six; a seventh arm joint's link has `ARM_LINK_SEVENTH` (`arm_link`).
     pub const ARM_LINKS: RangeInclusive<u8> = 10..=15;
-    /// The palm and the hand adapter.
+    pub const ARM_LINK_SEVENTH: u8 = 81;
+    /// The hand's body: the grasp frame (palm) and the links fixed between it and the flange.
     pub const PALM: u8 = 16;
-    /// Hand links: the one moved by the k-th hand joint has `start + k`.
-    pub const HAND_LINKS: RangeInclusive<u8> = 17..=32;
+    /// Hand links: the one moved by the k-th hand joint has `start + k`, then those moved by the
+    /// hand's mimic joints in the robot's joint order; links fixed to one share its id.
+    pub const HAND_LINKS: RangeInclusive<u8> = 17..=80;
+
+    /// The id of the link moved by arm joint `k` (0-based, base to flange).
+    pub fn arm_link(k: usize) -> Option<u8> {
+        if k == 6 { Some(ARM_LINK_SEVENTH) } else { nth(&ARM_LINKS, k) }
+    }
 
     /// The id of the k-th entry of a range, when the range has one.
     pub fn nth(range: &RangeInclusive<u8>, k: usize) -> Option<u8> {
@@ -87,7 +95,7 @@ pub mod mask_ids {
 
     /// Whether a mask id is a part of the robot.
     pub fn is_robot(id: u8) -> bool {
-        ARM_LINKS.contains(&id) || id == PALM || HAND_LINKS.contains(&id)
+        ARM_LINKS.contains(&id) || id == ARM_LINK_SEVENTH || id == PALM || HAND_LINKS.contains(&id)
     }
 }
 

@@ -10,7 +10,7 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use glam::{DAffine3, DMat4, DQuat, DVec3};
 use vt_dataset::{Compression, Pose, Sample, SampleInfo, ShardMeta, ShardWriter, Split, TactileData};
 use vt_objects::{Catalog, TexturedMesh, procedural_mesh};
-use vt_robot::RobotModel;
+use vt_robot::Robot;
 use vtgen::annotate::occlusion::{model_points, occlusion_level};
 use vtgen::config::{GraspConfig, Intrinsics, PhysicsConfig, RendererConfig};
 use vtgen::physics::grasp::{GraspContext, TrajectoryKey, simulate_trajectory};
@@ -31,14 +31,15 @@ fn settings() -> PhysicsSettings {
 }
 
 fn physics(c: &mut Criterion) {
-    let robot = RobotModel::builtin();
+    let robot = Robot::allegro();
     let object = physics_object();
     let mut group = c.benchmark_group("physics");
     // One step with the fingers closed around the can (contacts active), as during an arm move.
     let mut hand = RapierHand::new(&robot, settings()).expect("hand");
-    let grasp = GraspConfig::default();
-    hand.reset(&object, DAffine3::from_translation(DVec3::new(grasp.palm_surface_x + 0.04, 0.0, 0.06)), &[0.0; 16]).expect("reset");
-    let close: [f64; 16] = std::array::from_fn(|k| grasp.close[k].unwrap_or(0.0));
+    let grasp = GraspConfig::default().with_robot_defaults(&robot);
+    hand.reset(&object, DAffine3::from_translation(DVec3::new(grasp.palm_surface_x + 0.04, 0.0, 0.06)), &vec![0.0; robot.hand.len()])
+        .expect("reset");
+    let close: Vec<f64> = grasp.close.iter().map(|c| c.unwrap_or(0.0)).collect();
     hand.set_targets(&close);
     hand.set_gravity(DVec3::new(-9.81, 0.0, 0.0));
     for _ in 0..150 {
@@ -190,7 +191,7 @@ fn rendering(c: &mut Criterion) {
             robot: None,
         },
         tactile: Some(TactileData {
-            phalanges: vt_robot::phalanx_names(),
+            phalanges: Robot::allegro().pad_names(),
             resolution: 32,
             depth: vec![vec![f32::INFINITY; 32 * 32]; 12],
             points: Vec::new(),

@@ -21,28 +21,29 @@ use crate::plan::SampleRef;
 use crate::render::{Draw, DrawRole, Lighting, Material, MeshHandle, Renderer, View};
 use crate::scene::robot::{GraspStats, RobotScene, link_mesh, mask_id as robot_mask_id};
 use crate::scene::sample_scene;
-use crate::sensors::tactile::{FingerSurface, finger_surface, pad_sizes, sense};
+use crate::sensors::tactile::{FingerSurface, PadView, finger_surface, pad_sizes, sense};
 
 pub fn pose_of(t: &DAffine3) -> Pose {
     Pose::from_rt(DQuat::from_mat3(&t.matrix3), t.translation)
 }
 
-/// The real fingers' surface under the 12 pads, when the robot has its real hand meshes.
-fn finger_surfaces(robot: &RobotScene, pads: &[(f64, f64); 12]) -> Result<Option<FingerSurface>> {
+/// The real fingers' surface under the pads, when the robot has its real hand meshes.
+fn finger_surfaces(robot: &RobotScene, pads: &[(f64, f64)]) -> Result<Option<FingerSurface>> {
     let Some(hand) = robot.hand_meshes.as_ref() else { return Ok(None) };
-    let m = &robot.model;
+    let m = &robot.robot.model;
     let n = robot.config.tactile.resolution;
-    let surfaces = vt_robot::phalanx_names()
+    let surfaces = robot
+        .robot
+        .pads
         .iter()
         .zip(pads)
-        .map(|(name, &size)| {
-            let link = m.link_id(name).expect("validated at load");
-            let pad = m.link_id(&format!("{name}_pad")).expect("validated at load");
-            let t_link_pad = m.joints[m.links[pad].parent_joint.expect("a pad is fixed to its phalanx")].origin;
-            finger_surface(&hand[&link], &t_link_pad, size, n).with_context(|| name.clone())
+        .map(|(pad, &size)| {
+            let t_link_pad = m.joints[m.links[pad.frame].parent_joint.expect("a pad frame is fixed to its link")].origin;
+            let mesh = hand.get(&pad.link).with_context(|| format!("pad {}: no real mesh of its link", pad.name))?;
+            finger_surface(mesh, &t_link_pad, size, n).with_context(|| pad.name.clone())
         })
         .collect::<Result<Vec<_>>>()?;
-    Ok(Some(surfaces.try_into().expect("12 phalanges")))
+    Ok(Some(surfaces))
 }
 
 /// `texture` with each sRGB channel times its factor (alpha kept).
@@ -147,8 +148,8 @@ pub struct SampleFactory<'a> {
     pub shard_stats: GraspStats,
     /// The trajectory being recorded (with a robot).
     recording: Option<Recording>,
-    /// Sensing area of the 12 phalanx pads.
-    pad_sizes: [(f64, f64); 12],
+    /// Sensing area of the robot's pads.
+    pad_sizes: Vec<(f64, f64)>,
     /// The real fingers' surface under the pads (with robot meshes).
     finger_surface: Option<FingerSurface>,
     /// Per object: the model points the occlusion level is measured with.
@@ -165,7 +166,7 @@ pub struct StageTimes {
     /// Grasp-loop simulation (whole trajectories, when their first sample is made).
     pub physics: Duration,
     pub main_render: Duration,
-    /// The 12 phalanx depth views (one submission).
+    /// The pads' depth views (one submission).
     pub tactile_render: Duration,
     /// Contact pixels to tactile points.
     pub tactile_extract: Duration,
@@ -191,11 +192,11 @@ struct Recording {
     stats: GraspStats,
 }
 
-/// The robot as the physics stage left it for one sample: its info, the phalanx pads (world) and
+/// The robot as the physics stage left it for one sample: its info, the pads (world) and
 /// the frames `/tf` carries.
 struct PosedRobot {
     info: RobotInfo,
-    pads: [DAffine3; 12],
+    pads: Vec<DAffine3>,
     transforms: Vec<(String, String, Pose)>,
 }
 
@@ -263,7 +264,7 @@ impl<'a> SampleFactory<'a> {
         let mut robot_glbs = Vec::new();
         if let Some(r) = &robot {
             let mut real = match robot_assets_dir(cfg) {
-                Some(dir) => load_robot_meshes(&dir, &r.model, true)?,
+                Some(dir) => load_robot_meshes(&dir, &r.robot.model, true)?,
                 None => {
                     static SAID: std::sync::Once = std::sync::Once::new();
                     SAID.call_once(|| {
@@ -275,24 +276,25 @@ impl<'a> SampleFactory<'a> {
                     Default::default()
                 }
             };
-            for link in 0..r.model.links.len() {
-                let mesh = real.remove(&link).or_else(|| link_mesh(&r.model, link));
-                if let (Some(mesh), Some(id)) = (mesh, robot_mask_id(&r.model, link)) {
+            for link in 0..r.robot.model.links.len() {
+                let mesh = real.remove(&link).or_else(|| link_mesh(&r.robot.model, link));
+                if let (Some(mesh), Some(id)) = (mesh, robot_mask_id(&r.robot, link)) {
                     // Matte black hand (white tips), the arm's painted aluminium.
+                    let arm = mask_ids::ARM_LINKS.contains(&id) || id == mask_ids::ARM_LINK_SEVENTH;
                     let material =
-                        if id < 16 { Material { roughness: 0.45, metallic: 0.3 } } else { Material { roughness: 0.75, metallic: 0.0 } };
+                        if arm { Material { roughness: 0.45, metallic: 0.3 } } else { Material { roughness: 0.75, metallic: 0.0 } };
                     let handle = renderer.upload_mesh_with(&mesh, material)?;
                     robot_meshes.push((link, handle, id));
                     if config.randomization.robot_materials.is_some() {
                         robot_materials.push((handle, mesh.texture.clone(), material));
                     }
-                    let name = &r.model.links[link].name;
+                    let name = &r.robot.model.links[link].name;
                     robot_glbs.push(SceneModel { id: format!("robot/{name}"), frame_id: name.clone(), glb: glb_of(&mesh) });
                 }
             }
         }
         let object_glbs = objects.iter().map(|o| glb_of(&o.mesh)).collect();
-        let pad_sizes = robot.as_ref().map(|r| pad_sizes(&r.model)).unwrap_or([(0.0, 0.0); 12]);
+        let pad_sizes = robot.as_ref().map(|r| pad_sizes(&r.robot)).unwrap_or_default();
         let finger_surface = match &robot {
             Some(r) => finger_surfaces(r, &pad_sizes)?,
             None => None,
@@ -501,33 +503,32 @@ impl<'a> SampleFactory<'a> {
         }
         let t_world_palm = robot.t_world_base * st.t_base_palm;
         scene.t_world_object = pose_of(&(t_world_palm * st.t_palm_object));
-        let links = robot.model.forward_kinematics(&st.q);
-        let mut transforms = vec![(frames::WORLD.to_string(), "palm".to_string(), pose_of(&t_world_palm))];
+        let links = robot.robot.model.forward_kinematics(&st.q);
+        let grasp_frame = robot.robot.grasp_frame;
+        let palm_name = &robot.robot.model.links[grasp_frame].name;
+        let mut transforms = vec![(frames::WORLD.to_string(), palm_name.clone(), pose_of(&t_world_palm))];
         for &(link, mesh, id) in &self.robot_meshes {
             let t_world_link = robot.t_world_base * links[link];
             draws.push(Draw { mesh, t_world_model: DMat4::from(t_world_link), mask_id: id, role: DrawRole::Occluder });
             // The link frames carry the robot's meshes in Foxglove (`/scene/models`).
-            let name = &robot.model.links[link].name;
-            if name != "palm" {
+            let name = &robot.robot.model.links[link].name;
+            if link != grasp_frame {
                 transforms.push((frames::WORLD.to_string(), name.clone(), pose_of(&t_world_link)));
             }
         }
-        let names = vt_robot::phalanx_names();
-        let pads: [DAffine3; 12] = std::array::from_fn(|k| {
-            let pad = robot.model.link_id(&format!("{}_pad", names[k])).expect("validated at load");
-            robot.t_world_base * links[pad]
-        });
-        for (p, t) in names.iter().zip(&pads) {
-            transforms.push((frames::WORLD.to_string(), format!("{p}_pad"), pose_of(t)));
+        let pads: Vec<DAffine3> = robot.robot.pads.iter().map(|p| robot.t_world_base * links[p.frame]).collect();
+        for (p, t) in robot.robot.pads.iter().zip(&pads) {
+            transforms.push((frames::WORLD.to_string(), format!("{}_pad", p.name), pose_of(t)));
         }
+        let touch_names = robot.robot.touch_link_names();
         let info = RobotInfo {
             physics_backend: robot.backend_name().into(),
-            phalanges_in_contact: names.iter().zip(&st.contacts).filter(|(_, c)| c.is_some()).map(|(n, _)| n.clone()).collect(),
+            phalanges_in_contact: touch_names.iter().zip(&st.contacts).filter(|(_, c)| c.is_some()).map(|(n, _)| n.clone()).collect(),
             slip_mm: st.slip_translation * 1e3,
             slip_deg: st.slip_rotation.to_degrees(),
             penetration_mm: st.penetration * 1e3,
             grasp_attempts: attempts,
-            joint_positions: robot.model.dof_names().iter().zip(&st.q).map(|(n, v)| (n.to_string(), *v)).collect(),
+            joint_positions: robot.robot.model.dof_names().iter().zip(&st.q).map(|(n, v)| (n.to_string(), *v)).collect(),
             t_world_palm: pose_of(&t_world_palm),
             tactile: None,
         };
@@ -569,17 +570,32 @@ impl<'a> SampleFactory<'a> {
         Ok((img, depth_noisy))
     }
 
-    /// The touch stage: the 12 phalanx views of the object alone and the tactile point cloud (in
+    /// The touch stage: the pad views of the object alone and the tactile point cloud (in
     /// the main camera frame); its settings and counts go into the robot's info.
     fn sense_touch(&mut self, scene: &crate::scene::SampledScene, object: Draw, posed: &mut PosedRobot) -> Result<TactileData> {
-        let cfg = &self.robot.as_ref().expect("called with a robot").config.tactile;
+        let robot = self.robot.as_ref().expect("called with a robot");
+        let cfg = &robot.config.tactile;
         let t_camera_world = scene.t_world_camera.inverse().matrix();
         let (t0, cpu0) = (Instant::now(), crate::cpu_clock::thread_cpu_time());
         let surface = self.finger_surface.as_ref();
-        let names = vt_robot::phalanx_names();
-        let touching: [bool; 12] = std::array::from_fn(|k| posed.info.phalanges_in_contact.contains(&names[k]));
+        let names = robot.robot.pad_names();
+        let model = &robot.robot.model;
+        // A pad feels the object when its link touches it (FORMAT.md, "Touch and contact").
+        let pads: Vec<PadView> = robot
+            .robot
+            .pads
+            .iter()
+            .zip(&self.pad_sizes)
+            .zip(&posed.pads)
+            .map(|((pad, &size), &t_world_pad)| PadView {
+                size,
+                model: cfg.sensors.of(pad.group),
+                t_world_pad,
+                touching: posed.info.phalanges_in_contact.contains(&model.links[pad.link].name),
+            })
+            .collect();
         let t_camera_world = DAffine3::from_mat4(t_camera_world);
-        let reading = sense(self.renderer.as_mut(), cfg, &self.pad_sizes, &posed.pads, &touching, surface, object, &t_camera_world)?;
+        let reading = sense(self.renderer.as_mut(), cfg, &pads, surface, object, &t_camera_world)?;
         // The extraction (hundredths of a millisecond) is counted with the renderer's call.
         self.times.render_call_cpu += crate::cpu_clock::cpu_since(cpu0);
         self.times.tactile_render += reading.render_time;

@@ -24,7 +24,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail};
 use glam::{DAffine3, DQuat, DVec3, Vec3};
 use vt_objects::{Texture, TexturedMesh, linear_to_srgb8};
-use vt_robot::{RobotModel, xyz_rpy};
+use vt_robot::{Robot, RobotModel, xyz_rpy};
 
 use crate::config::LoadedConfig;
 
@@ -189,10 +189,11 @@ pub fn load_arm_meshes(dir: &Path, model: &RobotModel, arm_triangles: usize) -> 
 }
 
 /// The robot with its hand on the real meshes: each hand link collides as the convex hull of its
-/// mesh (for rapier and MuJoCo alike; only the hull's vertices are kept), and each phalanx pad
-/// sits on the real palmar surface at mid-length of its sensing span ([`pad_on_surface`]). The
+/// mesh (for rapier and MuJoCo alike; only the hull's vertices are kept), and each pad sits on
+/// its link's real palmar surface at mid-length of its sensing span ([`pad_on_surface`]). The
 /// visual shapes stay the URDF's (the renderer draws the meshes).
-pub fn with_real_hand(model: &RobotModel, hand: &HashMap<usize, TexturedMesh>) -> Result<RobotModel> {
+pub fn with_real_hand(robot: &Robot, hand: &HashMap<usize, TexturedMesh>) -> Result<RobotModel> {
+    let model = &robot.model;
     let hulls: HashMap<usize, Vec<DVec3>> = hand
         .iter()
         .map(|(&id, m)| {
@@ -200,16 +201,17 @@ pub fn with_real_hand(model: &RobotModel, hand: &HashMap<usize, TexturedMesh>) -
             (id, rapier3d::parry::transformation::convex_hull(&points).0.iter().map(|p| p.as_dvec3()).collect())
         })
         .collect();
-    let mut out = model.with_mesh_collisions(&hulls);
+    let mut out = Robot { model: model.with_mesh_collisions(&hulls), ..robot.clone() };
     // The pads' spans (joint to joint, distal to the fingertip's end) from the hulls.
     let spans = crate::sensors::tactile::pad_sizes(&out);
-    for (name, (length, _)) in vt_robot::phalanx_names().into_iter().zip(spans) {
-        let id = model.link_id(&name).with_context(|| format!("robot description has no link '{name}'"))?;
-        let origin = pad_on_surface(&hand[&id], 0.5 * length, (0.0, length))
-            .with_context(|| format!("{name}: no palmar surface of the real mesh at mid-length"))?;
-        out.set_fixed_link_origin(&format!("{name}_pad"), origin).map_err(anyhow::Error::msg)?;
+    for (pad, (length, _)) in robot.pads.iter().zip(spans) {
+        let mesh = hand.get(&pad.link).with_context(|| format!("pad {}: no real mesh of its link", pad.name))?;
+        let origin = pad_on_surface(mesh, 0.5 * length, (0.0, length))
+            .with_context(|| format!("{}: no palmar surface of the real mesh at mid-length", pad.name))?;
+        let frame = model.links[pad.frame].name.clone();
+        out.model.set_fixed_link_origin(&frame, origin).map_err(anyhow::Error::msg)?;
     }
-    Ok(out)
+    Ok(out.model)
 }
 
 /// The pad frame on the palmar (+x) surface of a phalanx, at height `z` along the finger: origin
@@ -441,9 +443,10 @@ mod tests {
 
     #[test]
     fn the_ros_link_frames_ride_on_ours_at_any_joint_values() {
-        let model = RobotModel::builtin();
-        let offsets = ros_link_offsets(&model).unwrap();
-        let arm: Vec<usize> = vt_robot::ARM_JOINTS.iter().map(|j| model.dof(j).unwrap()).collect();
+        let robot = Robot::allegro();
+        let model = &robot.model;
+        let offsets = ros_link_offsets(model).unwrap();
+        let arm = &robot.arm_dofs;
         for k in 0..20 {
             let mut q = vec![0.0; model.dof_count()];
             for (i, &d) in arm.iter().enumerate() {

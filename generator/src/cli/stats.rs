@@ -22,15 +22,15 @@ struct Collected {
     x_axes: Vec<DVec3>,
     occlusion: Vec<f64>,
     tactile_points: Vec<u64>,
-    /// Per phalanx name: samples in contact.
+    /// Per touch link (the phalanges of a hand), by name: samples in contact.
     contacts: Vec<(String, u64)>,
 }
 
 fn collect(root: &Path) -> Result<Collected> {
     let ds = DatasetReader::open(root)?;
     let mut c = Collected::default();
-    let names = vt_robot::phalanx_names();
-    let mut contacts = vec![0u64; names.len()];
+    // The robot's touch links as the samples name them (any robot: the dataset says which).
+    let mut contacts = std::collections::BTreeMap::<String, u64>::new();
     super::for_each_info(&ds, |_, info| {
         let pose = info.t_camera_object;
         c.positions.push(pose.translation());
@@ -41,13 +41,11 @@ fn collect(root: &Path) -> Result<Collected> {
         }
         c.tactile_points.extend(info.tactile_points());
         for p in info.phalanges_in_contact() {
-            if let Some(k) = names.iter().position(|n| n == p) {
-                contacts[k] += 1;
-            }
+            *contacts.entry(p.clone()).or_default() += 1;
         }
         Ok(())
     })?;
-    c.contacts = names.into_iter().zip(contacts).collect();
+    c.contacts = contacts.into_iter().collect();
     Ok(c)
 }
 

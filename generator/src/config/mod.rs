@@ -63,6 +63,9 @@ fn field_prefix(field: &str) -> String {
     if field.is_empty() || field == "." { String::new() } else { format!("{field}: ") }
 }
 
+/// A robot that does not fit the config: the config keys to blame, and why.
+type RobotProblem = (Vec<&'static str>, String);
+
 /// A parsed and validated config, with the file it came from.
 #[derive(Debug, Clone)]
 pub struct LoadedConfig {
@@ -73,6 +76,9 @@ pub struct LoadedConfig {
     /// The real robot meshes to draw: the config's `robot.assets` (resolved), or the directory
     /// `--robot-assets` passes in (`with_robot_assets`); None: the URDF's primitives.
     pub robot_assets: Option<PathBuf>,
+    /// The robot (`robot.model`, or `robot.description` and `robot.urdf`), checked against its
+    /// description; its joint arrays fill in the grasp config's left-out ones.
+    pub robot: Option<vt_robot::Robot>,
 }
 
 impl LoadedConfig {
@@ -102,7 +108,11 @@ impl LoadedConfig {
             let (line, column) = locate::locate(text, &p.path).map_or((None, None), |(l, c)| (Some(l), Some(c)));
             return Err(ConfigError { file: path.to_path_buf(), line, column, field: locate::display_path(&p.path), message: p.message });
         }
-        Ok(Self::with_path(config, path))
+        Self::with_path(config, path).map_err(|(keys, message)| {
+            let keys: Vec<locate::Seg> = keys.into_iter().map(locate::Seg::Key).collect();
+            let (line, column) = locate::locate(text, &keys).map_or((None, None), |(l, c)| (Some(l), Some(c)));
+            ConfigError { file: path.to_path_buf(), line, column, field: locate::display_path(&keys), message }
+        })
     }
 
     /// `parse` with overrides: the file's YAML tree with each override set into it, then the
@@ -138,18 +148,56 @@ impl LoadedConfig {
         if let Some(p) = config.validate().into_iter().next() {
             return Err(blame(&locate::display_path(&p.path), p.message));
         }
-        Ok(Self::with_path(config, path))
+        Self::with_path(config, path).map_err(|(keys, message)| blame(&keys.join("."), message))
     }
 
-    fn with_path(mut config: Config, path: &Path) -> Self {
+    /// The loaded config: output dir defaulted, robot loaded and its joint arrays filled in.
+    /// Errors: (field path, message).
+    fn with_path(mut config: Config, path: &Path) -> Result<Self, RobotProblem> {
         if config.output.dir.as_os_str().is_empty() {
             let stem = path.file_stem().map_or_else(|| "dataset".into(), |s| s.to_string_lossy().into_owned());
             config.output.dir = PathBuf::from("out").join(stem);
         }
         let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-        let mut loaded = LoadedConfig { config, path: path.to_path_buf(), base_dir, robot_assets: None };
+        let mut loaded = LoadedConfig { config, path: path.to_path_buf(), base_dir, robot_assets: None, robot: None };
         loaded.robot_assets = loaded.config.robot.as_ref().and_then(|r| r.assets.as_ref()).map(|p| loaded.resolve(p));
-        loaded
+        if let Some(rc) = loaded.config.robot.clone() {
+            let robot = loaded.load_robot(&rc)?;
+            let grasp = rc.grasp.with_robot_defaults(&robot);
+            if let Some((key, message)) = grasp.mismatch(&robot) {
+                return Err((vec!["robot", "grasp", key], message));
+            }
+            loaded.config.robot.as_mut().expect("cloned above").grasp = grasp;
+            loaded.robot = Some(robot);
+        }
+        Ok(loaded)
+    }
+
+    /// The robot a config's `robot` section names. Errors: (field path, message).
+    fn load_robot(&self, rc: &RobotConfig) -> Result<vt_robot::Robot, RobotProblem> {
+        let urdf = rc.urdf.as_ref().map(|p| self.resolve(p));
+        match (&rc.model, &rc.description) {
+            (Some(_), Some(_)) => Err((vec!["robot", "description"], "give either a built-in robot.model or a robot.description".into())),
+            (_, Some(d)) => {
+                vt_robot::Robot::from_files(&self.resolve(d), urdf.as_deref()).map_err(|e| (vec!["robot", "description"], e.to_string()))
+            }
+            (model, None) => {
+                let name = model.as_deref().unwrap_or("ur5e_allegro");
+                let field = if rc.model.is_some() { vec!["robot", "model"] } else { vec!["robot"] };
+                let builtin = vt_robot::Robot::builtin(name).map_err(|e| (field, e.message))?;
+                match urdf {
+                    // A URDF of one's own with the built-in robot's names and description.
+                    Some(u) => {
+                        let model = vt_robot::RobotModel::from_urdf_file(&u).map_err(|e| (vec!["robot", "urdf"], e.to_string()))?;
+                        let text = vt_robot::builtin_description(name).expect("a built-in robot has a description");
+                        let desc = serde_yaml::from_str(text).expect("the built-in description parses (unit-tested)");
+                        vt_robot::Robot::resolve(model, desc, &format!("built-in {name}.yaml with {}", u.display()))
+                            .map_err(|e| (vec!["robot", "urdf"], e.to_string()))
+                    }
+                    None => Ok(builtin),
+                }
+            }
+        }
     }
 
     /// The run draws the robot meshes in `dir` (`--robot-assets`) instead of the config's.

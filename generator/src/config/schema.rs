@@ -6,7 +6,7 @@
 
 use std::path::PathBuf;
 
-use std::f64::consts::{FRAC_PI_2, PI, TAU};
+use std::f64::consts::{PI, TAU};
 
 use serde::{Deserialize, Serialize};
 
@@ -105,7 +105,14 @@ impl Config {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RobotConfig {
-    /// A URDF with the same joint and link names; default: the built-in UR5e + Allegro.
+    /// A built-in robot by name (`vt_robot::BUILTIN_ROBOTS`); default: `ur5e_allegro`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub model: Option<String>,
+    /// A robot description file (docs/robots.md) for a robot of one's own, instead of `model`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub description: Option<PathBuf>,
+    /// A URDF: replaces the one the description names (with no description: a URDF with the
+    /// built-in robot's joint and link names).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub urdf: Option<PathBuf>,
     /// The real robot meshes to draw (`scripts/robot-assets`; `--robot-assets` overrides it);
@@ -219,6 +226,17 @@ pub struct SensorGroups {
     pub distal: SensorModel,
 }
 
+impl SensorGroups {
+    /// The model of a pad in `group` (the robot description's `pads[*].group`).
+    pub fn of(&self, group: vt_robot::PadGroup) -> SensorModel {
+        match group {
+            vt_robot::PadGroup::Proximal => self.proximal,
+            vt_robot::PadGroup::Medial => self.medial,
+            vt_robot::PadGroup::Distal => self.distal,
+        }
+    }
+}
+
 impl Default for SensorGroups {
     fn default() -> Self {
         SensorGroups { proximal: SensorModel::DepthCamera, medial: SensorModel::DepthCamera, distal: SensorModel::DepthCamera }
@@ -291,12 +309,14 @@ impl Check for PhysicsConfig {
     }
 }
 
-/// The grasp loop's parameters. Hand joint arrays are in `ff, mf, rf, th` × `joint_0..3` order.
+/// The grasp loop's parameters. Joint arrays are in the robot description's order (`arm`, `hand`);
+/// left out (or empty), they are the description's (`LoadedConfig` fills them in).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct GraspConfig {
-    /// Arm joints the IK starts from (rad).
-    pub home_arm: [f64; 6],
+    /// Arm joints the IK starts from (rad; the description's `arm.home`).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub home_arm: Vec<f64>,
     /// Box (world) the palm is moved to, and how far its palmar normal may tilt from straight up.
     pub palm_workspace: Workspace,
     pub max_tilt_deg: f64,
@@ -312,10 +332,12 @@ pub struct GraspConfig {
     pub back_to_camera_share: f64,
     #[serde(skip_serializing_if = "is_default_back_tilt")]
     pub back_to_camera_tilt_deg: (f64, f64),
-    /// Random preshape: a range per hand joint (rad).
-    pub preshape: [(f64, f64); 16],
+    /// Random preshape: a range per hand joint (rad; the description's `hand[*].preshape`).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub preshape: Vec<(f64, f64)>,
     /// Closing targets per hand joint; null keeps the preshape value (ab/adduction).
-    pub close: [Option<f64>; 16],
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub close: Vec<Option<f64>>,
     /// Object centre range in the palm frame (y, z used; x puts the object against the palm).
     pub object_offset: Workspace,
     /// Palmar surface of the palm (palm frame x, m).
@@ -358,19 +380,15 @@ fn is_default_back_tilt(v: &(f64, f64)) -> bool {
 
 impl Default for GraspConfig {
     fn default() -> Self {
-        let finger = [(-0.15, 0.15), (-0.1, 0.3), (-0.1, 0.3), (-0.1, 0.3)];
-        let thumb = [(0.3, 0.5), (0.0, 0.4), (-0.1, 0.3), (-0.1, 0.3)];
-        let fc = [None, Some(1.5), Some(1.5), Some(1.4)];
-        let tc = [Some(1.35), Some(0.9), Some(1.2), Some(1.2)];
         GraspConfig {
-            home_arm: [-FRAC_PI_2, -FRAC_PI_2, FRAC_PI_2, -FRAC_PI_2, -FRAC_PI_2, 0.0],
+            home_arm: Vec::new(),
             palm_workspace: Workspace { min: [-0.08, -0.05, 0.22], max: [0.08, 0.05, 0.32] },
             max_tilt_deg: 50.0,
             max_roll_deg: 45.0,
             back_to_camera_share: 0.0,
             back_to_camera_tilt_deg: DEFAULT_BACK_TILT_DEG,
-            preshape: std::array::from_fn(|k| if k < 12 { finger[k % 4] } else { thumb[k - 12] }),
-            close: std::array::from_fn(|k| if k < 12 { fc[k % 4] } else { tc[k - 12] }),
+            preshape: Vec::new(),
+            close: Vec::new(),
             object_offset: Workspace { min: [0.0, -0.02, 0.0], max: [0.0, 0.02, 0.05] },
             palm_surface_x: 0.0111,
             max_grasp_depth: 0.08,
@@ -381,6 +399,36 @@ impl Default for GraspConfig {
             max_attempts: 200,
             max_penetration: 0.001,
         }
+    }
+}
+
+impl GraspConfig {
+    /// This config with the joint arrays it leaves out taken from the robot's description.
+    pub fn with_robot_defaults(mut self, robot: &vt_robot::Robot) -> Self {
+        if self.home_arm.is_empty() {
+            self.home_arm = robot.home.clone();
+        }
+        if self.preshape.is_empty() {
+            self.preshape = robot.hand.iter().map(|h| h.preshape).collect();
+        }
+        if self.close.is_empty() {
+            self.close = robot.hand.iter().map(|h| h.close).collect();
+        }
+        self
+    }
+
+    /// Which joint array does not fit the robot: (field, message).
+    pub fn mismatch(&self, robot: &vt_robot::Robot) -> Option<(&'static str, String)> {
+        let (arm, hand) = (robot.arm_dofs.len(), robot.hand.len());
+        let name = &robot.name;
+        [
+            (field!(self.home_arm).0, self.home_arm.len(), arm, "arm joints"),
+            (field!(self.preshape).0, self.preshape.len(), hand, "hand joints"),
+            (field!(self.close).0, self.close.len(), hand, "hand joints"),
+        ]
+        .into_iter()
+        .find(|(_, n, want, _)| n != want)
+        .map(|(key, n, want, what)| (key, format!("{n} values for the {want} {what} of robot '{name}'")))
     }
 }
 

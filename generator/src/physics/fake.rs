@@ -9,29 +9,30 @@ use super::{HandPhysics, PhysicsObject};
 #[derive(Debug, Clone)]
 pub struct FakeHand {
     pub object: DAffine3,
-    pub joints: [f64; 16],
+    pub joints: Vec<f64>,
     pub gravity: DVec3,
     /// Added to the object's position at every step (a grasp that does not hold).
     pub drift_per_step: DVec3,
-    /// The phalanges' contacts the backend reports.
-    pub contacts: [Option<f64>; 12],
+    /// The touch links' contacts the backend reports.
+    pub contacts: Vec<Option<f64>>,
     pub penetration: f64,
     /// The object flies out of the hand at this step of the simulation (counted from the start),
     /// once: a restored state does not drop it again.
     pub drop_at_step: Option<u64>,
     pub steps: u64,
-    saved: Option<(DAffine3, [f64; 16], DVec3, u64)>,
+    saved: Option<(DAffine3, Vec<f64>, DVec3, u64)>,
 }
 
 impl FakeHand {
-    /// A hand that holds whatever it is given, touching it with `touching` phalanges.
+    /// A hand that holds whatever it is given, touching it with `touching` of the Allegro hand's
+    /// 12 phalanges.
     pub fn holding(touching: usize) -> Self {
         FakeHand {
             object: DAffine3::IDENTITY,
-            joints: [0.0; 16],
+            joints: vec![0.0; 16],
             gravity: DVec3::ZERO,
             drift_per_step: DVec3::ZERO,
-            contacts: std::array::from_fn(|k| (k < touching).then_some(0.0)),
+            contacts: (0..12).map(|k| (k < touching).then_some(0.0)).collect(),
             penetration: 0.0,
             drop_at_step: None,
             steps: 0,
@@ -44,13 +45,13 @@ impl HandPhysics for FakeHand {
     fn backend_name(&self) -> &'static str {
         "fake"
     }
-    fn reset(&mut self, _object: &PhysicsObject, object_pose: DAffine3, q: &[f64; 16]) -> anyhow::Result<()> {
+    fn reset(&mut self, _object: &PhysicsObject, object_pose: DAffine3, q: &[f64]) -> anyhow::Result<()> {
         self.object = object_pose;
-        self.joints = *q;
+        self.joints = q.to_vec();
         Ok(())
     }
-    fn set_targets(&mut self, targets: &[f64; 16]) {
-        self.joints = *targets;
+    fn set_targets(&mut self, targets: &[f64]) {
+        self.joints = targets.to_vec();
     }
     fn set_gravity(&mut self, g: DVec3) {
         self.gravity = g;
@@ -70,21 +71,21 @@ impl HandPhysics for FakeHand {
     fn object_pose(&self) -> DAffine3 {
         self.object
     }
-    fn joint_positions(&self) -> [f64; 16] {
-        self.joints
+    fn joint_positions(&self) -> Vec<f64> {
+        self.joints.clone()
     }
-    fn phalanx_contacts(&self) -> [Option<f64>; 12] {
+    fn touch_contacts(&self) -> Vec<Option<f64>> {
         // A dropped object touches nothing.
-        if self.object.translation.length() > 0.25 { [None; 12] } else { self.contacts }
+        if self.object.translation.length() > 0.25 { vec![None; self.contacts.len()] } else { self.contacts.clone() }
     }
     fn max_penetration(&self) -> f64 {
         self.penetration
     }
     fn save(&mut self) {
-        self.saved = Some((self.object, self.joints, self.gravity, self.steps));
+        self.saved = Some((self.object, self.joints.clone(), self.gravity, self.steps));
     }
     fn restore(&mut self) {
-        if let Some((object, joints, gravity, steps)) = self.saved {
+        if let Some((object, joints, gravity, steps)) = self.saved.clone() {
             (self.object, self.joints, self.gravity, self.steps) = (object, joints, gravity, steps);
         }
     }

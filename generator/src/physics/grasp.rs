@@ -2,7 +2,8 @@
 //! palm at a random orientation, random preshape, close the fingers under PD control, check the
 //! grasp holds, then move the arm to a new random palm pose for every instance (a simulated
 //! joint-space path, so the object may slip or turn), let it settle and record. A failed attempt
-//! (dropped object, fewer than 2 phalanges in contact, object lost during motion) is retried with
+//! (dropped object, fewer touch links in contact than the robot's `min_touching`, object lost
+//! during motion) is retried with
 //! fresh randomness from the same trajectory stream; attempts are counted.
 
 use anyhow::{Result, bail};
@@ -10,7 +11,7 @@ use glam::{DAffine3, DMat3, DQuat, DVec3};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use vt_randomizers::{SampleKey, SampleStream};
-use vt_robot::{IkOptions, RobotModel, hand_joint_names};
+use vt_robot::{IkOptions, Robot};
 
 use crate::config::GraspConfig;
 use crate::physics::{HandPhysics, PhysicsObject};
@@ -25,8 +26,8 @@ pub struct InstanceState {
     pub t_base_palm: DAffine3,
     /// Object pose in the palm frame.
     pub t_palm_object: DAffine3,
-    /// Per phalanx (`vt_robot::phalanx_names` order): contact distance when touching.
-    pub contacts: [Option<f64>; 12],
+    /// Per touch link (`Robot::touch_links` order): contact distance when touching.
+    pub contacts: Vec<Option<f64>>,
     /// Object motion relative to the palm since the grasp settled: metres and radians.
     pub slip_translation: f64,
     pub slip_rotation: f64,
@@ -54,7 +55,8 @@ pub enum Failure {
 
 /// An arm move undone and redrawn from the last recorded state: not a failure, the attempt goes
 /// on. A move that drops the object, or ends with a hand link more than `max_penetration` into
-/// the object, fewer than 2 phalanges touching or the object on the floor, cannot be recorded.
+/// the object, fewer touch links touching than `min_touching` or the object on the floor, cannot
+/// be recorded.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Redo {
     Drop,
@@ -117,7 +119,7 @@ fn rot(t: &DAffine3) -> DQuat {
 
 /// Everything the loop needs besides the physics.
 pub struct GraspContext<'a> {
-    pub robot: &'a RobotModel,
+    pub robot: &'a Robot,
     pub t_world_base: DAffine3,
     pub config: &'a GraspConfig,
     pub timestep: f64,
@@ -128,9 +130,9 @@ pub struct GraspContext<'a> {
 impl GraspContext<'_> {
     /// The arm's home: elbow up, palm facing up over the workspace.
     pub fn home(&self) -> Vec<f64> {
-        let mut q = self.robot.zero();
-        for (k, d) in self.robot.arm_dofs().into_iter().enumerate() {
-            q[d] = self.config.home_arm[k];
+        let mut q = self.robot.model.zero();
+        for (&d, &v) in self.robot.arm_dofs.iter().zip(&self.config.home_arm) {
+            q[d] = v;
         }
         q
     }
@@ -185,13 +187,7 @@ impl GraspContext<'_> {
     /// IK for a world palm pose, from `q`.
     fn reach(&self, t_world_palm: &DAffine3, q: &[f64]) -> Option<Vec<f64>> {
         let target = self.t_world_base.inverse() * *t_world_palm;
-        self.robot.solve_palm_ik(&target, q, &IkOptions::default())
-    }
-}
-
-fn set_hand(robot: &RobotModel, q: &mut [f64], hand: &[f64; 16]) {
-    for (k, n) in hand_joint_names().iter().enumerate() {
-        q[robot.dof(n).expect("validated")] = hand[k];
+        self.robot.solve_grasp_ik(&target, q, &IkOptions::default())
     }
 }
 
@@ -223,10 +219,9 @@ const REST_SECONDS: f64 = 0.15;
 const REST_DAMPING: f64 = 20.0;
 const CLOSE_DAMPING: f64 = 2.0;
 const HELD_DAMPING: f64 = 0.05;
-/// A settled grasp may not let the object drift more than this (m) while still, and must touch it
-/// with at least this many phalanges.
+/// A settled grasp may not let the object drift more than this (m) while still (and must touch it
+/// with at least the robot's `min_touching` touch links).
 const MAX_SETTLE_DRIFT: f64 = 0.02;
-const MIN_TOUCHING_PHALANGES: usize = 2;
 
 /// Simulates a trajectory and returns its recorded instances: attempts with fresh randomness
 /// until one grasp holds through every instance, or `max_attempts` is spent.
@@ -267,10 +262,7 @@ fn attempt_trajectory(
     let Some(q) = ctx.reach(&t_world_palm, &ctx.home()) else {
         return Ok(Err(Failure::Unreachable));
     };
-    let pre: [f64; 16] = std::array::from_fn(|k| {
-        let (lo, hi) = cfg.preshape[k];
-        rng.random_range(lo..=hi)
-    });
+    let pre: Vec<f64> = cfg.preshape.iter().map(|&(lo, hi)| rng.random_range(lo..=hi)).collect();
     if !place_object(ctx, physics, object, rng, &pre)? {
         return Ok(Err(Failure::InitialOverlap));
     }
@@ -332,7 +324,7 @@ fn place_object(
     physics: &mut dyn HandPhysics,
     object: &PhysicsObject,
     rng: &mut ChaCha8Rng,
-    pre: &[f64; 16],
+    pre: &[f64],
 ) -> Result<bool> {
     let cfg = ctx.config;
     let r_obj = sample_object_orientation(cfg, object, rng);
@@ -364,8 +356,8 @@ fn place_object(
 }
 
 /// Phase 2: every flexion joint towards its closed target, ab/adduction kept.
-fn close_hand(ctx: &GraspContext, physics: &mut dyn HandPhysics, pre: &[f64; 16]) {
-    let mut close = *pre;
+fn close_hand(ctx: &GraspContext, physics: &mut dyn HandPhysics, pre: &[f64]) {
+    let mut close = pre.to_vec();
     for (c, t) in close.iter_mut().zip(&ctx.config.close) {
         if let Some(t) = t {
             *c = *t;
@@ -408,8 +400,8 @@ fn settle(ctx: &GraspContext, physics: &mut dyn HandPhysics, t_world_palm: &DAff
         }
     }
     let held = physics.object_pose();
-    let touching = physics.phalanx_contacts().iter().filter(|c| c.is_some()).count();
-    if (held.translation - before.translation).length() > MAX_SETTLE_DRIFT || touching < MIN_TOUCHING_PHALANGES {
+    let touching = physics.touch_contacts().iter().filter(|c| c.is_some()).count();
+    if (held.translation - before.translation).length() > MAX_SETTLE_DRIFT || touching < ctx.robot.min_touching {
         return Err(Failure::GraspNotHeld);
     }
     Ok(held)
@@ -462,10 +454,10 @@ fn record_instances(
             q = q_before;
         };
         let mut qr = q.clone();
-        set_hand(robot, &mut qr, &physics.joint_positions());
+        robot.set_hand(&mut qr, &physics.joint_positions());
         let rel = grasped.inverse() * obj;
         out.push(InstanceState {
-            t_base_palm: robot.palm_pose(&qr),
+            t_base_palm: robot.grasp_frame_pose(&qr),
             q: qr,
             t_palm_object: obj,
             contacts,
@@ -481,8 +473,8 @@ fn record_instances(
 // One value per arm move, moved once: boxing the recordable pose would buy nothing.
 #[allow(clippy::large_enum_variant)]
 enum MoveOutcome {
-    /// Object pose in the palm, phalanx contacts, deepest penetration: a recordable instance.
-    Recordable(DAffine3, [Option<f64>; 12], f64),
+    /// Object pose in the palm, touch-link contacts, deepest penetration: a recordable instance.
+    Recordable(DAffine3, Vec<Option<f64>>, f64),
     /// The pose cannot be recorded (penetration, too few contacts, the object on the floor), but
     /// the grasp still holds: another move may give a recordable one.
     NotRecordable(Failure),
@@ -521,7 +513,7 @@ fn move_and_settle(
     let palm_at = |s: f64| -> DAffine3 {
         let w = s * s * (3.0 - 2.0 * s);
         let qs: Vec<f64> = q_from.iter().zip(&q_target).map(|(a, b)| a + (b - a) * w).collect();
-        ctx.t_world_base * robot.palm_pose(&qs)
+        ctx.t_world_base * robot.grasp_frame_pose(&qs)
     };
     let dt = ctx.timestep;
     let ds = 1.0 / n as f64;
@@ -545,11 +537,11 @@ fn move_and_settle(
         }
     }
     *q = q_target;
-    let touching = physics.phalanx_contacts().iter().filter(|c| c.is_some()).count();
+    let touching = physics.touch_contacts().iter().filter(|c| c.is_some()).count();
     if lost(physics) || touching == 0 {
         return Ok(MoveOutcome::Failed(Failure::LostDuringMotion));
     }
-    if touching < 2 {
+    if touching < robot.min_touching {
         return Ok(MoveOutcome::NotRecordable(Failure::TooFewContacts));
     }
     // Squeezing transients settle within a few tens of milliseconds: wait for them.
@@ -567,12 +559,12 @@ fn move_and_settle(
         return Ok(MoveOutcome::NotRecordable(Failure::Penetration));
     }
     let obj = physics.object_pose();
-    let contacts = physics.phalanx_contacts();
-    if contacts.iter().filter(|c| c.is_some()).count() < 2 {
+    let contacts = physics.touch_contacts();
+    if contacts.iter().filter(|c| c.is_some()).count() < robot.min_touching {
         return Ok(MoveOutcome::NotRecordable(Failure::TooFewContacts));
     }
     // The object must hang free: its lowest point above the floor (z = 0).
-    if floor_clearance(&object.points, &(ctx.t_world_base * robot.palm_pose(q) * obj)) < MIN_FLOOR_CLEARANCE {
+    if floor_clearance(&object.points, &(ctx.t_world_base * robot.grasp_frame_pose(q) * obj)) < MIN_FLOOR_CLEARANCE {
         return Ok(MoveOutcome::NotRecordable(Failure::TouchesFloor));
     }
     Ok(MoveOutcome::Recordable(obj, contacts, penetration))
@@ -613,6 +605,11 @@ mod tests {
         PhysicsObject { points: m.positions.clone(), mass: e.mass }
     }
 
+    /// The grasp config's defaults with the Allegro hand's joint arrays.
+    fn allegro_grasp() -> GraspConfig {
+        GraspConfig::default().with_robot_defaults(&Robot::allegro())
+    }
+
     /// The robot base and the camera of `scenes/paper.yaml`.
     fn paper_context() -> (DAffine3, DVec3) {
         (
@@ -623,7 +620,7 @@ mod tests {
 
     /// The palm's normal (world) of `n` arm moves drawn with `cfg`.
     fn move_normals(cfg: &GraspConfig, n: u64) -> Vec<(DVec3, DVec3)> {
-        let robot = RobotModel::builtin();
+        let robot = Robot::allegro();
         let (t_world_base, camera_position) = paper_context();
         let ctx = GraspContext { robot: &robot, t_world_base, config: cfg, timestep: 1.0 / 240.0, camera_position };
         (0..n)
@@ -637,7 +634,7 @@ mod tests {
 
     #[test]
     fn back_to_camera_moves_turn_the_palm_away_from_the_camera() {
-        let mut cfg = GraspConfig { back_to_camera_share: 0.5, ..GraspConfig::default() };
+        let mut cfg = GraspConfig { back_to_camera_share: 0.5, ..allegro_grasp() };
         let camera = DVec3::new(0.0, -0.75, 0.55);
         let normals = move_normals(&cfg, 400);
         let (lo, hi) = cfg.back_to_camera_tilt_deg;
@@ -662,7 +659,7 @@ mod tests {
         assert!((150..=250).contains(&back), "{back} of 400 back-to-camera moves");
         // Without the knob no move leaves the cone, and the draws are those of the plain sampler.
         cfg.back_to_camera_share = 0.0;
-        let robot = RobotModel::builtin();
+        let robot = Robot::allegro();
         let (t_world_base, camera_position) = paper_context();
         let ctx = GraspContext { robot: &robot, t_world_base, config: &cfg, timestep: 1.0 / 240.0, camera_position };
         for k in 0..50 {
@@ -675,7 +672,7 @@ mod tests {
 
     /// The grasp loop over the scripted hand: `cfg` with the paper's robot and camera.
     fn run_fake(hand: &mut crate::physics::fake::FakeHand, cfg: &GraspConfig, instances: u32) -> (Result<Trajectory>, Vec<GraspEvent>) {
-        let robot = RobotModel::builtin();
+        let robot = Robot::allegro();
         let (t_world_base, camera_position) = paper_context();
         let ctx = GraspContext { robot: &robot, t_world_base, config: cfg, timestep: 1.0 / 240.0, camera_position };
         let object = PhysicsObject {
@@ -689,8 +686,8 @@ mod tests {
 
     #[test]
     fn a_held_object_gives_every_instance_without_slip_and_the_same_key_the_same_trajectory() {
-        let cfg = GraspConfig::default();
-        let robot = RobotModel::builtin();
+        let cfg = allegro_grasp();
+        let robot = Robot::allegro();
         let mut hand = crate::physics::fake::FakeHand::holding(3);
         let (t, failures) = run_fake(&mut hand, &cfg, 4);
         let t = t.unwrap();
@@ -701,9 +698,9 @@ mod tests {
             assert_eq!((i.slip_translation, i.slip_rotation), (0.0, 0.0));
             assert_eq!(i.contacts.iter().filter(|c| c.is_some()).count(), 3);
             // The recorded hand joints are the physics' (the fake reaches the closing targets).
-            for (k, name) in hand_joint_names().iter().enumerate() {
+            for (k, h) in robot.hand.iter().enumerate() {
                 if let Some(target) = cfg.close[k] {
-                    assert_eq!(i.q[robot.dof(name).unwrap()], target, "{name}");
+                    assert_eq!(i.q[h.dof], target, "{}", h.name);
                 }
             }
         }
@@ -716,7 +713,7 @@ mod tests {
 
     #[test]
     fn grasps_that_do_not_hold_fail_each_attempt_and_the_trajectory_names_the_cause() {
-        let cfg = GraspConfig { max_attempts: 3, ..GraspConfig::default() };
+        let cfg = GraspConfig { max_attempts: 3, ..allegro_grasp() };
         // The object slides 1 mm per step: more than 2 cm while the hand holds still.
         let mut sliding = crate::physics::fake::FakeHand::holding(3);
         sliding.drift_per_step = DVec3::new(0.0, 0.0, 0.001);
@@ -743,7 +740,7 @@ mod tests {
 
     #[test]
     fn a_move_that_drops_the_object_is_undone_and_redrawn() {
-        let cfg = GraspConfig::default();
+        let cfg = allegro_grasp();
         // Steps of placing, resting, closing and settling, then well into the first arm move.
         let settle_steps = (0.15f64 + cfg.close_seconds + cfg.settle_seconds) * 240.0;
         let mut hand = crate::physics::fake::FakeHand::holding(3);
@@ -771,12 +768,12 @@ mod tests {
     #[test]
     #[ignore]
     fn experiment() {
-        let robot = RobotModel::builtin();
+        let robot = Robot::allegro();
         let pc = PhysicsConfig::default();
         let env = |k: &str, d: f64| std::env::var(k).ok().and_then(|v| v.parse().ok()).unwrap_or(d);
         let settings =
             PhysicsSettings { friction: env("F", pc.friction), max_torque: env("T", pc.max_torque), ..PhysicsSettings::from(&pc) };
-        let mut cfg = GraspConfig::default();
+        let mut cfg = allegro_grasp();
         cfg.max_tilt_deg = env("TILT", cfg.max_tilt_deg);
         cfg.move_seconds = env("MOVE", cfg.move_seconds);
         cfg.max_attempts = env("MAXATT", cfg.max_attempts as f64) as u32;

@@ -1,5 +1,6 @@
-//! Physics behind a small trait. The hand is simulated in its palm frame: a fixed-base articulated
-//! hand (16 PD-controlled joints) and one free object. The arm's motion enters as the apparent
+//! Physics behind a small trait. The hand is simulated in its grasp frame (the palm): a fixed-base
+//! articulated hand or gripper (its description's joints PD-controlled, `<mimic>` joints following
+//! them) and one free object. The arm's motion enters as the apparent
 //! gravity in the palm frame, `R_palmᵀ (g − a_palm)`, which is what makes an object slip or turn in
 //! the hand when the arm reorients or accelerates. (Rotational fictitious forces, below 1% of g for
 //! the arm's speeds, are neglected.) This keeps the grasp stable and identical for every backend.
@@ -31,7 +32,8 @@ pub struct PhysicsObject {
 pub struct PhysicsSettings {
     pub timestep: f64,
     pub friction: f64,
-    /// PD gains of the finger joints (N·m/rad, N·m·s/rad) and the torque limit (N·m).
+    /// PD gains of the hand joints (N·m/rad, N·m·s/rad; N/m, N·s/m for prismatic ones) and the
+    /// effort limit of joints whose description gives none (N·m or N).
     pub stiffness: f64,
     pub damping: f64,
     pub max_torque: f64,
@@ -49,14 +51,14 @@ impl From<&crate::config::PhysicsConfig> for PhysicsSettings {
     }
 }
 
-/// The simulated hand in the palm frame.
+/// The simulated hand in the grasp frame.
 pub trait HandPhysics {
     fn backend_name(&self) -> &'static str;
-    /// A new grasp: hand joints at `q` (16 values, `vt_robot::hand_joint_names` order), the object
-    /// at `object_pose` (palm frame), at rest.
-    fn reset(&mut self, object: &PhysicsObject, object_pose: DAffine3, q: &[f64; 16]) -> anyhow::Result<()>;
-    /// PD targets of the 16 hand joints.
-    fn set_targets(&mut self, targets: &[f64; 16]);
+    /// A new grasp: hand joints at `q` (one value per hand joint, `Robot::hand` order), the object
+    /// at `object_pose` (grasp frame), at rest.
+    fn reset(&mut self, object: &PhysicsObject, object_pose: DAffine3, q: &[f64]) -> anyhow::Result<()>;
+    /// PD targets of the hand joints (`Robot::hand` order); mimic joints follow theirs.
+    fn set_targets(&mut self, targets: &[f64]);
     /// Apparent gravity in the palm frame (m/s²).
     fn set_gravity(&mut self, g: DVec3);
     /// Extra damping of the object's motion, e.g. while the fingers close around it.
@@ -65,10 +67,11 @@ pub trait HandPhysics {
     /// Steps taken since the backend was made (for `vtgen bench`'s cost per step).
     fn steps_taken(&self) -> u64;
     fn object_pose(&self) -> DAffine3;
-    fn joint_positions(&self) -> [f64; 16];
-    /// For each of the 12 phalanges (`vt_robot::phalanx_names` order): the signed distance of its
-    /// closest contact with the object (negative = penetration), None when not touching.
-    fn phalanx_contacts(&self) -> [Option<f64>; 12];
+    /// The hand joints' positions (`Robot::hand` order).
+    fn joint_positions(&self) -> Vec<f64>;
+    /// For each touch link (`Robot::touch_links` order): the signed distance of its closest
+    /// contact with the object (negative = penetration), None when not touching.
+    fn touch_contacts(&self) -> Vec<Option<f64>>;
     /// Deepest penetration (m, >= 0) of any hand link into the object.
     fn max_penetration(&self) -> f64;
     /// Remembers the whole simulation state so that `restore` can undo what follows (an arm move

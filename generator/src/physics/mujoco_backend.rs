@@ -1,14 +1,15 @@
 //! MuJoCo backend (cargo feature `mujoco`): the same hand-frame simulation as the rapier backend,
-//! as an MJCF model generated from the robot description: the palm fixed in the world, the 16
-//! finger joints with position actuators (PD gains and torque limit from the config), and the
-//! object as a free body whose collision shape MuJoCo takes as its mesh's convex hull.
+//! as an MJCF model generated from the robot description: the grasp frame (palm) fixed in the
+//! world, the hand joints with position actuators (PD gains and effort limits from the config and
+//! the description), `<mimic>` joints as joint equality constraints, and the object as a free body
+//! whose collision shape MuJoCo takes as its mesh's convex hull.
 
 use std::fmt::Write as _;
 
 use anyhow::{Context, Result, anyhow};
 use glam::{DAffine3, DQuat, DVec3};
 use mujoco_rs::prelude::*;
-use vt_robot::{Geometry, JointKind, RobotModel, hand_joint_names, phalanx_names};
+use vt_robot::{Geometry, JointKind, Robot, RobotModel};
 
 use super::{HandPhysics, PhysicsObject, PhysicsSettings};
 
@@ -16,19 +17,22 @@ struct Sim {
     data: MjData<Box<MjModel>>,
     /// Which object the model was built for (its points' count and first point).
     object_key: (usize, [u32; 3]),
-    hand_qpos: [usize; 16],
-    hand_actuators: [usize; 16],
+    hand_qpos: Vec<usize>,
+    hand_actuators: Vec<usize>,
+    /// Mimic joints: qpos address, the hand joint they follow (`Robot::hand` index), multiplier
+    /// and offset, to start them where their constraint holds.
+    follower_qpos: Vec<(usize, usize, f64, f64)>,
     object_body: usize,
     /// The object's free joint: its qpos address (position, wxyz quaternion) and dof address.
     object_qpos: usize,
     object_dof: usize,
     object_geom: usize,
-    phalanx_geoms: Vec<Vec<usize>>,
+    touch_geoms: Vec<Vec<usize>>,
     hand_geoms: Vec<usize>,
 }
 
 pub struct MujocoHand {
-    model: RobotModel,
+    robot: Robot,
     settings: PhysicsSettings,
     sim: Option<Sim>,
     damping: (f64, f64),
@@ -75,16 +79,17 @@ fn write_hull_meshes(x: &mut String, m: &RobotModel) {
 }
 
 impl MujocoHand {
-    pub fn new(model: &RobotModel, settings: PhysicsSettings) -> Result<Self> {
-        Ok(MujocoHand { model: model.clone(), settings, sim: None, damping: (0.0, 0.0), mass: 1.0, saved: None, steps: 0 })
+    pub fn new(robot: &Robot, settings: PhysicsSettings) -> Result<Self> {
+        Ok(MujocoHand { robot: robot.clone(), settings, sim: None, damping: (0.0, 0.0), mass: 1.0, saved: None, steps: 0 })
     }
 
     /// MJCF of the hand below the palm and one free object.
     // Long on purpose: one MJCF document written top to bottom, as MuJoCo reads it.
     fn mjcf(&self, object: &PhysicsObject) -> String {
-        let m = &self.model;
+        let robot = &self.robot;
+        let m = &robot.model;
         let s = &self.settings;
-        let palm = m.link_id(vt_robot::PALM).expect("validated");
+        let palm = robot.grasp_frame;
         let mut x = String::new();
         let _ = write!(
             x,
@@ -121,17 +126,38 @@ impl MujocoHand {
         };
         x.push_str(r#"<body name="palm">"#);
         geoms(&mut x, palm);
-        // Depth-first over the joints below the palm; fixed joints (the sensor pads) are skipped.
+        // Depth-first over the joints below the palm. A fixed joint's child is a body welded to its
+        // parent, left out when nothing in it collides or moves (the sensor pads).
+        fn matters(m: &RobotModel, link: usize) -> bool {
+            !m.links[link].collisions.is_empty() || m.joints.iter().any(|j| j.parent == link && (j.moves() || matters(m, j.child)))
+        }
         fn children(m: &RobotModel, link: usize, x: &mut String, geoms: &dyn Fn(&mut String, usize)) {
-            for j in m.joints.iter().filter(|j| j.parent == link && j.kind == JointKind::Revolute) {
+            for j in m.joints.iter().filter(|j| j.parent == link && (j.moves() || matters(m, j.child))) {
                 let c = &m.links[j.child];
                 let q = quat_wxyz(&j.origin);
                 let t = j.origin.translation;
+                if !j.moves() {
+                    let _ =
+                        write!(x, r#"<body name="{}" pos="{} {} {}" quat="{} {} {} {}">"#, c.name, t.x, t.y, t.z, q[0], q[1], q[2], q[3]);
+                    if c.mass > 0.0 {
+                        let i = c.mass * 0.02 * 0.02 / 6.0;
+                        let _ = write!(
+                            x,
+                            r#"<inertial pos="{} {} {}" mass="{}" diaginertia="{i} {i} {i}"/>"#,
+                            c.com.x, c.com.y, c.com.z, c.mass
+                        );
+                    }
+                    geoms(x, j.child);
+                    children(m, j.child, x, geoms);
+                    x.push_str("</body>");
+                    continue;
+                }
+                let kind = if j.kind == JointKind::Prismatic { "slide" } else { "hinge" };
                 let mass = c.mass.max(0.005);
                 let i = mass * 0.02 * 0.02 / 6.0;
                 let _ = write!(
                     x,
-                    r#"<body name="{}" pos="{} {} {}" quat="{} {} {} {}"><inertial pos="{} {} {}" mass="{mass}" diaginertia="{i} {i} {i}"/><joint name="{}" type="hinge" axis="{} {} {}" range="{} {}" damping="0.01" armature="0.0005"/>"#,
+                    r#"<body name="{}" pos="{} {} {}" quat="{} {} {} {}"><inertial pos="{} {} {}" mass="{mass}" diaginertia="{i} {i} {i}"/><joint name="{}" type="{kind}" axis="{} {} {}" range="{} {}" damping="0.01" armature="0.0005"/>"#,
                     c.name,
                     t.x,
                     t.y,
@@ -159,15 +185,30 @@ impl MujocoHand {
         x.push_str("</body>");
         let _ = write!(
             x,
-            r#"<body name="object"><freejoint name="object"/><geom name="object" type="mesh" mesh="object" mass="{}" contype="2" conaffinity="1"/></body></worldbody><actuator>"#,
+            r#"<body name="object"><freejoint name="object"/><geom name="object" type="mesh" mesh="object" mass="{}" contype="2" conaffinity="1"/></body></worldbody>"#,
             object.mass
         );
-        for name in hand_joint_names() {
-            let j = m.joint(&name).expect("validated");
+        // A mimic joint follows its leader: q = offset + multiplier * q_leader.
+        if !robot.followers.is_empty() {
+            x.push_str("<equality>");
+            for &f in &robot.followers {
+                let mimic = m.joints[f].mimic.expect("a follower mimics");
+                let _ = write!(
+                    x,
+                    r#"<joint joint1="{}" joint2="{}" polycoef="{} {} 0 0 0"/>"#,
+                    m.joints[f].name, m.joints[mimic.leader].name, mimic.offset, mimic.multiplier
+                );
+            }
+            x.push_str("</equality>");
+        }
+        x.push_str("<actuator>");
+        for h in &robot.hand {
+            let (name, j) = (&h.name, &m.joints[h.joint]);
+            let effort = h.effort.unwrap_or(s.max_torque);
             let _ = write!(
                 x,
                 r#"<position name="{name}" joint="{name}" kp="{}" kv="{}" ctrlrange="{} {}" forcerange="{} {}"/>"#,
-                s.stiffness, s.damping, j.lower, j.upper, -s.max_torque, s.max_torque
+                s.stiffness, s.damping, j.lower, j.upper, -effort, effort
             );
         }
         x.push_str("</actuator></mujoco>");
@@ -184,13 +225,20 @@ impl MujocoHand {
         let xml = self.mjcf(object);
         let model = MjModel::from_xml_string(&xml).map_err(|e| anyhow!("MuJoCo rejected the generated hand model: {e:?}"))?;
         let id = |t: MjtObjBase, n: &str| model.name_to_id(t, n).with_context(|| format!("MuJoCo model lacks {n}"));
-        let names = hand_joint_names();
-        let mut hand_qpos = [0usize; 16];
-        let mut hand_actuators = [0usize; 16];
-        for k in 0..16 {
-            let j = id(MjtObjBase::mjOBJ_JOINT, &names[k])?;
-            hand_qpos[k] = model.jnt_qposadr()[j] as usize;
-            hand_actuators[k] = id(MjtObjBase::mjOBJ_ACTUATOR, &names[k])?;
+        let mut hand_qpos = Vec::new();
+        let mut hand_actuators = Vec::new();
+        for h in &self.robot.hand {
+            let j = id(MjtObjBase::mjOBJ_JOINT, &h.name)?;
+            hand_qpos.push(model.jnt_qposadr()[j] as usize);
+            hand_actuators.push(id(MjtObjBase::mjOBJ_ACTUATOR, &h.name)?);
+        }
+        let mut follower_qpos = Vec::new();
+        for &f in &self.robot.followers {
+            let joint = &self.robot.model.joints[f];
+            let mimic = joint.mimic.expect("a follower mimics");
+            let leader = self.robot.hand.iter().position(|h| h.joint == mimic.leader).expect("a follower's leader is a hand joint");
+            let j = id(MjtObjBase::mjOBJ_JOINT, &joint.name)?;
+            follower_qpos.push((model.jnt_qposadr()[j] as usize, leader, mimic.multiplier, mimic.offset));
         }
         let object_body = id(MjtObjBase::mjOBJ_BODY, "object")?;
         let object_joint = id(MjtObjBase::mjOBJ_JOINT, "object")?;
@@ -200,7 +248,7 @@ impl MujocoHand {
         let geom_of_link = |link: &str| -> Vec<usize> {
             (0..16).filter_map(|i| model.name_to_id(MjtObjBase::mjOBJ_GEOM, &format!("{link}_{i}"))).collect()
         };
-        let phalanx_geoms = phalanx_names().iter().map(|p| geom_of_link(p)).collect();
+        let touch_geoms = self.robot.touch_link_names().iter().map(|l| geom_of_link(l)).collect();
         let hand_geoms = (0..model.ngeom() as usize).filter(|&g| g != object_geom).collect();
         let data = MjData::new(Box::new(model));
         self.sim = Some(Sim {
@@ -208,11 +256,12 @@ impl MujocoHand {
             object_key: key,
             hand_qpos,
             hand_actuators,
+            follower_qpos,
             object_body,
             object_qpos,
             object_dof,
             object_geom,
-            phalanx_geoms,
+            touch_geoms,
             hand_geoms,
         });
         Ok(())
@@ -238,35 +287,36 @@ impl HandPhysics for MujocoHand {
         "mujoco"
     }
 
-    fn reset(&mut self, object: &PhysicsObject, object_pose: DAffine3, q: &[f64; 16]) -> Result<()> {
+    fn reset(&mut self, object: &PhysicsObject, object_pose: DAffine3, q: &[f64]) -> Result<()> {
         self.build(object)?;
         self.mass = object.mass;
         self.saved = None;
         let sim = self.sim.as_mut().expect("built");
         let qp = sim.data.qpos_mut();
-        for k in 0..16 {
-            qp[sim.hand_qpos[k]] = q[k];
+        for (&a, &v) in sim.hand_qpos.iter().zip(q) {
+            qp[a] = v;
+        }
+        for &(a, leader, multiplier, offset) in &sim.follower_qpos {
+            qp[a] = offset + multiplier * q[leader];
         }
         let oq = quat_wxyz(&object_pose);
         let t = object_pose.translation;
         let base = sim.object_qpos;
         let qp = sim.data.qpos_mut();
         qp[base..base + 7].copy_from_slice(&[t.x, t.y, t.z, oq[0], oq[1], oq[2], oq[3]]);
-        let acts = sim.hand_actuators;
         let ctrl = sim.data.ctrl_mut();
-        for k in 0..16 {
-            ctrl[acts[k]] = q[k];
+        for (&a, &v) in sim.hand_actuators.iter().zip(q) {
+            ctrl[a] = v;
         }
         sim.data.forward();
         Ok(())
     }
 
-    fn set_targets(&mut self, targets: &[f64; 16]) {
+    fn set_targets(&mut self, targets: &[f64]) {
         let sim = self.sim.as_mut().expect("built");
-        let acts = sim.hand_actuators;
         let ctrl = sim.data.ctrl_mut();
-        for k in 0..16 {
-            ctrl[acts[k]] = targets[k];
+        for (&a, &v) in sim.hand_actuators.iter().zip(targets) {
+            ctrl[a] = v;
         }
     }
 
@@ -305,13 +355,13 @@ impl HandPhysics for MujocoHand {
         DAffine3::from_rotation_translation(DQuat::from_xyzw(q[1], q[2], q[3], q[0]).normalize(), DVec3::from_array(p))
     }
 
-    fn joint_positions(&self) -> [f64; 16] {
+    fn joint_positions(&self) -> Vec<f64> {
         let sim = self.sim();
-        std::array::from_fn(|k| sim.data.qpos()[sim.hand_qpos[k]])
+        sim.hand_qpos.iter().map(|&a| sim.data.qpos()[a]).collect()
     }
 
-    fn phalanx_contacts(&self) -> [Option<f64>; 12] {
-        std::array::from_fn(|p| self.contact_dists(&self.sim().phalanx_geoms[p]).min_by(f64::total_cmp))
+    fn touch_contacts(&self) -> Vec<Option<f64>> {
+        self.sim().touch_geoms.iter().map(|g| self.contact_dists(g).min_by(f64::total_cmp)).collect()
     }
 
     fn max_penetration(&self) -> f64 {

@@ -1,10 +1,11 @@
-//! rapier3d backend: the hand as a fixed-root multibody (reduced coordinates, so long finger chains
-//! stay stiff), joint motors as PD controllers, the object as a convex hull.
+//! rapier3d backend: the hand as fixed-root multibodies (reduced coordinates, so long finger chains
+//! stay stiff), joint motors as PD controllers (a `<mimic>` joint's motor tracks its leader's
+//! target), the object as a convex hull.
 
 use anyhow::{Context, Result, bail};
 use glam::{DAffine3, DQuat, DVec3, Vec3};
 use rapier3d::prelude::*;
-use vt_robot::{Geometry, RobotModel, hand_joint_names, phalanx_names};
+use vt_robot::{Geometry, JointKind, Robot};
 
 use super::hull_shape::WalkedHull;
 use super::{HandPhysics, PhysicsObject, PhysicsSettings};
@@ -21,15 +22,20 @@ fn from_pose(p: &Pose) -> DAffine3 {
     DAffine3::from_rotation_translation(p.rotation.as_dquat(), p.translation.as_dvec3())
 }
 
+/// A simulated joint: a hand joint, or a follower (mimic) of one.
 struct HandJoint {
     body: RigidBodyHandle,
     parent: RigidBodyHandle,
     joint: MultibodyJointHandle,
-    /// URDF joint origin rotation and axis, to read the angle back from body poses.
-    origin_rot: DQuat,
+    /// The joint's origin in the parent body and its URDF axis, to read the joint's value back
+    /// from body poses.
+    origin: DAffine3,
     axis: DVec3,
+    prismatic: bool,
     lower: f64,
     upper: f64,
+    /// The hand joint whose target drives this one: (index in `Robot::hand`, multiplier, offset).
+    drive: (usize, f64, f64),
 }
 
 /// A link's collision shape (a mesh link's: the exact hull of its points, `hull_shape`). None: a degenerate mesh.
@@ -66,15 +72,15 @@ struct WorldState {
 }
 
 pub struct RapierHand {
-    model: RobotModel,
+    robot: Robot,
     settings: PhysicsSettings,
     world: PhysicsWorld,
     joints: Vec<HandJoint>,
     /// Each link's collision shapes (`model.links[i].collisions` order), made once: every grasp
     /// attempt rebuilds the hand, and a mesh link's hull costs more to compute than to simulate.
     link_shapes: Vec<Vec<SharedShape>>,
-    /// Collider handles per phalanx (12) and all hand colliders.
-    phalanx_colliders: Vec<Vec<ColliderHandle>>,
+    /// Collider handles per touch link and all hand colliders.
+    touch_colliders: Vec<Vec<ColliderHandle>>,
     hand_colliders: Vec<ColliderHandle>,
     object: Option<(RigidBodyHandle, ColliderHandle)>,
     /// The convex hull of the last object reset with, keyed by its points: computing the hull of
@@ -86,8 +92,9 @@ pub struct RapierHand {
 }
 
 impl RapierHand {
-    pub fn new(model: &RobotModel, settings: PhysicsSettings) -> Result<Self> {
-        let link_shapes = model
+    pub fn new(robot: &Robot, settings: PhysicsSettings) -> Result<Self> {
+        let link_shapes = robot
+            .model
             .links
             .iter()
             .map(|link| {
@@ -98,26 +105,27 @@ impl RapierHand {
             })
             .collect::<Result<Vec<_>>>()?;
         let mut h = RapierHand {
-            model: model.clone(),
+            robot: robot.clone(),
             settings,
             world: PhysicsWorld::new(),
             joints: Vec::new(),
             link_shapes,
-            phalanx_colliders: Vec::new(),
+            touch_colliders: Vec::new(),
             hand_colliders: Vec::new(),
             object: None,
             hull: None,
             saved: None,
             steps: 0,
         };
-        h.build(&[0.0; 16])?;
+        h.build(&vec![0.0; robot.hand.len()])?;
         Ok(h)
     }
 
-    /// Builds the hand at joint values `q` in a fresh world.
+    /// Builds the hand at hand joint values `q` in a fresh world.
     // Long on purpose: one multibody built link by link (colliders, joints, motors), in one place.
-    fn build(&mut self, q: &[f64; 16]) -> Result<()> {
-        let m = &self.model;
+    fn build(&mut self, q: &[f64]) -> Result<()> {
+        let robot = &self.robot;
+        let m = &robot.model;
         let mut world = PhysicsWorld::new();
         world.integration_parameters.dt = self.settings.timestep as f32;
         // Tighter than the default so resting contacts penetrate well under a millimetre.
@@ -135,11 +143,29 @@ impl RapierHand {
         let nf = 1000.0;
         world.integration_parameters.contact_softness = SpringCoefficients::new(nf, 5.0);
         world.integration_parameters.static_contact_softness = SpringCoefficients::new(2.0 * nf, 5.0);
-        let palm = m.link_id(vt_robot::PALM).context("palm")?;
-        let names = hand_joint_names();
+        let palm = robot.grasp_frame;
         let mut full_q = m.zero();
-        for (k, n) in names.iter().enumerate() {
-            full_q[m.dof(n).context("hand joint")?] = q[k];
+        robot.set_hand(&mut full_q, q);
+        // The simulated joints: the hand's, then their followers (in tree order, parents first).
+        let mut simulated: Vec<(usize, (usize, f64, f64))> = robot.hand.iter().enumerate().map(|(k, h)| (h.joint, (k, 1.0, 0.0))).collect();
+        for &f in &robot.followers {
+            let mimic = m.joints[f].mimic.expect("a follower mimics");
+            let k = robot.hand.iter().position(|h| h.joint == mimic.leader).expect("a follower's leader is a hand joint");
+            simulated.push((f, (k, mimic.multiplier, mimic.offset)));
+        }
+        // Each link below the palm moves with a body: its own when a simulated joint moves it,
+        // else its parent's (links fixed to another, e.g. sensor pads or a finger's outer shell).
+        let mut body_link = vec![usize::MAX; m.links.len()];
+        for (li, link) in m.links.iter().enumerate() {
+            if !m.is_below(li, palm) {
+                continue;
+            }
+            body_link[li] = match link.parent_joint {
+                _ if li == palm => li,
+                Some(j) if m.joints[j].moves() => li,
+                Some(j) => body_link[m.joints[j].parent],
+                None => li,
+            };
         }
         let groups = InteractionGroups::new(HAND_GROUP, OBJECT_GROUP, InteractionTestMode::And);
         let mut bodies = vec![None; m.links.len()];
@@ -147,17 +173,25 @@ impl RapierHand {
         let mut link_colliders: Vec<Vec<ColliderHandle>> = vec![Vec::new(); m.links.len()];
         // Bodies for the palm and every link below it that has mass or collision geometry.
         for (li, link) in m.links.iter().enumerate() {
-            if !m.is_below(li, palm) || (li != palm && link.mass <= 0.0 && link.collisions.is_empty()) {
+            let b = body_link[li];
+            if b == usize::MAX || (li != palm && link.mass <= 0.0 && link.collisions.is_empty()) {
                 continue;
             }
-            let pose = to_pose(&m.relative_pose(&full_q, palm, li));
-            let rb = if li == palm { RigidBodyBuilder::fixed() } else { RigidBodyBuilder::dynamic() };
-            let handle = world.insert_body(rb.pose(pose).can_sleep(false));
-            bodies[li] = Some(handle);
+            let handle = match bodies[b] {
+                Some(h) => h,
+                None => {
+                    let pose = to_pose(&m.relative_pose(&full_q, palm, b));
+                    let rb = if b == palm { RigidBodyBuilder::fixed() } else { RigidBodyBuilder::dynamic() };
+                    let h = world.insert_body(rb.pose(pose).can_sleep(false));
+                    bodies[b] = Some(h);
+                    h
+                }
+            };
+            let t_body_link = if b == li { DAffine3::IDENTITY } else { m.relative_pose(&full_q, b, li) };
             for (s, shape) in link.collisions.iter().zip(&self.link_shapes[li]) {
                 // Colliders share the link's mass; their density is set so the link mass is exact.
                 let c = ColliderBuilder::new(shape.clone())
-                    .position(to_pose(&s.origin))
+                    .position(to_pose(&(t_body_link * s.origin)))
                     .friction(self.settings.friction as f32)
                     .density(0.0)
                     .collision_groups(groups);
@@ -165,53 +199,104 @@ impl RapierHand {
                 hand_colliders.push(ch);
                 link_colliders[li].push(ch);
             }
-            if li != palm {
-                // Mass properties from the URDF (a small box inertia about the centre of mass).
-                let mass = link.mass.max(0.005) as f32;
-                let i = mass * 0.02 * 0.02 / 6.0;
-                if let Some(b) = world.bodies.get_mut(handle) {
-                    b.set_additional_mass_properties(MassProperties::new(link.com.as_vec3(), mass, Vec3::splat(i)), true);
+        }
+        // Mass properties from the URDF (a small box inertia about the centre of mass), the links
+        // fixed to a body's link counted with it.
+        for (b, handle) in bodies.iter().enumerate() {
+            let Some(handle) = *handle else { continue };
+            if b == palm {
+                continue;
+            }
+            let parts: Vec<usize> = (0..m.links.len()).filter(|&l| body_link[l] == b && m.links[l].mass > 0.0).collect();
+            let (mass, com) = match parts[..] {
+                [] => (0.0, m.links[b].com),
+                [only] if only == b => (m.links[b].mass, m.links[b].com),
+                _ => {
+                    let total: f64 = parts.iter().map(|&l| m.links[l].mass).sum();
+                    let moment = parts.iter().fold(DVec3::ZERO, |acc, &l| {
+                        acc + m.relative_pose(&full_q, b, l).transform_point3(m.links[l].com) * m.links[l].mass
+                    });
+                    (total, moment / total)
                 }
+            };
+            let mass = mass.max(0.005) as f32;
+            let i = mass * 0.02 * 0.02 / 6.0;
+            if let Some(body) = world.bodies.get_mut(handle) {
+                body.set_additional_mass_properties(MassProperties::new(com.as_vec3(), mass, Vec3::splat(i)), true);
             }
         }
         let mut joints = Vec::new();
-        for name in &names {
-            let ji = m.joints.iter().position(|j| &j.name == name).context("hand joint")?;
+        for &(ji, drive) in &simulated {
             let j = &m.joints[ji];
-            let (Some(mut parent), Some(child)) = (bodies[j.parent], bodies[j.child]) else {
+            let name = &j.name;
+            let pb = body_link[j.parent];
+            let (Some(mut parent), Some(child)) = (bodies[pb], bodies[j.child]) else {
                 bail!("joint {name} links bodies without geometry")
             };
-            if j.parent == palm {
+            if pb == palm {
                 // One multibody per finger, each on its own fixed root at the palm: contact
                 // constraints then solve against 4x4 instead of 16x16 mass matrices.
                 parent = world.insert_body(RigidBodyBuilder::fixed().pose(to_pose(&DAffine3::IDENTITY)));
             }
-            // Joint frames whose x axis is the URDF axis: rapier's free revolute axis is AngX.
+            // Joint frames whose x axis is the URDF axis: rapier's free revolute axis is AngX,
+            // its free prismatic axis LinX.
             let to_axis = DQuat::from_rotation_arc(DVec3::X, j.axis);
-            let origin_rot = DQuat::from_mat3(&j.origin.matrix3);
-            let frame1 = DAffine3::from_rotation_translation(origin_rot * to_axis, j.origin.translation);
+            let origin = if pb == j.parent { j.origin } else { m.relative_pose(&full_q, pb, j.parent) * j.origin };
+            let origin_rot = DQuat::from_mat3(&origin.matrix3);
+            let frame1 = DAffine3::from_rotation_translation(origin_rot * to_axis, origin.translation);
             let frame2 = DAffine3::from_quat(to_axis);
-            let k = full_q[j.dof.expect("revolute")];
-            let joint = GenericJointBuilder::new(JointAxesMask::LOCKED_REVOLUTE_AXES)
+            let value = m.joint_value(ji, &full_q).expect("a simulated joint moves");
+            let prismatic = j.kind == JointKind::Prismatic;
+            let (locked, axis) = if prismatic {
+                (JointAxesMask::LOCKED_PRISMATIC_AXES, JointAxis::LinX)
+            } else {
+                (JointAxesMask::LOCKED_REVOLUTE_AXES, JointAxis::AngX)
+            };
+            let effort = robot.hand[drive.0].effort.unwrap_or(self.settings.max_torque) as f32;
+            let joint = GenericJointBuilder::new(locked)
                 .local_frame1(to_pose(&frame1))
                 .local_frame2(to_pose(&frame2))
-                .limits(JointAxis::AngX, [j.lower as f32, j.upper as f32])
-                .motor_model(JointAxis::AngX, MotorModel::ForceBased)
-                .motor_position(JointAxis::AngX, k as f32, self.settings.stiffness as f32, self.settings.damping as f32)
-                .motor_max_force(JointAxis::AngX, self.settings.max_torque as f32)
+                .limits(axis, [j.lower as f32, j.upper as f32])
+                .motor_model(axis, MotorModel::ForceBased)
+                .motor_position(axis, value as f32, self.settings.stiffness as f32, self.settings.damping as f32)
+                .motor_max_force(axis, effort)
                 .build();
             let handle =
                 world.insert_multibody_joint(parent, child, joint).with_context(|| format!("cannot add joint {name} to the hand"))?;
-            joints.push(HandJoint { body: child, parent, joint: handle, origin_rot, axis: j.axis, lower: j.lower, upper: j.upper });
+            joints.push(HandJoint {
+                body: child,
+                parent,
+                joint: handle,
+                origin,
+                axis: j.axis,
+                prismatic,
+                lower: j.lower,
+                upper: j.upper,
+                drive,
+            });
         }
-        let phalanx_colliders = phalanx_names().iter().map(|p| link_colliders[m.link_id(p).expect("validated")].clone()).collect();
+        let touch_colliders = robot.touch_links.iter().map(|&l| link_colliders[l].clone()).collect();
         self.world = world;
         self.joints = joints;
         self.hand_colliders = hand_colliders;
-        self.phalanx_colliders = phalanx_colliders;
+        self.touch_colliders = touch_colliders;
         self.object = None;
         self.saved = None;
         Ok(())
+    }
+
+    /// The value of simulated joint `k` from its bodies' poses.
+    fn joint_value(&self, k: usize) -> f64 {
+        let hj = &self.joints[k];
+        let p = from_pose(self.world.bodies[hj.parent].position());
+        let c = from_pose(self.world.bodies[hj.body].position());
+        let rel = p.inverse() * c;
+        if hj.prismatic {
+            // The child's offset from the joint origin, along the axis.
+            return (hj.origin.inverse() * rel).translation.dot(hj.axis);
+        }
+        let q = DQuat::from_mat3(&hj.origin.matrix3).inverse() * DQuat::from_mat3(&rel.matrix3);
+        2.0 * DVec3::new(q.x, q.y, q.z).dot(hj.axis).atan2(q.w)
     }
 
     /// Signed distance (negative = penetration) between a hand collider and the object at their
@@ -230,9 +315,9 @@ impl HandPhysics for RapierHand {
         "rapier"
     }
 
-    fn reset(&mut self, object: &PhysicsObject, object_pose: DAffine3, q: &[f64; 16]) -> Result<()> {
-        // `new` built the 16 joints: their limits clamp the requested values.
-        let q: [f64; 16] = std::array::from_fn(|k| q[k].clamp(self.joints[k].lower, self.joints[k].upper));
+    fn reset(&mut self, object: &PhysicsObject, object_pose: DAffine3, q: &[f64]) -> Result<()> {
+        // `new` built the hand joints first: their limits clamp the requested values.
+        let q: Vec<f64> = q.iter().zip(&self.joints).map(|(v, j)| v.clamp(j.lower, j.upper)).collect();
         self.build(&q)?;
         if self.hull.as_ref().is_none_or(|(pts, _)| *pts != object.points) {
             let pts: Vec<Vec3> = object.points.iter().map(|p| Vec3::from_array(*p)).collect();
@@ -251,14 +336,16 @@ impl HandPhysics for RapierHand {
         Ok(())
     }
 
-    fn set_targets(&mut self, targets: &[f64; 16]) {
+    fn set_targets(&mut self, targets: &[f64]) {
         let (stiffness, damping) = (self.settings.stiffness as f32, self.settings.damping as f32);
-        for (k, hj) in self.joints.iter().enumerate() {
-            let t = targets[k].clamp(hj.lower, hj.upper) as f32;
+        for hj in &self.joints {
+            let (k, multiplier, offset) = hj.drive;
+            let t = (multiplier * targets[k] + offset).clamp(hj.lower, hj.upper) as f32;
+            let axis = if hj.prismatic { JointAxis::LinX } else { JointAxis::AngX };
             if let Some((mb, link)) = self.world.multibody_joints.get_mut(hj.joint)
                 && let Some(l) = mb.link_mut(link)
             {
-                l.joint.data.set_motor_position(JointAxis::AngX, t, stiffness, damping);
+                l.joint.data.set_motor_position(axis, t, stiffness, damping);
             }
         }
     }
@@ -290,20 +377,12 @@ impl HandPhysics for RapierHand {
         from_pose(self.world.bodies[b].position())
     }
 
-    fn joint_positions(&self) -> [f64; 16] {
-        std::array::from_fn(|k| {
-            let hj = &self.joints[k];
-            let p = from_pose(self.world.bodies[hj.parent].position());
-            let c = from_pose(self.world.bodies[hj.body].position());
-            let rel = DQuat::from_mat3(&(p.inverse() * c).matrix3);
-            let q = hj.origin_rot.inverse() * rel;
-            let s = DVec3::new(q.x, q.y, q.z).dot(hj.axis);
-            2.0 * s.atan2(q.w)
-        })
+    fn joint_positions(&self) -> Vec<f64> {
+        (0..self.robot.hand.len()).map(|k| self.joint_value(k)).collect()
     }
 
-    fn phalanx_contacts(&self) -> [Option<f64>; 12] {
-        std::array::from_fn(|p| self.phalanx_colliders[p].iter().filter_map(|&c| self.contact_distance(c)).min_by(f64::total_cmp))
+    fn touch_contacts(&self) -> Vec<Option<f64>> {
+        self.touch_colliders.iter().map(|cs| cs.iter().filter_map(|&c| self.contact_distance(c)).min_by(f64::total_cmp)).collect()
     }
 
     fn max_penetration(&self) -> f64 {

@@ -7,28 +7,50 @@ use anyhow::{Context, Result};
 use glam::{DAffine3, DQuat, DVec3, Vec3};
 use vt_dataset::mask_ids;
 use vt_objects::{Texture, TexturedMesh};
-use vt_robot::{ARM_JOINTS, Geometry, RobotModel, hand_joint_names};
+use vt_robot::{Geometry, Robot, RobotModel};
 
 use crate::assets::robot::{load_hand_meshes, robot_assets_dir, with_real_hand};
 use crate::config::{LoadedConfig, RobotConfig};
 use crate::physics::grasp::{GraspContext, GraspEvent, Trajectory, TrajectoryKey, simulate_trajectory};
 use crate::physics::{HandPhysics, PhysicsObject, PhysicsSettings, RapierHand};
 
-/// Mask id of a robot link (`vt_dataset::mask_ids`): the arm link moved by arm joint k (the base
-/// counts with the first), the palm and adapter, the hand link moved by hand joint k. None: not drawn.
-pub fn mask_id(model: &RobotModel, link: usize) -> Option<u8> {
-    let name = model.links[link].name.as_str();
-    if name == "base_link" {
+/// Mask id of a robot link (`vt_dataset::mask_ids`): the base and the arm link moved by arm joint
+/// k, the hand's body (the links fixed between flange and grasp frame), the hand link moved by
+/// hand joint k (then by each mimic joint), a link fixed below a hand link with that link's id.
+/// None: not drawn (e.g. the flange and links fixed to arm links).
+pub fn mask_id(robot: &Robot, link: usize) -> Option<u8> {
+    let model = &robot.model;
+    if link == robot.base {
         return Some(*mask_ids::ARM_LINKS.start());
     }
-    if name == "palm" || name == "hand_adapter" {
+    if link != robot.flange && model.is_below(link, robot.flange) && !moves_below(model, robot.flange, link) {
         return Some(mask_ids::PALM);
     }
-    let joint = &model.joints[model.links[link].parent_joint?];
-    if let Some(k) = ARM_JOINTS.iter().position(|j| *j == joint.name) {
-        return mask_ids::nth(&mask_ids::ARM_LINKS, k);
+    let j = model.links[link].parent_joint?;
+    if let Some(k) = robot.arm_joints.iter().position(|&a| a == j) {
+        return mask_ids::arm_link(k);
     }
-    hand_joint_names().iter().position(|j| *j == joint.name).and_then(|k| mask_ids::nth(&mask_ids::HAND_LINKS, k))
+    if let Some(k) = robot.hand.iter().position(|h| h.joint == j) {
+        return mask_ids::nth(&mask_ids::HAND_LINKS, k);
+    }
+    if let Some(k) = robot.followers.iter().position(|&f| f == j) {
+        return mask_ids::nth(&mask_ids::HAND_LINKS, robot.hand.len() + k);
+    }
+    let joint = &model.joints[j];
+    if !joint.moves() && model.is_below(link, robot.grasp_frame) { mask_id(robot, joint.parent) } else { None }
+}
+
+/// Whether a moving joint lies between `top` and `link` (below it).
+fn moves_below(model: &RobotModel, top: usize, link: usize) -> bool {
+    let mut l = link;
+    while l != top {
+        let Some(j) = model.links[l].parent_joint else { return false };
+        if model.joints[j].moves() {
+            return true;
+        }
+        l = model.joints[j].parent;
+    }
+    false
 }
 
 /// A link's visual shapes as one mesh (its colours in a small texture, one texel per shape).
@@ -160,7 +182,7 @@ pub struct Simulated {
 /// The robot half of a worker: model and physics. The trajectory being recorded is the sample
 /// stage's (`SampleFactory`), which simulates it when its first sample is made.
 pub struct RobotScene {
-    pub model: RobotModel,
+    pub robot: Robot,
     pub config: RobotConfig,
     pub t_world_base: DAffine3,
     /// The real hand meshes (link frames) when the run has robot assets: the model's hand then
@@ -174,15 +196,17 @@ pub struct RobotScene {
 
 impl RobotScene {
     pub fn new(cfg: &LoadedConfig, robot: &RobotConfig, objects: &[crate::assets::LoadedObject]) -> Result<Self> {
-        let model = match &robot.urdf {
-            Some(p) => RobotModel::from_urdf_file(&cfg.resolve(p))?,
-            None => RobotModel::builtin(),
-        };
-        let hand_meshes = robot_assets_dir(cfg).map(|dir| load_hand_meshes(&dir, &model, None)).transpose()?;
-        let model = match &hand_meshes {
-            Some(hand) => with_real_hand(&model, hand)?,
-            None => model,
-        };
+        let mut model = cfg.robot.clone().context("a config with a robot section has its robot loaded")?;
+        if cfg.robot_assets.is_some() && model.name != "ur5e_allegro" {
+            anyhow::bail!(
+                "robot meshes (--robot-assets or robot.assets) are those of the built-in ur5e_allegro; robot '{}' is drawn from its URDF's shapes: leave them out",
+                model.name
+            );
+        }
+        let hand_meshes = robot_assets_dir(cfg).map(|dir| load_hand_meshes(&dir, &model.model, None)).transpose()?;
+        if let Some(hand) = &hand_meshes {
+            model.model = with_real_hand(&model, hand)?;
+        }
         let pc = &robot.physics;
         let settings = PhysicsSettings::from(pc);
         let physics: Box<dyn HandPhysics> = match pc.backend {
@@ -202,7 +226,7 @@ impl RobotScene {
         );
         let objects = objects.iter().map(|o| PhysicsObject { points: o.mesh.positions.clone(), mass: o.mass }).collect();
         Ok(RobotScene {
-            model,
+            robot: model,
             config: robot.clone(),
             t_world_base,
             hand_meshes,
@@ -226,7 +250,7 @@ impl RobotScene {
     /// trajectory keeps too (`vtgen grasps` reports them).
     pub fn simulate(&mut self, seed: u64, object_index: u32, object_id: &str, trajectory: u32, instances: u32) -> Simulated {
         let ctx = GraspContext {
-            robot: &self.model,
+            robot: &self.robot,
             t_world_base: self.t_world_base,
             config: &self.config.grasp,
             timestep: self.config.physics.timestep,

@@ -1,11 +1,11 @@
-//! Tactile sensing as the paper defines it: a virtual depth camera on every phalanx (origin on the
+//! Tactile sensing as the paper defines it: a virtual depth camera on every pad (origin on the
 //! pad, z out of the finger) sees the object's surface; the pixels within the contact threshold
 //! are back-projected into the **tactile point cloud**, the same whatever the sensor or gripper.
-//! The 12 views are orthographic over each pad and rendered in one batched submission.
+//! The views are orthographic over each pad and rendered in one batched submission.
 
 use anyhow::Result;
 use glam::{DAffine3, DMat4, DVec3};
-use vt_robot::{Geometry, RobotModel, phalanx_names};
+use vt_robot::{Geometry, Robot};
 
 use crate::config::{PadProjection, SensorModel, TactileConfig};
 use crate::render::{DepthView, Draw, Renderer};
@@ -16,52 +16,70 @@ pub struct TactilePoint {
     pub position: DVec3,
     /// Depth from the pad plane (m): the pressure proxy; negative when pressed into the pad.
     pub distance: f64,
-    /// Phalanx index 0..11 (`vt_robot::phalanx_names` order).
+    /// Pad index (`Robot::pads` order).
     pub phalanx: u32,
 }
 
-/// What the 12 phalanx cameras saw in one sample.
+/// One pad as a sample sees it: its sensing area (length, width; m), sensor model, pose (world)
+/// and whether its link touches the object.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PadView {
+    pub size: (f64, f64),
+    pub model: SensorModel,
+    pub t_world_pad: DAffine3,
+    pub touching: bool,
+}
+
+/// What the pad cameras saw in one sample.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TactileReading {
-    /// Per phalanx: `resolution²` z-depths from the pad plane, `+inf` where nothing is in range.
+    /// Per pad: `resolution²` z-depths from the pad plane, `+inf` where nothing is in range.
     pub depth: Vec<Vec<f32>>,
     pub points: Vec<TactilePoint>,
-    pub counts: [u32; 12],
-    /// Time the 12 depth views took to render (the rest of `sense` is point extraction).
+    pub counts: Vec<u32>,
+    /// Time the depth views took to render (the rest of `sense` is point extraction).
     pub render_time: std::time::Duration,
 }
 
-/// Sensing area of each phalanx pad: (length along the finger, width across it), metres. With
-/// primitives: the phalanx's collision box, plus the fingertip sphere on the distal phalanges.
-/// With the real meshes (a convex-hull collision shape): from the joint to the next joint, or to
-/// the end of the fingertip on the distal phalanges, by the mesh's width.
-pub fn pad_sizes(model: &RobotModel) -> [(f64, f64); 12] {
-    let names = phalanx_names();
-    std::array::from_fn(|k| {
-        let id = model.link_id(&names[k]).expect("validated at load");
-        let link = &model.links[id];
-        let (mut len, mut wid) = (0.02, 0.02);
-        for s in &link.collisions {
-            match &s.geometry {
-                Geometry::Box { size } => (len, wid) = (size.z, size.y),
-                Geometry::Sphere { radius } => len += radius,
-                Geometry::Cylinder { .. } => {}
-                Geometry::ConvexHull { points } => {
-                    let next = model.joints.iter().find(|j| j.parent == id && j.kind == vt_robot::JointKind::Revolute);
-                    let (ylo, yhi, zhi) =
-                        points.iter().fold((f64::MAX, f64::MIN, f64::MIN), |(a, b, c), p| (a.min(p.y), b.max(p.y), c.max(p.z)));
-                    (len, wid) = (next.map_or(zhi, |j| j.origin.translation.z), yhi - ylo);
+/// Sensing area of each pad: (length along the pad's x, width along its y), metres. The
+/// description's size when it gives one; else, from the pad link's collision geometry. With
+/// primitives: the collision box, plus the fingertip sphere on the distal phalanges. With the real
+/// meshes (a convex-hull collision shape): from the joint to the next joint, or to the end of the
+/// fingertip on the distal phalanges, by the mesh's width.
+pub fn pad_sizes(robot: &Robot) -> Vec<(f64, f64)> {
+    let model = &robot.model;
+    robot
+        .pads
+        .iter()
+        .map(|pad| {
+            if let Some(size) = pad.size {
+                return size;
+            }
+            let id = pad.link;
+            let link = &model.links[id];
+            let (mut len, mut wid) = (0.02, 0.02);
+            for s in &link.collisions {
+                match &s.geometry {
+                    Geometry::Box { size } => (len, wid) = (size.z, size.y),
+                    Geometry::Sphere { radius } => len += radius,
+                    Geometry::Cylinder { .. } => {}
+                    Geometry::ConvexHull { points } => {
+                        let next = model.joints.iter().find(|j| j.parent == id && j.kind == vt_robot::JointKind::Revolute);
+                        let (ylo, yhi, zhi) =
+                            points.iter().fold((f64::MAX, f64::MIN, f64::MIN), |(a, b, c), p| (a.min(p.y), b.max(p.y), c.max(p.z)));
+                        (len, wid) = (next.map_or(zhi, |j| j.origin.translation.z), yhi - ylo);
+                    }
                 }
             }
-        }
-        (len, wid)
-    })
+            (len, wid)
+        })
+        .collect()
 }
 
 /// Where the finger's real surface lies under each pad pixel: its height along the pad's z (m,
 /// <= 0 behind the pad plane; `-inf` where no finger is under the pixel), `resolution²` per pad,
 /// rows as the pad's depth image. The URDF's flat pads have none: their surface is the plane.
-pub type FingerSurface = [Vec<f32>; 12];
+pub type FingerSurface = Vec<Vec<f32>>;
 
 /// Where pixel (u, v) of an `n x n` pad camera over a pad of `size` (length, width) looks from,
 /// in the pad frame's (x, y) (FORMAT.md, `/tactile/*`).
@@ -96,28 +114,26 @@ pub fn finger_surface(mesh: &vt_objects::TexturedMesh, t_link_pad: &DAffine3, si
 /// contact, and an object hovering within the threshold of an untouched pad is not felt. With
 /// `surface`, a pixel's contact rule applies to the object's distance from the finger's real
 /// surface under it (not from the pad plane): the points are where the finger touches the object.
-#[allow(clippy::too_many_arguments)] // the stage's explicit inputs, passed in rather than held
 pub fn sense(
     renderer: &mut dyn Renderer,
     cfg: &TactileConfig,
-    pads: &[(f64, f64); 12],
-    t_world_pads: &[DAffine3; 12],
-    touching: &[bool; 12],
+    pads: &[PadView],
     surface: Option<&FingerSurface>,
     object: Draw,
     t_camera_world: &DAffine3,
 ) -> Result<TactileReading> {
     let n = cfg.resolution;
     let standoff = (cfg.projection == PadProjection::Perspective).then_some(cfg.perspective_standoff_mm * 1e-3);
-    let views: Vec<DepthView> = (0..12)
-        .map(|k| DepthView {
+    let views: Vec<DepthView> = pads
+        .iter()
+        .map(|pad| DepthView {
             width: n,
             height: n,
-            half_x: pads[k].0 / 2.0,
-            half_y: pads[k].1 / 2.0,
+            half_x: pad.size.0 / 2.0,
+            half_y: pad.size.1 / 2.0,
             near: cfg.near_mm * 1e-3,
             far: cfg.far_mm * 1e-3,
-            t_world_camera: DMat4::from(t_world_pads[k]),
+            t_world_camera: DMat4::from(pad.t_world_pad),
             perspective_standoff: standoff,
         })
         .collect();
@@ -125,21 +141,17 @@ pub fn sense(
     let depth = renderer.render_depth_views(&views, &[object])?;
     let render_time = t0.elapsed();
     let mut points = Vec::new();
-    let mut counts = [0u32; 12];
-    for k in (0..12).filter(|&k| touching[k]) {
-        let to_camera = *t_camera_world * t_world_pads[k];
-        let model = match k % 3 {
-            0 => cfg.sensors.proximal,
-            1 => cfg.sensors.medial,
-            _ => cfg.sensors.distal,
-        };
+    let mut counts = vec![0u32; pads.len()];
+    for (k, pad) in pads.iter().enumerate().filter(|(_, p)| p.touching) {
+        let to_camera = *t_camera_world * pad.t_world_pad;
+        let model = pad.model;
         let above_finger: Option<Vec<f32>> = surface.map(|s| depth[k].iter().zip(&s[k]).map(|(d, h)| d - h).collect());
         let gap = above_finger.as_deref().unwrap_or(&depth[k]);
         for (u, v) in contact_pixels(gap, n, model, cfg.contact_threshold_mm * 1e-3) {
             let d = depth[k][(v * n + u) as usize] as f64;
             // The pixel's ray meets the pad plane at (x, y); a pinhole's ray spreads with depth.
             let spread = standoff.map_or(1.0, |s| (s + d) / s);
-            let (x, y) = pad_pixel(u, v, n, pads[k]);
+            let (x, y) = pad_pixel(u, v, n, pad.size);
             let (x, y) = (x * spread, y * spread);
             points.push(TactilePoint { position: to_camera.transform_point3(DVec3::new(x, y, d)), distance: d, phalanx: k as u32 });
             counts[k] += 1;
@@ -193,18 +205,26 @@ mod tests {
         })
     }
 
+    /// The 12 pads 2 x 1 cm, touching, their models the config's by phalanx (proximal, medial,
+    /// distal per finger).
+    fn views(cfg: &TactileConfig, t_world_pads: &[DAffine3; 12]) -> Vec<PadView> {
+        let groups = [vt_robot::PadGroup::Proximal, vt_robot::PadGroup::Medial, vt_robot::PadGroup::Distal];
+        (0..12)
+            .map(|k| PadView { size: (0.02, 0.01), model: cfg.sensors.of(groups[k % 3]), t_world_pad: t_world_pads[k], touching: true })
+            .collect()
+    }
+
     #[test]
     fn a_surface_within_the_threshold_gives_points_on_it_and_one_beyond_gives_none() {
         // The object's surface is the plane z = 0.099: 1 mm under the even pads (contact), 4 mm
         // under the odd ones (over the 2 mm threshold).
         let mut renderer = PlaneRenderer::new(0.099);
         let cfg = TactileConfig { resolution: 16, ..TactileConfig::default() };
-        let sizes = [(0.02, 0.01); 12];
         let t_world_pads = pads(|k| if k % 2 == 0 { 0.0 } else { 0.003 });
         let object = Draw { mesh: MeshHandle(0), t_world_model: DMat4::IDENTITY, mask_id: 1, role: DrawRole::Target };
         // Points come out in the frame `t_camera_world` maps to: a camera 1 m above, looking down.
         let t_world_camera = DAffine3::from_rotation_translation(DQuat::from_rotation_x(std::f64::consts::PI), DVec3::new(0.0, 0.0, 1.0));
-        let r = sense(&mut renderer, &cfg, &sizes, &t_world_pads, &[true; 12], None, object, &t_world_camera.inverse()).unwrap();
+        let r = sense(&mut renderer, &cfg, &views(&cfg, &t_world_pads), None, object, &t_world_camera.inverse()).unwrap();
         for k in 0..12 {
             assert_eq!(r.counts[k], if k % 2 == 0 { 256 } else { 0 }, "pad {k}");
             assert_eq!(r.depth[k].len(), 256);
@@ -223,7 +243,7 @@ mod tests {
             sensors: crate::config::SensorGroups { proximal: SensorModel::TaxelArray { rows: 4, cols: 2 }, ..cfg.sensors },
             ..cfg.clone()
         };
-        let r = sense(&mut renderer, &taxels, &sizes, &t_world_pads, &[true; 12], None, object, &t_world_camera.inverse()).unwrap();
+        let r = sense(&mut renderer, &taxels, &views(&taxels, &t_world_pads), None, object, &t_world_camera.inverse()).unwrap();
         // Proximal pads are 0, 3, 6, 9: in contact are 0 and 6.
         assert_eq!([r.counts[0], r.counts[3], r.counts[6], r.counts[9]], [8, 0, 8, 0]);
         assert!(r.points.iter().all(|p| (t_world_camera.transform_point3(p.position).z - 0.099).abs() < 1e-6));

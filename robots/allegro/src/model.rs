@@ -2,8 +2,6 @@ use std::collections::HashMap;
 
 use glam::{DAffine3, DQuat, DVec3};
 
-use crate::{ARM_JOINTS, PALM, hand_joint_names, phalanx_names};
-
 /// A robot description that cannot be used; names what is wrong.
 #[derive(Debug, thiserror::Error)]
 #[error("robot description {source_name}: {message}")]
@@ -54,7 +52,17 @@ pub struct Link {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum JointKind {
     Revolute,
+    Prismatic,
     Fixed,
+}
+
+/// A URDF `<mimic>`: this joint's value is `multiplier * leader + offset` (the leader is a joint
+/// with a degree of freedom of its own).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Mimic {
+    pub leader: usize,
+    pub multiplier: f64,
+    pub offset: f64,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -70,12 +78,20 @@ pub struct Joint {
     pub upper: f64,
     pub effort: f64,
     pub velocity: f64,
-    /// Position in the robot's vector of joint values (revolute joints only).
+    /// Position in the robot's vector of joint values (moving joints that mimic no other).
     pub dof: Option<usize>,
+    pub mimic: Option<Mimic>,
 }
 
-/// The kinematic model. Joint values are a `Vec<f64>` with one entry per revolute joint, in the
-/// order of [`RobotModel::dof_names`].
+impl Joint {
+    /// Revolute or prismatic.
+    pub fn moves(&self) -> bool {
+        self.kind != JointKind::Fixed
+    }
+}
+
+/// The kinematic model. Joint values are a `Vec<f64>` with one entry per moving joint that mimics
+/// no other, in the order of [`RobotModel::dof_names`].
 #[derive(Debug, Clone)]
 pub struct RobotModel {
     pub links: Vec<Link>,
@@ -100,11 +116,6 @@ pub fn xyz_rpy(xyz: [f64; 3], rpy: [f64; 3]) -> DAffine3 {
 }
 
 impl RobotModel {
-    /// The built-in UR5e + Allegro description.
-    pub fn builtin() -> Self {
-        Self::from_urdf_str(crate::BUILTIN_URDF, "built-in ur5e_allegro.urdf").expect("the built-in URDF is valid (unit-tested)")
-    }
-
     pub fn from_urdf_file(path: &std::path::Path) -> Result<Self, RobotError> {
         let text = std::fs::read_to_string(path)
             .map_err(|e| RobotError { source_name: path.display().to_string(), message: format!("cannot read: {e}") })?;
@@ -165,20 +176,24 @@ impl RobotModel {
             let (parent, child) = (find(&j.parent.link, "parent")?, find(&j.child.link, "child")?);
             let kind = match j.joint_type {
                 urdf_rs::JointType::Revolute | urdf_rs::JointType::Continuous => JointKind::Revolute,
+                urdf_rs::JointType::Prismatic => JointKind::Prismatic,
                 urdf_rs::JointType::Fixed => JointKind::Fixed,
                 ref other => {
-                    return Err(err(format!("joint '{}': type {other:?} is not supported (revolute, continuous, fixed)", j.name)));
+                    return Err(err(format!(
+                        "joint '{}': type {other:?} is not supported (revolute, continuous, prismatic, fixed)",
+                        j.name
+                    )));
                 }
             };
             let (mut lower, mut upper) = (j.limit.lower, j.limit.upper);
             if j.joint_type == urdf_rs::JointType::Continuous {
                 (lower, upper) = (f64::NEG_INFINITY, f64::INFINITY);
             }
-            if kind == JointKind::Revolute && !(lower <= upper) {
+            if kind != JointKind::Fixed && !(lower <= upper) {
                 return Err(err(format!("joint '{}': lower limit {lower} is above upper limit {upper}", j.name)));
             }
             let axis = DVec3::from_array(j.axis.xyz.0);
-            if kind == JointKind::Revolute && !(axis.length() > 1e-9) {
+            if kind != JointKind::Fixed && !(axis.length() > 1e-9) {
                 return Err(err(format!("joint '{}': axis is zero", j.name)));
             }
             if links[child].parent_joint.is_some() {
@@ -198,20 +213,38 @@ impl RobotModel {
                 effort: j.limit.effort,
                 velocity: j.limit.velocity,
                 dof: None,
+                mimic: None,
             });
+        }
+        // Mimics refer to joints by name: resolved once every joint is known.
+        for j in &urdf.joints {
+            let Some(m) = &j.mimic else { continue };
+            let Some(&leader) = joint_index.get(&m.joint) else {
+                return Err(err(format!("joint '{}': <mimic joint=\"{}\"> names a joint that does not exist", j.name, m.joint)));
+            };
+            let follower = joint_index[&j.name];
+            if joints[follower].kind == JointKind::Fixed {
+                return Err(err(format!("joint '{}': a fixed joint cannot mimic another", j.name)));
+            }
+            if !joints[leader].moves() || urdf.joints.iter().any(|o| o.name == m.joint && o.mimic.is_some()) {
+                return Err(err(format!("joint '{}': mimics '{}', which does not move on its own", j.name, m.joint)));
+            }
+            let (multiplier, offset) = (m.multiplier.unwrap_or(1.0), m.offset.unwrap_or(0.0));
+            if !(multiplier.is_finite() && offset.is_finite()) {
+                return Err(err(format!("joint '{}': mimic multiplier and offset must be finite numbers", j.name)));
+            }
+            joints[follower].mimic = Some(Mimic { leader, multiplier, offset });
         }
         let (root, joints, joint_index) = topological_order(&mut links, joints, joint_index).map_err(err)?;
         let mut joints = joints;
         let mut dofs = Vec::new();
         for (i, j) in joints.iter_mut().enumerate() {
-            if j.kind == JointKind::Revolute {
+            if j.moves() && j.mimic.is_none() {
                 j.dof = Some(dofs.len());
                 dofs.push(i);
             }
         }
-        let model = RobotModel { links, joints, root, dofs, link_index, joint_index };
-        model.check_required().map_err(err)?;
-        Ok(model)
+        Ok(RobotModel { links, joints, root, dofs, link_index, joint_index })
     }
 
     /// This model with the collision shapes of the given links replaced by the convex hull of
@@ -228,6 +261,42 @@ impl RobotModel {
         m
     }
 
+    /// Adds a massless link without geometry fixed to `parent` at `origin` (a sensor pad's frame).
+    pub fn add_fixed_link(&mut self, parent: usize, name: &str, origin: DAffine3) -> Result<usize, String> {
+        if self.link_index.contains_key(name) {
+            return Err(format!("a link named '{name}' exists already"));
+        }
+        let link = self.links.len();
+        let joint = self.joints.len();
+        self.links.push(Link {
+            name: name.to_string(),
+            mass: 0.0,
+            com: DVec3::ZERO,
+            visuals: Vec::new(),
+            collisions: Vec::new(),
+            parent_joint: Some(joint),
+        });
+        self.link_index.insert(name.to_string(), link);
+        let joint_name = format!("{name}_joint");
+        self.joint_index.insert(joint_name.clone(), joint);
+        // Appended last: still after its parent's joint, as the topological order requires.
+        self.joints.push(Joint {
+            name: joint_name,
+            kind: JointKind::Fixed,
+            parent,
+            child: link,
+            origin,
+            axis: DVec3::Z,
+            lower: 0.0,
+            upper: 0.0,
+            effort: 0.0,
+            velocity: 0.0,
+            dof: None,
+            mimic: None,
+        });
+        Ok(link)
+    }
+
     /// Moves a fixed child link (a sensor pad) to `origin` in its parent link's frame.
     pub fn set_fixed_link_origin(&mut self, link: &str, origin: DAffine3) -> Result<(), String> {
         let id = self.link_id(link).ok_or_else(|| format!("no link '{link}'"))?;
@@ -236,28 +305,6 @@ impl RobotModel {
             return Err(format!("link '{link}' is not fixed to its parent"));
         }
         self.joints[j].origin = origin;
-        Ok(())
-    }
-
-    /// What vtgen relies on: the arm chain, the palm, the flange, the 16 hand joints and the 12
-    /// phalanges with their pads.
-    fn check_required(&self) -> Result<(), String> {
-        for name in ARM_JOINTS.iter().map(|s| s.to_string()).chain(hand_joint_names()) {
-            match self.joint(&name) {
-                Some(j) if j.kind == JointKind::Revolute => {}
-                Some(_) => return Err(format!("joint '{name}' must be revolute")),
-                None => return Err(format!("required joint '{name}' is missing")),
-            }
-        }
-        for name in [PALM.to_string(), "flange".to_string()]
-            .into_iter()
-            .chain(phalanx_names())
-            .chain(phalanx_names().into_iter().map(|p| format!("{p}_pad")))
-        {
-            if self.link(&name).is_none() {
-                return Err(format!("required link '{name}' is missing"));
-            }
-        }
         Ok(())
     }
 
@@ -273,7 +320,11 @@ impl RobotModel {
         self.joint_index.get(name).map(|&i| &self.joints[i])
     }
 
-    /// Number of revolute joints (entries of a joint-value vector).
+    pub fn joint_id(&self, name: &str) -> Option<usize> {
+        self.joint_index.get(name).copied()
+    }
+
+    /// Number of entries of a joint-value vector.
     pub fn dof_count(&self) -> usize {
         self.dofs.len()
     }
@@ -282,7 +333,7 @@ impl RobotModel {
         self.dofs.iter().map(|&j| self.joints[j].name.as_str()).collect()
     }
 
-    /// Index in the joint-value vector of a revolute joint.
+    /// Index in the joint-value vector of a joint that moves on its own.
     pub fn dof(&self, joint: &str) -> Option<usize> {
         self.joint(joint).and_then(|j| j.dof)
     }
@@ -292,18 +343,31 @@ impl RobotModel {
         self.dofs.iter().map(|&j| 0.0f64.clamp(self.joints[j].lower, self.joints[j].upper)).collect()
     }
 
-    /// The joint's transform for value `q`: origin, then rotation about the axis.
+    /// The value of joint `joint` in the joint-value vector `q` (a mimic joint's from its
+    /// leader's); None for a fixed joint.
+    pub fn joint_value(&self, joint: usize, q: &[f64]) -> Option<f64> {
+        let j = &self.joints[joint];
+        match (j.dof, j.mimic) {
+            (Some(d), _) => Some(q[d]),
+            (None, Some(m)) => Some(m.multiplier * q[self.joints[m.leader].dof.expect("a leader has a dof")] + m.offset),
+            (None, None) => None,
+        }
+    }
+
+    /// The joint's transform for value `q`: origin, then rotation about (revolute) or translation
+    /// along (prismatic) the axis.
     pub fn joint_transform(&self, joint: usize, q: &[f64]) -> DAffine3 {
         let j = &self.joints[joint];
-        match j.dof {
-            Some(d) => j.origin * DAffine3::from_quat(DQuat::from_axis_angle(j.axis, q[d])),
-            None => j.origin,
+        match (self.joint_value(joint, q), j.kind) {
+            (Some(v), JointKind::Revolute) => j.origin * DAffine3::from_quat(DQuat::from_axis_angle(j.axis, v)),
+            (Some(v), JointKind::Prismatic) => j.origin * DAffine3::from_translation(j.axis * v),
+            _ => j.origin,
         }
     }
 
     /// Pose of every link in the root (robot base) frame.
     pub fn forward_kinematics(&self, q: &[f64]) -> Vec<DAffine3> {
-        assert_eq!(q.len(), self.dofs.len(), "one value per revolute joint");
+        assert_eq!(q.len(), self.dofs.len(), "one value per joint with a degree of freedom");
         let mut out = vec![DAffine3::IDENTITY; self.links.len()];
         for (i, j) in self.joints.iter().enumerate() {
             out[j.child] = out[j.parent] * self.joint_transform(i, q);
@@ -373,6 +437,11 @@ fn topological_order(
     for (new, &old) in order.iter().enumerate() {
         remap[old] = new;
         sorted.push(joints[old].clone());
+    }
+    for j in sorted.iter_mut() {
+        if let Some(m) = j.mimic.as_mut() {
+            m.leader = remap[m.leader];
+        }
     }
     for l in links.iter_mut() {
         l.parent_joint = l.parent_joint.map(|j| remap[j]);

@@ -1,0 +1,461 @@
+//! The robot description: the short YAML file beside a URDF that names what the URDF cannot say
+//! (docs/robots.md): the arm's chain and home, the grasp frame and the kind of grasp, the hand's
+//! joints with their preshape ranges and closing targets, and the tactile pads. [`Robot`] is a
+//! URDF model checked against its description, with every name resolved to an index once.
+
+use std::path::{Path, PathBuf};
+
+use glam::DAffine3;
+use serde::Deserialize;
+
+use crate::model::{RobotError, RobotModel, xyz_rpy};
+
+/// How the grasp loop takes hold of an object.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum GraspKind {
+    /// The object is placed on the open palm (the grasp frame's +x is the palmar normal), the hand
+    /// takes a random preshape and closes around it: the multi-finger hands.
+    Palm,
+}
+
+/// Which of the tactile config's sensor groups (`robot.tactile.sensors`) a pad's model comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PadGroup {
+    Proximal,
+    Medial,
+    Distal,
+}
+
+/// The description file as written (see `robots/allegro/ur5e_allegro.yaml`).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Description {
+    /// The robot's name, as datasets record it.
+    pub name: String,
+    /// The URDF, relative to the description file (a config's `robot.urdf` overrides it).
+    #[serde(default)]
+    pub urdf: Option<PathBuf>,
+    pub arm: ArmSpec,
+    pub grasp: GraspSpec,
+    /// The hand's or gripper's joints that move on their own, in the order joint arrays use.
+    /// Joints that `<mimic>` one of them follow it and are not listed.
+    pub hand: Vec<HandJointSpec>,
+    pub pads: Vec<PadSpec>,
+    /// Links whose contact with the object counts as touching (default: the pads' links).
+    #[serde(default)]
+    pub touch_links: Option<Vec<String>>,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ArmSpec {
+    /// The chain's first link (the robot's base) and last (the flange the hand is mounted on).
+    pub base: String,
+    pub flange: String,
+    /// Arm joint values (rad or m, base to flange) the inverse kinematics starts from.
+    pub home: Vec<f64>,
+    /// Where the grasp frame lies, seen from above, relative to the first arm joint's angle
+    /// (rad): the inverse kinematics' retries turn that joint towards a target's azimuth with it.
+    /// Default: measured from the model at `home`.
+    #[serde(default)]
+    pub azimuth_offset: Option<f64>,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GraspSpec {
+    /// The link the grasp is planned in and the physics simulates the hand in (the palm).
+    pub frame: String,
+    pub kind: GraspKind,
+    /// A grasp holds, and a pose is recorded, only with at least this many touch links touching.
+    pub min_touching: usize,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HandJointSpec {
+    pub joint: String,
+    /// The random preshape's range (rad, or m for a prismatic joint).
+    pub preshape: (f64, f64),
+    /// The closing target; null keeps the preshape value (e.g. ab/adduction).
+    pub close: Option<f64>,
+    /// Torque (N·m) or force (N) limit of the joint's drive (default: `robot.physics.max_torque`).
+    #[serde(default)]
+    pub effort: Option<f64>,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PadSpec {
+    /// The pad's name: its topics are `/tactile/<name>/...`.
+    pub name: String,
+    /// The link the pad is on (it moves with it; its contacts gate the pad's points).
+    pub link: String,
+    /// The pad frame (FORMAT.md, `/tactile/*`): a URDF link fixed to `link`, or an `origin`
+    /// in `link`'s frame. One of the two.
+    #[serde(default)]
+    pub frame: Option<String>,
+    #[serde(default)]
+    pub origin: Option<OriginSpec>,
+    /// Sensing area (length along the pad's x, width along its y; m). Default: from the link's
+    /// collision geometry.
+    #[serde(default)]
+    pub size: Option<[f64; 2]>,
+    /// The sensor group whose model the pad uses (default: distal).
+    #[serde(default = "default_group")]
+    pub group: PadGroup,
+}
+
+fn default_group() -> PadGroup {
+    PadGroup::Distal
+}
+
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OriginSpec {
+    pub xyz: [f64; 3],
+    #[serde(default)]
+    pub rpy: [f64; 3],
+}
+
+/// A hand joint that moves on its own.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HandJoint {
+    pub name: String,
+    /// Index in `model.joints`, and in the joint-value vector.
+    pub joint: usize,
+    pub dof: usize,
+    pub preshape: (f64, f64),
+    pub close: Option<f64>,
+    pub effort: Option<f64>,
+}
+
+/// A tactile pad.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Pad {
+    pub name: String,
+    /// The link it is on, and its frame (a link fixed to it).
+    pub link: usize,
+    pub frame: usize,
+    pub size: Option<(f64, f64)>,
+    pub group: PadGroup,
+}
+
+/// A URDF model with its description, every name resolved.
+#[derive(Debug, Clone)]
+pub struct Robot {
+    pub name: String,
+    pub model: RobotModel,
+    /// Moving joints from the base to the flange, and their entries in the joint-value vector.
+    pub arm_joints: Vec<usize>,
+    pub arm_dofs: Vec<usize>,
+    pub base: usize,
+    pub flange: usize,
+    pub home: Vec<f64>,
+    pub azimuth_offset: f64,
+    pub grasp_frame: usize,
+    pub kind: GraspKind,
+    pub min_touching: usize,
+    pub hand: Vec<HandJoint>,
+    /// The joints below the grasp frame that mimic a hand joint (they follow it).
+    pub followers: Vec<usize>,
+    pub pads: Vec<Pad>,
+    pub touch_links: Vec<usize>,
+}
+
+/// The robots vtgen carries, chosen by name (`robot.model`).
+pub const BUILTIN_ROBOTS: [&str; 1] = ["ur5e_allegro"];
+
+/// A built-in robot's URDF and description texts.
+fn builtin_texts(name: &str) -> Option<(&'static str, &'static str)> {
+    match name {
+        "ur5e_allegro" => Some((crate::BUILTIN_URDF, include_str!("../ur5e_allegro.yaml"))),
+        _ => None,
+    }
+}
+
+/// A built-in robot's description text.
+pub fn builtin_description(name: &str) -> Option<&'static str> {
+    builtin_texts(name).map(|t| t.1)
+}
+
+impl Robot {
+    /// A built-in robot by name (`BUILTIN_ROBOTS`).
+    pub fn builtin(name: &str) -> Result<Self, RobotError> {
+        match builtin_texts(name) {
+            Some((urdf, description)) => {
+                Robot::from_texts(urdf, &format!("built-in {name}.urdf"), description, &format!("built-in {name}.yaml"))
+            }
+            None => Err(RobotError {
+                source_name: "robot.model".into(),
+                message: format!("no built-in robot '{name}' (built in: {})", BUILTIN_ROBOTS.join(", ")),
+            }),
+        }
+    }
+
+    /// The default robot: the UR5e with the Allegro hand.
+    pub fn allegro() -> Self {
+        Robot::builtin("ur5e_allegro").expect("the built-in robot is valid (unit-tested)")
+    }
+
+    /// Reads a description file and its URDF (`urdf`, or the one the description names relative
+    /// to itself).
+    pub fn from_files(description: &Path, urdf: Option<&Path>) -> Result<Self, RobotError> {
+        let read = |p: &Path| {
+            std::fs::read_to_string(p)
+                .map_err(|e| RobotError { source_name: p.display().to_string(), message: format!("cannot read: {e}") })
+        };
+        let text = read(description)?;
+        let desc = parse(&text, &description.display().to_string())?;
+        let urdf_path = match (urdf, &desc.urdf) {
+            (Some(u), _) => u.to_path_buf(),
+            (None, Some(u)) => description.parent().unwrap_or(Path::new(".")).join(u),
+            (None, None) => {
+                return Err(RobotError {
+                    source_name: description.display().to_string(),
+                    message: "urdf: no URDF named (here or in the config's robot.urdf)".into(),
+                });
+            }
+        };
+        let model = RobotModel::from_urdf_str(&read(&urdf_path)?, &urdf_path.display().to_string())?;
+        Robot::resolve(model, desc, &description.display().to_string())
+    }
+
+    /// A URDF and a description given as text (names are for errors).
+    pub fn from_texts(urdf: &str, urdf_name: &str, description: &str, description_name: &str) -> Result<Self, RobotError> {
+        let model = RobotModel::from_urdf_str(urdf, urdf_name)?;
+        Robot::resolve(model, parse(description, description_name)?, description_name)
+    }
+
+    /// The URDF model checked against the description; errors name the description's field.
+    // Long on purpose: one check per field, in the order the file has them.
+    pub fn resolve(mut model: RobotModel, desc: Description, source_name: &str) -> Result<Self, RobotError> {
+        let err =
+            |field: &str, message: String| RobotError { source_name: source_name.to_string(), message: format!("{field}: {message}") };
+        let link = |model: &RobotModel, field: &str, name: &str| {
+            model.link_id(name).ok_or_else(|| err(field, format!("no link '{name}' in the URDF")))
+        };
+        let base = link(&model, "arm.base", &desc.arm.base)?;
+        let flange = link(&model, "arm.flange", &desc.arm.flange)?;
+        let Some(chain) = path_down(&model, base, flange) else {
+            return Err(err("arm", format!("'{}' is not below '{}': the arm is not one serial chain", desc.arm.flange, desc.arm.base)));
+        };
+        let arm_joints: Vec<usize> = chain.into_iter().filter(|&j| model.joints[j].moves()).collect();
+        if let Some(&j) = arm_joints.iter().find(|&&j| model.joints[j].mimic.is_some()) {
+            return Err(err("arm", format!("joint '{}' mimics another: arm joints move on their own", model.joints[j].name)));
+        }
+        if !(6..=7).contains(&arm_joints.len()) {
+            return Err(err("arm", format!("the chain from base to flange has {} moving joints; 6 or 7 are supported", arm_joints.len())));
+        }
+        let arm_dofs: Vec<usize> = arm_joints.iter().map(|&j| model.joints[j].dof.expect("moving, no mimic")).collect();
+        if desc.arm.home.len() != arm_joints.len() {
+            return Err(err("arm.home", format!("{} values for {} arm joints", desc.arm.home.len(), arm_joints.len())));
+        }
+        let grasp_frame = link(&model, "grasp.frame", &desc.grasp.frame)?;
+        match path_down(&model, flange, grasp_frame) {
+            Some(p) if p.iter().all(|&j| !model.joints[j].moves()) => {}
+            Some(_) => {
+                return Err(err("grasp.frame", format!("'{}' moves against the flange: a joint between them moves", desc.grasp.frame)));
+            }
+            None => {
+                return Err(err(
+                    "grasp.frame",
+                    format!("'{}' is not fixed below the flange '{}' (no joint chain connects them)", desc.grasp.frame, desc.arm.flange),
+                ));
+            }
+        }
+        let mut hand = Vec::new();
+        for (i, h) in desc.hand.iter().enumerate() {
+            let field = format!("hand[{i}].joint");
+            let j = model.joint_id(&h.joint).ok_or_else(|| err(&field, format!("no joint '{}' in the URDF", h.joint)))?;
+            let joint = &model.joints[j];
+            if joint.mimic.is_some() {
+                return Err(err(&field, format!("'{}' mimics another joint: list the joint it follows", h.joint)));
+            }
+            let Some(dof) = joint.dof else { return Err(err(&field, format!("'{}' is fixed", h.joint))) };
+            if !model.is_below(joint.child, grasp_frame) {
+                return Err(err(&field, format!("'{}' is not below the grasp frame '{}'", h.joint, desc.grasp.frame)));
+            }
+            if hand.iter().any(|o: &HandJoint| o.joint == j) {
+                return Err(err(&field, format!("'{}' is listed twice", h.joint)));
+            }
+            if !(h.preshape.0 <= h.preshape.1) {
+                return Err(err(
+                    &format!("hand[{i}].preshape"),
+                    format!("[{}, {}] is not a range (low first)", h.preshape.0, h.preshape.1),
+                ));
+            }
+            if let Some(e) = h.effort
+                && !(e > 0.0 && e.is_finite())
+            {
+                return Err(err(&format!("hand[{i}].effort"), format!("{e} must be a positive number")));
+            }
+            hand.push(HandJoint { name: h.joint.clone(), joint: j, dof, preshape: h.preshape, close: h.close, effort: h.effort });
+        }
+        if hand.is_empty() {
+            return Err(err("hand", "no joints: a hand or gripper needs at least one".into()));
+        }
+        let mut followers = Vec::new();
+        for (j, joint) in model.joints.iter().enumerate() {
+            if !joint.moves() || !model.is_below(joint.child, grasp_frame) || hand.iter().any(|h| h.joint == j) {
+                continue;
+            }
+            match joint.mimic {
+                Some(m) if hand.iter().any(|h| h.joint == m.leader) => followers.push(j),
+                _ => {
+                    return Err(err(
+                        "hand",
+                        format!("joint '{}' moves below the grasp frame but is neither listed nor a <mimic> of a listed joint", joint.name),
+                    ));
+                }
+            }
+        }
+        let mut pads = Vec::new();
+        for (i, p) in desc.pads.iter().enumerate() {
+            let at = |f: &str| format!("pads[{i}].{f}");
+            let on = link(&model, &at("link"), &p.link)?;
+            if !model.is_below(on, grasp_frame) {
+                return Err(err(&at("link"), format!("'{}' is not part of the hand (below the grasp frame)", p.link)));
+            }
+            if pads.iter().any(|o: &Pad| o.name == p.name) || p.name.is_empty() || p.name.contains('/') {
+                return Err(err(&at("name"), format!("'{}' must be unique, not empty and without '/'", p.name)));
+            }
+            let frame = match (&p.frame, &p.origin) {
+                (Some(f), None) => {
+                    let id = link(&model, &at("frame"), f)?;
+                    match model.links[id].parent_joint {
+                        Some(j) if model.joints[j].parent == on && !model.joints[j].moves() => id,
+                        _ => return Err(err(&at("frame"), format!("'{f}' is not a link fixed to '{}'", p.link))),
+                    }
+                }
+                (None, Some(o)) => {
+                    model.add_fixed_link(on, &format!("{}_pad", p.name), xyz_rpy(o.xyz, o.rpy)).map_err(|m| err(&at("origin"), m))?
+                }
+                _ => return Err(err(&at("frame"), "give either a frame link or an origin".into())),
+            };
+            let size = match p.size {
+                Some([l, w]) if l > 0.0 && w > 0.0 && l.is_finite() && w.is_finite() => Some((l, w)),
+                Some(s) => return Err(err(&at("size"), format!("{s:?}: length and width must be positive (m)"))),
+                None => None,
+            };
+            pads.push(Pad { name: p.name.clone(), link: on, frame, size, group: p.group });
+        }
+        if pads.is_empty() {
+            return Err(err("pads", "no pads: the tactile point cloud needs at least one".into()));
+        }
+        let touch_links = match &desc.touch_links {
+            Some(names) => names
+                .iter()
+                .enumerate()
+                .map(|(i, n)| {
+                    let id = link(&model, &format!("touch_links[{i}]"), n)?;
+                    if model.is_below(id, grasp_frame) {
+                        Ok(id)
+                    } else {
+                        Err(err(&format!("touch_links[{i}]"), format!("'{n}' is not part of the hand")))
+                    }
+                })
+                .collect::<Result<Vec<_>, _>>()?,
+            None => {
+                let mut v: Vec<usize> = Vec::new();
+                for p in &pads {
+                    if !v.contains(&p.link) {
+                        v.push(p.link);
+                    }
+                }
+                v
+            }
+        };
+        if desc.grasp.min_touching == 0 || desc.grasp.min_touching > touch_links.len() {
+            return Err(err(
+                "grasp.min_touching",
+                format!("{} is not within 1 ..= the {} touch links", desc.grasp.min_touching, touch_links.len()),
+            ));
+        }
+        let mut robot = Robot {
+            name: desc.name,
+            model,
+            arm_joints,
+            arm_dofs,
+            base,
+            flange,
+            home: desc.arm.home,
+            azimuth_offset: 0.0,
+            grasp_frame,
+            kind: desc.grasp.kind,
+            min_touching: desc.grasp.min_touching,
+            hand,
+            followers,
+            pads,
+            touch_links,
+        };
+        robot.azimuth_offset = match desc.arm.azimuth_offset {
+            Some(a) => a,
+            None => robot.measured_azimuth_offset(),
+        };
+        Ok(robot)
+    }
+
+    /// The grasp frame's azimuth minus the first arm joint's angle, at home.
+    fn measured_azimuth_offset(&self) -> f64 {
+        let q = self.home_q();
+        let p = self.grasp_frame_pose(&q).translation;
+        p.y.atan2(p.x) - q[self.arm_dofs[0]]
+    }
+
+    /// Joint values at zero (within limits) with the arm at home.
+    pub fn home_q(&self) -> Vec<f64> {
+        let mut q = self.model.zero();
+        for (&d, &v) in self.arm_dofs.iter().zip(&self.home) {
+            q[d] = v;
+        }
+        q
+    }
+
+    /// Pose of the grasp frame (the palm) in the robot base frame.
+    pub fn grasp_frame_pose(&self, q: &[f64]) -> DAffine3 {
+        self.model.relative_pose(q, self.model.root, self.grasp_frame)
+    }
+
+    pub fn hand_joint_names(&self) -> Vec<String> {
+        self.hand.iter().map(|h| h.name.clone()).collect()
+    }
+
+    pub fn pad_names(&self) -> Vec<String> {
+        self.pads.iter().map(|p| p.name.clone()).collect()
+    }
+
+    pub fn touch_link_names(&self) -> Vec<String> {
+        self.touch_links.iter().map(|&l| self.model.links[l].name.clone()).collect()
+    }
+
+    /// Writes the hand's joint values (`hand` order) into a whole joint-value vector.
+    pub fn set_hand(&self, q: &mut [f64], hand: &[f64]) {
+        for (h, v) in self.hand.iter().zip(hand) {
+            q[h.dof] = *v;
+        }
+    }
+}
+
+/// The description's YAML; errors name the file, line and field (serde's path).
+fn parse(text: &str, source_name: &str) -> Result<Description, RobotError> {
+    serde_yaml::from_str(text).map_err(|e| {
+        let at = e.location().map(|l| format!("line {}: ", l.line())).unwrap_or_default();
+        RobotError { source_name: source_name.to_string(), message: format!("{at}{e}") }
+    })
+}
+
+/// The joints from `top` down to `link` (in order), or None when `link` is not below `top`.
+fn path_down(model: &RobotModel, top: usize, link: usize) -> Option<Vec<usize>> {
+    let mut joints = Vec::new();
+    let mut l = link;
+    while l != top {
+        let j = model.links[l].parent_joint?;
+        joints.push(j);
+        l = model.joints[j].parent;
+    }
+    joints.reverse();
+    Some(joints)
+}
