@@ -10,6 +10,7 @@ mod determinism;
 mod foxglove_scene;
 mod grasping;
 mod ground_truth;
+mod own_robot;
 mod render_geometry;
 mod robot_meshes;
 mod scale_out;

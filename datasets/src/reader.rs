@@ -248,7 +248,9 @@ impl ShardReader {
     pub fn read(&self, index: u64) -> Result<Sample> {
         let ctx = || format!("shard {} sample {index}", self.path.display());
         let ci = *self.chunks.get(&index).ok_or_else(|| anyhow!("{}: not in this shard", ctx()))?;
-        let by_topic: BTreeMap<String, Vec<u8>> = self.chunk_messages(ci).with_context(ctx)?.into_iter().collect();
+        // In the order the writer wrote them (the pads' order), and by topic.
+        let messages = self.chunk_messages(ci).with_context(ctx)?;
+        let by_topic: BTreeMap<String, Vec<u8>> = messages.iter().cloned().collect();
         let get = |topic: &str| by_topic.get(topic).ok_or_else(|| anyhow!("{}: missing message on {topic}", ctx()));
         let rgb = RawImage::decode(&get(topics::RGB)?[..]).with_context(ctx)?;
         let depth = RawImage::decode(&get(topics::DEPTH)?[..]).with_context(ctx)?;
@@ -322,14 +324,15 @@ impl ShardReader {
                 })
                 .map(|t| Ok((t.parent_frame_id.clone(), t.child_frame_id.clone(), to_pose(t.translation, t.rotation)?)))
                 .collect::<Result<_>>()?,
-            tactile: read_tactile(&by_topic).with_context(ctx)?,
+            tactile: read_tactile(&by_topic, &messages).with_context(ctx)?,
             info,
         })
     }
 }
 
-/// The tactile topics of a sample, if it has them.
-fn read_tactile(by_topic: &BTreeMap<String, Vec<u8>>) -> Result<Option<crate::sample::TactileData>> {
+/// The tactile topics of a sample, if it has them: the pads in the order the sample's messages
+/// were written (the robot's pad order, which the points' pad indices refer to).
+fn read_tactile(by_topic: &BTreeMap<String, Vec<u8>>, messages: &[(String, Vec<u8>)]) -> Result<Option<crate::sample::TactileData>> {
     use foxglove::schemas::PointCloud;
     let Some(raw) = by_topic.get(topics::TACTILE_POINTS) else { return Ok(None) };
     let cloud = PointCloud::decode(&raw[..])?;
@@ -349,7 +352,7 @@ fn read_tactile(by_topic: &BTreeMap<String, Vec<u8>>) -> Result<Option<crate::sa
     let mut phalanges = Vec::new();
     let mut depth = Vec::new();
     let mut resolution = 0;
-    for (topic, raw) in by_topic {
+    for (topic, raw) in messages {
         if let Some(name) = topic.strip_prefix("/tactile/").and_then(|t| t.strip_suffix("/depth")) {
             let img = RawImage::decode(&raw[..])?;
             resolution = img.width;
@@ -357,12 +360,6 @@ fn read_tactile(by_topic: &BTreeMap<String, Vec<u8>>) -> Result<Option<crate::sa
             depth.push(img.data.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect());
         }
     }
-    // Topics come back sorted by name; restore the phalanx index order of the points.
-    let order: Vec<String> =
-        ["ff", "mf", "rf", "th"].iter().flat_map(|f| ["proximal", "medial", "distal"].map(|p| format!("{f}_{p}"))).collect();
-    let mut pairs: Vec<(String, Vec<f32>)> = phalanges.into_iter().zip(depth).collect();
-    pairs.sort_by_key(|(n, _)| order.iter().position(|o| o == n).unwrap_or(usize::MAX));
-    let (phalanges, depth) = pairs.into_iter().unzip();
     Ok(Some(crate::sample::TactileData { phalanges, resolution, depth, points }))
 }
 

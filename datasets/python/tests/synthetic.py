@@ -17,6 +17,8 @@ from typing import Any, Dict, List, Optional, Sequence, Tuple
 import numpy as np
 from foxglove_schemas_protobuf.CameraCalibration_pb2 import CameraCalibration
 from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
+from foxglove_schemas_protobuf.PackedElementField_pb2 import PackedElementField
+from foxglove_schemas_protobuf.PointCloud_pb2 import PointCloud
 from foxglove_schemas_protobuf.PoseInFrame_pb2 import PoseInFrame
 from foxglove_schemas_protobuf.RawImage_pb2 import RawImage
 from mcap.writer import CompressionType
@@ -26,6 +28,27 @@ from mcap_protobuf.schema import build_file_descriptor_set
 SAMPLE_PERIOD_NS = 100_000_000
 OBJECT_ID = "test_cube"
 HEIGHT, WIDTH = 6, 8
+#: Pixels per side of a pad's depth image in the synthetic robot datasets.
+TACTILE_RESOLUTION = 4
+#: The robots the synthetic writer can put in a sample: their pads in index order (the order of
+#: the ``phalanx`` index and of the ``/tactile/<pad>/depth`` channels) and their joints.
+ALLEGRO_PADS = tuple(f"{f}_{p}" for f in ("ff", "mf", "rf", "th") for p in ("proximal", "medial", "distal"))
+ROBOTS: Dict[str, Dict[str, Any]] = {
+    "ur5e_allegro": {
+        "pads": ALLEGRO_PADS,
+        "joints": [f"{j}_joint" for j in ("shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2", "wrist_3")]
+        + [f"{f}_joint_{k}" for f in ("ff", "mf", "rf", "th") for k in range(4)],
+    },
+    # Not in name order, so a reader that sorts the names gets the phalanx index wrong.
+    "robotiq_2f85": {
+        "pads": ("right_pad", "left_pad"),
+        "joints": [f"joint_{k}" for k in range(1, 8)] + ["finger_joint", "right_outer_knuckle_joint"],
+    },
+    "three_finger": {
+        "pads": ("c_proximal", "c_distal", "a_proximal", "a_distal", "b_proximal", "b_distal"),
+        "joints": [f"arm_{k}" for k in range(6)] + [f"{f}_{k}" for f in "abc" for k in range(2)],
+    },
+}
 
 Pose = Tuple[Tuple[float, float, float], Tuple[float, float, float, float]]
 
@@ -42,6 +65,9 @@ class SyntheticSample:
     world_camera: Pose
     world_object: Pose
     info: Dict[str, Any] = field(default_factory=dict)
+    #: With a robot: ``pads`` (names in index order), ``points`` (N, 3) float32, ``distance`` (N,)
+    #: float32, ``phalanx`` (N,) uint32, ``depth`` (P, R, R) float32.
+    tactile: Optional[Dict[str, Any]] = None
 
     @property
     def log_time(self) -> int:
@@ -55,7 +81,29 @@ def random_pose(rng: np.random.Generator) -> Pose:
     return (tuple(float(v) for v in t), tuple(float(v) for v in q))  # type: ignore[return-value]
 
 
-def make_sample(split: str, index: int, rng: np.random.Generator) -> SyntheticSample:
+def make_tactile(pads: Sequence[str], rng: np.random.Generator) -> Dict[str, Any]:
+    """Random tactile data of a robot with ``pads``: points on some pads, one depth image each."""
+    n_pads = len(pads)
+    touching = sorted(rng.choice(n_pads, size=min(2, n_pads), replace=False).tolist())
+    counts = [int(rng.integers(1, 5)) if k in touching else 0 for k in range(n_pads)]
+    phalanx = np.repeat(np.arange(n_pads, dtype=np.uint32), counts)
+    n = len(phalanx)
+    depth = rng.uniform(0.0, 0.01, size=(n_pads, TACTILE_RESOLUTION, TACTILE_RESOLUTION))
+    depth[:, 0, 0] = np.inf
+    return {
+        "pads": list(pads),
+        "points": rng.uniform(-0.5, 0.5, size=(n, 3)).astype(np.float32),
+        "distance": rng.uniform(-0.001, 0.002, size=n).astype(np.float32),
+        "phalanx": phalanx,
+        "depth": depth.astype(np.float32),
+        "counts": counts,
+        "touching": [pads[k] for k in touching],
+    }
+
+
+def make_sample(
+    split: str, index: int, rng: np.random.Generator, robot: Optional[str] = None
+) -> SyntheticSample:
     rgb = rng.integers(0, 256, size=(HEIGHT, WIDTH, 3), dtype=np.uint8)
     depth = rng.uniform(0.2, 1.5, size=(HEIGHT, WIDTH)).astype(np.float32)
     mask = np.zeros((HEIGHT, WIDTH), dtype=np.uint8)
@@ -80,8 +128,32 @@ def make_sample(split: str, index: int, rng: np.random.Generator) -> SyntheticSa
             "orientation": list(camera_object[1]),
         },
     }
+    tactile = None
+    if robot is not None:
+        spec = ROBOTS[robot]
+        tactile = make_tactile(spec["pads"], rng)
+        info.update(
+            {
+                "physics_backend": "rapier",
+                "phalanges_in_contact": tactile["touching"],
+                "slip_mm": 0.0,
+                "slip_deg": 0.0,
+                "penetration_mm": 0.0,
+                "grasp_attempts": 1,
+                "joint_positions": {j: float(rng.uniform(-1, 1)) for j in spec["joints"]},
+                "T_world_palm": {"position": [0.0, 0.0, 0.3], "orientation": [0.0, 0.0, 0.0, 1.0]},
+                "tactile": {
+                    "contact_threshold_mm": 2.0,
+                    "near_mm": 0.0,
+                    "far_mm": 20.0,
+                    "sensors": {},
+                    "pads": {p: [0.02, 0.015] for p in spec["pads"]},
+                    "points": dict(zip(spec["pads"], tactile["counts"])),
+                },
+            }
+        )
     return SyntheticSample(
-        split, index, rgb, depth, mask, K, camera_object, world_camera, world_object, info
+        split, index, rgb, depth, mask, K, camera_object, world_camera, world_object, info, tactile
     )
 
 
@@ -106,6 +178,33 @@ def _raw_image(array: np.ndarray, encoding: str, log_time: int) -> RawImage:
 def _set_pose(position: Any, orientation: Any, pose: Pose) -> None:
     (position.x, position.y, position.z) = pose[0]
     (orientation.x, orientation.y, orientation.z, orientation.w) = pose[1]
+
+
+def tactile_topic(pad: str) -> str:
+    return f"/tactile/{pad}/depth"
+
+
+def _tactile_messages(tac: Dict[str, Any], t: int) -> List[Tuple[str, bytes]]:
+    data = bytearray()
+    for p, d, k in zip(tac["points"], tac["distance"], tac["phalanx"]):
+        data += struct.pack("<4fI", *p, d, k)
+    cloud = PointCloud(frame_id="camera", point_stride=20, data=bytes(data))
+    _stamp(cloud, t)
+    cloud.pose.orientation.w = 1.0
+    for name, offset, kind in (
+        ("x", 0, PackedElementField.FLOAT32),
+        ("y", 4, PackedElementField.FLOAT32),
+        ("z", 8, PackedElementField.FLOAT32),
+        ("distance", 12, PackedElementField.FLOAT32),
+        ("phalanx", 16, PackedElementField.UINT32),
+    ):
+        cloud.fields.add(name=name, offset=offset, type=kind)
+    out = [("/tactile/points", cloud.SerializeToString())]
+    for pad, image in zip(tac["pads"], tac["depth"]):
+        msg = _raw_image(image, "32FC1", t)
+        msg.frame_id = f"{pad}_pad"
+        out.append((tactile_topic(pad), msg.SerializeToString()))
+    return out
 
 
 def sample_messages(s: SyntheticSample) -> List[Tuple[str, bytes]]:
@@ -138,7 +237,7 @@ def sample_messages(s: SyntheticSample) -> List[Tuple[str, bytes]]:
         ("/object/pose", pose.SerializeToString()),
         ("/tf", tf.SerializeToString()),
         ("/sample/info", json.dumps(s.info, separators=(",", ":")).encode("utf-8")),
-    ]
+    ] + (_tactile_messages(s.tactile, t) if s.tactile is not None else [])
 
 
 _PROTOBUF_TOPICS = {
@@ -157,10 +256,14 @@ def write_shard(
     shard_index: int,
     samples: Sequence[SyntheticSample],
     omit: Optional[Tuple[int, str]] = None,
+    reverse_messages: bool = False,
 ) -> None:
     """Write one shard: zstd, one chunk per sample, the ``vtgen.shard`` metadata record.
 
-    ``omit=(index, topic)`` leaves that message out (to test error reporting).
+    ``omit=(index, topic)`` leaves that message out (to test error reporting). With a robot the
+    tactile channels are added as the Rust writer adds them: the points, then one depth channel per
+    pad in the pads' index order. ``reverse_messages`` writes each sample's messages in reverse
+    order (the reader must not depend on the order of messages in a chunk).
     """
     path.parent.mkdir(parents=True, exist_ok=True)
     with open(path, "wb") as f:
@@ -187,8 +290,26 @@ def write_shard(
         channels["/sample/info"] = writer.register_channel(
             topic="/sample/info", message_encoding="json", schema_id=info_schema
         )
+        robot = next((s.tactile for s in samples if s.tactile is not None), None)
+        if robot is not None:
+            for topic, cls in [("/tactile/points", PointCloud)] + [
+                (tactile_topic(p), RawImage) for p in robot["pads"]
+            ]:
+                name = cls.DESCRIPTOR.full_name
+                if name not in schema_ids:
+                    schema_ids[name] = writer.register_schema(
+                        name=name,
+                        encoding="protobuf",
+                        data=build_file_descriptor_set(cls).SerializeToString(),
+                    )
+                channels[topic] = writer.register_channel(
+                    topic=topic, message_encoding="protobuf", schema_id=schema_ids[name]
+                )
         for s in samples:
-            for topic, payload in sample_messages(s):
+            messages = sample_messages(s)
+            if reverse_messages:
+                messages.reverse()
+            for topic, payload in messages:
                 if omit == (s.index, topic):
                     continue
                 writer.add_message(
@@ -262,15 +383,18 @@ def write_dataset(
     samples_per_shard: int,
     seed: int = 0,
     omit: Optional[Tuple[str, int, str]] = None,
+    robot: Optional[str] = None,
+    reverse_messages: bool = False,
 ) -> Dict[str, List[SyntheticSample]]:
     """Write a complete dataset (manifest, models, shards) and return its samples per split.
 
-    ``omit=(split, index, topic)`` leaves one message out.
+    ``omit=(split, index, topic)`` leaves one message out. ``robot`` (a key of :data:`ROBOTS`)
+    adds the robot's ``/sample/info`` keys and tactile topics to every sample.
     """
     rng = np.random.default_rng(seed)
     root.mkdir(parents=True, exist_ok=True)
     samples = {
-        split: [make_sample(split, i, rng) for i in range(n)] for split, n in counts.items()
+        split: [make_sample(split, i, rng, robot) for i in range(n)] for split, n in counts.items()
     }
     splits: Dict[str, Any] = {}
     for split, items in samples.items():
@@ -281,7 +405,10 @@ def write_dataset(
             shard_omit = None
             if omit is not None and omit[0] == split:
                 shard_omit = (omit[1], omit[2])
-            write_shard(root / rel, split, shard_index, chunk, omit=shard_omit)
+            write_shard(
+                root / rel, split, shard_index, chunk, omit=shard_omit,
+                reverse_messages=reverse_messages,
+            )
             data = (root / rel).read_bytes()
             shards.append(
                 {
@@ -308,7 +435,7 @@ def write_dataset(
         "splits": splits,
     }
     (root / "manifest.json").write_text(json.dumps(manifest, indent=2))
-    (root / "config.json").write_text("{}")
+    (root / "config.json").write_text(json.dumps({"robot": {"model": robot}} if robot else {}))
     models = root / "models"
     models.mkdir(exist_ok=True)
     mesh = cube_mesh()

@@ -174,19 +174,25 @@ def test_torch_dataloader_over_train(rust_dataset: Path, splits: Dict[str, vtdat
 
 
 def test_tactile_data_of_a_robot_dataset(rust_hand_dataset: Path) -> None:
-    """The grasp scene carries the tactile point cloud and the 12 phalanx images."""
+    """The grasp scene carries the tactile point cloud and one image per pad of the robot: the
+    pads come from the data (the scene's robot is the UR5e + Allegro: its 12 pads, in order)."""
+    from vtdata import reader as r
+
     ds = vtdata.Dataset(rust_hand_dataset, "train")
     total = 0
     for i in range(len(ds)):
         s = ds[i]
         t = s["tactile"]
-        assert t["depth"].shape == (12, 32, 32) and t["depth"].dtype == np.float32
+        pads = t["phalanges"]
+        assert pads == list(r.ALLEGRO_PHALANGES), "tiny-hand.yaml's robot is the Allegro"
+        assert sorted(pads) == sorted(s["info"]["tactile"]["pads"])
+        assert t["depth"].shape == (len(pads), 32, 32) and t["depth"].dtype == np.float32
         n = len(t["points"])
         assert t["points"].shape == (n, 3) and t["distance"].shape == (n,) and t["phalanx"].shape == (n,)
-        assert (t["phalanx"] < 12).all()
+        assert (t["phalanx"] < len(pads)).all()
         counts = s["info"]["tactile"]["points"]
         assert sum(counts.values()) == n
-        for k, name in enumerate(t["phalanges"]):
+        for k, name in enumerate(pads):
             assert int((t["phalanx"] == k).sum()) == counts[name]
         total += n
     assert total > 0
@@ -219,7 +225,9 @@ def test_reader_constants_match_what_the_rust_writer_writes(rust_dataset: Path, 
     assert set(r.REQUIRED_TOPICS) <= set(topics), f"the reader requires topics the writer lacks: {topics}"
     hand_topics, hand_schemas = _shard_summary(rust_hand_dataset)
     assert r.TOPIC_TACTILE_POINTS in hand_topics
-    assert {f"/tactile/{p}/depth" for p in r.PHALANGES} <= set(hand_topics)
+    # tiny-hand.yaml's robot is the Allegro: its 12 pads, each a /tactile/<pad>/depth topic.
+    pad_topics = {t for t in hand_topics if r.pad_of_topic(t) is not None}
+    assert pad_topics == {f"/tactile/{p}/depth" for p in r.ALLEGRO_PHALANGES}
     known = {v for k, v in vars(r).items() if k.startswith("TOPIC_")}
     unknown = {t for t in hand_topics if t not in known and not t.startswith("/tactile/")} - {r.TOPIC_SCENE_MODELS}
     assert not unknown, f"topics the writer writes and the reader names no constant for: {unknown}"
@@ -232,14 +240,18 @@ def test_reader_constants_match_what_the_rust_writer_writes(rust_dataset: Path, 
     assert sample_level_keys_are_written(rust_hand_dataset)
     assert schemas[topics[r.TOPIC_INFO]] == hand_schemas[hand_topics[r.TOPIC_INFO]], "one /sample/info schema"
 
-    # The phalanx order of the tactile index (PHALANGES) is the order the writer uses.
+    # The pad order the reader reads from the shard (its channels) is the writer's: the Allegro's
+    # order, the one of phalanges_in_contact (the Allegro's touch links are its pads' links, named
+    # as the pads).
     ds = vtdata.Dataset(rust_hand_dataset, "train")
     sample = ds[0]
+    pads = sample["tactile"]["phalanges"]
+    assert pads == list(r.ALLEGRO_PHALANGES)
     contact = sample["info"]["phalanges_in_contact"]
-    assert set(contact) <= set(r.PHALANGES)
-    assert sorted(contact, key=r.PHALANGES.index) == contact, "phalanges_in_contact in the writer's order"
+    assert set(contact) <= set(pads)
+    assert sorted(contact, key=pads.index) == contact, "phalanges_in_contact in the writer's order"
     idx = set(np.unique(sample["tactile"]["phalanx"]).tolist())
-    assert {r.PHALANGES[i] for i in idx} <= set(contact), "tactile points only on phalanges in contact"
+    assert {pads[i] for i in idx} <= set(contact), "tactile points only on phalanges in contact"
 
 
 def sample_level_keys_are_written(root: Path) -> bool:

@@ -20,7 +20,15 @@ from mcap.reader import make_reader
 import vtdata
 from vtdata import Dataset, DatasetError, PlyError, load_ply
 
-from synthetic import OBJECT_ID, SAMPLE_PERIOD_NS, SyntheticSample, cube_mesh, write_dataset
+from synthetic import (
+    OBJECT_ID,
+    ROBOTS,
+    SAMPLE_PERIOD_NS,
+    TACTILE_RESOLUTION,
+    SyntheticSample,
+    cube_mesh,
+    write_dataset,
+)
 
 COUNTS = {"train": 5, "test": 3}
 SAMPLES_PER_SHARD = 2
@@ -397,6 +405,86 @@ def test_quaternion_matrix():
         np.testing.assert_allclose(R @ R.T, np.eye(3), rtol=0, atol=1e-14)
         # q and -q are the same rotation
         np.testing.assert_allclose(vtdata.quaternion_matrix(-q), R, rtol=0, atol=1e-15)
+
+
+# --- robots: the pads, joints and their counts come from the data --------------------------------
+
+
+@pytest.mark.parametrize("reverse", [False, True], ids=["writer-order", "reversed-messages"])
+@pytest.mark.parametrize("robot", sorted(ROBOTS))
+def test_tactile_of_any_robot(tmp_path, robot, reverse):
+    """The Allegro's 12 pads, a parallel gripper's 2 (not in name order), a 3-finger gripper's 6:
+    the pads are the shard's ``/tactile/<pad>/depth`` topics in their channels' order (the order of
+    the ``phalanx`` index), whatever order the messages of a chunk come in."""
+    root = tmp_path / "ds"
+    samples = write_dataset(root, {"train": 3}, 2, robot=robot, reverse_messages=reverse)
+    pads = list(ROBOTS[robot]["pads"])
+    if robot == "ur5e_allegro":
+        assert pads == list(vtdata.reader.PHALANGES) == list(vtdata.reader.ALLEGRO_PHALANGES)
+    ds = Dataset(root, "train")
+    for i, expected in enumerate(samples["train"]):
+        sample = ds[i]
+        check_sample(sample, expected)
+        t, want = sample["tactile"], expected.tactile
+        assert t["phalanges"] == pads
+        r = TACTILE_RESOLUTION
+        assert t["depth"].shape == (len(pads), r, r)
+        assert_bit_exact(t["depth"], want["depth"], "tactile depth")
+        assert_bit_exact(t["points"], want["points"], "tactile points")
+        assert_bit_exact(t["distance"], want["distance"], "tactile distance")
+        assert_bit_exact(t["phalanx"], want["phalanx"], "tactile phalanx")
+        counts = sample["info"]["tactile"]["points"]
+        assert sum(counts.values()) == len(t["points"]) > 0
+        for k, name in enumerate(t["phalanges"]):
+            assert int((t["phalanx"] == k).sum()) == counts[name], name
+        touched = {t["phalanges"][k] for k in np.unique(t["phalanx"]).tolist()}
+        assert touched <= set(sample["info"]["phalanges_in_contact"])
+        assert len(sample["info"]["joint_positions"]) == len(ROBOTS[robot]["joints"])
+
+
+def test_tactile_pads_must_match_the_info(tmp_path):
+    """A pad ``/sample/info`` lists without its depth image is a damaged sample, named."""
+    root = tmp_path / "ds"
+    write_dataset(root, {"train": 2}, 2, robot="robotiq_2f85", omit=("train", 1, "/tactile/left_pad/depth"))
+    ds = Dataset(root, "train")
+    assert ds[0]["tactile"]["phalanges"] == ["right_pad", "left_pad"]
+    with pytest.raises(DatasetError, match=r"sample 1 .*tactile\.pads lists the pads \['left_pad', 'right_pad'\]"):
+        ds[1]
+
+
+def test_tactile_phalanx_index_beyond_the_pads():
+    from foxglove_schemas_protobuf.PointCloud_pb2 import PointCloud
+
+    from vtdata.reader import _tactile
+
+    image = RawImage(width=2, height=2, encoding="32FC1", step=8, data=bytes(16))
+    cloud = PointCloud(point_stride=20, data=struct.pack("<4fI", 0, 0, 0, 0, 2))
+    decoded = {"/tactile/points": cloud, "/tactile/a/depth": image, "/tactile/b/depth": image}
+    ids = {"/tactile/points": 9, "/tactile/b/depth": 10, "/tactile/a/depth": 11}
+    with pytest.raises(DatasetError, match="phalanx index 2 but the sample has 2 pads"):
+        _tactile(decoded, ids, "here")
+    cloud.data = struct.pack("<4fI", 0, 0, 0, 0, 1)
+    assert _tactile(decoded, ids, "here")["phalanges"] == ["b", "a"]
+    with pytest.raises(DatasetError, match="no /tactile/<pad>/depth"):
+        _tactile({"/tactile/points": cloud}, ids, "here")
+
+
+def test_densefusion_and_torch_of_a_gripper(tmp_path):
+    """The DenseFusion view and the torch wrapper take a 2-pad gripper's tactile points as they
+    take the Allegro's."""
+    root = tmp_path / "ds"
+    samples = write_dataset(root, {"train": 3}, 2, robot="robotiq_2f85")
+    view = vtdata.DenseFusionView(root, "train", n_tactile=8, n_points=4, crop_size=None)
+    for i, expected in enumerate(samples["train"]):
+        item = view[i]
+        assert int(item["tactile_count"]) == len(expected.tactile["points"])
+        rows = {p.tobytes() for p in expected.tactile["points"]}
+        assert item["tactile"].shape == (8, 3) and all(p.tobytes() in rows for p in item["tactile"])
+    pytest.importorskip("torch")
+    from vtdata.torch import TorchDataset, collate
+
+    batch = collate([TorchDataset(root, "train")[i] for i in range(2)])
+    assert [t["phalanges"] for t in batch["tactile"]] == [["right_pad", "left_pad"]] * 2
 
 
 def test_import_does_not_import_torch():

@@ -57,8 +57,17 @@ TOPIC_INFO = "/sample/info"
 TOPIC_TACTILE_POINTS = "/tactile/points"
 #: The scene's meshes as Foxglove SceneUpdate (for viewing); the reader does not decode it.
 TOPIC_SCENE_MODELS = "/scene/models"
-#: The 12 phalanges in tactile index order (FORMAT.md).
-PHALANGES = tuple(f"{f}_{p}" for f in ("ff", "mf", "rf", "th") for p in ("proximal", "medial", "distal"))
+#: The UR5e + Allegro's 12 pads in tactile index order (FORMAT.md): the names a dataset of that
+#: robot holds. Other robots name their own pads (a parallel gripper: 2, e.g. ``left_pad``,
+#: ``right_pad``), so the reader never assumes these: a sample's ``tactile["phalanges"]`` lists the
+#: pads its shard has, in the order of the ``phalanx`` index.
+ALLEGRO_PHALANGES = tuple(
+    f"{f}_{p}" for f in ("ff", "mf", "rf", "th") for p in ("proximal", "medial", "distal")
+)
+#: Same as :data:`ALLEGRO_PHALANGES` (the name earlier versions used; not the pads of every robot).
+PHALANGES = ALLEGRO_PHALANGES
+#: ``/tactile/<pad>/depth``: the depth image of one pad; the pad's name is the middle part.
+TACTILE_DEPTH_PREFIX, TACTILE_DEPTH_SUFFIX = "/tactile/", "/depth"
 _TACTILE_DTYPE = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("distance", "<f4"), ("phalanx", "<u4")])
 #: Topics every sample must have; other topics (later format versions) are ignored.
 REQUIRED_TOPICS = (
@@ -118,8 +127,10 @@ class Sample(Dict[str, Any]):
     - ``index``: the sample's index in its split; ``split``: the split name.
     - ``tactile`` (only with a robot in the scene): a dict with ``points`` ``(N, 3)`` float32
       tactile points in the camera frame, ``distance`` ``(N,)`` float32 depth from the pad,
-      ``phalanx`` ``(N,)`` uint32 phalanx index, ``phalanges`` (the 12 names in index order) and
-      ``depth`` ``(12, R, R)`` float32 phalanx camera images (``inf`` = no surface).
+      ``phalanx`` ``(N,)`` uint32 pad index into ``phalanges``, ``phalanges`` (the robot's ``P``
+      pad names in index order, read from the shard: the 12 ``ff_proximal`` … ``th_distal`` of
+      the Allegro, 2 of a parallel gripper) and ``depth`` ``(P, R, R)`` float32 pad camera images
+      (``inf`` = no surface), one per ``/tactile/<pad>/depth`` topic.
     """
 
     __slots__ = ()
@@ -337,6 +348,8 @@ class Dataset(Sequence[Sample]):
                 start_time=log_time, end_time=log_time + 1, log_time_order=False
             )
         decoded: Dict[str, Any] = {}
+        # Topic -> channel id: the writer adds a robot's pad channels in its pads' index order.
+        channel_ids: Dict[str, int] = {}
         try:
             for _schema, channel, _message, value in messages:
                 if channel.topic in decoded and channel.topic in REQUIRED_TOPICS:
@@ -345,6 +358,7 @@ class Dataset(Sequence[Sample]):
                         f"{channel.topic} message"
                     )
                 decoded[channel.topic] = value
+                channel_ids[channel.topic] = channel.id
         except DatasetError:
             raise
         except Exception as e:  # zstd, CRC, record and protobuf errors of a damaged chunk
@@ -385,7 +399,7 @@ class Dataset(Sequence[Sample]):
                 decoded[TOPIC_DEPTH_NOISY], expect="32FC1", where=where + f" {TOPIC_DEPTH_NOISY}"
             )
         if TOPIC_TACTILE_POINTS in decoded:
-            sample["tactile"] = _tactile(decoded, where)
+            sample["tactile"] = _tactile(decoded, channel_ids, where)
         return sample
 
 
@@ -465,23 +479,63 @@ def pose_matrix(position: Sequence[float], orientation: Sequence[float]) -> np.n
     return T
 
 
-def _tactile(decoded: Dict[str, Any], where: str) -> Dict[str, Any]:
-    """The tactile point cloud and the 12 phalanx depth images of a sample."""
+def pad_of_topic(topic: str) -> Optional[str]:
+    """The pad name of a ``/tactile/<pad>/depth`` topic, else ``None``."""
+    if topic.startswith(TACTILE_DEPTH_PREFIX) and topic.endswith(TACTILE_DEPTH_SUFFIX):
+        name = topic[len(TACTILE_DEPTH_PREFIX) : -len(TACTILE_DEPTH_SUFFIX)]
+        if name and "/" not in name:
+            return name
+    return None
+
+
+def _tactile(decoded: Dict[str, Any], channel_ids: Mapping[str, int], where: str) -> Dict[str, Any]:
+    """The tactile point cloud and the pad depth images of a sample.
+
+    The pads are the sample's ``/tactile/<pad>/depth`` topics, whatever the robot: in the order of
+    their channels (the writer adds them in the robot's pad order, the order of the points'
+    ``phalanx`` index; names sort otherwise, e.g. ``right_pad`` before ``left_pad``), checked
+    against ``/sample/info`` ``tactile.pads`` when the info has it.
+    """
     cloud = decoded[TOPIC_TACTILE_POINTS]
     if cloud.point_stride != _TACTILE_DTYPE.itemsize:
         raise DatasetError(f"{where} {TOPIC_TACTILE_POINTS}: point stride {cloud.point_stride}, expected 20")
     pts = np.frombuffer(bytes(cloud.data), dtype=_TACTILE_DTYPE)
-    depth = []
-    for name in PHALANGES:
-        topic = f"/tactile/{name}/depth"
-        if topic not in decoded:
-            raise DatasetError(f"{where}: no message on {topic}")
-        depth.append(decode_raw_image(decoded[topic], expect="32FC1", where=f"{where} {topic}"))
+    pads = sorted(
+        ((channel_ids.get(t, 0), t, name) for t in decoded for name in [pad_of_topic(t)] if name),
+    )
+    topics = [t for _, t, _ in pads]
+    names = [name for _, _, name in pads]
+    info = decoded.get(TOPIC_INFO)
+    touch = info.get("tactile") if isinstance(info, dict) else None
+    listed = touch.get("pads") if isinstance(touch, dict) else None
+    if isinstance(listed, dict) and set(listed) != set(names):
+        raise DatasetError(
+            f"{where}: /sample/info tactile.pads lists the pads {sorted(listed)}, the sample has "
+            f"depth images of {sorted(names)} (/tactile/<pad>/depth)"
+        )
+    if not names:
+        raise DatasetError(
+            f"{where}: {TOPIC_TACTILE_POINTS} but no /tactile/<pad>/depth message (no pad)"
+        )
+    depth = [
+        decode_raw_image(decoded[t], expect="32FC1", where=f"{where} {t}") for t in topics
+    ]
+    shapes = {d.shape for d in depth}
+    if len(shapes) != 1:
+        raise DatasetError(
+            f"{where}: the pad depth images differ in size: "
+            + ", ".join(f"{n} {d.shape[1]}x{d.shape[0]}" for n, d in zip(names, depth))
+        )
+    if len(pts) and int(pts["phalanx"].max()) >= len(names):
+        raise DatasetError(
+            f"{where} {TOPIC_TACTILE_POINTS}: phalanx index {int(pts['phalanx'].max())} but the "
+            f"sample has {len(names)} pads ({', '.join(names)})"
+        )
     return {
         "points": np.ascontiguousarray(np.stack([pts["x"], pts["y"], pts["z"]], axis=1)),
         "distance": pts["distance"].copy(),
         "phalanx": pts["phalanx"].copy(),
-        "phalanges": list(PHALANGES),
+        "phalanges": names,
         "depth": np.stack(depth),
     }
 

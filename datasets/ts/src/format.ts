@@ -1,9 +1,37 @@
 // The parts of datasets/FORMAT.md (format version 1) this reader checks.
 
+// The robot is data: a dataset's pads, joints and grasp frame are the robot description's (a UR5e +
+// Allegro has 12 pads and 22 joints, a parallel gripper 2 pads), so the checks read them from the
+// shard: the pads are its `/tactile/<pad>/depth` channels, in channel order (the writer adds them
+// in the pads' order, the order of the point cloud's `phalanx` index).
+
 export const FINGERS = ["ff", "mf", "rf", "th"] as const;
 export const PHALANGES = ["proximal", "medial", "distal"] as const;
-/** `<finger>_<phalanx>` in the order of the point cloud's `phalanx` index. */
-export const PADS = FINGERS.flatMap((f) => PHALANGES.map((p) => `${f}_${p}`));
+/** The UR5e + Allegro's 12 pads `<finger>_<phalanx>`, in the order of its `phalanx` index. */
+export const ALLEGRO_PADS = FINGERS.flatMap((f) => PHALANGES.map((p) => `${f}_${p}`));
+/** The UR5e + Allegro's joints in `joint_positions`: 6 arm + 16 hand. */
+export const ALLEGRO_JOINT_COUNT = 22;
+
+/** The depth image topic of pad `pad`. */
+export const padDepthTopic = (pad: string): string => `/tactile/${pad}/depth`;
+
+/** The pad of a `/tactile/<pad>/depth` topic, or undefined. */
+export function padOfTopic(topic: string): string | undefined {
+  const m = /^\/tactile\/([^/]+)\/depth$/.exec(topic);
+  return m?.[1];
+}
+
+/** The pads of a shard: its `/tactile/<pad>/depth` channels, by channel id (the `phalanx` order). */
+export function padsOf(channels: Iterable<{ id: number; topic: string }>): string[] {
+  return [...channels]
+    .filter((c) => padOfTopic(c.topic) != undefined)
+    .sort((a, b) => a.id - b.id)
+    .map((c) => padOfTopic(c.topic)!);
+}
+
+/** Whether `pads` are the UR5e + Allegro's, in its order. */
+export const isAllegro = (pads: readonly string[]): boolean =>
+  pads.length === ALLEGRO_PADS.length && pads.every((p, k) => p === ALLEGRO_PADS[k]);
 
 export const SAMPLE_PERIOD_NS = 100_000_000n;
 
@@ -18,11 +46,13 @@ export const BASE_TOPICS: Record<string, string> = {
   "/sample/info": "json",
 };
 
-/** Topics every sample of a dataset with a robot adds. */
-export const ROBOT_TOPICS: Record<string, string> = {
-  "/tactile/points": "foxglove.PointCloud",
-  ...Object.fromEntries(PADS.map((pad) => [`/tactile/${pad}/depth`, "foxglove.RawImage"])),
-};
+/** Topics every sample of a dataset with a robot adds, with one `/tactile/<pad>/depth` per pad. */
+export function robotTopics(pads: readonly string[]): Record<string, string> {
+  return {
+    "/tactile/points": "foxglove.PointCloud",
+    ...Object.fromEntries(pads.map((pad) => [padDepthTopic(pad), "foxglove.RawImage"])),
+  };
+}
 
 /** Topics of every sample when the config has a depth noise model (camera.noise.depth). */
 export const NOISE_TOPICS: Record<string, string> = {
@@ -33,13 +63,21 @@ export const NOISE_TOPICS: Record<string, string> = {
 export const SCENE_TOPIC = "/scene/models";
 export const SCENE_SCHEMA = "foxglove.SceneUpdate";
 
-export const IMAGE_ENCODINGS: Record<string, { encoding: string; bytesPerPixel: number }> = {
+export type ImageSpec = { encoding: string; bytesPerPixel: number };
+
+export const IMAGE_ENCODINGS: Record<string, ImageSpec> = {
   "/camera/rgb": { encoding: "rgb8", bytesPerPixel: 3 },
   "/camera/depth": { encoding: "32FC1", bytesPerPixel: 4 },
   "/camera/depth_noisy": { encoding: "32FC1", bytesPerPixel: 4 },
   "/camera/mask": { encoding: "mono8", bytesPerPixel: 1 },
-  ...Object.fromEntries(PADS.map((pad) => [`/tactile/${pad}/depth`, { encoding: "32FC1", bytesPerPixel: 4 }])),
 };
+/** Every pad's depth image, whatever the robot names its pads. */
+export const PAD_DEPTH_ENCODING: ImageSpec = { encoding: "32FC1", bytesPerPixel: 4 };
+
+/** The image spec of a topic: a camera image's, or any pad's depth image's; else undefined. */
+export function imageSpec(topic: string): ImageSpec | undefined {
+  return IMAGE_ENCODINGS[topic] ?? (padOfTopic(topic) != undefined ? PAD_DEPTH_ENCODING : undefined);
+}
 
 export const TACTILE_RESOLUTION = 32;
 

@@ -123,3 +123,66 @@ fn broken_urdfs_give_clear_errors() {
         assert!(e.starts_with("robot description bad.urdf: ") && e.contains(want), "{e}");
     }
 }
+
+/// The Allegro description with `from` replaced by `to`, resolved; the error it gives.
+fn description_error(from: &str, to: &str) -> String {
+    let text = include_str!("../ur5e_allegro.yaml");
+    assert!(text.contains(from), "{from}");
+    Robot::from_texts(BUILTIN_URDF, "ur5e_allegro.urdf", &text.replacen(from, to, 1), "bad.yaml").unwrap_err().to_string()
+}
+
+#[test]
+fn broken_descriptions_name_the_file_and_the_field() {
+    let cases = [
+        ("link: ff_distal,", "link: ff_distl,", "bad.yaml: pads[2].link: no link 'ff_distl' in the URDF"),
+        ("base: base_link", "base: palm", "bad.yaml: arm: 'flange' is not below 'palm': the arm is not one serial chain"),
+        ("frame: palm", "frame: base_link", "bad.yaml: grasp.frame: 'base_link' is not fixed below the flange 'flange'"),
+        ("frame: palm", "frame: ff_distal", "bad.yaml: grasp.frame: 'ff_distal' moves against the flange"),
+        ("joint: th_joint_2,", "joint: th_joint_x,", "bad.yaml: hand[14].joint: no joint 'th_joint_x' in the URDF"),
+        ("joint: th_joint_2,", "joint: shoulder_pan_joint,", "hand[14].joint: 'shoulder_pan_joint' is not below the grasp frame 'palm'"),
+        (
+            "- {joint: th_joint_3, preshape: [-0.1, 0.3], close: 1.2}\n",
+            "",
+            "joint 'th_joint_3' moves below the grasp frame but is neither listed",
+        ),
+        ("preshape: [0.3, 0.5]", "preshape: [0.5, 0.3]", "hand[12].preshape: [0.5, 0.3] is not a range"),
+        ("frame: th_distal_pad,", "frame: th_medial_pad,", "pads[11].frame: 'th_medial_pad' is not a link fixed to 'th_distal'"),
+        ("min_touching: 2", "min_touching: 13", "grasp.min_touching: 13 is not within 1 ..= the 12 touch links"),
+        ("home: [-1.5707963267948966, ", "home: [", "arm.home: 5 values for 6 arm joints"),
+        ("kind: palm", "kind: suction", "bad.yaml: line 13: grasp.kind: unknown variant `suction`"),
+        ("min_touching: 2", "min_touching: 2\n  fingers: 4", "bad.yaml: line 15: grasp: unknown field `fingers`"),
+    ];
+    for (from, to, want) in cases {
+        let e = description_error(from, to);
+        assert!(e.contains(want), "{from} -> {to}: {e}");
+    }
+    // A pad given by an origin on its link becomes a frame of its own.
+    let text = include_str!("../ur5e_allegro.yaml").replacen(
+        "name: ff_distal, link: ff_distal, frame: ff_distal_pad,",
+        "name: ff_tip, link: ff_distal, origin: {xyz: [0.0098, 0, 0.02], rpy: [0, 1.5707963267948966, 0]}, size: [0.03, 0.02],",
+        1,
+    );
+    let robot = Robot::from_texts(BUILTIN_URDF, "u", &text, "d").unwrap();
+    let pad = &robot.pads[2];
+    assert_eq!((robot.model.links[pad.frame].name.as_str(), pad.size), ("ff_tip_pad", Some((0.03, 0.02))));
+    assert_eq!(robot.model.relative_pose(&robot.model.zero(), pad.link, pad.frame).translation, DVec3::new(0.0098, 0.0, 0.02));
+}
+
+#[test]
+fn mimic_and_prismatic_joints_follow_their_leader() {
+    let urdf = r#"<robot name="jaw">
+      <link name="base"/><link name="a"/><link name="b"/>
+      <joint name="slide" type="prismatic"><parent link="base"/><child link="a"/><axis xyz="0 1 0"/>
+        <limit lower="0" upper="0.04" effort="20" velocity="1"/></joint>
+      <joint name="mirror" type="prismatic"><parent link="base"/><child link="b"/><axis xyz="0 1 0"/>
+        <limit lower="-0.04" upper="0" effort="20" velocity="1"/><mimic joint="slide" multiplier="-1" offset="0.001"/></joint>
+    </robot>"#;
+    let m = RobotModel::from_urdf_str(urdf, "jaw.urdf").unwrap();
+    assert_eq!(m.dof_names(), vec!["slide"]);
+    let links = m.forward_kinematics(&[0.03]);
+    assert!((links[m.link_id("a").unwrap()].translation - DVec3::new(0.0, 0.03, 0.0)).length() < 1e-12);
+    assert!((links[m.link_id("b").unwrap()].translation - DVec3::new(0.0, -0.029, 0.0)).length() < 1e-12);
+    let missing = urdf.replace(r#"<mimic joint="slide""#, r#"<mimic joint="slid""#);
+    let e = RobotModel::from_urdf_str(&missing, "jaw.urdf").unwrap_err().to_string();
+    assert!(e.contains("joint 'mirror': <mimic joint=\"slid\"> names a joint that does not exist"), "{e}");
+}

@@ -1,0 +1,283 @@
+//! A robot of one's own: a UR5e carrying a three-finger gripper with two phalanges per finger,
+//! generated here (primitive links, the distal joints `<mimic>` the proximal ones), brought in by a
+//! config's `robot.description`. Nothing in vtgen may assume the Allegro's 4 fingers, 16 joints or
+//! 12 pads: this robot generates a valid, deterministic dataset whose ground truth holds.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use vt_dataset::{DatasetReader, read_ply};
+
+use crate::common::*;
+
+/// The gripper's fingers: name, origin on the palm, rpy (the bottom finger turned to point down).
+const FINGERS: [(&str, [f64; 3], [f64; 3]); 3] = [
+    ("left", [0.0, 0.03, 0.0], [0.0; 3]),
+    ("right", [0.0, -0.03, 0.0], [0.0; 3]),
+    ("thumb", [0.0, 0.0, -0.095], [std::f64::consts::PI, 0.0, 0.0]),
+];
+/// Phalanx lengths (m): proximal, distal (to the fingertip sphere's centre).
+const LENGTHS: [f64; 2] = [0.05, 0.04];
+
+/// The UR5e arm of the built-in URDF (base to flange) with the gripper on its Allegro adapter.
+pub fn three_finger_urdf() -> String {
+    let builtin = vt_robot::BUILTIN_URDF;
+    let cut = builtin.find("  <link name=\"hand_adapter\">").expect("the built-in URDF has the hand adapter");
+    let mut x = builtin[..cut].replace("name=\"ur5e_allegro\"", "name=\"ur5e_three_finger\"");
+    let box_link = |x: &mut String, name: &str, mass: f64, size: [f64; 3], at: [f64; 3], tip: Option<(f64, f64)>| {
+        let g = |x: &mut String, kind: &str| {
+            let _ = write!(
+                x,
+                r#"<{kind}><origin xyz="{} {} {}"/><geometry><box size="{} {} {}"/></geometry></{kind}>"#,
+                at[0], at[1], at[2], size[0], size[1], size[2]
+            );
+            if let Some((r, z)) = tip {
+                let _ = write!(x, r#"<{kind}><origin xyz="0 0 {z}"/><geometry><sphere radius="{r}"/></geometry></{kind}>"#);
+            }
+        };
+        let _ = write!(
+            x,
+            r#"<link name="{name}"><inertial><origin xyz="{} {} {}"/><mass value="{mass}"/><inertia ixx="1e-5" ixy="0" ixz="0" iyy="1e-5" iyz="0" izz="1e-5"/></inertial>"#,
+            at[0], at[1], at[2]
+        );
+        g(x, "visual");
+        g(x, "collision");
+        x.push_str("</link>\n");
+    };
+    let fixed = |x: &mut String, name: &str, parent: &str, child: &str, xyz: [f64; 3], rpy: [f64; 3]| {
+        let _ = writeln!(
+            x,
+            r#"<joint name="{name}" type="fixed"><parent link="{parent}"/><child link="{child}"/><origin xyz="{} {} {}" rpy="{} {} {}"/></joint>"#,
+            xyz[0], xyz[1], xyz[2], rpy[0], rpy[1], rpy[2]
+        );
+    };
+    box_link(&mut x, "hand_adapter", 0.05, [0.06, 0.06, 0.01], [0.0, 0.0, 0.005], None);
+    fixed(&mut x, "hand_adapter_joint", "flange", "hand_adapter", [0.0; 3], [0.0; 3]);
+    // The Allegro's palm block: its palmar surface at x = 0.0111, the fingers' row at z = 0.
+    box_link(&mut x, "palm", 0.4, [0.0408, 0.113, 0.095], [-0.0093, 0.0, -0.0475], None);
+    fixed(&mut x, "palm_joint", "hand_adapter", "palm", [0.0, 0.0, 0.105], [0.0; 3]);
+    for (finger, xyz, rpy) in FINGERS {
+        let mut parent = "palm".to_string();
+        let (mut origin, mut origin_rpy) = (xyz, rpy);
+        for (k, phalanx) in ["proximal", "distal"].into_iter().enumerate() {
+            let (link, length) = (format!("{finger}_{phalanx}"), LENGTHS[k]);
+            let tip = (k == 1).then_some((0.01, length));
+            box_link(&mut x, &link, 0.04, [0.0196, 0.0275, length], [0.0, 0.0, length / 2.0], tip);
+            // Flexion about y turns the finger towards the palmar side (+x); the distal joint
+            // follows the proximal one (an underactuated finger).
+            let mimic =
+                if k == 1 { format!(r#"<mimic joint="{finger}_proximal_joint" multiplier="0.8" offset="0"/>"#) } else { String::new() };
+            let _ = writeln!(
+                x,
+                r#"<joint name="{link}_joint" type="revolute"><parent link="{parent}"/><child link="{link}"/><origin xyz="{} {} {}" rpy="{} {} {}"/><axis xyz="0 1 0"/><limit lower="-0.2" upper="1.6" effort="0.7" velocity="6"/>{mimic}</joint>"#,
+                origin[0], origin[1], origin[2], origin_rpy[0], origin_rpy[1], origin_rpy[2]
+            );
+            let sensing = length + if k == 1 { 0.01 } else { 0.0 };
+            let _ = writeln!(x, r#"<link name="{link}_pad"/>"#);
+            fixed(
+                &mut x,
+                &format!("{link}_pad_joint"),
+                &link,
+                &format!("{link}_pad"),
+                [0.0098, 0.0, sensing / 2.0],
+                [0.0, std::f64::consts::FRAC_PI_2, 0.0],
+            );
+            parent = link;
+            (origin, origin_rpy) = ([0.0, 0.0, length], [0.0; 3]);
+        }
+    }
+    x.push_str("</robot>\n");
+    x
+}
+
+/// Its description: the UR5e's arm and home, the palm grasp, three hand joints, six pads.
+pub fn three_finger_yaml() -> String {
+    let mut y = String::from(
+        "name: ur5e_three_finger\nurdf: three_finger.urdf\narm:\n  base: base_link\n  flange: flange\n  \
+         home: [-1.5707963267948966, -1.5707963267948966, 1.5707963267948966, -1.5707963267948966, -1.5707963267948966, 0.0]\n\
+         grasp: {frame: palm, kind: palm, min_touching: 2}\nhand:\n",
+    );
+    for (finger, _, _) in FINGERS {
+        let _ = writeln!(y, "  - {{joint: {finger}_proximal_joint, preshape: [-0.1, 0.2], close: 1.4}}");
+    }
+    y.push_str("pads:\n");
+    for (finger, _, _) in FINGERS {
+        for phalanx in ["proximal", "distal"] {
+            let _ =
+                writeln!(y, "  - {{name: {finger}_{phalanx}, link: {finger}_{phalanx}, frame: {finger}_{phalanx}_pad, group: {phalanx}}}");
+        }
+    }
+    y
+}
+
+/// `scenes/tiny-hand.yaml` with the three-finger robot (the object held against the palm's middle,
+/// where the three fingers close), in `dir`; returns the config's path.
+fn write_config(dir: &Path) -> PathBuf {
+    std::fs::write(dir.join("three_finger.urdf"), three_finger_urdf()).unwrap();
+    std::fs::write(dir.join("three_finger.yaml"), three_finger_yaml()).unwrap();
+    let text = std::fs::read_to_string(root().join("scenes/tiny-hand.yaml")).unwrap();
+    let backend = std::env::var("VTGEN_TEST_PHYSICS").unwrap_or_else(|_| "rapier".into());
+    let text = text
+        .replace("robot:\n", "robot:\n  description: three_finger.yaml\n")
+        .replace("  grasp:\n", "  grasp:\n    object_offset: {min: [0.0, -0.01, -0.06], max: [0.0, 0.01, -0.035]}\n")
+        .replace("backend: rapier", &format!("backend: {backend}"));
+    let cfg = dir.join("three-finger.yaml");
+    std::fs::write(&cfg, text).unwrap();
+    cfg
+}
+
+fn config() -> &'static Path {
+    static DIR: OnceLock<(tempfile::TempDir, PathBuf)> = OnceLock::new();
+    &DIR.get_or_init(|| {
+        let d = tempdir();
+        let cfg = write_config(d.path());
+        (d, cfg)
+    })
+    .1
+}
+
+fn dataset() -> &'static Path {
+    static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();
+    DIR.get_or_init(|| {
+        let d = tempdir();
+        let o = run(&["generate", config().to_str().unwrap(), "--out", d.path().to_str().unwrap(), "--quiet"]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        d
+    })
+    .path()
+}
+
+#[test]
+fn a_three_finger_gripper_generates_a_valid_dataset() {
+    let dir = dataset();
+    let o = run(&["validate", dir.to_str().unwrap()]);
+    assert!(o.status.success(), "{}{}", String::from_utf8_lossy(&o.stdout), stderr(&o));
+    let ds = DatasetReader::open(dir).unwrap();
+    let pads: Vec<String> = FINGERS.iter().flat_map(|f| ["proximal", "distal"].map(|p| format!("{}_{p}", f.0))).collect();
+    let mut n = 0;
+    for split in ["train", "test"] {
+        for s in ds.samples(split).unwrap() {
+            let s = s.unwrap();
+            let r = s.info.robot.as_ref().expect("a robot's info");
+            // 6 arm joints and the 3 hand joints that move on their own (the mimics follow).
+            assert_eq!(r.joint_positions.len(), 9, "{:?}", r.joint_positions);
+            assert!(r.joint_positions.contains_key("thumb_proximal_joint"));
+            assert!(
+                r.phalanges_in_contact.len() >= 2 && r.phalanges_in_contact.iter().all(|p| pads.contains(p)),
+                "{:?}",
+                r.phalanges_in_contact
+            );
+            let tac = s.tactile.as_ref().expect("tactile data");
+            assert_eq!(tac.phalanges, pads);
+            assert_eq!(tac.depth.len(), 6);
+            let frames: Vec<&str> = s.extra_transforms.iter().map(|t| t.1.as_str()).collect();
+            assert!(frames.contains(&"palm") && frames.iter().filter(|f| f.ends_with("_pad")).count() == 6, "{frames:?}");
+            // The gripper's links are drawn with the hand-link mask ids: 3 joints, then 3 mimics.
+            let ids: std::collections::BTreeSet<u8> =
+                s.mask.iter().copied().filter(|&m| vt_dataset::mask_ids::HAND_LINKS.contains(&m)).collect();
+            assert!(ids.iter().all(|&m| m < 17 + 6), "{ids:?}");
+            n += 1;
+        }
+    }
+    assert_eq!(n, 40);
+}
+
+#[test]
+fn the_three_finger_ground_truth_is_exact() {
+    crate::ground_truth::check_dataset(dataset());
+    tactile_points_lie_on_the_object_within_their_pad(dataset());
+}
+
+#[test]
+fn the_three_finger_dataset_is_deterministic() {
+    let other = tempdir();
+    let o = run(&["generate", config().to_str().unwrap(), "--out", other.path().to_str().unwrap(), "--quiet", "--shard", "1/5"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let shards = complete_shards(other.path());
+    assert_eq!(shards, ["train/shard-00001.mcap"]);
+    for f in shards {
+        assert!(std::fs::read(other.path().join(&f)).unwrap() == std::fs::read(dataset().join(&f)).unwrap(), "{f} differs");
+    }
+}
+
+#[test]
+fn bad_descriptions_are_reported_with_file_and_field() {
+    let d = tempdir();
+    let cfg = write_config(d.path());
+    let yaml = three_finger_yaml();
+    let cases = [
+        (yaml.replace("link: thumb_distal,", "link: thumb_tip,"), "pads[5].link: no link 'thumb_tip' in the URDF"),
+        (
+            yaml.replace("frame: palm,", "frame: shoulder_pan_link,"),
+            "grasp.frame: 'shoulder_pan_link' is not fixed below the flange 'flange'",
+        ),
+        (yaml.replace("base: base_link", "base: thumb_distal"), "arm: 'flange' is not below 'thumb_distal'"),
+        (
+            yaml.replace("  - {joint: thumb_proximal_joint, preshape: [-0.1, 0.2], close: 1.4}\n", ""),
+            "joint 'thumb_proximal_joint' moves below",
+        ),
+    ];
+    for (text, want) in cases {
+        std::fs::write(d.path().join("three_finger.yaml"), text).unwrap();
+        let o = run(&["generate", cfg.to_str().unwrap(), "--out", d.path().join("o").to_str().unwrap(), "--quiet"]);
+        let e = stderr(&o);
+        assert!(!o.status.success(), "{want}: {e}");
+        assert!(e.contains("robot.description:") && e.contains("three_finger.yaml: ") && e.contains(want), "{want}: {e}");
+        assert!(!d.path().join("o").join("manifest.json").exists());
+    }
+    // A mimic joint that names a missing joint: the URDF's error.
+    std::fs::write(d.path().join("three_finger.yaml"), &yaml).unwrap();
+    let urdf = three_finger_urdf().replace(r#"<mimic joint="left_proximal_joint""#, r#"<mimic joint="left_joint""#);
+    std::fs::write(d.path().join("three_finger.urdf"), urdf).unwrap();
+    let o = run(&["generate", cfg.to_str().unwrap(), "--out", d.path().join("o").to_str().unwrap(), "--quiet"]);
+    let e = stderr(&o);
+    assert!(
+        e.contains("three_finger.urdf: joint 'left_distal_joint': <mimic joint=\"left_joint\"> names a joint that does not exist"),
+        "{e}"
+    );
+    // The grasp config's joint arrays must fit the robot.
+    std::fs::write(d.path().join("three_finger.urdf"), three_finger_urdf()).unwrap();
+    let o = run(&["generate", cfg.to_str().unwrap(), "--quiet", "--set", "robot.grasp.preshape=[[0,0.1],[0,0.1]]"]);
+    let e = stderr(&o);
+    assert!(e.contains("robot.grasp.preshape: 2 values for the 3 hand joints of robot 'ur5e_three_finger'"), "{e}");
+}
+
+/// Every tactile point lies on the object's surface (1 mm), within its pad's footprint and within
+/// the contact threshold of it, whatever the robot.
+pub fn tactile_points_lie_on_the_object_within_their_pad(dir: &Path) {
+    use rapier3d::parry::query::PointQuery;
+    let ds = DatasetReader::open(dir).unwrap();
+    let info: vt_dataset::ModelsInfo = serde_json::from_slice(&std::fs::read(dir.join("models/models_info.json")).unwrap()).unwrap();
+    let meshes: Vec<rapier3d::parry::shape::TriMesh> = info
+        .objects
+        .iter()
+        .map(|o| {
+            let m = read_ply(&dir.join("models").join(&o.file)).unwrap();
+            rapier3d::parry::shape::TriMesh::new(m.positions.iter().map(|p| glam::Vec3::from(*p)).collect(), m.triangles.clone()).unwrap()
+        })
+        .collect();
+    let mut points = 0;
+    for split in ["train", "test"] {
+        for s in ds.samples(split).unwrap() {
+            let s = s.unwrap();
+            let tac = s.tactile.as_ref().expect("robot samples carry tactile data");
+            let mesh = &meshes[s.info.object_index as usize];
+            let frames: std::collections::HashMap<&str, vt_dataset::Pose> =
+                s.extra_transforms.iter().map(|(_, c, p)| (c.as_str(), *p)).collect();
+            let to_camera = s.t_world_camera.inverse();
+            let touch = s.info.robot.as_ref().and_then(|r| r.tactile.as_ref()).expect("touch info");
+            for p in &tac.points {
+                let pc = glam::Vec3::from(p.position).as_dvec3();
+                let d = mesh.distance_to_local_point(s.t_camera_object.inverse().transform_point(pc).as_vec3(), false);
+                assert!(d <= 1e-3, "{split} {}: tactile point {:.2} mm off the surface", s.index, d * 1e3);
+                let name = &tac.phalanges[p.phalanx as usize];
+                let local = to_camera.compose(&frames[format!("{name}_pad").as_str()]).inverse().transform_point(pc);
+                let [len, wid] = touch.pads[name];
+                assert!(local.x.abs() <= len / 2.0 + 1e-6 && local.y.abs() <= wid / 2.0 + 1e-6 && local.z <= 0.002 + 1e-6, "{local}");
+                points += 1;
+            }
+        }
+    }
+    assert!(points > 0, "no tactile points");
+}
