@@ -215,7 +215,7 @@ fn bad_descriptions_are_reported_with_file_and_field() {
         (yaml.replace("base: base_link", "base: thumb_distal"), "arm: 'flange' is not below 'thumb_distal'"),
         (
             yaml.replace("  - {joint: thumb_proximal_joint, preshape: [-0.1, 0.2], close: 1.4}\n", ""),
-            "joint 'thumb_proximal_joint' moves below",
+            "joint 'thumb_proximal_joint' moves in the hand",
         ),
     ];
     for (text, want) in cases {

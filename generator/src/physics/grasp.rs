@@ -11,9 +11,10 @@ use glam::{DAffine3, DMat3, DQuat, DVec3};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use vt_randomizers::{SampleKey, SampleStream};
-use vt_robot::{IkOptions, Robot};
+use vt_robot::{GraspKind, IkOptions, Robot};
 
 use crate::config::GraspConfig;
+use crate::physics::antipodal::{Hull, Jaws, antipodal_pose};
 use crate::physics::{HandPhysics, PhysicsObject};
 use crate::scene::uniform_rotation;
 
@@ -263,7 +264,11 @@ fn attempt_trajectory(
         return Ok(Err(Failure::Unreachable));
     };
     let pre: Vec<f64> = cfg.preshape.iter().map(|&(lo, hi)| rng.random_range(lo..=hi)).collect();
-    if !place_object(ctx, physics, object, rng, &pre)? {
+    let placed = match ctx.robot.kind {
+        GraspKind::Palm => place_object(ctx, physics, object, rng, &pre)?,
+        GraspKind::ParallelJaw => place_between_jaws(ctx, physics, object, rng, &pre)?,
+    };
+    if !placed {
         return Ok(Err(Failure::InitialOverlap));
     }
     close_hand(ctx, physics, &pre);
@@ -349,6 +354,32 @@ fn place_object(
             for _ in 0..ctx.steps(REST_SECONDS) {
                 physics.step();
             }
+            return Ok(true);
+        }
+    }
+    Ok(false)
+}
+
+/// Phase 1 of a parallel-jaw grasp: the object weightless between the open jaws at an antipodal
+/// pair of its hull ([`antipodal_pose`]), held still by damping. False when no pair fits or every
+/// pose tried overlaps the gripper.
+fn place_between_jaws(
+    ctx: &GraspContext,
+    physics: &mut dyn HandPhysics,
+    object: &PhysicsObject,
+    rng: &mut ChaCha8Rng,
+    pre: &[f64],
+) -> Result<bool> {
+    let Some(hull) = Hull::of(&object.points) else { bail!("the object's points have no convex hull (degenerate mesh)") };
+    let jaws = Jaws::of(ctx.robot, pre);
+    for _ in 0..PLACEMENT_RETRIES {
+        let Some(pose) = antipodal_pose(&hull, &jaws, rng) else { return Ok(false) };
+        physics.reset(object, pose, pre)?;
+        physics.set_targets(pre);
+        physics.set_gravity(DVec3::ZERO);
+        physics.set_object_damping(REST_DAMPING, REST_DAMPING);
+        physics.step();
+        if physics.max_penetration() <= PLACEMENT_MAX_OVERLAP {
             return Ok(true);
         }
     }

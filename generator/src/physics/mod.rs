@@ -5,6 +5,7 @@
 //! the hand when the arm reorients or accelerates. (Rotational fictitious forces, below 1% of g for
 //! the arm's speeds, are neglected.) This keeps the grasp stable and identical for every backend.
 
+pub mod antipodal;
 #[cfg(test)]
 pub(crate) mod fake;
 pub mod grasp;

@@ -89,7 +89,8 @@ impl MujocoHand {
         let robot = &self.robot;
         let m = &robot.model;
         let s = &self.settings;
-        let palm = robot.grasp_frame;
+        // The hand's root (the palm, or a gripper's base), placed in the grasp frame.
+        let palm = robot.hand_root;
         let mut x = String::new();
         let _ = write!(
             x,
@@ -124,7 +125,13 @@ impl MujocoHand {
                 );
             }
         };
-        x.push_str(r#"<body name="palm">"#);
+        if palm == robot.grasp_frame {
+            x.push_str(r#"<body name="palm">"#);
+        } else {
+            let t = m.relative_pose(&m.zero(), palm, robot.grasp_frame).inverse();
+            let (q, p) = (quat_wxyz(&t), t.translation);
+            let _ = write!(x, r#"<body name="palm" pos="{} {} {}" quat="{} {} {} {}">"#, p.x, p.y, p.z, q[0], q[1], q[2], q[3]);
+        }
         geoms(&mut x, palm);
         // Depth-first over the joints below the palm. A fixed joint's child is a body welded to its
         // parent, left out when nothing in it collides or moves (the sensor pads).

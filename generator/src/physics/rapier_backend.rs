@@ -34,9 +34,16 @@ struct HandJoint {
     prismatic: bool,
     lower: f64,
     upper: f64,
-    /// The hand joint whose target drives this one: (index in `Robot::hand`, multiplier, offset).
+    /// The hand joint that drives this one: (index in `Robot::hand`, multiplier, offset).
     drive: (usize, f64, f64),
+    /// A mimic joint: its target follows its leader's position, every step.
+    follower: bool,
 }
+
+/// A mimic joint stands for a rigid linkage (the 2F-85's four-bar): its drive tracks the leader's
+/// position with this many times the hand's PD gains and effort, so that the coupling holds under
+/// the grip's load.
+const FOLLOWER_GAIN: f64 = 20.0;
 
 /// A link's collision shape (a mesh link's: the exact hull of its points, `hull_shape`). None: a degenerate mesh.
 fn collision_shape(g: &Geometry) -> Option<SharedShape> {
@@ -143,9 +150,13 @@ impl RapierHand {
         let nf = 1000.0;
         world.integration_parameters.contact_softness = SpringCoefficients::new(nf, 5.0);
         world.integration_parameters.static_contact_softness = SpringCoefficients::new(2.0 * nf, 5.0);
-        let palm = robot.grasp_frame;
+        // The hand's root (the palm, or a gripper's base) and its pose in the grasp frame, the
+        // frame the simulation is in (None: the root is the grasp frame).
+        let palm = robot.hand_root;
         let mut full_q = m.zero();
         robot.set_hand(&mut full_q, q);
+        let t_grasp_root = (palm != robot.grasp_frame).then(|| m.relative_pose(&full_q, palm, robot.grasp_frame).inverse());
+        let in_grasp_frame = |t: DAffine3| t_grasp_root.map_or(t, |g| g * t);
         // The simulated joints: the hand's, then their followers (in tree order, parents first).
         let mut simulated: Vec<(usize, (usize, f64, f64))> = robot.hand.iter().enumerate().map(|(k, h)| (h.joint, (k, 1.0, 0.0))).collect();
         for &f in &robot.followers {
@@ -180,7 +191,7 @@ impl RapierHand {
             let handle = match bodies[b] {
                 Some(h) => h,
                 None => {
-                    let pose = to_pose(&m.relative_pose(&full_q, palm, b));
+                    let pose = to_pose(&in_grasp_frame(m.relative_pose(&full_q, palm, b)));
                     let rb = if b == palm { RigidBodyBuilder::fixed() } else { RigidBodyBuilder::dynamic() };
                     let h = world.insert_body(rb.pose(pose).can_sleep(false));
                     bodies[b] = Some(h);
@@ -236,7 +247,7 @@ impl RapierHand {
             if pb == palm {
                 // One multibody per finger, each on its own fixed root at the palm: contact
                 // constraints then solve against 4x4 instead of 16x16 mass matrices.
-                parent = world.insert_body(RigidBodyBuilder::fixed().pose(to_pose(&DAffine3::IDENTITY)));
+                parent = world.insert_body(RigidBodyBuilder::fixed().pose(to_pose(&in_grasp_frame(DAffine3::IDENTITY))));
             }
             // Joint frames whose x axis is the URDF axis: rapier's free revolute axis is AngX,
             // its free prismatic axis LinX.
@@ -252,14 +263,16 @@ impl RapierHand {
             } else {
                 (JointAxesMask::LOCKED_REVOLUTE_AXES, JointAxis::AngX)
             };
-            let effort = robot.hand[drive.0].effort.unwrap_or(self.settings.max_torque) as f32;
+            let follower = j.mimic.is_some();
+            let gain = if follower { FOLLOWER_GAIN } else { 1.0 };
+            let effort = robot.hand[drive.0].effort.unwrap_or(self.settings.max_torque) * gain;
             let joint = GenericJointBuilder::new(locked)
                 .local_frame1(to_pose(&frame1))
                 .local_frame2(to_pose(&frame2))
                 .limits(axis, [j.lower as f32, j.upper as f32])
                 .motor_model(axis, MotorModel::ForceBased)
-                .motor_position(axis, value as f32, self.settings.stiffness as f32, self.settings.damping as f32)
-                .motor_max_force(axis, effort)
+                .motor_position(axis, value as f32, (self.settings.stiffness * gain) as f32, (self.settings.damping * gain) as f32)
+                .motor_max_force(axis, effort as f32)
                 .build();
             let handle =
                 world.insert_multibody_joint(parent, child, joint).with_context(|| format!("cannot add joint {name} to the hand"))?;
@@ -273,6 +286,7 @@ impl RapierHand {
                 lower: j.lower,
                 upper: j.upper,
                 drive,
+                follower,
             });
         }
         let touch_colliders = robot.touch_links.iter().map(|&l| link_colliders[l].clone()).collect();
@@ -283,6 +297,21 @@ impl RapierHand {
         self.object = None;
         self.saved = None;
         Ok(())
+    }
+
+    /// Drives simulated joint `k` towards its drive's `value` (mapped by its multiplier and offset)
+    /// with the hand's PD gains times `gain`.
+    fn set_motor(&mut self, k: usize, value: f64, gain: f64) {
+        let hj = &self.joints[k];
+        let (_, multiplier, offset) = hj.drive;
+        let t = (multiplier * value + offset).clamp(hj.lower, hj.upper) as f32;
+        let axis = if hj.prismatic { JointAxis::LinX } else { JointAxis::AngX };
+        let (stiffness, damping) = ((self.settings.stiffness * gain) as f32, (self.settings.damping * gain) as f32);
+        if let Some((mb, link)) = self.world.multibody_joints.get_mut(hj.joint)
+            && let Some(l) = mb.link_mut(link)
+        {
+            l.joint.data.set_motor_position(axis, t, stiffness, damping);
+        }
     }
 
     /// The value of simulated joint `k` from its bodies' poses.
@@ -337,15 +366,9 @@ impl HandPhysics for RapierHand {
     }
 
     fn set_targets(&mut self, targets: &[f64]) {
-        let (stiffness, damping) = (self.settings.stiffness as f32, self.settings.damping as f32);
-        for hj in &self.joints {
-            let (k, multiplier, offset) = hj.drive;
-            let t = (multiplier * targets[k] + offset).clamp(hj.lower, hj.upper) as f32;
-            let axis = if hj.prismatic { JointAxis::LinX } else { JointAxis::AngX };
-            if let Some((mb, link)) = self.world.multibody_joints.get_mut(hj.joint)
-                && let Some(l) = mb.link_mut(link)
-            {
-                l.joint.data.set_motor_position(axis, t, stiffness, damping);
+        for k in 0..self.joints.len() {
+            if !self.joints[k].follower {
+                self.set_motor(k, targets[self.joints[k].drive.0], 1.0);
             }
         }
     }
@@ -364,6 +387,13 @@ impl HandPhysics for RapierHand {
     }
 
     fn step(&mut self) {
+        // Mimic joints follow where their leader is.
+        for k in 0..self.joints.len() {
+            if self.joints[k].follower {
+                let leader = self.joint_value(self.joints[k].drive.0);
+                self.set_motor(k, leader, FOLLOWER_GAIN);
+            }
+        }
         self.world.step();
         self.steps += 1;
     }

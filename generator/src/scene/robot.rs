@@ -37,7 +37,7 @@ pub fn mask_id(robot: &Robot, link: usize) -> Option<u8> {
         return mask_ids::nth(&mask_ids::HAND_LINKS, robot.hand.len() + k);
     }
     let joint = &model.joints[j];
-    if !joint.moves() && model.is_below(link, robot.grasp_frame) { mask_id(robot, joint.parent) } else { None }
+    if !joint.moves() && model.is_below(link, robot.hand_root) { mask_id(robot, joint.parent) } else { None }
 }
 
 /// Whether a moving joint lies between `top` and `link` (below it).

@@ -17,6 +17,9 @@ pub enum GraspKind {
     /// The object is placed on the open palm (the grasp frame's +x is the palmar normal), the hand
     /// takes a random preshape and closes around it: the multi-finger hands.
     Palm,
+    /// The object is put between the open jaws at an antipodal pair of its surface points (on the
+    /// line between the first two pads), the jaws close: the parallel grippers.
+    ParallelJaw,
 }
 
 /// Which of the tactile config's sensor groups (`robot.tactile.sensors`) a pad's model comes from.
@@ -66,9 +69,15 @@ pub struct ArmSpec {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct GraspSpec {
-    /// The link the grasp is planned in and the physics simulates the hand in (the palm).
+    /// The link the grasp is planned in and the physics simulates the hand in (the palm; for a
+    /// gripper, a frame between its jaws): +x towards the object, the arm's moves keep it within
+    /// `max_tilt_deg` of straight up.
     pub frame: String,
     pub kind: GraspKind,
+    /// The link the simulated hand starts from: it and everything below it (default: `frame`).
+    /// The grasp frame must be fixed to it.
+    #[serde(default)]
+    pub hand_root: Option<String>,
     /// A grasp holds, and a pose is recorded, only with at least this many touch links touching.
     pub min_touching: usize,
 }
@@ -156,6 +165,8 @@ pub struct Robot {
     pub home: Vec<f64>,
     pub azimuth_offset: f64,
     pub grasp_frame: usize,
+    /// The simulated hand's root link (the grasp frame is fixed to it).
+    pub hand_root: usize,
     pub kind: GraspKind,
     pub min_touching: usize,
     pub hand: Vec<HandJoint>,
@@ -166,12 +177,13 @@ pub struct Robot {
 }
 
 /// The robots vtgen carries, chosen by name (`robot.model`).
-pub const BUILTIN_ROBOTS: [&str; 1] = ["ur5e_allegro"];
+pub const BUILTIN_ROBOTS: [&str; 2] = ["ur5e_allegro", "ur5e_robotiq_2f85"];
 
 /// A built-in robot's URDF and description texts.
 fn builtin_texts(name: &str) -> Option<(&'static str, &'static str)> {
     match name {
         "ur5e_allegro" => Some((crate::BUILTIN_URDF, include_str!("../ur5e_allegro.yaml"))),
+        "ur5e_robotiq_2f85" => Some((include_str!("../ur5e_robotiq_2f85.urdf"), include_str!("../ur5e_robotiq_2f85.yaml"))),
         _ => None,
     }
 }
@@ -266,6 +278,17 @@ impl Robot {
                 ));
             }
         }
+        let hand_root = match &desc.grasp.hand_root {
+            Some(name) => {
+                let root = link(&model, "grasp.hand_root", name)?;
+                match path_down(&model, root, grasp_frame) {
+                    Some(p) if p.iter().all(|&j| !model.joints[j].moves()) => root,
+                    _ => return Err(err("grasp.hand_root", format!("the grasp frame '{}' is not fixed below '{name}'", desc.grasp.frame))),
+                }
+            }
+            None => grasp_frame,
+        };
+        let root_name = model.links[hand_root].name.clone();
         let mut hand = Vec::new();
         for (i, h) in desc.hand.iter().enumerate() {
             let field = format!("hand[{i}].joint");
@@ -275,8 +298,8 @@ impl Robot {
                 return Err(err(&field, format!("'{}' mimics another joint: list the joint it follows", h.joint)));
             }
             let Some(dof) = joint.dof else { return Err(err(&field, format!("'{}' is fixed", h.joint))) };
-            if !model.is_below(joint.child, grasp_frame) {
-                return Err(err(&field, format!("'{}' is not below the grasp frame '{}'", h.joint, desc.grasp.frame)));
+            if !model.is_below(joint.child, hand_root) {
+                return Err(err(&field, format!("'{}' is not below the hand's root '{root_name}'", h.joint)));
             }
             if hand.iter().any(|o: &HandJoint| o.joint == j) {
                 return Err(err(&field, format!("'{}' is listed twice", h.joint)));
@@ -299,7 +322,7 @@ impl Robot {
         }
         let mut followers = Vec::new();
         for (j, joint) in model.joints.iter().enumerate() {
-            if !joint.moves() || !model.is_below(joint.child, grasp_frame) || hand.iter().any(|h| h.joint == j) {
+            if !joint.moves() || !model.is_below(joint.child, hand_root) || hand.iter().any(|h| h.joint == j) {
                 continue;
             }
             match joint.mimic {
@@ -307,7 +330,7 @@ impl Robot {
                 _ => {
                     return Err(err(
                         "hand",
-                        format!("joint '{}' moves below the grasp frame but is neither listed nor a <mimic> of a listed joint", joint.name),
+                        format!("joint '{}' moves in the hand but is neither listed nor a <mimic> of a listed joint", joint.name),
                     ));
                 }
             }
@@ -316,8 +339,8 @@ impl Robot {
         for (i, p) in desc.pads.iter().enumerate() {
             let at = |f: &str| format!("pads[{i}].{f}");
             let on = link(&model, &at("link"), &p.link)?;
-            if !model.is_below(on, grasp_frame) {
-                return Err(err(&at("link"), format!("'{}' is not part of the hand (below the grasp frame)", p.link)));
+            if !model.is_below(on, hand_root) {
+                return Err(err(&at("link"), format!("'{}' is not part of the hand (below '{root_name}')", p.link)));
             }
             if pads.iter().any(|o: &Pad| o.name == p.name) || p.name.is_empty() || p.name.contains('/') {
                 return Err(err(&at("name"), format!("'{}' must be unique, not empty and without '/'", p.name)));
@@ -351,7 +374,7 @@ impl Robot {
                 .enumerate()
                 .map(|(i, n)| {
                     let id = link(&model, &format!("touch_links[{i}]"), n)?;
-                    if model.is_below(id, grasp_frame) {
+                    if model.is_below(id, hand_root) {
                         Ok(id)
                     } else {
                         Err(err(&format!("touch_links[{i}]"), format!("'{n}' is not part of the hand")))
@@ -368,6 +391,9 @@ impl Robot {
                 v
             }
         };
+        if desc.grasp.kind == GraspKind::ParallelJaw && pads.len() < 2 {
+            return Err(err("pads", "a parallel-jaw grasp needs two pads, one on each jaw (the first two)".into()));
+        }
         if desc.grasp.min_touching == 0 || desc.grasp.min_touching > touch_links.len() {
             return Err(err(
                 "grasp.min_touching",
@@ -384,6 +410,7 @@ impl Robot {
             home: desc.arm.home,
             azimuth_offset: 0.0,
             grasp_frame,
+            hand_root,
             kind: desc.grasp.kind,
             min_touching: desc.grasp.min_touching,
             hand,

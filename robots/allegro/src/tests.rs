@@ -1,6 +1,7 @@
 use glam::{DAffine3, DQuat, DVec3};
 
 use super::*;
+use crate::GraspKind;
 
 fn model() -> RobotModel {
     Robot::allegro().model
@@ -139,12 +140,8 @@ fn broken_descriptions_name_the_file_and_the_field() {
         ("frame: palm", "frame: base_link", "bad.yaml: grasp.frame: 'base_link' is not fixed below the flange 'flange'"),
         ("frame: palm", "frame: ff_distal", "bad.yaml: grasp.frame: 'ff_distal' moves against the flange"),
         ("joint: th_joint_2,", "joint: th_joint_x,", "bad.yaml: hand[14].joint: no joint 'th_joint_x' in the URDF"),
-        ("joint: th_joint_2,", "joint: shoulder_pan_joint,", "hand[14].joint: 'shoulder_pan_joint' is not below the grasp frame 'palm'"),
-        (
-            "- {joint: th_joint_3, preshape: [-0.1, 0.3], close: 1.2}\n",
-            "",
-            "joint 'th_joint_3' moves below the grasp frame but is neither listed",
-        ),
+        ("joint: th_joint_2,", "joint: shoulder_pan_joint,", "hand[14].joint: 'shoulder_pan_joint' is not below the hand's root 'palm'"),
+        ("- {joint: th_joint_3, preshape: [-0.1, 0.3], close: 1.2}\n", "", "joint 'th_joint_3' moves in the hand but is neither listed"),
         ("preshape: [0.3, 0.5]", "preshape: [0.5, 0.3]", "hand[12].preshape: [0.5, 0.3] is not a range"),
         ("frame: th_distal_pad,", "frame: th_medial_pad,", "pads[11].frame: 'th_medial_pad' is not a link fixed to 'th_distal'"),
         ("min_touching: 2", "min_touching: 13", "grasp.min_touching: 13 is not within 1 ..= the 12 touch links"),
@@ -185,4 +182,25 @@ fn mimic_and_prismatic_joints_follow_their_leader() {
     let missing = urdf.replace(r#"<mimic joint="slide""#, r#"<mimic joint="slid""#);
     let e = RobotModel::from_urdf_str(&missing, "jaw.urdf").unwrap_err().to_string();
     assert!(e.contains("joint 'mirror': <mimic joint=\"slid\"> names a joint that does not exist"), "{e}");
+}
+
+#[test]
+fn the_robotiq_gripper_closes_its_parallel_pads_symmetrically() {
+    let robot = Robot::builtin("ur5e_robotiq_2f85").unwrap();
+    assert_eq!((robot.kind, robot.hand.len(), robot.followers.len(), robot.pads.len()), (GraspKind::ParallelJaw, 1, 5, 2));
+    let m = &robot.model;
+    let grasp = robot.grasp_frame;
+    for closed in [0.0, 0.4, 0.8] {
+        let mut q = m.zero();
+        robot.set_hand(&mut q, &[closed]);
+        let links = m.forward_kinematics(&q);
+        let [l, r] = [0, 1].map(|k| links[grasp].inverse() * links[robot.pads[k].frame]);
+        // Mirror images across the grasp frame's x-z plane, facing each other along y.
+        assert!((l.translation.y + r.translation.y).abs() < 1e-9 && (l.translation.x - r.translation.x).abs() < 1e-9);
+        assert!((l.matrix3.z_axis - DVec3::Y).length() < 1e-6 && (r.matrix3.z_axis + DVec3::Y).length() < 1e-6, "{closed}");
+        if closed == 0.0 {
+            // Open: 85 mm between the pads' faces, centred on the grasp frame.
+            assert!((r.translation.y - l.translation.y - 0.086).abs() < 1e-3 && l.translation.length() - 0.043 < 1e-3, "{l:?}");
+        }
+    }
 }
