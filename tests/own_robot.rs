@@ -281,3 +281,55 @@ pub fn tactile_points_lie_on_the_object_within_their_pad(dir: &Path) {
     }
     assert!(points > 0, "no tactile points");
 }
+
+/// `scenes/tiny-gripper.yaml` (the built-in UR5e + Robotiq 2F-85), generated once.
+fn gripper_dataset() -> &'static Path {
+    static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();
+    DIR.get_or_init(|| {
+        let d = tempdir();
+        let cfg = root().join("scenes/tiny-gripper.yaml");
+        let o = run(&["generate", cfg.to_str().unwrap(), "--out", d.path().to_str().unwrap(), "--quiet"]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        d
+    })
+    .path()
+}
+
+#[test]
+fn the_parallel_gripper_holds_objects_between_its_two_pads_and_its_ground_truth_is_exact() {
+    let dir = gripper_dataset();
+    let ds = DatasetReader::open(dir).unwrap();
+    let mut n = 0;
+    for split in ["train", "test"] {
+        for s in ds.samples(split).unwrap() {
+            let s = s.unwrap();
+            let r = s.info.robot.as_ref().expect("a robot's info");
+            // 6 arm joints and finger_joint (its four mimics follow it); both jaws touch.
+            assert_eq!(r.joint_positions.len(), 7, "{:?}", r.joint_positions);
+            assert_eq!(r.phalanges_in_contact, ["left_inner_finger_pad", "right_inner_finger_pad"]);
+            assert!(r.penetration_mm <= 1.0);
+            assert_eq!(s.tactile.as_ref().expect("tactile data").phalanges, ["left", "right"]);
+            let frames: Vec<&str> = s.extra_transforms.iter().map(|t| t.1.as_str()).collect();
+            assert!(frames.contains(&"grasp_frame") && frames.contains(&"left_pad") && frames.contains(&"right_pad"), "{frames:?}");
+            n += 1;
+        }
+    }
+    assert_eq!(n, 40);
+    crate::ground_truth::check_dataset(dir);
+    tactile_points_lie_on_the_object_within_their_pad(dir);
+    let o = run(&["validate", dir.to_str().unwrap()]);
+    assert!(o.status.success(), "{}{}", String::from_utf8_lossy(&o.stdout), stderr(&o));
+}
+
+#[test]
+fn the_parallel_gripper_dataset_is_deterministic() {
+    let other = tempdir();
+    let cfg = root().join("scenes/tiny-gripper.yaml");
+    let o = run(&["generate", cfg.to_str().unwrap(), "--out", other.path().to_str().unwrap(), "--quiet", "--shard", "3/5"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let shards = complete_shards(other.path());
+    assert_eq!(shards, ["train/shard-00003.mcap"]);
+    for f in shards {
+        assert!(std::fs::read(other.path().join(&f)).unwrap() == std::fs::read(gripper_dataset().join(&f)).unwrap(), "{f} differs");
+    }
+}

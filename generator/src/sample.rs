@@ -14,7 +14,7 @@ use vt_randomizers::{AppearanceContext, ImageLibrary, ProceduralTexture, SampleK
 
 use crate::annotate::occlusion::{model_points, occlusion_level};
 use crate::assets::LoadedObject;
-use crate::assets::robot::{load_robot_meshes, robot_assets_dir};
+use crate::assets::robot::{load_drawn_meshes, robot_assets_dir};
 use crate::config::{Config, LoadedConfig};
 use crate::physics::grasp::Trajectory;
 use crate::plan::SampleRef;
@@ -264,7 +264,7 @@ impl<'a> SampleFactory<'a> {
         let mut robot_glbs = Vec::new();
         if let Some(r) = &robot {
             let mut real = match robot_assets_dir(cfg) {
-                Some(dir) => load_robot_meshes(&dir, &r.robot.model, true)?,
+                Some(dir) => load_drawn_meshes(&dir, &r.robot, true)?,
                 None => {
                     static SAID: std::sync::Once = std::sync::Once::new();
                     SAID.call_once(|| {

@@ -41,8 +41,17 @@ const MAX_SIMPLIFY_ERROR: f32 = 0.002;
 /// sharp edges that averaged normals would round off).
 const CREASE_DEG: f32 = 40.0;
 
-/// The folders of a robot mesh directory the loaders read (`scripts/robot-assets` fills them).
-pub const MESH_DIRS: [&str; 2] = ["allegro/meshes", "ur5e/visual"];
+/// The built-in robots that have real meshes (`scripts/robot-assets` fetches them).
+pub const ROBOTS_WITH_MESHES: [&str; 2] = ["ur5e_allegro", "ur5e_robotiq_2f85"];
+
+/// The folders of a robot mesh directory the loaders read for robot `name` (`scripts/robot-assets`
+/// fills them).
+pub fn mesh_dirs(name: &str) -> &'static [&'static str] {
+    match name {
+        "ur5e_robotiq_2f85" => &["robotiq_2f85/visual", "ur5e/visual"],
+        _ => &["allegro/meshes", "ur5e/visual"],
+    }
+}
 
 /// Triangles per arm link after simplification: the arm is a background occluder seen at a few
 /// hundred pixels; the full meshes have 126 000 triangles in all.
@@ -86,6 +95,24 @@ fn hand_parts(link: &str) -> Option<Vec<Part>> {
         "th_proximal" => vec![stl("link_13.0.STL", id, HAND_BLACK)],
         "th_medial" => vec![stl("link_14.0.STL", id, HAND_BLACK)],
         "th_distal" => vec![stl("link_15.0.STL", id, HAND_BLACK), tip(THUMB_TIP_Z, "link_15.0_tip.STL")],
+        _ => return None,
+    })
+}
+
+/// The 2F-85's link mesh files (airo-models 0.0.12, its visual OBJs: the body's in metres, the
+/// rest in millimetres), in our link frames (the package's, for these links) and the URDF's colours.
+fn gripper_parts(link: &str) -> Option<Vec<Part>> {
+    let mm = DAffine3::from_scale(DVec3::splat(0.001));
+    let part =
+        |file: &str, origin: DAffine3, colour: [f64; 3]| Part { file: format!("robotiq_2f85/visual/{file}"), origin, colour: Some(colour) };
+    const BLACK: [f64; 3] = [0.1, 0.1, 0.1];
+    const KNUCKLE: [f64; 3] = [0.79, 0.82, 0.93];
+    Some(match link {
+        "gripper_body" => vec![part("robotiq_arg2f_85_base_link.obj", DAffine3::IDENTITY, BLACK)],
+        "left_outer_knuckle" | "right_outer_knuckle" => vec![part("robotiq_arg2f_85_outer_knuckle.obj", mm, KNUCKLE)],
+        "left_outer_finger" | "right_outer_finger" => vec![part("robotiq_arg2f_85_outer_finger.obj", mm, BLACK)],
+        "left_inner_finger" | "right_inner_finger" => vec![part("robotiq_arg2f_85_inner_finger.obj", mm, BLACK)],
+        "left_inner_knuckle" | "right_inner_knuckle" => vec![part("robotiq_arg2f_85_inner_knuckle.obj", mm, BLACK)],
         _ => return None,
     })
 }
@@ -152,6 +179,25 @@ fn check_layout(dir: &Path, probe: &str, what: &str) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// The real meshes a built-in robot is drawn with (`ROBOTS_WITH_MESHES`), as
+/// [`load_robot_meshes`] gives them.
+pub fn load_drawn_meshes(dir: &Path, robot: &Robot, simplified: bool) -> Result<HashMap<usize, TexturedMesh>> {
+    match robot.name.as_str() {
+        "ur5e_robotiq_2f85" => {
+            check_layout(dir, "robotiq_2f85/visual/robotiq_arg2f_85_inner_finger.obj", "Robotiq 2F-85")?;
+            let mut out = HashMap::new();
+            for (id, link) in robot.model.links.iter().enumerate() {
+                if let Some(parts) = gripper_parts(&link.name) {
+                    out.insert(id, build_link_mesh(dir, &parts, simplified.then_some(HAND_TRIANGLES_PER_PART))?);
+                }
+            }
+            out.extend(load_arm_meshes(dir, &robot.model, if simplified { ARM_TRIANGLES_PER_LINK } else { usize::MAX })?);
+            Ok(out)
+        }
+        _ => load_robot_meshes(dir, &robot.model, simplified),
+    }
 }
 
 /// The real meshes of every robot link that has one, in the link frame, as drawn: link index ->
@@ -308,9 +354,14 @@ fn build_link_mesh(dir: &Path, parts: &[Part], max_triangles: Option<usize>) -> 
         if !path.is_file() {
             bail!("robot mesh {}: file not found", path.display());
         }
-        let raw = match part.colour {
-            Some(c) => read_stl(&path, c)?,
-            None => read_obj(&path)?,
+        let raw = match (part.colour, part.file.ends_with(".obj")) {
+            (Some(c), false) => read_stl(&path, c)?,
+            (Some(c), true) => {
+                let mut raw = read_obj(&path)?;
+                raw.colours.iter_mut().for_each(|x| *x = c);
+                raw
+            }
+            (None, _) => read_obj(&path)?,
         };
         if raw.triangles.is_empty() {
             bail!("robot mesh {}: contains no triangles", path.display());

@@ -50,7 +50,7 @@ impl MeshSources {
                 (o.id.clone(), Source { from, sha256: mesh_sha256(o) })
             })
             .collect();
-        let robot = cfg.config.robot.as_ref().map(|r| robot_source(cfg, r.urdf.as_deref())).transpose()?;
+        let robot = cfg.config.robot.as_ref().map(|r| robot_source(cfg, r)).transpose()?;
         Ok(MeshSources { objects, robot })
     }
 
@@ -97,24 +97,47 @@ fn mesh_sha256(o: &LoadedObject) -> String {
     hex(h)
 }
 
-/// The robot: its URDF text and every file of the robot mesh directories the run reads.
-fn robot_source(cfg: &LoadedConfig, urdf: Option<&Path>) -> Result<Source> {
+/// The robot: its URDF text (and its description's, but for the default robot, whose identity
+/// earlier datasets carry as its URDF's alone) and every file of the robot mesh directories the
+/// run reads.
+fn robot_source(cfg: &LoadedConfig, rc: &crate::config::RobotConfig) -> Result<Source> {
     let mut h = Sha256::new();
     let mut from = Vec::new();
-    match urdf {
-        Some(p) => {
-            let path = cfg.resolve(p);
-            h.update(std::fs::read(&path).with_context(|| format!("cannot read {}", path.display()))?);
+    let name = cfg.robot.as_ref().map_or("ur5e_allegro", |r| r.name.as_str());
+    let read = |p: &Path| {
+        let path = cfg.resolve(p);
+        std::fs::read(&path).with_context(|| format!("cannot read {}", path.display())).map(|b| (b, path))
+    };
+    if let Some(d) = &rc.description {
+        let (bytes, path) = read(d)?;
+        h.update(bytes);
+        from.push(format!("description {}", tail(&path, 1)));
+    }
+    match (&rc.urdf, &rc.description) {
+        (Some(p), _) => {
+            let (bytes, path) = read(p)?;
+            h.update(bytes);
             from.push(format!("URDF {}", tail(&path, 1)));
         }
-        None => {
+        (None, Some(_)) => {
+            let robot = cfg.robot.as_ref().context("a robot description is loaded with the config")?;
+            h.update(robot.urdf_text.as_bytes());
+            from.push("the description's URDF".to_string());
+        }
+        (None, None) if name == "ur5e_allegro" => {
             h.update(vt_robot::BUILTIN_URDF.as_bytes());
             from.push("built-in URDF".to_string());
+        }
+        (None, None) => {
+            let robot = cfg.robot.as_ref().context("a built-in robot is loaded with the config")?;
+            h.update(robot.urdf_text.as_bytes());
+            h.update(vt_robot::builtin_description(name).unwrap_or_default().as_bytes());
+            from.push(format!("built-in {name}"));
         }
     }
     match &cfg.robot_assets {
         Some(dir) => {
-            for sub in crate::assets::robot::MESH_DIRS {
+            for sub in crate::assets::robot::mesh_dirs(name) {
                 hash_dir(&mut h, dir, &dir.join(sub))?;
             }
             from.push("robot meshes".to_string());

@@ -35,10 +35,14 @@ pub struct Reprojection {
     pub visible: usize,
     pub front_facing: usize,
     pub agreeing: usize,
+    /// Facing points under a robot surface that touches them (within 2 mm): where a pad presses
+    /// on the object, the picture shows the pad. Neither visible nor hidden.
+    pub touched: usize,
 }
 
 /// Projects surface points with the sample's pose and intrinsics. A point is *visible* when it faces
-/// the camera (not grazing) and nothing is drawn in front of it; it *agrees* when a pixel within one
+/// the camera (not grazing) and nothing is drawn in front of it (a robot link touching it, within
+/// 2 mm, is counted apart: `touched`); it *agrees* when a pixel within one
 /// pixel of its projection (edge pixels aside) has the object's mask id and its depth within 2 mm
 /// of the point's depth or of the point's tangent plane seen through that pixel's centre. The
 /// plane is for flat faces seen at a grazing angle (at 72° their depth changes by 4 mm per pixel
@@ -48,7 +52,7 @@ pub fn reproject(s: &Sample, points: &[(DVec3, DVec3)], mask_id: u8) -> Reprojec
     let (w, h) = (s.width as i64, s.height as i64);
     let pose = s.t_camera_object;
     let r = pose.rotation();
-    let mut out = Reprojection { visible: 0, front_facing: 0, agreeing: 0 };
+    let mut out = Reprojection { visible: 0, front_facing: 0, agreeing: 0, touched: 0 };
     for (p, n) in points {
         let pc = pose.transform_point(*p);
         let nc = r * *n;
@@ -70,6 +74,10 @@ pub fn reproject(s: &Sample, points: &[(DVec3, DVec3)], mask_id: u8) -> Reprojec
         let d = s.depth[at(ui, vi)] as f64;
         if d > 0.0 && d < pc.z - 0.002 {
             continue; // occluded
+        }
+        if vt_dataset::mask_ids::is_robot(s.mask[at(ui, vi)]) && (d - pc.z).abs() <= 0.002 {
+            out.touched += 1;
+            continue;
         }
         out.visible += 1;
         let ok = (-1..=1).any(|dy| {

@@ -188,10 +188,13 @@ impl LoadedConfig {
                 match urdf {
                     // A URDF of one's own with the built-in robot's names and description.
                     Some(u) => {
-                        let model = vt_robot::RobotModel::from_urdf_file(&u).map_err(|e| (vec!["robot", "urdf"], e.to_string()))?;
+                        let urdf_text = std::fs::read_to_string(&u)
+                            .map_err(|e| (vec!["robot", "urdf"], format!("robot description {}: cannot read: {e}", u.display())))?;
+                        let model = vt_robot::RobotModel::from_urdf_str(&urdf_text, &u.display().to_string())
+                            .map_err(|e| (vec!["robot", "urdf"], e.to_string()))?;
                         let text = vt_robot::builtin_description(name).expect("a built-in robot has a description");
                         let desc = serde_yaml::from_str(text).expect("the built-in description parses (unit-tested)");
-                        vt_robot::Robot::resolve(model, desc, &format!("built-in {name}.yaml with {}", u.display()))
+                        vt_robot::Robot::resolve(model, urdf_text, desc, &format!("built-in {name}.yaml with {}", u.display()))
                             .map_err(|e| (vec!["robot", "urdf"], e.to_string()))
                     }
                     None => Ok(builtin),

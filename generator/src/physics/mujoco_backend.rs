@@ -212,10 +212,11 @@ impl MujocoHand {
         for h in &robot.hand {
             let (name, j) = (&h.name, &m.joints[h.joint]);
             let effort = h.effort.unwrap_or(s.max_torque);
+            let (kp, kv) = (h.stiffness.unwrap_or(s.stiffness), h.damping.unwrap_or(s.damping));
             let _ = write!(
                 x,
-                r#"<position name="{name}" joint="{name}" kp="{}" kv="{}" ctrlrange="{} {}" forcerange="{} {}"/>"#,
-                s.stiffness, s.damping, j.lower, j.upper, -effort, effort
+                r#"<position name="{name}" joint="{name}" kp="{kp}" kv="{kv}" ctrlrange="{} {}" forcerange="{} {}"/>"#,
+                j.lower, j.upper, -effort, effort
             );
         }
         x.push_str("</actuator></mujoco>");

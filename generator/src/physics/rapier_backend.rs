@@ -40,6 +40,11 @@ struct HandJoint {
     follower: bool,
 }
 
+/// A hand joint's PD gains and effort limit: the description's, or the config's.
+fn gains(h: &vt_robot::HandJoint, s: &PhysicsSettings) -> (f64, f64, f64) {
+    (h.stiffness.unwrap_or(s.stiffness), h.damping.unwrap_or(s.damping), h.effort.unwrap_or(s.max_torque))
+}
+
 /// A mimic joint stands for a rigid linkage (the 2F-85's four-bar): its drive tracks the leader's
 /// position with this many times the hand's PD gains and effort, so that the coupling holds under
 /// the grip's load.
@@ -265,14 +270,14 @@ impl RapierHand {
             };
             let follower = j.mimic.is_some();
             let gain = if follower { FOLLOWER_GAIN } else { 1.0 };
-            let effort = robot.hand[drive.0].effort.unwrap_or(self.settings.max_torque) * gain;
+            let (stiffness, damping, effort) = gains(&robot.hand[drive.0], &self.settings);
             let joint = GenericJointBuilder::new(locked)
                 .local_frame1(to_pose(&frame1))
                 .local_frame2(to_pose(&frame2))
                 .limits(axis, [j.lower as f32, j.upper as f32])
                 .motor_model(axis, MotorModel::ForceBased)
-                .motor_position(axis, value as f32, (self.settings.stiffness * gain) as f32, (self.settings.damping * gain) as f32)
-                .motor_max_force(axis, effort as f32)
+                .motor_position(axis, value as f32, (stiffness * gain) as f32, (damping * gain) as f32)
+                .motor_max_force(axis, (effort * gain) as f32)
                 .build();
             let handle =
                 world.insert_multibody_joint(parent, child, joint).with_context(|| format!("cannot add joint {name} to the hand"))?;
@@ -303,10 +308,11 @@ impl RapierHand {
     /// with the hand's PD gains times `gain`.
     fn set_motor(&mut self, k: usize, value: f64, gain: f64) {
         let hj = &self.joints[k];
-        let (_, multiplier, offset) = hj.drive;
+        let (leader, multiplier, offset) = hj.drive;
         let t = (multiplier * value + offset).clamp(hj.lower, hj.upper) as f32;
         let axis = if hj.prismatic { JointAxis::LinX } else { JointAxis::AngX };
-        let (stiffness, damping) = ((self.settings.stiffness * gain) as f32, (self.settings.damping * gain) as f32);
+        let (stiffness, damping, _) = gains(&self.robot.hand[leader], &self.settings);
+        let (stiffness, damping) = ((stiffness * gain) as f32, (damping * gain) as f32);
         if let Some((mb, link)) = self.world.multibody_joints.get_mut(hj.joint)
             && let Some(l) = mb.link_mut(link)
         {

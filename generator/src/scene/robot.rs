@@ -9,7 +9,7 @@ use vt_dataset::mask_ids;
 use vt_objects::{Texture, TexturedMesh};
 use vt_robot::{Geometry, Robot, RobotModel};
 
-use crate::assets::robot::{load_hand_meshes, robot_assets_dir, with_real_hand};
+use crate::assets::robot::{ROBOTS_WITH_MESHES, load_hand_meshes, robot_assets_dir, with_real_hand};
 use crate::config::{LoadedConfig, RobotConfig};
 use crate::physics::grasp::{GraspContext, GraspEvent, Trajectory, TrajectoryKey, simulate_trajectory};
 use crate::physics::{HandPhysics, PhysicsObject, PhysicsSettings, RapierHand};
@@ -197,13 +197,20 @@ pub struct RobotScene {
 impl RobotScene {
     pub fn new(cfg: &LoadedConfig, robot: &RobotConfig, objects: &[crate::assets::LoadedObject]) -> Result<Self> {
         let mut model = cfg.robot.clone().context("a config with a robot section has its robot loaded")?;
-        if cfg.robot_assets.is_some() && model.name != "ur5e_allegro" {
+        if cfg.robot_assets.is_some() && !ROBOTS_WITH_MESHES.contains(&model.name.as_str()) {
             anyhow::bail!(
-                "robot meshes (--robot-assets or robot.assets) are those of the built-in ur5e_allegro; robot '{}' is drawn from its URDF's shapes: leave them out",
+                "robot meshes (--robot-assets or robot.assets) are those of the built-in robots ({}); robot '{}' is drawn \
+                 from its URDF's shapes: leave them out",
+                ROBOTS_WITH_MESHES.join(", "),
                 model.name
             );
         }
-        let hand_meshes = robot_assets_dir(cfg).map(|dir| load_hand_meshes(&dir, &model.model, None)).transpose()?;
+        // The Allegro hand collides as its real meshes' hulls, its pads on their surfaces; the
+        // 2F-85 collides as its URDF's boxes (its meshes are drawn).
+        let hand_meshes = match robot_assets_dir(cfg) {
+            Some(dir) if model.name == "ur5e_allegro" => Some(load_hand_meshes(&dir, &model.model, None)?),
+            _ => None,
+        };
         if let Some(hand) = &hand_meshes {
             model.model = with_real_hand(&model, hand)?;
         }

@@ -93,6 +93,12 @@ pub struct HandJointSpec {
     /// Torque (N·m) or force (N) limit of the joint's drive (default: `robot.physics.max_torque`).
     #[serde(default)]
     pub effort: Option<f64>,
+    /// PD gains of the joint's drive (N·m/rad and N·m·s/rad, or N/m and N·s/m; default:
+    /// `robot.physics.stiffness` and `damping`).
+    #[serde(default)]
+    pub stiffness: Option<f64>,
+    #[serde(default)]
+    pub damping: Option<f64>,
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -139,6 +145,8 @@ pub struct HandJoint {
     pub preshape: (f64, f64),
     pub close: Option<f64>,
     pub effort: Option<f64>,
+    pub stiffness: Option<f64>,
+    pub damping: Option<f64>,
 }
 
 /// A tactile pad.
@@ -157,6 +165,8 @@ pub struct Pad {
 pub struct Robot {
     pub name: String,
     pub model: RobotModel,
+    /// The URDF's text (a dataset's identity names it).
+    pub urdf_text: String,
     /// Moving joints from the base to the flange, and their entries in the joint-value vector.
     pub arm_joints: Vec<usize>,
     pub arm_dofs: Vec<usize>,
@@ -231,19 +241,20 @@ impl Robot {
                 });
             }
         };
-        let model = RobotModel::from_urdf_str(&read(&urdf_path)?, &urdf_path.display().to_string())?;
-        Robot::resolve(model, desc, &description.display().to_string())
+        let urdf_text = read(&urdf_path)?;
+        let model = RobotModel::from_urdf_str(&urdf_text, &urdf_path.display().to_string())?;
+        Robot::resolve(model, urdf_text, desc, &description.display().to_string())
     }
 
     /// A URDF and a description given as text (names are for errors).
     pub fn from_texts(urdf: &str, urdf_name: &str, description: &str, description_name: &str) -> Result<Self, RobotError> {
         let model = RobotModel::from_urdf_str(urdf, urdf_name)?;
-        Robot::resolve(model, parse(description, description_name)?, description_name)
+        Robot::resolve(model, urdf.to_string(), parse(description, description_name)?, description_name)
     }
 
     /// The URDF model checked against the description; errors name the description's field.
     // Long on purpose: one check per field, in the order the file has them.
-    pub fn resolve(mut model: RobotModel, desc: Description, source_name: &str) -> Result<Self, RobotError> {
+    pub fn resolve(mut model: RobotModel, urdf_text: String, desc: Description, source_name: &str) -> Result<Self, RobotError> {
         let err =
             |field: &str, message: String| RobotError { source_name: source_name.to_string(), message: format!("{field}: {message}") };
         let link = |model: &RobotModel, field: &str, name: &str| {
@@ -310,12 +321,28 @@ impl Robot {
                     format!("[{}, {}] is not a range (low first)", h.preshape.0, h.preshape.1),
                 ));
             }
-            if let Some(e) = h.effort
-                && !(e > 0.0 && e.is_finite())
-            {
-                return Err(err(&format!("hand[{i}].effort"), format!("{e} must be a positive number")));
+            for (key, value) in [("effort", h.effort), ("stiffness", h.stiffness)] {
+                if let Some(v) = value
+                    && !(v > 0.0 && v.is_finite())
+                {
+                    return Err(err(&format!("hand[{i}].{key}"), format!("{v} must be a positive number")));
+                }
             }
-            hand.push(HandJoint { name: h.joint.clone(), joint: j, dof, preshape: h.preshape, close: h.close, effort: h.effort });
+            if let Some(d) = h.damping
+                && !(d >= 0.0 && d.is_finite())
+            {
+                return Err(err(&format!("hand[{i}].damping"), format!("{d} must be zero or a positive number")));
+            }
+            hand.push(HandJoint {
+                name: h.joint.clone(),
+                joint: j,
+                dof,
+                preshape: h.preshape,
+                close: h.close,
+                effort: h.effort,
+                stiffness: h.stiffness,
+                damping: h.damping,
+            });
         }
         if hand.is_empty() {
             return Err(err("hand", "no joints: a hand or gripper needs at least one".into()));
@@ -403,6 +430,7 @@ impl Robot {
         let mut robot = Robot {
             name: desc.name,
             model,
+            urdf_text,
             arm_joints,
             arm_dofs,
             base,
