@@ -333,3 +333,25 @@ fn the_parallel_gripper_dataset_is_deterministic() {
         assert!(std::fs::read(other.path().join(&f)).unwrap() == std::fs::read(gripper_dataset().join(&f)).unwrap(), "{f} differs");
     }
 }
+
+#[test]
+fn a_workspace_the_arm_cannot_reach_is_refused_up_front() {
+    let d = tempdir();
+    let cfg = root().join("scenes/tiny-gripper.yaml");
+    let o = run(&[
+        "generate",
+        cfg.to_str().unwrap(),
+        "--out",
+        d.path().to_str().unwrap(),
+        "--quiet",
+        "--set",
+        "robot.base_position=[2.0,2.0,0.0]",
+    ]);
+    assert!(!o.status.success());
+    let e = stderr(&o);
+    assert!(
+        e.contains("robot.grasp.palm_workspace: the arm of robot 'ur5e_robotiq_2f85' reaches 0% of 48 grasp-frame poses drawn from it"),
+        "{e}"
+    );
+    assert!(complete_shards(d.path()).is_empty());
+}

@@ -192,6 +192,20 @@ impl GraspContext<'_> {
     }
 }
 
+/// Grasp-frame poses drawn by `reachable_share`, and the share of them the arm must reach.
+pub const REACH_SAMPLES: usize = 48;
+pub const MIN_REACHABLE_SHARE: f64 = 0.5;
+
+/// The share of `n` grasp-frame poses drawn from the workspace (as grasps draw them, from a stream
+/// of their own: the data's draws stay untouched) that the inverse kinematics reaches from home.
+pub fn reachable_share(ctx: &GraspContext, n: usize) -> f64 {
+    use rand::SeedableRng;
+    let mut rng = ChaCha8Rng::seed_from_u64(0x7265_6163_68);
+    let home = ctx.home();
+    let reached = (0..n).filter(|_| ctx.reach(&ctx.sample_palm(&mut rng), &home).is_some()).count();
+    reached as f64 / n.max(1) as f64
+}
+
 /// Which trajectory of which object, and how many instances it records: the keys of its random
 /// streams (`grasp/<attempt>` per trajectory, `arm/<attempt>…` per instance).
 #[derive(Debug, Clone, Copy)]
@@ -782,6 +796,19 @@ mod tests {
         assert_eq!(failures, vec![GraspEvent::Redone(Redo::Drop)]);
         // The redone move starts from the state saved before the drop: the object is back in the hand.
         assert!(t.instances.iter().all(|i| i.slip_translation == 0.0));
+    }
+
+    #[test]
+    fn both_built_in_robots_reach_the_paper_workspace() {
+        for name in vt_robot::BUILTIN_ROBOTS {
+            let robot = Robot::builtin(name).unwrap();
+            let cfg = GraspConfig::default().with_robot_defaults(&robot);
+            let (t_world_base, camera_position) = paper_context();
+            let ctx = GraspContext { robot: &robot, t_world_base, config: &cfg, timestep: 1.0 / 240.0, camera_position };
+            let share = reachable_share(&ctx, REACH_SAMPLES);
+            eprintln!("{name}: {:.0}% of {REACH_SAMPLES} workspace poses reached", 100.0 * share);
+            assert!(share >= 0.9, "{name}: {share}");
+        }
     }
 
     #[test]

@@ -11,7 +11,9 @@ use vt_robot::{Geometry, Robot, RobotModel};
 
 use crate::assets::robot::{ROBOTS_WITH_MESHES, load_hand_meshes, robot_assets_dir, with_real_hand};
 use crate::config::{LoadedConfig, RobotConfig};
-use crate::physics::grasp::{GraspContext, GraspEvent, Trajectory, TrajectoryKey, simulate_trajectory};
+use crate::physics::grasp::{
+    GraspContext, GraspEvent, MIN_REACHABLE_SHARE, REACH_SAMPLES, Trajectory, TrajectoryKey, reachable_share, simulate_trajectory,
+};
 use crate::physics::{HandPhysics, PhysicsObject, PhysicsSettings, RapierHand};
 
 /// Mask id of a robot link (`vt_dataset::mask_ids`): the base and the arm link moved by arm joint
@@ -231,6 +233,25 @@ impl RobotScene {
             DQuat::from_rotation_z(robot.base_yaw_deg.to_radians()),
             DVec3::from_array(robot.base_position),
         );
+        // A workspace the arm cannot reach would fail every grasp as Unreachable: said up front.
+        let ctx = GraspContext {
+            robot: &model,
+            t_world_base,
+            config: &robot.grasp,
+            timestep: robot.physics.timestep,
+            camera_position: DVec3::from_array(cfg.config.camera.position),
+        };
+        let share = reachable_share(&ctx, REACH_SAMPLES);
+        if share < MIN_REACHABLE_SHARE {
+            anyhow::bail!(
+                "{}: robot.grasp.palm_workspace: the arm of robot '{}' reaches {:.0}% of {REACH_SAMPLES} grasp-frame poses drawn from it \
+                 (at least {:.0}% needed): move the workspace or robot.base_position, or widen the joint limits",
+                cfg.path.display(),
+                model.name,
+                100.0 * share,
+                100.0 * MIN_REACHABLE_SHARE
+            );
+        }
         let objects = objects.iter().map(|o| PhysicsObject { points: o.mesh.positions.clone(), mass: o.mass }).collect();
         Ok(RobotScene {
             robot: model,
