@@ -304,7 +304,7 @@ fn the_parallel_gripper_holds_objects_between_its_two_pads_and_its_ground_truth_
         for s in ds.samples(split).unwrap() {
             let s = s.unwrap();
             let r = s.info.robot.as_ref().expect("a robot's info");
-            // 6 arm joints and finger_joint (its four mimics follow it); both jaws touch.
+            // 6 arm joints and finger_joint (its five mimics follow it); both jaws touch.
             assert_eq!(r.joint_positions.len(), 7, "{:?}", r.joint_positions);
             assert_eq!(r.phalanges_in_contact, ["left_inner_finger_pad", "right_inner_finger_pad"]);
             assert!(r.penetration_mm <= 1.0);

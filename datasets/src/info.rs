@@ -108,7 +108,7 @@ pub struct OcclusionInfo {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RobotInfo {
     pub physics_backend: String,
-    /// Phalanges touching the object (`vt_robot::phalanx_names`).
+    /// The robot's touch links touching the object (`Robot::touch_links`: the Allegro's phalanges).
     pub phalanges_in_contact: Vec<String>,
     /// Object motion in the hand since the grasp settled.
     pub slip_mm: f64,

@@ -72,7 +72,7 @@ pub struct TactilePointRecord {
 
 #[derive(Debug, Clone, PartialEq)]
 pub struct TactileData {
-    /// Phalanx names `<finger>_<phalanx>`, 12, in index order.
+    /// Pad names in the robot's pad order (what `TactilePointRecord::phalanx` indexes).
     pub phalanges: Vec<String>,
     /// Pixels per side of each phalanx camera.
     pub resolution: u32,

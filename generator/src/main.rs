@@ -13,9 +13,10 @@ use vtgen::plan::ShardSelector;
 struct Cli {
     #[command(subcommand)]
     command: Command,
-    /// Draw the real robot: a directory with allegro/meshes/*.STL and ur5e/visual/*.obj, as
-    /// `scripts/robot-assets` fetches (it prints the directory). Overrides the config's
-    /// robot.assets; without either, the robot is drawn from primitives.
+    /// Draw the real robot (the built-in ones): a directory with ur5e/visual/*.obj and
+    /// allegro/meshes/*.STL or robotiq_2f85/visual/*.obj, as `scripts/robot-assets` fetches (it
+    /// prints the directory). Overrides the config's robot.assets; without either, the robot is
+    /// drawn from its URDF's shapes.
     #[arg(long, global = true, value_name = "DIR")]
     robot_assets: Option<PathBuf>,
     /// Override a config key (repeatable), with the config's own checks, e.g.

@@ -267,12 +267,15 @@ impl<'a> SampleFactory<'a> {
                 Some(dir) => load_drawn_meshes(&dir, &r.robot, true)?,
                 None => {
                     static SAID: std::sync::Once = std::sync::Once::new();
-                    SAID.call_once(|| {
-                        eprintln!(
-                            "vtgen: drawing the robot from primitives (no robot meshes: --robot-assets DIR, e.g. \
-                             `--robot-assets \"$(scripts/robot-assets)\"`, draws the real Allegro hand and UR5e)"
-                        )
-                    });
+                    if crate::assets::robot::ROBOTS_WITH_MESHES.contains(&r.robot.name.as_str()) {
+                        SAID.call_once(|| {
+                            eprintln!(
+                                "vtgen: drawing the robot from primitives (no robot meshes: --robot-assets DIR, e.g. \
+                                 `--robot-assets \"$(scripts/robot-assets)\"`, draws the real {})",
+                                r.robot.name
+                            )
+                        });
+                    }
                     Default::default()
                 }
             };

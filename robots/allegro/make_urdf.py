@@ -158,7 +158,7 @@ def robotiq_2f85():
     joint("gripper_mount", "fixed", "flange", "gripper_base", (0, 0, 0))
     link("gripper_body", 0.22652, [("box", (0.075, 0.0848, 0.09), (0, 0, 0.045), "gripper_black", True)], com=(0, 0, 0.03145))
     joint("gripper_body_joint", "fixed", "gripper_base", "gripper_body", (0, 0, 0), (0, 0, round(-math.pi / 2, 8)))
-    # finger_joint drives the left outer knuckle; the other four moving joints mimic it, the
+    # finger_joint drives the left outer knuckle; the other five moving joints mimic it, the
     # inner fingers with -1 so that the pads stay parallel (the real gripper's four-bar linkage).
     for side, sign, knuckle_joint in [("left", -1, "finger_joint"), ("right", 1, "right_outer_knuckle_joint")]:
         yaw = math.pi if side == "left" else 0.0

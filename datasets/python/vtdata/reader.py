@@ -58,8 +58,8 @@ TOPIC_TACTILE_POINTS = "/tactile/points"
 #: The scene's meshes as Foxglove SceneUpdate (for viewing); the reader does not decode it.
 TOPIC_SCENE_MODELS = "/scene/models"
 #: The UR5e + Allegro's 12 pads in tactile index order (FORMAT.md): the names a dataset of that
-#: robot holds. Other robots name their own pads (a parallel gripper: 2, e.g. ``left_pad``,
-#: ``right_pad``), so the reader never assumes these: a sample's ``tactile["phalanges"]`` lists the
+#: robot holds. Other robots name their own pads (a parallel gripper: 2, e.g. ``left``,
+#: ``right``), so the reader never assumes these: a sample's ``tactile["phalanges"]`` lists the
 #: pads its shard has, in the order of the ``phalanx`` index.
 ALLEGRO_PHALANGES = tuple(
     f"{f}_{p}" for f in ("ff", "mf", "rf", "th") for p in ("proximal", "medial", "distal")
@@ -493,7 +493,7 @@ def _tactile(decoded: Dict[str, Any], channel_ids: Mapping[str, int], where: str
 
     The pads are the sample's ``/tactile/<pad>/depth`` topics, whatever the robot: in the order of
     their channels (the writer adds them in the robot's pad order, the order of the points'
-    ``phalanx`` index; names sort otherwise, e.g. ``right_pad`` before ``left_pad``), checked
+    ``phalanx`` index; names sort otherwise, e.g. ``right`` before ``left``), checked
     against ``/sample/info`` ``tactile.pads`` when the info has it.
     """
     cloud = decoded[TOPIC_TACTILE_POINTS]

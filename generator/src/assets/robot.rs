@@ -1,9 +1,11 @@
-//! The real robot's visual meshes, in vtgen's link frames: the Allegro hand v4 (binary STL) and
-//! the UR5e (OBJ + MTL). `scripts/robot-assets` fetches them from PyPI by package name into
+//! The built-in robots' real visual meshes, in vtgen's link frames: the Allegro hand v4 (binary
+//! STL), the UR5e (OBJ + MTL) and the Robotiq 2F-85 (OBJ). `scripts/robot-assets` fetches them from
+//! PyPI by package name into
 //!
 //! ```text
-//! DIR/allegro/meshes/*.STL   example-robot-data 6.0.0 (allegro_hand_description/meshes)
-//! DIR/ur5e/visual/*.obj      airo-models 0.0.12 (arms/ur5e/visual)
+//! DIR/allegro/meshes/*.STL         example-robot-data 6.0.0 (allegro_hand_description/meshes)
+//! DIR/ur5e/visual/*.obj            airo-models 0.0.12 (arms/ur5e/visual)
+//! DIR/robotiq_2f85/visual/*.obj    airo-models 0.0.12 (grippers/robotiq_2f_85/meshes/visual)
 //! ```
 //!
 //! (`../shared/assets` has the same layout). Frames:
@@ -15,8 +17,13 @@
 //!   URDF by a fixed offset per link, computed from both chains at q = 0 (`ros_link_offsets`,
 //!   unit-tested to hold at any q).
 //!
+//! - each 2F-85 mesh is in its link's frame of airo-models' `robotiq_2f_85.urdf`, whose joint
+//!   origins `robots/allegro/ur5e_robotiq_2f85.urdf` uses unchanged (its `gripper_body` is the
+//!   package's `base_link_inertia`); the finger meshes are in millimetres.
+//!
 //! Colours: the hand black with white fingertips (as the URDF's materials), the arm its MTL
-//! colours (UR blue, joint grey, black), baked into a small palette texture per link.
+//! colours (UR blue, joint grey, black), the gripper its URDF colours, baked into a small palette
+//! texture per link.
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -173,7 +180,7 @@ fn check_layout(dir: &Path, probe: &str, what: &str) -> Result<()> {
     if !dir.join(probe).is_file() {
         bail!(
             "robot assets {}: no {what} meshes ({} is missing). Fetch them with `scripts/robot-assets` (it prints the directory), \
-             or point --robot-assets at a directory with allegro/meshes/ and ur5e/visual/",
+             or point --robot-assets at a directory with its layout (ur5e/visual/, allegro/meshes/, robotiq_2f85/visual/)",
             dir.display(),
             dir.join(probe).display()
         );
