@@ -16,7 +16,7 @@ use vtgen::config::{GraspConfig, Intrinsics, PhysicsConfig, RendererConfig};
 use vtgen::physics::grasp::{GraspContext, TrajectoryKey, simulate_trajectory};
 use vtgen::physics::{HandPhysics, PhysicsObject, PhysicsSettings, RapierHand};
 use vtgen::render::{DepthView, Draw, DrawRole, Lighting, Renderer, View, WgpuRenderer};
-use vtgen::sample::floor_mesh;
+use vtgen::scene::environment::floor_mesh;
 use vtgen::scene::look_at;
 
 const OBJECT: &str = "005_tomato_soup_can";

@@ -4,12 +4,12 @@
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
-use glam::{DAffine3, DMat4, DQuat};
+use glam::{DAffine3, DMat4};
 use vt_dataset::{
-    ColoredMesh, OcclusionBin, OcclusionInfo, PlacedDistractor, Pose, RobotInfo, Sample, SampleInfo, SceneModel, Split, TactileData,
-    TactilePointRecord, TouchInfo, encode_glb, frames, mask_ids,
+    OcclusionBin, OcclusionInfo, PlacedDistractor, Pose, RobotInfo, Sample, SampleInfo, SceneModel, Split, TactileData, TactilePointRecord,
+    TouchInfo, frames, mask_ids,
 };
-use vt_objects::{Texture, TexturedMesh};
+use vt_objects::Texture;
 use vt_randomizers::{AppearanceContext, ImageLibrary, ProceduralTexture, SampleKey, SampleStream};
 
 use crate::annotate::occlusion::{model_points, occlusion_level};
@@ -17,15 +17,13 @@ use crate::assets::LoadedObject;
 use crate::assets::robot::{load_drawn_meshes, robot_assets_dir};
 use crate::config::{Config, LoadedConfig};
 use crate::physics::grasp::Trajectory;
+use crate::physics::robot::{GraspStats, RobotScene};
 use crate::plan::SampleRef;
 use crate::render::{Draw, DrawRole, Lighting, Material, MeshHandle, Renderer, View};
-use crate::scene::robot::{GraspStats, RobotScene, link_mesh, mask_id as robot_mask_id};
-use crate::scene::sample_scene;
-use crate::sensors::tactile::{FingerSurface, PadView, finger_surface, pad_sizes, sense};
-
-pub fn pose_of(t: &DAffine3) -> Pose {
-    Pose::from_rt(DQuat::from_mat3(&t.matrix3), t.translation)
-}
+use crate::scene::environment::{backdrop_mesh, floor_mesh, glb_of, place_distractors};
+use crate::scene::robot::{link_mesh, mask_id as robot_mask_id, pose_links};
+use crate::scene::{pose_of, sample_scene};
+use crate::sensors::tactile::{FingerSurface, PadView, finger_surface, sense};
 
 /// The real fingers' surface under the pads, when the robot has its real hand meshes.
 fn finger_surfaces(robot: &RobotScene, pads: &[(f64, f64)]) -> Result<Option<FingerSurface>> {
@@ -57,39 +55,6 @@ fn tinted(texture: &vt_objects::Texture, factors: [f32; 3]) -> vt_objects::Textu
     t
 }
 
-/// The floor: a 6 m textured quad on z = 0, texture coordinates in metres (the renderer scales
-/// them by 1 / tile size).
-pub fn floor_mesh() -> TexturedMesh {
-    let half = 3.0f32;
-    let corners = [[-half, -half], [half, -half], [half, half], [-half, half]];
-    TexturedMesh {
-        positions: corners.iter().map(|c| [c[0], c[1], 0.0]).collect(),
-        normals: vec![[0.0, 0.0, 1.0]; 4],
-        uvs: corners.iter().map(|c| [c[0], -c[1]]).collect(),
-        indices: vec![0, 1, 2, 0, 2, 3],
-        texture: Texture::solid([128, 128, 128]),
-    }
-}
-
-/// The backdrop: a 6 m × 3 m wall standing on the floor behind the workspace, facing the camera,
-/// texture coordinates in metres.
-fn backdrop_mesh(config: &Config) -> TexturedMesh {
-    let cam = glam::DVec3::from_array(config.camera.position);
-    let at = glam::DVec3::from_array(config.camera.look_at);
-    let forward = ((at - cam) * glam::DVec3::new(1.0, 1.0, 0.0)).normalize_or(glam::DVec3::Y);
-    let side = forward.cross(glam::DVec3::Z);
-    let base = glam::DVec3::new(at.x, at.y, 0.0) + forward * 1.2;
-    let (w, h) = (3.0, 3.0);
-    let corners = [(-w, 0.0), (w, 0.0), (w, h), (-w, h)];
-    TexturedMesh {
-        positions: corners.iter().map(|&(x, z)| (base + side * x + glam::DVec3::Z * z).as_vec3().to_array()).collect(),
-        normals: vec![(-forward).as_vec3().to_array(); 4],
-        uvs: corners.iter().map(|&(x, z)| [x as f32, -(z as f32)]).collect(),
-        indices: vec![0, 1, 2, 0, 2, 3],
-        texture: Texture::solid([196, 198, 200]),
-    }
-}
-
 fn texture_of(t: &ProceduralTexture) -> Texture {
     Texture { width: t.width, height: t.height, rgba: t.rgba.clone() }
 }
@@ -107,17 +72,6 @@ impl TextureSlot {
         }
         Ok(())
     }
-}
-
-/// A mesh as a vertex-coloured GLB for the shards' 3D view.
-fn glb_of(mesh: &TexturedMesh) -> std::sync::Arc<Vec<u8>> {
-    let colored = ColoredMesh {
-        positions: mesh.positions.clone(),
-        normals: mesh.normals.clone(),
-        colors: mesh.vertex_colors(),
-        indices: mesh.indices.clone(),
-    };
-    std::sync::Arc::new(encode_glb(&colored))
 }
 
 /// Everything a worker needs to turn sample coordinates into a sample.
@@ -200,43 +154,7 @@ struct PosedRobot {
     transforms: Vec<(String, String, Pose)>,
 }
 
-/// A distractor object standing on the floor.
-struct Distractor {
-    object: usize,
-    mask_id: u8,
-    pose: Pose,
-}
-
 impl<'a> SampleFactory<'a> {
-    /// The randomizer's distractors as objects standing upright on the floor (`mask_ids::DISTRACTORS`
-    /// in order), leaving out any that would overlap the target's footprint or an earlier distractor.
-    fn place_distractors(&self, scene: &crate::scene::SampledScene, target: usize) -> Vec<Distractor> {
-        let radius = |o: usize| {
-            let e = self.objects[o].mesh.extents();
-            0.5 * (e.x as f64).hypot(e.y as f64)
-        };
-        let target_xy = scene.t_world_object.translation().truncate();
-        let mut placed: Vec<(Distractor, glam::DVec2, f64)> = Vec::new();
-        for d in &scene.appearance.distractors {
-            let Some(mask_id) = mask_ids::nth(&mask_ids::DISTRACTORS, placed.len()) else {
-                break; // no mask id left
-            };
-            let object = if d.candidate >= target { d.candidate + 1 } else { d.candidate };
-            if object >= self.objects.len() {
-                continue;
-            }
-            let xy = glam::DVec2::from_array(d.position_xy);
-            let r = radius(object);
-            if xy.distance(target_xy) < r + radius(target) || placed.iter().any(|(_, p, pr)| xy.distance(*p) < r + pr) {
-                continue;
-            }
-            let z = 0.5 * self.objects[object].mesh.extents().z as f64;
-            let pose = Pose::from_rt(glam::DQuat::from_rotation_z(d.yaw), xy.extend(z));
-            placed.push((Distractor { object, mask_id, pose }, xy, r));
-        }
-        placed.into_iter().map(|p| p.0).collect()
-    }
-
     /// A worker's factory: the objects and the robot uploaded to its renderer once.
     // Long on purpose: one upload per kind of mesh (objects, floor and backdrop, robot links and
     // their looks, pad surfaces), in the order the renderer's handles are handed out.
@@ -297,7 +215,7 @@ impl<'a> SampleFactory<'a> {
             }
         }
         let object_glbs = objects.iter().map(|o| glb_of(&o.mesh)).collect();
-        let pad_sizes = robot.as_ref().map(|r| pad_sizes(&r.robot)).unwrap_or_default();
+        let pad_sizes = robot.as_ref().map(|r| r.robot.pad_sizes()).unwrap_or_default();
         let finger_surface = match &robot {
             Some(r) => finger_surfaces(r, &pad_sizes)?,
             None => None,
@@ -379,7 +297,7 @@ impl<'a> SampleFactory<'a> {
             Draw { mesh: self.backdrop, t_world_model: DMat4::IDENTITY, mask_id: mask_ids::BACKGROUND, role: DrawRole::Environment },
         ];
         let mut posed = if self.robot.is_some() { Some(self.pose_robot(r, &obj.id, &mut scene, &mut draws)?) } else { None };
-        let distractors = self.place_distractors(&scene, r.object_index as usize);
+        let distractors = place_distractors(self.objects, &scene, r.object_index as usize);
         for d in &distractors {
             draws.push(Draw {
                 mesh: self.object_meshes[d.object],
@@ -506,22 +424,9 @@ impl<'a> SampleFactory<'a> {
         }
         let t_world_palm = robot.t_world_base * st.t_base_palm;
         scene.t_world_object = pose_of(&(t_world_palm * st.t_palm_object));
-        let links = robot.robot.model.forward_kinematics(&st.q);
-        let grasp_frame = robot.robot.grasp_frame;
-        let palm_name = &robot.robot.model.links[grasp_frame].name;
-        let mut transforms = vec![(frames::WORLD.to_string(), palm_name.clone(), pose_of(&t_world_palm))];
-        for &(link, mesh, id) in &self.robot_meshes {
-            let t_world_link = robot.t_world_base * links[link];
-            draws.push(Draw { mesh, t_world_model: DMat4::from(t_world_link), mask_id: id, role: DrawRole::Occluder });
-            // The link frames carry the robot's meshes in Foxglove (`/scene/models`).
-            let name = &robot.robot.model.links[link].name;
-            if link != grasp_frame {
-                transforms.push((frames::WORLD.to_string(), name.clone(), pose_of(&t_world_link)));
-            }
-        }
-        let pads: Vec<DAffine3> = robot.robot.pads.iter().map(|p| robot.t_world_base * links[p.frame]).collect();
-        for (p, t) in robot.robot.pads.iter().zip(&pads) {
-            transforms.push((frames::WORLD.to_string(), format!("{}_pad", p.name), pose_of(t)));
+        let posed = pose_links(&robot.robot, robot.t_world_base, t_world_palm, &st.q, self.robot_meshes.iter().map(|m| m.0));
+        for (&(_, mesh, id), (_, t_world_link)) in self.robot_meshes.iter().zip(&posed.links) {
+            draws.push(Draw { mesh, t_world_model: DMat4::from(*t_world_link), mask_id: id, role: DrawRole::Occluder });
         }
         let touch_names = robot.robot.touch_link_names();
         let info = RobotInfo {
@@ -535,7 +440,7 @@ impl<'a> SampleFactory<'a> {
             t_world_palm: pose_of(&t_world_palm),
             tactile: None,
         };
-        Ok(PosedRobot { info, pads, transforms })
+        Ok(PosedRobot { info, pads: posed.pads, transforms: posed.transforms })
     }
 
     /// The render stage: the main camera's colour, depth and mask, and the noisy RGB-D reading

@@ -23,6 +23,7 @@ mod color;
 mod config;
 mod images;
 mod raster;
+mod rotation;
 mod stream;
 mod texture;
 
@@ -36,5 +37,6 @@ pub use config::{
     TextureRandomization,
 };
 pub use images::ImageLibrary;
+pub use rotation::uniform_rotation;
 pub use stream::{SampleKey, SampleStream};
 pub use texture::{ProceduralTexture, TextureSpec, checker_texture};

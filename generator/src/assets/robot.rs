@@ -256,7 +256,7 @@ pub fn with_real_hand(robot: &Robot, hand: &HashMap<usize, TexturedMesh>) -> Res
         .collect();
     let mut out = Robot { model: model.with_mesh_collisions(&hulls), ..robot.clone() };
     // The pads' spans (joint to joint, distal to the fingertip's end) from the hulls.
-    let spans = crate::sensors::tactile::pad_sizes(&out);
+    let spans = out.pad_sizes();
     for (pad, (length, _)) in robot.pads.iter().zip(spans) {
         let mesh = hand.get(&pad.link).with_context(|| format!("pad {}: no real mesh of its link", pad.name))?;
         let origin = pad_on_surface(mesh, 0.5 * length, (0.0, length))

@@ -16,7 +16,7 @@ use crate::assets::LoadedObject;
 use crate::config::LoadedConfig;
 use crate::output::workers::run_pool;
 use crate::physics::grasp::floor_clearance;
-use crate::scene::robot::{RobotScene, Simulated};
+use crate::physics::robot::{RobotScene, Simulated};
 
 /// What to check.
 #[derive(Debug, Clone)]

@@ -29,14 +29,4 @@ pub(crate) fn for_each_info(ds: &DatasetReader, mut f: impl FnMut(&str, &SampleI
     Ok(())
 }
 
-/// `1234567.0` -> `"1.2 MB"` (powers of 1000).
-pub fn human_bytes(b: f64) -> String {
-    let units = ["B", "KB", "MB", "GB", "TB"];
-    let mut v = b;
-    let mut u = 0;
-    while v >= 1000.0 && u < units.len() - 1 {
-        v /= 1000.0;
-        u += 1;
-    }
-    format!("{v:.1} {}", units[u])
-}
+pub use crate::output::human_bytes;

@@ -3,13 +3,14 @@
 
 mod check;
 mod locate;
+mod noise;
 mod overrides;
 mod schema;
 
 use std::path::{Path, PathBuf};
 
-pub(crate) use check::field;
 pub use check::{Check, Checks, Problem};
+pub use noise::{ColorNoise, DepthNoise, SensorNoise};
 pub use overrides::Override;
 pub use schema::*;
 

@@ -625,7 +625,7 @@ pub struct Camera {
     /// RGB-D sensor noise (off by default): the noisy depth goes to `/camera/depth_noisy`, the
     /// clean one stays the ground truth.
     #[serde(default, skip_serializing_if = "is_default")]
-    pub noise: crate::sensors::rgbd_noise::SensorNoise,
+    pub noise: super::noise::SensorNoise,
 }
 
 fn is_default<T: Default + PartialEq>(v: &T) -> bool {

@@ -19,10 +19,10 @@ use crate::assets::{LoadedObject, MeshSource, load_objects};
 use crate::config::{Config, LoadedConfig};
 use crate::output::workers::run_pool;
 use crate::output::writer_thread::WriterThread;
+use crate::physics::robot::GraspStats;
 use crate::plan::{Plan, SPLITS, ShardPlan, ShardSelector};
 use crate::render::WgpuRenderer;
 use crate::sample::SampleFactory;
-use crate::scene::robot::GraspStats;
 
 pub const GENERATOR: &str = concat!("vtgen ", env!("CARGO_PKG_VERSION"));
 
@@ -283,7 +283,7 @@ fn free_bytes(_dir: &Path) -> Option<u64> {
 /// "a–b" of an estimate of `samples` samples' bytes.
 fn estimate(config: &Config, samples: u64) -> String {
     let (low, high) = crate::plan::bytes_per_sample(config);
-    format!("{}–{}", crate::cli::human_bytes(low * samples as f64), crate::cli::human_bytes(high * samples as f64))
+    format!("{}–{}", super::human_bytes(low * samples as f64), super::human_bytes(high * samples as f64))
 }
 
 fn write_shard(
@@ -363,7 +363,7 @@ pub fn generate(cfg: &LoadedConfig, opts: &GenerateOptions) -> Result<GenerateSu
         eprintln!(
             "warning: {} has {} free and this run may write {} (estimate); a full disk stops it cleanly and --resume continues",
             out.display(),
-            crate::cli::human_bytes(free as f64),
+            super::human_bytes(free as f64),
             estimate(config, total)
         );
     }

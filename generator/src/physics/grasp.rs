@@ -10,13 +10,12 @@ use anyhow::{Result, bail};
 use glam::{DAffine3, DMat3, DQuat, DVec3};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
-use vt_randomizers::{SampleKey, SampleStream};
+use vt_randomizers::{SampleKey, SampleStream, uniform_rotation};
 use vt_robot::{GraspKind, IkOptions, Robot};
 
 use crate::config::GraspConfig;
 use crate::physics::antipodal::{Hull, Jaws, antipodal_pose};
 use crate::physics::{HandPhysics, PhysicsObject};
-use crate::scene::uniform_rotation;
 
 /// The state recorded at one instance.
 #[derive(Debug, Clone)]
@@ -200,7 +199,7 @@ pub const MIN_REACHABLE_SHARE: f64 = 0.5;
 /// of their own: the data's draws stay untouched) that the inverse kinematics reaches from home.
 pub fn reachable_share(ctx: &GraspContext, n: usize) -> f64 {
     use rand::SeedableRng;
-    let mut rng = ChaCha8Rng::seed_from_u64(0x7265_6163_68);
+    let mut rng = ChaCha8Rng::seed_from_u64(0x0072_6561_6368); // "reach"
     let home = ctx.home();
     let reached = (0..n).filter(|_| ctx.reach(&ctx.sample_palm(&mut rng), &home).is_some()).count();
     reached as f64 / n.max(1) as f64

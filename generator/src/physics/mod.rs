@@ -13,6 +13,7 @@ mod hull_shape;
 #[cfg(feature = "mujoco")]
 mod mujoco_backend;
 mod rapier_backend;
+pub mod robot;
 
 use glam::{DAffine3, DVec3};
 

@@ -1,12 +1,13 @@
 //! Scene sampling: from a sample's key to the camera, the object pose and the appearance. Pure
 //! and seeded; the robot and the grasp loop replace the free-floating object pose later.
 
+pub mod environment;
 pub mod robot;
 
-use glam::{DMat3, DQuat, DVec3};
+use glam::{DAffine3, DMat3, DQuat, DVec3};
 use rand::Rng;
 use vt_dataset::Pose;
-use vt_randomizers::{Appearance, AppearanceContext, SampleKey, SampleStream, sample_appearance};
+use vt_randomizers::{Appearance, AppearanceContext, SampleKey, SampleStream, sample_appearance, uniform_rotation};
 
 use crate::config::Config;
 
@@ -18,20 +19,17 @@ pub struct SampledScene {
     pub appearance: Appearance,
 }
 
+/// A rigid transform as a dataset pose.
+pub fn pose_of(t: &DAffine3) -> Pose {
+    Pose::from_rt(DQuat::from_mat3(&t.matrix3), t.translation)
+}
+
 /// OpenCV camera frame (x right, y down, z forward) at `position` looking at `target`, world z up.
 pub fn look_at(position: DVec3, target: DVec3) -> Pose {
     let z = (target - position).normalize();
     let x = z.cross(DVec3::Z).normalize();
     let y = z.cross(x);
     Pose::from_rt(DQuat::from_mat3(&DMat3::from_cols(x, y, z)), position)
-}
-
-/// A rotation drawn uniformly from SO(3) (Shoemake's method).
-pub fn uniform_rotation(rng: &mut impl Rng) -> DQuat {
-    let (u1, u2, u3): (f64, f64, f64) = (rng.random(), rng.random(), rng.random());
-    let tau = std::f64::consts::TAU;
-    let (a, b) = ((1.0 - u1).sqrt(), u1.sqrt());
-    DQuat::from_xyzw(a * (tau * u2).sin(), a * (tau * u2).cos(), b * (tau * u3).sin(), b * (tau * u3).cos()).normalize()
 }
 
 /// The camera, the free object pose (replaced by the grasp loop's when there is a robot) and the
@@ -62,13 +60,5 @@ mod tests {
         assert!((r.z_axis - DVec3::Y).length() < 1e-9, "z forward");
         assert!((r.x_axis - DVec3::X).length() < 1e-9, "x right");
         assert!((r.y_axis + DVec3::Z).length() < 1e-9, "y down");
-    }
-
-    #[test]
-    fn uniform_rotations_are_unbiased() {
-        let mut rng = SampleStream::trajectory(1, "x", 0, "test");
-        let n = 20000;
-        let mean = (0..n).map(|_| uniform_rotation(&mut rng) * DVec3::Z).sum::<DVec3>() / n as f64;
-        assert!(mean.length() < 0.03, "rotated axes average out: {mean}");
     }
 }

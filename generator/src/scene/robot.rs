@@ -1,20 +1,12 @@
-//! The robot in the scene: the grasp loop's recorded states turned into world poses, and the
-//! arm and hand links as renderable meshes with their mask ids (FORMAT.md).
+//! The robot in the scene: joint values turned into world poses of its links, pads and frames,
+//! and the arm and hand links as renderable meshes with their mask ids (FORMAT.md).
 
-use std::collections::BTreeMap;
-
-use anyhow::{Context, Result};
-use glam::{DAffine3, DQuat, DVec3, Vec3};
-use vt_dataset::mask_ids;
+use glam::{DAffine3, Vec3};
+use vt_dataset::{Pose, frames, mask_ids};
 use vt_objects::{Texture, TexturedMesh};
 use vt_robot::{Geometry, Robot, RobotModel};
 
-use crate::assets::robot::{ROBOTS_WITH_MESHES, load_hand_meshes, robot_assets_dir, with_real_hand};
-use crate::config::{LoadedConfig, RobotConfig};
-use crate::physics::grasp::{
-    GraspContext, GraspEvent, MIN_REACHABLE_SHARE, REACH_SAMPLES, Trajectory, TrajectoryKey, reachable_share, simulate_trajectory,
-};
-use crate::physics::{HandPhysics, PhysicsObject, PhysicsSettings, RapierHand};
+use super::pose_of;
 
 /// Mask id of a robot link (`vt_dataset::mask_ids`): the base and the arm link moved by arm joint
 /// k, the hand's body (the links fixed between flange and grasp frame), the hand link moved by
@@ -153,154 +145,39 @@ fn primitive(g: &Geometry) -> (Vec<Vec3>, Vec<Vec3>, Vec<u32>) {
     (p, n, t)
 }
 
-/// Counts for the run's summary.
-#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct GraspStats {
-    pub trajectories: u64,
-    pub attempts: u64,
-    pub failures: BTreeMap<String, u64>,
-    pub max_slip_mm: f64,
-    pub max_penetration_mm: f64,
+/// The robot posed at joint values `q` (`RobotModel::dof_names` order) with its base at
+/// `t_world_base`: the drawn links' world poses, the `/tf` frames (the grasp frame, the drawn
+/// links, one `<pad>_pad` frame per pad; FORMAT.md) and the pads' world poses.
+pub struct PosedLinks {
+    pub links: Vec<(usize, DAffine3)>,
+    pub transforms: Vec<(String, String, Pose)>,
+    pub pads: Vec<DAffine3>,
 }
 
-impl GraspStats {
-    pub fn merge(&mut self, o: &GraspStats) {
-        self.trajectories += o.trajectories;
-        self.attempts += o.attempts;
-        for (k, v) in &o.failures {
-            *self.failures.entry(k.clone()).or_default() += v;
+/// Poses `robot` at `q`, its grasp frame at `t_world_palm` (as the grasp loop recorded it); `drawn`
+/// are the links that are drawn (they carry meshes in `/scene/models`).
+pub fn pose_links(
+    robot: &Robot,
+    t_world_base: DAffine3,
+    t_world_palm: DAffine3,
+    q: &[f64],
+    drawn: impl IntoIterator<Item = usize>,
+) -> PosedLinks {
+    let model = &robot.model;
+    let links = model.forward_kinematics(q);
+    let grasp_frame = robot.grasp_frame;
+    let mut transforms = vec![(frames::WORLD.to_string(), model.links[grasp_frame].name.clone(), pose_of(&t_world_palm))];
+    let mut posed = Vec::new();
+    for link in drawn {
+        let t_world_link = t_world_base * links[link];
+        posed.push((link, t_world_link));
+        if link != grasp_frame {
+            transforms.push((frames::WORLD.to_string(), model.links[link].name.clone(), pose_of(&t_world_link)));
         }
-        self.max_slip_mm = self.max_slip_mm.max(o.max_slip_mm);
-        self.max_penetration_mm = self.max_penetration_mm.max(o.max_penetration_mm);
     }
-}
-
-/// A simulated trajectory and the grasp loop's figures for it.
-pub struct Simulated {
-    pub trajectory: Result<Trajectory>,
-    pub stats: GraspStats,
-}
-
-/// The robot half of a worker: model and physics. The trajectory being recorded is the sample
-/// stage's (`SampleFactory`), which simulates it when its first sample is made.
-pub struct RobotScene {
-    pub robot: Robot,
-    pub config: RobotConfig,
-    pub t_world_base: DAffine3,
-    /// The real hand meshes (link frames) when the run has robot assets: the model's hand then
-    /// collides as their convex hulls and its pads sit on their surfaces.
-    pub hand_meshes: Option<std::collections::HashMap<usize, TexturedMesh>>,
-    physics: Box<dyn HandPhysics>,
-    objects: Vec<PhysicsObject>,
-    /// The main camera's position (world), for the back-to-camera arm moves.
-    camera_position: DVec3,
-}
-
-impl RobotScene {
-    pub fn new(cfg: &LoadedConfig, robot: &RobotConfig, objects: &[crate::assets::LoadedObject]) -> Result<Self> {
-        let mut model = cfg.robot.clone().context("a config with a robot section has its robot loaded")?;
-        if cfg.robot_assets.is_some() && !ROBOTS_WITH_MESHES.contains(&model.name.as_str()) {
-            anyhow::bail!(
-                "robot meshes (--robot-assets or robot.assets) are those of the built-in robots ({}); robot '{}' is drawn \
-                 from its URDF's shapes: leave them out",
-                ROBOTS_WITH_MESHES.join(", "),
-                model.name
-            );
-        }
-        // The Allegro hand collides as its real meshes' hulls, its pads on their surfaces; the
-        // 2F-85 collides as its URDF's boxes (its meshes are drawn).
-        let hand_meshes = match robot_assets_dir(cfg) {
-            Some(dir) if model.name == "ur5e_allegro" => Some(load_hand_meshes(&dir, &model.model, None)?),
-            _ => None,
-        };
-        if let Some(hand) = &hand_meshes {
-            model.model = with_real_hand(&model, hand)?;
-        }
-        let pc = &robot.physics;
-        let settings = PhysicsSettings::from(pc);
-        let physics: Box<dyn HandPhysics> = match pc.backend {
-            crate::config::PhysicsBackend::Rapier => Box::new(RapierHand::new(&model, settings)?),
-            #[cfg(feature = "mujoco")]
-            crate::config::PhysicsBackend::Mujoco => Box::new(crate::physics::MujocoHand::new(&model, settings)?),
-            #[cfg(not(feature = "mujoco"))]
-            crate::config::PhysicsBackend::Mujoco => {
-                anyhow::bail!(
-                    "physics backend 'mujoco' is not built into this vtgen: build with `--features mujoco` (see scripts/mujoco-setup)"
-                )
-            }
-        };
-        let t_world_base = DAffine3::from_rotation_translation(
-            DQuat::from_rotation_z(robot.base_yaw_deg.to_radians()),
-            DVec3::from_array(robot.base_position),
-        );
-        // A workspace the arm cannot reach would fail every grasp as Unreachable: said up front.
-        let ctx = GraspContext {
-            robot: &model,
-            t_world_base,
-            config: &robot.grasp,
-            timestep: robot.physics.timestep,
-            camera_position: DVec3::from_array(cfg.config.camera.position),
-        };
-        let share = reachable_share(&ctx, REACH_SAMPLES);
-        if share < MIN_REACHABLE_SHARE {
-            anyhow::bail!(
-                "{}: robot.grasp.palm_workspace: the arm of robot '{}' reaches {:.0}% of {REACH_SAMPLES} grasp-frame poses drawn from it \
-                 (at least {:.0}% needed): move the workspace or robot.base_position, or widen the joint limits",
-                cfg.path.display(),
-                model.name,
-                100.0 * share,
-                100.0 * MIN_REACHABLE_SHARE
-            );
-        }
-        let objects = objects.iter().map(|o| PhysicsObject { points: o.mesh.positions.clone(), mass: o.mass }).collect();
-        Ok(RobotScene {
-            robot: model,
-            config: robot.clone(),
-            t_world_base,
-            hand_meshes,
-            physics,
-            objects,
-            camera_position: DVec3::from_array(cfg.config.camera.position),
-        })
+    let pads: Vec<DAffine3> = robot.pads.iter().map(|p| t_world_base * links[p.frame]).collect();
+    for (p, t) in robot.pads.iter().zip(&pads) {
+        transforms.push((frames::WORLD.to_string(), format!("{}_pad", p.name), pose_of(t)));
     }
-
-    pub fn backend_name(&self) -> &'static str {
-        self.physics.backend_name()
-    }
-
-    /// Physics steps taken by this worker so far.
-    pub fn physics_steps(&self) -> u64 {
-        self.physics.steps_taken()
-    }
-
-    /// Simulates trajectory `trajectory` of object `object_index` (every attempt until a grasp
-    /// holds through all instances) and returns it with the grasp loop's figures, which a lost
-    /// trajectory keeps too (`vtgen grasps` reports them).
-    pub fn simulate(&mut self, seed: u64, object_index: u32, object_id: &str, trajectory: u32, instances: u32) -> Simulated {
-        let ctx = GraspContext {
-            robot: &self.robot,
-            t_world_base: self.t_world_base,
-            config: &self.config.grasp,
-            timestep: self.config.physics.timestep,
-            camera_position: self.camera_position,
-        };
-        let mut events: Vec<GraspEvent> = Vec::new();
-        let result = simulate_trajectory(
-            &ctx,
-            self.physics.as_mut(),
-            &self.objects[object_index as usize],
-            TrajectoryKey { seed, object_id, trajectory, instances },
-            &mut events,
-        );
-        let attempts = result.as_ref().map_or(self.config.grasp.max_attempts, |t| t.attempts);
-        let mut stats = GraspStats { trajectories: 1, attempts: attempts as u64, ..Default::default() };
-        for e in events {
-            *stats.failures.entry(e.name().to_string()).or_default() += 1;
-        }
-        for s in result.iter().flat_map(|t| &t.instances) {
-            stats.max_slip_mm = stats.max_slip_mm.max(s.slip_translation * 1e3);
-            stats.max_penetration_mm = stats.max_penetration_mm.max(s.penetration * 1e3);
-        }
-        Simulated { trajectory: result.with_context(|| format!("grasping {object_id}")), stats }
-    }
+    PosedLinks { links: posed, transforms, pads }
 }

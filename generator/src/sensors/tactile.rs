@@ -5,7 +5,6 @@
 
 use anyhow::Result;
 use glam::{DAffine3, DMat4, DVec3};
-use vt_robot::{Geometry, Robot};
 
 use crate::config::{PadProjection, SensorModel, TactileConfig};
 use crate::render::{DepthView, Draw, Renderer};
@@ -39,41 +38,6 @@ pub struct TactileReading {
     pub counts: Vec<u32>,
     /// Time the depth views took to render (the rest of `sense` is point extraction).
     pub render_time: std::time::Duration,
-}
-
-/// Sensing area of each pad: (length along the pad's x, width along its y), metres. The
-/// description's size when it gives one; else, from the pad link's collision geometry. With
-/// primitives: the collision box, plus the fingertip sphere on the distal phalanges. With the real
-/// meshes (a convex-hull collision shape): from the joint to the next joint, or to the end of the
-/// fingertip on the distal phalanges, by the mesh's width.
-pub fn pad_sizes(robot: &Robot) -> Vec<(f64, f64)> {
-    let model = &robot.model;
-    robot
-        .pads
-        .iter()
-        .map(|pad| {
-            if let Some(size) = pad.size {
-                return size;
-            }
-            let id = pad.link;
-            let link = &model.links[id];
-            let (mut len, mut wid) = (0.02, 0.02);
-            for s in &link.collisions {
-                match &s.geometry {
-                    Geometry::Box { size } => (len, wid) = (size.z, size.y),
-                    Geometry::Sphere { radius } => len += radius,
-                    Geometry::Cylinder { .. } => {}
-                    Geometry::ConvexHull { points } => {
-                        let next = model.joints.iter().find(|j| j.parent == id && j.kind == vt_robot::JointKind::Revolute);
-                        let (ylo, yhi, zhi) =
-                            points.iter().fold((f64::MAX, f64::MIN, f64::MIN), |(a, b, c), p| (a.min(p.y), b.max(p.y), c.max(p.z)));
-                        (len, wid) = (next.map_or(zhi, |j| j.origin.translation.z), yhi - ylo);
-                    }
-                }
-            }
-            (len, wid)
-        })
-        .collect()
 }
 
 /// Where the finger's real surface lies under each pad pixel: its height along the pad's z (m,

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use glam::DAffine3;
 use serde::Deserialize;
 
-use crate::model::{RobotError, RobotModel, xyz_rpy};
+use crate::model::{Geometry, JointKind, RobotError, RobotModel, xyz_rpy};
 
 /// How the grasp loop takes hold of an object.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
@@ -253,7 +253,9 @@ impl Robot {
     }
 
     /// The URDF model checked against the description; errors name the description's field.
-    // Long on purpose: one check per field, in the order the file has them.
+    // Long on purpose: one check per field, in the order the file has them. `!(a <= b)` on purpose:
+    // a NaN must fail the checks too.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
     pub fn resolve(mut model: RobotModel, urdf_text: String, desc: Description, source_name: &str) -> Result<Self, RobotError> {
         let err =
             |field: &str, message: String| RobotError { source_name: source_name.to_string(), message: format!("{field}: {message}") };
@@ -472,6 +474,39 @@ impl Robot {
     /// Pose of the grasp frame (the palm) in the robot base frame.
     pub fn grasp_frame_pose(&self, q: &[f64]) -> DAffine3 {
         self.model.relative_pose(q, self.model.root, self.grasp_frame)
+    }
+
+    /// Sensing area of each pad: (length along the pad's x, width along its y), metres. The
+    /// description's size when it gives one; else, from the pad link's collision geometry. With
+    /// primitives: the collision box, plus the fingertip sphere on the distal phalanges. With the
+    /// real meshes (a convex-hull collision shape): from the joint to the next joint, or to the end
+    /// of the fingertip on the distal phalanges, by the mesh's width.
+    pub fn pad_sizes(&self) -> Vec<(f64, f64)> {
+        let model = &self.model;
+        self.pads
+            .iter()
+            .map(|pad| {
+                if let Some(size) = pad.size {
+                    return size;
+                }
+                let id = pad.link;
+                let (mut len, mut wid) = (0.02, 0.02);
+                for s in &model.links[id].collisions {
+                    match &s.geometry {
+                        Geometry::Box { size } => (len, wid) = (size.z, size.y),
+                        Geometry::Sphere { radius } => len += radius,
+                        Geometry::Cylinder { .. } => {}
+                        Geometry::ConvexHull { points } => {
+                            let next = model.joints.iter().find(|j| j.parent == id && j.kind == JointKind::Revolute);
+                            let (ylo, yhi, zhi) =
+                                points.iter().fold((f64::MAX, f64::MIN, f64::MIN), |(a, b, c), p| (a.min(p.y), b.max(p.y), c.max(p.z)));
+                            (len, wid) = (next.map_or(zhi, |j| j.origin.translation.z), yhi - ylo);
+                        }
+                    }
+                }
+                (len, wid)
+            })
+            .collect()
     }
 
     pub fn hand_joint_names(&self) -> Vec<String> {

@@ -1,0 +1,169 @@
+//! The robot half of a worker: the robot (with its real hand's collision hulls when the run draws
+//! the real meshes), its physics backend and the objects' physics shapes; it simulates whole
+//! trajectories (`grasp.rs`) and counts the grasp loop's figures.
+
+use std::collections::BTreeMap;
+
+use anyhow::{Context, Result};
+use glam::{DAffine3, DQuat, DVec3};
+use vt_objects::TexturedMesh;
+use vt_robot::Robot;
+
+use crate::assets::robot::{ROBOTS_WITH_MESHES, load_hand_meshes, robot_assets_dir, with_real_hand};
+use crate::config::{LoadedConfig, RobotConfig};
+use crate::physics::grasp::{
+    GraspContext, GraspEvent, MIN_REACHABLE_SHARE, REACH_SAMPLES, Trajectory, TrajectoryKey, reachable_share, simulate_trajectory,
+};
+use crate::physics::{HandPhysics, PhysicsObject, PhysicsSettings, RapierHand};
+
+/// Counts for the run's summary.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct GraspStats {
+    pub trajectories: u64,
+    pub attempts: u64,
+    pub failures: BTreeMap<String, u64>,
+    pub max_slip_mm: f64,
+    pub max_penetration_mm: f64,
+}
+
+impl GraspStats {
+    pub fn merge(&mut self, o: &GraspStats) {
+        self.trajectories += o.trajectories;
+        self.attempts += o.attempts;
+        for (k, v) in &o.failures {
+            *self.failures.entry(k.clone()).or_default() += v;
+        }
+        self.max_slip_mm = self.max_slip_mm.max(o.max_slip_mm);
+        self.max_penetration_mm = self.max_penetration_mm.max(o.max_penetration_mm);
+    }
+}
+
+/// A simulated trajectory and the grasp loop's figures for it.
+pub struct Simulated {
+    pub trajectory: Result<Trajectory>,
+    pub stats: GraspStats,
+}
+
+/// The robot half of a worker: model and physics. The trajectory being recorded is the sample
+/// stage's (`SampleFactory`), which simulates it when its first sample is made.
+pub struct RobotScene {
+    pub robot: Robot,
+    pub config: RobotConfig,
+    pub t_world_base: DAffine3,
+    /// The real hand meshes (link frames) when the run has robot assets: the model's hand then
+    /// collides as their convex hulls and its pads sit on their surfaces.
+    pub hand_meshes: Option<std::collections::HashMap<usize, TexturedMesh>>,
+    physics: Box<dyn HandPhysics>,
+    objects: Vec<PhysicsObject>,
+    /// The main camera's position (world), for the back-to-camera arm moves.
+    camera_position: DVec3,
+}
+
+impl RobotScene {
+    pub fn new(cfg: &LoadedConfig, robot: &RobotConfig, objects: &[crate::assets::LoadedObject]) -> Result<Self> {
+        let mut model = cfg.robot.clone().context("a config with a robot section has its robot loaded")?;
+        if cfg.robot_assets.is_some() && !ROBOTS_WITH_MESHES.contains(&model.name.as_str()) {
+            anyhow::bail!(
+                "robot meshes (--robot-assets or robot.assets) are those of the built-in robots ({}); robot '{}' is drawn \
+                 from its URDF's shapes: leave them out",
+                ROBOTS_WITH_MESHES.join(", "),
+                model.name
+            );
+        }
+        // The Allegro hand collides as its real meshes' hulls, its pads on their surfaces; the
+        // 2F-85 collides as its URDF's boxes (its meshes are drawn).
+        let hand_meshes = match robot_assets_dir(cfg) {
+            Some(dir) if model.name == "ur5e_allegro" => Some(load_hand_meshes(&dir, &model.model, None)?),
+            _ => None,
+        };
+        if let Some(hand) = &hand_meshes {
+            model.model = with_real_hand(&model, hand)?;
+        }
+        let pc = &robot.physics;
+        let settings = PhysicsSettings::from(pc);
+        let physics: Box<dyn HandPhysics> = match pc.backend {
+            crate::config::PhysicsBackend::Rapier => Box::new(RapierHand::new(&model, settings)?),
+            #[cfg(feature = "mujoco")]
+            crate::config::PhysicsBackend::Mujoco => Box::new(crate::physics::MujocoHand::new(&model, settings)?),
+            #[cfg(not(feature = "mujoco"))]
+            crate::config::PhysicsBackend::Mujoco => {
+                anyhow::bail!(
+                    "physics backend 'mujoco' is not built into this vtgen: build with `--features mujoco` (see scripts/mujoco-setup)"
+                )
+            }
+        };
+        let t_world_base = DAffine3::from_rotation_translation(
+            DQuat::from_rotation_z(robot.base_yaw_deg.to_radians()),
+            DVec3::from_array(robot.base_position),
+        );
+        // A workspace the arm cannot reach would fail every grasp as Unreachable: said up front.
+        let ctx = GraspContext {
+            robot: &model,
+            t_world_base,
+            config: &robot.grasp,
+            timestep: robot.physics.timestep,
+            camera_position: DVec3::from_array(cfg.config.camera.position),
+        };
+        let share = reachable_share(&ctx, REACH_SAMPLES);
+        if share < MIN_REACHABLE_SHARE {
+            anyhow::bail!(
+                "{}: robot.grasp.palm_workspace: the arm of robot '{}' reaches {:.0}% of {REACH_SAMPLES} grasp-frame poses drawn from it \
+                 (at least {:.0}% needed): move the workspace or robot.base_position, or widen the joint limits",
+                cfg.path.display(),
+                model.name,
+                100.0 * share,
+                100.0 * MIN_REACHABLE_SHARE
+            );
+        }
+        let objects = objects.iter().map(|o| PhysicsObject { points: o.mesh.positions.clone(), mass: o.mass }).collect();
+        Ok(RobotScene {
+            robot: model,
+            config: robot.clone(),
+            t_world_base,
+            hand_meshes,
+            physics,
+            objects,
+            camera_position: DVec3::from_array(cfg.config.camera.position),
+        })
+    }
+
+    pub fn backend_name(&self) -> &'static str {
+        self.physics.backend_name()
+    }
+
+    /// Physics steps taken by this worker so far.
+    pub fn physics_steps(&self) -> u64 {
+        self.physics.steps_taken()
+    }
+
+    /// Simulates trajectory `trajectory` of object `object_index` (every attempt until a grasp
+    /// holds through all instances) and returns it with the grasp loop's figures, which a lost
+    /// trajectory keeps too (`vtgen grasps` reports them).
+    pub fn simulate(&mut self, seed: u64, object_index: u32, object_id: &str, trajectory: u32, instances: u32) -> Simulated {
+        let ctx = GraspContext {
+            robot: &self.robot,
+            t_world_base: self.t_world_base,
+            config: &self.config.grasp,
+            timestep: self.config.physics.timestep,
+            camera_position: self.camera_position,
+        };
+        let mut events: Vec<GraspEvent> = Vec::new();
+        let result = simulate_trajectory(
+            &ctx,
+            self.physics.as_mut(),
+            &self.objects[object_index as usize],
+            TrajectoryKey { seed, object_id, trajectory, instances },
+            &mut events,
+        );
+        let attempts = result.as_ref().map_or(self.config.grasp.max_attempts, |t| t.attempts);
+        let mut stats = GraspStats { trajectories: 1, attempts: attempts as u64, ..Default::default() };
+        for e in events {
+            *stats.failures.entry(e.name().to_string()).or_default() += 1;
+        }
+        for s in result.iter().flat_map(|t| &t.instances) {
+            stats.max_slip_mm = stats.max_slip_mm.max(s.slip_translation * 1e3);
+            stats.max_penetration_mm = stats.max_penetration_mm.max(s.penetration * 1e3);
+        }
+        Simulated { trajectory: result.with_context(|| format!("grasping {object_id}")), stats }
+    }
+}
