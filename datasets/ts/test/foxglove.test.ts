@@ -5,7 +5,8 @@
 // 3D panel will place them, and datasets/foxglove-layout.json held against the shards.
 //
 // Datasets: VTGEN_DATASET=<dataset dir or shard .mcap>[:<another>...], or VTGEN_BIN=<vtgen binary>
-// to generate VTGEN_SCENES (default scenes/tiny-hand.yaml:scenes/tiny.yaml) into a temp dir.
+// to generate VTGEN_SCENES (default scenes/tiny-hand.yaml:scenes/tiny-gripper.yaml:scenes/tiny.yaml)
+// into a temp dir.
 // VTGEN_ALLOW_NO_SCENE_MODELS=1 turns a missing /scene/models topic into a skipped check.
 import assert from "node:assert/strict";
 import { execFileSync } from "node:child_process";
@@ -104,7 +105,7 @@ function datasets(): Dataset[] {
     throw new Error("set VTGEN_DATASET to a dataset (or shard), or VTGEN_BIN to a vtgen binary to generate one");
   }
   tempDir = mkdtempSync(join(tmpdir(), "vtgen-foxglove-"));
-  const scenes = (process.env.VTGEN_SCENES ?? "scenes/tiny-hand.yaml:scenes/tiny.yaml").split(delimiter);
+  const scenes = (process.env.VTGEN_SCENES ?? "scenes/tiny-hand.yaml:scenes/tiny-gripper.yaml:scenes/tiny.yaml").split(delimiter);
   return scenes.map((scene) => {
     const out = join(tempDir!, basename(scene, ".yaml"));
     execFileSync(bin, ["generate", resolve(repoRoot, scene), "--out", out, "--quiet"], { stdio: "inherit" });
@@ -517,8 +518,9 @@ for (const dataset of all) {
               if (!robot && ref.topic.startsWith("/tactile/")) {
                 continue; // FORMAT.md: tactile topics only with a robot
               }
-              if (robot && !allegro && padOfTopic(ref.topic) != undefined) {
-                // The layout shows an Allegro pad; this robot has other pads (a layout is static).
+              if (robot && padOfTopic(ref.topic) != undefined) {
+                // The layout shows a pad of each built-in robot; this robot has other pads (a
+                // layout is static). At least one pad it shows must be this robot's (below).
                 skipped.push(`${ref.topic} (this robot's pads: ${pads.join(", ")})`);
                 continue;
               }
@@ -552,6 +554,10 @@ for (const dataset of all) {
             const cal = only(first, imageMode.calibrationTopic);
             assert.equal(image.frame_id, cal.frame_id, `${panel}: image and calibration frames differ`);
             assert.equal(image.width, cal.width, `${panel}: image and calibration sizes differ`);
+          }
+          if (robot) {
+            const shown = topicReferences(layout).filter((r) => padOfTopic(r.topic) != undefined && shard.topics.has(r.topic));
+            assert.ok(shown.length > 0, `the layout shows none of this robot's pads (${pads.join(", ")})`);
           }
           if (skipped.length > 0) {
             t.diagnostic(`not in this shard, not checked: ${[...new Set(skipped)].join(", ")}`);
