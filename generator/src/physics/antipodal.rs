@@ -126,7 +126,7 @@ mod tests {
             // and 24 cm do not), and it is centred between the jaws.
             let along: Vec<f64> = corners.iter().map(|c| t.transform_point3(DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64)).y).collect();
             let (lo, hi) = along.iter().fold((f64::MAX, f64::MIN), |(a, b), &y| (a.min(y), b.max(y)));
-            assert!((hi - lo - 0.06).abs() < 1e-9 && (hi + lo).abs() < 1e-9, "{lo} {hi}");
+            assert!((hi - lo - 0.06).abs() < 1e-6 && (hi + lo).abs() < 1e-6, "{lo} {hi}");
         }
         // Too wide for the jaws: no grasp.
         let narrow = Jaws { opening: 0.05, ..jaws };

@@ -51,6 +51,8 @@ pub enum Failure {
     Penetration,
     TouchesFloor,
     Unreachable,
+    /// No antipodal pair of the object's hull fits between the open jaws (a parallel-jaw grasp).
+    NoAntipodalPair,
 }
 
 /// An arm move undone and redrawn from the last recorded state: not a failure, the attempt goes
@@ -85,6 +87,7 @@ impl GraspEvent {
                 Failure::Penetration => "Penetration",
                 Failure::TouchesFloor => "TouchesFloor",
                 Failure::Unreachable => "Unreachable",
+                Failure::NoAntipodalPair => "NoAntipodalPair",
             },
             GraspEvent::Redone(r) => match r {
                 Redo::Penetration => "MoveRedoneForPenetration",
@@ -278,11 +281,11 @@ fn attempt_trajectory(
     };
     let pre: Vec<f64> = cfg.preshape.iter().map(|&(lo, hi)| rng.random_range(lo..=hi)).collect();
     let placed = match ctx.robot.kind {
-        GraspKind::Palm => place_object(ctx, physics, object, rng, &pre)?,
+        GraspKind::Palm => place_object(ctx, physics, object, rng, &pre)?.then_some(()).ok_or(Failure::InitialOverlap),
         GraspKind::ParallelJaw => place_between_jaws(ctx, physics, object, rng, &pre)?,
     };
-    if !placed {
-        return Ok(Err(Failure::InitialOverlap));
+    if let Err(f) = placed {
+        return Ok(Err(f));
     }
     close_hand(ctx, physics, &pre);
     let grasped = match settle(ctx, physics, &t_world_palm) {
@@ -374,29 +377,29 @@ fn place_object(
 }
 
 /// Phase 1 of a parallel-jaw grasp: the object weightless between the open jaws at an antipodal
-/// pair of its hull ([`antipodal_pose`]), held still by damping. False when no pair fits or every
-/// pose tried overlaps the gripper.
+/// pair of its hull ([`antipodal_pose`]), held still by damping. Fails when no pair fits the jaws,
+/// or every pose tried overlaps the gripper.
 fn place_between_jaws(
     ctx: &GraspContext,
     physics: &mut dyn HandPhysics,
     object: &PhysicsObject,
     rng: &mut ChaCha8Rng,
     pre: &[f64],
-) -> Result<bool> {
+) -> Result<std::result::Result<(), Failure>> {
     let Some(hull) = Hull::of(&object.points) else { bail!("the object's points have no convex hull (degenerate mesh)") };
     let jaws = Jaws::of(ctx.robot, pre);
     for _ in 0..PLACEMENT_RETRIES {
-        let Some(pose) = antipodal_pose(&hull, &jaws, rng) else { return Ok(false) };
+        let Some(pose) = antipodal_pose(&hull, &jaws, rng) else { return Ok(Err(Failure::NoAntipodalPair)) };
         physics.reset(object, pose, pre)?;
         physics.set_targets(pre);
         physics.set_gravity(DVec3::ZERO);
         physics.set_object_damping(REST_DAMPING, REST_DAMPING);
         physics.step();
         if physics.max_penetration() <= PLACEMENT_MAX_OVERLAP {
-            return Ok(true);
+            return Ok(Ok(()));
         }
     }
-    Ok(false)
+    Ok(Err(Failure::InitialOverlap))
 }
 
 /// Phase 2: every flexion joint towards its closed target, ab/adduction kept.
@@ -813,7 +816,8 @@ mod tests {
     #[test]
     fn event_names_are_the_ones_earlier_datasets_count_under() {
         use Failure::*;
-        let failed = [InitialOverlap, GraspNotHeld, LostDuringMotion, TooFewContacts, Penetration, TouchesFloor, Unreachable];
+        let failed =
+            [InitialOverlap, GraspNotHeld, LostDuringMotion, TooFewContacts, Penetration, TouchesFloor, Unreachable, NoAntipodalPair];
         for f in failed {
             assert_eq!(GraspEvent::Failed(f).name(), format!("{f:?}"));
         }
