@@ -119,49 +119,20 @@ fn bad_robot_input_gives_clear_errors() {
 
 #[test]
 fn every_tactile_point_lies_on_the_object_surface_within_its_pad() {
-    use rapier3d::parry::query::PointQuery;
     let dir = hand_dataset();
+    crate::own_robot::tactile_points_lie_on_the_object_within_their_pad(dir);
+    // The Allegro's 12 pads of 32 x 32 pixels, and touch in most samples.
     let ds = DatasetReader::open(dir).unwrap();
-    let info: vt_dataset::ModelsInfo = serde_json::from_slice(&std::fs::read(dir.join("models/models_info.json")).unwrap()).unwrap();
-    let meshes: Vec<rapier3d::parry::shape::TriMesh> = info
-        .objects
-        .iter()
-        .map(|o| {
-            let m = read_ply(&dir.join("models").join(&o.file)).unwrap();
-            let v = m.positions.iter().map(|p| glam::Vec3::from(*p)).collect();
-            rapier3d::parry::shape::TriMesh::new(v, m.triangles.clone()).unwrap()
-        })
-        .collect();
-    let (mut points, mut samples_with_touch) = (0, 0);
+    let mut samples_with_touch = 0;
     for split in ["train", "test"] {
         for s in ds.samples(split).unwrap() {
-            let s = s.unwrap();
-            let tac = s.tactile.as_ref().expect("robot samples carry tactile data");
+            let tac = s.unwrap().tactile.expect("robot samples carry tactile data");
             assert_eq!(tac.phalanges.len(), 12);
             assert!(tac.depth.iter().all(|d| d.len() == 32 * 32));
-            let mesh = &meshes[s.info.object_index as usize];
-            let to_object = s.t_camera_object.inverse();
-            let pads: std::collections::HashMap<&str, vt_dataset::Pose> =
-                s.extra_transforms.iter().map(|(_, c, p)| (c.as_str(), *p)).collect();
-            let to_camera = s.t_world_camera.inverse();
-            for p in &tac.points {
-                let pc = glam::Vec3::from(p.position).as_dvec3();
-                let po = to_object.transform_point(pc);
-                let d = mesh.distance_to_local_point(po.as_vec3(), false);
-                assert!(d <= 1e-3, "{split} {}: tactile point {:.2} mm off the surface", s.index, d * 1e3);
-                // Within the reporting pad's footprint (and within the contact threshold of it).
-                let name = &tac.phalanges[p.phalanx as usize];
-                let pad = to_camera.compose(&pads[format!("{name}_pad").as_str()]);
-                let local = pad.inverse().transform_point(pc);
-                let [len, wid] = s.info.robot.as_ref().and_then(|r| r.tactile.as_ref()).expect("touch info").pads[name];
-                assert!(local.x.abs() <= len / 2.0 + 1e-6 && local.y.abs() <= wid / 2.0 + 1e-6 && local.z <= 0.002 + 1e-6, "{local}");
-                assert!((local.z - p.distance as f64).abs() < 1e-5);
-                points += 1;
-            }
             samples_with_touch += (!tac.points.is_empty()) as usize;
         }
     }
-    assert!(points > 0 && samples_with_touch > 10, "{points} points in {samples_with_touch} samples");
+    assert!(samples_with_touch > 10, "touch in {samples_with_touch} samples");
 }
 
 #[test]
