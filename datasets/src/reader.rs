@@ -248,9 +248,15 @@ impl ShardReader {
     pub fn read(&self, index: u64) -> Result<Sample> {
         let ctx = || format!("shard {} sample {index}", self.path.display());
         let ci = *self.chunks.get(&index).ok_or_else(|| anyhow!("{}: not in this shard", ctx()))?;
-        // In the order the writer wrote them (the pads' order), and by topic.
         let messages = self.chunk_messages(ci).with_context(ctx)?;
-        let by_topic: BTreeMap<String, Vec<u8>> = messages.iter().cloned().collect();
+        // The pads in the order the writer wrote them (the robot's pad order).
+        let mut pads: Vec<String> = Vec::new();
+        for pad in messages.iter().filter_map(|(topic, _)| pad_of_topic(topic)) {
+            if !pads.iter().any(|p| p == pad) {
+                pads.push(pad.to_string());
+            }
+        }
+        let by_topic: BTreeMap<String, Vec<u8>> = messages.into_iter().collect();
         let get = |topic: &str| by_topic.get(topic).ok_or_else(|| anyhow!("{}: missing message on {topic}", ctx()));
         let rgb = RawImage::decode(&get(topics::RGB)?[..]).with_context(ctx)?;
         let depth = RawImage::decode(&get(topics::DEPTH)?[..]).with_context(ctx)?;
@@ -324,15 +330,20 @@ impl ShardReader {
                 })
                 .map(|t| Ok((t.parent_frame_id.clone(), t.child_frame_id.clone(), to_pose(t.translation, t.rotation)?)))
                 .collect::<Result<_>>()?,
-            tactile: read_tactile(&by_topic, &messages).with_context(ctx)?,
+            tactile: read_tactile(&by_topic, &pads).with_context(ctx)?,
             info,
         })
     }
 }
 
-/// The tactile topics of a sample, if it has them: the pads in the order the sample's messages
-/// were written (the robot's pad order, which the points' pad indices refer to).
-fn read_tactile(by_topic: &BTreeMap<String, Vec<u8>>, messages: &[(String, Vec<u8>)]) -> Result<Option<crate::sample::TactileData>> {
+/// The pad a `/tactile/<pad>/depth` topic is of.
+fn pad_of_topic(topic: &str) -> Option<&str> {
+    topic.strip_prefix("/tactile/").and_then(|t| t.strip_suffix("/depth"))
+}
+
+/// The tactile topics of a sample, if it has them, with its `pads` in the order the sample's
+/// messages were written (the robot's pad order, which the points' pad indices refer to).
+fn read_tactile(by_topic: &BTreeMap<String, Vec<u8>>, pads: &[String]) -> Result<Option<crate::sample::TactileData>> {
     use foxglove::schemas::PointCloud;
     let Some(raw) = by_topic.get(topics::TACTILE_POINTS) else { return Ok(None) };
     let cloud = PointCloud::decode(&raw[..])?;
@@ -352,13 +363,12 @@ fn read_tactile(by_topic: &BTreeMap<String, Vec<u8>>, messages: &[(String, Vec<u
     let mut phalanges = Vec::new();
     let mut depth = Vec::new();
     let mut resolution = 0;
-    for (topic, raw) in messages {
-        if let Some(name) = topic.strip_prefix("/tactile/").and_then(|t| t.strip_suffix("/depth")) {
-            let img = RawImage::decode(&raw[..])?;
-            resolution = img.width;
-            phalanges.push(name.to_string());
-            depth.push(img.data.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect());
-        }
+    for name in pads {
+        let raw = &by_topic[&crate::topics::tactile_depth(name)];
+        let img = RawImage::decode(&raw[..])?;
+        resolution = img.width;
+        phalanges.push(name.clone());
+        depth.push(img.data.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect());
     }
     Ok(Some(crate::sample::TactileData { phalanges, resolution, depth, points }))
 }

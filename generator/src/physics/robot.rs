@@ -44,6 +44,11 @@ pub struct Simulated {
     pub stats: GraspStats,
 }
 
+/// What the grasp loop needs of a worker's robot besides its physics.
+fn grasp_context<'a>(robot: &'a Robot, t_world_base: DAffine3, rc: &'a RobotConfig, camera_position: DVec3) -> GraspContext<'a> {
+    GraspContext { robot, t_world_base, config: &rc.grasp, timestep: rc.physics.timestep, camera_position }
+}
+
 /// The robot half of a worker: model and physics. The trajectory being recorded is the sample
 /// stage's (`SampleFactory`), which simulates it when its first sample is made.
 pub struct RobotScene {
@@ -97,14 +102,8 @@ impl RobotScene {
             DVec3::from_array(robot.base_position),
         );
         // A workspace the arm cannot reach would fail every grasp as Unreachable: said up front.
-        let ctx = GraspContext {
-            robot: &model,
-            t_world_base,
-            config: &robot.grasp,
-            timestep: robot.physics.timestep,
-            camera_position: DVec3::from_array(cfg.config.camera.position),
-        };
-        let share = reachable_share(&ctx, REACH_SAMPLES);
+        let camera_position = DVec3::from_array(cfg.config.camera.position);
+        let share = reachable_share(&grasp_context(&model, t_world_base, robot, camera_position), REACH_SAMPLES);
         if share < MIN_REACHABLE_SHARE {
             anyhow::bail!(
                 "{}: robot.grasp.palm_workspace: the arm of robot '{}' reaches {:.0}% of {REACH_SAMPLES} grasp-frame poses drawn from it \
@@ -116,15 +115,7 @@ impl RobotScene {
             );
         }
         let objects = objects.iter().map(|o| PhysicsObject { points: o.mesh.positions.clone(), mass: o.mass }).collect();
-        Ok(RobotScene {
-            robot: model,
-            config: robot.clone(),
-            t_world_base,
-            hand_meshes,
-            physics,
-            objects,
-            camera_position: DVec3::from_array(cfg.config.camera.position),
-        })
+        Ok(RobotScene { robot: model, config: robot.clone(), t_world_base, hand_meshes, physics, objects, camera_position })
     }
 
     pub fn backend_name(&self) -> &'static str {
@@ -140,13 +131,7 @@ impl RobotScene {
     /// holds through all instances) and returns it with the grasp loop's figures, which a lost
     /// trajectory keeps too (`vtgen grasps` reports them).
     pub fn simulate(&mut self, seed: u64, object_index: u32, object_id: &str, trajectory: u32, instances: u32) -> Simulated {
-        let ctx = GraspContext {
-            robot: &self.robot,
-            t_world_base: self.t_world_base,
-            config: &self.config.grasp,
-            timestep: self.config.physics.timestep,
-            camera_position: self.camera_position,
-        };
+        let ctx = grasp_context(&self.robot, self.t_world_base, &self.config, self.camera_position);
         let mut events: Vec<GraspEvent> = Vec::new();
         let result = simulate_trajectory(
             &ctx,

@@ -463,7 +463,7 @@ impl Robot {
     }
 
     /// Joint values at zero (within limits) with the arm at home.
-    pub fn home_q(&self) -> Vec<f64> {
+    fn home_q(&self) -> Vec<f64> {
         let mut q = self.model.zero();
         for (&d, &v) in self.arm_dofs.iter().zip(&self.home) {
             q[d] = v;
@@ -507,10 +507,6 @@ impl Robot {
                 (len, wid)
             })
             .collect()
-    }
-
-    pub fn hand_joint_names(&self) -> Vec<String> {
-        self.hand.iter().map(|h| h.name.clone()).collect()
     }
 
     pub fn pad_names(&self) -> Vec<String> {
