@@ -117,6 +117,10 @@ struct EvalArgs {
     /// fewer points; `vtpose sweep` trains one network per count as the paper).
     #[arg(long)]
     no_sweep: bool,
+    /// Skip the touch control: tactile networks evaluated again with the touch of another grasp
+    /// of the same object and with no touch (two more passes).
+    #[arg(long)]
+    no_touch_control: bool,
     #[arg(long, default_value = "cpu", help = device::DEVICE_HELP)]
     device: String,
     #[arg(long)]
@@ -216,9 +220,17 @@ fn sweep_command(args: SweepArgs) -> Result<()> {
 }
 
 fn eval_command(args: EvalArgs) -> Result<()> {
-    let EvalArgs { runs, dataset, split, out, max_samples, no_sweep, device: dev, quiet } = args;
+    let EvalArgs { runs, dataset, split, out, max_samples, no_sweep, no_touch_control, device: dev, quiet } = args;
     let device = device::parse(&dev)?;
-    let cmd = EvalCommand { dataset, split: split.clone(), max_samples, sweep: !no_sweep, device: device.clone(), quiet };
+    let cmd = EvalCommand {
+        dataset,
+        split: split.clone(),
+        max_samples,
+        sweep: !no_sweep,
+        touch_control: !no_touch_control,
+        device: device.clone(),
+        quiet,
+    };
     let evals = evaluate_runs(&runs, &cmd)?;
     let report = write_report(&evals, &split, &dev, &out)?;
     if !quiet {

@@ -70,6 +70,8 @@ pub fn sweep(cfg: &TrainConfig, opts: &SweepOptions) -> Result<Vec<ModelEval>> {
         split: "test".into(),
         max_samples: opts.max_samples,
         sweep: false,
+        // The sweep compares point counts; `vtpose eval` of its runs gives the touch control.
+        touch_control: false,
         device: opts.device.clone(),
         quiet: opts.quiet,
     };

@@ -292,14 +292,25 @@ fn every_variant_trains_and_evaluates() {
         assert!(out.join("checkpoints/epoch-0002.bpk").is_file());
         runs.push(out);
     }
-    let cmd = EvalCommand { dataset: None, split: "test".into(), max_samples: 4, sweep: true, device: cpu(), quiet: true };
+    let cmd =
+        EvalCommand { dataset: None, split: "test".into(), max_samples: 4, sweep: true, touch_control: true, device: cpu(), quiet: true };
     let evals = evaluate_runs(&runs, &cmd).unwrap();
     for e in &evals {
         assert_eq!(e.results.len() + e.skipped, 4, "{}", e.name);
         assert!(e.results.iter().all(|r| r.position_cm.is_finite() && r.angle_deg.is_finite() && (0.0..=180.0).contains(&r.angle_deg)));
         assert!(e.results.iter().all(|r| r.adds_m <= r.add_m + 1e-9), "ADD-S <= ADD");
-        // The sweep covers tactile models only.
+        // The sweep and the touch control cover tactile models only.
         assert_eq!(e.sweep.len(), if e.variant.uses_tactile() { 5 } else { 0 }, "{}", e.name);
+        assert_eq!(e.touch_control.is_some(), e.variant.uses_tactile(), "{}", e.name);
+        if let Some(c) = &e.touch_control {
+            // Without touch nothing reaches the network; another grasp's touch goes to the samples
+            // whose object has another trajectory in the split.
+            assert!(c.no_touch.iter().all(|r| r.tactile_points == 0), "{}", e.name);
+            if e.variant != Variant::TactileOnly {
+                assert_eq!(c.no_touch.len(), e.results.len(), "{}", e.name);
+            }
+            assert!(c.other_grasp.len() <= e.results.len(), "{}", e.name);
+        }
         if e.variant == Variant::VisionOnly {
             assert!(e.results.iter().all(|r| !r.tactile_estimate));
         }
@@ -316,6 +327,7 @@ fn every_variant_trains_and_evaluates() {
         "| 240 |",
         "## What touch buys: paired per grasp",
         "## Which channel answers",
+        "## Touch control",
     ] {
         assert!(md.contains(section), "report lacks {section}:\n{md}");
     }

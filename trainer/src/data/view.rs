@@ -90,7 +90,7 @@ impl ObjectView {
 }
 
 /// One sample as the network and the loss take it (fixed shapes).
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Default)]
 pub struct Prepared {
     pub index: u64,
     /// Dataset `object_index` and head slot.

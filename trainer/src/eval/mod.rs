@@ -10,6 +10,7 @@
 //! samples without touch); they are counted, not scored.
 
 pub mod compare;
+pub mod control;
 pub mod metrics;
 
 use std::path::PathBuf;
@@ -24,6 +25,7 @@ use crate::data::{Loaded, Loader, Pass, PrepareOptions, SplitSource, load_models
 use crate::geometry::wxyz_to_quat;
 use crate::model::{PoseNet, Variant};
 use crate::run::{RunDir, slot_table};
+use control::{TouchBank, TouchControl, TouchInput};
 use metrics::{MeanSe, add, add_s, angle_error_deg, angle_error_up_to_deg, auc, below, position_error_cm};
 
 /// ADD/ADD-S AUC range (YCB-Video): 10 cm.
@@ -101,6 +103,17 @@ impl SampleResult {
 /// the samples that were not scored (object not visible; for `tactile_only`, also no touch), and
 /// the source (with its cache) for the next evaluation.
 pub fn evaluate(model: &PoseNet, source: SplitSource, opts: &EvalOptions) -> Result<(Vec<SampleResult>, Vec<u64>, SplitSource)> {
+    evaluate_with(model, source, opts, &mut TouchInput::True)
+}
+
+/// [`evaluate`] with the tactile input `touch` gives (the touch control, [`control`]); samples
+/// it has none for are not scored.
+pub fn evaluate_with(
+    model: &PoseNet,
+    source: SplitSource,
+    opts: &EvalOptions,
+    touch: &mut TouchInput,
+) -> Result<(Vec<SampleResult>, Vec<u64>, SplitSource)> {
     let models = source.models.clone();
     let n = source.len();
     let variant = model.variant();
@@ -116,9 +129,19 @@ pub fn evaluate(model: &PoseNet, source: SplitSource, opts: &EvalOptions) -> Res
     let mut skipped = Vec::new();
     while let Some(msg) = loader.recv() {
         match msg? {
-            Loaded::Batch { batch, .. } => {
+            Loaded::Batch { mut batch, .. } => {
+                let mut unscored = Vec::new();
+                for (k, p) in batch.samples.iter_mut().enumerate() {
+                    if !touch.apply(p) {
+                        unscored.push(k);
+                    }
+                }
                 let best = model.forward(&batch.inputs(&opts.device)).best();
-                for (p, est) in batch.samples.iter().zip(best) {
+                for (k, (p, est)) in batch.samples.iter().zip(best).enumerate() {
+                    if unscored.contains(&k) {
+                        skipped.push(p.index); // no other grasp of its object to take touch from
+                        continue;
+                    }
                     if variant == Variant::TactileOnly && p.tactile_count == 0 {
                         skipped.push(p.index); // no estimate without touch
                         continue;
@@ -205,6 +228,8 @@ pub struct ModelEval {
     pub skipped: usize,
     /// `(n_t, scores)` of the tactile-point sweep (tactile variants only).
     pub sweep: Vec<(usize, Vec<SampleResult>)>,
+    /// The same samples with another grasp's touch and with none (tactile variants).
+    pub touch_control: Option<TouchControl>,
 }
 
 /// What `vtpose eval` does besides the runs.
@@ -217,6 +242,8 @@ pub struct EvalCommand {
     pub max_samples: usize,
     /// The tactile-point sweep ([`TACTILE_SWEEP`]) for tactile variants.
     pub sweep: bool,
+    /// The touch control ([`control`]) for tactile variants.
+    pub touch_control: bool,
     pub device: Device,
     pub quiet: bool,
 }
@@ -245,7 +272,17 @@ pub fn evaluate_runs(runs: &[PathBuf], cmd: &EvalCommand) -> Result<Vec<ModelEva
                 cmd.split
             );
         }
-        let (results, skipped, mut source) = evaluate(&model, source, &opts)?;
+        let control = cmd.touch_control && state.variant.uses_tactile();
+        let mut bank = TouchBank::default();
+        let mut touch = if control { TouchInput::Record(&mut bank) } else { TouchInput::True };
+        let (results, skipped, mut source) = evaluate_with(&model, source, &opts, &mut touch)?;
+        let mut touch_control = None;
+        if control {
+            let (other_grasp, _, s) = evaluate_with(&model, source, &opts, &mut TouchInput::OtherGrasp(&bank))?;
+            let (no_touch, _, s) = evaluate_with(&model, s, &opts, &mut TouchInput::Without)?;
+            source = s;
+            touch_control = Some(TouchControl { other_grasp, no_touch });
+        }
         let mut sweep = Vec::new();
         if cmd.sweep && state.variant.uses_tactile() {
             for nt in TACTILE_SWEEP {
@@ -265,6 +302,7 @@ pub fn evaluate_runs(runs: &[PathBuf], cmd: &EvalCommand) -> Result<Vec<ModelEva
             results,
             skipped: skipped.len(),
             sweep,
+            touch_control,
         });
     }
     Ok(out)

@@ -1,14 +1,15 @@
 //! `report.md`: the summaries of every run overall, per object and per occlusion bin, the paired
-//! comparison with the vision-only baseline ("what touch buys"), which channel answers, and the
-//! tactile-point sweep.
+//! comparison with the vision-only baseline ("what touch buys"), which channel answers, the
+//! tactile-point sweep and the touch control.
 
 use std::fmt::Write as _;
 
 use vt_dataset::OcclusionBin;
 
 use crate::config::TACTILE_SWEEP;
-use crate::eval::compare::{Comparison, channel_use, comparisons};
-use crate::eval::{ModelEval, Summary};
+use crate::eval::compare::{Comparison, Paired, channel_use, comparisons};
+use crate::eval::control::{ControlComparison, TouchControl};
+use crate::eval::{ModelEval, SampleResult, Summary};
 
 fn pct(v: f64) -> String {
     if v.is_nan() { "–".into() } else { format!("{v:.1}") }
@@ -29,6 +30,7 @@ pub(super) fn markdown(evals: &[ModelEval], pairs: &[Comparison], split: &str, d
     per_occlusion_section(&mut s, evals);
     touch_section(&mut s, pairs);
     tactile_sweep_section(&mut s, evals);
+    touch_control_section(&mut s, evals);
     s
 }
 
@@ -236,5 +238,65 @@ fn touch_section(s: &mut String, pairs: &[Comparison]) {
                 u.visual_confidence
             );
         }
+    }
+}
+
+/// The touch control: each tactile network with its true touch, another grasp's and none, and
+/// the true touch paired per grasp against each.
+fn touch_control_section(s: &mut String, evals: &[ModelEval]) {
+    let controlled: Vec<(&ModelEval, &TouchControl)> = evals.iter().filter_map(|e| e.touch_control.as_ref().map(|c| (e, c))).collect();
+    if controlled.is_empty() {
+        return;
+    }
+    let _ = writeln!(s, "\n## Touch control\n");
+    let _ = writeln!(
+        s,
+        "Each tactile network on the same samples with its true touch, with the touch of another grasp of the same object \
+         (the next trajectory's, same instance) and with no touch. A network that uses touch gets worse with the wrong \
+         touch. Paired per grasp: `better` counts the grasps on which the true touch gives the lower mean error; p: \
+         two-sided exact sign test; Δ: mean over grasps of true − control (negative: the true touch helps).\n"
+    );
+    let _ = writeln!(
+        s,
+        "| run | touch | n | position (cm) | angle (°) | ADD(-S) < 2 cm (%) | position: better / worse | p | Δ position (cm) |"
+    );
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|");
+    for (e, c) in &controlled {
+        let cmp = ControlComparison::of(&e.results, c);
+        let rows: [(&str, &[SampleResult], Option<&Paired>); 3] = [
+            ("true", &e.results, None),
+            ("another grasp's", &c.other_grasp, cmp.other_grasp.as_ref()),
+            ("none", &c.no_touch, cmp.no_touch.as_ref()),
+        ];
+        for (label, results, p) in rows {
+            let m = Summary::of(results);
+            let paired = match p {
+                Some(p) => {
+                    format!("{} / {} | {:.3} | {:+.3}", p.position.better, p.position.worse, p.position.p_value, p.position.mean_difference)
+                }
+                None if label == "true" => "– | – | –".to_string(),
+                None => "(no grasps to pair) | | ".to_string(),
+            };
+            let _ = writeln!(
+                s,
+                "| {} | {label} | {} | {} | {} | {} | {paired} |",
+                e.name,
+                m.n,
+                m.position_cm,
+                m.angle_deg,
+                pct(m.accuracy_2cm)
+            );
+        }
+    }
+    let _ = writeln!(s);
+    for (e, c) in &controlled {
+        let verdict = match ControlComparison::of(&e.results, c).uses_touch() {
+            Some(true) => "uses touch: its position error rises with another grasp's touch (p < 0.05)",
+            Some(false) => {
+                "does **not** show that it uses touch: its position error does not rise with another grasp's touch (p ≥ 0.05, or not on more grasps than it falls)"
+            }
+            None => "cannot be checked: no object has a second grasp in this split",
+        };
+        let _ = writeln!(s, "- {}: {verdict}.", e.name);
     }
 }

@@ -44,6 +44,14 @@ fn write_results_json(evals: &[ModelEval], pairs: &[Comparison], out: &Path) -> 
                 "per_object": group(&e.results, |r| Some(r.object.clone())).into_iter().map(|(k, v)| (k, Summary::of(v))).collect::<BTreeMap<_, _>>(),
                 "per_occlusion": group(&e.results, |r| OcclusionBin::of_f32(r.occlusion).map(|b| b.label().to_string())).into_iter().map(|(k, v)| (k, Summary::of(v))).collect::<BTreeMap<_, _>>(),
                 "tactile_sweep": e.sweep.iter().map(|(nt, r)| serde_json::json!({"n_tactile": nt, "summary": Summary::of(r)})).collect::<Vec<_>>(),
+                "touch_control": e.touch_control.as_ref().map(|c| {
+                    let cmp = crate::eval::control::ControlComparison::of(&e.results, c);
+                    serde_json::json!({
+                        "other_grasp": {"summary": Summary::of(&c.other_grasp), "paired": cmp.other_grasp},
+                        "no_touch": {"summary": Summary::of(&c.no_touch), "paired": cmp.no_touch},
+                        "uses_touch": cmp.uses_touch(),
+                    })
+                }),
             })
         })
         .collect();
