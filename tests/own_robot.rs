@@ -137,15 +137,29 @@ fn config() -> &'static Path {
     .1
 }
 
+/// `config` generated into a fresh directory.
+fn generated(config: &Path) -> tempfile::TempDir {
+    let d = tempdir();
+    let o = run(&["generate", config.to_str().unwrap(), "--out", d.path().to_str().unwrap(), "--quiet"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    d
+}
+
+/// `--shard i/5` of `config` alone writes train shard i, byte for byte the whole run's.
+fn shard_job_matches(config: &Path, i: u32, whole: &Path) {
+    let other = tempdir();
+    let o = run(&["generate", config.to_str().unwrap(), "--out", other.path().to_str().unwrap(), "--quiet", "--shard", &format!("{i}/5")]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let shards = complete_shards(other.path());
+    assert_eq!(shards, [format!("train/shard-{i:05}.mcap")]);
+    for f in shards {
+        assert!(std::fs::read(other.path().join(&f)).unwrap() == std::fs::read(whole.join(&f)).unwrap(), "{f} differs");
+    }
+}
+
 fn dataset() -> &'static Path {
     static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();
-    DIR.get_or_init(|| {
-        let d = tempdir();
-        let o = run(&["generate", config().to_str().unwrap(), "--out", d.path().to_str().unwrap(), "--quiet"]);
-        assert!(o.status.success(), "{}", stderr(&o));
-        d
-    })
-    .path()
+    DIR.get_or_init(|| generated(config())).path()
 }
 
 #[test]
@@ -191,14 +205,7 @@ fn the_three_finger_ground_truth_is_exact() {
 
 #[test]
 fn the_three_finger_dataset_is_deterministic() {
-    let other = tempdir();
-    let o = run(&["generate", config().to_str().unwrap(), "--out", other.path().to_str().unwrap(), "--quiet", "--shard", "1/5"]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let shards = complete_shards(other.path());
-    assert_eq!(shards, ["train/shard-00001.mcap"]);
-    for f in shards {
-        assert!(std::fs::read(other.path().join(&f)).unwrap() == std::fs::read(dataset().join(&f)).unwrap(), "{f} differs");
-    }
+    shard_job_matches(config(), 1, dataset());
 }
 
 #[test]
@@ -287,14 +294,7 @@ pub fn tactile_points_lie_on_the_object_within_their_pad(dir: &Path) {
 /// `scenes/tiny-gripper.yaml` (the built-in UR5e + Robotiq 2F-85), generated once.
 fn gripper_dataset() -> &'static Path {
     static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();
-    DIR.get_or_init(|| {
-        let d = tempdir();
-        let cfg = root().join("scenes/tiny-gripper.yaml");
-        let o = run(&["generate", cfg.to_str().unwrap(), "--out", d.path().to_str().unwrap(), "--quiet"]);
-        assert!(o.status.success(), "{}", stderr(&o));
-        d
-    })
-    .path()
+    DIR.get_or_init(|| generated(&root().join("scenes/tiny-gripper.yaml"))).path()
 }
 
 #[test]
@@ -325,15 +325,7 @@ fn the_parallel_gripper_holds_objects_between_its_two_pads_and_its_ground_truth_
 
 #[test]
 fn the_parallel_gripper_dataset_is_deterministic() {
-    let other = tempdir();
-    let cfg = root().join("scenes/tiny-gripper.yaml");
-    let o = run(&["generate", cfg.to_str().unwrap(), "--out", other.path().to_str().unwrap(), "--quiet", "--shard", "3/5"]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let shards = complete_shards(other.path());
-    assert_eq!(shards, ["train/shard-00003.mcap"]);
-    for f in shards {
-        assert!(std::fs::read(other.path().join(&f)).unwrap() == std::fs::read(gripper_dataset().join(&f)).unwrap(), "{f} differs");
-    }
+    shard_job_matches(&root().join("scenes/tiny-gripper.yaml"), 3, gripper_dataset());
 }
 
 #[test]

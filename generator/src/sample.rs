@@ -189,7 +189,7 @@ impl<'a> SampleFactory<'a> {
                         SAID.call_once(|| {
                             eprintln!(
                                 "vtgen: drawing the robot from primitives (no robot meshes: --robot-assets DIR, e.g. \
-                                 `--robot-assets \"$(scripts/robot-assets)\"`, draws the real {})",
+                                 `--robot-assets \"$(scripts/robot-assets)\"`, draws the real meshes of {})",
                                 r.robot.name
                             )
                         });

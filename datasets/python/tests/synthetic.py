@@ -271,7 +271,9 @@ def write_shard(
         writer.start(profile="", library="vtgen 0.1.0")
         schema_ids: Dict[str, int] = {}
         channels: Dict[str, int] = {}
-        for topic, cls in _PROTOBUF_TOPICS.items():
+
+        def register(topic: str, cls: Any) -> None:
+            """A protobuf channel for `topic`, its schema registered once."""
             name = cls.DESCRIPTOR.full_name
             if name not in schema_ids:
                 schema_ids[name] = writer.register_schema(
@@ -282,6 +284,9 @@ def write_shard(
             channels[topic] = writer.register_channel(
                 topic=topic, message_encoding="protobuf", schema_id=schema_ids[name]
             )
+
+        for topic, cls in _PROTOBUF_TOPICS.items():
+            register(topic, cls)
         info_schema = writer.register_schema(
             name="vtgen.SampleInfo",
             encoding="jsonschema",
@@ -295,16 +300,7 @@ def write_shard(
             for topic, cls in [("/tactile/points", PointCloud)] + [
                 (tactile_topic(p), RawImage) for p in robot["pads"]
             ]:
-                name = cls.DESCRIPTOR.full_name
-                if name not in schema_ids:
-                    schema_ids[name] = writer.register_schema(
-                        name=name,
-                        encoding="protobuf",
-                        data=build_file_descriptor_set(cls).SerializeToString(),
-                    )
-                channels[topic] = writer.register_channel(
-                    topic=topic, message_encoding="protobuf", schema_id=schema_ids[name]
-                )
+                register(topic, cls)
         for s in samples:
             messages = sample_messages(s)
             if reverse_messages:
