@@ -180,7 +180,13 @@ fn a_pad_pressed_on_a_box_sees_its_whole_footprint_and_a_free_pad_sees_nothing()
 /// 3 x 2 cm pads at `pads`, all touching, each with the config's distal sensor model.
 fn pad_views(cfg: &vtgen::config::TactileConfig, pads: &[glam::DAffine3]) -> Vec<vtgen::sensors::tactile::PadView> {
     pads.iter()
-        .map(|&t_world_pad| vtgen::sensors::tactile::PadView { size: (0.03, 0.02), model: cfg.sensors.distal, t_world_pad, touching: true })
+        .map(|&t_world_pad| vtgen::sensors::tactile::PadView {
+            size: (0.03, 0.02),
+            model: cfg.sensors.distal,
+            t_world_pad,
+            touching: true,
+            optical: None,
+        })
         .collect()
 }
 

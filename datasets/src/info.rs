@@ -137,6 +137,10 @@ pub struct TouchInfo {
     pub pads: BTreeMap<String, [f64; 2]>,
     /// Tactile points per phalanx.
     pub points: BTreeMap<String, u64>,
+    /// Per pad with an optical sensor: the sensor's parameters in this sample (the configured
+    /// sensor, varied per sample when `randomization.tactile_sensors` is on).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub optical: Option<BTreeMap<String, serde_json::Value>>,
 }
 
 impl SampleInfo {

@@ -19,7 +19,7 @@ pub use manifest::{ContinuousSymmetry, Manifest, ModelInfo, ModelsInfo, ShardEnt
 pub use occlusion::OcclusionBin;
 pub use ply::{LengthUnit, PlyMesh, read_ply, write_ply};
 pub use reader::{DatasetReader, ShardReader};
-pub use sample::{Pose, Sample, ShardMeta, TactileData, TactilePointRecord};
+pub use sample::{OpticalPadImage, Pose, Sample, ShardMeta, TactileData, TactilePointRecord};
 pub use writer::{Compression, SceneModel, ShardReceipt, ShardWriter};
 
 /// Version of the on-disk format written by this crate.
@@ -50,6 +50,14 @@ pub mod topics {
     /// The depth image topic of a phalanx camera.
     pub fn tactile_depth(phalanx: &str) -> String {
         format!("/tactile/{phalanx}/depth")
+    }
+    /// The optical image topic of a pad with an optical sensor.
+    pub fn tactile_image(pad: &str) -> String {
+        format!("/tactile/{pad}/image")
+    }
+    /// The no-contact reference image of that sensor, beside each image.
+    pub fn tactile_reference(pad: &str) -> String {
+        format!("/tactile/{pad}/reference")
     }
     /// Every topic a complete sample has, in the order they are written.
     pub const ALL: [&str; 7] = [RGB, DEPTH, MASK, CALIBRATION, OBJECT_POSE, TF, SAMPLE_INFO];

@@ -370,7 +370,32 @@ fn read_tactile(by_topic: &BTreeMap<String, Vec<u8>>, pads: &[String]) -> Result
         phalanges.push(name.clone());
         depth.push(img.data.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect());
     }
-    Ok(Some(crate::sample::TactileData { phalanges, resolution, depth, points }))
+    let mut optical = Vec::new();
+    for name in pads {
+        let Some(raw) = by_topic.get(&crate::topics::tactile_image(name)) else { continue };
+        let rgb = |raw: &[u8], what: &str| -> Result<RawImage> {
+            let img = RawImage::decode(raw)?;
+            if img.encoding != "rgb8" || img.data.len() != (img.width * img.height * 3) as usize || img.step != img.width * 3 {
+                bail!("/tactile/{name}/{what}: expected {}x{} rgb8 without padding", img.width, img.height);
+            }
+            Ok(img)
+        };
+        let image = rgb(raw, "image")?;
+        let reference_raw =
+            by_topic.get(&crate::topics::tactile_reference(name)).with_context(|| format!("/tactile/{name}/reference is missing"))?;
+        let reference = rgb(reference_raw, "reference")?;
+        if (reference.width, reference.height) != (image.width, image.height) {
+            bail!("/tactile/{name}/reference is {}x{}, its image {}x{}", reference.width, reference.height, image.width, image.height);
+        }
+        optical.push(crate::sample::OpticalPadImage {
+            pad: name.clone(),
+            width: image.width,
+            height: image.height,
+            image: image.data.to_vec(),
+            reference: reference.data.to_vec(),
+        });
+    }
+    Ok(Some(crate::sample::TactileData { phalanges, resolution, depth, points, optical }))
 }
 
 /// A dataset directory opened through its manifest.

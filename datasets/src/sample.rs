@@ -79,6 +79,22 @@ pub struct TactileData {
     /// Per phalanx: row-major z-depths from the pad plane, `+inf` = no surface.
     pub depth: Vec<Vec<f32>>,
     pub points: Vec<TactilePointRecord>,
+    /// The optical images of the pads with an optical sensor, in pad order (FORMAT.md,
+    /// `/tactile/<pad>/image`); empty without one.
+    pub optical: Vec<OpticalPadImage>,
+}
+
+/// One pad's optical tactile image and its sensor's no-contact reference image.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct OpticalPadImage {
+    /// The pad's name (one of `TactileData::phalanges`).
+    pub pad: String,
+    pub width: u32,
+    pub height: u32,
+    /// `width * height * 3` bytes, RGB, linear 8-bit levels.
+    pub image: Vec<u8>,
+    /// The same sensor with nothing touching it, without noise.
+    pub reference: Vec<u8>,
 }
 
 impl Sample {

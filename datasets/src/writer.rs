@@ -66,7 +66,7 @@ pub struct ShardWriter {
     written: u64,
     meta: ShardMeta,
     /// Tactile channels, added with the first sample that has tactile data.
-    tactile_channels: Option<(u16, Vec<u16>)>,
+    tactile_channels: Option<TactileChannels>,
     /// `/scene/models`, added with the first scene update.
     scene_channel: Option<u16>,
     /// Models to publish with the next sample.
@@ -99,6 +99,15 @@ fn transform(log_time: u64, parent: &str, child: &str, p: &Pose) -> FrameTransfo
         translation: fp.position,
         rotation: fp.orientation,
     }
+}
+
+/// The tactile channels of a shard: the points, each pad's depth view, and per optical pad its
+/// name, image and reference channels.
+#[derive(Clone)]
+struct TactileChannels {
+    points: u16,
+    depth: Vec<u16>,
+    optical: Vec<(String, u16, u16)>,
 }
 
 impl ShardWriter {
@@ -236,10 +245,22 @@ impl ShardWriter {
     fn write_tactile(&mut self, t: u64, tac: &crate::sample::TactileData) -> Result<()> {
         if self.tactile_channels.is_none() {
             let points = add::<PointCloud>(&mut self.mcap, topics::TACTILE_POINTS)?;
-            let images = tac.phalanges.iter().map(|p| add::<RawImage>(&mut self.mcap, &topics::tactile_depth(p))).collect::<Result<_>>()?;
-            self.tactile_channels = Some((points, images));
+            let depth = tac.phalanges.iter().map(|p| add::<RawImage>(&mut self.mcap, &topics::tactile_depth(p))).collect::<Result<_>>()?;
+            let optical = tac
+                .optical
+                .iter()
+                .map(|o| {
+                    let image = add::<RawImage>(&mut self.mcap, &topics::tactile_image(&o.pad))?;
+                    Ok((o.pad.clone(), image, add::<RawImage>(&mut self.mcap, &topics::tactile_reference(&o.pad))?))
+                })
+                .collect::<Result<_>>()?;
+            self.tactile_channels = Some(TactileChannels { points, depth, optical });
         }
-        let (points_ch, image_chs) = self.tactile_channels.clone().expect("set above");
+        let TactileChannels { points: points_ch, depth: image_chs, optical } = self.tactile_channels.clone().expect("set above");
+        anyhow::ensure!(
+            optical.len() == tac.optical.len() && optical.iter().zip(&tac.optical).all(|(c, o)| c.0 == o.pad),
+            "the optical pads changed within a shard"
+        );
         use foxglove::schemas::packed_element_field::NumericType;
         let field = |name: &str, offset: u32, ty: NumericType| PackedElementField { name: name.into(), offset, r#type: ty as i32 };
         let mut data = Vec::with_capacity(tac.points.len() * 20);
@@ -279,6 +300,28 @@ impl ShardWriter {
             }
             .encode_to_vec();
             self.put(*ch, t, &img)?;
+        }
+        for ((_, image_ch, reference_ch), o) in optical.iter().zip(&tac.optical) {
+            anyhow::ensure!(
+                o.image.len() == (o.width * o.height * 3) as usize && o.reference.len() == o.image.len(),
+                "optical image sizes of pad {} do not match {}x{}",
+                o.pad,
+                o.width,
+                o.height
+            );
+            for (ch, bytes) in [(image_ch, &o.image), (reference_ch, &o.reference)] {
+                let img = RawImage {
+                    timestamp: ts(t),
+                    frame_id: format!("{}_pad", o.pad),
+                    width: o.width,
+                    height: o.height,
+                    encoding: "rgb8".into(),
+                    step: o.width * 3,
+                    data: prost::bytes::Bytes::copy_from_slice(bytes),
+                }
+                .encode_to_vec();
+                self.put(*ch, t, &img)?;
+            }
         }
         Ok(())
     }

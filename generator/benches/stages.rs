@@ -195,6 +195,7 @@ fn rendering(c: &mut Criterion) {
             resolution: 32,
             depth: vec![vec![f32::INFINITY; 32 * 32]; 12],
             points: Vec::new(),
+            optical: Vec::new(),
         }),
     };
     c.bench_function("write one 640x480 sample (zstd 3)", |b| b.iter(|| writer.write_sample(black_box(&sample)).expect("write")));

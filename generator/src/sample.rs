@@ -6,16 +6,17 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result};
 use glam::{DAffine3, DMat4};
 use vt_dataset::{
-    OcclusionBin, OcclusionInfo, PlacedDistractor, Pose, RobotInfo, Sample, SampleInfo, SceneModel, Split, TactileData, TactilePointRecord,
-    TouchInfo, frames, mask_ids,
+    OcclusionBin, OcclusionInfo, OpticalPadImage, PlacedDistractor, Pose, RobotInfo, Sample, SampleInfo, SceneModel, Split, TactileData,
+    TactilePointRecord, TouchInfo, frames, mask_ids,
 };
 use vt_objects::Texture;
-use vt_randomizers::{AppearanceContext, ImageLibrary, ProceduralTexture, SampleKey, SampleStream};
+use vt_randomizers::{AppearanceContext, ImageLibrary, ProceduralTexture, SampleKey, SampleStream, sample_sensor_variation};
 
 use crate::annotate::occlusion::{model_points, occlusion_level};
 use crate::assets::LoadedObject;
 use crate::assets::robot::{load_drawn_meshes, robot_assets_dir};
 use crate::config::{Config, LoadedConfig};
+use crate::config::{OpticalSensor, SensorModel};
 use crate::physics::grasp::Trajectory;
 use crate::physics::robot::{GraspStats, RobotScene};
 use crate::plan::SampleRef;
@@ -23,6 +24,7 @@ use crate::render::{Draw, DrawRole, Lighting, Material, MeshHandle, Renderer, Vi
 use crate::scene::environment::{backdrop_mesh, floor_mesh, glb_of, place_distractors};
 use crate::scene::robot::{link_mesh, mask_id as robot_mask_id, pose_links};
 use crate::scene::{pose_of, sample_scene};
+use crate::sensors::optical::{optical_image, reference_image, varied};
 use crate::sensors::tactile::{FingerSurface, PadView, finger_surface, sense};
 
 /// The real fingers' surface under the pads, when the robot has its real hand meshes.
@@ -42,6 +44,32 @@ fn finger_surfaces(robot: &RobotScene, pads: &[(f64, f64)]) -> Result<Option<Fin
         })
         .collect::<Result<Vec<_>>>()?;
     Ok(Some(surfaces))
+}
+
+/// The optical pads' images: each from its depth view (none: the pad does not touch the
+/// object) with the sample's noise stream for that pad, beside its sensor's reference image
+/// (`references`: per pad, the last one made, reused while the sensor stays the same).
+fn optical_images(
+    references: &mut Vec<Option<(OpticalSensor, Vec<u8>)>>,
+    key: &SampleKey,
+    names: &[String],
+    pads: &[PadView],
+    depth: &[Option<Vec<f32>>],
+) -> Vec<OpticalPadImage> {
+    references.resize(pads.len(), None);
+    let mut out = Vec::new();
+    for (k, (pad, name)) in pads.iter().zip(names).enumerate() {
+        let Some(sensor) = &pad.optical else { continue };
+        let mut noise = SampleStream::sample(key, &format!("tactile_image/{name}"));
+        let image = optical_image(sensor, depth[k].as_deref(), Some(&mut noise));
+        let cached = &mut references[k];
+        if cached.as_ref().is_none_or(|(s, _)| s != sensor) {
+            *cached = Some((sensor.clone(), reference_image(sensor).rgb));
+        }
+        let reference = cached.as_ref().expect("set above").1.clone();
+        out.push(OpticalPadImage { pad: name.clone(), width: image.width, height: image.height, image: image.rgb, reference });
+    }
+    out
 }
 
 /// `texture` with each sRGB channel times its factor (alpha kept).
@@ -106,6 +134,8 @@ pub struct SampleFactory<'a> {
     pad_sizes: Vec<(f64, f64)>,
     /// The real fingers' surface under the pads (with robot meshes).
     finger_surface: Option<FingerSurface>,
+    /// Per pad: the last optical sensor's reference image, reused while the sensor stays the same.
+    optical_references: Vec<Option<(OpticalSensor, Vec<u8>)>>,
     /// Per object: the model points the occlusion level is measured with.
     model_points: Vec<Vec<glam::DVec3>>,
     /// Occlusion-level histogram (`OcclusionBin` order) of the shard being written.
@@ -124,6 +154,10 @@ pub struct StageTimes {
     pub tactile_render: Duration,
     /// Contact pixels to tactile points.
     pub tactile_extract: Duration,
+    /// The optical tactile images (and reference images when a sensor changed), CPU.
+    pub tactile_optical: Duration,
+    /// Optical tactile images made.
+    pub optical_images: u64,
     /// Occlusion level (model points against the depth cloud); the object's unoccluded
     /// silhouette comes with the main render.
     pub occlusion: Duration,
@@ -241,6 +275,7 @@ impl<'a> SampleFactory<'a> {
             recording: None,
             pad_sizes,
             finger_surface,
+            optical_references: Vec::new(),
             model_points,
             occlusion_histogram: [0; 3],
             times: StageTimes::default(),
@@ -315,7 +350,7 @@ impl<'a> SampleFactory<'a> {
         draws.push(object_draw);
         let (img, depth_noisy) = self.render_main(&scene, &key, &draws)?;
         let tactile = match posed.as_mut() {
-            Some(p) => Some(self.sense_touch(&scene, object_draw, p)?),
+            Some(p) => Some(self.sense_touch(&scene, &key, object_draw, p)?),
             None => None,
         };
         let t_camera_object = scene.t_world_camera.inverse().compose(&scene.t_world_object);
@@ -480,9 +515,18 @@ impl<'a> SampleFactory<'a> {
 
     /// The touch stage: the pad views of the object alone and the tactile point cloud (in
     /// the main camera frame); its settings and counts go into the robot's info.
-    fn sense_touch(&mut self, scene: &crate::scene::SampledScene, object: Draw, posed: &mut PosedRobot) -> Result<TactileData> {
+    fn sense_touch(
+        &mut self,
+        scene: &crate::scene::SampledScene,
+        key: &SampleKey,
+        object: Draw,
+        posed: &mut PosedRobot,
+    ) -> Result<TactileData> {
         let robot = self.robot.as_ref().expect("called with a robot");
         let cfg = &robot.config.tactile;
+        let optical_sensor = cfg.has_optical().then(|| cfg.optical_sensor());
+        // Sensor-to-sensor variation: per pad, in the randomized samples only.
+        let variation = self.config.randomization.tactile_sensors.filter(|_| scene.appearance.randomized);
         let t_camera_world = scene.t_world_camera.inverse().matrix();
         let (t0, cpu0) = (Instant::now(), crate::cpu_clock::thread_cpu_time());
         let surface = self.finger_surface.as_ref();
@@ -500,6 +544,10 @@ impl<'a> SampleFactory<'a> {
                 model: cfg.sensors.of(pad.group),
                 t_world_pad,
                 touching: posed.info.phalanges_in_contact.contains(&model.links[pad.link].name),
+                optical: optical_sensor.as_ref().filter(|_| cfg.sensors.of(pad.group) == SensorModel::Optical).map(|s| match &variation {
+                    Some(v) => varied(s, &sample_sensor_variation(v, key, &pad.name, s.lights.len())),
+                    None => s.clone(),
+                }),
             })
             .collect();
         let t_camera_world = DAffine3::from_mat4(t_camera_world);
@@ -508,6 +556,15 @@ impl<'a> SampleFactory<'a> {
         self.times.render_call_cpu += crate::cpu_clock::cpu_since(cpu0);
         self.times.tactile_render += reading.render_time;
         self.times.tactile_extract += t0.elapsed() - reading.render_time;
+        let t1 = Instant::now();
+        let optical = optical_images(&mut self.optical_references, key, &names, &pads, &reading.optical_depth);
+        self.times.tactile_optical += t1.elapsed();
+        self.times.optical_images += optical.len() as u64;
+        let optical_info = pads
+            .iter()
+            .zip(&names)
+            .filter_map(|(p, n)| p.optical.as_ref().map(|s| Ok((n.clone(), serde_json::to_value(s)?))))
+            .collect::<Result<std::collections::BTreeMap<_, _>>>()?;
         posed.info.tactile = Some(TouchInfo {
             contact_threshold_mm: cfg.contact_threshold_mm,
             sensors: serde_json::to_value(cfg.sensors)?,
@@ -515,6 +572,7 @@ impl<'a> SampleFactory<'a> {
             far_mm: cfg.far_mm,
             pads: names.iter().zip(&self.pad_sizes).map(|(n, (l, w))| (n.clone(), [*l, *w])).collect(),
             points: names.iter().zip(reading.counts).map(|(n, c)| (n.clone(), c as u64)).collect(),
+            optical: (!optical_info.is_empty()).then_some(optical_info),
         });
         Ok(TactileData {
             phalanges: names,
@@ -525,6 +583,7 @@ impl<'a> SampleFactory<'a> {
                 .iter()
                 .map(|p| TactilePointRecord { position: p.position.as_vec3().to_array(), distance: p.distance as f32, phalanx: p.phalanx })
                 .collect(),
+            optical,
         })
     }
 

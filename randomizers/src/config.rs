@@ -35,6 +35,10 @@ pub struct RandomizationConfig {
     /// takes the defaults). Left out of the config when off, so other datasets keep their hash.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub robot_materials: Option<RobotMaterialRandomization>,
+    /// Sensor-to-sensor variation of the optical tactile sensors: off unless the key is given
+    /// (`tactile_sensors: {}` takes the defaults); left out of the config when off.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tactile_sensors: Option<crate::tactile::TactileSensorRandomization>,
 }
 
 /// Per-sample variation of the robot's materials: roughness and metallic drawn from their ranges,
@@ -67,6 +71,7 @@ impl Default for RandomizationConfig {
             camera_jitter: CameraJitter::default(),
             texture_size: 256,
             robot_materials: None,
+            tactile_sensors: None,
         }
     }
 }
@@ -268,6 +273,9 @@ impl RandomizationConfig {
             e.range("robot_materials.roughness", r.roughness, ZERO, Some((1.0, true)), "");
             e.range("robot_materials.metallic", r.metallic, ZERO, Some((1.0, true)), "");
             e.scalar("robot_materials.tint", r.tint, ZERO, Some((1.0, true)), "");
+        }
+        if let Some(t) = &self.tactile_sensors {
+            e.0.extend(t.problems().into_iter().map(|(path, message)| (format!("tactile_sensors.{path}"), message)));
         }
         e.0
     }

@@ -15,6 +15,9 @@
 //!   decided by a low-discrepancy sequence so that any 1000 consecutive samples of an object
 //!   hold the configured share within ±1%.
 //!
+//! - [`sample_sensor_variation`]: one optical tactile sensor unit's deviation from its design
+//!   (`randomization.tactile_sensors`), per pad and sample.
+//!
 //! Same (config, key, context) → identical parameters and texture bytes. See the crate's
 //! `README.md` for every parameter and its default.
 
@@ -25,6 +28,7 @@ mod images;
 mod raster;
 mod rotation;
 mod stream;
+mod tactile;
 mod texture;
 
 pub use appearance::{
@@ -39,4 +43,5 @@ pub use config::{
 pub use images::ImageLibrary;
 pub use rotation::uniform_rotation;
 pub use stream::{SampleKey, SampleStream};
+pub use tactile::{SensorVariation, TactileSensorRandomization, sample_sensor_variation};
 pub use texture::{ProceduralTexture, TextureSpec, checker_texture};

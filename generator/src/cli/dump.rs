@@ -87,6 +87,19 @@ pub fn dump(dataset: &Path, split: &str, index: u64, out: &Path, exr: bool) -> R
     // Row-major 4x4 of T_camera_object (glam is column-major).
     let m = s.t_camera_object.matrix().transpose().to_cols_array();
     write_npy(&out.join("T_camera_object.npy"), "<f8", &[4, 4], bytemuck::cast_slice(&m))?;
+    // Optical tactile images: as arrays, and as PNGs to look at.
+    for o in s.tactile.iter().flat_map(|t| &t.optical) {
+        let (h, w) = (o.height as usize, o.width as usize);
+        for (what, rgb) in [("image", &o.image), ("reference", &o.reference)] {
+            let stem = format!("tactile_{}_{what}", o.pad);
+            write_npy(&out.join(format!("{stem}.npy")), "|u1", &[h, w, 3], rgb)?;
+            let png = out.join(format!("{stem}.png"));
+            image::RgbImage::from_raw(o.width, o.height, rgb.clone())
+                .context("optical image size")?
+                .save(&png)
+                .with_context(|| format!("cannot write {}", png.display()))?;
+        }
+    }
     std::fs::write(out.join("info.json"), serde_json::to_string_pretty(&s.info.to_value())? + "\n")?;
     Ok(())
 }

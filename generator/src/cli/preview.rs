@@ -1,6 +1,7 @@
 //! `vtgen preview`: a contact sheet to look at. One row per sample, cropped around the object: the
 //! RGB image with the object's mask tinted, the tactile points projected as dots and the ground-truth pose drawn as
-//! axes (x red, y green, z blue, 5 cm), next to the depth colour-mapped (near bright, far dark).
+//! axes (x red, y green, z blue, 5 cm), next to the depth colour-mapped (near bright, far dark),
+//! and the optical tactile images of the pads that have them.
 //! A strip on the left of each row tells randomized samples (orange) from canonical ones (grey).
 
 use std::path::Path;
@@ -133,9 +134,28 @@ fn row(s: &Sample) -> RgbImage {
         depth.put_pixel(i as u32 % w, i as u32 / w, Rgb(c));
     }
     let (rgb, depth) = (crop(&rgb), crop(&depth));
-    let mut out = RgbImage::new(2 * cw, ch);
+    // The optical pads' images in a column on the right, stacked.
+    let optical: Vec<RgbImage> = s
+        .tactile
+        .iter()
+        .flat_map(|t| &t.optical)
+        .filter_map(|o| RgbImage::from_raw(o.width, o.height, o.image.clone()))
+        .map(|img| {
+            let n = s.tactile.as_ref().map_or(1, |t| t.optical.len()) as u32;
+            let th = (ch / n).max(1);
+            let tw = (img.width() as u64 * th as u64 / img.height().max(1) as u64).max(1) as u32;
+            image::imageops::resize(&img, tw, th, image::imageops::FilterType::Triangle)
+        })
+        .collect();
+    let column = optical.iter().map(|i| i.width()).max().unwrap_or(0);
+    let mut out = RgbImage::new(2 * cw + column, ch);
     image::imageops::overlay(&mut out, &rgb, 0, 0);
     image::imageops::overlay(&mut out, &depth, cw as i64, 0);
+    let mut top = 0;
+    for img in &optical {
+        image::imageops::overlay(&mut out, img, 2 * cw as i64, top);
+        top += img.height() as i64;
+    }
     out
 }
 

@@ -4,6 +4,7 @@
 mod check;
 mod locate;
 mod noise;
+mod optical;
 mod overrides;
 mod schema;
 
@@ -11,6 +12,7 @@ use std::path::{Path, PathBuf};
 
 pub use check::{Check, Checks, Problem};
 pub use noise::{ColorNoise, DepthNoise, SensorNoise};
+pub use optical::{Led, MarkerConfig, Markers, OpticalConfig, OpticalPreset, OpticalSensor, led_falloff, light_matrix};
 pub use overrides::Override;
 pub use schema::*;
 

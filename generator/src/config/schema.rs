@@ -164,6 +164,10 @@ pub struct TactileConfig {
     /// pinhole `perspective_standoff_mm` behind the pad whose view covers the pad).
     pub projection: PadProjection,
     pub perspective_standoff_mm: f64,
+    /// The optical sensor of the pads whose model is `optical` (default: the `gelsight_mini`
+    /// preset). Left out of the config when not given, so other datasets keep their hash.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub optical: Option<super::optical::OpticalConfig>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -184,6 +188,7 @@ impl Default for TactileConfig {
             sensors: SensorGroups::default(),
             projection: PadProjection::Orthographic,
             perspective_standoff_mm: 10.0,
+            optical: None,
         }
     }
 }
@@ -215,6 +220,20 @@ impl Check for TactileConfig {
         c.range(field!(self.near_mm), -100.0, 100.0);
         c.range(field!(self.far_mm), -100.0, 1000.0);
         c.positive(field!(self.perspective_standoff_mm), 100.0, "mm");
+        c.section(field!(self.optical));
+    }
+}
+
+impl TactileConfig {
+    /// Whether any pad group has the `optical` model.
+    pub fn has_optical(&self) -> bool {
+        let s = &self.sensors;
+        [s.proximal, s.medial, s.distal].contains(&SensorModel::Optical)
+    }
+
+    /// The optical sensor's resolved parameters (the `gelsight_mini` preset unless configured).
+    pub fn optical_sensor(&self) -> super::optical::OpticalSensor {
+        self.optical.clone().unwrap_or_default().resolve()
     }
 }
 
@@ -255,6 +274,9 @@ pub enum SensorModel {
     /// An optical gel pad: the surface indents a gel of this thickness; every indented pixel is a
     /// point (a height map of the indentation).
     Gelsight { gel_thickness_mm: f64 },
+    /// An optical gel sensor (`robot.tactile.optical`): the `gelsight` rule with the sensor's gel
+    /// thickness for the points, and the RGB image its camera sees (`/tactile/<pad>/image`).
+    Optical,
 }
 
 fn default_base_position() -> [f64; 3] {

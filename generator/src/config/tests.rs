@@ -318,9 +318,8 @@ fn names_knob(field: &str, leaf: &str) -> bool {
 /// in the file and naming that knob; only the seed takes any integer.
 #[test]
 fn every_numeric_knob_is_checked() {
-    let sections = "robot:\n  grasp: {back_to_camera_share: 0.5, back_to_camera_tilt_deg: [70, 110]}\n  tactile:\n    projection: perspective\n    sensors: {medial: {model: taxel_array, rows: 4, cols: 4}, distal: {model: gelsight, gel_thickness_mm: 1.5}}\n";
-    let objects =
-        "objects: [005_tomato_soup_can, {id: mine, mesh: m.obj, mass: 0.3}]\nrandomization: {enabled: true, robot_materials: {}}\n";
+    let sections = "robot:\n  grasp: {back_to_camera_share: 0.5, back_to_camera_tilt_deg: [70, 110]}\n  tactile:\n    projection: perspective\n    sensors: {proximal: {model: optical}, medial: {model: taxel_array, rows: 4, cols: 4}, distal: {model: gelsight, gel_thickness_mm: 1.5}}\n    optical: {preset: digit, image_size: [320, 240], sensing_area_mm: [19, 16], gel_thickness_mm: 1, elastic_spread_mm: 0.3, ambient: 0.2, background: [0.7, 0.7, 0.7], vignetting: 0.3, noise_std: 1, markers: {pitch_mm: 1.6, radius_mm: 0.2, shift: 0.5, opacity: 0.8}, lights: [{direction: [1, 0, -0.5], color: [0.9, 0.1, 0.1], falloff: 0.4}, {direction: [-0.5, 0.87, -0.5], color: [0.1, 0.9, 0.1]}, {direction: [-0.5, -0.87, -0.5], color: [0.1, 0.1, 0.9]}]}\n";
+    let objects = "objects: [005_tomato_soup_can, {id: mine, mesh: m.obj, mass: 0.3}]\nrandomization: {enabled: true, robot_materials: {}, tactile_sensors: {}}\n";
     let cameras = [
         "camera:\n  intrinsics: {fx: 615.0, fy: 615.0, cx: 319.5, cy: 239.5}\n  noise: {depth: {}, color: {}}\n",
         "camera:\n  fov_y_deg: 60\n",
@@ -351,4 +350,40 @@ fn every_numeric_knob_is_checked() {
         }
     }
     assert!(checked > 200, "{checked}");
+}
+
+/// The optical sensor's bad values each end in one error naming their field, at its line.
+#[test]
+fn optical_sensor_errors_name_the_field() {
+    let cases = [
+        (
+            "optical: {lights: [{direction: [0, 0, 0], color: [1, 0, 0]}, {direction: [0, 1, -1], color: [0, 1, 0]}, {direction: [1, 0, -1], color: [0, 0, 1]}]}",
+            "robot.tactile.optical.lights[0].direction",
+            "zero length",
+        ),
+        (
+            "optical: {lights: [{direction: [1, 0, 1], color: [1, 0, 0]}, {direction: [0, 1, -1], color: [0, 1, 0]}, {direction: [1, 0, -1], color: [0, 0, 1]}]}",
+            "robot.tactile.optical.lights[0].direction",
+            "behind the gel",
+        ),
+        (
+            "optical: {lights: [{direction: [1, 0, -1], color: [1, 1, 1]}, {direction: [0, 1, -1], color: [1, 1, 1]}, {direction: [1, 1, -1], color: [1, 1, 1]}]}",
+            "robot.tactile.optical.lights",
+            "cannot tell slopes apart",
+        ),
+        ("optical: {gel_thickness_mm: -1.5}", "robot.tactile.optical.gel_thickness_mm", "out of range"),
+        ("optical: {image_size: [0, 240]}", "robot.tactile.optical.image_size[0]", "out of range"),
+        ("optical: {preset: gelsight_maxi}", "robot.tactile.optical.preset", "unknown variant"),
+        ("optical: {markers: {pitch_mm: 1.0, radius_mm: 0.6}}", "robot.tactile.optical.markers.radius_mm", "pitch / 2"),
+    ];
+    for (optical, field, message) in cases {
+        let text =
+            format!("objects: [005_tomato_soup_can]\nrobot:\n  tactile:\n    sensors: {{distal: {{model: optical}}}}\n    {optical}\n");
+        let e = LoadedConfig::parse(&text, Path::new("x.yaml")).expect_err(optical);
+        assert_eq!(e.field, field, "{optical}: {e}");
+        assert!(e.message.contains(message) && e.line == Some(5), "{optical}: {e}");
+    }
+    let bad = "objects: [005_tomato_soup_can]\nrandomization:\n  tactile_sensors: {led_color: 1.5}\n";
+    let e = LoadedConfig::parse(bad, Path::new("x.yaml")).expect_err("led_color");
+    assert_eq!(e.field, "randomization.tactile_sensors.led_color", "{e}");
 }

@@ -6,7 +6,7 @@
 use anyhow::Result;
 use glam::{DAffine3, DMat4, DVec3};
 
-use crate::config::{PadProjection, SensorModel, TactileConfig};
+use crate::config::{OpticalSensor, PadProjection, SensorModel, TactileConfig};
 use crate::render::{DepthView, Draw, Renderer};
 
 /// One tactile point in the main camera frame.
@@ -20,13 +20,14 @@ pub struct TactilePoint {
 }
 
 /// One pad as a sample sees it: its sensing area (length, width; m), sensor model, pose (world)
-/// and whether its link touches the object.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// and whether its link touches the object; with the `optical` model, its sensor in this sample.
+#[derive(Debug, Clone, PartialEq)]
 pub struct PadView {
     pub size: (f64, f64),
     pub model: SensorModel,
     pub t_world_pad: DAffine3,
     pub touching: bool,
+    pub optical: Option<OpticalSensor>,
 }
 
 /// What the pad cameras saw in one sample.
@@ -36,6 +37,9 @@ pub struct TactileReading {
     pub depth: Vec<Vec<f32>>,
     pub points: Vec<TactilePoint>,
     pub counts: Vec<u32>,
+    /// Per pad: the object's depth over an optical sensor's image (its sensing area at its image
+    /// size, `+inf` where nothing is in range), for the optical pads that touch the object.
+    pub optical_depth: Vec<Option<Vec<f32>>>,
     /// Time the depth views took to render (the rest of `sense` is point extraction).
     pub render_time: std::time::Duration,
 }
@@ -72,8 +76,9 @@ pub fn finger_surface(mesh: &vt_objects::TexturedMesh, t_link_pad: &DAffine3, si
         .collect())
 }
 
-/// Renders the 12 pad views of the object (drawn alone: the hand does not occlude its own pads)
-/// and extracts the tactile points, in the frame `t_camera_world` maps to. Only the pads of the
+/// Renders the pad views of the object (drawn alone: the hand does not occlude its own pads), and
+/// the image-sized views of the touching optical pads in the same submission, and extracts the
+/// tactile points, in the frame `t_camera_world` maps to. Only the pads of the
 /// phalanges `touching` the object (the physics' contacts) report points: a sensor answers to
 /// contact, and an object hovering within the threshold of an untouched pad is not felt. With
 /// `surface`, a pixel's contact rule applies to the object's distance from the finger's real
@@ -88,7 +93,7 @@ pub fn sense(
 ) -> Result<TactileReading> {
     let n = cfg.resolution;
     let standoff = (cfg.projection == PadProjection::Perspective).then_some(cfg.perspective_standoff_mm * 1e-3);
-    let views: Vec<DepthView> = pads
+    let mut views: Vec<DepthView> = pads
         .iter()
         .map(|pad| DepthView {
             width: n,
@@ -101,14 +106,34 @@ pub fn sense(
             perspective_standoff: standoff,
         })
         .collect();
+    // The optical pads' views: orthographic over the sensing area, out to the gel's free surface.
+    let optical: Vec<usize> = (0..pads.len()).filter(|&k| pads[k].touching && pads[k].optical.is_some()).collect();
+    for &k in &optical {
+        let sensor = pads[k].optical.as_ref().expect("filtered above");
+        views.push(DepthView {
+            width: sensor.image_size[0],
+            height: sensor.image_size[1],
+            half_x: sensor.sensing_area_mm[0] * 0.5e-3,
+            half_y: sensor.sensing_area_mm[1] * 0.5e-3,
+            near: cfg.near_mm * 1e-3,
+            far: (sensor.gel_thickness_mm + 0.1) * 1e-3,
+            t_world_camera: DMat4::from(pads[k].t_world_pad),
+            perspective_standoff: None,
+        });
+    }
     let t0 = std::time::Instant::now();
-    let depth = renderer.render_depth_views(&views, &[object])?;
+    let mut depth = renderer.render_depth_views(&views, &[object])?;
     let render_time = t0.elapsed();
+    let mut optical_depth = vec![None; pads.len()];
+    for (&k, d) in optical.iter().zip(depth.drain(pads.len()..)) {
+        optical_depth[k] = Some(d);
+    }
     let mut points = Vec::new();
     let mut counts = vec![0u32; pads.len()];
     for (k, pad) in pads.iter().enumerate().filter(|(_, p)| p.touching) {
         let to_camera = *t_camera_world * pad.t_world_pad;
-        let model = pad.model;
+        // An optical pad's points: the `gelsight` rule with its sensor's gel.
+        let model = pad.optical.as_ref().map_or(pad.model, |o| SensorModel::Gelsight { gel_thickness_mm: o.gel_thickness_mm });
         let above_finger: Option<Vec<f32>> = surface.map(|s| depth[k].iter().zip(&s[k]).map(|(d, h)| d - h).collect());
         let gap = above_finger.as_deref().unwrap_or(&depth[k]);
         for (u, v) in contact_pixels(gap, n, model, cfg.contact_threshold_mm * 1e-3) {
@@ -121,7 +146,7 @@ pub fn sense(
             counts[k] += 1;
         }
     }
-    Ok(TactileReading { depth, points, counts, render_time })
+    Ok(TactileReading { depth, points, counts, optical_depth, render_time })
 }
 
 /// The pixels (u, v) of an `n x n` pad depth image that a sensor model reports as contacts. Every
@@ -133,6 +158,8 @@ pub fn contact_pixels(depth: &[f32], n: u32, model: SensorModel, threshold: f64)
     match model {
         SensorModel::DepthCamera => all(threshold),
         SensorModel::Gelsight { gel_thickness_mm } => all(gel_thickness_mm * 1e-3),
+        // `sense` gives an optical pad the `gelsight` rule with its sensor's gel.
+        SensorModel::Optical => all(threshold),
         SensorModel::TaxelArray { rows, cols } => {
             let mut out = Vec::new();
             for r in 0..rows {
@@ -174,7 +201,13 @@ mod tests {
     fn views(cfg: &TactileConfig, t_world_pads: &[DAffine3; 12]) -> Vec<PadView> {
         let groups = [vt_robot::PadGroup::Proximal, vt_robot::PadGroup::Medial, vt_robot::PadGroup::Distal];
         (0..12)
-            .map(|k| PadView { size: (0.02, 0.01), model: cfg.sensors.of(groups[k % 3]), t_world_pad: t_world_pads[k], touching: true })
+            .map(|k| PadView {
+                size: (0.02, 0.01),
+                model: cfg.sensors.of(groups[k % 3]),
+                t_world_pad: t_world_pads[k],
+                touching: true,
+                optical: None,
+            })
             .collect()
     }
 

@@ -211,19 +211,15 @@ impl Renderer for WgpuRenderer {
     }
 
     fn render_depth_views(&mut self, views: &[DepthView], draws: &[Draw]) -> Result<Vec<Vec<f32>>> {
-        let Some(first) = views.first() else { return Ok(Vec::new()) };
-        let (vw, vh) = (first.width, first.height);
-        if views.iter().any(|v| v.width != vw || v.height != vh) {
-            bail!("depth views of one call share their size");
+        if views.is_empty() {
+            return Ok(Vec::new());
         }
-        // An atlas of 4 columns: one pass, one readback (rows of 4 x 32 x 4 bytes are aligned).
-        let cols = 4u32.min(views.len() as u32);
-        let rows = (views.len() as u32).div_ceil(cols);
+        let (atlas_size, viewports) = atlas_layout(views);
         let specs: Vec<ViewSpec> = views
             .iter()
-            .enumerate()
-            .map(|(i, v)| {
-                let viewport = [(i as u32 % cols) * vw, (i as u32 / cols) * vh, vw, vh];
+            .zip(&viewports)
+            .map(|(v, &viewport)| {
+                let (vw, vh) = (v.width, v.height);
                 match v.perspective_standoff {
                     None => ViewSpec { t_world_camera: v.t_world_camera, proj: orthographic(v), viewport },
                     Some(s) => {
@@ -257,20 +253,15 @@ impl Renderer for WgpuRenderer {
                 }
             })
             .collect();
-        let sub = Submission {
-            slot: Slot::TactileAtlas,
-            size: (cols * vw, rows * vh),
-            views: &specs,
-            readback: Readback::Depth,
-            cull: Some(&cull),
-        };
+        let sub = Submission { slot: Slot::TactileAtlas, size: atlas_size, views: &specs, readback: Readback::Depth, cull: Some(&cull) };
         let atlas: Vec<f32> = bytemuck::pod_collect_to_vec(&self.draw_views(&sub, &lighting, draws)?.depth);
-        let aw = (cols * vw) as usize;
+        let aw = atlas_size.0 as usize;
         Ok(specs
             .iter()
             .zip(views)
             .map(|(spec, v)| {
                 let vp = spec.viewport;
+                let (vw, vh) = (v.width, v.height);
                 // Pinhole depths are measured from the pinhole: shift them to the camera plane.
                 let shift = v.perspective_standoff.unwrap_or(0.0) as f32;
                 (0..vh as usize)
@@ -282,4 +273,25 @@ impl Renderer for WgpuRenderer {
             })
             .collect())
     }
+}
+
+/// Where each depth view goes in the atlas, and the atlas' size. Consecutive views of one size form
+/// a block of up to 4 columns (the pads' 32 x 32 views: one block, as they always were); blocks
+/// stack downwards.
+fn atlas_layout(views: &[DepthView]) -> ((u32, u32), Vec<[u32; 4]>) {
+    let mut viewports = Vec::with_capacity(views.len());
+    let (mut width, mut top) = (0, 0);
+    let mut start = 0;
+    while start < views.len() {
+        let (vw, vh) = (views[start].width, views[start].height);
+        let count = views[start..].iter().take_while(|v| (v.width, v.height) == (vw, vh)).count() as u32;
+        let cols = 4u32.min(count);
+        for i in 0..count {
+            viewports.push([(i % cols) * vw, top + (i / cols) * vh, vw, vh]);
+        }
+        width = width.max(cols * vw);
+        top += count.div_ceil(cols) * vh;
+        start += count as usize;
+    }
+    ((width, top), viewports)
 }
