@@ -291,6 +291,72 @@ pub fn tactile_points_lie_on_the_object_within_their_pad(dir: &Path) {
     assert!(points > 0, "no tactile points");
 }
 
+/// The optical pads' images against their pad's depth view: the reference is the recorded sensor's
+/// no-contact image exactly; an image differs from it (beyond noise) only near where the object is
+/// within the gel; and the sensors vary between randomized samples only.
+pub fn optical_images_change_only_where_the_object_is_in_the_gel(dir: &Path) {
+    use vtgen::config::OpticalSensor;
+    use vtgen::sensors::optical::{pixel_position, reference_image};
+    let ds = DatasetReader::open(dir).unwrap();
+    let (mut images, mut showing_contact) = (0, 0);
+    let mut canonical_sensors = std::collections::BTreeSet::new();
+    for split in ["train", "test"] {
+        for s in ds.samples(split).unwrap() {
+            let s = s.unwrap();
+            let tac = s.tactile.as_ref().expect("tactile data");
+            let touch = s.info.robot.as_ref().and_then(|r| r.tactile.as_ref()).expect("touch info");
+            let sensors = touch.optical.as_ref().expect("the optical pads' sensors");
+            assert_eq!(tac.optical.iter().map(|o| o.pad.as_str()).collect::<Vec<_>>(), ["left", "right"]);
+            for o in &tac.optical {
+                let sensor: OpticalSensor = serde_json::from_value(sensors[&o.pad].clone()).unwrap();
+                if !s.info.randomized {
+                    canonical_sensors.insert(serde_json::to_string(&sensor).unwrap());
+                }
+                assert_eq!([o.width, o.height], sensor.image_size);
+                assert!(o.reference == reference_image(&sensor).rgb, "{split} {} {}: the reference is not the sensor's", s.index, o.pad);
+                // The pad view's pixels where the object is within the gel (pad frame, m).
+                let k = tac.phalanges.iter().position(|p| *p == o.pad).unwrap();
+                let (n, [len, wid]) = (tac.resolution, touch.pads[&o.pad]);
+                let gel = sensor.gel_thickness_mm * 1e-3;
+                let inside: Vec<(f64, f64)> = (0..n * n)
+                    .filter(|&i| tac.depth[k][i as usize] as f64 <= gel)
+                    .map(|i| {
+                        (((i % n) as f64 + 0.5 - n as f64 / 2.0) * len / n as f64, ((i / n) as f64 + 0.5 - n as f64 / 2.0) * wid / n as f64)
+                    })
+                    .collect();
+                // How far the image may change beyond them: the gel's spread (3σ), a marker's
+                // size and shift, and a pad pixel's diagonal.
+                let markers = sensor.markers.map_or(0.0, |m| 2.0 * m.radius_mm * 1e-3 + m.shift * gel);
+                let margin = 3.0 * sensor.elastic_spread_mm * 1e-3 + markers + (len / n as f64).hypot(wid / n as f64);
+                let mut changed = 0;
+                for v in 0..o.height {
+                    for u in 0..o.width {
+                        let i = ((v * o.width + u) * 3) as usize;
+                        if (0..3).all(|c| (o.image[i + c] as f64 - o.reference[i + c] as f64).abs() <= 10.0 * sensor.noise_std.max(0.5)) {
+                            continue;
+                        }
+                        changed += 1;
+                        let (_, [x, y]) = pixel_position(&sensor, u, v);
+                        let near = inside.iter().map(|(px, py)| (x - px).hypot(y - py)).fold(f64::INFINITY, f64::min);
+                        assert!(
+                            near <= margin,
+                            "{split} {} {}: pixel ({u}, {v}) changed {:.2} mm from any contact",
+                            s.index,
+                            o.pad,
+                            near * 1e3
+                        );
+                    }
+                }
+                images += 1;
+                showing_contact += (changed > 0) as u32;
+            }
+        }
+    }
+    assert!(images == 80 && showing_contact >= 40, "{showing_contact} of {images} images show a contact");
+    // The canonical samples share the configured sensor: one per pad design, here both the same.
+    assert_eq!(canonical_sensors.len(), 1, "canonical samples have varied sensors");
+}
+
 /// `scenes/tiny-gripper.yaml` (the built-in UR5e + Robotiq 2F-85), generated once.
 fn gripper_dataset() -> &'static Path {
     static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();
@@ -319,6 +385,7 @@ fn the_parallel_gripper_holds_objects_between_its_two_pads_and_its_ground_truth_
     assert_eq!(n, 40);
     crate::ground_truth::check_dataset(dir);
     tactile_points_lie_on_the_object_within_their_pad(dir);
+    optical_images_change_only_where_the_object_is_in_the_gel(dir);
     let o = run(&["validate", dir.to_str().unwrap()]);
     assert!(o.status.success(), "{}{}", String::from_utf8_lossy(&o.stdout), stderr(&o));
 }

@@ -204,6 +204,7 @@ mod tests {
                     far_mm: 30.0,
                     pads: [("ff_distal".to_string(), [0.02, 0.015])].into(),
                     points: [("ff_distal".to_string(), 40), ("th_distal".to_string(), 12)].into(),
+                    optical: Some([("th_distal".to_string(), serde_json::json!({"image_size": [320, 240]}))].into()),
                 }),
             }),
         }

@@ -1,7 +1,7 @@
 //! Criterion micro-benchmarks of the sample path's hot stages, each alone: one physics step of the
 //! grasped hand, a grasp trajectory, the main 640x480 render (PBR, shadow map, depth, mask,
-//! silhouette), the 12 phalanx depth views, the occlusion level and writing one sample to a zstd
-//! shard. `cargo bench -p vtgen --bench stages` (rendering runs on whatever adapter wgpu picks:
+//! silhouette), the 12 phalanx depth views, the occlusion level, writing one sample to a zstd
+//! shard, and one optical tactile image per preset. `cargo bench -p vtgen --bench stages` (rendering runs on whatever adapter wgpu picks:
 //! lavapipe on a machine without a GPU). `vtgen bench` measures the stages inside a real run.
 
 use std::hint::black_box;
@@ -201,5 +201,32 @@ fn rendering(c: &mut Criterion) {
     c.bench_function("write one 640x480 sample (zstd 3)", |b| b.iter(|| writer.write_sample(black_box(&sample)).expect("write")));
 }
 
-criterion_group!(benches, physics, rendering);
+/// One optical tactile image per preset, from the depth of a 6 mm sphere pressed 0.8 mm into the
+/// gel (markers and noise on), and the reference image alone.
+fn optical(c: &mut Criterion) {
+    use rand::SeedableRng;
+    use vtgen::config::{OpticalConfig, OpticalPreset};
+    use vtgen::sensors::optical::{optical_image, pixel_position, reference_image};
+    let mut group = c.benchmark_group("optical tactile image");
+    for preset in [OpticalPreset::GelsightMini, OpticalPreset::Digit] {
+        let sensor = OpticalConfig { preset, markers: Some(Default::default()), ..Default::default() }.resolve();
+        let [w, h] = sensor.image_size;
+        let (r, lowest) = (0.006, (sensor.gel_thickness_mm - 0.8) * 1e-3);
+        let depth: Vec<f32> = (0..w * h)
+            .map(|i| {
+                let (_, [x, y]) = pixel_position(&sensor, i % w, i / w);
+                let q = x * x + y * y;
+                if q < r * r { (lowest + r - (r * r - q).sqrt()) as f32 } else { f32::INFINITY }
+            })
+            .collect();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+        group.bench_function(format!("{preset:?} {w}x{h}, sphere pressed, markers, noise"), |b| {
+            b.iter(|| black_box(optical_image(&sensor, Some(&depth), Some(&mut rng))))
+        });
+        group.bench_function(format!("{preset:?} {w}x{h}, reference"), |b| b.iter(|| black_box(reference_image(&sensor))));
+    }
+    group.finish();
+}
+
+criterion_group!(benches, physics, rendering, optical);
 criterion_main!(benches);

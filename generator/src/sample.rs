@@ -154,8 +154,10 @@ pub struct StageTimes {
     pub tactile_render: Duration,
     /// Contact pixels to tactile points.
     pub tactile_extract: Duration,
-    /// The optical tactile images (and reference images when a sensor changed), CPU.
+    /// The optical tactile images (and reference images when a sensor changed): wall and the
+    /// worker thread's CPU time.
     pub tactile_optical: Duration,
+    pub tactile_optical_cpu: Duration,
     /// Optical tactile images made.
     pub optical_images: u64,
     /// Occlusion level (model points against the depth cloud); the object's unoccluded
@@ -556,9 +558,10 @@ impl<'a> SampleFactory<'a> {
         self.times.render_call_cpu += crate::cpu_clock::cpu_since(cpu0);
         self.times.tactile_render += reading.render_time;
         self.times.tactile_extract += t0.elapsed() - reading.render_time;
-        let t1 = Instant::now();
+        let (t1, cpu1) = (Instant::now(), crate::cpu_clock::thread_cpu_time());
         let optical = optical_images(&mut self.optical_references, key, &names, &pads, &reading.optical_depth);
         self.times.tactile_optical += t1.elapsed();
+        self.times.tactile_optical_cpu += crate::cpu_clock::cpu_since(cpu1);
         self.times.optical_images += optical.len() as u64;
         let optical_info = pads
             .iter()

@@ -30,6 +30,9 @@ OBJECT_ID = "test_cube"
 HEIGHT, WIDTH = 6, 8
 #: Pixels per side of a pad's depth image in the synthetic robot datasets.
 TACTILE_RESOLUTION = 4
+#: (width, height) of the optical pads' RGB images (``/tactile/<pad>/image`` and ``reference``);
+#: not square, so a reader that swaps the axes is caught.
+OPTICAL_SIZE = (5, 3)
 #: The robots the synthetic writer can put in a sample: their pads in index order (the order of
 #: the ``phalanx`` index and of the ``/tactile/<pad>/depth`` channels) and their joints.
 ALLEGRO_PADS = tuple(f"{f}_{p}" for f in ("ff", "mf", "rf", "th") for p in ("proximal", "medial", "distal"))
@@ -66,7 +69,8 @@ class SyntheticSample:
     world_object: Pose
     info: Dict[str, Any] = field(default_factory=dict)
     #: With a robot: ``pads`` (names in index order), ``points`` (N, 3) float32, ``distance`` (N,)
-    #: float32, ``phalanx`` (N,) uint32, ``depth`` (P, R, R) float32.
+    #: float32, ``phalanx`` (N,) uint32, ``depth`` (P, R, R) float32; with optical pads also
+    #: ``images`` and ``references``, ``{pad: (H, W, 3) uint8}`` in pad order.
     tactile: Optional[Dict[str, Any]] = None
 
     @property
@@ -81,8 +85,13 @@ def random_pose(rng: np.random.Generator) -> Pose:
     return (tuple(float(v) for v in t), tuple(float(v) for v in q))  # type: ignore[return-value]
 
 
-def make_tactile(pads: Sequence[str], rng: np.random.Generator) -> Dict[str, Any]:
-    """Random tactile data of a robot with ``pads``: points on some pads, one depth image each."""
+def make_tactile(
+    pads: Sequence[str], rng: np.random.Generator, optical: Sequence[str] = ()
+) -> Dict[str, Any]:
+    """Random tactile data of a robot with ``pads``: points on some pads, one depth image each, and
+    an RGB image and reference image for each pad of ``optical`` (kept in the pads' order)."""
+    unknown = [p for p in optical if p not in pads]
+    assert not unknown, f"optical pads {unknown} are not pads of the robot {list(pads)}"
     n_pads = len(pads)
     touching = sorted(rng.choice(n_pads, size=min(2, n_pads), replace=False).tolist())
     counts = [int(rng.integers(1, 5)) if k in touching else 0 for k in range(n_pads)]
@@ -90,6 +99,8 @@ def make_tactile(pads: Sequence[str], rng: np.random.Generator) -> Dict[str, Any
     n = len(phalanx)
     depth = rng.uniform(0.0, 0.01, size=(n_pads, TACTILE_RESOLUTION, TACTILE_RESOLUTION))
     depth[:, 0, 0] = np.inf
+    w, h = OPTICAL_SIZE
+    optical_pads = [p for p in pads if p in optical]
     return {
         "pads": list(pads),
         "points": rng.uniform(-0.5, 0.5, size=(n, 3)).astype(np.float32),
@@ -98,11 +109,38 @@ def make_tactile(pads: Sequence[str], rng: np.random.Generator) -> Dict[str, Any
         "depth": depth.astype(np.float32),
         "counts": counts,
         "touching": [pads[k] for k in touching],
+        "images": {p: rng.integers(0, 256, size=(h, w, 3), dtype=np.uint8) for p in optical_pads},
+        "references": {p: rng.integers(0, 256, size=(h, w, 3), dtype=np.uint8) for p in optical_pads},
+    }
+
+
+def optical_info(rng: np.random.Generator) -> Dict[str, Any]:
+    """One optical sensor's ``/sample/info`` ``tactile.optical.<pad>`` entry (FORMAT.md)."""
+    lights = [
+        {"direction": [0.0, 0.82, -0.57], "color": [1.0, 0.1, 0.1], "falloff": 0.25},
+        {"direction": [-0.71, -0.41, -0.57], "color": [0.1, 0.8, 0.2], "falloff": 0.25},
+        {"direction": [0.71, -0.41, -0.57], "color": [0.1, 0.2, 0.9], "falloff": 0.25},
+    ]
+    return {
+        "image_size": list(OPTICAL_SIZE),
+        "sensing_area_mm": [18.6, 14.3],
+        "gel_thickness_mm": float(rng.uniform(1.0, 2.0)),
+        "elastic_spread_mm": 0.5,
+        "lights": lights,
+        "ambient": 0.15,
+        "background": [0.8, 0.7, 0.75],
+        "vignetting": 0.3,
+        "markers": {"pitch_mm": 2.0, "radius_mm": 0.3, "shift": 0.5, "opacity": 0.85},
+        "noise_std": 1.0,
     }
 
 
 def make_sample(
-    split: str, index: int, rng: np.random.Generator, robot: Optional[str] = None
+    split: str,
+    index: int,
+    rng: np.random.Generator,
+    robot: Optional[str] = None,
+    optical: Sequence[str] = (),
 ) -> SyntheticSample:
     rgb = rng.integers(0, 256, size=(HEIGHT, WIDTH, 3), dtype=np.uint8)
     depth = rng.uniform(0.2, 1.5, size=(HEIGHT, WIDTH)).astype(np.float32)
@@ -131,7 +169,7 @@ def make_sample(
     tactile = None
     if robot is not None:
         spec = ROBOTS[robot]
-        tactile = make_tactile(spec["pads"], rng)
+        tactile = make_tactile(spec["pads"], rng, optical)
         info.update(
             {
                 "physics_backend": "rapier",
@@ -152,6 +190,8 @@ def make_sample(
                 },
             }
         )
+        if tactile["images"]:
+            info["tactile"]["optical"] = {p: optical_info(rng) for p in tactile["images"]}
     return SyntheticSample(
         split, index, rgb, depth, mask, K, camera_object, world_camera, world_object, info, tactile
     )
@@ -184,7 +224,17 @@ def tactile_topic(pad: str) -> str:
     return f"/tactile/{pad}/depth"
 
 
-def _tactile_messages(tac: Dict[str, Any], t: int) -> List[Tuple[str, bytes]]:
+def tactile_image_topic(pad: str) -> str:
+    return f"/tactile/{pad}/image"
+
+
+def tactile_reference_topic(pad: str) -> str:
+    return f"/tactile/{pad}/reference"
+
+
+def _tactile_messages(
+    tac: Dict[str, Any], t: int, optical_encoding: str = "rgb8"
+) -> List[Tuple[str, bytes]]:
     data = bytearray()
     for p, d, k in zip(tac["points"], tac["distance"], tac["phalanx"]):
         data += struct.pack("<4fI", *p, d, k)
@@ -204,11 +254,23 @@ def _tactile_messages(tac: Dict[str, Any], t: int) -> List[Tuple[str, bytes]]:
         msg = _raw_image(image, "32FC1", t)
         msg.frame_id = f"{pad}_pad"
         out.append((tactile_topic(pad), msg.SerializeToString()))
+    # As the Rust writer: after the depth images, each optical pad's image, then its reference.
+    for pad, image in tac["images"].items():
+        for topic, array in (
+            (tactile_image_topic(pad), image),
+            (tactile_reference_topic(pad), tac["references"][pad]),
+        ):
+            msg = _raw_image(array, optical_encoding, t)
+            msg.frame_id = f"{pad}_pad"
+            out.append((topic, msg.SerializeToString()))
     return out
 
 
-def sample_messages(s: SyntheticSample) -> List[Tuple[str, bytes]]:
-    """The (topic, payload) pairs of one sample, as FORMAT.md lists them."""
+def sample_messages(s: SyntheticSample, optical_encoding: str = "rgb8") -> List[Tuple[str, bytes]]:
+    """The (topic, payload) pairs of one sample, as FORMAT.md lists them.
+
+    ``optical_encoding`` is the encoding the optical pads' images claim (to test error reporting).
+    """
     t = s.log_time
     calibration = CameraCalibration(
         frame_id="camera",
@@ -237,7 +299,7 @@ def sample_messages(s: SyntheticSample) -> List[Tuple[str, bytes]]:
         ("/object/pose", pose.SerializeToString()),
         ("/tf", tf.SerializeToString()),
         ("/sample/info", json.dumps(s.info, separators=(",", ":")).encode("utf-8")),
-    ] + (_tactile_messages(s.tactile, t) if s.tactile is not None else [])
+    ] + (_tactile_messages(s.tactile, t, optical_encoding) if s.tactile is not None else [])
 
 
 _PROTOBUF_TOPICS = {
@@ -257,13 +319,16 @@ def write_shard(
     samples: Sequence[SyntheticSample],
     omit: Optional[Tuple[int, str]] = None,
     reverse_messages: bool = False,
+    optical_encoding: str = "rgb8",
 ) -> None:
     """Write one shard: zstd, one chunk per sample, the ``vtgen.shard`` metadata record.
 
     ``omit=(index, topic)`` leaves that message out (to test error reporting). With a robot the
     tactile channels are added as the Rust writer adds them: the points, then one depth channel per
-    pad in the pads' index order. ``reverse_messages`` writes each sample's messages in reverse
-    order (the reader must not depend on the order of messages in a chunk).
+    pad in the pads' index order, then for each optical pad (in that order) its image and its
+    reference channel. ``reverse_messages`` writes each sample's messages in reverse order (the
+    reader must not depend on the order of messages in a chunk). ``optical_encoding`` is the
+    encoding the optical images are written with (``rgb8``; another to test error reporting).
     """
     path.parent.mkdir(parents=True, exist_ok=True)
     with open(path, "wb") as f:
@@ -297,12 +362,18 @@ def write_shard(
         )
         robot = next((s.tactile for s in samples if s.tactile is not None), None)
         if robot is not None:
-            for topic, cls in [("/tactile/points", PointCloud)] + [
-                (tactile_topic(p), RawImage) for p in robot["pads"]
-            ]:
+            for topic, cls in (
+                [("/tactile/points", PointCloud)]
+                + [(tactile_topic(p), RawImage) for p in robot["pads"]]
+                + [
+                    (topic, RawImage)
+                    for p in robot["images"]
+                    for topic in (tactile_image_topic(p), tactile_reference_topic(p))
+                ]
+            ):
                 register(topic, cls)
         for s in samples:
-            messages = sample_messages(s)
+            messages = sample_messages(s, optical_encoding)
             if reverse_messages:
                 messages.reverse()
             for topic, payload in messages:
@@ -381,16 +452,23 @@ def write_dataset(
     omit: Optional[Tuple[str, int, str]] = None,
     robot: Optional[str] = None,
     reverse_messages: bool = False,
+    optical: Sequence[str] = (),
+    optical_encoding: str = "rgb8",
 ) -> Dict[str, List[SyntheticSample]]:
     """Write a complete dataset (manifest, models, shards) and return its samples per split.
 
     ``omit=(split, index, topic)`` leaves one message out. ``robot`` (a key of :data:`ROBOTS`)
-    adds the robot's ``/sample/info`` keys and tactile topics to every sample.
+    adds the robot's ``/sample/info`` keys and tactile topics to every sample. ``optical`` names
+    pads of the robot with an optical sensor: their ``/tactile/<pad>/image`` and ``reference``
+    images (:data:`OPTICAL_SIZE`, written with ``optical_encoding``) and ``tactile.optical`` info.
     """
+    if optical and robot is None:
+        raise ValueError("optical pads need a robot")
     rng = np.random.default_rng(seed)
     root.mkdir(parents=True, exist_ok=True)
     samples = {
-        split: [make_sample(split, i, rng, robot) for i in range(n)] for split, n in counts.items()
+        split: [make_sample(split, i, rng, robot, optical) for i in range(n)]
+        for split, n in counts.items()
     }
     splits: Dict[str, Any] = {}
     for split, items in samples.items():
@@ -403,7 +481,7 @@ def write_dataset(
                 shard_omit = (omit[1], omit[2])
             write_shard(
                 root / rel, split, shard_index, chunk, omit=shard_omit,
-                reverse_messages=reverse_messages,
+                reverse_messages=reverse_messages, optical_encoding=optical_encoding,
             )
             data = (root / rel).read_bytes()
             shards.append(

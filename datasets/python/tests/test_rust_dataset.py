@@ -6,7 +6,7 @@ the ``vtgen generate`` run.
 
 The fixtures (``conftest.py``) run ``$VTGEN_BIN generate <repo>/scenes/tiny.yaml --out <tmp>/ds
 --quiet``; the tests compare the Python reader with ``$VTGEN_BIN dump`` (the Rust reader) bit for
-bit.
+bit, and ``scenes/tiny-gripper.yaml``'s optical tactile images the same way.
 """
 
 from __future__ import annotations
@@ -196,6 +196,33 @@ def test_tactile_data_of_a_robot_dataset(rust_hand_dataset: Path) -> None:
             assert int((t["phalanx"] == k).sum()) == counts[name]
         total += n
     assert total > 0
+
+
+def test_optical_images_match_rust_dump(vtgen_bin: str, rust_gripper_dataset: Path, tmp_path: Path) -> None:
+    """The optical pads' images and reference images (``tactile_images``, ``tactile_references``)
+    are ``vtgen dump``'s ``tactile_<pad>_image.npy`` and ``tactile_<pad>_reference.npy`` bit for bit,
+    for the pads ``/sample/info`` ``tactile.optical`` lists, in pad order, at its ``image_size``."""
+    root = rust_gripper_dataset
+    manifest = json.loads((root / "manifest.json").read_text(encoding="utf-8"))
+    checked = 0
+    for split in manifest["splits"]:
+        ds = vtdata.Dataset(root, split)
+        for index in sorted({0, len(ds) - 1}) if len(ds) else []:
+            out = tmp_path / f"{split}-{index}"
+            _dump(vtgen_bin, root, split, index, out)
+            sample = ds[index]
+            optical = sample["info"]["tactile"]["optical"]
+            pads = [p for p in sample["tactile"]["phalanges"] if p in optical]
+            assert pads, f"{root}: {split}[{index}] lists no optical pad in /sample/info"
+            assert list(sample["tactile_images"]) == list(sample["tactile_references"]) == pads
+            for pad in pads:
+                w, h = optical[pad]["image_size"]
+                for key, what in (("tactile_images", "image"), ("tactile_references", "reference")):
+                    expected = np.load(out / f"tactile_{pad}_{what}.npy", allow_pickle=False)
+                    assert expected.shape == (h, w, 3) and expected.dtype == np.uint8
+                    _assert_bit_exact(sample[key][pad], expected, f"{split}[{index}] {pad} {what}")
+                checked += 1
+    assert checked > 0, f"{root} has no samples"
 
 
 def _shard_summary(root: Path) -> Tuple[Dict[str, str], Dict[str, bytes]]:

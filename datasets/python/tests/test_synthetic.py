@@ -22,12 +22,14 @@ from vtdata import Dataset, DatasetError, PlyError, load_ply
 
 from synthetic import (
     OBJECT_ID,
+    OPTICAL_SIZE,
     ROBOTS,
     SAMPLE_PERIOD_NS,
     TACTILE_RESOLUTION,
     SyntheticSample,
     cube_mesh,
     write_dataset,
+    write_shard,
 )
 
 COUNTS = {"train": 5, "test": 3}
@@ -485,6 +487,138 @@ def test_densefusion_and_torch_of_a_gripper(tmp_path):
 
     batch = collate([TorchDataset(root, "train")[i] for i in range(2)])
     assert [t["phalanges"] for t in batch["tactile"]] == [["right_pad", "left_pad"]] * 2
+
+
+# --- optical tactile sensors: /tactile/<pad>/image and /tactile/<pad>/reference -------------------
+
+
+@pytest.mark.parametrize("reverse", [False, True], ids=["writer-order", "reversed-messages"])
+@pytest.mark.parametrize(
+    "robot, optical, order",
+    [
+        # Both pads of the gripper, in its pad order (not name order).
+        ("robotiq_2f85", ("left_pad", "right_pad"), ["right_pad", "left_pad"]),
+        # Only some pads of the hand (the distal ones of two fingers).
+        ("ur5e_allegro", ("th_distal", "ff_distal"), ["ff_distal", "th_distal"]),
+    ],
+)
+def test_optical_images_of_some_pads(tmp_path, robot, optical, order, reverse):
+    """The optical pads' RGB and reference images come as ``{pad: (H, W, 3) uint8}`` in pad order,
+    only for the pads that have them, next to the depth images of every pad."""
+    root = tmp_path / "ds"
+    samples = write_dataset(
+        root, {"train": 3}, 2, robot=robot, optical=optical, reverse_messages=reverse
+    )
+    w, h = OPTICAL_SIZE
+    ds = Dataset(root, "train")
+    for i, expected in enumerate(samples["train"]):
+        sample = ds[i]
+        check_sample(sample, expected)
+        assert sample["tactile"]["phalanges"] == list(ROBOTS[robot]["pads"])
+        images, references = sample["tactile_images"], sample["tactile_references"]
+        assert list(images) == list(references) == order
+        assert sample.tactile_images is images  # attribute access
+        for pad in order:
+            assert images[pad].shape == references[pad].shape == (h, w, 3)
+            assert_bit_exact(images[pad], expected.tactile["images"][pad], f"{pad} image")
+            assert_bit_exact(references[pad], expected.tactile["references"][pad], f"{pad} reference")
+            assert sample["info"]["tactile"]["optical"][pad]["image_size"] == [w, h]
+
+
+def test_no_optical_images_without_optical_sensors(dataset, tmp_path):
+    """Without an optical pad (with or without a robot) the keys are absent, as ``depth_noisy``."""
+    root = tmp_path / "ds"
+    write_dataset(root, {"train": 2}, 2, robot="robotiq_2f85")
+    for ds in (Dataset(root, "train"), Dataset(dataset[0], "train")):
+        sample = ds[0]
+        assert "tactile_images" not in sample and "tactile_references" not in sample
+
+
+def test_optical_image_errors(tmp_path):
+    """A wrong encoding, a missing reference, images the info does not list, or the wrong size: a
+    ``DatasetError`` naming the sample and the topic."""
+    kw = dict(robot="robotiq_2f85", optical=("left_pad",))
+
+    root = tmp_path / "bgr"
+    write_dataset(root, {"train": 1}, 1, optical_encoding="bgr8", **kw)
+    with pytest.raises(DatasetError, match=r"sample 0 .*/tactile/left_pad/image: expected encoding 'rgb8', found 'bgr8'"):
+        Dataset(root, "train")[0]
+
+    root = tmp_path / "no-reference"
+    write_dataset(root, {"train": 2}, 2, omit=("train", 1, "/tactile/left_pad/reference"), **kw)
+    ds = Dataset(root, "train")
+    assert list(ds[0]["tactile_images"]) == ["left_pad"]
+    with pytest.raises(DatasetError, match=r"sample 1 .*/tactile/left_pad/image without its /tactile/left_pad/reference"):
+        ds[1]
+
+    root = tmp_path / "no-image"
+    write_dataset(root, {"train": 1}, 1, omit=("train", 0, "/tactile/left_pad/image"), **kw)
+    with pytest.raises(DatasetError, match=r"/tactile/left_pad/reference without its /tactile/<pad>/image"):
+        Dataset(root, "train")[0]
+
+    # /sample/info lists an optical pad whose images are missing, or another image size.
+    root = tmp_path / "info"
+    samples = write_dataset(root, {"train": 2}, 2, **kw)["train"]
+    samples[0].info["tactile"]["optical"]["right_pad"] = samples[0].info["tactile"]["optical"]["left_pad"]
+    samples[1].info["tactile"]["optical"]["left_pad"]["image_size"] = [4, 3]
+    write_shard(root / "train" / "shard-00000.mcap", "train", 0, samples)
+    ds = Dataset(root, "train")
+    with pytest.raises(DatasetError, match=r"tactile\.optical lists the optical pads \['left_pad', 'right_pad'\], the sample has images of \['left_pad'\]"):
+        ds[0]
+    with pytest.raises(DatasetError, match=r"sample 1 .*/tactile/left_pad/image is 5x3, but /sample/info tactile\.optical\.left_pad\.image_size is \[4, 3\]"):
+        ds[1]
+
+
+def test_optical_images_must_be_of_tactile_pads():
+    from vtdata.reader import _optical
+
+    rgb = RawImage(width=2, height=1, encoding="rgb8", step=6, data=bytes(range(6)))
+    small = RawImage(width=1, height=1, encoding="rgb8", step=3, data=bytes(3))
+    decoded = {"/tactile/a/image": rgb, "/tactile/a/reference": rgb}
+    tactile = {"phalanges": ["b", "a"]}
+    images, references = _optical(decoded, {}, "here", tactile)
+    assert images["a"].tolist() == [[[0, 1, 2], [3, 4, 5]]] and references["a"].shape == (1, 2, 3)
+    assert _optical({}, {}, "here", tactile) is None
+    with pytest.raises(DatasetError, match="optical images of a but no /tactile/points"):
+        _optical(decoded, {}, "here", None)
+    with pytest.raises(DatasetError, match="optical images of a, which are not pads of the sample"):
+        _optical(decoded, {}, "here", {"phalanges": ["b"]})
+    with pytest.raises(DatasetError, match="/tactile/a/reference is 1x1, its image 2x1"):
+        _optical({**decoded, "/tactile/a/reference": small}, {}, "here", tactile)
+
+
+def test_torch_passes_optical_images_through(tmp_path):
+    torch = pytest.importorskip("torch")
+    from torch.utils.data import DataLoader
+
+    from vtdata.torch import TorchDataset, collate, to_tensors
+
+    root = tmp_path / "ds"
+    samples = write_dataset(root, {"train": 3}, 2, robot="robotiq_2f85", optical=("left_pad",))
+    w, h = OPTICAL_SIZE
+    item = TorchDataset(root, "train")[0]
+    for key, want in (("tactile_images", "images"), ("tactile_references", "references")):
+        assert list(item[key]) == ["left_pad"]
+        image = item[key]["left_pad"]
+        assert isinstance(image, torch.Tensor) and image.dtype == torch.uint8
+        assert image.shape == (h, w, 3)  # as rgb: (H, W, 3), no reordering or scaling
+        assert image.numpy().tobytes() == samples["train"][0].tactile[want]["left_pad"].tobytes()
+    assert to_tensors({"tactile_images": {}})["tactile_images"] == {}
+
+    loader = DataLoader(TorchDataset(root, "train"), batch_size=2, collate_fn=collate)
+    seen = 0
+    for batch in loader:
+        b = len(batch["index"])
+        for key, want in (("tactile_images", "images"), ("tactile_references", "references")):
+            assert list(batch[key]) == ["left_pad"]
+            stacked = batch[key]["left_pad"]
+            assert stacked.shape == (b, h, w, 3) and stacked.dtype == torch.uint8
+            for j, index in enumerate(batch["index"].tolist()):
+                expected = samples["train"][index].tactile[want]["left_pad"]
+                assert stacked[j].numpy().tobytes() == expected.tobytes()
+        assert isinstance(batch["tactile"], list)  # the tactile dict stays one per sample
+        seen += b
+    assert seen == 3
 
 
 def test_import_does_not_import_torch():

@@ -68,6 +68,12 @@ ALLEGRO_PHALANGES = tuple(
 PHALANGES = ALLEGRO_PHALANGES
 #: ``/tactile/<pad>/depth``: the depth image of one pad; the pad's name is the middle part.
 TACTILE_DEPTH_PREFIX, TACTILE_DEPTH_SUFFIX = "/tactile/", "/depth"
+#: ``/tactile/<pad>/image``: the RGB image (``rgb8``) of a pad with an optical (GelSight/DIGIT-style)
+#: sensor; only such pads have it.
+TACTILE_IMAGE_SUFFIX = "/image"
+#: ``/tactile/<pad>/reference``: that sensor's no-contact image without noise (``rgb8``, the size of
+#: its image), written with every sample beside the image.
+TACTILE_REFERENCE_SUFFIX = "/reference"
 _TACTILE_DTYPE = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("distance", "<f4"), ("phalanx", "<u4")])
 #: Topics every sample must have; other topics (later format versions) are ignored.
 REQUIRED_TOPICS = (
@@ -131,6 +137,11 @@ class Sample(Dict[str, Any]):
       pad names in index order, read from the shard: the 12 ``ff_proximal`` … ``th_distal`` of
       the Allegro, 2 of a parallel gripper) and ``depth`` ``(P, R, R)`` float32 pad camera images
       (``inf`` = no surface), one per ``/tactile/<pad>/depth`` topic.
+    - ``tactile_images`` and ``tactile_references`` (only when some pad has an optical
+      GelSight/DIGIT-style sensor): ``{pad: (H, W, 3) uint8}`` in pad order, the sensor's RGB image
+      (``/tactile/<pad>/image``, linear 8-bit levels) and its no-contact reference image without
+      noise (``/tactile/<pad>/reference``, same size); the same pads in both, a subset of
+      ``tactile["phalanges"]``. The sensor's parameters are ``info["tactile"]["optical"][pad]``.
     """
 
     __slots__ = ()
@@ -400,6 +411,9 @@ class Dataset(Sequence[Sample]):
             )
         if TOPIC_TACTILE_POINTS in decoded:
             sample["tactile"] = _tactile(decoded, channel_ids, where)
+        optical = _optical(decoded, channel_ids, where, sample.get("tactile"))
+        if optical is not None:
+            sample["tactile_images"], sample["tactile_references"] = optical
         return sample
 
 
@@ -479,13 +493,105 @@ def pose_matrix(position: Sequence[float], orientation: Sequence[float]) -> np.n
     return T
 
 
-def pad_of_topic(topic: str) -> Optional[str]:
-    """The pad name of a ``/tactile/<pad>/depth`` topic, else ``None``."""
-    if topic.startswith(TACTILE_DEPTH_PREFIX) and topic.endswith(TACTILE_DEPTH_SUFFIX):
-        name = topic[len(TACTILE_DEPTH_PREFIX) : -len(TACTILE_DEPTH_SUFFIX)]
+def _pad_of(topic: str, suffix: str) -> Optional[str]:
+    if topic.startswith(TACTILE_DEPTH_PREFIX) and topic.endswith(suffix):
+        name = topic[len(TACTILE_DEPTH_PREFIX) : -len(suffix)]
         if name and "/" not in name:
             return name
     return None
+
+
+def pad_of_topic(topic: str) -> Optional[str]:
+    """The pad name of a ``/tactile/<pad>/depth`` topic, else ``None``."""
+    return _pad_of(topic, TACTILE_DEPTH_SUFFIX)
+
+
+def optical_pad_of_topic(topic: str) -> Optional[str]:
+    """The pad name of a ``/tactile/<pad>/image`` topic (an optical sensor's image), else ``None``."""
+    return _pad_of(topic, TACTILE_IMAGE_SUFFIX)
+
+
+def _optical(
+    decoded: Dict[str, Any],
+    channel_ids: Mapping[str, int],
+    where: str,
+    tactile: Optional[Dict[str, Any]],
+) -> Optional[Tuple[Dict[str, np.ndarray], Dict[str, np.ndarray]]]:
+    """The optical pads' images and reference images, ``None`` when the sample has none.
+
+    The pads are the sample's ``/tactile/<pad>/image`` topics in the order of their channels (the
+    writer adds them in the robot's pad order). Each needs its ``/tactile/<pad>/reference`` of the
+    same size, both ``rgb8``; the pads must be pads of the tactile data and, when ``/sample/info``
+    has ``tactile.optical``, the pads it lists, at its ``image_size``.
+    """
+    found = sorted(
+        (channel_ids.get(t, 0), name)
+        for t in decoded
+        for name in [optical_pad_of_topic(t)]
+        if name
+    )
+    pads = [name for _, name in found]
+    orphans = sorted(
+        name
+        for t in decoded
+        for name in [_pad_of(t, TACTILE_REFERENCE_SUFFIX)]
+        if name and name not in pads
+    )
+    if orphans:
+        raise DatasetError(
+            f"{where}: {', '.join(f'/tactile/{p}/reference' for p in orphans)} without its "
+            f"/tactile/<pad>/image"
+        )
+    info = decoded.get(TOPIC_INFO)
+    touch = info.get("tactile") if isinstance(info, dict) else None
+    listed = touch.get("optical") if isinstance(touch, dict) else None
+    if isinstance(listed, dict) and set(listed) != set(pads):
+        raise DatasetError(
+            f"{where}: /sample/info tactile.optical lists the optical pads {sorted(listed)}, the "
+            f"sample has images of {sorted(pads)} (/tactile/<pad>/image)"
+        )
+    if not pads:
+        return None
+    if tactile is None:
+        raise DatasetError(
+            f"{where}: optical images of {', '.join(pads)} but no {TOPIC_TACTILE_POINTS} "
+            "(optical pads are pads of the robot's tactile data)"
+        )
+    unknown = [p for p in pads if p not in tactile["phalanges"]]
+    if unknown:
+        raise DatasetError(
+            f"{where}: optical images of {', '.join(unknown)}, which are not pads of the sample "
+            f"(no /tactile/<pad>/depth; pads: {', '.join(tactile['phalanges'])})"
+        )
+    images: Dict[str, np.ndarray] = {}
+    references: Dict[str, np.ndarray] = {}
+    for pad in pads:
+        image_topic = f"{TACTILE_DEPTH_PREFIX}{pad}{TACTILE_IMAGE_SUFFIX}"
+        reference_topic = f"{TACTILE_DEPTH_PREFIX}{pad}{TACTILE_REFERENCE_SUFFIX}"
+        if reference_topic not in decoded:
+            raise DatasetError(f"{where}: {image_topic} without its {reference_topic}")
+        image = decode_raw_image(decoded[image_topic], expect="rgb8", where=f"{where} {image_topic}")
+        reference = decode_raw_image(
+            decoded[reference_topic], expect="rgb8", where=f"{where} {reference_topic}"
+        )
+        h, w = image.shape[:2]
+        if reference.shape != image.shape:
+            raise DatasetError(
+                f"{where}: {reference_topic} is {reference.shape[1]}x{reference.shape[0]}, its "
+                f"image {w}x{h}"
+            )
+        if h == 0 or w == 0:
+            raise DatasetError(f"{where} {image_topic}: empty {w}x{h} image")
+        sensor = listed.get(pad) if isinstance(listed, dict) else None
+        size = sensor.get("image_size") if isinstance(sensor, dict) else None
+        if size is not None and size != [w, h]:
+            raise DatasetError(
+                f"{where}: {image_topic} is {w}x{h}, but /sample/info "
+                f"tactile.optical.{pad}.image_size is {size} ([width, height])"
+            )
+        images[pad] = image
+        references[pad] = reference
+    return images, references
 
 
 def _tactile(decoded: Dict[str, Any], channel_ids: Mapping[str, int], where: str) -> Dict[str, Any]:

@@ -7,6 +7,7 @@
 >>> batch = next(iter(loader))
 >>> batch["rgb"].shape          # (8, H, W, 3) uint8
 >>> batch["info"][0]["object_id"]
+>>> batch["tactile_images"]["left"].shape   # (8, H, W, 3) uint8, with optical tactile sensors
 
 ``TorchDataset`` is safe with ``num_workers > 0`` under both ``fork`` and ``spawn``: the wrapped
 :class:`vtdata.Dataset` pickles without file handles and opens shard files lazily in each worker.
@@ -32,22 +33,36 @@ from torch.utils.data import Dataset as _TorchDataset
 from .densefusion import DenseFusionView
 from .reader import Dataset
 
-__all__ = ["DenseFusionDataset", "TorchDataset", "collate", "to_tensors"]
+__all__ = ["DenseFusionDataset", "PAD_IMAGE_KEYS", "TorchDataset", "collate", "to_tensors"]
 
 TensorSample = Dict[str, Any]
+
+#: The sample keys whose value is a ``{pad: (H, W, 3) uint8 array}`` dict (optical tactile images);
+#: :func:`to_tensors` converts the arrays inside them too.
+PAD_IMAGE_KEYS = ("tactile_images", "tactile_references")
 
 
 def to_tensors(sample: Mapping[str, Any]) -> TensorSample:
     """Convert every numpy array of a sample into a ``torch.Tensor`` (same dtype, same shape).
 
     ``rgb`` stays ``(H, W, 3)`` uint8 (no channel reordering, no scaling), ``depth`` ``(H, W)``
-    float32, ``mask`` ``(H, W)`` uint8, ``K`` and the ``T_*`` poses float64. Other values (``info``,
-    ``index``, ``split``) pass through unchanged.
+    float32, ``mask`` ``(H, W)`` uint8, ``K`` and the ``T_*`` poses float64. The optical tactile
+    images (``tactile_images``, ``tactile_references``, when the dataset has them) stay
+    ``{pad: tensor}`` dicts, each tensor ``(H, W, 3)`` uint8 like ``rgb``. Other values (``info``,
+    ``index``, ``split``, the ``tactile`` dict) pass through unchanged.
     """
-    return {
-        key: torch.from_numpy(value) if isinstance(value, np.ndarray) else value
-        for key, value in sample.items()
-    }
+    out: TensorSample = {}
+    for key, value in sample.items():
+        if isinstance(value, np.ndarray):
+            out[key] = torch.from_numpy(value)
+        elif key in PAD_IMAGE_KEYS and isinstance(value, Mapping):
+            out[key] = {
+                pad: torch.from_numpy(image) if isinstance(image, np.ndarray) else image
+                for pad, image in value.items()
+            }
+        else:
+            out[key] = value
+    return out
 
 
 class TorchDataset(_TorchDataset):
@@ -119,8 +134,10 @@ def collate(batch: Sequence[Mapping[str, Any]]) -> Dict[str, Any]:
     """Batch a list of sample dicts.
 
     Tensors are stacked along a new first dimension (they must have equal shapes), integers
-    (``index``) become an int64 tensor, and everything else (``info``, ``split``, ...) is kept as a
-    list with one entry per sample.
+    (``index``) become an int64 tensor, dicts of tensors with the same keys in every sample
+    (``tactile_images``, ``tactile_references``) become a dict of stacked tensors (``{pad: (B, H, W,
+    3)}``), and everything else (``info``, ``split``, ``tactile``, ...) is kept as a list with one
+    entry per sample.
     """
     if len(batch) == 0:
         raise ValueError("cannot collate an empty batch")
@@ -137,6 +154,17 @@ def collate(batch: Sequence[Mapping[str, Any]]) -> Dict[str, Any]:
             out[key] = torch.stack(values)
         elif all(isinstance(v, int) and not isinstance(v, bool) for v in values):
             out[key] = torch.tensor(values, dtype=torch.int64)
+        elif all(_tensor_dict(v) and v.keys() == values[0].keys() for v in values):
+            out[key] = {name: torch.stack([v[name] for v in values]) for name in values[0]}
         else:
             out[key] = values
     return out
+
+
+def _tensor_dict(value: Any) -> bool:
+    """A non-empty mapping whose values are all tensors (e.g. ``{pad: image}``)."""
+    return (
+        isinstance(value, Mapping)
+        and len(value) > 0
+        and all(isinstance(v, torch.Tensor) for v in value.values())
+    )

@@ -21,6 +21,30 @@ export function padOfTopic(topic: string): string | undefined {
   return m?.[1];
 }
 
+// A pad with an optical (GelSight/DIGIT-style) sensor adds two RGB images to every sample, after
+// the depth images, in the pads' order: the sensor's image and its no-contact reference image
+// (without noise, the same size). Only such pads have them (a gripper: both pads; an Allegro: the
+// distal pads if configured); /sample/info `tactile.optical` lists them with their parameters.
+
+/** The optical image topic of pad `pad`. */
+export const padImageTopic = (pad: string): string => `/tactile/${pad}/image`;
+/** The no-contact reference image topic of pad `pad`'s optical sensor. */
+export const padReferenceTopic = (pad: string): string => `/tactile/${pad}/reference`;
+
+/** The pad and kind of a `/tactile/<pad>/image` or `/tactile/<pad>/reference` topic, or undefined. */
+export function opticalOfTopic(topic: string): { pad: string; kind: "image" | "reference" } | undefined {
+  const m = /^\/tactile\/([^/]+)\/(image|reference)$/.exec(topic);
+  return m == undefined ? undefined : { pad: m[1]!, kind: m[2] as "image" | "reference" };
+}
+
+/** The optical pads of a shard: its `/tactile/<pad>/image` channels, by channel id (pad order). */
+export function opticalPadsOf(channels: Iterable<{ id: number; topic: string }>): string[] {
+  return [...channels]
+    .filter((c) => opticalOfTopic(c.topic)?.kind === "image")
+    .sort((a, b) => a.id - b.id)
+    .map((c) => opticalOfTopic(c.topic)!.pad);
+}
+
 /** The pads of a shard: its `/tactile/<pad>/depth` channels, by channel id (the `phalanx` order). */
 export function padsOf(channels: Iterable<{ id: number; topic: string }>): string[] {
   return [...channels]
@@ -46,11 +70,15 @@ export const BASE_TOPICS: Record<string, string> = {
   "/sample/info": "json",
 };
 
-/** Topics every sample of a dataset with a robot adds, with one `/tactile/<pad>/depth` per pad. */
-export function robotTopics(pads: readonly string[]): Record<string, string> {
+/** Topics every sample of a dataset with a robot adds, with one `/tactile/<pad>/depth` per pad
+ * and an image and a reference image per pad of `optical` (the pads with an optical sensor). */
+export function robotTopics(pads: readonly string[], optical: readonly string[] = []): Record<string, string> {
   return {
     "/tactile/points": "foxglove.PointCloud",
     ...Object.fromEntries(pads.map((pad) => [padDepthTopic(pad), "foxglove.RawImage"])),
+    ...Object.fromEntries(
+      optical.flatMap((pad) => [padImageTopic(pad), padReferenceTopic(pad)].map((topic) => [topic, "foxglove.RawImage"])),
+    ),
   };
 }
 
@@ -73,10 +101,18 @@ export const IMAGE_ENCODINGS: Record<string, ImageSpec> = {
 };
 /** Every pad's depth image, whatever the robot names its pads. */
 export const PAD_DEPTH_ENCODING: ImageSpec = { encoding: "32FC1", bytesPerPixel: 4 };
+/** An optical pad's image and reference image: RGB, linear 8-bit levels, rows without padding. */
+export const PAD_OPTICAL_ENCODING: ImageSpec = { encoding: "rgb8", bytesPerPixel: 3 };
 
-/** The image spec of a topic: a camera image's, or any pad's depth image's; else undefined. */
+/** The image spec of a topic: a camera image's, any pad's depth image's or an optical pad's
+ * image's; else undefined. */
 export function imageSpec(topic: string): ImageSpec | undefined {
-  return IMAGE_ENCODINGS[topic] ?? (padOfTopic(topic) != undefined ? PAD_DEPTH_ENCODING : undefined);
+  return (
+    IMAGE_ENCODINGS[topic] ??
+    (padOfTopic(topic) != undefined ? PAD_DEPTH_ENCODING
+    : opticalOfTopic(topic) != undefined ? PAD_OPTICAL_ENCODING
+    : undefined)
+  );
 }
 
 export const TACTILE_RESOLUTION = 32;
@@ -106,6 +142,21 @@ export const SAMPLE_INFO_ROBOT_KEYS = [
   "joint_positions",
   "T_world_palm",
   "tactile",
+];
+
+/** The keys of an optical pad's entry in `/sample/info` `tactile.optical.<pad>` (the sensor's
+ * parameters in that sample; `markers` is null without markers). */
+export const OPTICAL_INFO_KEYS = [
+  "image_size",
+  "sensing_area_mm",
+  "gel_thickness_mm",
+  "elastic_spread_mm",
+  "lights",
+  "ambient",
+  "background",
+  "vignetting",
+  "markers",
+  "noise_std",
 ];
 
 export const SHARD_METADATA_KEYS = [

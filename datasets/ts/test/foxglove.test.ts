@@ -29,6 +29,7 @@ import {
   POINT_FIELDS,
   POINT_STRIDE,
   NOISE_TOPICS,
+  OPTICAL_INFO_KEYS,
   SAMPLE_INFO_KEYS,
   SAMPLE_INFO_ROBOT_KEYS,
   SAMPLE_PERIOD_NS,
@@ -38,12 +39,15 @@ import {
   TACTILE_RESOLUTION,
   imageSpec,
   isAllegro,
+  opticalOfTopic,
+  opticalPadsOf,
   padOfTopic,
   padsOf,
   robotTopics,
 } from "../src/format.js";
 import { checkSceneModels, obj, only, tfTree, unitQuaternion, type ModelInfo, type Obj } from "../src/checks.js";
 import { frameReferences, loadLayout, topicReferences, type LayoutFile } from "../src/layout.js";
+import { readOpticalImages } from "../src/optical.js";
 import { readShard, type Decoded, type ShardData } from "../src/shard.js";
 
 // dist/test/foxglove.test.js -> datasets/ts -> datasets -> repository root
@@ -126,10 +130,11 @@ function isRobot(dataset: Dataset, shard: ShardData): boolean {
   return dataset.robot ?? shard.topics.has("/tactile/points");
 }
 
-/** The topics of every sample: with a robot, `/tactile/points` and the depth image of each of its
- * pads (`pads`, read from the shard: the robot's, not a fixed list). */
-function expectedTopics(robot: boolean, pads: readonly string[], noisy = false): Record<string, string> {
-  return { ...BASE_TOPICS, ...(robot ? robotTopics(pads) : {}), ...(noisy ? NOISE_TOPICS : {}) };
+/** The topics of every sample: with a robot, `/tactile/points`, the depth image of each of its
+ * pads (`pads`, read from the shard: the robot's, not a fixed list) and the image and reference
+ * image of each pad with an optical sensor (`optical`, read from the shard too). */
+function expectedTopics(robot: boolean, pads: readonly string[], noisy = false, optical: readonly string[] = []): Record<string, string> {
+  return { ...BASE_TOPICS, ...(robot ? robotTopics(pads, optical) : {}), ...(noisy ? NOISE_TOPICS : {}) };
 }
 
 /** The `phalanx` field (the pad index) of every point of a /tactile/points message. */
@@ -195,6 +200,10 @@ describe("datasets/foxglove-layout.json", () => {
       assert.ok(topics.has(topic), `the layout does not show ${topic}`);
     }
     assert.ok([...topics].some((t) => /^\/tactile\/\w+_\w+\/depth$/.test(t)), "the layout shows no phalanx depth image");
+    assert.ok(
+      refs.some((r) => r.use === "image" && opticalOfTopic(r.topic)?.kind === "image"),
+      "the layout shows no optical pad image (/tactile/<pad>/image)",
+    );
     const threeD = Object.entries(layout.configById).filter(([id]) => id.startsWith("3D!"));
     assert.equal(threeD.length, 1, "one 3D panel");
     assert.ok(["camera", "world"].includes(String(threeD[0]![1].followTf)), "the 3D panel follows camera or world");
@@ -221,11 +230,14 @@ for (const dataset of all) {
         let robot = false;
         /** The robot's pads, from the shard's /tactile/<pad>/depth channels (in phalanx index order). */
         let pads: string[] = [];
+        /** The pads with an optical sensor, from the shard's /tactile/<pad>/image channels (pad order). */
+        let optical: string[] = [];
         let allegro = false;
         before(async () => {
           shard = await readShard(shardPath);
           robot = isRobot(dataset, shard);
           pads = padsOf([...shard.channels.values()].map((c) => c.channel));
+          optical = opticalPadsOf([...shard.channels.values()].map((c) => c.channel));
           allegro = isAllegro(pads);
         });
 
@@ -261,7 +273,10 @@ for (const dataset of all) {
             }
           }
           assert.deepEqual(problems, []);
-          const expected: Record<string, string> = { ...expectedTopics(robot, pads, shard.topics.has("/camera/depth_noisy")), [SCENE_TOPIC]: SCENE_SCHEMA };
+          const expected: Record<string, string> = {
+            ...expectedTopics(robot, pads, shard.topics.has("/camera/depth_noisy"), optical),
+            [SCENE_TOPIC]: SCENE_SCHEMA,
+          };
           for (const [topic, info] of shard.topics) {
             const want = expected[topic];
             assert.ok(want != undefined, `topic ${topic} is not in FORMAT.md`);
@@ -295,7 +310,7 @@ for (const dataset of all) {
           const count = Number(meta.get("sample_count"));
           const times = [...shard.samples.keys()];
           assert.equal(times.length, count, "samples (distinct log times) != sample_count");
-          const topics = Object.keys(expectedTopics(robot, pads, shard.topics.has("/camera/depth_noisy")));
+          const topics = Object.keys(expectedTopics(robot, pads, shard.topics.has("/camera/depth_noisy"), optical));
           times.forEach((t, k) => {
             assert.equal(t, (first + BigInt(k)) * SAMPLE_PERIOD_NS, `sample ${k} log time`);
             const sample = shard.samples.get(t)!;
@@ -346,6 +361,36 @@ for (const dataset of all) {
           }
         });
 
+        it("optical pads: an image and a reference image each, the pads /sample/info tactile.optical lists", () => {
+          if (!robot) {
+            assert.deepEqual(optical, [], "optical images without a robot");
+            return;
+          }
+          for (const [t, sample] of shard.samples) {
+            const where = `sample @ ${t}`;
+            const info = only(sample, "/sample/info");
+            const listed = obj(info.tactile).optical as Record<string, Obj> | undefined;
+            const { tactileImages, tactileReferences } = readOpticalImages(sample, where, pads);
+            assert.deepEqual([...tactileImages.keys()], optical, `${where}: optical pads != the shard's /tactile/<pad>/image channels`);
+            assert.deepEqual([...tactileReferences.keys()], optical, `${where}: reference pads`);
+            if (optical.length === 0) {
+              assert.ok(listed == undefined || Object.keys(listed).length === 0, `${where}: tactile.optical without optical images`);
+              continue;
+            }
+            assert.ok(listed != undefined, `${where}: optical images but no /sample/info tactile.optical`);
+            for (const pad of optical) {
+              const sensor = listed[pad]!;
+              for (const key of OPTICAL_INFO_KEYS) {
+                assert.ok(key in sensor, `${where}: /sample/info tactile.optical.${pad} has no ${key}`);
+              }
+              const image = tactileImages.get(pad)!;
+              const reference = tactileReferences.get(pad)!;
+              assert.equal(image.data.byteLength, image.width * image.height * 3, `${where}: ${pad} image bytes`);
+              assert.deepEqual([reference.width, reference.height], [image.width, image.height], `${where}: ${pad} reference size`);
+            }
+          }
+        });
+
         it("RawImage width, height, encoding and step match the data (and FORMAT.md)", () => {
           let rgb: { width: number; height: number } | undefined;
           for (const m of shard.messages) {
@@ -363,11 +408,18 @@ for (const dataset of all) {
               assert.equal(img.frame_id, "camera", `${where}: frame_id`);
               rgb ??= { width: img.width, height: img.height };
               assert.deepEqual({ width: img.width, height: img.height }, rgb, `${where}: size differs from the other camera images`);
-            } else {
+            } else if (padOfTopic(m.topic) != undefined) {
               const pad = padOfTopic(m.topic)!;
               assert.equal(img.frame_id, `${pad}_pad`, `${where}: frame_id`);
               assert.equal(img.width, TACTILE_RESOLUTION);
               assert.equal(img.height, TACTILE_RESOLUTION);
+            } else {
+              // An optical pad's image or reference: the size /sample/info tactile.optical gives.
+              const { pad } = opticalOfTopic(m.topic)!;
+              assert.equal(img.frame_id, `${pad}_pad`, `${where}: frame_id`);
+              const info = only(shard.samples.get(m.logTime)!, "/sample/info");
+              const sensor = obj(obj(obj(info.tactile).optical)[pad]);
+              assert.deepEqual(sensor.image_size, [img.width, img.height], `${where}: size != /sample/info tactile.optical.${pad}.image_size`);
             }
             if (img.encoding === "32FC1") {
               const view = new DataView(img.data.buffer, img.data.byteOffset, img.data.byteLength);
@@ -522,6 +574,11 @@ for (const dataset of all) {
                 // The layout shows a pad of each built-in robot; this robot has other pads (a
                 // layout is static). At least one pad it shows must be this robot's (below).
                 skipped.push(`${ref.topic} (this robot's pads: ${pads.join(", ")})`);
+                continue;
+              }
+              if (robot && opticalOfTopic(ref.topic) != undefined) {
+                // Only pads with an optical sensor have images (a config may have none).
+                skipped.push(`${ref.topic} (this shard's optical pads: ${optical.join(", ") || "none"})`);
                 continue;
               }
               if (ref.topic === SCENE_TOPIC && allowNoSceneModels) {

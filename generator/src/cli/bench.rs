@@ -1,6 +1,7 @@
 //! `vtgen bench`: samples/s of the full sample path, run as `generate` runs it (workers with their
 //! own renderer and physics, the writer on its own thread), and where the time goes: physics,
-//! main render, readback, tactile views, tactile extraction, occlusion, encode + compress + write.
+//! main render, readback, tactile views, tactile extraction, optical tactile images, occlusion,
+//! encode + compress + write.
 //! It reports the adapter and the process's peak RSS. Samples are whole trajectories taken from
 //! the objects in turn (trajectory 0 of every object, then trajectory 1, …) so that physics is
 //! amortised as in a real run and every object is measured. Nothing is written to the dataset.
@@ -35,6 +36,11 @@ pub struct BenchReport {
     pub readback: f64,
     pub tactile_render: f64,
     pub tactile_extraction: f64,
+    /// The optical tactile images (`robot.tactile.optical`): how many, their wall and CPU seconds
+    /// (image formation on the worker's CPU; their depth views are in `tactile_render`).
+    pub optical_images: u64,
+    pub optical: f64,
+    pub optical_cpu: f64,
     pub occlusion: f64,
     pub encode_and_write: f64,
     /// Shard bytes per sample (the shards' size over the samples: meshes and summaries included).
@@ -96,6 +102,17 @@ impl std::fmt::Display for BenchReport {
             100.0 * r.tactile_over_main_render
         )?;
         writeln!(f, "  tactile points   {:7.2} ms", per(r.tactile_extraction))?;
+        if r.optical_images > 0 {
+            let each = r.optical_cpu / r.optical_images as f64;
+            writeln!(
+                f,
+                "  optical images   {:7.2} ms  ({:.1} per sample; CPU {:.2} ms each: {:.0} images/s per core)",
+                per(r.optical),
+                r.optical_images as f64 / r.samples as f64,
+                1e3 * each,
+                1.0 / each.max(1e-12)
+            )?;
+        }
         writeln!(f, "  occlusion        {:7.2} ms", per(r.occlusion))?;
         writeln!(f, "  encode + write   {:7.2} ms  (writer thread, overlapped)", per(r.encode_and_write))?;
         writeln!(
@@ -193,6 +210,9 @@ fn add(a: &mut StageTimes, b: &StageTimes) {
     a.main_render += b.main_render;
     a.tactile_render += b.tactile_render;
     a.tactile_extract += b.tactile_extract;
+    a.tactile_optical += b.tactile_optical;
+    a.tactile_optical_cpu += b.tactile_optical_cpu;
+    a.optical_images += b.optical_images;
     a.occlusion += b.occlusion;
 }
 
@@ -358,6 +378,9 @@ fn report(runs: Vec<TrajectoryRun>, workers: Vec<(StageTimes, WriterTimes, Durat
         readback: readback.as_secs_f64(),
         tactile_render: t.tactile_render.as_secs_f64(),
         tactile_extraction: t.tactile_extract.as_secs_f64(),
+        optical_images: t.optical_images,
+        optical: t.tactile_optical.as_secs_f64(),
+        optical_cpu: t.tactile_optical_cpu.as_secs_f64(),
         occlusion: t.occlusion.as_secs_f64(),
         encode_and_write: write.busy.as_secs_f64(),
         tactile_over_main_render: t.tactile_render.as_secs_f64() / t.main_render.as_secs_f64().max(1e-12),

@@ -239,6 +239,21 @@ pub fn check_ground_truth(s: &Sample, models: &[Model]) -> Option<String> {
                 return Some(format!("a tactile point is {:.2} mm off the object's surface", d * 1e3));
             }
         }
+        // The optical images are those of the sensors `/sample/info` lists, at their size.
+        let sensors = info.robot.as_ref().and_then(|r| r.tactile.as_ref()).and_then(|t| t.optical.as_ref());
+        let listed: Vec<&String> = sensors.map(|m| t.phalanges.iter().filter(|p| m.contains_key(*p)).collect()).unwrap_or_default();
+        if t.optical.iter().map(|o| &o.pad).ne(listed.iter().copied()) {
+            return Some(format!(
+                "the optical images ({:?}) are not those of the sensors /sample/info lists ({listed:?})",
+                t.optical.iter().map(|o| &o.pad).collect::<Vec<_>>()
+            ));
+        }
+        for o in &t.optical {
+            let size = sensors.and_then(|m| m[&o.pad].get("image_size")).and_then(|v| serde_json::from_value::<[u32; 2]>(v.clone()).ok());
+            if size != Some([o.width, o.height]) {
+                return Some(format!("/tactile/{}/image is {}x{}, its sensor's image_size {size:?}", o.pad, o.width, o.height));
+            }
+        }
     }
     let r = reproject(s, &model.points, 1);
     if r.visible < 30 {

@@ -40,8 +40,8 @@ pub struct MarkerConfig {
     pub pitch_mm: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub radius_mm: Option<f64>,
-    /// Lateral displacement per unit slope of the indented gel, in gel thicknesses: markers move
-    /// away from a contact as the gel under it is pushed aside.
+    /// Lateral displacement per unit slope of the indented gel (the slope capped at 1), in gel
+    /// thicknesses: markers move away from a contact as the gel under it is pushed aside.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub shift: Option<f64>,
     /// How dark a marker is (1: black).

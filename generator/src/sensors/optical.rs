@@ -12,7 +12,8 @@
 //!    `I_c = tint_c * vignetting(p) * (ambient + sum_i falloff_i(p) * color_ic * max(0, m(p) . l_i))`
 //!    with `m` the inner surface normal and `l_i` the direction towards LED i. Without clipping
 //!    this is linear in `m`, which is what photometric stereo inverts ([`normals_from_image`]).
-//! 4. **Markers and noise:** printed dots displaced away from contacts by the gel's slope, then
+//! 4. **Markers and noise:** printed dots displaced away from contacts by the gel's slope (at most
+//!    `shift` gel thicknesses), then
 //!    Gaussian pixel noise; 8 bits per channel, linear (no gamma).
 //!
 //! The reference image is the same model with no indentation and no noise. Conventions (pixel
@@ -158,7 +159,7 @@ fn shade(sensor: &OpticalSensor, slopes: Option<&[(f64, f64)]>) -> Vec<f64> {
 }
 
 /// Step 4a: paints the markers into the linear image, each displaced from its grid position by
-/// `-shift * thickness * slope` of the gel there (away from a contact).
+/// `-shift * thickness * slope` of the gel there (away from a contact; the slope capped at 1).
 fn paint_markers(sensor: &OpticalSensor, img: &mut [f64], slopes: Option<&[(f64, f64)]>) {
     let Some(m) = sensor.markers else { return };
     let [w, h] = sensor.image_size;
@@ -173,7 +174,9 @@ fn paint_markers(sensor: &OpticalSensor, img: &mut [f64], slopes: Option<&[(f64,
             let v = ((ry + ay / 2.0) / py).floor().clamp(0.0, h as f64 - 1.0) as u32;
             s[(v * w + u) as usize]
         });
-        let centre = (rx - m.shift * t * gx, ry - m.shift * t * gy);
+        // Capped at a slope of 1: a sharp edge's step is not a lateral push of the whole gel.
+        let scale = m.shift * t / gx.hypot(gy).max(1.0);
+        let centre = (rx - scale * gx, ry - scale * gy);
         let (u0, u1) = (((centre.0 - r + ax / 2.0) / px).floor() as i64 - 1, ((centre.0 + r + ax / 2.0) / px).ceil() as i64 + 1);
         let (v0, v1) = (((centre.1 - r + ay / 2.0) / py).floor() as i64 - 1, ((centre.1 + r + ay / 2.0) / py).ceil() as i64 + 1);
         for v in v0.max(0)..v1.min(h as i64) {
