@@ -7,6 +7,7 @@ mod bad_input;
 mod bench;
 mod bop_export;
 mod determinism;
+mod episodes;
 mod foxglove_scene;
 mod grasping;
 mod ground_truth;

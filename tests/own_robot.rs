@@ -138,7 +138,7 @@ fn config() -> &'static Path {
 }
 
 /// `config` generated into a fresh directory.
-fn generated(config: &Path) -> tempfile::TempDir {
+pub fn generated(config: &Path) -> tempfile::TempDir {
     let d = tempdir();
     let o = run(&["generate", config.to_str().unwrap(), "--out", d.path().to_str().unwrap(), "--quiet"]);
     assert!(o.status.success(), "{}", stderr(&o));
@@ -146,7 +146,7 @@ fn generated(config: &Path) -> tempfile::TempDir {
 }
 
 /// `--shard i/5` of `config` alone writes train shard i, byte for byte the whole run's.
-fn shard_job_matches(config: &Path, i: u32, whole: &Path) {
+pub fn shard_job_matches(config: &Path, i: u32, whole: &Path) {
     let other = tempdir();
     let o = run(&["generate", config.to_str().unwrap(), "--out", other.path().to_str().unwrap(), "--quiet", "--shard", &format!("{i}/5")]);
     assert!(o.status.success(), "{}", stderr(&o));
@@ -199,7 +199,7 @@ fn a_three_finger_gripper_generates_a_valid_dataset() {
 
 #[test]
 fn the_three_finger_ground_truth_is_exact() {
-    crate::ground_truth::check_dataset(dataset());
+    crate::ground_truth::check_dataset(dataset(), 40);
     tactile_points_lie_on_the_object_within_their_pad(dataset());
 }
 
@@ -383,7 +383,7 @@ fn the_parallel_gripper_holds_objects_between_its_two_pads_and_its_ground_truth_
         }
     }
     assert_eq!(n, 40);
-    crate::ground_truth::check_dataset(dir);
+    crate::ground_truth::check_dataset(dir, 40);
     tactile_points_lie_on_the_object_within_their_pad(dir);
     optical_images_change_only_where_the_object_is_in_the_gel(dir);
     let o = run(&["validate", dir.to_str().unwrap()]);

@@ -80,6 +80,42 @@ pub struct SampleInfo {
     /// The robot's part, when the config has a robot.
     #[serde(flatten, default, skip_serializing_if = "Option::is_none")]
     pub robot: Option<RobotInfo>,
+    /// In an episode dataset: where the frame is in its episode (`instance` is the frame).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub episode: Option<EpisodeFrameInfo>,
+}
+
+/// A camera frame's place in its episode.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct EpisodeFrameInfo {
+    /// The frame's index in the episode (also `instance`).
+    pub frame: u32,
+    /// Simulated time since the episode's start (the settled grasp), seconds.
+    pub time_s: f64,
+    /// The arm move under way (0-based); frame 0 is the settled grasp before move 0.
+    pub arm_move: u32,
+}
+
+/// The state stream of an episode (`/episode/state`): the robot's joints and the object's ground
+/// truth at one instant.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StateRecord {
+    /// Simulated time since the episode's start, seconds.
+    pub time_s: f64,
+    /// Every joint that moves on its own, by name (as `/sample/info` `joint_positions`).
+    pub joint_positions: BTreeMap<String, f64>,
+    #[serde(rename = "T_world_object")]
+    pub t_world_object: Pose,
+    #[serde(rename = "T_camera_object")]
+    pub t_camera_object: Pose,
+    #[serde(rename = "T_world_palm")]
+    pub t_world_palm: Pose,
+    /// The object's twist in the world frame: linear (m/s) and angular (rad/s) velocity, from
+    /// the previous physics step (zero at the episode's start).
+    pub linear_velocity: [f64; 3],
+    pub angular_velocity: [f64; 3],
+    /// Touch links in contact with the object.
+    pub phalanges_in_contact: Vec<String>,
 }
 
 /// A distractor object standing on the floor.
@@ -207,6 +243,7 @@ mod tests {
                     optical: Some([("th_distal".to_string(), serde_json::json!({"image_size": [320, 240]}))].into()),
                 }),
             }),
+            episode: robot.then_some(EpisodeFrameInfo { frame: 3, time_s: 0.1, arm_move: 0 }),
         }
     }
 

@@ -14,18 +14,20 @@ mod sample;
 mod writer;
 
 pub use glb::{ColoredMesh, encode_glb, srgb_to_linear};
-pub use info::{OcclusionInfo, PlacedDistractor, RobotInfo, SampleInfo, Split, TouchInfo};
+pub use info::{EpisodeFrameInfo, OcclusionInfo, PlacedDistractor, RobotInfo, SampleInfo, Split, StateRecord, TouchInfo};
 pub use manifest::{ContinuousSymmetry, Manifest, ModelInfo, ModelsInfo, ShardEntry, SplitManifest, sha256_file, write_atomic};
 pub use occlusion::OcclusionBin;
 pub use ply::{LengthUnit, PlyMesh, read_ply, write_ply};
 pub use reader::{DatasetReader, ShardReader};
-pub use sample::{OpticalPadImage, Pose, Sample, ShardMeta, TactileData, TactilePointRecord};
+pub use sample::{EpisodeData, OpticalPadImage, Pose, Sample, ShardMeta, TactileData, TactilePointRecord};
 pub use writer::{Compression, SceneModel, ShardReceipt, ShardWriter};
 
 /// Version of the on-disk format written by this crate.
 pub const FORMAT_VERSION: u32 = 1;
 /// Nanoseconds between consecutive samples on the MCAP timeline (10 Hz).
 pub const SAMPLE_PERIOD_NS: u64 = 100_000_000;
+/// The shard metadata key that marks an episode shard (its value: the episode's JSON record).
+pub const EPISODE_METADATA_KEY: &str = "episode";
 /// Name of the per-shard MCAP metadata record.
 pub const SHARD_METADATA: &str = "vtgen.shard";
 /// Suffix of a shard that is still being written.
@@ -44,6 +46,8 @@ pub mod topics {
     pub const TF: &str = "/tf";
     pub const SAMPLE_INFO: &str = "/sample/info";
     pub const TACTILE_POINTS: &str = "/tactile/points";
+    /// Episodes: the state stream (JSON `StateRecord`).
+    pub const EPISODE_STATE: &str = "/episode/state";
     /// `foxglove.SceneUpdate`: the meshes for the 3D view, with the first sample of a shard and
     /// whenever the target object changes.
     pub const SCENE_MODELS: &str = "/scene/models";

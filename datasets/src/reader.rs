@@ -20,6 +20,8 @@ pub struct ShardReader {
     /// Split index of a sample -> position in `summary.chunk_indexes`.
     chunks: BTreeMap<u64, usize>,
     meta: ShardMeta,
+    /// An episode shard (`vtgen.shard` has `episode`): its chunks are frames.
+    episode: bool,
 }
 
 /// The largest uncompressed chunk (one sample) a reader accepts: a 640×480 sample with 12 tactile
@@ -116,16 +118,6 @@ impl ShardReader {
         let summary = mcap::Summary::read(&data)
             .with_context(|| format!("shard {}: summary section is unreadable", path.display()))?
             .ok_or_else(|| anyhow!("shard {}: has no summary section (truncated or unfinished)", path.display()))?;
-        let mut chunks = BTreeMap::new();
-        for (i, ci) in summary.chunk_indexes.iter().enumerate() {
-            if ci.message_index_offsets.is_empty() {
-                continue; // schemas/channels only, no sample
-            }
-            if ci.message_start_time % SAMPLE_PERIOD_NS != 0 || ci.message_start_time != ci.message_end_time {
-                bail!("shard {}: chunk {i} does not hold exactly one sample", path.display());
-            }
-            chunks.insert(ci.message_start_time / SAMPLE_PERIOD_NS, i);
-        }
         let meta_index = summary
             .metadata_indexes
             .iter()
@@ -134,7 +126,29 @@ impl ShardReader {
         check_metadata_lengths(&data, meta_index).with_context(|| format!("shard {}: metadata unreadable", path.display()))?;
         let meta = mcap::read::metadata(&data, meta_index).with_context(|| format!("shard {}: metadata unreadable", path.display()))?;
         let meta = ShardMeta::from_map(&meta.metadata).with_context(|| format!("shard {}", path.display()))?;
-        Ok(ShardReader { path: path.to_path_buf(), data, summary, chunks, meta })
+        // A snapshot shard's chunk holds one sample at `index * SAMPLE_PERIOD_NS`; an episode
+        // shard's chunks are its frames in time order, numbered from the shard's first sample.
+        let episode = meta.extra.contains_key(crate::EPISODE_METADATA_KEY);
+        let mut chunks = BTreeMap::new();
+        let mut frames: Vec<(u64, usize)> = Vec::new();
+        for (i, ci) in summary.chunk_indexes.iter().enumerate() {
+            if ci.message_index_offsets.is_empty() {
+                continue; // schemas/channels only, no sample
+            }
+            if episode {
+                frames.push((ci.message_start_time, i));
+                continue;
+            }
+            if ci.message_start_time % SAMPLE_PERIOD_NS != 0 || ci.message_start_time != ci.message_end_time {
+                bail!("shard {}: chunk {i} does not hold exactly one sample", path.display());
+            }
+            chunks.insert(ci.message_start_time / SAMPLE_PERIOD_NS, i);
+        }
+        frames.sort();
+        for (k, (_, i)) in frames.into_iter().enumerate() {
+            chunks.insert(meta.first_sample + k as u64, i);
+        }
+        Ok(ShardReader { path: path.to_path_buf(), data, summary, chunks, meta, episode })
     }
 
     /// The messages of chunk `ci` as (topic, payload), decoded with every size bounded before it
@@ -144,7 +158,7 @@ impl ShardReader {
     /// limited to the decompressed bytes. (A flipped byte in a chunk header once made the reader
     /// ask for 3 EB and abort; a damaged record length inside a chunk, found by the fuzzer, asked
     /// for 360 PB.)
-    fn chunk_messages(&self, ci: usize) -> Result<Vec<(String, Vec<u8>)>> {
+    fn chunk_messages(&self, ci: usize) -> Result<Vec<(String, u64, Vec<u8>)>> {
         let index = &self.summary.chunk_indexes[ci];
         let start = index.chunk_start_offset as usize;
         let end = start.checked_add(index.chunk_length as usize).filter(|&e| e <= self.data.len());
@@ -198,10 +212,33 @@ impl ShardReader {
                     .channels
                     .get(&header.channel_id)
                     .ok_or_else(|| anyhow!("chunk {ci}: unknown channel {}", header.channel_id))?;
-                messages.push((channel.topic.clone(), data.into_owned()));
+                messages.push((channel.topic.clone(), header.log_time, data.into_owned()));
             }
         }
         Ok(messages)
+    }
+
+    /// Every optical image of `tactile` with its reference: a snapshot's are its own; an episode's
+    /// come with its first frame (FORMAT.md, "Episodes"). An image without one is an error.
+    fn fill_references(&self, mut tactile: Option<crate::sample::TactileData>) -> Result<Option<crate::sample::TactileData>> {
+        let Some(tac) = tactile.as_mut() else { return Ok(tactile) };
+        if tac.optical.iter().all(|o| !o.reference.is_empty()) {
+            return Ok(tactile);
+        }
+        let first = match (self.episode, self.chunks.values().next()) {
+            (true, Some(&ci)) => self.chunk_messages(ci)?,
+            _ => Vec::new(),
+        };
+        for o in tac.optical.iter_mut().filter(|o| o.reference.is_empty()) {
+            let topic = crate::topics::tactile_reference(&o.pad);
+            let raw = first.iter().find(|(t, _, _)| *t == topic).ok_or_else(|| anyhow!("{topic} is missing"))?;
+            let img = RawImage::decode(&raw.2[..])?;
+            if (img.width, img.height, img.encoding.as_str()) != (o.width, o.height, "rgb8") || img.data.len() != o.image.len() {
+                bail!("{topic} is not a {}x{} rgb8 image like its pad's images", o.width, o.height);
+            }
+            o.reference = img.data.to_vec();
+        }
+        Ok(tactile)
     }
 
     pub fn meta(&self) -> &ShardMeta {
@@ -229,7 +266,7 @@ impl ShardReader {
     pub fn read_info(&self, index: u64) -> Result<serde_json::Value> {
         let ctx = || format!("shard {} sample {index}", self.path.display());
         let ci = *self.chunks.get(&index).ok_or_else(|| anyhow!("{}: not in this shard", ctx()))?;
-        for (topic, data) in self.chunk_messages(ci).with_context(ctx)? {
+        for (topic, _, data) in self.chunk_messages(ci).with_context(ctx)? {
             if topic == topics::SAMPLE_INFO {
                 return serde_json::from_slice(&data).with_context(ctx);
             }
@@ -251,12 +288,16 @@ impl ShardReader {
         let messages = self.chunk_messages(ci).with_context(ctx)?;
         // The pads in the order the writer wrote them (the robot's pad order).
         let mut pads: Vec<String> = Vec::new();
-        for pad in messages.iter().filter_map(|(topic, _)| pad_of_topic(topic)) {
+        for pad in messages.iter().filter_map(|(topic, _, _)| pad_of_topic(topic)) {
             if !pads.iter().any(|p| p == pad) {
                 pads.push(pad.to_string());
             }
         }
-        let by_topic: BTreeMap<String, Vec<u8>> = messages.into_iter().collect();
+        // The sample is the chunk's messages at its first instant; an episode frame's chunk also
+        // holds its touch and state streams up to the next frame.
+        let start = self.summary.chunk_indexes[ci].message_start_time;
+        let (now, later): (Vec<_>, Vec<_>) = messages.into_iter().partition(|(_, t, _)| *t == start);
+        let by_topic: BTreeMap<String, Vec<u8>> = now.into_iter().map(|(topic, _, data)| (topic, data)).collect();
         let get = |topic: &str| by_topic.get(topic).ok_or_else(|| anyhow!("{}: missing message on {topic}", ctx()));
         let rgb = RawImage::decode(&get(topics::RGB)?[..]).with_context(ctx)?;
         let depth = RawImage::decode(&get(topics::DEPTH)?[..]).with_context(ctx)?;
@@ -330,10 +371,42 @@ impl ShardReader {
                 })
                 .map(|t| Ok((t.parent_frame_id.clone(), t.child_frame_id.clone(), to_pose(t.translation, t.rotation)?)))
                 .collect::<Result<_>>()?,
-            tactile: read_tactile(&by_topic, &pads).with_context(ctx)?,
+            tactile: self.fill_references(read_tactile(&by_topic, &pads).with_context(ctx)?).with_context(ctx)?,
+            episode: match self.episode {
+                true => Some(read_episode_streams(start, &by_topic, later, &pads).with_context(ctx)?),
+                false => None,
+            },
             info,
         })
     }
+}
+
+/// An episode frame's streams: the state at the frame's instant, then the touch and states of the
+/// `later` messages, grouped by time.
+fn read_episode_streams(
+    start: u64,
+    now: &BTreeMap<String, Vec<u8>>,
+    later: Vec<(String, u64, Vec<u8>)>,
+    pads: &[String],
+) -> Result<crate::sample::EpisodeData> {
+    let state = |data: &[u8]| -> Result<crate::StateRecord> { serde_json::from_slice(data).context(topics::EPISODE_STATE) };
+    let mut states = Vec::new();
+    if let Some(data) = now.get(topics::EPISODE_STATE) {
+        states.push((start, state(data)?));
+    }
+    let mut touch: BTreeMap<u64, BTreeMap<String, Vec<u8>>> = BTreeMap::new();
+    for (topic, t, data) in later {
+        if topic == topics::EPISODE_STATE {
+            states.push((t, state(&data)?));
+        } else if topic.starts_with("/tactile/") {
+            touch.entry(t).or_default().insert(topic, data);
+        }
+    }
+    let tactile = touch
+        .into_iter()
+        .map(|(t, by_topic)| Ok((t, read_tactile(&by_topic, pads)?.ok_or_else(|| anyhow!("touch at {t} ns without its points"))?)))
+        .collect::<Result<_>>()?;
+    Ok(crate::sample::EpisodeData { time_ns: start, tactile, states })
 }
 
 /// The pad a `/tactile/<pad>/depth` topic is of.
@@ -381,18 +454,29 @@ fn read_tactile(by_topic: &BTreeMap<String, Vec<u8>>, pads: &[String]) -> Result
             Ok(img)
         };
         let image = rgb(raw, "image")?;
-        let reference_raw =
-            by_topic.get(&crate::topics::tactile_reference(name)).with_context(|| format!("/tactile/{name}/reference is missing"))?;
-        let reference = rgb(reference_raw, "reference")?;
-        if (reference.width, reference.height) != (image.width, image.height) {
-            bail!("/tactile/{name}/reference is {}x{}, its image {}x{}", reference.width, reference.height, image.width, image.height);
-        }
+        // In an episode only its first frame has the reference: `fill_references` adds it.
+        let reference = match by_topic.get(&crate::topics::tactile_reference(name)) {
+            Some(raw) => {
+                let reference = rgb(raw, "reference")?;
+                if (reference.width, reference.height) != (image.width, image.height) {
+                    bail!(
+                        "/tactile/{name}/reference is {}x{}, its image {}x{}",
+                        reference.width,
+                        reference.height,
+                        image.width,
+                        image.height
+                    );
+                }
+                reference.data.to_vec()
+            }
+            None => Vec::new(),
+        };
         optical.push(crate::sample::OpticalPadImage {
             pad: name.clone(),
             width: image.width,
             height: image.height,
             image: image.data.to_vec(),
-            reference: reference.data.to_vec(),
+            reference,
         });
     }
     Ok(Some(crate::sample::TactileData { phalanges, resolution, depth, points, optical }))

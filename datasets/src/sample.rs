@@ -59,6 +59,20 @@ pub struct Sample {
     pub info: crate::SampleInfo,
     /// The phalanx cameras and the tactile point cloud, when a robot is in the scene.
     pub tactile: Option<TactileData>,
+    /// In an episode dataset: the frame's time and the faster streams up to the next frame.
+    pub episode: Option<EpisodeData>,
+}
+
+/// What an episode's camera frame carries besides the sample at its instant: its time, and the
+/// touch and state streams from it up to (not including) the next frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EpisodeData {
+    /// The frame's simulated time since the episode's start (ns): its MCAP log time.
+    pub time_ns: u64,
+    /// The touch at the tactile rate after the frame's own (which is `Sample::tactile`).
+    pub tactile: Vec<(u64, TactileData)>,
+    /// The state stream from the frame's instant (included) on.
+    pub states: Vec<(u64, crate::StateRecord)>,
 }
 
 /// One tactile point (FORMAT.md `/tactile/points`): camera-frame position, depth from the pad,
@@ -93,7 +107,8 @@ pub struct OpticalPadImage {
     pub height: u32,
     /// `width * height * 3` bytes, RGB, linear 8-bit levels.
     pub image: Vec<u8>,
-    /// The same sensor with nothing touching it, without noise.
+    /// The same sensor with nothing touching it, without noise. An episode writes it once, with
+    /// its first frame: the reader fills it in for the others.
     pub reference: Vec<u8>,
 }
 

@@ -57,6 +57,9 @@ struct Channels {
 /// JSON schema of `/sample/info` (FORMAT.md). Open for extension: readers ignore unknown keys.
 pub(crate) const SAMPLE_INFO_SCHEMA: &str = r#"{"title":"vtgen.SampleInfo","type":"object","properties":{"split":{"type":"string"},"index":{"type":"integer"},"object_id":{"type":"string"},"object_index":{"type":"integer"},"mask_id":{"type":"integer"},"trajectory":{"type":"integer"},"instance":{"type":"integer"},"randomized":{"type":"boolean"},"visible_pixels":{"type":"integer"},"T_world_camera":{"type":"object"},"T_camera_object":{"type":"object"}},"required":["split","index","object_id","trajectory","instance"]}"#;
 
+/// JSON schema of `/episode/state` (FORMAT.md, "Episodes").
+pub(crate) const STATE_RECORD_SCHEMA: &str = r#"{"title":"vtgen.StateRecord","type":"object","properties":{"time_s":{"type":"number"},"joint_positions":{"type":"object"},"T_world_object":{"type":"object"},"T_camera_object":{"type":"object"},"T_world_palm":{"type":"object"},"linear_velocity":{"type":"array"},"angular_velocity":{"type":"array"},"phalanges_in_contact":{"type":"array"}},"required":["time_s","joint_positions","T_world_object","T_camera_object"]}"#;
+
 pub struct ShardWriter {
     mcap: mcap::Writer<BufWriter<File>>,
     channels: Channels,
@@ -67,6 +70,8 @@ pub struct ShardWriter {
     meta: ShardMeta,
     /// Tactile channels, added with the first sample that has tactile data.
     tactile_channels: Option<TactileChannels>,
+    /// `/episode/state`, added with the first episode frame.
+    state_channel: Option<u16>,
     /// `/scene/models`, added with the first scene update.
     scene_channel: Option<u16>,
     /// Models to publish with the next sample.
@@ -153,6 +158,7 @@ impl ShardWriter {
             written: 0,
             meta: meta.clone(),
             tactile_channels: None,
+            state_channel: None,
             scene_channel: None,
             pending_scene: None,
         })
@@ -165,9 +171,10 @@ impl ShardWriter {
         Ok(())
     }
 
-    /// Appends one sample as one chunk.
+    /// Appends one sample as one chunk: at `index * SAMPLE_PERIOD_NS`, or for an episode frame at
+    /// its simulated time, followed by its episode's touch and state streams up to the next frame.
     pub fn write_sample(&mut self, s: &Sample) -> Result<()> {
-        let t = s.index * SAMPLE_PERIOD_NS;
+        let t = s.episode.as_ref().map_or(s.index * SAMPLE_PERIOD_NS, |e| e.time_ns);
         let (w, h) = (s.width, s.height);
         anyhow::ensure!(
             s.rgb.len() == (w * h * 3) as usize && s.depth.len() == (w * h) as usize && s.mask.len() == (w * h) as usize,
@@ -236,10 +243,43 @@ impl ShardWriter {
         if let Some(models) = self.pending_scene.take() {
             self.write_scene(t, &models)?;
         }
+        if let Some(e) = &s.episode {
+            self.write_episode_streams(e)?;
+        }
         // Close the chunk: a random read of sample i decompresses exactly one chunk.
         self.mcap.flush()?;
         self.written += 1;
         Ok(())
+    }
+
+    /// An episode frame's state and touch streams, in time order (the state first at a tie).
+    fn write_episode_streams(&mut self, e: &crate::sample::EpisodeData) -> Result<()> {
+        let channel = match self.state_channel {
+            Some(c) => c,
+            None => {
+                let c = self.mcap.add_schema("vtgen.StateRecord", "jsonschema", STATE_RECORD_SCHEMA.as_bytes())?;
+                let c = self.mcap.add_channel(c, topics::EPISODE_STATE, "json", &BTreeMap::new())?;
+                self.state_channel = Some(c);
+                c
+            }
+        };
+        let (mut states, mut touch) = (e.states.iter().peekable(), e.tactile.iter().peekable());
+        loop {
+            let next_state = states.peek().map(|(t, _)| *t);
+            let next_touch = touch.peek().map(|(t, _)| *t);
+            let state_first = match (next_state, next_touch) {
+                (None, None) => return Ok(()),
+                (Some(ts), tt) => tt.is_none_or(|tt| ts <= tt),
+                (None, Some(_)) => false,
+            };
+            if state_first {
+                let (t, state) = states.next().expect("peeked");
+                self.put(channel, *t, &serde_json::to_vec(&serde_json::to_value(state)?)?)?;
+            } else {
+                let (t, tac) = touch.next().expect("peeked");
+                self.write_tactile(*t, tac)?;
+            }
+        }
     }
 
     fn write_tactile(&mut self, t: u64, tac: &crate::sample::TactileData) -> Result<()> {
@@ -303,13 +343,15 @@ impl ShardWriter {
         }
         for ((_, image_ch, reference_ch), o) in optical.iter().zip(&tac.optical) {
             anyhow::ensure!(
-                o.image.len() == (o.width * o.height * 3) as usize && o.reference.len() == o.image.len(),
+                o.image.len() == (o.width * o.height * 3) as usize && (o.reference.is_empty() || o.reference.len() == o.image.len()),
                 "optical image sizes of pad {} do not match {}x{}",
                 o.pad,
                 o.width,
                 o.height
             );
-            for (ch, bytes) in [(image_ch, &o.image), (reference_ch, &o.reference)] {
+            // An empty reference is not written (an episode's: once, with its first frame).
+            let with_reference = (!o.reference.is_empty()).then_some((reference_ch, &o.reference));
+            for (ch, bytes) in [(image_ch, &o.image)].into_iter().chain(with_reference) {
                 let img = RawImage {
                     timestamp: ts(t),
                     frame_id: format!("{}_pad", o.pad),

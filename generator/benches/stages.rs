@@ -53,6 +53,7 @@ fn physics(c: &mut Criterion) {
         config: &grasp,
         timestep: settings().timestep,
         camera_position: DVec3::new(0.0, -0.75, 0.55),
+        record_steps: false,
     };
     group.sample_size(10);
     group.bench_function("trajectory of 5 instances (soup can)", |b| {
@@ -189,6 +190,7 @@ fn rendering(c: &mut Criterion) {
             t_world_camera: identity,
             t_camera_object: identity,
             robot: None,
+            episode: None,
         },
         tactile: Some(TactileData {
             phalanges: Robot::allegro().pad_names(),
@@ -197,6 +199,7 @@ fn rendering(c: &mut Criterion) {
             points: Vec::new(),
             optical: Vec::new(),
         }),
+        episode: None,
     };
     c.bench_function("write one 640x480 sample (zstd 3)", |b| b.iter(|| writer.write_sample(black_box(&sample)).expect("write")));
 }

@@ -8,12 +8,40 @@ use crate::config::Config;
 /// The splits in the order the plan lists their shards.
 pub const SPLITS: [Split; 2] = Split::ALL;
 
-/// One sample's coordinates.
+/// One sample's coordinates. In an episode dataset a sample is a camera frame, and `instance` is
+/// the frame's index in its episode (its trajectory).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct SampleRef {
     pub object_index: u32,
     pub trajectory: u32,
     pub instance: u32,
+}
+
+/// An episode's timeline: physics steps per stream period and in all, and its camera frames.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EpisodeTimeline {
+    pub periods: crate::config::StreamPeriods,
+    /// Physics steps from the settled grasp to the end of the last arm move.
+    pub steps: u64,
+    /// Camera frames: one at step 0, then every `periods.camera` steps.
+    pub frames: u64,
+    pub timestep: f64,
+}
+
+impl EpisodeTimeline {
+    /// The episode timeline of a config with `sampling.record` (None without).
+    pub fn of(config: &Config) -> Option<Self> {
+        let (record, robot) = (config.sampling.record.as_ref()?, config.robot.as_ref()?);
+        let timestep = robot.physics.timestep;
+        let periods = record.periods(timestep);
+        let steps = config.sampling.instances_per_trajectory as u64 * crate::physics::grasp::move_steps(&robot.grasp, timestep) as u64;
+        Some(EpisodeTimeline { periods, steps, frames: steps / periods.camera + 1, timestep })
+    }
+
+    /// Simulated time (ns) of physics step `step` from the episode's start (the settled grasp).
+    pub fn time_ns(&self, step: u64) -> u64 {
+        (step as f64 * self.timestep * 1e9).round() as u64
+    }
 }
 
 /// One shard to write.
@@ -75,6 +103,21 @@ impl Plan {
                 }
             }
             samples_per_split[si] = all.len() as u64;
+            // Episodes: one shard per trajectory, its camera frames as samples.
+            if let Some(timeline) = EpisodeTimeline::of(config) {
+                let episodes: Vec<(u32, u32)> = all.iter().filter(|r| r.instance == 0).map(|r| (r.object_index, r.trajectory)).collect();
+                samples_per_split[si] = episodes.len() as u64 * timeline.frames;
+                for (k, &(object_index, trajectory)) in episodes.iter().enumerate() {
+                    shards.push(ShardPlan {
+                        job: shards.len(),
+                        split,
+                        shard_index: k as u32,
+                        first_sample: k as u64 * timeline.frames,
+                        samples: (0..timeline.frames as u32).map(|f| SampleRef { object_index, trajectory, instance: f }).collect(),
+                    });
+                }
+                continue;
+            }
             for (k, chunk) in all.chunks(per_shard as usize).enumerate() {
                 shards.push(ShardPlan {
                     job: shards.len(),
@@ -85,7 +128,8 @@ impl Plan {
                 });
             }
         }
-        Plan { shards, samples_per_split, samples_per_shard: per_shard }
+        let samples_per_shard = EpisodeTimeline::of(config).map_or(per_shard, |t| t.frames);
+        Plan { shards, samples_per_split, samples_per_shard }
     }
 
     pub fn total_samples(&self) -> u64 {

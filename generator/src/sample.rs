@@ -6,8 +6,8 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result};
 use glam::{DAffine3, DMat4};
 use vt_dataset::{
-    OcclusionBin, OcclusionInfo, OpticalPadImage, PlacedDistractor, Pose, RobotInfo, Sample, SampleInfo, SceneModel, Split, TactileData,
-    TactilePointRecord, TouchInfo, frames, mask_ids,
+    EpisodeData, EpisodeFrameInfo, OcclusionBin, OcclusionInfo, OpticalPadImage, PlacedDistractor, Pose, RobotInfo, Sample, SampleInfo,
+    SceneModel, Split, StateRecord, TactileData, TactilePointRecord, TouchInfo, frames, mask_ids,
 };
 use vt_objects::Texture;
 use vt_randomizers::{AppearanceContext, ImageLibrary, ProceduralTexture, SampleKey, SampleStream, sample_sensor_variation};
@@ -19,7 +19,7 @@ use crate::config::{Config, LoadedConfig};
 use crate::config::{OpticalSensor, SensorModel};
 use crate::physics::grasp::Trajectory;
 use crate::physics::robot::{GraspStats, RobotScene};
-use crate::plan::SampleRef;
+use crate::plan::{EpisodeTimeline, SampleRef};
 use crate::render::{Draw, DrawRole, Lighting, Material, MeshHandle, Renderer, View};
 use crate::scene::environment::{backdrop_mesh, floor_mesh, glb_of, place_distractors};
 use crate::scene::robot::{link_mesh, mask_id as robot_mask_id, pose_links};
@@ -49,9 +49,12 @@ fn finger_surfaces(robot: &RobotScene, pads: &[(f64, f64)]) -> Result<Option<Fin
 /// The optical pads' images: each from its depth view (none: the pad does not touch the
 /// object) with the sample's noise stream for that pad, beside its sensor's reference image
 /// (`references`: per pad, the last one made, reused while the sensor stays the same).
+#[allow(clippy::too_many_arguments)] // the pads' inputs, passed in (no hidden state)
 fn optical_images(
     references: &mut Vec<Option<(OpticalSensor, Vec<u8>)>>,
     key: &SampleKey,
+    noise_tag: &str,
+    write_reference: bool,
     names: &[String],
     pads: &[PadView],
     depth: &[Option<Vec<f32>>],
@@ -60,13 +63,15 @@ fn optical_images(
     let mut out = Vec::new();
     for (k, (pad, name)) in pads.iter().zip(names).enumerate() {
         let Some(sensor) = &pad.optical else { continue };
-        let mut noise = SampleStream::sample(key, &format!("tactile_image/{name}"));
+        let mut noise = SampleStream::sample(key, &format!("tactile_image/{name}{noise_tag}"));
         let image = optical_image(sensor, depth[k].as_deref(), Some(&mut noise));
         let cached = &mut references[k];
         if cached.as_ref().is_none_or(|(s, _)| s != sensor) {
             *cached = Some((sensor.clone(), reference_image(sensor).rgb));
         }
-        let reference = cached.as_ref().expect("set above").1.clone();
+        // An episode's reference goes with its first frame only: the sensor unit is the same for
+        // the whole episode.
+        let reference = if write_reference { cached.as_ref().expect("set above").1.clone() } else { Vec::new() };
         out.push(OpticalPadImage { pad: name.clone(), width: image.width, height: image.height, image: image.rgb, reference });
     }
     out
@@ -188,6 +193,15 @@ struct PosedRobot {
     info: RobotInfo,
     pads: Vec<DAffine3>,
     transforms: Vec<(String, String, Pose)>,
+    t_world_object: DAffine3,
+}
+
+/// Which recorded state of the trajectory a sample shows: an instance (snapshots) or a physics
+/// step of the episode (`Trajectory::steps`).
+#[derive(Debug, Clone, Copy)]
+enum StateAt {
+    Instance(u32),
+    Step(u64),
 }
 
 impl<'a> SampleFactory<'a> {
@@ -328,12 +342,25 @@ impl<'a> SampleFactory<'a> {
         let objects = self.objects;
         let obj = &objects[r.object_index as usize];
         let key = SampleKey { seed: self.config.seed, object_id: &obj.id, trajectory: r.trajectory, instance: r.instance };
-        let mut scene = self.sample_scene(&key)?;
+        // An episode is one scene, one look and one sensor unit per pad (its frame 0's), with
+        // each frame's own sensor noise.
+        let timeline = EpisodeTimeline::of(self.config);
+        let scene_key = SampleKey { instance: if timeline.is_some() { 0 } else { r.instance }, ..key };
+        let at = timeline.map_or(StateAt::Instance(r.instance), |t| StateAt::Step(r.instance as u64 * t.periods.camera));
+        let mut scene = self.sample_scene(&scene_key)?;
         let mut draws = vec![
             Draw { mesh: self.floor, t_world_model: DMat4::IDENTITY, mask_id: mask_ids::BACKGROUND, role: DrawRole::Environment },
             Draw { mesh: self.backdrop, t_world_model: DMat4::IDENTITY, mask_id: mask_ids::BACKGROUND, role: DrawRole::Environment },
         ];
-        let mut posed = if self.robot.is_some() { Some(self.pose_robot(r, &obj.id, &mut scene, &mut draws)?) } else { None };
+        let mut posed = if self.robot.is_some() { Some(self.pose_robot(r, &obj.id, at, &mut draws)?) } else { None };
+        if let Some(p) = &posed {
+            scene.t_world_object = pose_of(&p.t_world_object);
+            // A trajectory's figures count in the shard where it starts, whichever worker made it.
+            if r.instance == 0 {
+                let stats = &self.recording.as_ref().expect("simulated by pose_robot").stats;
+                self.shard_stats.merge(stats);
+            }
+        }
         let distractors = place_distractors(self.objects, &scene, r.object_index as usize);
         for d in &distractors {
             draws.push(Draw {
@@ -352,7 +379,7 @@ impl<'a> SampleFactory<'a> {
         draws.push(object_draw);
         let (img, depth_noisy) = self.render_main(&scene, &key, &draws)?;
         let tactile = match posed.as_mut() {
-            Some(p) => Some(self.sense_touch(&scene, &key, object_draw, p)?),
+            Some(p) => Some(self.sense_touch(&scene, (&scene_key, &key), "", object_draw, p)?),
             None => None,
         };
         let t_camera_object = scene.t_world_camera.inverse().compose(&scene.t_world_object);
@@ -379,6 +406,19 @@ impl<'a> SampleFactory<'a> {
             t_world_camera: scene.t_world_camera,
             t_camera_object,
             robot: robot_info,
+            episode: timeline.map(|t| {
+                let step = r.instance as u64 * t.periods.camera;
+                let per_move = (t.steps / self.config.sampling.instances_per_trajectory as u64).max(1);
+                EpisodeFrameInfo {
+                    frame: r.instance,
+                    time_s: step as f64 * t.timestep,
+                    arm_move: (step.max(1) - 1).div_euclid(per_move) as u32,
+                }
+            }),
+        };
+        let episode = match &timeline {
+            Some(t) => Some(self.episode_streams(r, &obj.id, &scene, (&scene_key, &key), t)?),
+            None => None,
         };
         Ok(Sample {
             index,
@@ -395,6 +435,7 @@ impl<'a> SampleFactory<'a> {
             extra_transforms,
             info,
             tactile,
+            episode,
         })
     }
 
@@ -434,13 +475,7 @@ impl<'a> SampleFactory<'a> {
 
     /// The physics stage: the grasp loop's recorded instance (the trajectory is simulated when its
     /// first sample is made) poses the object and the robot; the robot's links join the draw list.
-    fn pose_robot(
-        &mut self,
-        r: &SampleRef,
-        object_id: &str,
-        scene: &mut crate::scene::SampledScene,
-        draws: &mut Vec<Draw>,
-    ) -> Result<PosedRobot> {
+    fn pose_robot(&mut self, r: &SampleRef, object_id: &str, at: StateAt, draws: &mut Vec<Draw>) -> Result<PosedRobot> {
         let robot = self.robot.as_mut().expect("called with a robot");
         let instances = self.config.sampling.instances_per_trajectory;
         let key = (r.object_index, r.trajectory);
@@ -454,13 +489,11 @@ impl<'a> SampleFactory<'a> {
         }
         let rec = self.recording.as_ref().expect("set above");
         let attempts = rec.trajectory.attempts;
-        let st = rec.trajectory.instances[r.instance as usize].clone();
-        // A trajectory's figures count in the shard where it starts, whichever worker made it.
-        if r.instance == 0 {
-            self.shard_stats.merge(&rec.stats);
-        }
+        let st = match at {
+            StateAt::Instance(i) => &rec.trajectory.instances[i as usize],
+            StateAt::Step(k) => &rec.trajectory.steps[k as usize],
+        };
         let t_world_palm = robot.t_world_base * st.t_base_palm;
-        scene.t_world_object = pose_of(&(t_world_palm * st.t_palm_object));
         let posed = pose_links(&robot.robot, robot.t_world_base, t_world_palm, &st.q, self.robot_meshes.iter().map(|m| m.0));
         for (&(_, mesh, id), (_, t_world_link)) in self.robot_meshes.iter().zip(&posed.links) {
             draws.push(Draw { mesh, t_world_model: DMat4::from(*t_world_link), mask_id: id, role: DrawRole::Occluder });
@@ -477,7 +510,67 @@ impl<'a> SampleFactory<'a> {
             t_world_palm: pose_of(&t_world_palm),
             tactile: None,
         };
-        Ok(PosedRobot { info, pads: posed.pads, transforms: posed.transforms })
+        Ok(PosedRobot { info, pads: posed.pads, transforms: posed.transforms, t_world_object: t_world_palm * st.t_palm_object })
+    }
+
+    /// An episode frame's faster streams: the touch at the tactile rate after the frame and the
+    /// state from the frame on, up to the next frame (the last frame: its own state only).
+    fn episode_streams(
+        &mut self,
+        r: &SampleRef,
+        object_id: &str,
+        scene: &crate::scene::SampledScene,
+        keys: (&SampleKey, &SampleKey),
+        timeline: &EpisodeTimeline,
+    ) -> Result<EpisodeData> {
+        let p = timeline.periods;
+        let step0 = r.instance as u64 * p.camera;
+        let end = (step0 + p.camera).min(timeline.steps + 1);
+        let mut tactile = Vec::new();
+        for step in (step0 + p.tactile..end).step_by(p.tactile as usize) {
+            let mut posed = self.pose_robot(r, object_id, StateAt::Step(step), &mut Vec::new())?;
+            let object = Draw {
+                mesh: self.object_meshes[r.object_index as usize],
+                t_world_model: DMat4::from(posed.t_world_object),
+                mask_id: mask_ids::TARGET_OBJECT,
+                role: DrawRole::Target,
+            };
+            let touch = self.sense_touch(scene, keys, &format!("@{step}"), object, &mut posed)?;
+            tactile.push((timeline.time_ns(step), touch));
+        }
+        let states =
+            (step0..end).step_by(p.state as usize).map(|step| (timeline.time_ns(step), self.state_record(step, scene, timeline))).collect();
+        Ok(EpisodeData { time_ns: timeline.time_ns(step0), tactile, states })
+    }
+
+    /// The episode's state at physics step `step`: joints, the object's pose and its twist since
+    /// the step before.
+    fn state_record(&self, step: u64, scene: &crate::scene::SampledScene, timeline: &EpisodeTimeline) -> StateRecord {
+        let robot = self.robot.as_ref().expect("episodes have a robot");
+        let steps = &self.recording.as_ref().expect("simulated by the frame").trajectory.steps;
+        let st = &steps[step as usize];
+        let world = |s: &crate::physics::grasp::InstanceState| robot.t_world_base * s.t_base_palm * s.t_palm_object;
+        let now = world(st);
+        let (linear, angular) = match step.checked_sub(1) {
+            None => (glam::DVec3::ZERO, glam::DVec3::ZERO),
+            Some(before) => {
+                let prev = world(&steps[before as usize]);
+                let dt = timeline.timestep;
+                let turn = glam::DQuat::from_mat3(&now.matrix3) * glam::DQuat::from_mat3(&prev.matrix3).inverse();
+                ((now.translation - prev.translation) / dt, turn.to_scaled_axis() / dt)
+            }
+        };
+        let touch_names = robot.robot.touch_link_names();
+        StateRecord {
+            time_s: step as f64 * timeline.timestep,
+            joint_positions: robot.robot.model.dof_names().iter().zip(&st.q).map(|(n, v)| (n.to_string(), *v)).collect(),
+            t_world_object: pose_of(&now),
+            t_camera_object: pose_of(&(DAffine3::from_mat4(scene.t_world_camera.matrix()).inverse() * now)),
+            t_world_palm: pose_of(&(robot.t_world_base * st.t_base_palm)),
+            linear_velocity: linear.to_array(),
+            angular_velocity: angular.to_array(),
+            phalanges_in_contact: touch_names.iter().zip(&st.contacts).filter(|(_, c)| c.is_some()).map(|(n, _)| n.clone()).collect(),
+        }
     }
 
     /// The render stage: the main camera's colour, depth and mask, and the noisy RGB-D reading
@@ -517,10 +610,13 @@ impl<'a> SampleFactory<'a> {
 
     /// The touch stage: the pad views of the object alone and the tactile point cloud (in
     /// the main camera frame); its settings and counts go into the robot's info.
+    /// `keys`: the sample's scene key (its sensor units) and its own key (its sensor noise, with
+    /// `noise_tag` appended to the streams' names: the episode's touch between frames).
     fn sense_touch(
         &mut self,
         scene: &crate::scene::SampledScene,
-        key: &SampleKey,
+        (unit_key, key): (&SampleKey, &SampleKey),
+        noise_tag: &str,
         object: Draw,
         posed: &mut PosedRobot,
     ) -> Result<TactileData> {
@@ -547,7 +643,7 @@ impl<'a> SampleFactory<'a> {
                 t_world_pad,
                 touching: posed.info.phalanges_in_contact.contains(&model.links[pad.link].name),
                 optical: optical_sensor.as_ref().filter(|_| cfg.sensors.of(pad.group) == SensorModel::Optical).map(|s| match &variation {
-                    Some(v) => varied(s, &sample_sensor_variation(v, key, &pad.name, s.lights.len())),
+                    Some(v) => varied(s, &sample_sensor_variation(v, unit_key, &pad.name, s.lights.len())),
                     None => s.clone(),
                 }),
             })
@@ -559,7 +655,9 @@ impl<'a> SampleFactory<'a> {
         self.times.tactile_render += reading.render_time;
         self.times.tactile_extract += t0.elapsed() - reading.render_time;
         let (t1, cpu1) = (Instant::now(), crate::cpu_clock::thread_cpu_time());
-        let optical = optical_images(&mut self.optical_references, key, &names, &pads, &reading.optical_depth);
+        // Episodes write the reference images once, with their first frame.
+        let write_reference = self.config.sampling.record.is_none() || (key.instance == 0 && noise_tag.is_empty());
+        let optical = optical_images(&mut self.optical_references, key, noise_tag, write_reference, &names, &pads, &reading.optical_depth);
         self.times.tactile_optical += t1.elapsed();
         self.times.tactile_optical_cpu += crate::cpu_clock::cpu_since(cpu1);
         self.times.optical_images += optical.len() as u64;

@@ -6,9 +6,10 @@
 >>> sample["rgb"].shape, sample["K"], sample["T_camera_object"]
 
 ``vtdata.DenseFusionView`` maps each sample to DenseFusion's inputs (depth points, RGB crop,
-tactile points, model points; numpy). ``vtdata.TorchDataset`` and ``vtdata.DenseFusionDataset``
-(and the ``vtdata.torch`` module) wrap a split for PyTorch; they are imported on first use, so
-``import vtdata`` never imports torch.
+tactile points, model points; numpy). ``vtdata.EpisodeDataset`` windows the camera frames of an
+episode dataset, every stream aligned to them. ``vtdata.TorchDataset``,
+``vtdata.DenseFusionDataset`` and ``vtdata.EpisodeTorchDataset`` (and the ``vtdata.torch`` module)
+wrap a split for PyTorch; they are imported on first use, so ``import vtdata`` never imports torch.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 from .densefusion import DenseFusionView, densefusion_sample
+from .episodes import EpisodeDataset
 from .ply import PlyError, load_ply
 from .reader import (
     Dataset,
@@ -32,7 +34,7 @@ from .reader import (
 
 if TYPE_CHECKING:
     from . import torch  # noqa: F401  (vtdata.torch, imported lazily at run time)
-    from .torch import DenseFusionDataset, TorchDataset
+    from .torch import DenseFusionDataset, EpisodeTorchDataset, TorchDataset
 
 __version__ = "0.1.0"
 
@@ -42,6 +44,8 @@ __all__ = [
     "DatasetNotFoundError",
     "DenseFusionDataset",
     "DenseFusionView",
+    "EpisodeDataset",
+    "EpisodeTorchDataset",
     "PlyError",
     "Sample",
     "TorchDataset",
@@ -57,7 +61,7 @@ __all__ = [
 
 def __getattr__(name: str) -> Any:
     # PEP 562: import the torch wrapper (and torch itself) only when it is asked for.
-    if name in ("TorchDataset", "DenseFusionDataset"):
+    if name in ("TorchDataset", "DenseFusionDataset", "EpisodeTorchDataset"):
         return getattr(importlib.import_module(".torch", __name__), name)
     if name == "torch":
         return importlib.import_module(".torch", __name__)

@@ -4,6 +4,11 @@ A dataset is a folder with ``manifest.json``, ``models/`` and one folder of MCAP
 Every sample is one zstd chunk of one shard; all of its messages share ``log_time = index * 1e8``
 ns. :class:`Dataset` builds its sample index from the chunk indexes in each shard's summary section
 (no scan of the data), then reads a sample by decompressing only its chunk.
+
+An **episode** shard (FORMAT.md, "Episodes": its ``vtgen.shard`` metadata has an ``episode`` key)
+is one recorded trajectory: chunk ``k`` (by start time) is camera frame ``k``, the sample
+``first_sample + k``. Its messages at the chunk's first log time are the frame's sample; the later
+ones are the touch (``/tactile/*``) and state (``/episode/state``) streams up to the next frame.
 """
 
 from __future__ import annotations
@@ -72,8 +77,12 @@ TACTILE_DEPTH_PREFIX, TACTILE_DEPTH_SUFFIX = "/tactile/", "/depth"
 #: sensor; only such pads have it.
 TACTILE_IMAGE_SUFFIX = "/image"
 #: ``/tactile/<pad>/reference``: that sensor's no-contact image without noise (``rgb8``, the size of
-#: its image), written with every sample beside the image.
+#: its image), written with every sample beside the image (in an episode: once, with its frame 0).
 TACTILE_REFERENCE_SUFFIX = "/reference"
+#: Episode shards: the state stream (JSON ``vtgen.StateRecord``) at the state rate.
+TOPIC_EPISODE_STATE = "/episode/state"
+#: The ``vtgen.shard`` metadata key whose presence makes a shard an episode (JSON value).
+EPISODE_METADATA_KEY = "episode"
 _TACTILE_DTYPE = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("distance", "<f4"), ("phalanx", "<u4")])
 #: Topics every sample must have; other topics (later format versions) are ignored.
 REQUIRED_TOPICS = (
@@ -142,6 +151,15 @@ class Sample(Dict[str, Any]):
       (``/tactile/<pad>/image``, linear 8-bit levels) and its no-contact reference image without
       noise (``/tactile/<pad>/reference``, same size); the same pads in both, a subset of
       ``tactile["phalanges"]``. The sensor's parameters are ``info["tactile"]["optical"][pad]``.
+      In an episode the references are written once, with frame 0; every frame gets them.
+    - ``episode`` (only in an episode dataset, FORMAT.md "Episodes"): the frame's faster streams,
+      ``{"frame": k, "time_ns": t, "states": [(t_ns, record), ...], "tactile": [(t_ns, touch),
+      ...]}``: ``frame`` is the frame's index in its episode, ``time_ns`` its simulated time since
+      the episode's start (its log time), ``states`` the ``/episode/state`` records (dicts) from
+      the frame's instant (included) up to the next frame, ``tactile`` the touch readings *after*
+      the frame's own (which is ``tactile``) up to the next frame, each a dict like ``tactile``
+      plus, with optical pads, ``images`` ``{pad: (H, W, 3) uint8}``. Times ascend.
+      ``info["episode"]`` has the frame's ``frame``, ``time_s`` and ``arm_move``.
     """
 
     __slots__ = ()
@@ -199,6 +217,10 @@ class Dataset(Sequence[Sample]):
     ``max_open_files`` at a time); after a ``fork`` the child opens its own handles, and pickling a
     ``Dataset`` carries no file handles, so it is safe to use in ``DataLoader`` workers. A
     ``Dataset`` is not safe to share between threads of one process.
+
+    In an episode dataset (FORMAT.md, "Episodes") a sample is a camera frame: ``ds[i]`` is the
+    frame's sample plus its faster streams (``sample["episode"]``, see :class:`Sample`), and
+    :attr:`episodes` lists the split's episodes (:class:`EpisodeDataset` windows them).
     """
 
     def __init__(
@@ -223,10 +245,21 @@ class Dataset(Sequence[Sample]):
             )
         #: Paths of the split's shard files that the index was built from, in manifest order.
         self.shards: List[str] = []
-        # _samples[i] = (shard path, chunk message_start_time) of sample i.
-        self._samples: List[Tuple[str, int]] = _build_index(
-            self.root, split, splits[split], self.shards, self.manifest
-        )
+        #: The split's episodes, in manifest (split) order; empty in a snapshot dataset. Each is the
+        #: shard's ``vtgen.shard`` ``episode`` record (``object_id``, ``trajectory``, ``frames``,
+        #: ``duration_s``, the rates and periods) plus ``shard`` (its path) and ``first_sample``
+        #: (the split index of its frame 0); ``frames`` is its number of chunks (camera frames).
+        self.episodes: List[Dict[str, Any]] = []
+        # _samples[i] = (shard path, chunk message_start_time) of sample i; _ends[i] = the chunk's
+        # message_end_time (an episode frame's chunk also holds its later streams).
+        index = _build_index(self.root, split, splits[split], self.shards, self.manifest, self.episodes)
+        self._samples: List[Tuple[str, int]] = [(shard, start) for shard, start, _ in index]
+        self._ends: List[int] = [end for _, _, end in index]
+        self._episode_of_shard: Dict[str, Dict[str, Any]] = {e["shard"]: e for e in self.episodes}
+        self._episode_position: Dict[str, int] = {e["shard"]: k for k, e in enumerate(self.episodes)}
+        # Episode shard -> its frame 0's /tactile/<pad>/reference messages (topic -> (channel id,
+        # message)), read on first use: later frames share them.
+        self._references: Dict[str, Dict[str, Tuple[int, Any]]] = {}
         self._models: Optional[Dict[str, Dict[str, Any]]] = None
         self._open: "collections.OrderedDict[str, _OpenShard]" = collections.OrderedDict()
         self._open_pid = os.getpid()
@@ -258,8 +291,22 @@ class Dataset(Sequence[Sample]):
     # --- public helpers ----------------------------------------------------------------------
 
     def location(self, index: int) -> Tuple[str, int]:
-        """The shard path and ``log_time`` (ns) of sample ``index``."""
+        """The shard path and ``log_time`` (ns) of sample ``index`` (an episode frame: its time)."""
         return self._samples[_check_index(index, len(self._samples))]
+
+    @property
+    def is_episodic(self) -> bool:
+        """Whether the split's shards are episodes (FORMAT.md, "Episodes")."""
+        return bool(self.episodes)
+
+    def episode_of(self, index: int) -> Optional[Tuple[int, int]]:
+        """``(episode, frame)`` of sample ``index``: its episode's position in :attr:`episodes` and
+        its frame in that episode; ``None`` for a snapshot sample."""
+        i = _check_index(index, len(self._samples))
+        episode = self._episode_of_shard.get(self._samples[i][0])
+        if episode is None:
+            return None
+        return self._episode_position[episode["shard"]], i - episode["first_sample"]
 
     def models(self) -> Dict[str, Dict[str, Any]]:
         """The dataset's object models, keyed by object id.
@@ -318,6 +365,7 @@ class Dataset(Sequence[Sample]):
         state = self.__dict__.copy()
         state["_open"] = collections.OrderedDict()
         state["_open_pid"] = None
+        state["_references"] = {}
         return state
 
     def __setstate__(self, state: Dict[str, Any]) -> None:
@@ -348,22 +396,65 @@ class Dataset(Sequence[Sample]):
             self._open.move_to_end(shard)
         return handle.reader
 
-    def _read_sample(self, shard: str, log_time: int, index: int) -> Sample:
+    def _messages(
+        self, shard: str, start: int, end: int, topics: Optional[List[str]] = None
+    ) -> Iterator[Any]:
+        """The decoded messages of ``shard`` with ``start <= log_time <= end``, in file order."""
         reader = self._reader(shard)
         if _HAS_NEW_TIME_BOUNDS:
-            messages = reader.iter_decoded_messages(
-                starting_at=log_time, ending_before=log_time + 1, log_time_order=False
+            return reader.iter_decoded_messages(
+                topics=topics, starting_at=start, ending_before=end + 1, log_time_order=False
             )
-        else:
-            messages = reader.iter_decoded_messages(
-                start_time=log_time, end_time=log_time + 1, log_time_order=False
-            )
+        return reader.iter_decoded_messages(
+            topics=topics, start_time=start, end_time=end + 1, log_time_order=False
+        )
+
+    def _first_frame_references(self, shard: str, where: str) -> Dict[str, Tuple[int, Any]]:
+        """An episode's ``/tactile/<pad>/reference`` messages: written once, with its frame 0."""
+        cached = self._references.get(shard)
+        if cached is not None:
+            return cached
+        episode = self._episode_of_shard[shard]
+        first_shard, start = self._samples[episode["first_sample"]]
+        assert first_shard == shard
+        summary = self._reader(shard).get_summary()
+        topics = sorted(
+            c.topic
+            for c in (summary.channels.values() if summary is not None else [])
+            if _pad_of(c.topic, TACTILE_REFERENCE_SUFFIX)
+        )
+        found: Dict[str, Tuple[int, Any]] = {}
+        if topics:
+            try:
+                for _schema, channel, _message, value in self._messages(shard, start, start, topics):
+                    found[channel.topic] = (channel.id, value)
+            except Exception as e:
+                raise DatasetError(
+                    f"{where}: the episode's frame 0 (sample {episode['first_sample']}), which holds "
+                    f"its optical reference images, is damaged ({type(e).__name__}: {e})"
+                ) from e
+        self._references[shard] = found
+        return found
+
+    def _read_sample(self, shard: str, log_time: int, index: int) -> Sample:
+        episode = self._episode_of_shard.get(shard)
+        # A snapshot's chunk is its sample; an episode frame's chunk runs on to the frame's later
+        # touch and state messages (FORMAT.md, "Episodes": the sample is the first log time's).
+        end = self._ends[index] if episode is not None else log_time
+        messages = self._messages(shard, log_time, end)
         decoded: Dict[str, Any] = {}
         # Topic -> channel id: the writer adds a robot's pad channels in its pads' index order.
         channel_ids: Dict[str, int] = {}
+        # An episode frame's messages after its instant: (log_time, topic, channel id, message).
+        later: List[Tuple[int, str, int, Any]] = []
         try:
-            for _schema, channel, _message, value in messages:
-                if channel.topic in decoded and channel.topic in REQUIRED_TOPICS:
+            for _schema, channel, message, value in messages:
+                if message.log_time != log_time:
+                    later.append((message.log_time, channel.topic, channel.id, value))
+                    continue
+                if channel.topic in decoded and (
+                    channel.topic in REQUIRED_TOPICS or channel.topic == TOPIC_EPISODE_STATE
+                ):
                     raise DatasetError(
                         f"{shard}: sample {index} of split {self.split!r} has more than one "
                         f"{channel.topic} message"
@@ -411,9 +502,20 @@ class Dataset(Sequence[Sample]):
             )
         if TOPIC_TACTILE_POINTS in decoded:
             sample["tactile"] = _tactile(decoded, channel_ids, where)
+        frame = index - episode["first_sample"] if episode is not None else 0
+        if frame > 0:
+            # FORMAT.md: an episode's reference images come once, with its frame 0.
+            references = self._first_frame_references(shard, where)
+            for topic in list(decoded):
+                pad = optical_pad_of_topic(topic)
+                reference = f"{TACTILE_DEPTH_PREFIX}{pad}{TACTILE_REFERENCE_SUFFIX}"
+                if pad is not None and reference not in decoded and reference in references:
+                    channel_ids[reference], decoded[reference] = references[reference]
         optical = _optical(decoded, channel_ids, where, sample.get("tactile"))
         if optical is not None:
             sample["tactile_images"], sample["tactile_references"] = optical
+        if episode is not None:
+            sample["episode"] = _episode_streams(frame, log_time, decoded, later, channel_ids, where)
         return sample
 
 
@@ -594,6 +696,54 @@ def _optical(
     return images, references
 
 
+def _episode_streams(
+    frame: int,
+    time_ns: int,
+    decoded: Mapping[str, Any],
+    later: Sequence[Tuple[int, str, int, Any]],
+    channel_ids: Dict[str, int],
+    where: str,
+) -> Dict[str, Any]:
+    """An episode frame's ``sample["episode"]``: the states from its instant on and the touch
+    readings after its own, up to the next frame (the rest of its chunk), in time order."""
+    states: List[Tuple[int, Any]] = []
+    if TOPIC_EPISODE_STATE in decoded:
+        states.append((time_ns, decoded[TOPIC_EPISODE_STATE]))
+    touch: Dict[int, Dict[str, Any]] = {}
+    for t, topic, channel_id, value in later:
+        if topic == TOPIC_EPISODE_STATE:
+            if any(s == t for s, _ in states):
+                raise DatasetError(f"{where}: two {TOPIC_EPISODE_STATE} messages at {t} ns")
+            states.append((t, value))
+        elif topic.startswith(TACTILE_DEPTH_PREFIX) and not topic.endswith(TACTILE_REFERENCE_SUFFIX):
+            group = touch.setdefault(t, {})
+            if topic in group:
+                raise DatasetError(f"{where}: two {topic} messages at {t} ns")
+            group[topic] = value
+            channel_ids.setdefault(topic, channel_id)
+    tactile: List[Tuple[int, Dict[str, Any]]] = []
+    for t in sorted(touch):
+        group = touch[t]
+        at = f"{where} (touch at {t} ns)"
+        if TOPIC_TACTILE_POINTS not in group:
+            raise DatasetError(f"{at}: /tactile/<pad> messages without {TOPIC_TACTILE_POINTS}")
+        reading = _tactile(group, channel_ids, at)
+        pads = sorted(
+            (channel_ids.get(topic, 0), pad, topic)
+            for topic in group
+            for pad in [optical_pad_of_topic(topic)]
+            if pad
+        )
+        if pads:
+            reading["images"] = {
+                pad: decode_raw_image(group[topic], expect="rgb8", where=f"{at} {topic}")
+                for _, pad, topic in pads
+            }
+        tactile.append((t, reading))
+    states.sort(key=lambda item: item[0])
+    return {"frame": frame, "time_ns": time_ns, "states": states, "tactile": tactile}
+
+
 def _tactile(decoded: Dict[str, Any], channel_ids: Mapping[str, int], where: str) -> Dict[str, Any]:
     """The tactile point cloud and the pad depth images of a sample.
 
@@ -723,16 +873,32 @@ def _check_shard_belongs(
         )
 
 
+def _episode_record(shard: str, meta: Mapping[str, str]) -> Optional[Dict[str, Any]]:
+    """The shard's ``vtgen.shard`` ``episode`` record (JSON), ``None`` in a snapshot shard."""
+    raw = meta.get(EPISODE_METADATA_KEY)
+    if raw is None:
+        return None
+    try:
+        record = json.loads(raw)
+    except json.JSONDecodeError as e:
+        raise DatasetError(f"{shard}: vtgen.shard '{EPISODE_METADATA_KEY}' is not valid JSON: {e}") from e
+    if not isinstance(record, dict):
+        raise DatasetError(f"{shard}: vtgen.shard '{EPISODE_METADATA_KEY}' is not a JSON object")
+    return record
+
+
 def _build_index(
     root: Path,
     split: str,
     split_entry: Mapping[str, Any],
     shards_out: List[str],
     manifest: Mapping[str, Any],
-) -> List[Tuple[str, int]]:
-    """Map every sample of the split to (shard path, log_time) from the shards' chunk indexes."""
+    episodes_out: List[Dict[str, Any]],
+) -> List[Tuple[str, int, int]]:
+    """Map every sample of the split to (shard path, chunk start, chunk end log time) from the
+    shards' chunk indexes; each episode shard's record goes to ``episodes_out``."""
     manifest_path = root / "manifest.json"
-    found: Dict[int, Tuple[str, int]] = {}
+    found: Dict[int, Tuple[str, int, int]] = {}
     for entry in split_entry.get("shards", []):
         if entry.get("sha256") is None:
             continue  # listed but not generated yet (interrupted or distributed run)
@@ -754,23 +920,57 @@ def _build_index(
                 ) from e
         if summary is None:
             raise DatasetError(f"{shard}: MCAP file has no summary section")
-        _check_shard_belongs(shard, metadata.get("vtgen.shard"), split, entry, manifest)
-        indices: List[int] = []
-        for chunk in summary.chunk_indexes:
-            start, end = chunk.message_start_time, chunk.message_end_time
-            if start % SAMPLE_PERIOD_NS != 0 or end != start:
+        meta = metadata.get("vtgen.shard")
+        _check_shard_belongs(shard, meta, split, entry, manifest)
+        assert meta is not None
+        episode = _episode_record(shard, meta)
+        # (split index, chunk start, chunk end) of each chunk of the shard.
+        located: List[Tuple[int, int, int]] = []
+        if episode is None:
+            for chunk in summary.chunk_indexes:
+                start, end = chunk.message_start_time, chunk.message_end_time
+                if start % SAMPLE_PERIOD_NS != 0 or end != start:
+                    raise DatasetError(
+                        f"{shard}: chunk at offset {chunk.chunk_start_offset} spans log times "
+                        f"{start}..{end} ns; every chunk must hold exactly one sample at a multiple "
+                        f"of {SAMPLE_PERIOD_NS} ns"
+                    )
+                located.append((start // SAMPLE_PERIOD_NS, start, end))
+        else:
+            # An episode: its chunks in time order are its frames, numbered from first_sample.
+            # Their time spans must not overlap, so a frame's time range selects its chunk alone.
+            first = meta.get("first_sample", entry.get("first_sample"))
+            try:
+                first = int(first)  # type: ignore[arg-type]
+            except (TypeError, ValueError):
+                raise DatasetError(f"{shard}: episode shard without a valid first_sample ({first!r})") from None
+            chunks = sorted(
+                (c for c in summary.chunk_indexes if c.message_index_offsets),
+                key=lambda c: (c.message_start_time, c.message_end_time),
+            )
+            for k, chunk in enumerate(chunks):
+                start, end = chunk.message_start_time, chunk.message_end_time
+                if k > 0 and start <= located[-1][2]:
+                    raise DatasetError(
+                        f"{shard}: the chunks of frames {k - 1} and {k} overlap in time "
+                        f"({located[-1][1]}..{located[-1][2]} ns and {start}..{end} ns); each "
+                        f"chunk of an episode is one camera frame up to the next"
+                    )
+                located.append((first + k, start, end))
+            frames = episode.get("frames")
+            if isinstance(frames, int) and frames != len(chunks):
                 raise DatasetError(
-                    f"{shard}: chunk at offset {chunk.chunk_start_offset} spans log times "
-                    f"{start}..{end} ns; every chunk must hold exactly one sample at a multiple "
-                    f"of {SAMPLE_PERIOD_NS} ns"
+                    f"{shard}: its episode record has {frames} frames, the shard {len(chunks)} chunks"
                 )
-            index = start // SAMPLE_PERIOD_NS
+            episodes_out.append({**episode, "shard": shard, "first_sample": first, "frames": len(chunks)})
+        indices: List[int] = []
+        for index, start, end in located:
             if index in found:
                 other = found[index][0]
                 raise DatasetError(
                     f"sample {index} of split {split!r} is stored twice: in {other} and {shard}"
                 )
-            found[index] = (shard, start)
+            found[index] = (shard, start, end)
             indices.append(index)
         first, count = entry.get("first_sample"), entry.get("samples")
         if isinstance(first, int) and isinstance(count, int):

@@ -12,6 +12,15 @@
 ``TorchDataset`` is safe with ``num_workers > 0`` under both ``fork`` and ``spawn``: the wrapped
 :class:`vtdata.Dataset` pickles without file handles and opens shard files lazily in each worker.
 
+``EpisodeTorchDataset`` is :class:`vtdata.EpisodeDataset` (windows of consecutive camera frames of an
+episode dataset) as tensors; the default collate batches its default streams, and so does
+:func:`collate`:
+
+>>> loader = DataLoader(EpisodeTorchDataset(root, "train", window=4, stride=2), batch_size=8)
+>>> batch = next(iter(loader))
+>>> batch["rgb"].shape, batch["state"]["T_world_object"].shape
+(torch.Size([8, 4, H, W, 3]), torch.Size([8, 4, 4, 4]))
+
 ``DenseFusionDataset`` is the DenseFusion-ready view (:class:`vtdata.densefusion.DenseFusionView`)
 as tensors; its samples all have the same shapes, so the default collate batches them:
 
@@ -31,9 +40,17 @@ import torch
 from torch.utils.data import Dataset as _TorchDataset
 
 from .densefusion import DenseFusionView
+from .episodes import DEFAULT_STREAMS, EpisodeDataset
 from .reader import Dataset
 
-__all__ = ["DenseFusionDataset", "PAD_IMAGE_KEYS", "TorchDataset", "collate", "to_tensors"]
+__all__ = [
+    "DenseFusionDataset",
+    "EpisodeTorchDataset",
+    "PAD_IMAGE_KEYS",
+    "TorchDataset",
+    "collate",
+    "to_tensors",
+]
 
 TensorSample = Dict[str, Any]
 
@@ -130,12 +147,61 @@ class DenseFusionDataset(_TorchDataset):
         return f"{type(self).__name__}({self.view!r}, transform={self.transform!r})"
 
 
+def _nested_tensors(value: Any) -> Any:
+    """Every numpy array inside dicts and lists as a tensor (same dtype and shape)."""
+    if isinstance(value, np.ndarray):
+        return torch.from_numpy(value)
+    if isinstance(value, Mapping):
+        return {key: _nested_tensors(v) for key, v in value.items()}
+    if isinstance(value, list):
+        return [_nested_tensors(v) for v in value]
+    return value
+
+
+class EpisodeTorchDataset(_TorchDataset):
+    """Windows of consecutive camera frames of an episode dataset as a ``torch.utils.data.Dataset``.
+
+    The arguments are :class:`vtdata.EpisodeDataset`'s (``window``, ``stride``, ``streams``);
+    ``ds[i]`` is its dict with every numpy array, nested ones included (``state``, ``tactile``,
+    ``tactile_images``, ...), converted to a tensor of the same dtype and shape, then passed
+    through ``transform`` if given. The default streams have the same shapes in every window, so
+    the default collate batches them, and so does :func:`collate` (``tactile_points`` and
+    ``info``, lists of ``K`` per window, need :func:`collate`, which keeps them as lists).
+    """
+
+    def __init__(
+        self,
+        root: Union[str, "os.PathLike[str]", Dataset],
+        split: str = "train",
+        transform: Optional[Callable[[TensorSample], Any]] = None,
+        *,
+        window: int = 2,
+        stride: int = 1,
+        streams: Sequence[str] = DEFAULT_STREAMS,
+    ) -> None:
+        self.episodes = EpisodeDataset(root, split, window=window, stride=stride, streams=streams)
+        self.transform = transform
+
+    def __len__(self) -> int:
+        return len(self.episodes)
+
+    def __getitem__(self, index: int) -> Any:
+        item = _nested_tensors(self.episodes[index])
+        if self.transform is not None:
+            return self.transform(item)
+        return item
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self.episodes!r}, transform={self.transform!r})"
+
+
 def collate(batch: Sequence[Mapping[str, Any]]) -> Dict[str, Any]:
     """Batch a list of sample dicts.
 
     Tensors are stacked along a new first dimension (they must have equal shapes), integers
     (``index``) become an int64 tensor, dicts of tensors with the same keys in every sample
-    (``tactile_images``, ``tactile_references``) become a dict of stacked tensors (``{pad: (B, H, W,
+    (``tactile_images``, ``tactile_references``; an episode window's ``state``, ``tactile``, ...,
+    whose values may be such dicts again) become a dict of stacked tensors (``{pad: (B, H, W,
     3)}``), and everything else (``info``, ``split``, ``tactile``, ...) is kept as a list with one
     entry per sample.
     """
@@ -154,17 +220,39 @@ def collate(batch: Sequence[Mapping[str, Any]]) -> Dict[str, Any]:
             out[key] = torch.stack(values)
         elif all(isinstance(v, int) and not isinstance(v, bool) for v in values):
             out[key] = torch.tensor(values, dtype=torch.int64)
-        elif all(_tensor_dict(v) and v.keys() == values[0].keys() for v in values):
-            out[key] = {name: torch.stack([v[name] for v in values]) for name in values[0]}
+        elif all(_tensor_dict(v) for v in values) and _same_structure(values):
+            out[key] = _stack_dicts(values)
         else:
             out[key] = values
     return out
 
 
 def _tensor_dict(value: Any) -> bool:
-    """A non-empty mapping whose values are all tensors (e.g. ``{pad: image}``)."""
+    """A non-empty mapping whose values are all tensors or such mappings (e.g. ``{pad: image}``)."""
     return (
         isinstance(value, Mapping)
         and len(value) > 0
-        and all(isinstance(v, torch.Tensor) for v in value.values())
+        and all(isinstance(v, torch.Tensor) or _tensor_dict(v) for v in value.values())
     )
+
+
+def _same_structure(values: Sequence[Mapping[str, Any]]) -> bool:
+    """Tensor dicts with the same keys, nested dicts included."""
+    first = values[0]
+    for v in values:
+        if v.keys() != first.keys():
+            return False
+    for name, item in first.items():
+        if isinstance(item, Mapping):
+            if not all(isinstance(v[name], Mapping) for v in values) or not _same_structure([v[name] for v in values]):
+                return False
+        elif not all(isinstance(v[name], torch.Tensor) for v in values):
+            return False
+    return True
+
+
+def _stack_dicts(values: Sequence[Mapping[str, Any]]) -> Dict[str, Any]:
+    return {
+        name: _stack_dicts([v[name] for v in values]) if isinstance(item, Mapping) else torch.stack([v[name] for v in values])
+        for name, item in values[0].items()
+    }

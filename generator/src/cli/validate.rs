@@ -239,6 +239,19 @@ pub fn check_ground_truth(s: &Sample, models: &[Model]) -> Option<String> {
                 return Some(format!("a tactile point is {:.2} mm off the object's surface", d * 1e3));
             }
         }
+        // An episode's touch between frames: on the surface of the object as its state then puts it.
+        for (t, touch) in s.episode.iter().flat_map(|e| &e.tactile) {
+            let state = s.episode.iter().flat_map(|e| &e.states).rev().find(|(ts, _)| ts <= t).map(|(_, st)| st);
+            let Some(state) = state else { return Some(format!("touch at {t} ns has no state at or before it")) };
+            let to_object = state.t_camera_object.inverse();
+            for p in &touch.points {
+                let q = to_object.transform_point(glam::Vec3::from(p.position).as_dvec3());
+                let d = model.mesh.distance_to_local_point(q.as_vec3(), false);
+                if d > 1e-3 {
+                    return Some(format!("a tactile point at {t} ns is {:.2} mm off the object's surface", d * 1e3));
+                }
+            }
+        }
         // The optical images are those of the sensors `/sample/info` lists, at their size.
         let sensors = info.robot.as_ref().and_then(|r| r.tactile.as_ref()).and_then(|t| t.optical.as_ref());
         let listed: Vec<&String> = sensors.map(|m| t.phalanges.iter().filter(|p| m.contains_key(*p)).collect()).unwrap_or_default();

@@ -57,7 +57,20 @@ impl Config {
         c.section(field!(self.scene));
         c.section(field!(self.output));
         c.section(field!(self.robot));
+        self.check_record(c);
         out
+    }
+
+    /// Episodes need the grasp loop, and their rates fit its physics step.
+    fn check_record(&self, c: &mut Checks) {
+        let Some(record) = &self.sampling.record else { return };
+        let sampling_config = &self.sampling;
+        let mut sampling = c.key(key!(self.sampling));
+        let mut at = sampling.key(key!(sampling_config.record));
+        match &self.robot {
+            None => at.fail("episodes record a grasp: the config needs a robot section"),
+            Some(robot) => record.check_rates(robot.physics.timestep, &mut at),
+        }
     }
 
     /// Object ids known or well-formed, custom masses in range, no object twice.
@@ -563,6 +576,70 @@ pub struct Sampling {
     pub instances_per_trajectory: u32,
     #[serde(default)]
     pub split: Split,
+    /// Episodes instead of snapshots: each trajectory becomes one episode, every stream at its own
+    /// rate (FORMAT.md, "Episodes"). Left out of the config when off.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub record: Option<RecordConfig>,
+}
+
+/// `sampling.record`: the rates of an episode's streams. Each is a whole number of physics steps,
+/// the touch and state rates whole multiples of the camera's and the state's of the touch's, so
+/// every camera frame has the touch and the state of its own instant, and every touch its state.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RecordConfig {
+    /// The main camera: RGB, depth, mask (Hz).
+    pub camera_hz: f64,
+    /// The tactile pads: depth views, the point cloud, optical images (Hz).
+    pub tactile_hz: f64,
+    /// Joint states and the object's pose and twist (Hz); none: every physics step.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub state_hz: Option<f64>,
+}
+
+impl Default for RecordConfig {
+    fn default() -> Self {
+        RecordConfig { camera_hz: 30.0, tactile_hz: 60.0, state_hz: None }
+    }
+}
+
+/// Physics steps between two messages of each stream of an episode.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct StreamPeriods {
+    pub camera: u64,
+    pub tactile: u64,
+    pub state: u64,
+}
+
+impl RecordConfig {
+    /// Each stream's period in physics steps of `timestep` seconds (the nearest whole number).
+    pub fn periods(&self, timestep: f64) -> StreamPeriods {
+        let steps = |hz: f64| (1.0 / (hz * timestep)).round().max(1.0) as u64;
+        StreamPeriods { camera: steps(self.camera_hz), tactile: steps(self.tactile_hz), state: self.state_hz.map_or(1, steps) }
+    }
+
+    /// The rates against the physics step: each a whole number of steps (within 1 %), touch and
+    /// state whole multiples of the camera.
+    fn check_rates(&self, timestep: f64, c: &mut Checks) {
+        let p = self.periods(timestep);
+        let rates = [(key!(self.camera_hz), self.camera_hz, p.camera), (key!(self.tactile_hz), self.tactile_hz, p.tactile)]
+            .into_iter()
+            .chain(self.state_hz.map(|hz| (key!(self.state_hz), hz, p.state)));
+        for (key, hz, steps) in rates {
+            if !(hz > 0.0 && hz <= 1.0 / timestep * 1.0001) {
+                c.key(key).fail(format!("{hz} Hz is out of range: allowed 0 < rate <= the physics rate ({:.1} Hz)", 1.0 / timestep));
+            } else if ((steps as f64) * hz * timestep - 1.0).abs() > 0.01 {
+                c.key(key).fail(format!(
+                    "{hz} Hz is not a whole number of physics steps ({timestep} s each): {:.1} Hz ({steps} steps) is",
+                    1.0 / (steps as f64 * timestep)
+                ));
+            } else if key != key!(self.camera_hz) && p.camera % steps != 0 {
+                c.key(key).fail(format!("{hz} Hz must be a whole multiple of camera_hz ({} Hz)", self.camera_hz));
+            } else if key == key!(self.state_hz) && p.tactile % steps != 0 {
+                c.key(key).fail(format!("{hz} Hz must be a whole multiple of tactile_hz ({} Hz)", self.tactile_hz));
+            }
+        }
+    }
 }
 
 fn default_trajectories() -> u32 {
@@ -574,7 +651,12 @@ fn default_instances() -> u32 {
 
 impl Default for Sampling {
     fn default() -> Self {
-        Sampling { trajectories_per_object: default_trajectories(), instances_per_trajectory: default_instances(), split: Split::default() }
+        Sampling {
+            trajectories_per_object: default_trajectories(),
+            instances_per_trajectory: default_instances(),
+            split: Split::default(),
+            record: None,
+        }
     }
 }
 

@@ -395,7 +395,7 @@ pub fn generate(cfg: &LoadedConfig, opts: &GenerateOptions) -> Result<GenerateSu
                 shard_index: s.shard_index,
                 first_sample: s.first_sample,
                 sample_count: s.samples.len() as u64,
-                extra: Default::default(),
+                extra: episode_metadata(config, s).into_iter().collect(),
             };
             match write_shard(factory, out, s, &meta, compression, &progress, &abort) {
                 Ok(r) => Ok(r.map(|r| (s.file(), r))),
@@ -439,4 +439,27 @@ pub fn generate(cfg: &LoadedConfig, opts: &GenerateOptions) -> Result<GenerateSu
         adapter,
         complete: manifest.complete,
     })
+}
+
+/// An episode shard's `vtgen.shard` entry (FORMAT.md, "Episodes"): the episode's object and
+/// trajectory, its streams' rates and its length. None for snapshot shards.
+fn episode_metadata(config: &crate::config::Config, shard: &crate::plan::ShardPlan) -> Option<(String, String)> {
+    let timeline = crate::plan::EpisodeTimeline::of(config)?;
+    let first = shard.samples.first()?;
+    let rate = |steps: u64| 1.0 / (steps as f64 * timeline.timestep);
+    let p = timeline.periods;
+    let record = serde_json::json!({
+        "object_id": config.objects[first.object_index as usize].id(),
+        "trajectory": first.trajectory,
+        "frames": timeline.frames,
+        "duration_s": timeline.steps as f64 * timeline.timestep,
+        "physics_hz": rate(1),
+        "camera_hz": rate(p.camera),
+        "tactile_hz": rate(p.tactile),
+        "state_hz": rate(p.state),
+        "camera_period_steps": p.camera,
+        "tactile_period_steps": p.tactile,
+        "state_period_steps": p.state,
+    });
+    Some((vt_dataset::EPISODE_METADATA_KEY.to_string(), record.to_string()))
 }

@@ -39,6 +39,9 @@ pub struct Trajectory {
     pub instances: Vec<InstanceState>,
     /// Attempts it took (1 = the first grasp held through every instance).
     pub attempts: u32,
+    /// With `GraspContext::record_steps`: the state at the settled grasp, then after every
+    /// physics step of the recorded arm moves (`1 + instances * move_steps` states); else empty.
+    pub steps: Vec<InstanceState>,
 }
 
 /// Why an attempt at a trajectory ended without it.
@@ -128,6 +131,10 @@ pub struct GraspContext<'a> {
     pub timestep: f64,
     /// The main camera's position (world): back-to-camera moves turn the palm away from it.
     pub camera_position: DVec3,
+    /// Record the state after every physics step from the settled grasp on (`Trajectory::steps`,
+    /// for episodes). Each arm move then also waits out its whole settle window, so that every
+    /// move takes [`GraspContext::move_steps`] steps.
+    pub record_steps: bool,
 }
 
 impl GraspContext<'_> {
@@ -187,11 +194,23 @@ impl GraspContext<'_> {
         (seconds / self.timestep).round().max(1.0) as usize
     }
 
+    /// Physics steps of one recorded arm move: the move, the hold, and (when recording steps) the
+    /// whole settle window of `PENETRATION_WAITS` waits.
+    pub fn move_steps(&self) -> usize {
+        move_steps(self.config, self.timestep)
+    }
+
     /// IK for a world palm pose, from `q`.
     fn reach(&self, t_world_palm: &DAffine3, q: &[f64]) -> Option<Vec<f64>> {
         let target = self.t_world_base.inverse() * *t_world_palm;
         self.robot.solve_grasp_ik(&target, q, &IkOptions::default())
     }
+}
+
+/// Physics steps of one recorded arm move of an episode (`GraspContext::move_steps`).
+pub fn move_steps(config: &GraspConfig, timestep: f64) -> usize {
+    let steps = |seconds: f64| (seconds / timestep).round().max(1.0) as usize;
+    steps(config.move_seconds) + steps(config.hold_seconds) + PENETRATION_WAITS * steps(PENETRATION_WAIT_SECONDS)
 }
 
 /// Grasp-frame poses drawn by `reachable_share`, and the share of them the arm must reach.
@@ -253,7 +272,7 @@ pub fn simulate_trajectory(
     let mut last = None;
     for attempt in 0..cfg.max_attempts {
         match attempt_trajectory(ctx, physics, object, key, attempt, events)? {
-            Ok(instances) => return Ok(Trajectory { instances, attempts: attempt + 1 }),
+            Ok((instances, steps)) => return Ok(Trajectory { instances, attempts: attempt + 1, steps }),
             Err(f) => {
                 events.push(GraspEvent::Failed(f));
                 last = Some(f);
@@ -272,7 +291,7 @@ fn attempt_trajectory(
     key: TrajectoryKey,
     attempt: u32,
     events: &mut Vec<GraspEvent>,
-) -> Result<std::result::Result<Vec<InstanceState>, Failure>> {
+) -> Result<std::result::Result<(Vec<InstanceState>, Vec<InstanceState>), Failure>> {
     let cfg = ctx.config;
     let rng = &mut SampleStream::trajectory(key.seed, key.object_id, key.trajectory, &format!("grasp/{attempt}"));
     let t_world_palm = ctx.sample_palm(rng);
@@ -466,9 +485,13 @@ fn record_instances(
     mut q: Vec<f64>,
     grasped: DAffine3,
     events: &mut Vec<GraspEvent>,
-) -> Result<std::result::Result<Vec<InstanceState>, Failure>> {
-    let robot = ctx.robot;
+) -> Result<std::result::Result<(Vec<InstanceState>, Vec<InstanceState>), Failure>> {
     let mut out = Vec::with_capacity(key.instances as usize);
+    let mut steps = Vec::new();
+    let mut log = ctx.record_steps.then_some(StepLog { steps: &mut steps, grasped });
+    if let Some(log) = log.as_mut() {
+        log.push(ctx, physics, &q);
+    }
     for instance in 0..key.instances {
         let sample_key = SampleKey { seed: key.seed, object_id: key.object_id, trajectory: key.trajectory, instance };
         let mut moved = 0;
@@ -483,9 +506,10 @@ fn record_instances(
             // far less than a fresh grasp and every instance before it.
             physics.save();
             let q_before = q.clone();
+            let logged = log.as_ref().map_or(0, |l| l.steps.len());
             // Why this move cannot stand: the attempt's failure if it was the last try, and the
             // redo counted otherwise.
-            let (failure, redo) = match move_and_settle(ctx, physics, object, &mut q, &mut arm_rng)? {
+            let (failure, redo) = match move_and_settle(ctx, physics, object, &mut q, &mut arm_rng, log.as_mut())? {
                 MoveOutcome::Recordable(obj, contacts, penetration) => break (obj, contacts, penetration),
                 MoveOutcome::Failed(Failure::LostDuringMotion) => (Failure::LostDuringMotion, Redo::Drop),
                 MoveOutcome::Failed(f) => return Ok(Err(f)),
@@ -499,21 +523,52 @@ fn record_instances(
             events.push(GraspEvent::Redone(redo));
             physics.restore();
             q = q_before;
+            if let Some(log) = log.as_mut() {
+                log.steps.truncate(logged);
+            }
         };
-        let mut qr = q.clone();
-        robot.set_hand(&mut qr, &physics.joint_positions());
-        let rel = grasped.inverse() * obj;
-        out.push(InstanceState {
-            t_base_palm: robot.grasp_frame_pose(&qr),
-            q: qr,
-            t_palm_object: obj,
-            contacts,
-            slip_translation: rel.translation.length(),
-            slip_rotation: rot(&rel).angle_between(DQuat::IDENTITY),
-            penetration,
-        });
+        out.push(instance_state(ctx, physics, &q, obj, grasped, contacts, penetration));
     }
-    Ok(Ok(out))
+    Ok(Ok((out, steps)))
+}
+
+/// The state of the grasp with the arm at `q` (its hand joints read from the physics).
+fn instance_state(
+    ctx: &GraspContext,
+    physics: &dyn HandPhysics,
+    q: &[f64],
+    obj: DAffine3,
+    grasped: DAffine3,
+    contacts: Vec<Option<f64>>,
+    penetration: f64,
+) -> InstanceState {
+    let mut qr = q.to_vec();
+    ctx.robot.set_hand(&mut qr, &physics.joint_positions());
+    let rel = grasped.inverse() * obj;
+    InstanceState {
+        t_base_palm: ctx.robot.grasp_frame_pose(&qr),
+        q: qr,
+        t_palm_object: obj,
+        contacts,
+        slip_translation: rel.translation.length(),
+        slip_rotation: rot(&rel).angle_between(DQuat::IDENTITY),
+        penetration,
+    }
+}
+
+/// The states of the recorded arm moves, one per physics step (episodes).
+struct StepLog<'a> {
+    steps: &'a mut Vec<InstanceState>,
+    grasped: DAffine3,
+}
+
+impl StepLog<'_> {
+    /// The state now, with the arm at `q`.
+    fn push(&mut self, ctx: &GraspContext, physics: &dyn HandPhysics, q: &[f64]) {
+        let state =
+            instance_state(ctx, physics, q, physics.object_pose(), self.grasped, physics.touch_contacts(), physics.max_penetration());
+        self.steps.push(state);
+    }
 }
 
 /// How one arm move of an instance ended.
@@ -540,6 +595,7 @@ fn move_and_settle(
     object: &PhysicsObject,
     q: &mut Vec<f64>,
     arm_rng: &mut ChaCha8Rng,
+    mut log: Option<&mut StepLog>,
 ) -> Result<MoveOutcome> {
     let cfg = ctx.config;
     let robot = ctx.robot;
@@ -575,6 +631,11 @@ fn move_and_settle(
         };
         physics.set_gravity(rot(&p).inverse() * (GRAVITY - acc));
         physics.step();
+        if let Some(log) = log.as_deref_mut() {
+            let w = s * s * (3.0 - 2.0 * s);
+            let qs: Vec<f64> = q_from.iter().zip(&q_target).map(|(a, b)| a + (b - a) * w).collect();
+            log.push(ctx, physics, &qs);
+        }
         // An object this far from the palm has fallen out of the hand and cannot come back: the
         // move's outcome is known, and the rest of it (up to 0.7 s) would simulate the fall.
         // (Same outcome, same bytes: the failed move is undone and the next draws from its own
@@ -591,14 +652,18 @@ fn move_and_settle(
     if touching < robot.min_touching {
         return Ok(MoveOutcome::NotRecordable(Failure::TooFewContacts));
     }
-    // Squeezing transients settle within a few tens of milliseconds: wait for them.
+    // Squeezing transients settle within a few tens of milliseconds: wait for them (an episode
+    // waits out the whole window, so that every move takes the same time).
     let mut penetration = physics.max_penetration();
-    for _ in 0..10 {
-        if penetration <= cfg.max_penetration {
+    for _ in 0..PENETRATION_WAITS {
+        if penetration <= cfg.max_penetration && log.is_none() {
             break;
         }
-        for _ in 0..steps(0.025) {
+        for _ in 0..steps(PENETRATION_WAIT_SECONDS) {
             physics.step();
+            if let Some(log) = log.as_deref_mut() {
+                log.push(ctx, physics, q);
+            }
         }
         penetration = physics.max_penetration();
     }
@@ -616,6 +681,10 @@ fn move_and_settle(
     }
     Ok(MoveOutcome::Recordable(obj, contacts, penetration))
 }
+
+/// After a move, up to this many waits of `PENETRATION_WAIT_SECONDS` for squeezing transients.
+const PENETRATION_WAITS: usize = 10;
+const PENETRATION_WAIT_SECONDS: f64 = 0.025;
 
 /// Distance (m) from the palm at which an object is lost from the hand (a move's end check; the
 /// settle and the moves stop as soon as the object is this far).
@@ -669,7 +738,7 @@ mod tests {
     fn move_normals(cfg: &GraspConfig, n: u64) -> Vec<(DVec3, DVec3)> {
         let robot = Robot::allegro();
         let (t_world_base, camera_position) = paper_context();
-        let ctx = GraspContext { robot: &robot, t_world_base, config: cfg, timestep: 1.0 / 240.0, camera_position };
+        let ctx = GraspContext { robot: &robot, t_world_base, config: cfg, timestep: 1.0 / 240.0, camera_position, record_steps: false };
         (0..n)
             .map(|k| {
                 let mut rng = ChaCha8Rng::seed_from_u64(k);
@@ -708,7 +777,7 @@ mod tests {
         cfg.back_to_camera_share = 0.0;
         let robot = Robot::allegro();
         let (t_world_base, camera_position) = paper_context();
-        let ctx = GraspContext { robot: &robot, t_world_base, config: &cfg, timestep: 1.0 / 240.0, camera_position };
+        let ctx = GraspContext { robot: &robot, t_world_base, config: &cfg, timestep: 1.0 / 240.0, camera_position, record_steps: false };
         for k in 0..50 {
             let a = ctx.sample_move_palm(&mut ChaCha8Rng::seed_from_u64(k));
             let b = ctx.sample_palm(&mut ChaCha8Rng::seed_from_u64(k));
@@ -721,7 +790,7 @@ mod tests {
     fn run_fake(hand: &mut crate::physics::fake::FakeHand, cfg: &GraspConfig, instances: u32) -> (Result<Trajectory>, Vec<GraspEvent>) {
         let robot = Robot::allegro();
         let (t_world_base, camera_position) = paper_context();
-        let ctx = GraspContext { robot: &robot, t_world_base, config: cfg, timestep: 1.0 / 240.0, camera_position };
+        let ctx = GraspContext { robot: &robot, t_world_base, config: cfg, timestep: 1.0 / 240.0, camera_position, record_steps: false };
         let object = PhysicsObject {
             points: vt_objects::procedural_mesh(vt_objects::Catalog::builtin().get("005_tomato_soup_can").unwrap()).positions,
             mass: 0.35,
@@ -806,7 +875,8 @@ mod tests {
             let robot = Robot::builtin(name).unwrap();
             let cfg = GraspConfig::default().with_robot_defaults(&robot);
             let (t_world_base, camera_position) = paper_context();
-            let ctx = GraspContext { robot: &robot, t_world_base, config: &cfg, timestep: 1.0 / 240.0, camera_position };
+            let ctx =
+                GraspContext { robot: &robot, t_world_base, config: &cfg, timestep: 1.0 / 240.0, camera_position, record_steps: false };
             let share = reachable_share(&ctx, REACH_SAMPLES);
             eprintln!("{name}: {:.0}% of {REACH_SAMPLES} workspace poses reached", 100.0 * share);
             assert!(share >= 0.9, "{name}: {share}");
@@ -845,6 +915,7 @@ mod tests {
             config: &cfg,
             timestep: pc.timestep,
             camera_position: DVec3::new(0.0, -0.75, 0.55),
+            record_steps: false,
         };
         // PHYS=mujoco (with --features mujoco) measures the MuJoCo backend instead.
         let mut hand: Box<dyn HandPhysics> = match std::env::var("PHYS").as_deref() {

@@ -45,8 +45,14 @@ pub struct Simulated {
 }
 
 /// What the grasp loop needs of a worker's robot besides its physics.
-fn grasp_context<'a>(robot: &'a Robot, t_world_base: DAffine3, rc: &'a RobotConfig, camera_position: DVec3) -> GraspContext<'a> {
-    GraspContext { robot, t_world_base, config: &rc.grasp, timestep: rc.physics.timestep, camera_position }
+fn grasp_context<'a>(
+    robot: &'a Robot,
+    t_world_base: DAffine3,
+    rc: &'a RobotConfig,
+    camera_position: DVec3,
+    record_steps: bool,
+) -> GraspContext<'a> {
+    GraspContext { robot, t_world_base, config: &rc.grasp, timestep: rc.physics.timestep, camera_position, record_steps }
 }
 
 /// The robot half of a worker: model and physics. The trajectory being recorded is the sample
@@ -62,6 +68,8 @@ pub struct RobotScene {
     objects: Vec<PhysicsObject>,
     /// The main camera's position (world), for the back-to-camera arm moves.
     camera_position: DVec3,
+    /// Episodes: trajectories record every physics step (`Trajectory::steps`).
+    record_steps: bool,
 }
 
 impl RobotScene {
@@ -103,7 +111,7 @@ impl RobotScene {
         );
         // A workspace the arm cannot reach would fail every grasp as Unreachable: said up front.
         let camera_position = DVec3::from_array(cfg.config.camera.position);
-        let share = reachable_share(&grasp_context(&model, t_world_base, robot, camera_position), REACH_SAMPLES);
+        let share = reachable_share(&grasp_context(&model, t_world_base, robot, camera_position, false), REACH_SAMPLES);
         if share < MIN_REACHABLE_SHARE {
             anyhow::bail!(
                 "{}: robot.grasp.palm_workspace: the arm of robot '{}' reaches {:.0}% of {REACH_SAMPLES} grasp-frame poses drawn from it \
@@ -115,7 +123,16 @@ impl RobotScene {
             );
         }
         let objects = objects.iter().map(|o| PhysicsObject { points: o.mesh.positions.clone(), mass: o.mass }).collect();
-        Ok(RobotScene { robot: model, config: robot.clone(), t_world_base, hand_meshes, physics, objects, camera_position })
+        Ok(RobotScene {
+            robot: model,
+            config: robot.clone(),
+            t_world_base,
+            hand_meshes,
+            physics,
+            objects,
+            camera_position,
+            record_steps: cfg.config.sampling.record.is_some(),
+        })
     }
 
     pub fn backend_name(&self) -> &'static str {
@@ -131,7 +148,7 @@ impl RobotScene {
     /// holds through all instances) and returns it with the grasp loop's figures, which a lost
     /// trajectory keeps too (`vtgen grasps` reports them).
     pub fn simulate(&mut self, seed: u64, object_index: u32, object_id: &str, trajectory: u32, instances: u32) -> Simulated {
-        let ctx = grasp_context(&self.robot, self.t_world_base, &self.config, self.camera_position);
+        let ctx = grasp_context(&self.robot, self.t_world_base, &self.config, self.camera_position, self.record_steps);
         let mut events: Vec<GraspEvent> = Vec::new();
         let result = simulate_trajectory(
             &ctx,

@@ -1,0 +1,119 @@
+//! Episodes (`sampling.record`): `scenes/tiny-episode.yaml` records each trajectory of the Allegro
+//! hand as one episode, the camera at 30 Hz, the pads at 60 Hz (optical images on the distal
+//! pads) and the state at every physics step. Every stream has its configured count and times, the
+//! ground truth holds on every frame and every touch reading, and the episodes are deterministic.
+
+use std::path::Path;
+use std::sync::OnceLock;
+
+use rapier3d::parry::query::PointQuery;
+use vt_dataset::{DatasetReader, read_ply};
+
+use crate::common::*;
+use crate::own_robot::{generated, shard_job_matches, tactile_points_lie_on_the_object_within_their_pad};
+
+fn episode_dataset() -> &'static Path {
+    static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();
+    DIR.get_or_init(|| generated(&root().join("scenes/tiny-episode.yaml"))).path()
+}
+
+/// The `episode` entry of a shard's metadata.
+fn episode_of(meta: &vt_dataset::ShardMeta) -> serde_json::Value {
+    serde_json::from_str(&meta.extra[vt_dataset::EPISODE_METADATA_KEY]).expect("episode metadata is JSON")
+}
+
+#[test]
+fn every_stream_of_an_episode_is_at_its_rate_and_its_ground_truth_holds_on_every_frame() {
+    let dir = episode_dataset();
+    let ds = DatasetReader::open(dir).unwrap();
+    let info: vt_dataset::ModelsInfo = serde_json::from_slice(&std::fs::read(dir.join("models/models_info.json")).unwrap()).unwrap();
+    let meshes: Vec<rapier3d::parry::shape::TriMesh> = info
+        .objects
+        .iter()
+        .map(|o| {
+            let m = read_ply(&dir.join("models").join(&o.file)).unwrap();
+            rapier3d::parry::shape::TriMesh::new(m.positions.iter().map(|p| glam::Vec3::from(*p)).collect(), m.triangles.clone()).unwrap()
+        })
+        .collect();
+    let (mut episodes, mut between) = (0, 0);
+    for split in ["train", "test"] {
+        for shard in ds.shards(split).unwrap() {
+            let e = episode_of(shard.meta());
+            let (frames, cam, tac, state) = (
+                e["frames"].as_u64().unwrap(),
+                e["camera_period_steps"].as_u64().unwrap(),
+                e["tactile_period_steps"].as_u64().unwrap(),
+                e["state_period_steps"].as_u64().unwrap(),
+            );
+            // 30 Hz camera, 60 Hz touch, every physics step of 0.0041667 s.
+            assert_eq!((cam, tac, state), (8, 4, 1), "{e}");
+            assert!((e["camera_hz"].as_f64().unwrap() - 30.0).abs() < 0.01 && (e["tactile_hz"].as_f64().unwrap() - 60.0).abs() < 0.01);
+            let steps = (e["duration_s"].as_f64().unwrap() / 0.0041667).round() as u64;
+            assert_eq!(frames, steps / cam + 1);
+            assert_eq!(shard.len() as u64, frames);
+            let time = |step: u64| (step as f64 * 0.0041667 * 1e9).round() as u64;
+            let (mut touch_times, mut state_times) = (Vec::new(), Vec::new());
+            let mut reference: Option<Vec<Vec<u8>>> = None;
+            for (k, index) in shard.indices().enumerate() {
+                let s = shard.read(index).unwrap();
+                let ep = s.episode.as_ref().expect("an episode frame");
+                let frame = s.info.episode.expect("the frame's place in its episode");
+                assert_eq!((frame.frame, s.info.instance, ep.time_ns), (k as u32, k as u32, time(k as u64 * cam)));
+                assert!((frame.time_s - k as f64 * cam as f64 * 0.0041667).abs() < 1e-9);
+                // The frame's own instant: its touch is the sample's, its state the first one.
+                touch_times.push(ep.time_ns);
+                let (t0, first) = &ep.states[0];
+                assert_eq!(*t0, ep.time_ns);
+                assert!((first.t_camera_object.translation() - s.t_camera_object.translation()).length() < 1e-9);
+                assert_eq!(first.phalanges_in_contact, s.info.phalanges_in_contact());
+                state_times.extend(ep.states.iter().map(|(t, _)| *t));
+                // The touch between frames, on the object where the state then puts it.
+                for (t, touch) in &ep.tactile {
+                    touch_times.push(*t);
+                    let (_, st) = ep.states.iter().rev().find(|(ts, _)| ts <= t).expect("a state at every touch");
+                    for p in &touch.points {
+                        let q = st.t_camera_object.inverse().transform_point(glam::Vec3::from(p.position).as_dvec3());
+                        let d = meshes[s.info.object_index as usize].distance_to_local_point(q.as_vec3(), false);
+                        assert!(d <= 1e-3, "{split} frame {k}: a touch point at {t} ns is {:.2} mm off the surface", d * 1e3);
+                        between += 1;
+                    }
+                }
+                // Four optical fingertips, one sensor unit (and reference) for the whole episode.
+                let tac_data = s.tactile.as_ref().expect("touch");
+                let refs: Vec<Vec<u8>> = tac_data.optical.iter().map(|o| o.reference.clone()).collect();
+                assert_eq!(refs.len(), 4);
+                assert_eq!(reference.get_or_insert_with(|| refs.clone()), &refs, "{split} frame {k}: the reference changed");
+            }
+            assert_eq!(touch_times, (0..=steps / tac).map(|j| time(j * tac)).collect::<Vec<_>>(), "{split}: touch times");
+            assert_eq!(state_times, (0..=steps / state).map(|j| time(j * state)).collect::<Vec<_>>(), "{split}: state times");
+            episodes += 1;
+        }
+    }
+    assert_eq!(episodes, 4);
+    assert!(between > 1000, "{between} touch points between frames");
+    crate::ground_truth::check_dataset(dir, 232);
+    tactile_points_lie_on_the_object_within_their_pad(dir);
+    let o = run(&["validate", dir.to_str().unwrap(), "--full"]);
+    assert!(o.status.success(), "{}{}", String::from_utf8_lossy(&o.stdout), stderr(&o));
+}
+
+#[test]
+fn episodes_are_deterministic_and_a_shard_job_writes_the_same_bytes() {
+    shard_job_matches(&root().join("scenes/tiny-episode.yaml"), 1, episode_dataset());
+}
+
+#[test]
+fn rates_that_do_not_fit_the_physics_step_are_refused_with_the_field() {
+    let cfg = root().join("scenes/tiny-episode.yaml");
+    for (set, field, message) in [
+        ("sampling.record.camera_hz=29", "sampling.record.camera_hz", "not a whole number of physics steps"),
+        ("sampling.record.tactile_hz=40", "sampling.record.tactile_hz", "whole multiple of camera_hz"),
+        ("sampling.record.state_hz=30", "sampling.record.state_hz", "whole multiple of tactile_hz"),
+        ("sampling.record.camera_hz=0", "sampling.record.camera_hz", "out of range"),
+    ] {
+        let d = tempdir();
+        let o = run(&["generate", cfg.to_str().unwrap(), "--out", d.path().to_str().unwrap(), "--quiet", "--set", set]);
+        let e = stderr(&o);
+        assert!(!o.status.success() && e.contains(field) && e.contains(message), "{set}: {e}");
+    }
+}
