@@ -45,6 +45,10 @@ pub struct BenchReport {
     pub encode_and_write: f64,
     /// Shard bytes per sample (the shards' size over the samples: meshes and summaries included).
     pub bytes_per_sample: f64,
+    /// Episodes (`sampling.record`): the camera rate, so that a sample is 1/camera_hz seconds of
+    /// episode (the touch and state streams between frames ride with it).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub episode_camera_hz: Option<f64>,
     /// Physics steps taken (failed attempts and redone moves included), and the grasp loop's CPU
     /// seconds per step.
     pub physics_steps: u64,
@@ -149,6 +153,15 @@ impl std::fmt::Display for BenchReport {
             )?;
         }
         writeln!(f, "shard bytes        {:.2} MB per sample", r.bytes_per_sample / 1e6)?;
+        if let Some(hz) = r.episode_camera_hz {
+            writeln!(
+                f,
+                "episodes           a sample is a {hz:.0} Hz camera frame with its touch and states: {:.3} s of episode per second of run, {:.1} MB per second of episode, {:.0} ms of CPU per frame",
+                r.samples_per_second / hz,
+                r.bytes_per_sample * hz / 1e6,
+                1e3 * r.process_cpu / r.samples as f64
+            )?;
+        }
         writeln!(f, "peak RSS           {:.0} MiB", r.peak_rss_mib)?;
         let bins = OcclusionBin::ALL.map(OcclusionBin::key);
         writeln!(f, "occlusion          {:>8} {:>8} {:>8}  (share of samples per bin)", bins[0], bins[1], bins[2])?;
@@ -319,7 +332,8 @@ pub fn bench(
     let _ = std::fs::remove_dir_all(&dir);
     let (done, workers) = pooled.into_result()?;
     let runs: Vec<TrajectoryRun> = done.into_iter().map(|(_, t)| t).collect();
-    report(runs, workers, Measured { jobs, seconds, process_cpu, predict_cores })
+    let episode_camera_hz = crate::plan::EpisodeTimeline::of(&cfg.config).map(|t| 1.0 / (t.periods.camera as f64 * t.timestep));
+    report(runs, workers, Measured { jobs, seconds, process_cpu, predict_cores, episode_camera_hz })
 }
 
 /// What `bench` measured around the workers.
@@ -328,11 +342,12 @@ struct Measured {
     seconds: f64,
     process_cpu: f64,
     predict_cores: Option<usize>,
+    episode_camera_hz: Option<f64>,
 }
 
 /// The report of the benchmark's trajectories and of its workers' stage times.
 fn report(runs: Vec<TrajectoryRun>, workers: Vec<(StageTimes, WriterTimes, Duration, String)>, m: Measured) -> Result<BenchReport> {
-    let Measured { jobs, seconds, process_cpu, predict_cores } = m;
+    let Measured { jobs, seconds, process_cpu, predict_cores, episode_camera_hz } = m;
     let mut n = 0;
     let mut skipped = Vec::new();
     let mut occlusion_bins: BTreeMap<String, [u64; 3]> = BTreeMap::new();
@@ -357,6 +372,7 @@ fn report(runs: Vec<TrajectoryRun>, workers: Vec<(StageTimes, WriterTimes, Durat
     }
     let cpu_outside = (t.physics_cpu + t.other_cpu + readback + write.cpu).as_secs_f64();
     Ok(BenchReport {
+        episode_camera_hz,
         bytes_per_sample: bytes as f64 / n as f64,
         physics_steps: t.physics_steps,
         physics_seconds_per_step: t.physics_cpu.as_secs_f64() / t.physics_steps.max(1) as f64,

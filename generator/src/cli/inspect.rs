@@ -26,6 +26,9 @@ pub struct Inspection {
     /// Share of samples in which each phalanx touches the object.
     pub contact_share: BTreeMap<String, f64>,
     pub grasp: Option<serde_json::Value>,
+    /// Episode datasets: the complete episodes' shard metadata (`episode`), in shard order.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub episodes: Vec<serde_json::Value>,
 }
 
 fn median(mut v: Vec<u64>) -> Option<[u64; 3]> {
@@ -61,7 +64,16 @@ pub fn inspect(root: &Path) -> Result<Inspection> {
         }
         Ok(())
     })?;
+    let mut episodes = Vec::new();
+    for split in manifest.splits.keys() {
+        for shard in ds.shards(split)? {
+            if let Some(e) = shard.meta().extra.get(vt_dataset::EPISODE_METADATA_KEY) {
+                episodes.push(serde_json::from_str(e)?);
+            }
+        }
+    }
     Ok(Inspection {
+        episodes,
         complete: manifest.complete,
         shards: entries.len(),
         shards_complete: entries.iter().filter(|e| e.sha256.is_some()).count(),
@@ -96,6 +108,18 @@ impl Inspection {
             let total = bins.values().sum::<u64>().max(1) as f64;
             let occ: Vec<String> = bins.iter().map(|(b, c)| format!("{b} {c} ({:.1}%)", 100.0 * *c as f64 / total)).collect();
             out.push(format!("occlusion   {split}: {}", occ.join(", ")));
+        }
+        if let Some(e) = r.episodes.first() {
+            let f = |k: &str| e[k].as_f64().unwrap_or(f64::NAN);
+            out.push(format!(
+                "episodes    {} of {} frames ({:.2} s): camera {:.1} Hz, touch {:.1} Hz, state {:.1} Hz",
+                r.episodes.len(),
+                e["frames"],
+                f("duration_s"),
+                f("camera_hz"),
+                f("tactile_hz"),
+                f("state_hz")
+            ));
         }
         out.push(format!("randomized  {:.1}%", 100.0 * r.randomized_share));
         if let Some([lo, med, hi]) = r.tactile_points {

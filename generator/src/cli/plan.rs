@@ -19,13 +19,35 @@ pub fn describe(path: &Path, c: &Config) -> String {
     };
     line(format!("config      {}", path.display()));
     line(format!("objects     {} ({})", c.objects.len(), c.objects.iter().map(|o| o.id()).collect::<Vec<_>>().join(", ")));
-    line(format!(
-        "samples     {} objects x {} trajectories x {} instances = {}",
-        c.objects.len(),
-        s.trajectories_per_object,
-        s.instances_per_trajectory,
-        plan.total_samples()
-    ));
+    match crate::plan::EpisodeTimeline::of(c) {
+        None => line(format!(
+            "samples     {} objects x {} trajectories x {} instances = {}",
+            c.objects.len(),
+            s.trajectories_per_object,
+            s.instances_per_trajectory,
+            plan.total_samples()
+        )),
+        Some(t) => {
+            let hz = |steps: u64| 1.0 / (steps as f64 * t.timestep);
+            let seconds = t.steps as f64 * t.timestep;
+            line(format!(
+                "episodes    {} objects x {} trajectories, each {} arm moves = {seconds:.2} s: {} camera frames (samples) at {:.1} Hz, touch at {:.1} Hz, state at {:.1} Hz",
+                c.objects.len(),
+                s.trajectories_per_object,
+                s.instances_per_trajectory,
+                t.frames,
+                hz(t.periods.camera),
+                hz(t.periods.tactile),
+                hz(t.periods.state)
+            ));
+            let (low, high) = crate::plan::bytes_per_sample(c);
+            line(format!(
+                "            about {} to {} per second of episode from the camera alone (estimate; `vtgen bench` measures it with the touch)",
+                human_bytes(low * hz(t.periods.camera)),
+                human_bytes(high * hz(t.periods.camera))
+            ));
+        }
+    }
     for (i, split) in SPLITS.iter().enumerate() {
         let shards = plan.shards.iter().filter(|x| x.split == *split).count();
         line(format!("{split:<11} {} samples in {shards} shard(s) of up to {}", plan.samples_per_split[i], plan.samples_per_shard));

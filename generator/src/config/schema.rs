@@ -633,9 +633,9 @@ impl RecordConfig {
                     "{hz} Hz is not a whole number of physics steps ({timestep} s each): {:.1} Hz ({steps} steps) is",
                     1.0 / (steps as f64 * timestep)
                 ));
-            } else if key != key!(self.camera_hz) && p.camera % steps != 0 {
+            } else if key != key!(self.camera_hz) && !p.camera.is_multiple_of(steps) {
                 c.key(key).fail(format!("{hz} Hz must be a whole multiple of camera_hz ({} Hz)", self.camera_hz));
-            } else if key == key!(self.state_hz) && p.tactile % steps != 0 {
+            } else if key == key!(self.state_hz) && !p.tactile.is_multiple_of(steps) {
                 c.key(key).fail(format!("{hz} Hz must be a whole multiple of tactile_hz ({} Hz)", self.tactile_hz));
             }
         }

@@ -34,6 +34,9 @@ pub struct InstanceState {
     pub penetration: f64,
 }
 
+/// What a held attempt recorded: its instances and (episodes) its steps.
+type Recorded = (Vec<InstanceState>, Vec<InstanceState>);
+
 #[derive(Debug, Clone)]
 pub struct Trajectory {
     pub instances: Vec<InstanceState>,
@@ -291,7 +294,7 @@ fn attempt_trajectory(
     key: TrajectoryKey,
     attempt: u32,
     events: &mut Vec<GraspEvent>,
-) -> Result<std::result::Result<(Vec<InstanceState>, Vec<InstanceState>), Failure>> {
+) -> Result<std::result::Result<Recorded, Failure>> {
     let cfg = ctx.config;
     let rng = &mut SampleStream::trajectory(key.seed, key.object_id, key.trajectory, &format!("grasp/{attempt}"));
     let t_world_palm = ctx.sample_palm(rng);
@@ -485,7 +488,7 @@ fn record_instances(
     mut q: Vec<f64>,
     grasped: DAffine3,
     events: &mut Vec<GraspEvent>,
-) -> Result<std::result::Result<(Vec<InstanceState>, Vec<InstanceState>), Failure>> {
+) -> Result<std::result::Result<Recorded, Failure>> {
     let mut out = Vec::with_capacity(key.instances as usize);
     let mut steps = Vec::new();
     let mut log = ctx.record_steps.then_some(StepLog { steps: &mut steps, grasped });
