@@ -58,7 +58,7 @@ struct Channels {
 pub(crate) const SAMPLE_INFO_SCHEMA: &str = r#"{"title":"vtgen.SampleInfo","type":"object","properties":{"split":{"type":"string"},"index":{"type":"integer"},"object_id":{"type":"string"},"object_index":{"type":"integer"},"mask_id":{"type":"integer"},"trajectory":{"type":"integer"},"instance":{"type":"integer"},"randomized":{"type":"boolean"},"visible_pixels":{"type":"integer"},"T_world_camera":{"type":"object"},"T_camera_object":{"type":"object"}},"required":["split","index","object_id","trajectory","instance"]}"#;
 
 /// JSON schema of `/episode/state` (FORMAT.md, "Episodes").
-pub(crate) const STATE_RECORD_SCHEMA: &str = r#"{"title":"vtgen.StateRecord","type":"object","properties":{"time_s":{"type":"number"},"joint_positions":{"type":"object"},"T_world_object":{"type":"object"},"T_camera_object":{"type":"object"},"T_world_palm":{"type":"object"},"linear_velocity":{"type":"array"},"angular_velocity":{"type":"array"},"phalanges_in_contact":{"type":"array"}},"required":["time_s","joint_positions","T_world_object","T_camera_object"]}"#;
+pub(crate) const STATE_RECORD_SCHEMA: &str = r#"{"title":"vtgen.StateRecord","type":"object","properties":{"time_s":{"type":"number"},"joint_positions":{"type":"object"},"T_world_object":{"type":"object"},"T_camera_object":{"type":"object"},"T_world_palm":{"type":"object"},"linear_velocity":{"type":"array","items":{"type":"number"}},"angular_velocity":{"type":"array","items":{"type":"number"}},"phalanges_in_contact":{"type":"array","items":{"type":"string"}}},"required":["time_s","joint_positions","T_world_object","T_camera_object"]}"#;
 
 pub struct ShardWriter {
     mcap: mcap::Writer<BufWriter<File>>,

@@ -565,7 +565,8 @@ impl<'a> SampleFactory<'a> {
             time_s: step as f64 * timeline.timestep,
             joint_positions: robot.robot.model.dof_names().iter().zip(&st.q).map(|(n, v)| (n.to_string(), *v)).collect(),
             t_world_object: pose_of(&now),
-            t_camera_object: pose_of(&(DAffine3::from_mat4(scene.t_world_camera.matrix()).inverse() * now)),
+            // As the frame's own `T_camera_object` is made, so the two agree to the last bit.
+            t_camera_object: scene.t_world_camera.inverse().compose(&pose_of(&now)),
             t_world_palm: pose_of(&(robot.t_world_base * st.t_base_palm)),
             linear_velocity: linear.to_array(),
             angular_velocity: angular.to_array(),

@@ -2,7 +2,9 @@
 
 Used by ``test_synthetic.py`` so the reader is tested without the Rust generator. The writer uses
 ``mcap.writer.Writer`` (zstd, one chunk per sample via ``Writer.flush``, mcap >= 1.5) and the
-Foxglove protobuf classes of the ``foxglove-schemas-protobuf`` package.
+Foxglove protobuf classes of the ``foxglove-schemas-protobuf`` package. ``write_episode_dataset``
+writes episode datasets (FORMAT.md, "Episodes": one shard per episode, one chunk per camera frame
+holding the frame and the later touch and state messages up to the next frame).
 """
 
 from __future__ import annotations
@@ -26,6 +28,8 @@ from mcap.writer import Writer as McapWriter
 from mcap_protobuf.schema import build_file_descriptor_set
 
 SAMPLE_PERIOD_NS = 100_000_000
+#: Episodes: the state stream (JSON, schema ``vtgen.StateRecord``).
+STATE_TOPIC = "/episode/state"
 OBJECT_ID = "test_cube"
 HEIGHT, WIDTH = 6, 8
 #: Pixels per side of a pad's depth image in the synthetic robot datasets.
@@ -72,10 +76,13 @@ class SyntheticSample:
     #: float32, ``phalanx`` (N,) uint32, ``depth`` (P, R, R) float32; with optical pads also
     #: ``images`` and ``references``, ``{pad: (H, W, 3) uint8}`` in pad order.
     tactile: Optional[Dict[str, Any]] = None
+    #: An episode frame's time since the episode's start (ns); a snapshot's log time is
+    #: ``index * SAMPLE_PERIOD_NS``.
+    time_ns: Optional[int] = None
 
     @property
     def log_time(self) -> int:
-        return self.index * SAMPLE_PERIOD_NS
+        return self.index * SAMPLE_PERIOD_NS if self.time_ns is None else self.time_ns
 
 
 def random_pose(rng: np.random.Generator) -> Pose:
@@ -233,7 +240,7 @@ def tactile_reference_topic(pad: str) -> str:
 
 
 def _tactile_messages(
-    tac: Dict[str, Any], t: int, optical_encoding: str = "rgb8"
+    tac: Dict[str, Any], t: int, optical_encoding: str = "rgb8", references: bool = True
 ) -> List[Tuple[str, bytes]]:
     data = bytearray()
     for p, d, k in zip(tac["points"], tac["distance"], tac["phalanx"]):
@@ -256,9 +263,8 @@ def _tactile_messages(
         out.append((tactile_topic(pad), msg.SerializeToString()))
     # As the Rust writer: after the depth images, each optical pad's image, then its reference.
     for pad, image in tac["images"].items():
-        for topic, array in (
-            (tactile_image_topic(pad), image),
-            (tactile_reference_topic(pad), tac["references"][pad]),
+        for topic, array in [(tactile_image_topic(pad), image)] + (
+            [(tactile_reference_topic(pad), tac["references"][pad])] if references else []
         ):
             msg = _raw_image(array, optical_encoding, t)
             msg.frame_id = f"{pad}_pad"
@@ -266,10 +272,13 @@ def _tactile_messages(
     return out
 
 
-def sample_messages(s: SyntheticSample, optical_encoding: str = "rgb8") -> List[Tuple[str, bytes]]:
+def sample_messages(
+    s: SyntheticSample, optical_encoding: str = "rgb8", references: bool = True
+) -> List[Tuple[str, bytes]]:
     """The (topic, payload) pairs of one sample, as FORMAT.md lists them.
 
-    ``optical_encoding`` is the encoding the optical pads' images claim (to test error reporting).
+    ``optical_encoding`` is the encoding the optical pads' images claim (to test error reporting);
+    ``references=False`` leaves the optical reference images out (an episode's frames after 0).
     """
     t = s.log_time
     calibration = CameraCalibration(
@@ -299,7 +308,11 @@ def sample_messages(s: SyntheticSample, optical_encoding: str = "rgb8") -> List[
         ("/object/pose", pose.SerializeToString()),
         ("/tf", tf.SerializeToString()),
         ("/sample/info", json.dumps(s.info, separators=(",", ":")).encode("utf-8")),
-    ] + (_tactile_messages(s.tactile, t, optical_encoding) if s.tactile is not None else [])
+    ] + (
+        _tactile_messages(s.tactile, t, optical_encoding, references)
+        if s.tactile is not None
+        else []
+    )
 
 
 _PROTOBUF_TOPICS = {
@@ -310,6 +323,62 @@ _PROTOBUF_TOPICS = {
     "/object/pose": PoseInFrame,
     "/tf": FrameTransforms,
 }
+
+
+def _register_channels(
+    writer: McapWriter, robot: Optional[Dict[str, Any]], episode: bool = False
+) -> Dict[str, int]:
+    """The channels of a shard, as the Rust writer adds them: the camera topics, ``/sample/info``,
+    with a robot (``robot``: a sample's tactile dict) the points, one depth channel per pad in the
+    pads' index order, then each optical pad's image and reference; in an episode
+    ``/episode/state`` last. Topic -> channel id."""
+    schema_ids: Dict[str, int] = {}
+    channels: Dict[str, int] = {}
+
+    def register(topic: str, cls: Any) -> None:
+        """A protobuf channel for `topic`, its schema registered once."""
+        name = cls.DESCRIPTOR.full_name
+        if name not in schema_ids:
+            schema_ids[name] = writer.register_schema(
+                name=name,
+                encoding="protobuf",
+                data=build_file_descriptor_set(cls).SerializeToString(),
+            )
+        channels[topic] = writer.register_channel(
+            topic=topic, message_encoding="protobuf", schema_id=schema_ids[name]
+        )
+
+    for topic, cls in _PROTOBUF_TOPICS.items():
+        register(topic, cls)
+    info_schema = writer.register_schema(
+        name="vtgen.SampleInfo",
+        encoding="jsonschema",
+        data=json.dumps({"type": "object"}).encode("utf-8"),
+    )
+    channels["/sample/info"] = writer.register_channel(
+        topic="/sample/info", message_encoding="json", schema_id=info_schema
+    )
+    if robot is not None:
+        for topic, cls in (
+            [("/tactile/points", PointCloud)]
+            + [(tactile_topic(p), RawImage) for p in robot["pads"]]
+            + [
+                (topic, RawImage)
+                for p in robot["images"]
+                for topic in (tactile_image_topic(p), tactile_reference_topic(p))
+            ]
+        ):
+            register(topic, cls)
+    if episode:
+        state_schema = writer.register_schema(
+            name="vtgen.StateRecord",
+            encoding="jsonschema",
+            data=json.dumps({"type": "object"}).encode("utf-8"),
+        )
+        channels[STATE_TOPIC] = writer.register_channel(
+            topic=STATE_TOPIC, message_encoding="json", schema_id=state_schema
+        )
+    return channels
 
 
 def write_shard(
@@ -334,44 +403,8 @@ def write_shard(
     with open(path, "wb") as f:
         writer = McapWriter(f, chunk_size=1 << 40, compression=CompressionType.ZSTD)
         writer.start(profile="", library="vtgen 0.1.0")
-        schema_ids: Dict[str, int] = {}
-        channels: Dict[str, int] = {}
-
-        def register(topic: str, cls: Any) -> None:
-            """A protobuf channel for `topic`, its schema registered once."""
-            name = cls.DESCRIPTOR.full_name
-            if name not in schema_ids:
-                schema_ids[name] = writer.register_schema(
-                    name=name,
-                    encoding="protobuf",
-                    data=build_file_descriptor_set(cls).SerializeToString(),
-                )
-            channels[topic] = writer.register_channel(
-                topic=topic, message_encoding="protobuf", schema_id=schema_ids[name]
-            )
-
-        for topic, cls in _PROTOBUF_TOPICS.items():
-            register(topic, cls)
-        info_schema = writer.register_schema(
-            name="vtgen.SampleInfo",
-            encoding="jsonschema",
-            data=json.dumps({"type": "object"}).encode("utf-8"),
-        )
-        channels["/sample/info"] = writer.register_channel(
-            topic="/sample/info", message_encoding="json", schema_id=info_schema
-        )
         robot = next((s.tactile for s in samples if s.tactile is not None), None)
-        if robot is not None:
-            for topic, cls in (
-                [("/tactile/points", PointCloud)]
-                + [(tactile_topic(p), RawImage) for p in robot["pads"]]
-                + [
-                    (topic, RawImage)
-                    for p in robot["images"]
-                    for topic in (tactile_image_topic(p), tactile_reference_topic(p))
-                ]
-            ):
-                register(topic, cls)
+        channels = _register_channels(writer, robot)
         for s in samples:
             messages = sample_messages(s, optical_encoding)
             if reverse_messages:
@@ -444,6 +477,57 @@ def write_ply(path: Path, vertices: np.ndarray, normals: np.ndarray, faces: np.n
     path.write_bytes(header.encode("ascii") + bytes(body))
 
 
+def _write_manifest_and_models(
+    root: Path, splits: Dict[str, Any], seed: int, robot: Optional[str]
+) -> None:
+    manifest = {
+        "format": "vtgen-dataset",
+        "format_version": 1,
+        "generator": "vtgen 0.1.0",
+        "seed": seed,
+        "config_sha256": "0" * 64,
+        "complete": True,
+        "splits": splits,
+    }
+    (root / "manifest.json").write_text(json.dumps(manifest, indent=2))
+    (root / "config.json").write_text(json.dumps({"robot": {"model": robot}} if robot else {}))
+    models = root / "models"
+    models.mkdir(exist_ok=True)
+    mesh = cube_mesh()
+    write_ply(models / f"{OBJECT_ID}.ply", mesh["vertices"], mesh["normals"], mesh["faces"])
+    (models / "models_info.json").write_text(
+        json.dumps(
+            {
+                "objects": [
+                    {
+                        "id": OBJECT_ID,
+                        "object_index": 0,
+                        "mask_id": 1,
+                        "symmetry": "discrete",
+                        "mass": 0.1,
+                        "extents": [0.1, 0.1, 0.1],
+                        "diameter": float(np.sqrt(3) * 0.1),
+                        "source": "procedural",
+                        "file": f"{OBJECT_ID}.ply",
+                    }
+                ]
+            }
+        )
+    )
+
+
+def _shard_entry(root: Path, rel: str, shard_index: int, first: int, count: int) -> Dict[str, Any]:
+    data = (root / rel).read_bytes()
+    return {
+        "file": rel,
+        "shard_index": shard_index,
+        "first_sample": first,
+        "samples": count,
+        "bytes": len(data),
+        "sha256": hashlib.sha256(data).hexdigest(),
+    }
+
+
 def write_dataset(
     root: Path,
     counts: Dict[str, int],
@@ -483,54 +567,227 @@ def write_dataset(
                 root / rel, split, shard_index, chunk, omit=shard_omit,
                 reverse_messages=reverse_messages, optical_encoding=optical_encoding,
             )
-            data = (root / rel).read_bytes()
-            shards.append(
-                {
-                    "file": rel,
-                    "shard_index": shard_index,
-                    "first_sample": first,
-                    "samples": len(chunk),
-                    "bytes": len(data),
-                    "sha256": hashlib.sha256(data).hexdigest(),
-                }
-            )
+            shards.append(_shard_entry(root, rel, shard_index, first, len(chunk)))
         splits[split] = {
             "samples": len(items),
             "samples_per_shard": samples_per_shard,
             "shards": shards,
         }
-    manifest = {
-        "format": "vtgen-dataset",
-        "format_version": 1,
-        "generator": "vtgen 0.1.0",
-        "seed": seed,
-        "config_sha256": "0" * 64,
-        "complete": True,
-        "splits": splits,
-    }
-    (root / "manifest.json").write_text(json.dumps(manifest, indent=2))
-    (root / "config.json").write_text(json.dumps({"robot": {"model": robot}} if robot else {}))
-    models = root / "models"
-    models.mkdir(exist_ok=True)
-    mesh = cube_mesh()
-    write_ply(models / f"{OBJECT_ID}.ply", mesh["vertices"], mesh["normals"], mesh["faces"])
-    (models / "models_info.json").write_text(
-        json.dumps(
+    _write_manifest_and_models(root, splits, seed, robot)
+    return samples
+
+
+# --- episodes (FORMAT.md, "Episodes") ------------------------------------------------------------
+
+
+@dataclass
+class SyntheticEpisode:
+    """One episode as written: its frames (``SyntheticSample`` with ``time_ns``), every state
+    record and every touch reading ``(time_ns, value)`` in time order (a frame's own reading is its
+    sample's ``tactile``, the same dict), the frame times and the ``vtgen.shard`` episode record."""
+
+    split: str
+    shard_index: int
+    first_sample: int
+    frames: List[SyntheticSample]
+    states: List[Tuple[int, Dict[str, Any]]]
+    touches: List[Tuple[int, Dict[str, Any]]]
+    record: Dict[str, Any]
+    #: The optical pads' reference images (written once, with frame 0).
+    references: Dict[str, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def times(self) -> List[int]:
+        return [f.log_time for f in self.frames]
+
+
+def _pose_json(pose: Pose) -> Dict[str, List[float]]:
+    return {"position": list(pose[0]), "orientation": list(pose[1])}
+
+
+def make_episode(
+    split: str,
+    shard_index: int,
+    frames: int,
+    rng: np.random.Generator,
+    *,
+    robot: str = "ur5e_allegro",
+    optical: Sequence[str] = (),
+    camera_period: int = 4,
+    tactile_period: int = 2,
+    state_period: int = 1,
+    timestep_ns: int = 4_166_700,
+    tail_steps: int = 0,
+) -> SyntheticEpisode:
+    """An episode of ``frames`` camera frames, one every ``camera_period`` steps of
+    ``timestep_ns``; touch every ``tactile_period`` steps and states every ``state_period`` steps
+    from step 0 to the episode's end, ``tail_steps`` after the last frame. FORMAT.md wants the
+    periods to divide the camera's; others test the readers' alignment rule."""
+    spec = ROBOTS[robot]
+    first = shard_index * frames
+    steps = (frames - 1) * camera_period + tail_steps
+    samples: List[SyntheticSample] = []
+    for k in range(frames):
+        sample = make_sample(split, first + k, rng, robot, optical)
+        sample.time_ns = k * camera_period * timestep_ns
+        sample.info.update(
             {
-                "objects": [
-                    {
-                        "id": OBJECT_ID,
-                        "object_index": 0,
-                        "mask_id": 1,
-                        "symmetry": "discrete",
-                        "mass": 0.1,
-                        "extents": [0.1, 0.1, 0.1],
-                        "diameter": float(np.sqrt(3) * 0.1),
-                        "source": "procedural",
-                        "file": f"{OBJECT_ID}.ply",
-                    }
-                ]
+                "trajectory": shard_index,
+                "instance": k,
+                "randomized": True,
+                "episode": {
+                    "frame": k,
+                    "time_s": sample.time_ns / 1e9,
+                    "arm_move": (2 * k) // frames,
+                },
             }
         )
-    )
-    return samples
+        samples.append(sample)
+    references = dict(samples[0].tactile["references"]) if samples[0].tactile else {}
+    for sample in samples[1:]:  # every image of the episode has frame 0's reference
+        if sample.tactile is not None:
+            sample.tactile["references"] = references
+    states: List[Tuple[int, Dict[str, Any]]] = []
+    touches: List[Tuple[int, Dict[str, Any]]] = []
+    for step in range(steps + 1):
+        t = step * timestep_ns
+        frame = samples[step // camera_period] if step % camera_period == 0 else None
+        if step % state_period == 0:
+            if frame is not None:  # the state of a frame's instant is the frame's
+                info = frame.info
+                record = {
+                    "time_s": t / 1e9,
+                    "joint_positions": dict(info["joint_positions"]),
+                    "T_world_object": _pose_json(frame.world_object),
+                    "T_camera_object": _pose_json(frame.camera_object),
+                    "T_world_palm": info["T_world_palm"],
+                    "phalanges_in_contact": list(info["phalanges_in_contact"]),
+                }
+            else:
+                record = {
+                    "time_s": t / 1e9,
+                    "joint_positions": {j: float(rng.uniform(-1, 1)) for j in spec["joints"]},
+                    "T_world_object": _pose_json(random_pose(rng)),
+                    "T_camera_object": _pose_json(random_pose(rng)),
+                    "T_world_palm": _pose_json(random_pose(rng)),
+                    "phalanges_in_contact": list(spec["pads"][:2]),
+                }
+            twist = [0.0] * 6 if step == 0 else rng.uniform(-0.5, 0.5, size=6).tolist()
+            record["linear_velocity"], record["angular_velocity"] = twist[:3], twist[3:]
+            states.append((t, record))
+        if frame is not None:
+            touches.append((t, frame.tactile))
+        elif step % tactile_period == 0:
+            touches.append((t, make_tactile(spec["pads"], rng, optical)))
+    physics_hz = 1e9 / timestep_ns
+    record = {
+        "object_id": OBJECT_ID,
+        "trajectory": shard_index,
+        "frames": frames,
+        "duration_s": steps * timestep_ns / 1e9,
+        "physics_hz": physics_hz,
+        "camera_hz": physics_hz / camera_period,
+        "tactile_hz": physics_hz / tactile_period,
+        "state_hz": physics_hz / state_period,
+        "camera_period_steps": camera_period,
+        "tactile_period_steps": tactile_period,
+        "state_period_steps": state_period,
+    }
+    return SyntheticEpisode(split, shard_index, first, samples, states, touches, record, references)
+
+
+def write_episode_shard(
+    path: Path,
+    episode: SyntheticEpisode,
+    *,
+    reverse_messages: bool = False,
+    record: Optional[Dict[str, Any]] = None,
+    omit: Optional[Tuple[int, str]] = None,
+) -> None:
+    """Write an episode shard as FORMAT.md's "Episodes" describes it: one zstd chunk per frame,
+    the frame's messages at its instant (the optical references only in frame 0; its state last),
+    then the later states and touch readings up to the next frame, in time order (a state before a
+    touch reading of the same time). ``reverse_messages`` writes each chunk's messages in reverse
+    order; ``record`` replaces the ``episode`` metadata record; ``omit=(frame, topic)`` leaves that
+    message of the frame's instant out."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    times = episode.times
+    with open(path, "wb") as f:
+        writer = McapWriter(f, chunk_size=1 << 40, compression=CompressionType.ZSTD)
+        writer.start(profile="", library="vtgen 0.1.0")
+        channels = _register_channels(writer, episode.frames[0].tactile, episode=True)
+        states = dict(episode.states)
+        touches = dict(episode.touches)
+        later_times = sorted(set(states) | set(touches))
+        for k, frame in enumerate(episode.frames):
+            t0 = times[k]
+            end = times[k + 1] if k + 1 < len(times) else None
+            messages: List[Tuple[int, str, bytes]] = [
+                (t0, topic, payload)
+                for topic, payload in sample_messages(frame, references=(k == 0))
+                if omit != (k, topic)
+            ]
+            if t0 in states and omit != (k, STATE_TOPIC):
+                messages.append((t0, STATE_TOPIC, json.dumps(states[t0]).encode("utf-8")))
+            for t in later_times:
+                if t <= t0 or (end is not None and t >= end):
+                    continue
+                if t in states:
+                    messages.append((t, STATE_TOPIC, json.dumps(states[t]).encode("utf-8")))
+                if t in touches:
+                    messages += [
+                        (t, topic, payload)
+                        for topic, payload in _tactile_messages(touches[t], t, references=False)
+                    ]
+            if reverse_messages:
+                messages.reverse()
+            for t, topic, payload in messages:
+                writer.add_message(channel_id=channels[topic], log_time=t, publish_time=t, data=payload)
+            writer.flush()  # one chunk per frame
+        writer.add_metadata(
+            "vtgen.shard",
+            {
+                "format_version": "1",
+                "generator": "vtgen 0.1.0",
+                "seed": "7",
+                "config_sha256": "0" * 64,
+                "split": episode.split,
+                "shard_index": str(episode.shard_index),
+                "first_sample": str(episode.first_sample),
+                "sample_count": str(len(episode.frames)),
+                "episode": json.dumps(episode.record if record is None else record),
+            },
+        )
+        writer.finish()
+
+
+def write_episode_dataset(
+    root: Path,
+    episodes: Dict[str, int],
+    frames: int,
+    seed: int = 0,
+    *,
+    robot: str = "ur5e_allegro",
+    optical: Sequence[str] = (),
+    reverse_messages: bool = False,
+    **timing: int,
+) -> Dict[str, List[SyntheticEpisode]]:
+    """Write a complete episode dataset: ``episodes[split]`` episodes of ``frames`` frames each,
+    one shard per episode (``samples_per_shard`` = ``frames``). ``timing``: :func:`make_episode`'s
+    ``camera_period``, ``tactile_period``, ``state_period``, ``timestep_ns``, ``tail_steps``."""
+    rng = np.random.default_rng(seed)
+    root.mkdir(parents=True, exist_ok=True)
+    out: Dict[str, List[SyntheticEpisode]] = {}
+    splits: Dict[str, Any] = {}
+    for split, n in episodes.items():
+        out[split] = []
+        shards = []
+        for j in range(n):
+            episode = make_episode(split, j, frames, rng, robot=robot, optical=optical, **timing)
+            rel = f"{split}/shard-{j:05d}.mcap"
+            write_episode_shard(root / rel, episode, reverse_messages=reverse_messages)
+            shards.append(_shard_entry(root, rel, j, episode.first_sample, frames))
+            out[split].append(episode)
+        splits[split] = {"samples": n * frames, "samples_per_shard": frames, "shards": shards}
+    _write_manifest_and_models(root, splits, seed, robot)
+    return out

@@ -69,8 +69,9 @@ class EpisodeDataset:
       ``(K,)`` int64 frame indices in the episode, ``index`` ``(K,)`` int64 sample indices in the
       split (``vtdata.Dataset`` indices), ``time_ns`` ``(K,)`` int64 and ``time_s`` ``(K,)``
       float64 the frames' simulated times since the episode's start.
-    - ``rgb`` ``(K, H, W, 3)`` uint8; ``depth`` ``(K, H, W)`` float32; ``depth_noisy`` (only if
-      the dataset has it) ``(K, H, W)`` float32; ``mask`` ``(K, H, W)`` uint8.
+    - ``rgb`` ``(K, H, W, 3)`` uint8; ``depth`` ``(K, H, W)`` float32; ``depth_noisy`` ``(K, H,
+      W)`` float32 (a dataset without a depth noise model raises :class:`vtdata.DatasetError`);
+      ``mask`` ``(K, H, W)`` uint8.
     - ``pose``: ``K`` ``(K, 3, 3)`` float64 intrinsics and ``T_camera_object``,
       ``T_world_camera``, ``T_world_object`` ``(K, 4, 4)`` float64, of each frame.
     - ``tactile``: ``{"time_ns": (K,) int64, "depth": (K, P, R, R) float32, "counts": (K, P)

@@ -159,6 +159,9 @@ export const OPTICAL_INFO_KEYS = [
   "noise_std",
 ];
 
+/** The name of the per-shard metadata record. */
+export const SHARD_METADATA = "vtgen.shard";
+
 export const SHARD_METADATA_KEYS = [
   "format_version",
   "generator",
@@ -180,3 +183,92 @@ export const POINT_FIELDS: [string, number, string][] = [
   ["phalanx", 16, "UINT32"],
 ];
 export const POINT_STRIDE = 20;
+
+// Episodes (FORMAT.md, "Episodes"): with `sampling.record`, each trajectory is one shard; each
+// chunk is one camera frame: the frame's messages at its instant (every topic above, the optical
+// references only in frame 0, and the state of that instant), then the touch readings and states
+// up to the next frame. Log times are simulated time since the episode's start (ns).
+
+/** The `vtgen.shard` key whose presence makes a shard an episode; its value is a JSON record. */
+export const EPISODE_METADATA_KEY = "episode";
+
+/** The keys of the `vtgen.shard` `episode` record (the rates as recorded: physics steps per period). */
+export const EPISODE_RECORD_KEYS = [
+  "object_id",
+  "trajectory",
+  "frames",
+  "duration_s",
+  "physics_hz",
+  "camera_hz",
+  "tactile_hz",
+  "state_hz",
+  "camera_period_steps",
+  "tactile_period_steps",
+  "state_period_steps",
+];
+
+/** The state stream of an episode (JSON, schema `vtgen.StateRecord`). */
+export const EPISODE_STATE_TOPIC = "/episode/state";
+
+/** Topics an episode shard adds: topic -> schema name (`json`). */
+export const EPISODE_TOPICS: Record<string, string> = {
+  [EPISODE_STATE_TOPIC]: "json",
+};
+
+/** The keys of an `/episode/state` record. */
+export const STATE_RECORD_KEYS = [
+  "time_s",
+  "joint_positions",
+  "T_world_object",
+  "T_camera_object",
+  "T_world_palm",
+  "linear_velocity",
+  "angular_velocity",
+  "phalanges_in_contact",
+];
+
+/** The keys of an episode frame's `/sample/info` `episode`. */
+export const SAMPLE_INFO_EPISODE_KEYS = ["frame", "time_s", "arm_move"];
+
+/** Whether `topic` may follow a frame's instant in its chunk: a touch topic (the points, a pad's
+ * depth image, an optical pad's image; not its reference) or the state. */
+export function isEpisodeStreamTopic(topic: string): boolean {
+  return (
+    topic === EPISODE_STATE_TOPIC ||
+    topic === "/tactile/points" ||
+    padOfTopic(topic) != undefined ||
+    opticalOfTopic(topic)?.kind === "image"
+  );
+}
+
+/** An episode's timing, from its `vtgen.shard` record. */
+export type EpisodeTiming = {
+  frames: number;
+  /** physics steps of the episode (its last step: `duration_s · physics_hz`) */
+  steps: number;
+  camera: number;
+  tactile: number;
+  state: number;
+  /** nanoseconds of physics step `s` (`round(s · timestep · 1e9)`; ±1 ns: the record holds
+   * `physics_hz`, not the timestep) */
+  stepNs: (s: number) => number;
+};
+
+export function episodeTiming(record: Record<string, unknown>): EpisodeTiming {
+  const num = (key: string): number => {
+    const v = record[key];
+    if (typeof v !== "number" || !Number.isFinite(v)) {
+      throw new Error(`vtgen.shard episode: ${key} is not a number (${JSON.stringify(v)})`);
+    }
+    return v;
+  };
+  const hz = num("physics_hz");
+  return {
+    frames: num("frames"),
+    steps: Math.round(num("duration_s") * hz),
+    camera: num("camera_period_steps"),
+    tactile: num("tactile_period_steps"),
+    state: num("state_period_steps"),
+    stepNs: (s: number) => (s * 1e9) / hz,
+  };
+}

@@ -172,3 +172,49 @@ export function frameReferences(layout: LayoutFile): FrameReference[] {
   }
   return refs;
 }
+
+/** A Plot panel's series: its topic and the message path after the topic (`.a.b[2]`). */
+export type PlotSeries = { panel: string; topic: string; path: string };
+
+/** Every series of every Plot panel. */
+export function plotSeries(layout: LayoutFile): PlotSeries[] {
+  const out: PlotSeries[] = [];
+  for (const [panel, config] of Object.entries(layout.configById)) {
+    if (panelType(panel) !== "Plot") {
+      continue;
+    }
+    for (const series of (config.paths ?? []) as { value?: unknown }[]) {
+      if (typeof series.value !== "string") {
+        throw new Error(`layout: Plot panel ${panel} has a series without a string "value"`);
+      }
+      const topic = topicOfPath(series.value);
+      out.push({ panel, topic, path: series.value.slice(topic.length) });
+    }
+  }
+  return out;
+}
+
+/**
+ * The value a Foxglove message path (the part after the topic: `.field`, `[index]`, in any
+ * sequence, e.g. `.T_world_object.position[2]`) picks out of a decoded message; undefined when a
+ * field or index is missing. Throws on syntax this subset does not cover (filters, slices,
+ * variables), so a layout that uses them is noticed.
+ */
+export function valueAtPath(message: unknown, path: string): unknown {
+  let value: unknown = message;
+  let rest = path;
+  while (rest.length > 0) {
+    const field = /^\.([A-Za-z_][A-Za-z0-9_]*)/.exec(rest);
+    const index = /^\[(\d+)\]/.exec(rest);
+    if (field != undefined) {
+      value = typeof value === "object" && value != null && !Array.isArray(value) ? (value as Record<string, unknown>)[field[1]!] : undefined;
+      rest = rest.slice(field[0].length);
+    } else if (index != undefined) {
+      value = Array.isArray(value) ? value[Number(index[1])] : undefined;
+      rest = rest.slice(index[0].length);
+    } else {
+      throw new Error(`message path ${JSON.stringify(path)}: ${JSON.stringify(rest)} is not .field or [index]`);
+    }
+  }
+  return value;
+}

@@ -62,8 +62,11 @@ export function decodeRgb8(value: Record<string, unknown>, where: string): RgbIm
  * its `/tactile/<pad>/depth` channels) is given, every optical pad must be one of them; when
  * `/sample/info` has `tactile.optical`, it must list exactly these pads, each at its `image_size`
  * (`[width, height]`). Throws an Error naming `where` and the topic otherwise.
+ *
+ * `first`: in an episode (FORMAT.md, "Episodes") the references are written once, with frame 0;
+ * the other frames take a missing reference from `first`, frame 0's sample.
  */
-export function readOpticalImages(sample: Sample, where: string, pads?: readonly string[]): OpticalImages {
+export function readOpticalImages(sample: Sample, where: string, pads?: readonly string[], first?: Sample): OpticalImages {
   const found: { pad: string; channelId: number }[] = [];
   const references = new Set<string>();
   for (const [topic, list] of sample) {
@@ -108,11 +111,12 @@ export function readOpticalImages(sample: Sample, where: string, pads?: readonly
   for (const pad of optical) {
     const imageTopic = padImageTopic(pad);
     const referenceTopic = padReferenceTopic(pad);
-    if (!sample.has(referenceTopic)) {
-      throw new Error(`${where}: ${imageTopic} without its ${referenceTopic}`);
+    const holder = sample.has(referenceTopic) ? sample : first?.has(referenceTopic) ? first : undefined;
+    if (holder == undefined) {
+      throw new Error(`${where}: ${imageTopic} without its ${referenceTopic}${first != undefined ? " (nor has the episode's frame 0)" : ""}`);
     }
     const image = decodeRgb8(single(sample, imageTopic, where).value, `${where} ${imageTopic}`);
-    const reference = decodeRgb8(single(sample, referenceTopic, where).value, `${where} ${referenceTopic}`);
+    const reference = decodeRgb8(single(holder, referenceTopic, where).value, `${where} ${referenceTopic}`);
     if (reference.width !== image.width || reference.height !== image.height) {
       throw new Error(
         `${where}: ${referenceTopic} is ${reference.width}x${reference.height}, its image ${image.width}x${image.height}`,

@@ -7,7 +7,7 @@ import { describe, it } from "node:test";
 
 import { checkSceneModels, type ModelInfo, type Obj, type Sample } from "../src/checks.js";
 import { checkJsonSchema } from "../src/foxglove.js";
-import { checkLayout, topicOfPath, topicReferences } from "../src/layout.js";
+import { checkLayout, plotSeries, topicOfPath, topicReferences, valueAtPath } from "../src/layout.js";
 import type { Decoded } from "../src/shard.js";
 
 /** A GLB of an axis-aligned box centred at the origin; `yUp` stores object-frame (x, y, z) as glTF (x, z, -y). */
@@ -194,6 +194,29 @@ describe("layout checks", () => {
       ["/tactile/points scene", "/camera/rgb image", "/camera/calibration calibration", "/sample/info raw"],
     );
     assert.equal(topicOfPath("/tactile/ff_distal/depth"), "/tactile/ff_distal/depth");
+  });
+
+  it("reads Plot series and evaluates their message paths as Foxglove does (.field, [index])", () => {
+    const layout = checkLayout({
+      ...base,
+      configById: {
+        "Plot!p": { paths: [{ value: "/episode/state.T_world_object.position[2]" }, { value: "/episode/state.linear_velocity[0]" }] },
+      },
+      layout: "Plot!p",
+    });
+    assert.deepEqual(plotSeries(layout), [
+      { panel: "Plot!p", topic: "/episode/state", path: ".T_world_object.position[2]" },
+      { panel: "Plot!p", topic: "/episode/state", path: ".linear_velocity[0]" },
+    ]);
+    assert.deepEqual(topicReferences(layout).map((r) => `${r.topic} ${r.use}`), ["/episode/state raw", "/episode/state raw"]);
+    const state = { T_world_object: { position: [0.1, 0.2, 0.3] }, linear_velocity: [1, 2, 3] };
+    assert.equal(valueAtPath(state, ".T_world_object.position[2]"), 0.3);
+    assert.equal(valueAtPath(state, ".linear_velocity[0]"), 1);
+    assert.equal(valueAtPath(state, ".linear_velocity[3]"), undefined);
+    assert.equal(valueAtPath(state, ".angular_velocity[0]"), undefined);
+    assert.equal(valueAtPath(state, ".T_world_object.position.x"), undefined);
+    assert.throws(() => valueAtPath(state, ".linear_velocity[:]"), /not .field or \[index\]/);
+    assert.throws(() => plotSeries(checkLayout({ ...base, configById: { "Plot!p": { paths: [{}] } }, layout: "Plot!p" })), /without a string "value"/);
   });
 
   it("rejects a tree leaf without config, a config outside the tree, an unknown panel type", () => {

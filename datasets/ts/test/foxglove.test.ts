@@ -5,8 +5,12 @@
 // 3D panel will place them, and datasets/foxglove-layout.json held against the shards.
 //
 // Datasets: VTGEN_DATASET=<dataset dir or shard .mcap>[:<another>...], or VTGEN_BIN=<vtgen binary>
-// to generate VTGEN_SCENES (default scenes/tiny-hand.yaml:scenes/tiny-gripper.yaml:scenes/tiny.yaml)
-// into a temp dir.
+// to generate VTGEN_SCENES (default scenes/tiny-hand.yaml:scenes/tiny-gripper.yaml:scenes/tiny.yaml:
+// scenes/tiny-episode.yaml) into a temp dir.
+//
+// Episode shards (FORMAT.md, "Episodes": `vtgen.shard` has `episode`) are checked as Foxglove
+// plays them: each chunk is a camera frame (its messages at the chunk's first log time are the
+// sample) followed by the touch and /episode/state streams up to the next frame.
 // VTGEN_ALLOW_NO_SCENE_MODELS=1 turns a missing /scene/models topic into a skipped check.
 import assert from "node:assert/strict";
 import { execFileSync } from "node:child_process";
@@ -26,6 +30,15 @@ import {
 import {
   ALLEGRO_JOINT_COUNT,
   BASE_TOPICS,
+  EPISODE_METADATA_KEY,
+  EPISODE_RECORD_KEYS,
+  EPISODE_STATE_TOPIC,
+  EPISODE_TOPICS,
+  SAMPLE_INFO_EPISODE_KEYS,
+  STATE_RECORD_KEYS,
+  episodeTiming,
+  isEpisodeStreamTopic,
+  type EpisodeTiming,
   POINT_FIELDS,
   POINT_STRIDE,
   NOISE_TOPICS,
@@ -45,10 +58,10 @@ import {
   padsOf,
   robotTopics,
 } from "../src/format.js";
-import { checkSceneModels, obj, only, tfTree, unitQuaternion, type ModelInfo, type Obj } from "../src/checks.js";
-import { frameReferences, loadLayout, topicReferences, type LayoutFile } from "../src/layout.js";
+import { checkSceneModels, obj, only, tfTree, unitQuaternion, type ModelInfo, type Obj, type Sample } from "../src/checks.js";
+import { frameReferences, loadLayout, plotSeries, topicReferences, valueAtPath, type LayoutFile } from "../src/layout.js";
 import { readOpticalImages } from "../src/optical.js";
-import { readShard, type Decoded, type ShardData } from "../src/shard.js";
+import { frameTimeOf, readShard, type Decoded, type ShardData } from "../src/shard.js";
 
 // dist/test/foxglove.test.js -> datasets/ts -> datasets -> repository root
 const here = dirname(fileURLToPath(import.meta.url));
@@ -109,7 +122,9 @@ function datasets(): Dataset[] {
     throw new Error("set VTGEN_DATASET to a dataset (or shard), or VTGEN_BIN to a vtgen binary to generate one");
   }
   tempDir = mkdtempSync(join(tmpdir(), "vtgen-foxglove-"));
-  const scenes = (process.env.VTGEN_SCENES ?? "scenes/tiny-hand.yaml:scenes/tiny-gripper.yaml:scenes/tiny.yaml").split(delimiter);
+  const scenes = (
+    process.env.VTGEN_SCENES ?? "scenes/tiny-hand.yaml:scenes/tiny-gripper.yaml:scenes/tiny.yaml:scenes/tiny-episode.yaml"
+  ).split(delimiter);
   return scenes.map((scene) => {
     const out = join(tempDir!, basename(scene, ".yaml"));
     execFileSync(bin, ["generate", resolve(repoRoot, scene), "--out", out, "--quiet"], { stdio: "inherit" });
@@ -133,8 +148,73 @@ function isRobot(dataset: Dataset, shard: ShardData): boolean {
 /** The topics of every sample: with a robot, `/tactile/points`, the depth image of each of its
  * pads (`pads`, read from the shard: the robot's, not a fixed list) and the image and reference
  * image of each pad with an optical sensor (`optical`, read from the shard too). */
-function expectedTopics(robot: boolean, pads: readonly string[], noisy = false, optical: readonly string[] = []): Record<string, string> {
-  return { ...BASE_TOPICS, ...(robot ? robotTopics(pads, optical) : {}), ...(noisy ? NOISE_TOPICS : {}) };
+function expectedTopics(
+  robot: boolean,
+  pads: readonly string[],
+  noisy = false,
+  optical: readonly string[] = [],
+  episode = false,
+): Record<string, string> {
+  return {
+    ...BASE_TOPICS,
+    ...(robot ? robotTopics(pads, optical) : {}),
+    ...(noisy ? NOISE_TOPICS : {}),
+    ...(episode ? EPISODE_TOPICS : {}),
+  };
+}
+
+/** publish_time and every timestamp inside a message equal its log time (FORMAT.md). */
+function checkStamps(m: Decoded, where: string): void {
+  const t = m.logTime;
+  assert.equal(m.publishTime, t, `${where} ${m.topic}: publish_time != log_time`);
+  const v = m.value;
+  if ("timestamp" in v) {
+    assert.equal(toNanos(v.timestamp), t, `${where} ${m.topic}: timestamp != log_time`);
+  }
+  for (const tf of (v.transforms ?? []) as Obj[]) {
+    assert.equal(toNanos(tf.timestamp), t, `${where} ${m.topic}: transform timestamp != log_time`);
+  }
+  for (const entity of (v.entities ?? []) as Obj[]) {
+    assert.equal(toNanos(entity.timestamp), t, `${where} ${m.topic}: entity timestamp != log_time`);
+  }
+}
+
+/** `t` (ns) is physics step `s`'s time, to the nanosecond the rounding allows. */
+function atStep(t: bigint, s: number, timing: EpisodeTiming, what: string): void {
+  const want = timing.stepNs(s);
+  assert.ok(Math.abs(Number(t) - want) <= 1, `${what}: log time ${t} ns, step ${s} is at ${want.toFixed(1)} ns`);
+}
+
+/** The physics step of log time `t` (ns). */
+const stepOf = (t: bigint, timing: EpisodeTiming): number => Math.round(Number(t) / timing.stepNs(1));
+
+/** The frame (its sample) whose chunk holds log time `t`. */
+function frameOf(shard: ShardData, t: bigint): Sample {
+  const frame = frameTimeOf([...shard.frames.keys()], t);
+  assert.ok(frame != undefined, `log time ${t} is before the shard's first chunk`);
+  return shard.frames.get(frame)!;
+}
+
+/** Row-major 3x3 rotation of a quaternion (x, y, z, w). */
+function rotation(q: number[]): number[] {
+  const [x, y, z, w] = q as [number, number, number, number];
+  return [
+    1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w),
+    2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w),
+    2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y),
+  ];
+}
+
+/** Two poses `{position, orientation}` agree: positions within `tp`, rotations (not quaternion
+ * signs) within `tr` per matrix entry. */
+function samePose(a: Obj, b: Obj, tp: number, tr: number, what: string): void {
+  const pa = a.position as number[];
+  const pb = b.position as number[];
+  pa.forEach((v, k) => assert.ok(Math.abs(v - pb[k]!) <= tp, `${what}: position ${JSON.stringify(pa)} != ${JSON.stringify(pb)}`));
+  const ra = rotation(a.orientation as number[]);
+  const rb = rotation(b.orientation as number[]);
+  const worst = Math.max(...ra.map((v, k) => Math.abs(v - rb[k]!)));
+  assert.ok(worst <= tr, `${what}: rotations differ by ${worst.toExponential(2)} (> ${tr})`);
 }
 
 /** The `phalanx` field (the pad index) of every point of a /tactile/points message. */
@@ -204,6 +284,10 @@ describe("datasets/foxglove-layout.json", () => {
       refs.some((r) => r.use === "image" && opticalOfTopic(r.topic)?.kind === "image"),
       "the layout shows no optical pad image (/tactile/<pad>/image)",
     );
+    assert.ok(
+      plotSeries(layout).some((series) => series.topic === EPISODE_STATE_TOPIC),
+      `the layout plots nothing of ${EPISODE_STATE_TOPIC} (episodes)`,
+    );
     const threeD = Object.entries(layout.configById).filter(([id]) => id.startsWith("3D!"));
     assert.equal(threeD.length, 1, "one 3D panel");
     assert.ok(["camera", "world"].includes(String(threeD[0]![1].followTf)), "the 3D panel follows camera or world");
@@ -233,12 +317,23 @@ for (const dataset of all) {
         /** The pads with an optical sensor, from the shard's /tactile/<pad>/image channels (pad order). */
         let optical: string[] = [];
         let allegro = false;
+        /** An episode shard's timing (FORMAT.md, "Episodes"); undefined for a snapshot shard. */
+        let episode: EpisodeTiming | undefined;
+        /** The shard's first sample (an episode's frame 0, which holds its optical references). */
+        let frame0: Sample;
         before(async () => {
           shard = await readShard(shardPath);
           robot = isRobot(dataset, shard);
           pads = padsOf([...shard.channels.values()].map((c) => c.channel));
           optical = opticalPadsOf([...shard.channels.values()].map((c) => c.channel));
           allegro = isAllegro(pads);
+          episode = shard.episode == undefined ? undefined : episodeTiming(shard.episode);
+          frame0 = shard.frames.values().next().value ?? new Map();
+        });
+        after(() => {
+          // A shard's decoded messages can be hundreds of MB (an episode's): keep one at a time.
+          shard = undefined as unknown as ShardData;
+          frame0 = new Map();
         });
 
         it("opens with McapIndexedReader: header, one zstd chunk per sample, vtgen.shard metadata", () => {
@@ -257,12 +352,42 @@ for (const dataset of all) {
           const first = BigInt(meta.get("first_sample")!);
           const count = Number(meta.get("sample_count"));
           assert.equal(shard.chunkIndexes.length, count, "chunks != samples");
-          const starts = shard.chunkIndexes.map((c) => c.messageStartTime).sort((a, b) => (a < b ? -1 : a > b ? 1 : 0));
-          shard.chunkIndexes.forEach((c) => {
-            assert.equal(c.compression, "zstd", "chunk compression");
-            assert.equal(c.messageStartTime, c.messageEndTime, "a chunk spans more than one sample");
+          const chunks = [...shard.chunkIndexes].sort((a, b) => (a.messageStartTime < b.messageStartTime ? -1 : a.messageStartTime > b.messageStartTime ? 1 : 0));
+          chunks.forEach((c) => assert.equal(c.compression, "zstd", "chunk compression"));
+          if (episode == undefined) {
+            assert.ok(!meta.has(EPISODE_METADATA_KEY));
+            chunks.forEach((c, k) => {
+              assert.equal(c.messageStartTime, c.messageEndTime, "a chunk spans more than one sample");
+              assert.equal(c.messageStartTime, (first + BigInt(k)) * SAMPLE_PERIOD_NS, `chunk ${k} log time`);
+            });
+            return;
+          }
+          // An episode: one chunk per camera frame, frame k at step k·c, time since the episode's
+          // start; each chunk runs up to (not into) the next frame's.
+          for (const key of EPISODE_RECORD_KEYS) {
+            assert.ok(key in shard.episode!, `vtgen.shard episode has no ${key}`);
+          }
+          const record = shard.episode!;
+          assert.equal(episode.frames, count, "episode frames != sample_count");
+          assert.equal(first, BigInt(meta.get("shard_index")!) * BigInt(count), "first_sample != shard_index · frames");
+          assert.equal(episode.frames, Math.floor(episode.steps / episode.camera) + 1, "frames != steps div camera period + 1");
+          for (const period of [episode.tactile, episode.state]) {
+            assert.ok(Number.isInteger(period) && period >= 1 && episode.camera % period === 0, `period ${period} does not divide the camera's (${episode.camera})`);
+          }
+          for (const [hz, period] of [["camera_hz", episode.camera], ["tactile_hz", episode.tactile], ["state_hz", episode.state]] as const) {
+            const want = (record.physics_hz as number) / period;
+            assert.ok(Math.abs((record[hz] as number) - want) <= 1e-9 * want, `${hz} ${String(record[hz])} != physics_hz / ${period}`);
+          }
+          assert.equal(chunks[0]!.messageStartTime, 0n, "frame 0 is not at the episode's start");
+          chunks.forEach((c, k) => {
+            atStep(c.messageStartTime, k * episode!.camera, episode!, `chunk ${k}`);
+            const next = chunks[k + 1];
+            if (next != undefined) {
+              assert.ok(c.messageEndTime < next.messageStartTime, `chunk ${k} (to ${c.messageEndTime} ns) runs into chunk ${k + 1} (${next.messageStartTime} ns)`);
+            } else {
+              assert.ok(stepOf(c.messageEndTime, episode!) <= episode!.steps, `the last chunk runs past the episode's end`);
+            }
           });
-          starts.forEach((t, k) => assert.equal(t, (first + BigInt(k)) * SAMPLE_PERIOD_NS, `chunk ${k} log time`));
         });
 
         it("every channel's schema parses as Foxglove parses it, with the FORMAT.md schema", () => {
@@ -274,9 +399,12 @@ for (const dataset of all) {
           }
           assert.deepEqual(problems, []);
           const expected: Record<string, string> = {
-            ...expectedTopics(robot, pads, shard.topics.has("/camera/depth_noisy"), optical),
+            ...expectedTopics(robot, pads, shard.topics.has("/camera/depth_noisy"), optical, episode != undefined),
             [SCENE_TOPIC]: SCENE_SCHEMA,
           };
+          if (episode != undefined) {
+            assert.ok(shard.topics.has(EPISODE_STATE_TOPIC), `an episode shard without ${EPISODE_STATE_TOPIC}`);
+          }
           for (const [topic, info] of shard.topics) {
             const want = expected[topic];
             assert.ok(want != undefined, `topic ${topic} is not in FORMAT.md`);
@@ -308,36 +436,81 @@ for (const dataset of all) {
           const meta = shard.metadata.get("vtgen.shard")!;
           const first = BigInt(meta.get("first_sample")!);
           const count = Number(meta.get("sample_count"));
-          const times = [...shard.samples.keys()];
-          assert.equal(times.length, count, "samples (distinct log times) != sample_count");
-          const topics = Object.keys(expectedTopics(robot, pads, shard.topics.has("/camera/depth_noisy"), optical));
+          const times = [...shard.frames.keys()];
+          assert.equal(times.length, count, "samples (chunks) != sample_count");
+          if (episode == undefined) {
+            assert.equal(shard.samples.size, count, "samples (distinct log times) != sample_count");
+          }
+          const topics = Object.keys(expectedTopics(robot, pads, shard.topics.has("/camera/depth_noisy"), optical, episode != undefined));
+          // An episode writes its optical references once, with frame 0.
+          const later = topics.filter((topic) => opticalOfTopic(topic)?.kind !== "reference");
+          let move = 0;
           times.forEach((t, k) => {
-            assert.equal(t, (first + BigInt(k)) * SAMPLE_PERIOD_NS, `sample ${k} log time`);
-            const sample = shard.samples.get(t)!;
-            for (const topic of topics) {
+            if (episode == undefined) {
+              assert.equal(t, (first + BigInt(k)) * SAMPLE_PERIOD_NS, `sample ${k} log time`);
+            } else {
+              atStep(t, k * episode.camera, episode, `frame ${k}`);
+            }
+            const sample = shard.frames.get(t)!;
+            const want = episode != undefined && k > 0 ? later : topics;
+            for (const topic of want) {
               assert.equal(sample.get(topic)?.length ?? 0, 1, `sample ${k}: ${topic} messages`);
             }
             for (const [topic, list] of sample) {
-              assert.ok(topics.includes(topic) || topic === SCENE_TOPIC, `sample ${k}: unexpected topic ${topic}`);
+              assert.ok(want.includes(topic) || topic === SCENE_TOPIC, `sample ${k}: unexpected topic ${topic}`);
               assert.ok(list.length === 1, `sample ${k}: ${list.length} messages on ${topic}`);
-              for (const m of list) {
-                assert.equal(m.publishTime, t, `${topic}: publish_time != log_time`);
-                const v = m.value;
-                if ("timestamp" in v) {
-                  assert.equal(toNanos(v.timestamp), t, `${topic}: timestamp != log_time`);
-                }
-                for (const tf of (v.transforms ?? []) as Obj[]) {
-                  assert.equal(toNanos(tf.timestamp), t, `${topic}: transform timestamp != log_time`);
-                }
-                for (const entity of (v.entities ?? []) as Obj[]) {
-                  assert.equal(toNanos(entity.timestamp), t, `${topic}: entity timestamp != log_time`);
-                }
-              }
+              list.forEach((m) => checkStamps(m, `sample ${k}`));
             }
             const info = only(sample, "/sample/info");
             assert.equal(BigInt(info.index as number), first + BigInt(k), `sample ${k}: /sample/info index`);
             assert.equal(info.split, meta.get("split"), `sample ${k}: /sample/info split`);
+            if (episode != undefined) {
+              const frame = obj(info.episode);
+              for (const key of SAMPLE_INFO_EPISODE_KEYS) {
+                assert.ok(key in frame, `frame ${k}: /sample/info episode has no ${key}`);
+              }
+              assert.equal(info.instance, k, `frame ${k}: /sample/info instance`);
+              assert.equal(frame.frame, k, `frame ${k}: /sample/info episode.frame`);
+              assert.ok(Math.abs((frame.time_s as number) - Number(t) / 1e9) <= 1e-9, `frame ${k}: episode.time_s ${String(frame.time_s)}`);
+              const arm = frame.arm_move as number;
+              assert.ok(Number.isInteger(arm) && arm >= move, `frame ${k}: arm_move ${arm} after ${move}`);
+              move = arm;
+            }
           });
+          if (episode == undefined) {
+            return;
+          }
+          // The streams: at each touch instant every touch topic once, at each state instant one
+          // state; between the frames nothing else; every instant of the episode present.
+          const touchTopics = later.filter((topic) => isEpisodeStreamTopic(topic) && topic !== EPISODE_STATE_TOPIC);
+          const touchSteps: number[] = [];
+          const stateSteps: number[] = [];
+          for (const [t, sample] of shard.samples) {
+            const where = `@ ${t} ns`;
+            if (!shard.frames.has(t)) {
+              for (const [topic, list] of sample) {
+                assert.ok(isEpisodeStreamTopic(topic), `${where}: ${topic} between frames (only touch and state)`);
+                assert.equal(list.length, 1, `${where}: ${list.length} messages on ${topic}`);
+                list.forEach((m) => checkStamps(m, where));
+              }
+            }
+            const step = stepOf(t, episode);
+            atStep(t, step, episode, where);
+            if (sample.has(EPISODE_STATE_TOPIC)) {
+              stateSteps.push(step);
+            }
+            if (touchTopics.some((topic) => sample.has(topic))) {
+              for (const topic of touchTopics) {
+                assert.equal(sample.get(topic)?.length ?? 0, 1, `${where}: ${topic} messages (a touch reading has every touch topic)`);
+              }
+              touchSteps.push(step);
+            }
+          }
+          const grid = (period: number): number[] => Array.from({ length: Math.floor(episode!.steps / period) + 1 }, (_, j) => j * period);
+          assert.deepEqual(stateSteps, grid(episode.state), "the steps with a state");
+          if (robot) {
+            assert.deepEqual(touchSteps, grid(episode.tactile), "the steps with a touch reading");
+          }
         });
 
         it("a robot's pads: a depth image each, the pads /sample/info lists, in the phalanx index's order", () => {
@@ -346,7 +519,7 @@ for (const dataset of all) {
             return;
           }
           assert.ok(pads.length > 0, "a robot shard without /tactile/<pad>/depth channels");
-          for (const [t, sample] of shard.samples) {
+          for (const [t, sample] of shard.frames) {
             const where = `sample @ ${t}`;
             const info = only(sample, "/sample/info");
             const tactile = obj(info.tactile);
@@ -366,11 +539,18 @@ for (const dataset of all) {
             assert.deepEqual(optical, [], "optical images without a robot");
             return;
           }
-          for (const [t, sample] of shard.samples) {
+          if (episode != undefined) {
+            // Written once, with frame 0: every image of the episode has that reference.
+            for (const pad of optical) {
+              const references = shard.messages.filter((m) => m.topic === `/tactile/${pad}/reference`);
+              assert.deepEqual(references.map((m) => m.logTime), [0n], `/tactile/${pad}/reference: once, with frame 0`);
+            }
+          }
+          for (const [t, sample] of shard.frames) {
             const where = `sample @ ${t}`;
             const info = only(sample, "/sample/info");
             const listed = obj(info.tactile).optical as Record<string, Obj> | undefined;
-            const { tactileImages, tactileReferences } = readOpticalImages(sample, where, pads);
+            const { tactileImages, tactileReferences } = readOpticalImages(sample, where, pads, episode != undefined ? frame0 : undefined);
             assert.deepEqual([...tactileImages.keys()], optical, `${where}: optical pads != the shard's /tactile/<pad>/image channels`);
             assert.deepEqual([...tactileReferences.keys()], optical, `${where}: reference pads`);
             if (optical.length === 0) {
@@ -417,7 +597,8 @@ for (const dataset of all) {
               // An optical pad's image or reference: the size /sample/info tactile.optical gives.
               const { pad } = opticalOfTopic(m.topic)!;
               assert.equal(img.frame_id, `${pad}_pad`, `${where}: frame_id`);
-              const info = only(shard.samples.get(m.logTime)!, "/sample/info");
+              // (an episode's touch between frames: the sensor of the frame whose chunk holds it)
+              const info = only(frameOf(shard, m.logTime), "/sample/info");
               const sensor = obj(obj(obj(info.tactile).optical)[pad]);
               assert.deepEqual(sensor.image_size, [img.width, img.height], `${where}: size != /sample/info tactile.optical.${pad}.image_size`);
             }
@@ -432,7 +613,7 @@ for (const dataset of all) {
         });
 
         it("CameraCalibration, PoseInFrame and PointCloud are what Foxglove needs", () => {
-          for (const [t, sample] of shard.samples) {
+          for (const [t, sample] of shard.frames) {
             const where = `sample @ ${t}`;
             const rgb = only(sample, "/camera/rgb");
             const cal = only(sample, "/camera/calibration") as {
@@ -453,9 +634,12 @@ for (const dataset of all) {
             const pose = only(sample, "/object/pose");
             assert.equal(pose.frame_id, "camera");
             unitQuaternion(obj(pose.pose).orientation, `${where}: /object/pose`);
-
-            if (robot) {
-              const cloud = only(sample, "/tactile/points");
+          }
+          if (robot) {
+            // Every touch reading's (an episode's between frames too).
+            for (const message of shard.messages.filter((m) => m.topic === "/tactile/points")) {
+              const where = `/tactile/points @ ${message.logTime}`;
+              const cloud = message.value;
               const type = shard.topics.get("/tactile/points")!.parsed as { kind: "protobuf"; type: import("protobufjs").Type };
               const fieldType = type.type.lookupType("foxglove.PackedElementField");
               assert.equal(cloud.frame_id, "camera", `${where}: point cloud frame`);
@@ -483,7 +667,7 @@ for (const dataset of all) {
         });
 
         it("/tf is one tree rooted at world holding every frame a message names", () => {
-          for (const [t, sample] of shard.samples) {
+          for (const [t, sample] of shard.frames) {
             const where = `sample @ ${t}`;
             const tree = tfTree(sample, where);
             const needed = new Set(["world", "camera", "object"]);
@@ -495,7 +679,8 @@ for (const dataset of all) {
               }
               pads.forEach((pad) => needed.add(`${pad}_pad`));
             }
-            for (const list of sample.values()) {
+            // (an episode frame's touch messages up to the next frame are drawn with its /tf)
+            for (const list of [...sample.values(), shard.later.get(t) ?? []]) {
               for (const m of list) {
                 if (typeof m.value.frame_id === "string") {
                   needed.add(m.value.frame_id);
@@ -513,11 +698,14 @@ for (const dataset of all) {
 
         it("/sample/info has the FORMAT.md keys and repeats /object/pose", () => {
           let joints: string | undefined;
-          for (const [t, sample] of shard.samples) {
+          for (const [t, sample] of shard.frames) {
             const where = `sample @ ${t}`;
             const info = only(sample, "/sample/info");
-            for (const key of [...SAMPLE_INFO_KEYS, ...(robot ? SAMPLE_INFO_ROBOT_KEYS : [])]) {
+            for (const key of [...SAMPLE_INFO_KEYS, ...(robot ? SAMPLE_INFO_ROBOT_KEYS : []), ...(episode != undefined ? ["episode"] : [])]) {
               assert.ok(key in info, `${where}: /sample/info has no ${key}`);
+            }
+            if (episode == undefined) {
+              assert.ok(!("episode" in info), `${where}: /sample/info episode in a snapshot shard`);
             }
             if (robot) {
               // The grasp holds with the description's grasp.min_touching links (>= 1; the Allegro's 2).
@@ -556,7 +744,57 @@ for (const dataset of all) {
           }
           assert.ok(scene != undefined, `no ${SCENE_TOPIC} topic (FORMAT: the object's mesh and the robot, once per shard)`);
           const updates = shard.messages.filter((m) => m.topic === SCENE_TOPIC);
-          checkSceneModels(shard.samples, updates, robot, models);
+          checkSceneModels(shard.frames, updates, robot, models);
+        });
+
+        it("/episode/state (episodes): the FORMAT.md record; at a frame's instant the frame's pose, joints and contacts", () => {
+          const states = shard.messages.filter((m) => m.topic === EPISODE_STATE_TOPIC);
+          if (episode == undefined) {
+            assert.equal(states.length, 0, `${EPISODE_STATE_TOPIC} in a snapshot shard`);
+            return;
+          }
+          assert.ok(states.length > 0, `no ${EPISODE_STATE_TOPIC} message`);
+          let joints: string | undefined;
+          for (const m of states) {
+            const where = `${EPISODE_STATE_TOPIC} @ ${m.logTime}`;
+            const state = m.value;
+            for (const key of STATE_RECORD_KEYS) {
+              assert.ok(key in state, `${where}: no ${key}`);
+            }
+            assert.ok(Math.abs((state.time_s as number) - Number(m.logTime) / 1e9) <= 1e-9, `${where}: time_s ${String(state.time_s)}`);
+            for (const key of ["T_world_object", "T_camera_object", "T_world_palm"]) {
+              const pose = obj(state[key]);
+              assert.equal((pose.position as number[]).length, 3, `${where}: ${key}.position`);
+              const [x, y, z, w] = pose.orientation as number[];
+              unitQuaternion({ x, y, z, w }, `${where}: ${key}`);
+            }
+            for (const key of ["linear_velocity", "angular_velocity"]) {
+              const v = state[key] as number[];
+              assert.ok(v.length === 3 && v.every(Number.isFinite), `${where}: ${key} ${JSON.stringify(v)}`);
+            }
+            const names = Object.keys(obj(state.joint_positions)).sort().join(",");
+            joints ??= names;
+            assert.equal(names, joints, `${where}: other joints than the first state's`);
+            if (m.logTime === 0n) {
+              assert.deepEqual([state.linear_velocity, state.angular_velocity], [[0, 0, 0], [0, 0, 0]], `${where}: the twist at step 0`);
+            }
+            const frame = shard.frames.get(m.logTime);
+            if (frame == undefined) {
+              continue;
+            }
+            // A frame's instant: the state is the frame's.
+            const info = only(frame, "/sample/info");
+            assert.deepEqual(state.joint_positions, info.joint_positions, `${where}: joint_positions != /sample/info's`);
+            assert.deepEqual(state.phalanges_in_contact, info.phalanges_in_contact, `${where}: phalanges_in_contact != /sample/info's`);
+            samePose(obj(state.T_world_palm), obj(info.T_world_palm), 1e-12, 1e-12, `${where}: T_world_palm vs /sample/info`);
+            // (/episode/state's T_camera_object rotation is within ~1e-7 of /object/pose's, not equal.)
+            samePose(obj(state.T_camera_object), obj(info.T_camera_object), 1e-9, 1e-6, `${where}: T_camera_object vs /sample/info`);
+            const tf = ((only(frame, "/tf").transforms ?? []) as Obj[]).find((x) => x.parent_frame_id === "world" && x.child_frame_id === "object");
+            assert.ok(tf != undefined, `${where}: no world -> object in /tf`);
+            const tr = obj(tf.translation) as { x: number; y: number; z: number };
+            const rot = obj(tf.rotation) as { x: number; y: number; z: number; w: number };
+            samePose(obj(state.T_world_object), { position: [tr.x, tr.y, tr.z], orientation: [rot.x, rot.y, rot.z, rot.w] }, 1e-12, 1e-12, `${where}: T_world_object vs /tf`);
+          }
         });
 
         it("datasets/foxglove-layout.json: every topic it shows is in the shard with a fitting schema, every frame in /tf", (t: TestContext) => {
@@ -585,6 +823,10 @@ for (const dataset of all) {
                 skipped.push(ref.topic);
                 continue;
               }
+              if (episode == undefined && ref.topic in EPISODE_TOPICS) {
+                skipped.push(`${ref.topic} (episodes only)`);
+                continue;
+              }
               assert.fail(`${ref.panel} shows ${ref.topic}, which is not in the shard`);
             }
             const fits =
@@ -594,7 +836,19 @@ for (const dataset of all) {
               : true;
             assert.ok(fits, `${ref.panel} uses ${ref.topic} (${schema}) as ${ref.use}`);
           }
-          const first = shard.samples.values().next().value as Map<string, Decoded[]>;
+          // Plot series: every message on the topic gives the series a number.
+          for (const series of plotSeries(layout)) {
+            if (!shard.topics.has(series.topic)) {
+              continue; // skipped above, or failed
+            }
+            const messages = shard.messages.filter((m) => m.topic === series.topic);
+            assert.ok(messages.length > 0, `${series.panel} plots ${series.topic}, which has no message`);
+            for (const m of messages) {
+              const value = valueAtPath(m.value, series.path);
+              assert.ok(typeof value === "number" && Number.isFinite(value), `${series.panel}: ${series.topic}${series.path} @ ${m.logTime} is ${JSON.stringify(value)}, not a number`);
+            }
+          }
+          const first = shard.frames.values().next().value as Map<string, Decoded[]>;
           const tree = tfTree(first, "first sample");
           for (const ref of frameReferences(layout)) {
             assert.ok(tree.frames.has(ref.frame), `${ref.panel} names frame ${ref.frame}, which is not in /tf`);

@@ -160,6 +160,24 @@ describe("readOpticalImages", () => {
     assert.throws(() => decodeRgb8({ ...rawImage(pixels(0), W, H), step: 14 }, "narrow"), /step 14 is smaller than a 5-pixel rgb8 row/);
   });
 
+  it("takes an episode frame's references from its frame 0", () => {
+    const frame0 = sample(["left", "right"], ["left", "right"]);
+    const later = sample(["left", "right"], ["left", "right"]);
+    later.delete(padReferenceTopic("left"));
+    later.delete(padReferenceTopic("right"));
+    assert.throws(() => readOpticalImages(later, "frame 3"), /frame 3: \/tactile\/left\/image without its \/tactile\/left\/reference$/);
+    const { tactileReferences } = readOpticalImages(later, "frame 3", ["left", "right"], frame0);
+    assert.deepEqual(tactileReferences.get("left")!.data, pixels(1));
+    assert.deepEqual(tactileReferences.get("right")!.data, pixels(3));
+    // A reference of its own wins; frame 0 without one is no help.
+    const own = sample(["left"], ["left"]);
+    own.set(padReferenceTopic("left"), [decoded(padReferenceTopic("left"), 13, rawImage(pixels(9), W, H))]);
+    assert.deepEqual(readOpticalImages(own, "f", undefined, frame0).tactileReferences.get("left")!.data, pixels(9));
+    const bare = sample(["left"], ["left"]);
+    bare.delete(padReferenceTopic("left"));
+    assert.throws(() => readOpticalImages(later, "f", undefined, bare), /without its \/tactile\/left\/reference \(nor has the episode's frame 0\)/);
+  });
+
   it("rejects a reference of another size", () => {
     const s = sample(["left"], ["left"]);
     s.set(padReferenceTopic("left"), [decoded(padReferenceTopic("left"), 13, rawImage(pixels(1, 4, 3), 4, 3))]);
