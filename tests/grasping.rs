@@ -281,6 +281,7 @@ fn most_held_objects_stay_still_while_the_arm_is_still() {
             timestep: pc.timestep,
             camera_position: DVec3::new(0.0, -0.75, 0.55),
             record_steps: false,
+            finger_gait: None,
         };
         for id in ["005_tomato_soup_can", "009_gelatin_box", "006_mustard_bottle"] {
             let entry = catalog.get(id).unwrap();

@@ -54,6 +54,7 @@ fn physics(c: &mut Criterion) {
         timestep: settings().timestep,
         camera_position: DVec3::new(0.0, -0.75, 0.55),
         record_steps: false,
+        finger_gait: None,
     };
     group.sample_size(10);
     group.bench_function("trajectory of 5 instances (soup can)", |b| {

@@ -170,6 +170,14 @@ impl LoadedConfig {
             if let Some((key, message)) = grasp.mismatch(&robot) {
                 return Err((vec!["robot", "grasp", key], message));
             }
+            let motion = loaded.config.sampling.record.as_ref().and_then(|r| r.finger_motion.as_ref());
+            for j in motion.iter().flat_map(|m| &m.joints) {
+                if !robot.hand.iter().any(|h| h.name == j.joint) {
+                    let hand: Vec<&str> = robot.hand.iter().map(|h| h.name.as_str()).collect();
+                    let message = format!("'{}' is not a hand joint of robot '{}' ({})", j.joint, robot.name, hand.join(", "));
+                    return Err((vec!["sampling", "record", "finger_motion", "joints"], message));
+                }
+            }
             loaded.config.robot.as_mut().expect("cloned above").grasp = grasp;
             loaded.robot = Some(robot);
         }

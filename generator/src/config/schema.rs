@@ -71,6 +71,7 @@ impl Config {
             None => at.fail("episodes record a grasp: the config needs a robot section"),
             Some(robot) => record.check_rates(robot.physics.timestep, &mut at),
         }
+        at.section(field!(record.finger_motion));
     }
 
     /// Object ids known or well-formed, custom masses in range, no object twice.
@@ -585,7 +586,7 @@ pub struct Sampling {
 /// `sampling.record`: the rates of an episode's streams. Each is a whole number of physics steps,
 /// the touch and state rates whole multiples of the camera's and the state's of the touch's, so
 /// every camera frame has the touch and the state of its own instant, and every touch its state.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct RecordConfig {
     /// The main camera: RGB, depth, mask (Hz).
@@ -595,11 +596,71 @@ pub struct RecordConfig {
     /// Joint states and the object's pose and twist (Hz); none: every physics step.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub state_hz: Option<f64>,
+    /// Scripted finger motion after each arm move (off unless given).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub finger_motion: Option<FingerMotion>,
 }
 
 impl Default for RecordConfig {
     fn default() -> Self {
-        RecordConfig { camera_hz: 30.0, tactile_hz: 60.0, state_hz: None }
+        RecordConfig { camera_hz: 30.0, tactile_hz: 60.0, state_hz: None, finger_motion: None }
+    }
+}
+
+/// `sampling.record.finger_motion`: after each arm move's hold, the listed hand joints swing about
+/// where they stand against the object, `q + amplitude · (sin(2π t / period + phase) − sin phase)`,
+/// for `cycles` periods, then squeeze again, while the arm stands still and the other joints keep
+/// squeezing: a finger gait that works the object in the hand. Each arm move then takes
+/// `cycles · period` longer.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FingerMotion {
+    #[serde(default = "default_gait_period")]
+    pub period_s: f64,
+    #[serde(default = "default_gait_cycles")]
+    pub cycles: u32,
+    pub joints: Vec<FingerJointMotion>,
+}
+
+fn default_gait_period() -> f64 {
+    0.5
+}
+fn default_gait_cycles() -> u32 {
+    2
+}
+
+/// One hand joint of a finger motion.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FingerJointMotion {
+    /// A hand joint of the robot's description (`hand[].joint`).
+    pub joint: String,
+    pub amplitude_deg: f64,
+    #[serde(default)]
+    pub phase_deg: f64,
+}
+
+impl Check for FingerMotion {
+    fn check(&self, c: &mut Checks) {
+        c.positive(field!(self.period_s), 60.0, "s");
+        c.range(field!(self.cycles), 1, 1000);
+        let joints_key = key!(self.joints);
+        if self.joints.is_empty() {
+            c.key(joints_key).fail("list at least one hand joint");
+        }
+        for (i, j) in self.joints.iter().enumerate() {
+            let mut joints = c.key(joints_key);
+            let mut at = joints.index(i);
+            at.range(field!(j.amplitude_deg), -90.0, 90.0);
+            at.range(field!(j.phase_deg), -360.0, 360.0);
+        }
+    }
+}
+
+impl FingerMotion {
+    /// Physics steps of the motion at `timestep`.
+    pub fn steps(&self, timestep: f64) -> usize {
+        (self.cycles as f64 * self.period_s / timestep).round() as usize
     }
 }
 

@@ -138,6 +138,46 @@ pub struct GraspContext<'a> {
     /// for episodes). Each arm move then also waits out its whole settle window, so that every
     /// move takes [`GraspContext::move_steps`] steps.
     pub record_steps: bool,
+    /// A scripted finger motion after each arm move's hold (episodes).
+    pub finger_gait: Option<FingerGait>,
+}
+
+/// `sampling.record.finger_motion` resolved to hand joints: after each arm move's hold, hand joint
+/// `j` (`Robot::hand` order) targets `q_j + a (sin(2π t / period + φ) − sin φ)` for `steps`
+/// physics steps, `q_j` its position when the motion starts (against the object: the grasp's
+/// targets lie beyond it, where a swing would not move the finger), then its grasp target again.
+/// The other hand joints keep squeezing.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FingerGait {
+    pub period: f64,
+    pub steps: usize,
+    /// (hand joint index, amplitude, phase), radians.
+    pub joints: Vec<(usize, f64, f64)>,
+}
+
+impl FingerGait {
+    /// The configured motion for `robot` at `timestep` (its joints are checked at load).
+    pub fn of(motion: &crate::config::FingerMotion, robot: &Robot, timestep: f64) -> Self {
+        let joints = motion
+            .joints
+            .iter()
+            .filter_map(|j| {
+                let k = robot.hand.iter().position(|h| h.name == j.joint)?;
+                Some((k, j.amplitude_deg.to_radians(), j.phase_deg.to_radians()))
+            })
+            .collect();
+        FingerGait { period: motion.period_s, steps: motion.steps(timestep), joints }
+    }
+
+    /// The hand's targets `t` seconds into the motion, from the grasp's targets and the hand's
+    /// joint positions when it started.
+    fn targets(&self, grasp: &[f64], start: &[f64], t: f64) -> Vec<f64> {
+        let mut out = grasp.to_vec();
+        for &(k, a, phase) in &self.joints {
+            out[k] = start[k] + a * ((std::f64::consts::TAU * t / self.period + phase).sin() - phase.sin());
+        }
+        out
+    }
 }
 
 impl GraspContext<'_> {
@@ -200,7 +240,7 @@ impl GraspContext<'_> {
     /// Physics steps of one recorded arm move: the move, the hold, and (when recording steps) the
     /// whole settle window of `PENETRATION_WAITS` waits.
     pub fn move_steps(&self) -> usize {
-        move_steps(self.config, self.timestep)
+        move_steps(self.config, self.timestep) + self.finger_gait.as_ref().map_or(0, |g| g.steps)
     }
 
     /// IK for a world palm pose, from `q`.
@@ -210,7 +250,8 @@ impl GraspContext<'_> {
     }
 }
 
-/// Physics steps of one recorded arm move of an episode (`GraspContext::move_steps`).
+/// Physics steps of one recorded arm move of an episode, without a finger motion
+/// (`GraspContext::move_steps`).
 pub fn move_steps(config: &GraspConfig, timestep: f64) -> usize {
     let steps = |seconds: f64| (seconds / timestep).round().max(1.0) as usize;
     steps(config.move_seconds) + steps(config.hold_seconds) + PENETRATION_WAITS * steps(PENETRATION_WAIT_SECONDS)
@@ -309,12 +350,12 @@ fn attempt_trajectory(
     if let Err(f) = placed {
         return Ok(Err(f));
     }
-    close_hand(ctx, physics, &pre);
+    let grasp_targets = close_hand(ctx, physics, &pre);
     let grasped = match settle(ctx, physics, &t_world_palm) {
         Ok(pose) => pose,
         Err(f) => return Ok(Err(f)),
     };
-    record_instances(ctx, physics, object, key, attempt, q, grasped, events)
+    record_instances(ctx, physics, object, key, attempt, q, (grasped, &grasp_targets), events)
 }
 
 /// How far `object` reaches along the palm normal (palm x) turned by `r`: (depth, how far behind
@@ -425,7 +466,7 @@ fn place_between_jaws(
 }
 
 /// Phase 2: every flexion joint towards its closed target, ab/adduction kept.
-fn close_hand(ctx: &GraspContext, physics: &mut dyn HandPhysics, pre: &[f64]) {
+fn close_hand(ctx: &GraspContext, physics: &mut dyn HandPhysics, pre: &[f64]) -> Vec<f64> {
     let mut close = pre.to_vec();
     for (c, t) in close.iter_mut().zip(&ctx.config.close) {
         if let Some(t) = t {
@@ -437,6 +478,7 @@ fn close_hand(ctx: &GraspContext, physics: &mut dyn HandPhysics, pre: &[f64]) {
     for _ in 0..ctx.steps(ctx.config.close_seconds) {
         physics.step();
     }
+    close
 }
 
 /// Phase 3: the palm turns from facing up to its sampled orientation over the first half (gravity
@@ -486,7 +528,7 @@ fn record_instances(
     key: TrajectoryKey,
     attempt: u32,
     mut q: Vec<f64>,
-    grasped: DAffine3,
+    (grasped, grasp_targets): (DAffine3, &[f64]),
     events: &mut Vec<GraspEvent>,
 ) -> Result<std::result::Result<Recorded, Failure>> {
     let mut out = Vec::with_capacity(key.instances as usize);
@@ -512,7 +554,7 @@ fn record_instances(
             let logged = log.as_ref().map_or(0, |l| l.steps.len());
             // Why this move cannot stand: the attempt's failure if it was the last try, and the
             // redo counted otherwise.
-            let (failure, redo) = match move_and_settle(ctx, physics, object, &mut q, &mut arm_rng, log.as_mut())? {
+            let (failure, redo) = match move_and_settle(ctx, physics, object, &mut q, &mut arm_rng, grasp_targets, log.as_mut())? {
                 MoveOutcome::Recordable(obj, contacts, penetration) => break (obj, contacts, penetration),
                 MoveOutcome::Failed(Failure::LostDuringMotion) => (Failure::LostDuringMotion, Redo::Drop),
                 MoveOutcome::Failed(f) => return Ok(Err(f)),
@@ -598,6 +640,7 @@ fn move_and_settle(
     object: &PhysicsObject,
     q: &mut Vec<f64>,
     arm_rng: &mut ChaCha8Rng,
+    grasp_targets: &[f64],
     mut log: Option<&mut StepLog>,
 ) -> Result<MoveOutcome> {
     let cfg = ctx.config;
@@ -646,6 +689,22 @@ fn move_and_settle(
         if lost(physics) {
             return Ok(MoveOutcome::Failed(Failure::LostDuringMotion));
         }
+    }
+    // The scripted finger motion, the arm still (apparent gravity as in the hold).
+    if let Some(gait) = &ctx.finger_gait {
+        let start = physics.joint_positions();
+        for k in 1..=gait.steps {
+            physics.set_targets(&gait.targets(grasp_targets, &start, k as f64 * dt));
+            physics.step();
+            if let Some(log) = log.as_deref_mut() {
+                log.push(ctx, physics, &q_target);
+            }
+            if lost(physics) {
+                physics.set_targets(grasp_targets);
+                return Ok(MoveOutcome::Failed(Failure::LostDuringMotion));
+            }
+        }
+        physics.set_targets(grasp_targets);
     }
     *q = q_target;
     let touching = physics.touch_contacts().iter().filter(|c| c.is_some()).count();
@@ -741,7 +800,15 @@ mod tests {
     fn move_normals(cfg: &GraspConfig, n: u64) -> Vec<(DVec3, DVec3)> {
         let robot = Robot::allegro();
         let (t_world_base, camera_position) = paper_context();
-        let ctx = GraspContext { robot: &robot, t_world_base, config: cfg, timestep: 1.0 / 240.0, camera_position, record_steps: false };
+        let ctx = GraspContext {
+            robot: &robot,
+            t_world_base,
+            config: cfg,
+            timestep: 1.0 / 240.0,
+            camera_position,
+            record_steps: false,
+            finger_gait: None,
+        };
         (0..n)
             .map(|k| {
                 let mut rng = ChaCha8Rng::seed_from_u64(k);
@@ -780,7 +847,15 @@ mod tests {
         cfg.back_to_camera_share = 0.0;
         let robot = Robot::allegro();
         let (t_world_base, camera_position) = paper_context();
-        let ctx = GraspContext { robot: &robot, t_world_base, config: &cfg, timestep: 1.0 / 240.0, camera_position, record_steps: false };
+        let ctx = GraspContext {
+            robot: &robot,
+            t_world_base,
+            config: &cfg,
+            timestep: 1.0 / 240.0,
+            camera_position,
+            record_steps: false,
+            finger_gait: None,
+        };
         for k in 0..50 {
             let a = ctx.sample_move_palm(&mut ChaCha8Rng::seed_from_u64(k));
             let b = ctx.sample_palm(&mut ChaCha8Rng::seed_from_u64(k));
@@ -793,7 +868,15 @@ mod tests {
     fn run_fake(hand: &mut crate::physics::fake::FakeHand, cfg: &GraspConfig, instances: u32) -> (Result<Trajectory>, Vec<GraspEvent>) {
         let robot = Robot::allegro();
         let (t_world_base, camera_position) = paper_context();
-        let ctx = GraspContext { robot: &robot, t_world_base, config: cfg, timestep: 1.0 / 240.0, camera_position, record_steps: false };
+        let ctx = GraspContext {
+            robot: &robot,
+            t_world_base,
+            config: cfg,
+            timestep: 1.0 / 240.0,
+            camera_position,
+            record_steps: false,
+            finger_gait: None,
+        };
         let object = PhysicsObject {
             points: vt_objects::procedural_mesh(vt_objects::Catalog::builtin().get("005_tomato_soup_can").unwrap()).positions,
             mass: 0.35,
@@ -878,8 +961,15 @@ mod tests {
             let robot = Robot::builtin(name).unwrap();
             let cfg = GraspConfig::default().with_robot_defaults(&robot);
             let (t_world_base, camera_position) = paper_context();
-            let ctx =
-                GraspContext { robot: &robot, t_world_base, config: &cfg, timestep: 1.0 / 240.0, camera_position, record_steps: false };
+            let ctx = GraspContext {
+                robot: &robot,
+                t_world_base,
+                config: &cfg,
+                timestep: 1.0 / 240.0,
+                camera_position,
+                record_steps: false,
+                finger_gait: None,
+            };
             let share = reachable_share(&ctx, REACH_SAMPLES);
             eprintln!("{name}: {:.0}% of {REACH_SAMPLES} workspace poses reached", 100.0 * share);
             assert!(share >= 0.9, "{name}: {share}");
@@ -919,6 +1009,7 @@ mod tests {
             timestep: pc.timestep,
             camera_position: DVec3::new(0.0, -0.75, 0.55),
             record_steps: false,
+            finger_gait: None,
         };
         // PHYS=mujoco (with --features mujoco) measures the MuJoCo backend instead.
         let mut hand: Box<dyn HandPhysics> = match std::env::var("PHYS").as_deref() {

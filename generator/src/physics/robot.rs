@@ -12,7 +12,8 @@ use vt_robot::Robot;
 use crate::assets::robot::{ROBOTS_WITH_MESHES, load_hand_meshes, robot_assets_dir, with_real_hand};
 use crate::config::{LoadedConfig, RobotConfig};
 use crate::physics::grasp::{
-    GraspContext, GraspEvent, MIN_REACHABLE_SHARE, REACH_SAMPLES, Trajectory, TrajectoryKey, reachable_share, simulate_trajectory,
+    FingerGait, GraspContext, GraspEvent, MIN_REACHABLE_SHARE, REACH_SAMPLES, Trajectory, TrajectoryKey, reachable_share,
+    simulate_trajectory,
 };
 use crate::physics::{HandPhysics, PhysicsObject, PhysicsSettings, RapierHand};
 
@@ -50,9 +51,11 @@ fn grasp_context<'a>(
     t_world_base: DAffine3,
     rc: &'a RobotConfig,
     camera_position: DVec3,
-    record_steps: bool,
+    record: Option<&crate::config::RecordConfig>,
 ) -> GraspContext<'a> {
-    GraspContext { robot, t_world_base, config: &rc.grasp, timestep: rc.physics.timestep, camera_position, record_steps }
+    let finger_gait = record.and_then(|r| r.finger_motion.as_ref()).map(|m| FingerGait::of(m, robot, rc.physics.timestep));
+    let record_steps = record.is_some();
+    GraspContext { robot, t_world_base, config: &rc.grasp, timestep: rc.physics.timestep, camera_position, record_steps, finger_gait }
 }
 
 /// The robot half of a worker: model and physics. The trajectory being recorded is the sample
@@ -68,8 +71,9 @@ pub struct RobotScene {
     objects: Vec<PhysicsObject>,
     /// The main camera's position (world), for the back-to-camera arm moves.
     camera_position: DVec3,
-    /// Episodes: trajectories record every physics step (`Trajectory::steps`).
-    record_steps: bool,
+    /// Episodes: trajectories record every physics step (`Trajectory::steps`), with the
+    /// recording's finger motion.
+    record: Option<crate::config::RecordConfig>,
 }
 
 impl RobotScene {
@@ -111,7 +115,7 @@ impl RobotScene {
         );
         // A workspace the arm cannot reach would fail every grasp as Unreachable: said up front.
         let camera_position = DVec3::from_array(cfg.config.camera.position);
-        let share = reachable_share(&grasp_context(&model, t_world_base, robot, camera_position, false), REACH_SAMPLES);
+        let share = reachable_share(&grasp_context(&model, t_world_base, robot, camera_position, None), REACH_SAMPLES);
         if share < MIN_REACHABLE_SHARE {
             anyhow::bail!(
                 "{}: robot.grasp.palm_workspace: the arm of robot '{}' reaches {:.0}% of {REACH_SAMPLES} grasp-frame poses drawn from it \
@@ -131,7 +135,7 @@ impl RobotScene {
             physics,
             objects,
             camera_position,
-            record_steps: cfg.config.sampling.record.is_some(),
+            record: cfg.config.sampling.record.clone(),
         })
     }
 
@@ -148,7 +152,7 @@ impl RobotScene {
     /// holds through all instances) and returns it with the grasp loop's figures, which a lost
     /// trajectory keeps too (`vtgen grasps` reports them).
     pub fn simulate(&mut self, seed: u64, object_index: u32, object_id: &str, trajectory: u32, instances: u32) -> Simulated {
-        let ctx = grasp_context(&self.robot, self.t_world_base, &self.config, self.camera_position, self.record_steps);
+        let ctx = grasp_context(&self.robot, self.t_world_base, &self.config, self.camera_position, self.record.as_ref());
         let mut events: Vec<GraspEvent> = Vec::new();
         let result = simulate_trajectory(
             &ctx,
