@@ -7,10 +7,10 @@ use std::path::Path;
 use std::sync::OnceLock;
 
 use rapier3d::parry::query::PointQuery;
-use vt_dataset::{DatasetReader, read_ply};
+use vt_dataset::DatasetReader;
 
 use crate::common::*;
-use crate::own_robot::{generated, shard_job_matches, tactile_points_lie_on_the_object_within_their_pad};
+use crate::own_robot::{generated, object_meshes, shard_job_matches, tactile_points_lie_on_the_object_within_their_pad};
 
 fn episode_dataset() -> &'static Path {
     static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();
@@ -26,15 +26,7 @@ fn episode_of(meta: &vt_dataset::ShardMeta) -> serde_json::Value {
 fn every_stream_of_an_episode_is_at_its_rate_and_its_ground_truth_holds_on_every_frame() {
     let dir = episode_dataset();
     let ds = DatasetReader::open(dir).unwrap();
-    let info: vt_dataset::ModelsInfo = serde_json::from_slice(&std::fs::read(dir.join("models/models_info.json")).unwrap()).unwrap();
-    let meshes: Vec<rapier3d::parry::shape::TriMesh> = info
-        .objects
-        .iter()
-        .map(|o| {
-            let m = read_ply(&dir.join("models").join(&o.file)).unwrap();
-            rapier3d::parry::shape::TriMesh::new(m.positions.iter().map(|p| glam::Vec3::from(*p)).collect(), m.triangles.clone()).unwrap()
-        })
-        .collect();
+    let meshes = object_meshes(dir);
     let (mut episodes, mut between) = (0, 0);
     for split in ["train", "test"] {
         for shard in ds.shards(split).unwrap() {

@@ -250,20 +250,25 @@ fn bad_descriptions_are_reported_with_file_and_field() {
     assert!(e.contains("robot.grasp.preshape: 2 values for the 3 hand joints of robot 'ur5e_three_finger'"), "{e}");
 }
 
-/// Every tactile point lies on the object's surface (1 mm), within its pad's footprint and within
-/// the contact threshold of it, whatever the robot.
-pub fn tactile_points_lie_on_the_object_within_their_pad(dir: &Path) {
-    use rapier3d::parry::query::PointQuery;
-    let ds = DatasetReader::open(dir).unwrap();
+/// The dataset's object models (`models/`, in `object_index` order) as meshes to measure
+/// distances to.
+pub fn object_meshes(dir: &Path) -> Vec<rapier3d::parry::shape::TriMesh> {
     let info: vt_dataset::ModelsInfo = serde_json::from_slice(&std::fs::read(dir.join("models/models_info.json")).unwrap()).unwrap();
-    let meshes: Vec<rapier3d::parry::shape::TriMesh> = info
-        .objects
+    info.objects
         .iter()
         .map(|o| {
             let m = read_ply(&dir.join("models").join(&o.file)).unwrap();
             rapier3d::parry::shape::TriMesh::new(m.positions.iter().map(|p| glam::Vec3::from(*p)).collect(), m.triangles.clone()).unwrap()
         })
-        .collect();
+        .collect()
+}
+
+/// Every tactile point lies on the object's surface (1 mm), within its pad's footprint and within
+/// the contact threshold of it, whatever the robot.
+pub fn tactile_points_lie_on_the_object_within_their_pad(dir: &Path) {
+    use rapier3d::parry::query::PointQuery;
+    let ds = DatasetReader::open(dir).unwrap();
+    let meshes = object_meshes(dir);
     let mut points = 0;
     for split in ["train", "test"] {
         for s in ds.samples(split).unwrap() {

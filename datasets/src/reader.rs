@@ -22,6 +22,8 @@ pub struct ShardReader {
     meta: ShardMeta,
     /// An episode shard (`vtgen.shard` has `episode`): its chunks are frames.
     episode: bool,
+    /// An episode's reference images (its first frame's), by topic, read once.
+    references: std::sync::OnceLock<BTreeMap<String, Vec<u8>>>,
 }
 
 /// The largest uncompressed chunk (one sample) a reader accepts: a 640×480 sample with 12 tactile
@@ -148,7 +150,7 @@ impl ShardReader {
         for (k, (_, i)) in frames.into_iter().enumerate() {
             chunks.insert(meta.first_sample + k as u64, i);
         }
-        Ok(ShardReader { path: path.to_path_buf(), data, summary, chunks, meta, episode })
+        Ok(ShardReader { path: path.to_path_buf(), data, summary, chunks, meta, episode, references: Default::default() })
     }
 
     /// The messages of chunk `ci` as (topic, payload), decoded with every size bounded before it
@@ -225,14 +227,19 @@ impl ShardReader {
         if tac.optical.iter().all(|o| !o.reference.is_empty()) {
             return Ok(tactile);
         }
-        let first = match (self.episode, self.chunks.values().next()) {
-            (true, Some(&ci)) => self.chunk_messages(ci)?,
-            _ => Vec::new(),
-        };
+        if self.references.get().is_none() {
+            let first = match (self.episode, self.chunks.values().next()) {
+                (true, Some(&ci)) => self.chunk_messages(ci)?,
+                _ => Vec::new(),
+            };
+            let references = first.into_iter().filter(|(t, _, _)| t.ends_with("/reference")).map(|(t, _, data)| (t, data)).collect();
+            let _ = self.references.set(references);
+        }
+        let references = self.references.get().expect("set above");
         for o in tac.optical.iter_mut().filter(|o| o.reference.is_empty()) {
             let topic = crate::topics::tactile_reference(&o.pad);
-            let raw = first.iter().find(|(t, _, _)| *t == topic).ok_or_else(|| anyhow!("{topic} is missing"))?;
-            let img = RawImage::decode(&raw.2[..])?;
+            let raw = references.get(&topic).ok_or_else(|| anyhow!("{topic} is missing"))?;
+            let img = RawImage::decode(&raw[..])?;
             if (img.width, img.height, img.encoding.as_str()) != (o.width, o.height, "rgb8") || img.data.len() != o.image.len() {
                 bail!("{topic} is not a {}x{} rgb8 image like its pad's images", o.width, o.height);
             }

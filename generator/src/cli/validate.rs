@@ -231,24 +231,22 @@ pub fn check_ground_truth(s: &Sample, models: &[Model]) -> Option<String> {
     };
     let model = &models[obj];
     if let Some(t) = &s.tactile {
-        let to_object = s.t_camera_object.inverse();
-        for p in &t.points {
-            let q = to_object.transform_point(glam::Vec3::from(p.position).as_dvec3());
-            let d = model.mesh.distance_to_local_point(q.as_vec3(), false);
-            if d > 1e-3 {
-                return Some(format!("a tactile point is {:.2} mm off the object's surface", d * 1e3));
-            }
+        // The touch of the frame's instant, and an episode's touch between frames: on the surface
+        // of the object where its pose (the state's, then) puts it.
+        let mut readings = vec![(None, &t.points, s.t_camera_object)];
+        for (time, touch) in s.episode.iter().flat_map(|e| &e.tactile) {
+            let state = s.episode.iter().flat_map(|e| &e.states).rev().find(|(ts, _)| ts <= time).map(|(_, st)| st);
+            let Some(state) = state else { return Some(format!("touch at {time} ns has no state at or before it")) };
+            readings.push((Some(*time), &touch.points, state.t_camera_object));
         }
-        // An episode's touch between frames: on the surface of the object as its state then puts it.
-        for (t, touch) in s.episode.iter().flat_map(|e| &e.tactile) {
-            let state = s.episode.iter().flat_map(|e| &e.states).rev().find(|(ts, _)| ts <= t).map(|(_, st)| st);
-            let Some(state) = state else { return Some(format!("touch at {t} ns has no state at or before it")) };
-            let to_object = state.t_camera_object.inverse();
-            for p in &touch.points {
+        for (time, points, t_camera_object) in readings {
+            let to_object = t_camera_object.inverse();
+            for p in points {
                 let q = to_object.transform_point(glam::Vec3::from(p.position).as_dvec3());
                 let d = model.mesh.distance_to_local_point(q.as_vec3(), false);
                 if d > 1e-3 {
-                    return Some(format!("a tactile point at {t} ns is {:.2} mm off the object's surface", d * 1e3));
+                    let at = time.map_or(String::new(), |t| format!(" at {t} ns"));
+                    return Some(format!("a tactile point{at} is {:.2} mm off the object's surface", d * 1e3));
                 }
             }
         }
