@@ -1,34 +1,39 @@
 #!/usr/bin/env bash
-# The touch experiment: generate a dataset with the real YCB meshes, train the Tactile-Channel
-# network and the vision-only baseline with identical settings, evaluate both on the test split
-# (trajectories never seen in training) and on part of the training split, and write a report.
+# The touch experiments, one command each. Every step resumes: rerun the same command after an
+# interruption. Reports land in out/experiments/<name>/eval*/report.md with their pictures.
 #
-#   experiments/touch/run.sh cpu   --ycb-dir DIR   # ~1 h on 2 CPU cores (see README.md here)
-#   experiments/touch/run.sh paper --ycb-dir DIR --device cuda --jobs 16   # the paper's size, for a GPU box
+#   experiments/touch/run.sh cpu           --ycb-dir DIR   # Tactile-Channel vs vision only, 2 CPU cores (~1 h)
+#   experiments/touch/run.sh orientation   --ycb-dir DIR   # + rot6d and a cosine schedule beside the paper's form
+#   experiments/touch/run.sh cross-gripper --ycb-dir DIR   # Allegro <-> Robotiq 2F-85, each network on both
+#   experiments/touch/run.sh paper         --ycb-dir DIR --device cuda --jobs 16   # the paper's size, for a GPU box
 #
-# Options: --ycb-dir DIR (or $YCB_DIR; required: the real meshes), --jobs N (generator workers,
-# default: the number of cores), --device D (vtpose device, default cpu). Every step resumes:
-# rerun the same command after an interruption.
+# Options: --ycb-dir DIR (or $YCB_DIR; required: the real meshes), --robot-assets DIR (the real
+# robot meshes, as scripts/robot-assets prints; default: the robots' URDF shapes), --objects A,B
+# (cpu, orientation: other YCB objects, in out/experiments/touch-cpu-A+B), --jobs N (generator
+# workers, default: the number of cores), --device D (vtpose device, default cpu).
 set -euo pipefail
-usage() { sed -n '2,12p' "$0" | sed 's/^# \{0,1\}//'; exit 2; }
+usage() { sed -n '2,15p' "$0" | sed 's/^# \{0,1\}//'; exit 2; }
 [ $# -ge 1 ] || usage
-size=$1; shift
+experiment=$1; shift
 ycb="${YCB_DIR:-}"
 jobs="$(nproc)"
 device=cpu
+objects=""
+robot_assets=()
 while [ $# -gt 0 ]; do
   case "$1" in
     --ycb-dir) ycb="$2"; shift 2 ;;
+    --robot-assets) robot_assets=(--robot-assets "$2"); shift 2 ;;
+    --objects) objects="$2"; shift 2 ;;
     --jobs) jobs="$2"; shift 2 ;;
     --device) device="$2"; shift 2 ;;
     *) echo "run.sh: unknown option $1" >&2; usage ;;
   esac
 done
 cd "$(dirname "$0")/../.."
-case "$size" in
-  cpu) scene=experiments/touch/cpu.yaml; train=experiments/touch/train-cpu.yaml; out=out/experiments/touch-cpu; sweep=0 ;;
-  paper) scene=scenes/paper.yaml; train=trainer/configs/paper.yaml; out=out/experiments/touch-paper; sweep=1 ;;
-  *) echo "run.sh: size must be cpu or paper, got '$size'" >&2; usage ;;
+case "$experiment" in
+  cpu | orientation | cross-gripper | paper) ;;
+  *) echo "run.sh: the experiment must be cpu, orientation, cross-gripper or paper, got '$experiment'" >&2; usage ;;
 esac
 [ -n "$ycb" ] && [ -d "$ycb" ] || { echo "run.sh: the experiment needs the real YCB meshes: --ycb-dir DIR (or YCB_DIR)" >&2; exit 2; }
 
@@ -36,26 +41,84 @@ export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$HOME/.cache/vtgen/target}"
 scripts/system-deps
 features=()
 case "$device" in cuda*) features=(--features cuda) ;; esac
-cargo build --release -p vtgen -p vt-trainer "${features[@]}"
+cargo build --release -p vtgen
+cargo build --release -p vt-trainer "${features[@]}"
 bin="$CARGO_TARGET_DIR/release"
 log() { echo "== $(date +%H:%M:%S) $*"; }
 
-log "generate $scene -> $out/data"
-"$bin/vtgen" generate "$scene" --out "$out/data" --ycb-dir "$ycb" --jobs "$jobs" --resume
-"$bin/vtgen" inspect "$out/data" | tee "$out/inspect.txt"
+# generate SCENE OUT [--set KEY=VALUE...]: the dataset, resumed, and its summary.
+generate() {
+  local scene=$1 out=$2; shift 2
+  log "generate $scene -> $out"
+  "$bin/vtgen" generate "$scene" --out "$out" --ycb-dir "$ycb" "${robot_assets[@]}" --jobs "$jobs" --resume "$@"
+  "$bin/vtgen" inspect "$out" > "$out.inspect.txt"
+}
+# train CONFIG DATA RUN [VARIANT]: one network, resumed.
+train() {
+  local variant=()
+  [ $# -ge 4 ] && variant=(--variant "$4")
+  log "train $3"
+  "$bin/vtpose" train "$1" --dataset "$2" "${variant[@]}" --out "$3" --resume --device "$device"
+}
+# evaluate OUT RUN... [-- EVAL OPTIONS]: the runs side by side on the test split, one report.
+evaluate() {
+  local out=$1; shift
+  local runs=()
+  while [ $# -gt 0 ] && [ "$1" != -- ]; do runs+=("$1"); shift; done
+  [ $# -gt 0 ] && shift
+  log "evaluate -> $out/report.md"
+  "$bin/vtpose" eval "${runs[@]}" --out "$out" --device "$device" --quiet "$@" > /dev/null
+}
 
-for variant in tactile_channel vision_only; do
-  log "train $variant"
-  "$bin/vtpose" train "$train" --dataset "$out/data" --variant "$variant" --out "$out/runs/$variant" --resume --device "$device"
-done
-
-log "evaluate on the test split (unseen trajectories)"
-"$bin/vtpose" eval "$out/runs/tactile_channel" "$out/runs/vision_only" --out "$out/eval" --device "$device" --quiet > /dev/null
-log "evaluate on the training split (what the networks fit)"
-"$bin/vtpose" eval "$out/runs/tactile_channel" "$out/runs/vision_only" --split train --max-samples 400 --no-sweep \
-  --out "$out/eval-train" --device "$device" --quiet > /dev/null
-if [ "$sweep" = 1 ]; then
-  log "tactile-point sweep: one network per count"
-  "$bin/vtpose" sweep "$train" --dataset "$out/data" --baseline "$out/runs/vision_only" --out "$out/sweep" --device "$device"
+cpu_train=experiments/touch/train-cpu.yaml
+cpu_out=out/experiments/touch-cpu
+object_set=()
+if [ -n "$objects" ]; then
+  cpu_out="$cpu_out-${objects//,/+}"
+  object_set=(--set "objects=[${objects//,/, }]")
 fi
-log "report: $out/eval/report.md (pictures: $out/eval/*.svg); training split: $out/eval-train/report.md"
+# The CPU-size Allegro dataset and its Tactile-Channel network: every CPU experiment starts here.
+cpu_base() {
+  generate experiments/touch/cpu.yaml "$cpu_out/data" "${object_set[@]}"
+  train "$cpu_train" "$cpu_out/data" "$cpu_out/runs/tactile_channel" tactile_channel
+}
+
+case "$experiment" in
+  cpu)
+    cpu_base
+    train "$cpu_train" "$cpu_out/data" "$cpu_out/runs/vision_only" vision_only
+    evaluate "$cpu_out/eval" "$cpu_out/runs/tactile_channel" "$cpu_out/runs/vision_only"
+    evaluate "$cpu_out/eval-train" "$cpu_out/runs/tactile_channel" "$cpu_out/runs/vision_only" -- --split train --max-samples 400 --no-sweep
+    log "report: $cpu_out/eval/report.md (training split: $cpu_out/eval-train/report.md)"
+    ;;
+  orientation)
+    cpu_base
+    train experiments/touch/train-cpu-orientation.yaml "$cpu_out/data" "$cpu_out/runs/orientation"
+    evaluate "$cpu_out/eval-orientation" "$cpu_out/runs/tactile_channel" "$cpu_out/runs/orientation" -- --no-sweep --no-touch-control
+    log "report: $cpu_out/eval-orientation/report.md (learning curves: learning-angle.svg)"
+    ;;
+  cross-gripper)
+    cpu_base
+    gripper_out=out/experiments/touch-gripper
+    generate experiments/touch/gripper.yaml "$gripper_out/data"
+    train "$cpu_train" "$gripper_out/data" "$gripper_out/runs/tactile_channel" tactile_channel
+    # Both networks on each gripper's test grasps: the diagonal is each network at home.
+    for data in touch-cpu:"$cpu_out/data" touch-gripper:"$gripper_out/data"; do
+      evaluate "out/experiments/cross-gripper/on-${data%%:*}" "$cpu_out/runs/tactile_channel" "$gripper_out/runs/tactile_channel" \
+        -- --dataset "${data#*:}" --no-sweep
+    done
+    log "reports: out/experiments/cross-gripper/on-touch-cpu/report.md (Allegro test grasps), on-touch-gripper/report.md (2F-85)"
+    ;;
+  paper)
+    out=out/experiments/touch-paper
+    train=trainer/configs/paper.yaml
+    generate scenes/paper.yaml "$out/data"
+    train "$train" "$out/data" "$out/runs/tactile_channel" tactile_channel
+    train "$train" "$out/data" "$out/runs/vision_only" vision_only
+    evaluate "$out/eval" "$out/runs/tactile_channel" "$out/runs/vision_only"
+    evaluate "$out/eval-train" "$out/runs/tactile_channel" "$out/runs/vision_only" -- --split train --max-samples 400 --no-sweep
+    log "tactile-point sweep: one network per count"
+    "$bin/vtpose" sweep "$train" --dataset "$out/data" --baseline "$out/runs/vision_only" --out "$out/sweep" --device "$device"
+    log "report: $out/eval/report.md (training split: $out/eval-train/report.md, sweep: $out/sweep)"
+    ;;
+esac

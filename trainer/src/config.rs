@@ -13,6 +13,7 @@
 //!   point_dims: [32, 64]             # the two point-wise stages (depth, colour, tactile)
 //!   global_dims: [128, 256]          # global feature MLP; the last is the global feature's width
 //!   head_dims: [128, 64]             # hidden widths of the pose heads
+//!   rotation: quaternion             # quaternion (the paper's) | rot6d (continuous 6D, Zhou et al. 2019)
 //! data:
 //!   n_points: 1000                   # depth points (and estimates per channel)
 //!   n_tactile: 240                   # tactile points, 4 ..= 1000
@@ -21,7 +22,7 @@
 //!   depth: exact                     # exact | noisy (/camera/depth_noisy when the dataset has it)
 //!   resample: true                   # new random points every epoch (false: the same every epoch)
 //! augment: {color_jitter: 0.2, translation_noise_m: 0.03}
-//! train: {epochs: 20, batch_size: 16, lr: 0.0002, w: 0.015, seed: 0}
+//! train: {epochs: 20, batch_size: 16, lr: 0.0002, w: 0.015, seed: 0}   # lr_schedule: constant | cosine
 //! # symmetric_loss: [005_tomato_soup_can]   # objects trained with the closest-point (ADD-S) loss; the paper: none
 //! ```
 
@@ -31,7 +32,7 @@ use anyhow::{Context, Result, bail};
 use serde::{Deserialize, Serialize};
 
 use crate::model::encoder::EncoderKind;
-use crate::model::{PoseNetConfig, Variant};
+use crate::model::{PoseNetConfig, RotationKind, Variant};
 
 /// Tactile point counts of the paper's sweep (Fig. "Effect of number of tactile points").
 pub const TACTILE_SWEEP: [usize; 5] = [4, 12, 36, 60, 240];
@@ -98,6 +99,8 @@ pub struct ModelConfig {
     pub point_dims: [usize; 2],
     pub global_dims: Vec<usize>,
     pub head_dims: Vec<usize>,
+    /// How the rotation heads express a rotation: `quaternion` (the paper's) or `rot6d`.
+    pub rotation: RotationKind,
 }
 
 impl Default for ModelConfig {
@@ -111,6 +114,7 @@ impl Default for ModelConfig {
             point_dims: [32, 64],
             global_dims: vec![128, 256],
             head_dims: vec![128, 64],
+            rotation: RotationKind::Quaternion,
         }
     }
 }
@@ -126,6 +130,7 @@ impl ModelConfig {
             .with_point_dims(self.point_dims.to_vec())
             .with_global_dims(self.global_dims.clone())
             .with_head_dims(self.head_dims.clone())
+            .with_rotation(self.rotation)
     }
 }
 
@@ -202,6 +207,9 @@ pub struct OptimConfig {
     pub epochs: usize,
     pub batch_size: usize,
     pub lr: f64,
+    /// The learning rate over the run: `constant` (the paper's) or `cosine` (from `lr` down to 0
+    /// at the last step, half a cosine; a deviation from the paper, see docs/training.md).
+    pub lr_schedule: LrSchedule,
     /// The confidence regulariser `w` of the loss.
     pub w: f64,
     /// Seeds the weights, the sample order and every random choice of the data pipeline.
@@ -221,6 +229,31 @@ pub struct OptimConfig {
     pub eval_samples: usize,
     /// Train on at most this many samples of the train split (0: all), e.g. to overfit a few.
     pub max_train_samples: usize,
+    /// Threads a training step splits its batch over (data parallel, gradients summed):
+    /// 0 = the machine's cores on the CPU backends, 1 on a GPU.
+    pub step_threads: usize,
+}
+
+/// See [`OptimConfig::lr_schedule`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LrSchedule {
+    #[default]
+    Constant,
+    Cosine,
+}
+
+impl OptimConfig {
+    /// The learning rate of the step after `steps_done` of `total_steps`.
+    pub fn lr_at(&self, steps_done: u64, total_steps: u64) -> f64 {
+        match self.lr_schedule {
+            LrSchedule::Constant => self.lr,
+            LrSchedule::Cosine => {
+                let progress = (steps_done as f64 / total_steps.max(1) as f64).clamp(0.0, 1.0);
+                0.5 * self.lr * (1.0 + (std::f64::consts::PI * progress).cos())
+            }
+        }
+    }
 }
 
 impl Default for OptimConfig {
@@ -229,6 +262,7 @@ impl Default for OptimConfig {
             epochs: 20,
             batch_size: 16,
             lr: 2e-4,
+            lr_schedule: LrSchedule::Constant,
             w: 0.015,
             seed: 0,
             symmetric_loss: Vec::new(),
@@ -236,6 +270,7 @@ impl Default for OptimConfig {
             eval_every: 5,
             eval_samples: 0,
             max_train_samples: 0,
+            step_threads: 0,
         }
     }
 }

@@ -56,6 +56,13 @@ fn cuda(_index: usize) -> Result<Device> {
     bail!("this vtpose was built without CUDA: rebuild with `cargo build --release -p vt-trainer --features cuda`")
 }
 
+/// Whether `device` computes on the host's CPU cores through burn's own kernels (flex,
+/// ndarray), where a training step splits its batch over threads.
+pub fn is_cpu(device: &Device) -> bool {
+    let plain = device.clone().without_autodiff();
+    plain == cpu() || plain == ndarray()
+}
+
 /// A short name of the device for reports.
 pub fn describe(device: &Device) -> String {
     format!("{device:?}")

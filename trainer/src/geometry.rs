@@ -37,6 +37,39 @@ pub fn quat_to_matrix<const D: usize>(q: Tensor<D>) -> Tensor<D> {
     )
 }
 
+/// The continuous 6D rotation representation (Zhou et al., CVPR 2019) `(.., 6)` to row-major
+/// rotation matrices `(.., 9)`: the first two columns `a1`, `a2` orthonormalised by Gram–Schmidt,
+/// the third their cross product. Unlike a quaternion (`q` and `−q` are one rotation) it has no
+/// antipodal ambiguity and no discontinuity for a network to straddle.
+pub fn rot6d_to_matrix<const D: usize>(r: Tensor<D>) -> Tensor<D> {
+    let last = D - 1;
+    let unit = |v: Tensor<D>| {
+        let norm = v.clone().square().sum_dim(last).sqrt().clamp_min(1e-8);
+        v / norm
+    };
+    let b1 = unit(r.clone().narrow(last, 0, 3));
+    let a2 = r.narrow(last, 3, 3);
+    let b2 = unit(a2.clone() - b1.clone() * (b1.clone() * a2).sum_dim(last));
+    let c = |v: &Tensor<D>, i: usize| v.clone().narrow(last, i, 1);
+    let b3 = Tensor::cat(
+        vec![
+            c(&b1, 1) * c(&b2, 2) - c(&b1, 2) * c(&b2, 1),
+            c(&b1, 2) * c(&b2, 0) - c(&b1, 0) * c(&b2, 2),
+            c(&b1, 0) * c(&b2, 1) - c(&b1, 1) * c(&b2, 0),
+        ],
+        last,
+    );
+    // Columns b1, b2, b3 in row-major order: row i is (b1_i, b2_i, b3_i).
+    Tensor::cat((0..3).flat_map(|i| [c(&b1, i), c(&b2, i), c(&b3, i)]).collect(), last)
+}
+
+/// A row-major rotation matrix as a quaternion (w, x, y, z).
+pub fn rows_to_wxyz(m: &[f32; 9]) -> [f32; 4] {
+    let cols = DMat3::from_cols_array(&std::array::from_fn(|k| m[(k % 3) * 3 + k / 3] as f64));
+    let q = DQuat::from_mat3(&cols).normalize();
+    [q.w as f32, q.x as f32, q.y as f32, q.z as f32]
+}
+
 /// Normalises quaternions along the last axis (the norm clamped away from 0).
 pub fn normalize_quat<const D: usize>(q: Tensor<D>) -> Tensor<D> {
     let norm = q.clone().square().sum_dim(D - 1).sqrt().clamp_min(1e-8);
@@ -101,6 +134,22 @@ mod tests {
     use crate::device::cpu;
 
     #[test]
+    fn rot6d_gives_the_rotation_of_its_two_columns() {
+        let device = cpu();
+        let q = glam::DQuat::from_euler(glam::EulerRot::XYZ, 0.7, -0.4, 2.0);
+        let m = glam::DMat3::from_quat(q);
+        // The first two columns, scaled and with a part of the first added to the second: the
+        // Gram–Schmidt step recovers the rotation.
+        let (c1, c2) = (m.col(0) * 2.0, m.col(1) * 0.5 + m.col(0) * 0.3);
+        let data: Vec<f32> = [c1.x, c1.y, c1.z, c2.x, c2.y, c2.z].iter().map(|v| *v as f32).collect();
+        let got: Vec<f32> = rot6d_to_matrix(Tensor::<2>::from_data(TensorData::new(data, [1, 6]), &device)).into_data().iter::<f32>().collect();
+        let want = matrix_rows(q);
+        for k in 0..9 {
+            assert!((got[k] - want[k]).abs() < 1e-5, "entry {k}: {} vs {}", got[k], want[k]);
+        }
+    }
+
+    #[test]
     fn quaternion_matrix_matches_glam() {
         let device = cpu();
         let qs = [
@@ -116,6 +165,12 @@ mod tests {
             for k in 0..9 {
                 assert!((got[i * 9 + k] - want[k]).abs() < 1e-6, "q {i} entry {k}: {} vs {}", got[i * 9 + k], want[k]);
             }
+        }
+        // Back from the matrices.
+        for (i, q) in qs.iter().enumerate() {
+            let rows: [f32; 9] = std::array::from_fn(|k| got[i * 9 + k]);
+            let back = wxyz_to_quat(rows_to_wxyz(&rows));
+            assert!(back.angle_between(*q) < 1e-5, "q {i}");
         }
         // Round trip of the (w, x, y, z) <-> glam conversion.
         let q = qs[2];

@@ -35,6 +35,7 @@
 
 pub mod config;
 pub mod device;
+pub mod host;
 pub mod geometry;
 
 // The stages in the order the data flows, one per group so that rustfmt keeps that order.

@@ -33,7 +33,6 @@ use burn::tensor::Int;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 
 use crate::data::Targets;
-use crate::geometry::quat_to_matrix;
 use crate::model::PoseOutput;
 
 /// The paper's confidence regulariser.
@@ -54,7 +53,7 @@ pub struct LossOutput {
 pub fn pose_loss(out: &PoseOutput, targets: &Targets, w: f64) -> LossOutput {
     let [b, e, _] = out.rotation.dims();
     let device = out.rotation.device();
-    let rot = quat_to_matrix(out.rotation.clone()).reshape([b, e, 3, 3]);
+    let rot = out.rotation.clone().reshape([b, e, 3, 3]);
     // Samples by kind; the per-sample losses are computed per group and put back in order.
     let (sym, asym): (Vec<usize>, Vec<usize>) = (0..b).partition(|&i| targets.symmetric[i]);
     let mut distances = Vec::new();
@@ -267,7 +266,7 @@ mod tests {
     fn output(quats: &[[f32; 4]], trans: &[[f32; 3]], conf: &[f32]) -> PoseOutput {
         let e = quats.len();
         PoseOutput {
-            rotation: t3(quats.concat(), [1, e, 4]),
+            rotation: crate::geometry::quat_to_matrix(t3(quats.concat(), [1, e, 4])),
             translation: t3(trans.concat(), [1, e, 3]),
             confidence: t2(conf.to_vec(), [1, e]),
             valid: t2(vec![1.0; e], [1, e]),
@@ -303,11 +302,11 @@ mod tests {
         let device = cpu();
         let (b, e, m) = (2, 5, 7);
         let q = normalize(Tensor::<3>::random([b, e, 4], burn::tensor::Distribution::Normal(0.0, 1.0), &device));
-        let r_hat = quat_to_matrix(q).reshape([b, e, 3, 3]);
+        let r_hat = crate::geometry::quat_to_matrix(q).reshape([b, e, 3, 3]);
         let t_hat = Tensor::<3>::random([b, e, 3], burn::tensor::Distribution::Uniform(-0.1, 0.1), &device);
         let x = Tensor::<3>::random([b, m, 3], burn::tensor::Distribution::Uniform(-0.05, 0.05), &device);
         let qt = normalize(Tensor::<3>::random([b, 1, 4], burn::tensor::Distribution::Normal(0.0, 1.0), &device));
-        let r = quat_to_matrix(qt).reshape([b, 3, 3]);
+        let r = crate::geometry::quat_to_matrix(qt).reshape([b, 3, 3]);
         let t = Tensor::<2>::random([b, 3], burn::tensor::Distribution::Uniform(-0.1, 0.1), &device);
         let fast: Vec<f32> =
             model_point_distance(r_hat.clone(), t_hat.clone(), x.clone(), r.clone(), t.clone()).into_data().iter::<f32>().collect();
@@ -327,14 +326,21 @@ mod tests {
         use burn::optim::{AdamConfig, GradientsParams};
         let data = crate::config::DataConfig { n_points: 32, n_tactile: 8, n_model_points: 16, crop_size: 16, ..Default::default() };
         // Both CPU backends (flex, the default, and ndarray).
-        for (plain_device, variant) in [
-            (cpu(), crate::model::Variant::TactileChannel),
-            (cpu(), crate::model::Variant::VisionOnly),
-            (crate::device::ndarray(), crate::model::Variant::TactileChannel),
+        // And the 6D rotation representation.
+        use crate::model::{RotationKind, Variant};
+        for (plain_device, variant, rotation) in [
+            (cpu(), Variant::TactileChannel, RotationKind::Quaternion),
+            (cpu(), Variant::VisionOnly, RotationKind::Quaternion),
+            (crate::device::ndarray(), Variant::TactileChannel, RotationKind::Quaternion),
+            (cpu(), Variant::TactileChannel, RotationKind::Rot6d),
         ] {
             let device = plain_device.clone().autodiff();
             device.seed(1);
-            let model = crate::model::PoseNetConfig::new(variant, 1).with_global_dims(vec![32]).with_head_dims(vec![32]).init(&device);
+            let model = crate::model::PoseNetConfig::new(variant, 1)
+                .with_global_dims(vec![32])
+                .with_head_dims(vec![32])
+                .with_rotation(rotation)
+                .init(&device);
             let input = crate::bench::synthetic_input(&data, &device);
             let x = [[0.02f32, 0.0, 0.0], [0.0, 0.03, 0.0], [0.0, 0.0, 0.01], [0.01, 0.01, 0.01]];
             for symmetric in [false, true] {
@@ -342,7 +348,11 @@ mod tests {
                 batch.samples[0].translation = DVec3::new(0.0, 0.0, 0.7);
                 let targets = batch.targets(&device);
                 let plain = crate::bench::synthetic_input(&data, &plain_device);
-                let before: Vec<f32> = model.valid().forward(&plain).translation.into_data().iter::<f32>().collect();
+                let pose = |m: &crate::model::PoseNet| -> Vec<f32> {
+                    let out = m.valid().forward(&plain);
+                    out.translation.into_data().iter::<f32>().chain(out.rotation.into_data().iter::<f32>()).collect()
+                };
+                let before = pose(&model);
                 let out = model.forward(&input);
                 let l = pose_loss(&out, &targets, W_DEFAULT);
                 assert!(scalar(l.loss.clone()).is_finite());
@@ -350,9 +360,9 @@ mod tests {
                 assert!(!grads.is_empty(), "{variant:?}: no gradients");
                 let mut optim = AdamConfig::new().init();
                 let stepped = optim.step(1e-3, model.clone(), grads);
-                let after: Vec<f32> = stepped.valid().forward(&plain).translation.into_data().iter::<f32>().collect();
+                let after = pose(&stepped);
                 let change = before.iter().zip(&after).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
-                assert!(change > 1e-6, "{variant:?} symmetric={symmetric}: the step changed nothing ({change})");
+                assert!(change > 1e-6, "{variant:?} {rotation:?} symmetric={symmetric}: the step changed nothing ({change})");
             }
         }
     }

@@ -6,14 +6,14 @@ use std::process::ExitCode;
 use anyhow::{Context, Result, bail};
 use burn::module::Module;
 use clap::{Args, Parser, Subcommand};
-use vt_trainer::bench::{bench_model, table};
+use vt_trainer::bench::{bench_model, bench_training, table, training_table};
 use vt_trainer::config::TrainConfig;
 use vt_trainer::device;
 use vt_trainer::eval::{EvalCommand, evaluate_runs};
 use vt_trainer::model::Variant;
 use vt_trainer::report::write_report;
 use vt_trainer::sweep::{SweepOptions, sweep};
-use vt_trainer::train::{RunDir, TrainOptions, train};
+use vt_trainer::train::{RunDir, TrainOptions, step_threads, train};
 
 #[derive(Parser)]
 #[command(
@@ -35,7 +35,8 @@ enum Command {
     Sweep(SweepArgs),
     /// Evaluate trained runs on a split and write a Markdown report.
     Eval(EvalArgs),
-    /// Time inference (network alone, batch 1) per model.
+    /// Time inference (network alone, batch 1) per model, or with --train training steps
+    /// (steps/s, CPU share, time per stage).
     Bench(BenchArgs),
 }
 
@@ -143,9 +144,15 @@ struct BenchArgs {
     /// Print JSON instead of a Markdown table.
     #[arg(long)]
     json: bool,
+    /// Time training steps instead of inference: a batch of train.batch_size through forward,
+    /// loss, backward and Adam, with one thread (and its time per stage) and with the step's
+    /// threads (train.step_threads; 0: every core on a CPU).
+    #[arg(long)]
+    train: bool,
 }
 
 fn main() -> ExitCode {
+    vt_trainer::host::keep_freed_memory();
     match run(Cli::parse()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
@@ -240,8 +247,54 @@ fn eval_command(args: EvalArgs) -> Result<()> {
     Ok(())
 }
 
+/// `vtpose bench --train`: per config (a run's own for a run directory, the default without
+/// input) and variant, a one-thread step and, where the step uses more, a threaded one.
+fn bench_training_command(args: BenchArgs) -> Result<()> {
+    let BenchArgs { inputs, variants, iters, warmup, device: dev, json, train: _ } = args;
+    let device = device::parse(&dev)?;
+    let mut configs: Vec<(String, TrainConfig)> = Vec::new();
+    if inputs.is_empty() {
+        configs.push(("default".into(), TrainConfig::new("")));
+    }
+    for input in &inputs {
+        let name = input.file_stem().unwrap_or_default().to_string_lossy().into_owned();
+        let config = if input.is_dir() { RunDir(input.clone()).config() } else { input.clone() };
+        if !config.is_file() {
+            bail!("{} is neither a run directory nor a config file", input.display());
+        }
+        configs.push((name, TrainConfig::load(&config)?));
+    }
+    let mut rows = Vec::new();
+    for (name, cfg) in &configs {
+        let chosen: Vec<Variant> = match variants.as_slice() {
+            [] => vec![cfg.model.variant],
+            [a] if a == "all" => Variant::ALL.to_vec(),
+            list => list.iter().map(|v| v.parse()).collect::<Result<_>>()?,
+        };
+        for v in chosen {
+            let mut cfg = cfg.clone();
+            cfg.model.variant = v;
+            let label = format!("{name}/{v}");
+            let threads = step_threads(&cfg.train, &device);
+            rows.push(bench_training(&label, &cfg, &device, 1, iters, warmup));
+            if threads > 1 {
+                rows.push(bench_training(&label, &cfg, &device, threads, iters, warmup));
+            }
+        }
+    }
+    if json {
+        println!("{}", serde_json::to_string_pretty(&rows)?);
+    } else {
+        print!("{}", training_table(&rows, &dev));
+    }
+    Ok(())
+}
+
 fn bench_command(args: BenchArgs) -> Result<()> {
-    let BenchArgs { inputs, variants, iters, warmup, device: dev, json } = args;
+    if args.train {
+        return bench_training_command(args);
+    }
+    let BenchArgs { inputs, variants, iters, warmup, device: dev, json, train: _ } = args;
     let device = device::parse(&dev)?;
     let parse_variants = |default: Variant| -> Result<Vec<Variant>> {
         match variants.as_slice() {

@@ -23,11 +23,11 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use burn::module::Module;
-use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
+use burn::optim::{AdamConfig, GradientsAccumulator, GradientsParams, ModuleOptimizer};
 use burn::prelude::*;
 use indicatif::{ProgressBar, ProgressStyle};
 
-use crate::config::{AugmentConfig, TrainConfig};
+use crate::config::{AugmentConfig, OptimConfig, TrainConfig};
 use crate::data::{Batch, Loaded, Loader, ObjectModel, Pass, PrepareOptions, SplitSource, load_models, select_objects, shuffled};
 use crate::eval::{self, Summary};
 use crate::loss::pose_loss;
@@ -65,13 +65,16 @@ pub struct EpochRecord {
 }
 
 const CSV_HEADER: &str =
-    "epoch,steps,samples,skipped,loss,distance_cm,seconds,eval_n,eval_position_cm,eval_angle_deg,eval_add_auc,eval_adds_auc";
+    "epoch,steps,samples,skipped,loss,distance_cm,seconds,eval_n,eval_position_cm,eval_angle_deg,eval_add_auc,eval_adds_auc,eval_position_median_cm,eval_angle_median_deg";
 
 impl EpochRecord {
     /// The line printed after the epoch.
     fn report_line(&self) -> String {
         let ev = self.eval.as_ref().map_or(String::new(), |e| {
-            format!(", test: position {:.2} cm, angle {:.1}°, ADD-S AUC {:.1}", e.position_cm.mean, e.angle_deg.mean, e.adds_auc)
+            format!(
+                ", test: position {:.2} cm, angle {:.1}° (median {:.1}°), ADD-S AUC {:.1}",
+                e.position_cm.mean, e.angle_deg.mean, e.angle_median_deg, e.adds_auc
+            )
         });
         format!("epoch {}: loss {:.5}, chosen-estimate distance {:.2} cm{ev}", self.epoch, self.loss, self.distance_cm)
     }
@@ -80,7 +83,7 @@ impl EpochRecord {
         let e = self.eval.as_ref();
         let f = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.6}"));
         format!(
-            "{},{},{},{},{:.6},{:.4},{:.2},{},{},{},{},{}",
+            "{},{},{},{},{:.6},{:.4},{:.2},{},{},{},{},{},{},{}",
             self.epoch,
             self.steps,
             self.samples,
@@ -93,6 +96,8 @@ impl EpochRecord {
             f(e.map(|e| e.angle_deg.mean)),
             f(e.map(|e| e.add_auc)),
             f(e.map(|e| e.adds_auc)),
+            f(e.map(|e| e.position_median_cm)),
+            f(e.map(|e| e.angle_median_deg)),
         )
     }
 }
@@ -134,17 +139,31 @@ pub fn train(cfg: &TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
     let bar = progress_bar(opts.quiet, (cfg.train.epochs - state.epochs_done) * n_train.div_ceil(cfg.train.batch_size));
     if !opts.quiet {
         eprintln!(
-            "vtpose: training {} on {} ({} train samples of {}), {} params, device {:?}",
+            "vtpose: training {} on {} ({} train samples of {}), {} params, device {:?}, {} thread(s) per step",
             cfg.model.variant.label(),
             cfg.dataset.display(),
             n_train,
             objects.join(", "),
             model.num_params(),
-            opts.device
+            opts.device,
+            step_threads(&cfg.train, &opts.device)
         );
     }
     let csv = open_csv(&run.metrics(), state.epochs_done == 0)?;
-    let epochs = Epochs { cfg: &cfg, opts, run: &run, slots, test_source, bar, csv, records: Vec::new(), sums: EpochSums::new() };
+    let epochs = Epochs {
+        cfg: &cfg,
+        opts,
+        run: &run,
+        slots,
+        test_source,
+        bar,
+        csv,
+        records: Vec::new(),
+        sums: EpochSums::new(),
+        step_threads: step_threads(&cfg.train, &opts.device),
+        steps_done: state.steps,
+        total_steps: (cfg.train.epochs * n_train.div_ceil(cfg.train.batch_size)) as u64,
+    };
     let (records, state) = epochs.run(loader, model, optim, state, &device)?;
     Ok(TrainSummary { run: run.0, epochs: records, state })
 }
@@ -226,6 +245,11 @@ struct Epochs<'a> {
     csv: std::fs::File,
     records: Vec<EpochRecord>,
     sums: EpochSums,
+    /// Threads each training step splits its batch over ([`step_threads`]).
+    step_threads: usize,
+    /// Steps done so far and in the whole run (the learning-rate schedule's progress).
+    steps_done: u64,
+    total_steps: u64,
 }
 
 impl Epochs<'_> {
@@ -258,19 +282,15 @@ impl Epochs<'_> {
     /// One optimizer step on `batch`; returns the updated network.
     fn step(&mut self, model: PoseNet, optim: &mut ModuleOptimizer, epoch: u64, batch: &Batch, device: &Device) -> Result<PoseNet> {
         let train = &self.cfg.train;
-        let input = batch.inputs(device);
-        let targets = batch.targets(device);
-        let out = model.forward(&input);
-        let l = pose_loss(&out, &targets, train.w);
-        let loss_value: f64 = l.loss.clone().into_scalar::<f32>() as f64;
-        if !loss_value.is_finite() {
-            bail!("epoch {epoch}: the loss is {loss_value} (diverged); try a lower train.lr");
+        let lr = train.lr_at(self.steps_done, self.total_steps);
+        let (model, done) = train_step(model, optim, batch, train.w, lr, self.step_threads, device, &mut |_| {});
+        self.steps_done += 1;
+        if !done.loss.is_finite() {
+            bail!("epoch {epoch}: the loss is {} (diverged); try a lower train.lr", done.loss);
         }
         let sums = &mut self.sums;
-        sums.distance += best_distance(&out, &l.distance) * batch.len() as f64;
-        let grads = GradientsParams::from_grads(l.loss.backward(), &model);
-        let model = optim.step(train.lr, model, grads);
-        sums.loss += loss_value;
+        sums.distance += done.best_distance_m * batch.len() as f64;
+        sums.loss += done.loss;
         sums.batches += 1;
         sums.samples += batch.len();
         self.bar.set_message(format!("{epoch}/{} loss {:.4}", train.epochs, sums.loss / sums.batches as f64));
@@ -309,6 +329,127 @@ impl Epochs<'_> {
         self.sums = EpochSums::new();
         Ok(())
     }
+}
+
+/// The stages of a training step, in order (`vtpose bench` times each).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StepStage {
+    /// The prepared samples to tensors on the device.
+    Inputs,
+    Forward,
+    Loss,
+    Backward,
+    /// The shards' gradients summed (data-parallel steps only).
+    Accumulate,
+    /// Adam's update of the weights.
+    Optimizer,
+}
+
+impl StepStage {
+    pub const ALL: [StepStage; 6] =
+        [StepStage::Inputs, StepStage::Forward, StepStage::Loss, StepStage::Backward, StepStage::Accumulate, StepStage::Optimizer];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            StepStage::Inputs => "inputs",
+            StepStage::Forward => "forward",
+            StepStage::Loss => "loss",
+            StepStage::Backward => "backward",
+            StepStage::Accumulate => "accumulate",
+            StepStage::Optimizer => "optimizer",
+        }
+    }
+}
+
+/// What a training step reports.
+#[derive(Debug, Clone, Copy)]
+pub struct StepDone {
+    /// The batch's loss (eq. 2–3, the mean over its samples).
+    pub loss: f64,
+    /// Mean over the batch of the distance `L_i` of each sample's most confident estimate, m.
+    pub best_distance_m: f64,
+}
+
+/// The number of threads a training step splits its batch over: `train.step_threads`, or with 0
+/// the machine's cores on burn's CPU backends and 1 on a GPU (one device queue gains nothing from
+/// more threads).
+pub fn step_threads(train: &OptimConfig, device: &Device) -> usize {
+    let cpu = crate::device::is_cpu(device);
+    match train.step_threads {
+        0 if cpu => std::thread::available_parallelism().map_or(1, |n| n.get()),
+        0 => 1,
+        n => n,
+    }
+}
+
+/// One optimizer step of `model` on `batch`. With `threads` > 1 the batch is split into that many
+/// shards (at most one per sample), each shard's forward and backward pass runs on its own thread
+/// on its own autodiff copy of the weights, and the shards' gradients, each weighted by its share
+/// of the batch, are summed before the optimizer's update: the gradient of the batch's mean loss, as one
+/// pass computes it, up to float summation order. This is what puts a CPU's cores to work: burn's
+/// CPU kernels parallelise only large tensors, and most of this network's are small. (A network
+/// with batch norm, the `resnet_psp` encoder, would see per-shard batch statistics: its steps
+/// run in one pass.) `lap` is called at the end of each stage of a one-pass step.
+#[allow(clippy::too_many_arguments)]
+pub fn train_step(
+    model: PoseNet,
+    optim: &mut ModuleOptimizer,
+    batch: &Batch,
+    w: f64,
+    lr: f64,
+    threads: usize,
+    device: &Device,
+    lap: &mut dyn FnMut(StepStage),
+) -> (PoseNet, StepDone) {
+    let shards = if model.has_batch_norm() { 1 } else { threads.clamp(1, batch.len().max(1)) };
+    if shards == 1 {
+        let input = batch.inputs(device);
+        let targets = batch.targets(device);
+        lap(StepStage::Inputs);
+        let out = model.forward(&input);
+        lap(StepStage::Forward);
+        let l = pose_loss(&out, &targets, w);
+        let loss: f64 = l.loss.clone().into_scalar::<f32>() as f64;
+        let best_distance_m = best_distance(&out, &l.distance);
+        lap(StepStage::Loss);
+        let grads = GradientsParams::from_grads(l.loss.backward(), &model);
+        lap(StepStage::Backward);
+        let model = optim.step(lr, model, grads);
+        lap(StepStage::Optimizer);
+        return (model, StepDone { loss, best_distance_m });
+    }
+    let parts = batch.split(shards);
+    let total = batch.len() as f64;
+    let results: Vec<(GradientsParams, f64, f64)> = std::thread::scope(|scope| {
+        let handles: Vec<_> = parts
+            .iter()
+            .map(|part| {
+                // Fresh autodiff leaves with the same parameter ids: each shard's graph is its own.
+                let copy = model.valid().train();
+                scope.spawn(move || {
+                    let share = part.len() as f64 / total;
+                    let out = copy.forward(&part.inputs(device));
+                    let l = pose_loss(&out, &part.targets(device), w);
+                    let loss = l.loss.clone().into_scalar::<f32>() as f64;
+                    let best = best_distance(&out, &l.distance);
+                    let grads = GradientsParams::from_grads(l.loss.mul_scalar(share).backward(), &copy);
+                    (grads, loss * share, best * share)
+                })
+            })
+            .collect();
+        handles.into_iter().map(|h| h.join().expect("a training shard panicked")).collect()
+    });
+    let mut accumulator = GradientsAccumulator::<PoseNet>::new();
+    let (mut loss, mut best_distance_m) = (0.0, 0.0);
+    for (grads, l, d) in results {
+        accumulator.accumulate(&model, grads);
+        loss += l;
+        best_distance_m += d;
+    }
+    lap(StepStage::Accumulate);
+    let model = optim.step(lr, model, accumulator.grads());
+    lap(StepStage::Optimizer);
+    (model, StepDone { loss, best_distance_m })
 }
 
 /// A fresh run, or the state of the one in `run` to continue (`--resume`: the config may differ
@@ -425,7 +566,7 @@ fn open_csv(path: &Path, fresh: bool) -> Result<std::fs::File> {
 }
 
 /// Mean over the batch of the distance `L_i` of each sample's most confident valid estimate.
-fn best_distance(out: &crate::model::PoseOutput, distance: &Tensor<2>) -> f64 {
+pub fn best_distance(out: &crate::model::PoseOutput, distance: &Tensor<2>) -> f64 {
     let [b, e] = distance.dims();
     let conf: Vec<f32> =
         (out.confidence.clone().detach() * out.valid.clone() + (out.valid.clone() - 1.0)).into_data().iter::<f32>().collect();
@@ -443,4 +584,58 @@ fn best_distance(out: &crate::model::PoseOutput, distance: &Tensor<2>) -> f64 {
 /// Augmentation off: what evaluation and benchmarks use.
 pub fn no_augmentation() -> AugmentConfig {
     AugmentConfig::NONE
+}
+
+#[cfg(test)]
+mod tests {
+    use burn::optim::SgdConfig;
+
+    use super::*;
+    use crate::bench::{synthetic_batch, synthetic_input};
+    use crate::config::{DataConfig, ModelConfig};
+    use crate::device::cpu;
+
+    fn values<const D: usize>(t: Tensor<D>) -> Vec<f32> {
+        t.into_data().iter::<f32>().collect()
+    }
+
+    #[test]
+    fn a_step_split_over_threads_takes_the_gradient_of_the_whole_batch() {
+        let data = DataConfig { n_points: 32, n_tactile: 8, n_model_points: 16, crop_size: 16, ..Default::default() };
+        let device = cpu().autodiff();
+        device.seed(3);
+        let model = ModelConfig::default().net(1).init(&device);
+        // Five samples: shards of 3 and 2, so the shares differ.
+        let batch = synthetic_batch(&data, 5, data.n_model_points);
+        let probe = synthetic_input(&data, &cpu());
+        let before = model.valid().forward(&probe);
+        let mut outcomes = Vec::new();
+        for threads in [1, 2] {
+            // Plain SGD: the update is the gradient itself (Adam's first step is its sign only).
+            let mut optim = SgdConfig::new().init();
+            let (stepped, done) = train_step(model.clone(), &mut optim, &batch, 0.015, 1.0, threads, &device, &mut |_| {});
+            outcomes.push((stepped.valid().forward(&probe), done));
+        }
+        let (one, split) = (&outcomes[0], &outcomes[1]);
+        assert!((one.1.loss - split.1.loss).abs() < 1e-6 * one.1.loss.abs().max(1.0), "{} vs {}", one.1.loss, split.1.loss);
+        assert!((one.1.best_distance_m - split.1.best_distance_m).abs() < 1e-6);
+        let moved = |a: &Tensor<3>, b: &Tensor<3>| {
+            values(a.clone()).iter().zip(values(b.clone())).map(|(x, y)| (x - y).abs()).fold(0.0f32, f32::max)
+        };
+        // The step changes the network, and both ways change it the same.
+        let step = moved(&before.translation, &one.0.translation);
+        assert!(step > 1e-4, "the step moved the translations by {step}");
+        let differ = moved(&one.0.translation, &split.0.translation).max(moved(&one.0.rotation, &split.0.rotation));
+        assert!(differ < 1e-3 * step, "one pass vs shards: {differ} (the step: {step})");
+    }
+
+    #[test]
+    fn the_cosine_schedule_falls_from_lr_to_zero() {
+        let mut t = OptimConfig { lr: 1e-3, ..Default::default() };
+        assert_eq!(t.lr_at(50, 100), 1e-3);
+        t.lr_schedule = crate::config::LrSchedule::Cosine;
+        assert_eq!(t.lr_at(0, 100), 1e-3);
+        assert!((t.lr_at(50, 100) - 5e-4).abs() < 1e-12);
+        assert!(t.lr_at(100, 100).abs() < 1e-12 && t.lr_at(150, 100).abs() < 1e-12);
+    }
 }

@@ -34,6 +34,22 @@ impl Batch {
         self.samples.is_empty()
     }
 
+    /// The batch cut into `parts` consecutive shards of near-equal size (the first ones one
+    /// sample larger), none empty.
+    pub fn split(&self, parts: usize) -> Vec<Batch> {
+        let parts = parts.clamp(1, self.len().max(1));
+        let (base, extra) = (self.len() / parts, self.len() % parts);
+        let mut start = 0;
+        (0..parts)
+            .map(|k| {
+                let len = base + usize::from(k < extra);
+                let shard = Batch { samples: self.samples[start..start + len].to_vec() };
+                start += len;
+                shard
+            })
+            .collect()
+    }
+
     /// The network inputs on `device`.
     pub fn inputs(&self, device: &Device) -> PoseInput {
         let b = self.samples.len();

@@ -178,6 +178,10 @@ pub struct Summary {
     pub n: usize,
     pub position_cm: MeanSe,
     pub angle_deg: MeanSe,
+    /// Medians: the angle's mean is pulled up by the flips a symmetric-looking object invites,
+    /// its median says what a typical sample gets.
+    pub position_median_cm: f64,
+    pub angle_median_deg: f64,
     pub angle_sym_deg: MeanSe,
     pub add_cm: MeanSe,
     pub adds_cm: MeanSe,
@@ -190,6 +194,16 @@ pub struct Summary {
     pub tactile_chosen: f64,
 }
 
+/// The median (the mean of the middle two for an even count); NaN when empty.
+pub fn median(mut values: Vec<f64>) -> f64 {
+    values.sort_by(f64::total_cmp);
+    match values.len() {
+        0 => f64::NAN,
+        n if n % 2 == 1 => values[n / 2],
+        n => 0.5 * (values[n / 2 - 1] + values[n / 2]),
+    }
+}
+
 impl Summary {
     pub fn of<'a>(results: impl IntoIterator<Item = &'a SampleResult>) -> Summary {
         let r: Vec<&SampleResult> = results.into_iter().collect();
@@ -199,6 +213,8 @@ impl Summary {
             n: r.len(),
             position_cm: MeanSe::of(&col(&|s| s.position_cm)),
             angle_deg: MeanSe::of(&col(&|s| s.angle_deg)),
+            position_median_cm: median(col(&|s| s.position_cm)),
+            angle_median_deg: median(col(&|s| s.angle_deg)),
             angle_sym_deg: MeanSe::of(&col(&|s| s.angle_sym_deg)),
             add_cm: MeanSe::of(&col(&|s| 100.0 * s.add_m)),
             adds_cm: MeanSe::of(&col(&|s| 100.0 * s.adds_m)),
@@ -228,6 +244,8 @@ pub struct ModelEval {
     pub skipped: usize,
     /// `(n_t, scores)` of the tactile-point sweep (tactile variants only).
     pub sweep: Vec<(usize, Vec<SampleResult>)>,
+    /// The run's held-out metrics during training (`train.eval_every`; empty when it did not).
+    pub curve: Vec<crate::run::CurvePoint>,
     /// The same samples with another grasp's touch and with none (tactile variants).
     pub touch_control: Option<TouchControl>,
 }
@@ -302,6 +320,7 @@ pub fn evaluate_runs(runs: &[PathBuf], cmd: &EvalCommand) -> Result<Vec<ModelEva
             results,
             skipped: skipped.len(),
             sweep,
+            curve: RunDir(run.clone()).learning_curve()?,
             touch_control,
         });
     }

@@ -234,6 +234,11 @@ impl ColorEncoderConfig {
 }
 
 impl ColorEncoder {
+    /// Whether the encoder normalises by batch statistics (the ResNet's batch norm).
+    pub fn has_batch_norm(&self) -> bool {
+        self.resnet.is_some()
+    }
+
     pub fn forward(&self, img: Tensor<4>) -> Tensor<4> {
         match (&self.small, &self.resnet) {
             (Some(s), _) => s.forward(img),

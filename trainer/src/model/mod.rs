@@ -40,15 +40,47 @@ use burn::nn::{Linear, LinearConfig};
 use burn::prelude::*;
 use burn::tensor::Int;
 use burn::tensor::activation::{relu, sigmoid};
+use burn::tensor::module::linear;
 use serde::{Deserialize, Serialize};
 
-use crate::geometry::normalize_quat;
+use crate::geometry::{normalize_quat, quat_to_matrix, rot6d_to_matrix, rows_to_wxyz};
 use encoder::{ColorEncoder, ColorEncoderConfig, EncoderKind};
 
 /// Point coordinates enter the network in decimetres (relative to the depth cloud's centroid)
 /// and the translation heads answer in decimetres: object-sized inputs and outputs of order 1,
 /// which the default initialisation and Adam's step size suit (metres train several times slower).
 pub const POINT_SCALE: f32 = 10.0;
+
+/// How the rotation heads express a rotation. The network's estimates are rotation matrices
+/// either way ([`PoseOutput::rotation`]); the loss and the metrics do not change.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RotationKind {
+    /// The paper's (DenseFusion's): 4 outputs, normalised to a unit quaternion.
+    #[default]
+    Quaternion,
+    /// Zhou et al. 2019's continuous 6D representation: 6 outputs, two columns made orthonormal
+    /// (a deviation from the paper; see docs/training.md).
+    Rot6d,
+}
+
+impl RotationKind {
+    /// Outputs per object slot.
+    pub fn outputs(self) -> usize {
+        match self {
+            RotationKind::Quaternion => 4,
+            RotationKind::Rot6d => 6,
+        }
+    }
+
+    /// The heads' raw outputs `(B, N, outputs)` as row-major rotation matrices `(B, N, 9)`.
+    pub fn to_matrix(self, raw: Tensor<3>) -> Tensor<3> {
+        match self {
+            RotationKind::Quaternion => quat_to_matrix(normalize_quat(raw)),
+            RotationKind::Rot6d => rot6d_to_matrix(raw),
+        }
+    }
+}
 
 /// Which network to build.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -193,14 +225,39 @@ impl MlpConfig {
 }
 
 impl Mlp {
-    pub fn forward(&self, mut x: Tensor<3>) -> Tensor<3> {
-        for l in &self.hidden {
-            x = relu(l.forward(x));
+    pub fn forward(&self, x: Tensor<3>) -> Tensor<3> {
+        self.forward_with_shared(x, None)
+    }
+
+    /// [`Mlp::forward`] of the features `[x, shared]`, where `shared` `(B, 1, d_s)` is the same
+    /// for every point of a sample (the global feature): the first layer's product with it is
+    /// computed once per sample instead of once per point, and the `(B, N, d_s)` copy is never
+    /// made. The same parameters and, up to float summation order, the same result as `forward`
+    /// of the concatenation: the heads' first layers are most of a training step's arithmetic.
+    pub fn forward_with_shared(&self, x: Tensor<3>, shared: Option<&Tensor<3>>) -> Tensor<3> {
+        let mut layers = self.hidden.iter().map(|l| (l, true)).chain(self.output.iter().map(|l| (l, false)));
+        let Some((first, activate)) = layers.next() else { return x };
+        let mut x = match shared {
+            None => first.forward(x),
+            Some(g) => {
+                let [b, n, d] = x.dims();
+                let w = first.weight.val();
+                let [d_in, d_out] = w.dims();
+                let per_point = linear(x, w.clone().slice([0..d, 0..d_out]), first.bias.as_ref().map(|b| b.val()));
+                let per_sample = linear(g.clone(), w.slice([d..d_in, 0..d_out]), None);
+                per_point + per_sample.expand([b, n, d_out])
+            }
+        };
+        if activate {
+            x = relu(x);
         }
-        match &self.output {
-            Some(o) => o.forward(x),
-            None => x,
+        for (l, activate) in layers {
+            x = l.forward(x);
+            if activate {
+                x = relu(x);
+            }
         }
+        x
     }
 }
 
@@ -216,9 +273,10 @@ pub struct Heads {
 /// `d_own`: the channel's own point features plus the global feature (rotation, confidence);
 /// `d_translation`: what the translation head sees (the paper: both channels' features and the
 /// global feature).
-fn heads(d_own: usize, d_translation: usize, hidden: &[usize], objects: usize, with_rotation: bool, device: &Device) -> Heads {
+/// `rotation`: the rotation head's outputs per object (`None`: no own rotation head).
+fn heads(d_own: usize, d_translation: usize, hidden: &[usize], objects: usize, rotation: Option<usize>, device: &Device) -> Heads {
     let head = |d_input: usize, k: usize| MlpConfig::new(d_input, hidden.to_vec()).with_d_output(Some(objects * k)).init(device);
-    Heads { rotation: with_rotation.then(|| head(d_own, 4)), translation: head(d_translation, 3), confidence: head(d_own, 1) }
+    Heads { rotation: rotation.map(|k| head(d_own, k)), translation: head(d_translation, 3), confidence: head(d_own, 1) }
 }
 
 /// Picks each sample's object slot: `(B, N, O·k)` → `(B, N, k)`.
@@ -256,6 +314,8 @@ pub struct PoseNetConfig {
     pub global_dims: Vec<usize>,
     #[config(default = "vec![128, 64]")]
     pub head_dims: Vec<usize>,
+    #[config(default = "RotationKind::Quaternion")]
+    pub rotation: RotationKind,
 }
 
 /// See the module docs.
@@ -270,6 +330,8 @@ pub struct PoseNet {
     tactile: Option<Heads>,
     #[module(skip)]
     variant: Variant,
+    #[module(skip)]
+    rotation: RotationKind,
 }
 
 impl PoseNetConfig {
@@ -286,6 +348,7 @@ impl PoseNetConfig {
         let global_in = p2 * (1 + v.channels());
         let o = self.num_objects;
         let siamese = v != Variant::NonSiamese;
+        let k_rot = self.rotation.outputs();
         PoseNet {
             color_cnn: v.uses_color().then(|| {
                 ColorEncoderConfig::new(self.encoder, [self.cnn_channels[0], self.cnn_channels[1]], self.resnet_width, self.color_dim)
@@ -295,10 +358,13 @@ impl PoseNetConfig {
             depth_mlp: two_stage(3),
             tactile_mlp: v.uses_tactile().then(|| two_stage(3)),
             global: v.global_feature().then(|| MlpConfig::new(global_in, self.global_dims.clone()).init(device)),
-            visual: v.uses_color().then(|| heads(own_dim, translation_dim, &self.head_dims, o, true, device)),
+            visual: v.uses_color().then(|| heads(own_dim, translation_dim, &self.head_dims, o, Some(k_rot), device)),
             // The tactile channel has its own rotation head unless it shares the visual one.
-            tactile: v.uses_tactile().then(|| heads(own_dim, translation_dim, &self.head_dims, o, !(siamese && v.uses_color()), device)),
+            tactile: v
+                .uses_tactile()
+                .then(|| heads(own_dim, translation_dim, &self.head_dims, o, (!(siamese && v.uses_color())).then_some(k_rot), device)),
             variant: v,
+            rotation: self.rotation,
         }
     }
 }
@@ -323,7 +389,7 @@ pub struct PoseInput {
 /// The `E` pose estimates per sample (visual channel first, then tactile).
 #[derive(Debug, Clone)]
 pub struct PoseOutput {
-    /// `(B, E, 4)`: unit quaternions (w, x, y, z).
+    /// `(B, E, 9)`: rotation matrices, row-major.
     pub rotation: Tensor<3>,
     /// `(B, E, 3)`: translations, metres.
     pub translation: Tensor<3>,
@@ -359,7 +425,7 @@ impl PoseOutput {
                 let i = idx[s] as usize;
                 let k = s * e + i;
                 Estimate {
-                    rotation: std::array::from_fn(|c| rot[k * 4 + c]),
+                    rotation: rows_to_wxyz(&std::array::from_fn(|c| rot[k * 9 + c])),
                     translation: std::array::from_fn(|c| tra[k * 3 + c]),
                     confidence: conf[k],
                     index: i,
@@ -370,6 +436,12 @@ impl PoseOutput {
 }
 
 impl PoseNet {
+    /// Whether a forward pass normalises by batch statistics: its batch cannot be split into
+    /// shards without changing what it computes.
+    pub fn has_batch_norm(&self) -> bool {
+        self.color_cnn.as_ref().is_some_and(ColorEncoder::has_batch_norm)
+    }
+
     pub fn variant(&self) -> Variant {
         self.variant
     }
@@ -427,7 +499,7 @@ impl PoseNet {
     }
 
     /// Global feature: the colour, depth and tactile stage-2 embeddings through the global MLP,
-    /// averaged over the points and repeated for each: `(B, N, G)`; `None` for `no_global`.
+    /// averaged over the points: `(B, 1, G)`, the same for every point; `None` for `no_global`.
     fn global_feature(
         &self,
         d2: &Tensor<3>,
@@ -435,7 +507,6 @@ impl PoseNet {
         tactile: Option<&(Tensor<3>, Tensor<3>, Tensor<3>)>,
     ) -> Option<Tensor<3>> {
         let mlp = self.global.as_ref()?;
-        let [b, n, _] = d2.dims();
         let mut parts = vec![d2.clone()];
         if let Some((_, c2)) = visual {
             parts.push(c2.clone());
@@ -443,9 +514,7 @@ impl PoseNet {
         if let Some((_, t2, _)) = tactile {
             parts.push(t2.clone());
         }
-        let g = mlp.forward(Tensor::cat(parts, 2)).mean_dim(1); // (B, 1, G)
-        let gd = g.dims()[2];
-        Some(g.expand([b, n, gd]))
+        Some(mlp.forward(Tensor::cat(parts, 2)).mean_dim(1))
     }
 
     /// The heads of each channel on its point features (`visual`; `tactile` with its anchors)
@@ -459,15 +528,11 @@ impl PoseNet {
     ) -> PoseOutput {
         let [b, n, _] = input.cloud.dims();
         let device = input.cloud.device();
-        let with_global = |mut parts: Vec<Tensor<3>>| {
-            if let Some(g) = &global {
-                parts.push(g.clone());
-            }
-            Tensor::cat(parts, 2)
-        };
         // The paper's translation heads see the RGB-depth, the tactile-depth and the global
-        // features; rotation and confidence see their own channel and the global feature.
-        let translation_in = with_global(visual.iter().cloned().chain(tactile.as_ref().map(|(f, _)| f.clone())).collect::<Vec<_>>());
+        // features; rotation and confidence see their own channel and the global feature. Each
+        // head's input is its point features followed by the global feature (`shared`).
+        let shared = global.as_ref();
+        let translation_in = Tensor::cat(visual.iter().cloned().chain(tactile.as_ref().map(|(f, _)| f.clone())).collect::<Vec<_>>(), 2);
 
         let mut rotation = Vec::new();
         let mut translation = Vec::new();
@@ -475,20 +540,20 @@ impl PoseNet {
         let mut valid = Vec::new();
         let mut run = |heads: &Heads, shared_rotation: Option<&Mlp>, own: Tensor<3>, anchor: Tensor<3>, ok: Tensor<2>| {
             let rot_head = heads.rotation.as_ref().or(shared_rotation).expect("a rotation head");
-            let r = select_object(rot_head.forward(own.clone()), &input.object, 4);
-            let t = select_object(heads.translation.forward(translation_in.clone()), &input.object, 3);
-            let c = select_object(heads.confidence.forward(own), &input.object, 1);
-            rotation.push(normalize_quat(r));
+            let r = select_object(rot_head.forward_with_shared(own.clone(), shared), &input.object, self.rotation.outputs());
+            let t = select_object(heads.translation.forward_with_shared(translation_in.clone(), shared), &input.object, 3);
+            let c = select_object(heads.confidence.forward_with_shared(own, shared), &input.object, 1);
+            rotation.push(self.rotation.to_matrix(r));
             translation.push(anchor + t.div_scalar(POINT_SCALE));
             confidence.push(sigmoid(c).reshape([b, n]));
             valid.push(ok.expand([b, n]));
         };
         if let (Some(heads), Some(f)) = (&self.visual, visual) {
-            run(heads, None, with_global(vec![f]), input.cloud.clone(), Tensor::ones([b, 1], &device));
+            run(heads, None, f, input.cloud.clone(), Tensor::ones([b, 1], &device));
         }
         if let (Some(heads), Some((f, anchor))) = (&self.tactile, tactile) {
-            let shared = self.visual.as_ref().and_then(|v| v.rotation.as_ref());
-            run(heads, shared, with_global(vec![f]), anchor, input.has_touch.clone());
+            let shared_rotation = self.visual.as_ref().and_then(|v| v.rotation.as_ref());
+            run(heads, shared_rotation, f, anchor, input.has_touch.clone());
         }
         PoseOutput {
             rotation: Tensor::cat(rotation, 1),
@@ -516,6 +581,23 @@ mod tests {
         }
     }
 
+    #[test]
+    fn a_shared_input_through_the_first_layer_once_equals_the_concatenation() {
+        let device = cpu();
+        let (b, n, d, g) = (3, 7, 5, 4);
+        for (dims, out) in [(vec![6, 3], Some(2)), (vec![], Some(2)), (vec![6], None)] {
+            let mlp = MlpConfig::new(d + g, dims).with_d_output(out).init(&device);
+            let x = Tensor::<3>::random([b, n, d], Distribution::Normal(0.0, 1.0), &device);
+            let shared = Tensor::<3>::random([b, 1, g], Distribution::Normal(0.0, 1.0), &device);
+            let whole = mlp.forward(Tensor::cat(vec![x.clone(), shared.clone().expand([b, n, g])], 2));
+            let split = mlp.forward_with_shared(x, Some(&shared));
+            assert_eq!(whole.dims(), split.dims());
+            for (a, c) in values(whole).iter().zip(values(split)) {
+                assert!((a - c).abs() < 1e-5, "{a} vs {c}");
+            }
+        }
+    }
+
     fn values<const D: usize>(t: Tensor<D>) -> Vec<f32> {
         t.into_data().iter::<f32>().collect()
     }
@@ -539,7 +621,7 @@ mod tests {
         assert!(dr < 1e-6 && dc < 1e-6, "visual rotation/confidence moved by {dr}/{dc}");
         assert!(dt > 1e-6, "the visual translation ignores touch");
         // Shapes: both channels, n estimates each.
-        assert_eq!(oa.rotation.dims(), [b, 2 * n, 4]);
+        assert_eq!(oa.rotation.dims(), [b, 2 * n, 9]);
         assert_eq!(oa.translation.dims(), [b, 2 * n, 3]);
     }
 }

@@ -31,7 +31,47 @@ pub(super) fn markdown(evals: &[ModelEval], pairs: &[Comparison], split: &str, d
     touch_section(&mut s, pairs);
     tactile_sweep_section(&mut s, evals);
     touch_control_section(&mut s, evals);
+    learning_curve_section(&mut s, evals);
     s
+}
+
+/// Per run that evaluated while training: its held-out errors at each evaluated epoch (a fixed,
+/// evenly spread subset of the test split), with the pictures.
+fn learning_curve_section(s: &mut String, evals: &[ModelEval]) {
+    let runs: Vec<&ModelEval> = evals.iter().filter(|e| !e.curve.is_empty()).collect();
+    if runs.is_empty() {
+        return;
+    }
+    let _ = writeln!(s, "## Learning curves
+");
+    let _ = writeln!(
+        s,
+        "Held-out errors during training (`train.eval_every`, on `train.eval_samples` samples spread evenly over the test \
+         split, the same at every evaluation): where position saturates and whether orientation still improves.\n"
+    );
+    if runs.iter().any(|e| e.curve.len() >= 2) {
+        let _ = writeln!(s, "![position](learning-position.svg)\n\n![angle](learning-angle.svg)\n");
+    }
+    let _ = writeln!(s, "| run | epoch | steps | training loss | n | position (cm) | median (cm) | angle (°) | median (°) |");
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|");
+    for e in runs {
+        for p in &e.curve {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {:.5} | {} | {:.3} | {} | {:.1} | {} |",
+                e.name,
+                p.epoch,
+                p.steps,
+                p.loss,
+                p.n,
+                p.position_cm,
+                if p.position_median_cm.is_nan() { "–".into() } else { format!("{:.3}", p.position_median_cm) },
+                p.angle_deg,
+                if p.angle_median_deg.is_nan() { "–".into() } else { format!("{:.1}", p.angle_median_deg) },
+            );
+        }
+    }
+    let _ = writeln!(s);
 }
 
 fn report_header(s: &mut String, evals: &[ModelEval], split: &str, device: &str) {

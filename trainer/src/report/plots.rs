@@ -1,7 +1,8 @@
 //! The report's pictures, drawn with plotters as standalone SVG (any browser, GitHub and the README
 //! show them): errors by occlusion bin and by object (bars with standard-error whiskers and the
-//! sample count above each, one colour per run), and the paired per-grasp comparison (one dot per
-//! grasp: baseline error against tactile error; below the diagonal touch helped).
+//! sample count above each, one colour per run), the learning curves (held-out errors against
+//! epoch), and the paired per-grasp comparison (one dot per grasp: baseline error against tactile
+//! error; below the diagonal touch helped).
 
 use std::path::Path;
 
@@ -138,16 +139,77 @@ fn draw_bars(
 /// A colour square and the name of each series, left to right; what the numbers above the bars
 /// are, on the right.
 fn legend<'a>(area: &DrawingArea<SVGBackend, Shift>, names: impl Iterator<Item = &'a str>) -> Result<()> {
+    let entries: Vec<(String, RGBColor)> = names.enumerate().map(|(k, n)| (n.to_string(), COLORS[k % COLORS.len()])).collect();
+    legend_entries(area, &entries, "above each bar: samples")
+}
+
+/// A colour square and a name per entry, left to right, and `note` on the right.
+fn legend_entries(area: &DrawingArea<SVGBackend, Shift>, entries: &[(String, RGBColor)], note: &str) -> Result<()> {
     let style = TextStyle::from((FONT, 12)).pos(Pos::new(HPos::Left, VPos::Center));
     let mut x = 70;
-    for (k, name) in names.enumerate() {
-        area.draw(&Rectangle::new([(x, 9), (x + 12, 21)], COLORS[k % COLORS.len()].filled())).map_err(plot_err)?;
-        area.draw(&Text::new(name.to_string(), (x + 16, 15), style.clone())).map_err(plot_err)?;
+    for (name, color) in entries {
+        area.draw(&Rectangle::new([(x, 9), (x + 12, 21)], color.filled())).map_err(plot_err)?;
+        area.draw(&Text::new(name.clone(), (x + 16, 15), style.clone())).map_err(plot_err)?;
         x += 30 + 7 * name.chars().count() as i32;
     }
-    let note = TextStyle::from((FONT, 10)).pos(Pos::new(HPos::Right, VPos::Center));
-    area.draw(&Text::new("above each bar: samples", (SIZE.0 as i32 - 12, 15), note)).map_err(plot_err)?;
+    let note_style = TextStyle::from((FONT, 10)).pos(Pos::new(HPos::Right, VPos::Center));
+    area.draw(&Text::new(note.to_string(), (SIZE.0 as i32 - 12, 15), note_style)).map_err(plot_err)?;
     Ok(())
+}
+
+/// One line of a [`line_chart`]: `(x, y)` points in order, the palette colour `color`, dashed
+/// for a second statistic of the same run.
+#[derive(Debug, Clone)]
+pub struct Curve {
+    pub name: String,
+    pub color: usize,
+    pub dashed: bool,
+    pub points: Vec<(f64, f64)>,
+}
+
+/// Lines with a dot at every point (learning curves: error against epoch), the y axis from 0.
+pub fn line_chart(title: &str, x_label: &str, y_label: &str, curves: &[Curve]) -> Result<String> {
+    let finite = |p: &&(f64, f64)| p.0.is_finite() && p.1.is_finite();
+    let x_top = curves.iter().flat_map(|c| c.points.iter().filter(finite).map(|p| p.0)).fold(1.0, f64::max);
+    let y_top = curves.iter().flat_map(|c| c.points.iter().filter(finite).map(|p| p.1)).fold(0.0, f64::max);
+    let (y_max, step) = nice_axis(y_top * 1.05);
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, SIZE).into_drawing_area();
+        root.fill(&WHITE).map_err(plot_err)?;
+        let (plot, legend_strip) = root.split_vertically(SIZE.1 - LEGEND_H);
+        let mut chart = ChartBuilder::on(&plot)
+            .caption(title, (FONT, 16))
+            .margin(10)
+            .x_label_area_size(40)
+            .y_label_area_size(56)
+            .build_cartesian_2d(0.0..x_top, 0.0..y_max)
+            .map_err(plot_err)?;
+        chart
+            .configure_mesh()
+            .light_line_style(TRANSPARENT)
+            .y_labels(tick_count(y_max, step))
+            .y_label_formatter(&trim)
+            .x_label_formatter(&trim)
+            .x_desc(x_label)
+            .y_desc(y_label)
+            .draw()
+            .map_err(plot_err)?;
+        for c in curves {
+            let color = COLORS[c.color % COLORS.len()];
+            let pts: Vec<(f64, f64)> = c.points.iter().filter(finite).copied().collect();
+            if c.dashed {
+                chart.draw_series(DashedLineSeries::new(pts.clone(), 6, 4, color.stroke_width(2))).map_err(plot_err)?;
+            } else {
+                chart.draw_series(LineSeries::new(pts.clone(), color.stroke_width(2))).map_err(plot_err)?;
+            }
+            chart.draw_series(pts.iter().map(|&p| Circle::new(p, 2.5, color.filled()))).map_err(plot_err)?;
+        }
+        let entries: Vec<(String, RGBColor)> = curves.iter().map(|c| (c.name.clone(), COLORS[c.color % COLORS.len()])).collect();
+        legend_entries(&legend_strip, &entries, "held-out samples")?;
+        root.present().map_err(plot_err)?;
+    }
+    Ok(svg)
 }
 
 /// One dot per grasp: the baseline's error (x) against the tactile network's (y), with the
@@ -198,8 +260,9 @@ pub fn paired_scatter(title: &str, unit: &str, points: &[(f64, f64)], x_name: &s
 /// One figure of a summary (position, angle, ...).
 type Metric = fn(&Summary) -> MeanSe;
 
-/// Writes `occlusion-position.svg`, `occlusion-angle.svg`, `objects-position.svg` and, per
-/// tactile network paired with the vision-only one, `paired-<tactile>-vs-<vision>.svg`.
+/// Writes `occlusion-position.svg`, `occlusion-angle.svg`, `objects-position.svg`, for runs that
+/// evaluated while training `learning-position.svg` and `learning-angle.svg`, and, per tactile
+/// network paired with the vision-only one, `paired-<tactile>-vs-<vision>.svg`.
 pub fn write_plots(evals: &[ModelEval], pairs: &[Comparison], out: &Path) -> Result<()> {
     let write = |name: &str, svg: String| {
         let p = out.join(name);
@@ -243,6 +306,23 @@ pub fn write_plots(evals: &[ModelEval], pairs: &[Comparison], out: &Path) -> Res
         "objects-position.svg",
         bar_chart("Position error by object", "position error (cm)", &objects, &series(|s| s.position_cm, &per_object))?,
     )?;
+    // Learning curves: the held-out errors during training.
+    let with_curve: Vec<(usize, &ModelEval)> = evals.iter().enumerate().filter(|(_, e)| e.curve.len() >= 2).collect();
+    if !with_curve.is_empty() {
+        let line = |k: usize, e: &ModelEval, what: &str, dashed: bool, f: fn(&crate::run::CurvePoint) -> f64| Curve {
+            name: format!("{} {what}", e.name),
+            color: k,
+            dashed,
+            points: e.curve.iter().map(|p| (p.epoch as f64, f(p))).collect(),
+        };
+        let position: Vec<Curve> = with_curve.iter().map(|&(k, e)| line(k, e, "mean", false, |p| p.position_cm)).collect();
+        write("learning-position.svg", line_chart("Held-out position error during training", "epoch", "position error (cm)", &position)?)?;
+        let angle: Vec<Curve> = with_curve
+            .iter()
+            .flat_map(|&(k, e)| [line(k, e, "mean", false, |p| p.angle_deg), line(k, e, "median", true, |p| p.angle_median_deg)])
+            .collect();
+        write("learning-angle.svg", line_chart("Held-out angle error during training", "epoch", "angle error (°)", &angle)?)?;
+    }
     // Paired per grasp.
     for Comparison { tactile: t, vision: v, paired } in pairs {
         let Some(p) = paired else { continue };
@@ -289,6 +369,17 @@ mod tests {
         }
         assert_eq!(nice_axis(3.1 * 1.05), (4.0, 1.0));
         assert_eq!(nice_axis(0.9), (1.0, 0.2));
+        let curves = [
+            Curve { name: "a mean".into(), color: 0, dashed: false, points: vec![(1.0, 4.0), (2.0, 3.0), (3.0, 2.5)] },
+            Curve { name: "a median".into(), color: 0, dashed: true, points: vec![(1.0, 3.5), (2.0, f64::NAN), (3.0, 2.0)] },
+        ];
+        let lines = line_chart("t", "epoch", "cm", &curves).unwrap();
+        assert!(lines.starts_with("<svg") && lines.trim_end().ends_with("</svg>"));
+        // A dot per finite point; both legend entries.
+        assert_eq!(lines.matches("<circle").count(), 5);
+        for text in ["a mean", "a median"] {
+            assert!(lines.contains(&format!(">\n{text}\n</text>")), "{text}:\n{lines}");
+        }
         let sc = paired_scatter("t", "cm", &[(1.0, 0.5), (1.0, 2.0)], "v", "t").unwrap();
         assert!(sc.contains("1 of 2"));
         assert_eq!(sc.matches("<circle").count(), 2);
