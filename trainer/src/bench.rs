@@ -21,8 +21,8 @@ use serde::Serialize;
 use crate::config::{DataConfig, TrainConfig};
 use crate::data::{Batch, Prepared};
 use crate::eval::metrics::MeanSe;
-use crate::model::{PoseInput, PoseNet, Variant};
 use crate::host::process_cpu_seconds;
+use crate::model::{PoseInput, PoseNet, Variant};
 use crate::train::{StepStage, train_step};
 
 /// A fixed low-discrepancy sequence in [-0.5, 0.5).

@@ -142,7 +142,8 @@ mod tests {
         // Gram–Schmidt step recovers the rotation.
         let (c1, c2) = (m.col(0) * 2.0, m.col(1) * 0.5 + m.col(0) * 0.3);
         let data: Vec<f32> = [c1.x, c1.y, c1.z, c2.x, c2.y, c2.z].iter().map(|v| *v as f32).collect();
-        let got: Vec<f32> = rot6d_to_matrix(Tensor::<2>::from_data(TensorData::new(data, [1, 6]), &device)).into_data().iter::<f32>().collect();
+        let got: Vec<f32> =
+            rot6d_to_matrix(Tensor::<2>::from_data(TensorData::new(data, [1, 6]), &device)).into_data().iter::<f32>().collect();
         let want = matrix_rows(q);
         for k in 0..9 {
             assert!((got[k] - want[k]).abs() < 1e-5, "entry {k}: {} vs {}", got[k], want[k]);

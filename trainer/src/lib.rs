@@ -35,8 +35,8 @@
 
 pub mod config;
 pub mod device;
-pub mod host;
 pub mod geometry;
+pub mod host;
 
 // The stages in the order the data flows, one per group so that rustfmt keeps that order.
 pub mod data;

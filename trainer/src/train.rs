@@ -64,8 +64,7 @@ pub struct EpochRecord {
     pub eval: Option<Summary>,
 }
 
-const CSV_HEADER: &str =
-    "epoch,steps,samples,skipped,loss,distance_cm,seconds,eval_n,eval_position_cm,eval_angle_deg,eval_add_auc,eval_adds_auc,eval_position_median_cm,eval_angle_median_deg";
+const CSV_HEADER: &str = "epoch,steps,samples,skipped,loss,distance_cm,seconds,eval_n,eval_position_cm,eval_angle_deg,eval_add_auc,eval_adds_auc,eval_position_median_cm,eval_angle_median_deg";
 
 impl EpochRecord {
     /// The line printed after the epoch.

@@ -42,8 +42,11 @@ fn learning_curve_section(s: &mut String, evals: &[ModelEval]) {
     if runs.is_empty() {
         return;
     }
-    let _ = writeln!(s, "## Learning curves
-");
+    let _ = writeln!(
+        s,
+        "## Learning curves
+"
+    );
     let _ = writeln!(
         s,
         "Held-out errors during training (`train.eval_every`, on `train.eval_samples` samples spread evenly over the test \
