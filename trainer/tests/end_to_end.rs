@@ -459,8 +459,14 @@ fn the_cli_trains_evaluates_and_benchmarks() {
             && eval_dir.join("results.json").is_file()
             && eval_dir.join("samples-run.csv").is_file()
     );
+    // The three evaluated epochs are the run's learning curve; the angle errors' spread.
+    assert!(md.contains("## Learning curves") && md.contains("| run | 3 | 3 |") && md.contains("## Angle errors"), "{md}");
+    assert!(eval_dir.join("learning-position.svg").is_file() && eval_dir.join("learning-angle.svg").is_file());
     let bench = vtpose(&["bench", r, c, "--variants", "tactile_channel", "--iters", "2", "--warmup", "1"]);
     assert!(bench.contains("| run |") && bench.contains("cfg/tactile_channel"), "{bench}");
+    // Training steps: one thread with its stages, and the step's threads (2 here).
+    let bench = vtpose(&["bench", "--train", r, "--iters", "2", "--warmup", "1"]);
+    assert!(bench.contains("| steps / s | CPU share |") && bench.contains("| backward |"), "{bench}");
     // Errors are one line naming what is wrong.
     let o = std::process::Command::new(env!("CARGO_BIN_EXE_vtpose")).args(["train", c, "--out", r, "--quiet"]).output().unwrap();
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--resume"));

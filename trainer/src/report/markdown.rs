@@ -28,11 +28,59 @@ pub(super) fn markdown(evals: &[ModelEval], pairs: &[Comparison], split: &str, d
     overall_section(&mut s, evals);
     per_object_section(&mut s, evals);
     per_occlusion_section(&mut s, evals);
+    angle_distribution_section(&mut s, evals);
     touch_section(&mut s, pairs);
     tactile_sweep_section(&mut s, evals);
     touch_control_section(&mut s, evals);
     learning_curve_section(&mut s, evals);
     s
+}
+
+/// Upper edges (°) of the angle-error bins of [`angle_distribution_section`].
+const ANGLE_BINS: [f64; 5] = [10.0, 30.0, 90.0, 150.0, 180.0];
+
+/// How the angle errors spread, per run: a network that has learned an object's orientation up to
+/// a flip puts its samples near 0° and near 180°, one that has not spreads them like a random
+/// rotation (whose errors are mostly above 90°: median ~126°).
+fn angle_distribution_section(s: &mut String, evals: &[ModelEval]) {
+    if evals.iter().all(|e| e.results.is_empty()) {
+        return;
+    }
+    let _ = writeln!(
+        s,
+        "## Angle errors
+"
+    );
+    let _ = writeln!(
+        s,
+        "Share of samples (%) per angle-error bin, and the median: near 180° are flips.
+"
+    );
+    let mut header = String::from("| run | n | median (°) |");
+    let mut lower = 0.0;
+    for upper in ANGLE_BINS {
+        let _ = write!(header, " {lower:.0}–{upper:.0}° |");
+        lower = upper;
+    }
+    let _ = writeln!(
+        s,
+        "{header}
+|{}",
+        "---|".repeat(3 + ANGLE_BINS.len())
+    );
+    for e in evals.iter().filter(|e| !e.results.is_empty()) {
+        let angles: Vec<f64> = e.results.iter().map(|r| r.angle_deg).collect();
+        let m = Summary::of(&e.results);
+        let _ = write!(s, "| {} | {} | {:.1} |", e.name, angles.len(), m.angle_median_deg);
+        let mut lower = f64::NEG_INFINITY;
+        for upper in ANGLE_BINS {
+            let inside = angles.iter().filter(|&&a| a > lower && a <= upper).count();
+            let _ = write!(s, " {:.1} |", 100.0 * inside as f64 / angles.len() as f64);
+            lower = upper;
+        }
+        let _ = writeln!(s);
+    }
+    let _ = writeln!(s);
 }
 
 /// Per run that evaluated while training: its held-out errors at each evaluated epoch (a fixed,
