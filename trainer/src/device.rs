@@ -63,6 +63,16 @@ pub fn is_cpu(device: &Device) -> bool {
     plain == cpu() || plain == ndarray()
 }
 
+/// Threads a batch is split over on `device`: `requested`, or with 0 the machine's cores on the
+/// CPU backends and 1 on a GPU (one device queue gains nothing from more host threads).
+pub fn batch_threads(requested: usize, device: &Device) -> usize {
+    match requested {
+        0 if is_cpu(device) => std::thread::available_parallelism().map_or(1, |n| n.get()),
+        0 => 1,
+        n => n,
+    }
+}
+
 /// A short name of the device for reports.
 pub fn describe(device: &Device) -> String {
     format!("{device:?}")

@@ -373,12 +373,7 @@ pub struct StepDone {
 /// the machine's cores on burn's CPU backends and 1 on a GPU (one device queue gains nothing from
 /// more threads).
 pub fn step_threads(train: &OptimConfig, device: &Device) -> usize {
-    let cpu = crate::device::is_cpu(device);
-    match train.step_threads {
-        0 if cpu => std::thread::available_parallelism().map_or(1, |n| n.get()),
-        0 => 1,
-        n => n,
-    }
+    crate::device::batch_threads(train.step_threads, device)
 }
 
 /// One optimizer step of `model` on `batch`. With `threads` > 1 the batch is split into that many

@@ -21,7 +21,7 @@ use glam::DVec3;
 use serde::Serialize;
 
 use crate::config::{AugmentConfig, TACTILE_SWEEP, TrainConfig};
-use crate::data::{Loaded, Loader, Pass, PrepareOptions, SplitSource, load_models};
+use crate::data::{Batch, Loaded, Loader, Pass, PrepareOptions, SplitSource, load_models};
 use crate::geometry::wxyz_to_quat;
 use crate::model::{PoseNet, Variant};
 use crate::run::{RunDir, slot_table};
@@ -40,6 +40,8 @@ pub struct EvalOptions {
     pub batch_size: usize,
     /// Where the inputs go (the model's device, without autodiff).
     pub device: Device,
+    /// Threads each batch's forward pass is split over (`train.step_threads`, resolved by `on`).
+    pub threads: usize,
 }
 
 impl EvalOptions {
@@ -61,11 +63,14 @@ impl EvalOptions {
             },
             batch_size: cfg.train.batch_size,
             device: crate::device::cpu(),
+            threads: cfg.train.step_threads,
         }
     }
 
+    /// On `device`; the batch's threads resolved for it ([`crate::device::batch_threads`]).
     pub fn on(mut self, device: &Device) -> Self {
         self.device = device.clone().without_autodiff();
+        self.threads = crate::device::batch_threads(self.threads, &self.device);
         self
     }
 }
@@ -97,6 +102,19 @@ impl SampleResult {
     pub fn add_or_adds(&self) -> f64 {
         if self.symmetric { self.adds_m } else { self.add_m }
     }
+}
+
+/// The most confident estimate of every sample of `batch`, the batch split over `opts.threads`
+/// threads (each a forward pass of its share; burn's CPU kernels parallelise only large tensors).
+fn best_estimates(model: &PoseNet, batch: &Batch, opts: &EvalOptions) -> Vec<crate::model::Estimate> {
+    let parts = batch.split(opts.threads);
+    if parts.len() == 1 {
+        return model.forward(&batch.inputs(&opts.device)).best();
+    }
+    std::thread::scope(|scope| {
+        let handles: Vec<_> = parts.iter().map(|part| scope.spawn(move || model.forward(&part.inputs(&opts.device)).best())).collect();
+        handles.into_iter().flat_map(|h| h.join().expect("an evaluation thread panicked")).collect()
+    })
 }
 
 /// Runs `model` over `source` (one pass, no augmentation). Returns the scores, the indices of
@@ -136,7 +154,7 @@ pub fn evaluate_with(
                         unscored.push(k);
                     }
                 }
-                let best = model.forward(&batch.inputs(&opts.device)).best();
+                let best = best_estimates(model, &batch, opts);
                 for (k, (p, est)) in batch.samples.iter().zip(best).enumerate() {
                     if unscored.contains(&k) {
                         skipped.push(p.index); // no other grasp of its object to take touch from
