@@ -3,7 +3,7 @@
 # interruption. Reports land in out/experiments/<name>/eval*/report.md with their pictures.
 #
 #   experiments/touch/run.sh cpu           --ycb-dir DIR   # Tactile-Channel vs vision only, 2 CPU cores (~1 h)
-#   experiments/touch/run.sh orientation   --ycb-dir DIR   # + rot6d and a cosine schedule beside the paper's form
+#   experiments/touch/run.sh orientation   --ycb-dir DIR   # + rot6d and a cosine schedule, + a rotation loss term
 #   experiments/touch/run.sh cross-gripper --ycb-dir DIR   # Allegro <-> Robotiq 2F-85, each network on both
 #   experiments/touch/run.sh paper         --ycb-dir DIR --device cuda --jobs 16   # the paper's size, for a GPU box
 #
@@ -94,7 +94,10 @@ case "$experiment" in
   orientation)
     cpu_base
     train experiments/touch/train-cpu-orientation.yaml "$cpu_out/data" "$cpu_out/runs/orientation"
-    evaluate "$cpu_out/eval-orientation" "$cpu_out/runs/tactile_channel" "$cpu_out/runs/orientation" -- --no-sweep --no-touch-control
+    train experiments/touch/train-cpu-rotation-loss.yaml "$cpu_out/data" "$cpu_out/runs/rotation_loss"
+    runs=("$cpu_out/runs/tactile_channel" "$cpu_out/runs/orientation" "$cpu_out/runs/rotation_loss")
+    evaluate "$cpu_out/eval-orientation" "${runs[@]}" -- --no-sweep --no-touch-control
+    evaluate "$cpu_out/eval-orientation-train" "${runs[@]}" -- --split train --max-samples 400 --no-sweep --no-touch-control
     log "report: $cpu_out/eval-orientation/report.md (learning curves: learning-angle.svg)"
     ;;
   cross-gripper)

@@ -169,7 +169,7 @@ pub fn bench_training(name: &str, cfg: &TrainConfig, device: &Device, threads: u
     let mut optim = AdamConfig::new().with_epsilon(1e-8).init();
     let batch = synthetic_batch(&cfg.data, cfg.train.batch_size, cfg.data.n_model_points);
     for _ in 0..warmup {
-        model = train_step(model, &mut optim, &batch, cfg.train.w, cfg.train.lr, threads, &device, &mut |_| {}).0;
+        model = train_step(model, &mut optim, &batch, cfg.train.loss_weights(), cfg.train.lr, threads, &device, &mut |_| {}).0;
     }
     let mut stage_ms: Vec<Vec<f64>> = vec![Vec::new(); StepStage::ALL.len()];
     let mut ms = Vec::with_capacity(iters);
@@ -187,7 +187,7 @@ pub fn bench_training(name: &str, cfg: &TrainConfig, device: &Device, threads: u
                 last = now;
             }
         };
-        model = train_step(model, &mut optim, &batch, cfg.train.w, cfg.train.lr, threads, &device, &mut lap).0;
+        model = train_step(model, &mut optim, &batch, cfg.train.loss_weights(), cfg.train.lr, threads, &device, &mut lap).0;
         let _ = device.sync();
         ms.push(start.elapsed().as_secs_f64() * 1e3);
     }

@@ -22,7 +22,7 @@
 //!   depth: exact                     # exact | noisy (/camera/depth_noisy when the dataset has it)
 //!   resample: true                   # new random points every epoch (false: the same every epoch)
 //! augment: {color_jitter: 0.2, translation_noise_m: 0.03}
-//! train: {epochs: 20, batch_size: 16, lr: 0.0002, w: 0.015, seed: 0}   # lr_schedule: constant | cosine
+//! train: {epochs: 20, batch_size: 16, lr: 0.0002, w: 0.015, seed: 0}   # lr_schedule: constant | cosine; rotation_loss: 0
 //! # symmetric_loss: [005_tomato_soup_can]   # objects trained with the closest-point (ADD-S) loss; the paper: none
 //! ```
 
@@ -212,6 +212,9 @@ pub struct OptimConfig {
     pub lr_schedule: LrSchedule,
     /// The confidence regulariser `w` of the loss.
     pub w: f64,
+    /// Metres of distance per unit of chordal rotation error added to each estimate's model-point
+    /// distance in the loss (0: the paper's loss; see `loss::pose_loss`).
+    pub rotation_loss: f64,
     /// Seeds the weights, the sample order and every random choice of the data pipeline.
     pub seed: u64,
     /// Objects (ids) trained with the closest-point loss (DenseFusion's ADD-S variant): a pose
@@ -244,6 +247,11 @@ pub enum LrSchedule {
 }
 
 impl OptimConfig {
+    /// The loss's weights.
+    pub fn loss_weights(&self) -> crate::loss::LossWeights {
+        crate::loss::LossWeights { w: self.w, rotation: self.rotation_loss }
+    }
+
     /// The learning rate of the step after `steps_done` of `total_steps`.
     pub fn lr_at(&self, steps_done: u64, total_steps: u64) -> f64 {
         match self.lr_schedule {
@@ -264,6 +272,7 @@ impl Default for OptimConfig {
             lr: 2e-4,
             lr_schedule: LrSchedule::Constant,
             w: 0.015,
+            rotation_loss: 0.0,
             seed: 0,
             symmetric_loss: Vec::new(),
             checkpoint_every: 10,
@@ -343,8 +352,16 @@ impl TrainConfig {
         }
         let t = &self.train;
         // (written so that NaN fails too)
-        if t.batch_size == 0 || t.epochs == 0 || t.lr.is_nan() || t.lr <= 0.0 || t.w.is_nan() || t.w < 0.0 {
-            bail!("train.batch_size and train.epochs must be >= 1, train.lr > 0, train.w >= 0");
+        if t.batch_size == 0
+            || t.epochs == 0
+            || t.lr.is_nan()
+            || t.lr <= 0.0
+            || t.w.is_nan()
+            || t.w < 0.0
+            || t.rotation_loss.is_nan()
+            || t.rotation_loss < 0.0
+        {
+            bail!("train.batch_size and train.epochs must be >= 1, train.lr > 0, train.w >= 0, train.rotation_loss >= 0");
         }
         if self.augment.color_jitter < 0.0 || self.augment.color_jitter >= 1.0 || self.augment.translation_noise_m < 0.0 {
             bail!("augment.color_jitter must be in [0, 1) and augment.translation_noise_m >= 0");

@@ -40,6 +40,23 @@ pub const W_DEFAULT: f64 = 0.015;
 /// Added under the square roots (m²): keeps gradients finite at zero distance (a 10 µm floor).
 const EPS: f64 = 1e-10;
 
+/// The weights of the loss's terms.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LossWeights {
+    /// The confidence regulariser `w` (the paper: 0.015).
+    pub w: f64,
+    /// Metres of distance per unit of chordal rotation error `‖R̂_i − R‖_F` added to each
+    /// estimate's `L_i` (0: the paper's loss). See [`pose_loss`].
+    pub rotation: f64,
+}
+
+impl LossWeights {
+    /// The paper's loss with regulariser `w`.
+    pub fn paper(w: f64) -> Self {
+        LossWeights { w, rotation: 0.0 }
+    }
+}
+
 /// The loss of a batch and its per-estimate distances.
 #[derive(Debug, Clone)]
 pub struct LossOutput {
@@ -49,8 +66,12 @@ pub struct LossOutput {
     pub distance: Tensor<2>,
 }
 
-/// The loss of `out` against `targets` with regulariser `w`.
-pub fn pose_loss(out: &PoseOutput, targets: &Targets, w: f64) -> LossOutput {
+/// The loss of `out` against `targets`. With `weights.rotation` > 0 each estimate's distance in
+/// eq. 2 becomes `L_i + λ ‖R̂_i − R‖_F`: the mean model-point distance barely sees a rotation about
+/// an axis along which the object hardly moves (a flat, elongated tool's long axis), and the
+/// chordal term charges every rotation axis alike (a deviation from the paper; `distance` stays
+/// `L_i`).
+pub fn pose_loss(out: &PoseOutput, targets: &Targets, weights: LossWeights) -> LossOutput {
     let [b, e, _] = out.rotation.dims();
     let device = out.rotation.device();
     let rot = out.rotation.clone().reshape([b, e, 3, 3]);
@@ -88,7 +109,14 @@ pub fn pose_loss(out: &PoseOutput, targets: &Targets, w: f64) -> LossOutput {
         inverse[i] = k as i64;
     }
     let distance = Tensor::cat(distances, 0).select(0, Tensor::<1, Int>::from_data(TensorData::new(inverse, [b]), &device));
-    let loss = confidence_loss(distance.clone(), out.confidence.clone(), out.valid.clone(), w);
+    let charged = if weights.rotation > 0.0 {
+        let truth = targets.rotation.clone().reshape([b, 1, 9]).expand([b, e, 9]);
+        let chordal = (out.rotation.clone() - truth).square().sum_dim(2).add_scalar(EPS).sqrt().reshape([b, e]);
+        distance.clone() + chordal.mul_scalar(weights.rotation)
+    } else {
+        distance.clone()
+    };
+    let loss = confidence_loss(charged, out.confidence.clone(), out.valid.clone(), weights.w);
     LossOutput { loss, distance: distance.detach() }
 }
 
@@ -281,7 +309,7 @@ mod tests {
         let x = [[1.0, 0.0, 0.0], [0.0, 0.0, 0.0]];
         let batch = one_sample(&x, false);
         let out = output(&[[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]], &[[0.03, 0.0, 1.0], [0.0, 0.0, 1.0]], &[0.8, 0.1]);
-        let l = pose_loss(&out, &batch.targets(&cpu()), W_DEFAULT);
+        let l = pose_loss(&out, &batch.targets(&cpu()), LossWeights::paper(W_DEFAULT));
         let d: Vec<f32> = l.distance.into_data().iter::<f32>().collect();
         assert!((d[0] - 0.03).abs() < 1e-4 && (d[1] - 1.0).abs() < 1e-4, "{d:?}");
         // L = 1/2 [(0.03·0.8 − 0.015 ln 0.8) + (1·0.1 − 0.015 ln 0.1)]
@@ -292,9 +320,26 @@ mod tests {
         // {(-1,0,0), (0,0,0)}: (-1,0,0)'s closest true point is (0,0,0), at 1; (0,0,0) is on a
         // true point: L_1 = 0.5. The shifted estimate: closest points are the same as before.
         let batch = one_sample(&x, true);
-        let l = pose_loss(&out, &batch.targets(&cpu()), W_DEFAULT);
+        let l = pose_loss(&out, &batch.targets(&cpu()), LossWeights::paper(W_DEFAULT));
         let d: Vec<f32> = l.distance.into_data().iter::<f32>().collect();
         assert!((d[0] - 0.03).abs() < 1e-4 && (d[1] - 0.5).abs() < 1e-4, "{d:?}");
+    }
+
+    #[test]
+    fn the_rotation_term_charges_the_chordal_error() {
+        // Estimate 1 is the truth turned 180° about z: ‖R̂ − R‖_F = ‖diag(−2, −2, 0)‖ = 2√2.
+        let x = [[1.0, 0.0, 0.0], [0.0, 0.0, 0.0]];
+        let batch = one_sample(&x, false);
+        let out = output(&[[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]], &[[0.03, 0.0, 1.0], [0.0, 0.0, 1.0]], &[0.8, 0.1]);
+        let targets = batch.targets(&cpu());
+        let paper = pose_loss(&out, &targets, LossWeights::paper(W_DEFAULT));
+        let charged = pose_loss(&out, &targets, LossWeights { w: W_DEFAULT, rotation: 0.1 });
+        // Only estimate 1 is charged, 0.1 · 2√2 weighted by its confidence 0.1, over 2 estimates.
+        let want = 0.5 * 0.1 * 0.1 * 2.0 * 2f64.sqrt();
+        assert!(((scalar(charged.loss) - scalar(paper.loss)) as f64 - want).abs() < 1e-5, "want + {want}");
+        // The distances stay L_i.
+        let d: Vec<f32> = charged.distance.into_data().iter::<f32>().collect();
+        assert!((d[0] - 0.03).abs() < 1e-4 && (d[1] - 1.0).abs() < 1e-4, "{d:?}");
     }
 
     #[test]
@@ -354,7 +399,7 @@ mod tests {
                 };
                 let before = pose(&model);
                 let out = model.forward(&input);
-                let l = pose_loss(&out, &targets, W_DEFAULT);
+                let l = pose_loss(&out, &targets, LossWeights::paper(W_DEFAULT));
                 assert!(scalar(l.loss.clone()).is_finite());
                 let grads = GradientsParams::from_grads(l.loss.backward(), &model);
                 assert!(!grads.is_empty(), "{variant:?}: no gradients");

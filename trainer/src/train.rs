@@ -30,7 +30,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use crate::config::{AugmentConfig, OptimConfig, TrainConfig};
 use crate::data::{Batch, Loaded, Loader, ObjectModel, Pass, PrepareOptions, SplitSource, load_models, select_objects, shuffled};
 use crate::eval::{self, Summary};
-use crate::loss::pose_loss;
+use crate::loss::{LossWeights, pose_loss};
 use crate::model::PoseNet;
 pub use crate::run::{RunDir, RunState, slot_table};
 
@@ -282,7 +282,7 @@ impl Epochs<'_> {
     fn step(&mut self, model: PoseNet, optim: &mut ModuleOptimizer, epoch: u64, batch: &Batch, device: &Device) -> Result<PoseNet> {
         let train = &self.cfg.train;
         let lr = train.lr_at(self.steps_done, self.total_steps);
-        let (model, done) = train_step(model, optim, batch, train.w, lr, self.step_threads, device, &mut |_| {});
+        let (model, done) = train_step(model, optim, batch, train.loss_weights(), lr, self.step_threads, device, &mut |_| {});
         self.steps_done += 1;
         if !done.loss.is_finite() {
             bail!("epoch {epoch}: the loss is {} (diverged); try a lower train.lr", done.loss);
@@ -389,7 +389,7 @@ pub fn train_step(
     model: PoseNet,
     optim: &mut ModuleOptimizer,
     batch: &Batch,
-    w: f64,
+    weights: LossWeights,
     lr: f64,
     threads: usize,
     device: &Device,
@@ -402,7 +402,7 @@ pub fn train_step(
         lap(StepStage::Inputs);
         let out = model.forward(&input);
         lap(StepStage::Forward);
-        let l = pose_loss(&out, &targets, w);
+        let l = pose_loss(&out, &targets, weights);
         let loss: f64 = l.loss.clone().into_scalar::<f32>() as f64;
         let best_distance_m = best_distance(&out, &l.distance);
         lap(StepStage::Loss);
@@ -423,7 +423,7 @@ pub fn train_step(
                 scope.spawn(move || {
                     let share = part.len() as f64 / total;
                     let out = copy.forward(&part.inputs(device));
-                    let l = pose_loss(&out, &part.targets(device), w);
+                    let l = pose_loss(&out, &part.targets(device), weights);
                     let loss = l.loss.clone().into_scalar::<f32>() as f64;
                     let best = best_distance(&out, &l.distance);
                     let grads = GradientsParams::from_grads(l.loss.mul_scalar(share).backward(), &copy);
@@ -607,7 +607,8 @@ mod tests {
         for threads in [1, 2] {
             // Plain SGD: the update is the gradient itself (Adam's first step is its sign only).
             let mut optim = SgdConfig::new().init();
-            let (stepped, done) = train_step(model.clone(), &mut optim, &batch, 0.015, 1.0, threads, &device, &mut |_| {});
+            let (stepped, done) =
+                train_step(model.clone(), &mut optim, &batch, LossWeights::paper(0.015), 1.0, threads, &device, &mut |_| {});
             outcomes.push((stepped.valid().forward(&probe), done));
         }
         let (one, split) = (&outcomes[0], &outcomes[1]);
