@@ -167,17 +167,21 @@ pub struct Curve {
     pub points: Vec<(f64, f64)>,
 }
 
-/// Lines with a dot at every point (learning curves: error against epoch), the y axis from 0.
-pub fn line_chart(title: &str, x_label: &str, y_label: &str, curves: &[Curve]) -> Result<String> {
+/// Lines with a dot at every point (learning curves: error against epoch), the y axis from 0, and
+/// a grey dashed horizontal line per `references` entry (`(label, y)`; an empty label: the line alone).
+pub fn line_chart(title: &str, x_label: &str, y_label: &str, curves: &[Curve], references: &[(String, f64)]) -> Result<String> {
     let finite = |p: &&(f64, f64)| p.0.is_finite() && p.1.is_finite();
     let x_top = curves.iter().flat_map(|c| c.points.iter().filter(finite).map(|p| p.0)).fold(1.0, f64::max);
-    let y_top = curves.iter().flat_map(|c| c.points.iter().filter(finite).map(|p| p.1)).fold(0.0, f64::max);
+    let y_top =
+        curves.iter().flat_map(|c| c.points.iter().filter(finite).map(|p| p.1)).chain(references.iter().map(|r| r.1)).fold(0.0, f64::max);
     let (y_max, step) = nice_axis(y_top * 1.05);
+    let grey = RGBColor(128, 128, 128);
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, SIZE).into_drawing_area();
         root.fill(&WHITE).map_err(plot_err)?;
-        let (plot, legend_strip) = root.split_vertically(SIZE.1 - LEGEND_H);
+        // Two legend rows: three runs with two statistics each do not fit on one.
+        let (plot, legend_strip) = root.split_vertically(SIZE.1 - 2 * LEGEND_H);
         let mut chart = ChartBuilder::on(&plot)
             .caption(title, (FONT, 16))
             .margin(10)
@@ -195,6 +199,16 @@ pub fn line_chart(title: &str, x_label: &str, y_label: &str, curves: &[Curve]) -
             .y_desc(y_label)
             .draw()
             .map_err(plot_err)?;
+        let label = TextStyle::from((FONT, 11)).color(&grey).pos(Pos::new(HPos::Right, VPos::Bottom));
+        for (name, y) in references {
+            chart.draw_series(DashedLineSeries::new([(0.0, *y), (x_top, *y)], 3, 4, grey.into())).map_err(plot_err)?;
+            if name.is_empty() {
+                continue;
+            }
+            chart
+                .draw_series(std::iter::once(EmptyElement::at((x_top, *y)) + Text::new(name.clone(), (-4, -3), label.clone())))
+                .map_err(plot_err)?;
+        }
         for c in curves {
             let color = COLORS[c.color % COLORS.len()];
             let pts: Vec<(f64, f64)> = c.points.iter().filter(finite).copied().collect();
@@ -205,11 +219,34 @@ pub fn line_chart(title: &str, x_label: &str, y_label: &str, curves: &[Curve]) -
             }
             chart.draw_series(pts.iter().map(|&p| Circle::new(p, 2.5, color.filled()))).map_err(plot_err)?;
         }
-        let entries: Vec<(String, RGBColor)> = curves.iter().map(|c| (c.name.clone(), COLORS[c.color % COLORS.len()])).collect();
-        legend_entries(&legend_strip, &entries, "held-out samples")?;
+        line_legend(&legend_strip, curves)?;
         root.present().map_err(plot_err)?;
     }
     Ok(svg)
+}
+
+/// A short line in each curve's colour and style (dashed or solid) and its name, left to right,
+/// wrapping to the next row at the picture's edge.
+fn line_legend(area: &DrawingArea<SVGBackend, Shift>, curves: &[Curve]) -> Result<()> {
+    let style = TextStyle::from((FONT, 12)).pos(Pos::new(HPos::Left, VPos::Center));
+    let (mut x, mut y) = (70, 15);
+    for c in curves {
+        let width = 36 + 7 * c.name.chars().count() as i32;
+        if x > 70 && x + width > SIZE.0 as i32 {
+            (x, y) = (70, y + LEGEND_H as i32 - 8);
+        }
+        let color = COLORS[c.color % COLORS.len()].stroke_width(2);
+        if c.dashed {
+            for k in 0..3 {
+                area.draw(&PathElement::new(vec![(x + 7 * k, y), (x + 7 * k + 4, y)], color)).map_err(plot_err)?;
+            }
+        } else {
+            area.draw(&PathElement::new(vec![(x, y), (x + 18, y)], color)).map_err(plot_err)?;
+        }
+        area.draw(&Text::new(c.name.clone(), (x + 22, y), style.clone())).map_err(plot_err)?;
+        x += width;
+    }
+    Ok(())
 }
 
 /// One dot per grasp: the baseline's error (x) against the tactile network's (y), with the
@@ -316,12 +353,17 @@ pub fn write_plots(evals: &[ModelEval], pairs: &[Comparison], out: &Path) -> Res
             points: e.curve.iter().map(|p| (p.epoch as f64, f(p))).collect(),
         };
         let position: Vec<Curve> = with_curve.iter().map(|&(k, e)| line(k, e, "mean", false, |p| p.position_cm)).collect();
-        write("learning-position.svg", line_chart("Held-out position error during training", "epoch", "position error (cm)", &position)?)?;
+        write(
+            "learning-position.svg",
+            line_chart("Held-out position error during training", "epoch", "position error (cm)", &position, &[])?,
+        )?;
         let angle: Vec<Curve> = with_curve
             .iter()
             .flat_map(|&(k, e)| [line(k, e, "mean", false, |p| p.angle_deg), line(k, e, "median", true, |p| p.angle_median_deg)])
             .collect();
-        write("learning-angle.svg", line_chart("Held-out angle error during training", "epoch", "angle error (°)", &angle)?)?;
+        // A uniformly random rotation's angle error: mean 126.5°, median 132.3° (report/markdown.rs).
+        let random = [("uniformly random rotation: median 132°, mean 126°".to_string(), 132.3), (String::new(), 126.5)];
+        write("learning-angle.svg", line_chart("Held-out angle error during training", "epoch", "angle error (°)", &angle, &random)?)?;
     }
     // Paired per grasp.
     for Comparison { tactile: t, vision: v, paired } in pairs {
@@ -373,11 +415,11 @@ mod tests {
             Curve { name: "a mean".into(), color: 0, dashed: false, points: vec![(1.0, 4.0), (2.0, 3.0), (3.0, 2.5)] },
             Curve { name: "a median".into(), color: 0, dashed: true, points: vec![(1.0, 3.5), (2.0, f64::NAN), (3.0, 2.0)] },
         ];
-        let lines = line_chart("t", "epoch", "cm", &curves).unwrap();
+        let lines = line_chart("t", "epoch", "cm", &curves, &[("ref".into(), 5.0)]).unwrap();
         assert!(lines.starts_with("<svg") && lines.trim_end().ends_with("</svg>"));
         // A dot per finite point; both legend entries.
         assert_eq!(lines.matches("<circle").count(), 5);
-        for text in ["a mean", "a median"] {
+        for text in ["a mean", "a median", "ref"] {
             assert!(lines.contains(&format!(">\n{text}\n</text>")), "{text}:\n{lines}");
         }
         let sc = paired_scatter("t", "cm", &[(1.0, 0.5), (1.0, 2.0)], "v", "t").unwrap();
