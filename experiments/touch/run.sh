@@ -104,10 +104,12 @@ case "$experiment" in
     cpu_base
     gripper_out=out/experiments/touch-gripper
     generate experiments/touch/gripper.yaml "$gripper_out/data"
-    train "$cpu_train" "$gripper_out/data" "$gripper_out/runs/tactile_channel" tactile_channel
-    # Both networks on each gripper's test grasps: the diagonal is each network at home.
+    # Named by gripper: the reports name each network by its run directory.
+    train "$cpu_train" "$gripper_out/data" "$gripper_out/runs/tactile_channel_2f85" tactile_channel
+    # Both networks on each gripper's test grasps (with the touch control): the diagonal is each
+    # network at home.
     for data in touch-cpu:"$cpu_out/data" touch-gripper:"$gripper_out/data"; do
-      evaluate "out/experiments/cross-gripper/on-${data%%:*}" "$cpu_out/runs/tactile_channel" "$gripper_out/runs/tactile_channel" \
+      evaluate "out/experiments/cross-gripper/on-${data%%:*}" "$cpu_out/runs/tactile_channel" "$gripper_out/runs/tactile_channel_2f85" \
         -- --dataset "${data#*:}" --no-sweep
     done
     log "reports: out/experiments/cross-gripper/on-touch-cpu/report.md (Allegro test grasps), on-touch-gripper/report.md (2F-85)"
