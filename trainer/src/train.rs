@@ -160,7 +160,6 @@ pub fn train(cfg: &TrainConfig, opts: &TrainOptions) -> Result<TrainSummary> {
         records: Vec::new(),
         sums: EpochSums::new(),
         step_threads: step_threads(&cfg.train, &opts.device),
-        steps_done: state.steps,
         total_steps: (cfg.train.epochs * n_train.div_ceil(cfg.train.batch_size)) as u64,
     };
     let (records, state) = epochs.run(loader, model, optim, state, &device)?;
@@ -246,8 +245,7 @@ struct Epochs<'a> {
     sums: EpochSums,
     /// Threads each training step splits its batch over ([`step_threads`]).
     step_threads: usize,
-    /// Steps done so far and in the whole run (the learning-rate schedule's progress).
-    steps_done: u64,
+    /// Steps of the whole run (the learning-rate schedule's progress).
     total_steps: u64,
 }
 
@@ -264,7 +262,7 @@ impl Epochs<'_> {
         while let Some(msg) = loader.recv() {
             match msg? {
                 Loaded::Batch { epoch, batch } => {
-                    model = self.step(model, &mut optim, epoch, &batch, device)?;
+                    model = self.step(model, &mut optim, epoch, state.steps, &batch, device)?;
                     state.steps += 1;
                 }
                 Loaded::EndOfPass { epoch, skipped } => {
@@ -278,12 +276,20 @@ impl Epochs<'_> {
         Ok((self.records, state))
     }
 
-    /// One optimizer step on `batch`; returns the updated network.
-    fn step(&mut self, model: PoseNet, optim: &mut ModuleOptimizer, epoch: u64, batch: &Batch, device: &Device) -> Result<PoseNet> {
+    /// One optimizer step on `batch`, after `steps_done` steps of the run; returns the updated
+    /// network.
+    fn step(
+        &mut self,
+        model: PoseNet,
+        optim: &mut ModuleOptimizer,
+        epoch: u64,
+        steps_done: u64,
+        batch: &Batch,
+        device: &Device,
+    ) -> Result<PoseNet> {
         let train = &self.cfg.train;
-        let lr = train.lr_at(self.steps_done, self.total_steps);
+        let lr = train.lr_at(steps_done, self.total_steps);
         let (model, done) = train_step(model, optim, batch, train.loss_weights(), lr, self.step_threads, device, &mut |_| {});
-        self.steps_done += 1;
         if !done.loss.is_finite() {
             bail!("epoch {epoch}: the loss is {} (diverged); try a lower train.lr", done.loss);
         }
@@ -338,15 +344,12 @@ pub enum StepStage {
     Forward,
     Loss,
     Backward,
-    /// The shards' gradients summed (data-parallel steps only).
-    Accumulate,
-    /// Adam's update of the weights.
+    /// The optimizer's update of the weights.
     Optimizer,
 }
 
 impl StepStage {
-    pub const ALL: [StepStage; 6] =
-        [StepStage::Inputs, StepStage::Forward, StepStage::Loss, StepStage::Backward, StepStage::Accumulate, StepStage::Optimizer];
+    pub const ALL: [StepStage; 5] = [StepStage::Inputs, StepStage::Forward, StepStage::Loss, StepStage::Backward, StepStage::Optimizer];
 
     pub fn name(self) -> &'static str {
         match self {
@@ -354,7 +357,6 @@ impl StepStage {
             StepStage::Forward => "forward",
             StepStage::Loss => "loss",
             StepStage::Backward => "backward",
-            StepStage::Accumulate => "accumulate",
             StepStage::Optimizer => "optimizer",
         }
     }
@@ -383,7 +385,8 @@ pub fn step_threads(train: &OptimConfig, device: &Device) -> usize {
 /// pass computes it, up to float summation order. This is what puts a CPU's cores to work: burn's
 /// CPU kernels parallelise only large tensors, and most of this network's are small. (A network
 /// with batch norm, the `resnet_psp` encoder, would see per-shard batch statistics: its steps
-/// run in one pass.) `lap` is called at the end of each stage of a one-pass step.
+/// run in one pass.) `lap` is called at the end of each stage of a one-pass step only: a threaded
+/// step's stages overlap.
 #[allow(clippy::too_many_arguments)]
 pub fn train_step(
     model: PoseNet,
@@ -440,9 +443,7 @@ pub fn train_step(
         loss += l;
         best_distance_m += d;
     }
-    lap(StepStage::Accumulate);
     let model = optim.step(lr, model, accumulator.grads());
-    lap(StepStage::Optimizer);
     (model, StepDone { loss, best_distance_m })
 }
 
