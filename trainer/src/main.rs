@@ -247,6 +247,15 @@ fn eval_command(args: EvalArgs) -> Result<()> {
     Ok(())
 }
 
+/// `--variants` of `vtpose bench`: none (the config's `default`), `all`, or a list.
+fn chosen_variants(variants: &[String], default: Variant) -> Result<Vec<Variant>> {
+    match variants {
+        [] => Ok(vec![default]),
+        [a] if a == "all" => Ok(Variant::ALL.to_vec()),
+        list => list.iter().map(|v| v.parse()).collect(),
+    }
+}
+
 /// `vtpose bench --train`: per config (a run's own for a run directory, the default without
 /// input) and variant, a one-thread step and, where the step uses more, a threaded one.
 fn bench_training_command(args: BenchArgs) -> Result<()> {
@@ -266,12 +275,7 @@ fn bench_training_command(args: BenchArgs) -> Result<()> {
     }
     let mut rows = Vec::new();
     for (name, cfg) in &configs {
-        let chosen: Vec<Variant> = match variants.as_slice() {
-            [] => vec![cfg.model.variant],
-            [a] if a == "all" => Variant::ALL.to_vec(),
-            list => list.iter().map(|v| v.parse()).collect::<Result<_>>()?,
-        };
-        for v in chosen {
+        for v in chosen_variants(&variants, cfg.model.variant)? {
             let mut cfg = cfg.clone();
             cfg.model.variant = v;
             let label = format!("{name}/{v}");
@@ -296,13 +300,6 @@ fn bench_command(args: BenchArgs) -> Result<()> {
     }
     let BenchArgs { inputs, variants, iters, warmup, device: dev, json, train: _ } = args;
     let device = device::parse(&dev)?;
-    let parse_variants = |default: Variant| -> Result<Vec<Variant>> {
-        match variants.as_slice() {
-            [] => Ok(vec![default]),
-            [a] if a == "all" => Ok(Variant::ALL.to_vec()),
-            list => list.iter().map(|v| v.parse()).collect(),
-        }
-    };
     let mut rows = Vec::new();
     let mut configs: Vec<(String, TrainConfig)> = Vec::new();
     if inputs.is_empty() {
@@ -324,7 +321,7 @@ fn bench_command(args: BenchArgs) -> Result<()> {
     }
     let all_variants = inputs.is_empty() && variants.is_empty();
     for (name, cfg) in &configs {
-        let vs = if all_variants { Variant::ALL.to_vec() } else { parse_variants(cfg.model.variant)? };
+        let vs = if all_variants { Variant::ALL.to_vec() } else { chosen_variants(&variants, cfg.model.variant)? };
         for v in vs {
             let mut m = cfg.model.clone();
             m.variant = v;
