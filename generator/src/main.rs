@@ -101,6 +101,11 @@ enum Command {
         #[arg(long)]
         quiet: bool,
     },
+    /// Check the robot a config names before making data.
+    Robot {
+        #[command(subcommand)]
+        action: RobotAction,
+    },
     /// A contact sheet (PNG) of a config's samples (generated in memory) or of a dataset's: RGB with
     /// mask, tactile points and pose axes, next to the depth.
     Preview {
@@ -161,6 +166,19 @@ enum Command {
 }
 
 #[derive(Subcommand)]
+enum RobotAction {
+    /// Loads every link's geometry (all problems at once), then draws grasp-frame poses from the
+    /// workspace: the share the arm reaches, links under the floor, arm joints at a limit, a
+    /// gripper's jaws facing each other. Exit status 1 when a problem is found.
+    Check {
+        config: PathBuf,
+        /// Print the report as JSON.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+#[derive(Subcommand)]
 enum ExportFormat {
     /// The BOP format (scene_gt.json, scene_camera.json, scene_gt_info.json, rgb/, depth/, mask/,
     /// mask_visib/, models/ in mm), read unchanged by the BOP toolkit; tactile points beside it.
@@ -183,7 +201,7 @@ enum ExportFormat {
 
 // Long on purpose: one match arm per subcommand, each a few lines from parsed flags to a library call.
 fn run(cli: Cli) -> Result<()> {
-    let load = |config: &PathBuf| anyhow::Ok(LoadedConfig::load_with(config, &cli.overrides)?.with_robot_assets(cli.robot_assets.clone()));
+    let load = |config: &PathBuf| anyhow::Ok(LoadedConfig::load_with_assets(config, &cli.overrides, cli.robot_assets.as_deref())?);
     let reads_config = matches!(
         cli.command,
         Command::Generate { .. }
@@ -191,6 +209,7 @@ fn run(cli: Cli) -> Result<()> {
             | Command::Config { .. }
             | Command::Bench { .. }
             | Command::Grasps { .. }
+            | Command::Robot { .. }
             | Command::Preview { .. }
     );
     anyhow::ensure!(reads_config || cli.overrides.is_empty(), "--set overrides a config's keys, and this command reads a dataset");
@@ -251,6 +270,16 @@ fn run(cli: Cli) -> Result<()> {
             {
                 anyhow::bail!("an object kept {:.1}% of its trajectories, below --min-kept {min}", 100.0 * r.worst_kept_fraction());
             }
+            Ok(())
+        }
+        Command::Robot { action: RobotAction::Check { config, json } } => {
+            let r = vtgen::cli::robot_check::check_robot(&load(&config)?)?;
+            if json {
+                println!("{}", serde_json::to_string_pretty(&r)?);
+            } else {
+                println!("{r}");
+            }
+            anyhow::ensure!(r.problems.is_empty(), "robot check: {} problem(s) found", r.problems.len());
             Ok(())
         }
         Command::Preview { source, n, out, width, columns, ycb_dir } => {

@@ -231,11 +231,15 @@ impl<'a> SampleFactory<'a> {
         let mut robot_materials = Vec::new();
         let mut robot_glbs = Vec::new();
         if let Some(r) = &robot {
+            // The robot assets hold real meshes for the built-in robots drawn from primitives;
+            // other robots draw their URDF's own geometry (meshes included).
+            let has_meshes = crate::assets::robot::ROBOTS_WITH_MESHES.contains(&r.robot.name.as_str());
             let mut real = match robot_assets_dir(cfg) {
-                Some(dir) => load_drawn_meshes(&dir, &r.robot, true)?,
+                Some(dir) if has_meshes => load_drawn_meshes(&dir, &r.robot, true)?,
+                Some(_) => Default::default(),
                 None => {
                     static SAID: std::sync::Once = std::sync::Once::new();
-                    if crate::assets::robot::ROBOTS_WITH_MESHES.contains(&r.robot.name.as_str()) {
+                    if has_meshes {
                         SAID.call_once(|| {
                             eprintln!(
                                 "vtgen: drawing the robot from primitives (no robot meshes: --robot-assets DIR, e.g. \

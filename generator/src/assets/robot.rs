@@ -305,9 +305,20 @@ fn ray_x_hit(o: DVec3, a: DVec3, b: DVec3, c: DVec3) -> Option<f64> {
 
 /// Triangles of one mesh file in its own frame, with a colour per triangle (linear RGB).
 pub struct RawMesh {
-    positions: Vec<Vec3>,
-    triangles: Vec<[u32; 3]>,
-    colours: Vec<[f64; 3]>,
+    pub positions: Vec<Vec3>,
+    pub triangles: Vec<[u32; 3]>,
+    pub colours: Vec<[f64; 3]>,
+}
+
+/// Triangles per link drawn from a URDF's own visual meshes: as the built-in arm's links, within
+/// the simplifier's error bound.
+pub const URDF_MESH_TRIANGLES_PER_LINK: usize = ARM_TRIANGLES_PER_LINK;
+
+/// A link's triangles (link frame) as the renderer draws them: vertices welded, simplified to
+/// about `max_triangles` within `MAX_SIMPLIFY_ERROR` of the extent, creased normals, a palette.
+pub fn drawable_link(raw: RawMesh, max_triangles: usize) -> TexturedMesh {
+    let raw = simplify(weld(raw), max_triangles);
+    drawable(&raw.positions, &raw.triangles, &raw.colours)
 }
 
 /// One robot mesh part as read from disk: positions, triangles, a colour per triangle.

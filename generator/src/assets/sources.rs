@@ -135,7 +135,18 @@ fn robot_source(cfg: &LoadedConfig, rc: &crate::config::RobotConfig) -> Result<S
             from.push(format!("built-in {name}"));
         }
     }
+    // The mesh files a URDF names (the robot's own geometry), by content.
+    if let Some(robot) = cfg.robot.as_ref().filter(|r| !r.model.mesh_files.is_empty()) {
+        for file in &robot.model.mesh_files {
+            let bytes = std::fs::read(file).with_context(|| format!("cannot read {}", file.display()))?;
+            h.update(tail(file, 1).as_bytes());
+            h.update((bytes.len() as u64).to_le_bytes());
+            h.update(&bytes);
+        }
+        from.push(format!("{} URDF mesh files", robot.model.mesh_files.len()));
+    }
     match &cfg.robot_assets {
+        Some(_) if !crate::assets::robot::ROBOTS_WITH_MESHES.contains(&name) => {}
         Some(dir) => {
             for sub in crate::assets::robot::mesh_dirs(name) {
                 hash_dir(&mut h, dir, &dir.join(sub))?;

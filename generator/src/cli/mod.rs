@@ -9,6 +9,7 @@ pub mod grasps;
 pub mod inspect;
 pub mod plan;
 pub mod preview;
+pub mod robot_check;
 pub mod stats;
 pub mod validate;
 

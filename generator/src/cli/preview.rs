@@ -34,7 +34,7 @@ pub fn samples(
         let step = (all.len() / n.max(1)).max(1);
         return all.iter().step_by(step).take(n).map(|&(k, i)| shards[k].read(i)).collect();
     }
-    let cfg = LoadedConfig::load_with(source, overrides)?.with_robot_assets(robot_assets);
+    let cfg = LoadedConfig::load_with_assets(source, overrides, robot_assets.as_deref())?;
     let plan = Plan::new(&cfg.config);
     let objects = load_objects(&cfg, ycb_dir)?;
     let mut factory = SampleFactory::new(&cfg, &objects, Box::new(WgpuRenderer::new(&cfg.config.renderer)?))?;

@@ -77,7 +77,7 @@ pub struct LoadedConfig {
     /// Directory that relative paths in the config are resolved against.
     pub base_dir: PathBuf,
     /// The real robot meshes to draw: the config's `robot.assets` (resolved), or the directory
-    /// `--robot-assets` passes in (`with_robot_assets`); None: the URDF's primitives.
+    /// `--robot-assets` passes in (`load_with_assets`); None: the URDF's primitives.
     pub robot_assets: Option<PathBuf>,
     /// The robot (`robot.model`, or `robot.description` and `robot.urdf`), checked against its
     /// description; its joint arrays fill in the grasp config's left-out ones.
@@ -92,6 +92,13 @@ impl LoadedConfig {
     /// Loads `path` with `--set KEY=VALUE` overrides applied on top (Hydra-style: any key, the
     /// same validation). An error in an overridden field names the override, not a file line.
     pub fn load_with(path: &Path, overrides: &[Override]) -> Result<Self, ConfigError> {
+        Self::load_with_assets(path, overrides, None)
+    }
+
+    /// `load_with` with the robot files in `robot_assets` (`--robot-assets`, over the config's
+    /// `robot.assets`): the real meshes of the built-in robots and the upstream files of those built
+    /// from them.
+    pub fn load_with_assets(path: &Path, overrides: &[Override], robot_assets: Option<&Path>) -> Result<Self, ConfigError> {
         let text = std::fs::read_to_string(path).map_err(|e| ConfigError {
             file: path.to_path_buf(),
             line: None,
@@ -99,11 +106,15 @@ impl LoadedConfig {
             field: String::new(),
             message: format!("cannot read config: {e}"),
         })?;
-        if overrides.is_empty() { Self::parse(&text, path) } else { Self::parse_with(&text, path, overrides) }
+        if overrides.is_empty() { Self::parse_assets(&text, path, robot_assets) } else { Self::parse_with_assets(&text, path, overrides, robot_assets) }
     }
 
     /// Parses config text; `path` is used for messages and to resolve relative paths.
     pub fn parse(text: &str, path: &Path) -> Result<Self, ConfigError> {
+        Self::parse_assets(text, path, None)
+    }
+
+    fn parse_assets(text: &str, path: &Path, robot_assets: Option<&Path>) -> Result<Self, ConfigError> {
         let de = serde_yaml::Deserializer::from_str(text);
         let config: Config = serde_path_to_error::deserialize(de).map_err(|e| yaml_error(e, path))?;
         let problems = config.validate();
@@ -111,7 +122,7 @@ impl LoadedConfig {
             let (line, column) = locate::locate(text, &p.path).map_or((None, None), |(l, c)| (Some(l), Some(c)));
             return Err(ConfigError { file: path.to_path_buf(), line, column, field: locate::display_path(&p.path), message: p.message });
         }
-        Self::with_path(config, path).map_err(|(keys, message)| {
+        Self::with_path(config, path, robot_assets).map_err(|(keys, message)| {
             let keys: Vec<locate::Seg> = keys.into_iter().map(locate::Seg::Key).collect();
             let (line, column) = locate::locate(text, &keys).map_or((None, None), |(l, c)| (Some(l), Some(c)));
             ConfigError { file: path.to_path_buf(), line, column, field: locate::display_path(&keys), message }
@@ -121,6 +132,10 @@ impl LoadedConfig {
     /// `parse` with overrides: the file's YAML tree with each override set into it, then the
     /// same deserialization and checks.
     pub fn parse_with(text: &str, path: &Path, overrides: &[Override]) -> Result<Self, ConfigError> {
+        Self::parse_with_assets(text, path, overrides, None)
+    }
+
+    fn parse_with_assets(text: &str, path: &Path, overrides: &[Override], robot_assets: Option<&Path>) -> Result<Self, ConfigError> {
         let mut tree: serde_yaml::Value =
             serde_path_to_error::deserialize(serde_yaml::Deserializer::from_str(text)).map_err(|e| yaml_error(e, path))?;
         if tree.is_null() {
@@ -134,7 +149,7 @@ impl LoadedConfig {
             let field_keys = overrides::keys(field);
             match overrides.iter().rev().find(|o| field_keys.starts_with(&o.keys) || o.keys.starts_with(&field_keys)) {
                 Some(o) => o.error(field, message),
-                None => Self::parse(text, path).err().unwrap_or(ConfigError {
+                None => Self::parse_assets(text, path, robot_assets).err().unwrap_or(ConfigError {
                     file: path.to_path_buf(),
                     line: None,
                     column: None,
@@ -151,19 +166,22 @@ impl LoadedConfig {
         if let Some(p) = config.validate().into_iter().next() {
             return Err(blame(&locate::display_path(&p.path), p.message));
         }
-        Self::with_path(config, path).map_err(|(keys, message)| blame(&keys.join("."), message))
+        Self::with_path(config, path, robot_assets).map_err(|(keys, message)| blame(&keys.join("."), message))
     }
 
     /// The loaded config: output dir defaulted, robot loaded and its joint arrays filled in.
     /// Errors: (field path, message).
-    fn with_path(mut config: Config, path: &Path) -> Result<Self, RobotProblem> {
+    fn with_path(mut config: Config, path: &Path, robot_assets: Option<&Path>) -> Result<Self, RobotProblem> {
         if config.output.dir.as_os_str().is_empty() {
             let stem = path.file_stem().map_or_else(|| "dataset".into(), |s| s.to_string_lossy().into_owned());
             config.output.dir = PathBuf::from("out").join(stem);
         }
         let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
         let mut loaded = LoadedConfig { config, path: path.to_path_buf(), base_dir, robot_assets: None, robot: None };
-        loaded.robot_assets = loaded.config.robot.as_ref().and_then(|r| r.assets.as_ref()).map(|p| loaded.resolve(p));
+        loaded.robot_assets = match robot_assets {
+            Some(dir) => Some(dir.to_path_buf()),
+            None => loaded.config.robot.as_ref().and_then(|r| r.assets.as_ref()).map(|p| loaded.resolve(p)),
+        };
         if let Some(rc) = loaded.config.robot.clone() {
             let robot = loaded.load_robot(&rc)?;
             let grasp = rc.grasp.with_robot_defaults(&robot);
@@ -190,12 +208,13 @@ impl LoadedConfig {
         match (&rc.model, &rc.description) {
             (Some(_), Some(_)) => Err((vec!["robot", "description"], "give either a built-in robot.model or a robot.description".into())),
             (_, Some(d)) => {
-                vt_robot::Robot::from_files(&self.resolve(d), urdf.as_deref()).map_err(|e| (vec!["robot", "description"], e.to_string()))
+                vt_robot::Robot::from_files(&self.resolve(d), urdf.as_deref(), &self.package_dirs(rc))
+                    .map_err(|e| (vec!["robot", "description"], e.to_string()))
             }
             (model, None) => {
                 let name = model.as_deref().unwrap_or("ur5e_allegro");
                 let field = if rc.model.is_some() { vec!["robot", "model"] } else { vec!["robot"] };
-                let builtin = vt_robot::Robot::builtin(name).map_err(|e| (field, e.message))?;
+                let builtin = vt_robot::Robot::builtin_with(name, &self.package_dirs(rc)).map_err(|e| (field, e.message))?;
                 match urdf {
                     // A URDF of one's own with the built-in robot's names and description.
                     Some(u) => {
@@ -214,12 +233,11 @@ impl LoadedConfig {
         }
     }
 
-    /// The run draws the robot meshes in `dir` (`--robot-assets`) instead of the config's.
-    pub fn with_robot_assets(mut self, dir: Option<PathBuf>) -> Self {
-        if dir.is_some() {
-            self.robot_assets = dir;
-        }
-        self
+    /// Where a robot's `package://` files are looked for besides the folders above its URDF: the
+    /// config's `robot.package_dirs`, then the robot assets folder (`scripts/robot-assets` unpacks
+    /// the upstream packages there).
+    fn package_dirs(&self, rc: &RobotConfig) -> Vec<PathBuf> {
+        rc.package_dirs.iter().map(|p| self.resolve(p)).chain(self.robot_assets.clone()).collect()
     }
 
     /// Resolves a path written in the config relative to the config file's directory.

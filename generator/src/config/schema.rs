@@ -133,6 +133,10 @@ pub struct RobotConfig {
     /// without them, the URDF's primitives are drawn.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub assets: Option<PathBuf>,
+    /// Folders where the robot's `package://NAME/...` mesh files are found (a package's root, or a
+    /// folder holding package roots), besides the folders above its URDF and the robot assets.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub package_dirs: Vec<PathBuf>,
     /// Robot base position (world) and rotation about world z.
     #[serde(default = "default_base_position")]
     pub base_position: [f64; 3],

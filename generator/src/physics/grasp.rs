@@ -192,7 +192,7 @@ impl GraspContext<'_> {
 
     /// A random palm pose (world): position in the palm workspace, palmar normal within
     /// `max_tilt` of straight up, any roll about it.
-    fn sample_palm(&self, rng: &mut ChaCha8Rng) -> DAffine3 {
+    pub fn sample_palm(&self, rng: &mut ChaCha8Rng) -> DAffine3 {
         let w = &self.config.palm_workspace;
         let p =
             DVec3::new(rng.random_range(w.min[0]..=w.max[0]), rng.random_range(w.min[1]..=w.max[1]), rng.random_range(w.min[2]..=w.max[2]));
@@ -244,7 +244,7 @@ impl GraspContext<'_> {
     }
 
     /// IK for a world palm pose, from `q`.
-    fn reach(&self, t_world_palm: &DAffine3, q: &[f64]) -> Option<Vec<f64>> {
+    pub fn reach(&self, t_world_palm: &DAffine3, q: &[f64]) -> Option<Vec<f64>> {
         let target = self.t_world_base.inverse() * *t_world_palm;
         self.robot.solve_grasp_ik(&target, q, &IkOptions::default())
     }
@@ -264,11 +264,17 @@ pub const MIN_REACHABLE_SHARE: f64 = 0.5;
 /// The share of `n` grasp-frame poses drawn from the workspace (as grasps draw them, from a stream
 /// of their own: the data's draws stay untouched) that the inverse kinematics reaches from home.
 pub fn reachable_share(ctx: &GraspContext, n: usize) -> f64 {
+    let reached = reach_samples(ctx, n).iter().filter(|q| q.is_some()).count();
+    reached as f64 / n.max(1) as f64
+}
+
+/// `n` grasp-frame poses drawn from the workspace (from the stream of `reachable_share`) and the
+/// arm's joint values reaching each from home (None: unreachable).
+pub fn reach_samples(ctx: &GraspContext, n: usize) -> Vec<Option<Vec<f64>>> {
     use rand::SeedableRng;
     let mut rng = ChaCha8Rng::seed_from_u64(0x0072_6561_6368); // "reach"
     let home = ctx.home();
-    let reached = (0..n).filter(|_| ctx.reach(&ctx.sample_palm(&mut rng), &home).is_some()).count();
-    reached as f64 / n.max(1) as f64
+    (0..n).map(|_| ctx.reach(&ctx.sample_palm(&mut rng), &home)).collect()
 }
 
 /// Which trajectory of which object, and how many instances it records: the keys of its random
@@ -737,8 +743,14 @@ fn move_and_settle(
     if contacts.iter().filter(|c| c.is_some()).count() < robot.min_touching {
         return Ok(MoveOutcome::NotRecordable(Failure::TooFewContacts));
     }
-    // The object must hang free: its lowest point above the floor (z = 0).
+    // The object must hang free: its lowest point above the floor (z = 0); and no link of the
+    // robot may be under the floor (a real arm would have hit it).
     if floor_clearance(&object.points, &(ctx.t_world_base * robot.grasp_frame_pose(q) * obj)) < MIN_FLOOR_CLEARANCE {
+        return Ok(MoveOutcome::NotRecordable(Failure::TouchesFloor));
+    }
+    let mut q_now = q.clone();
+    robot.set_hand(&mut q_now, &physics.joint_positions());
+    if robot_floor_clearance(robot, &ctx.t_world_base, &q_now).is_some_and(|(_, z)| z < 0.0) {
         return Ok(MoveOutcome::NotRecordable(Failure::TouchesFloor));
     }
     Ok(MoveOutcome::Recordable(obj, contacts, penetration))
@@ -759,6 +771,50 @@ fn lost(physics: &dyn HandPhysics) -> bool {
 
 /// Smallest height (m) of the object above the floor a recorded instance may have.
 const MIN_FLOOR_CLEARANCE: f64 = 0.005;
+
+/// The lowest link of the robot at joint values `q` (its base at `t_world_base`) that an arm joint
+/// moves, and the height of its lowest collision point above the floor (world z = 0); None: no
+/// such link has collision geometry.
+pub fn robot_floor_clearance(robot: &Robot, t_world_base: &DAffine3, q: &[f64]) -> Option<(usize, f64)> {
+    let model = &robot.model;
+    let first_moved = model.joints[*robot.arm_joints.first()?].child;
+    let poses = model.forward_kinematics(q);
+    let mut lowest: Option<(usize, f64)> = None;
+    for (id, link) in model.links.iter().enumerate() {
+        if !model.is_below(id, first_moved) {
+            continue;
+        }
+        let t_world_link = *t_world_base * poses[id];
+        for s in &link.collisions {
+            let t = t_world_link * s.origin;
+            let z = match &s.geometry {
+                vt_robot::Geometry::Box { size } => {
+                    let h = *size * 0.5;
+                    (0..8)
+                        .map(|c| {
+                            let corner = DVec3::new(
+                                if c & 1 == 0 { -h.x } else { h.x },
+                                if c & 2 == 0 { -h.y } else { h.y },
+                                if c & 4 == 0 { -h.z } else { h.z },
+                            );
+                            t.transform_point3(corner).z
+                        })
+                        .fold(f64::MAX, f64::min)
+                }
+                vt_robot::Geometry::Sphere { radius } => t.translation.z - radius,
+                vt_robot::Geometry::Cylinder { radius, length } => {
+                    let uz = t.transform_vector3(DVec3::Z).normalize().z;
+                    t.translation.z - uz.abs() * length / 2.0 - radius * (1.0 - uz * uz).max(0.0).sqrt()
+                }
+                g => g.hull_points().unwrap_or_default().iter().map(|p| t.transform_point3(*p).z).fold(f64::MAX, f64::min),
+            };
+            if lowest.is_none_or(|(_, l)| z < l) {
+                lowest = Some((id, z));
+            }
+        }
+    }
+    lowest
+}
 
 /// Height above the floor (world z = 0) of the lowest of `points` (model frame) posed by
 /// `t_world_object`.

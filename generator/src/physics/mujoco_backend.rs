@@ -67,7 +67,7 @@ const TORSIONAL_FRICTION: f64 = 0.02;
 fn write_hull_meshes(x: &mut String, m: &RobotModel) {
     for link in &m.links {
         for (i, sh) in link.collisions.iter().enumerate() {
-            if let Geometry::ConvexHull { points } = &sh.geometry {
+            if let Some(points) = sh.geometry.hull_points() {
                 let _ = write!(x, r#"<mesh name="{}_{i}" vertex=""#, link.name);
                 for p in points.iter() {
                     let _ = write!(x, "{} {} {} ", p.x, p.y, p.z);
@@ -114,7 +114,7 @@ impl MujocoHand {
                     Geometry::Box { size } => ("box", format!(r#"size="{} {} {}""#, size.x / 2.0, size.y / 2.0, size.z / 2.0)),
                     Geometry::Sphere { radius } => ("sphere", format!(r#"size="{radius}""#)),
                     Geometry::Cylinder { radius, length } => ("cylinder", format!(r#"size="{radius} {}""#, length / 2.0)),
-                    Geometry::ConvexHull { .. } => ("mesh", format!(r#"mesh="{name}_{i}""#)),
+                    Geometry::ConvexHull { .. } | Geometry::Mesh { .. } => ("mesh", format!(r#"mesh="{name}_{i}""#)),
                 };
                 let q = quat_wxyz(&sh.origin);
                 let t = sh.origin.translation;

@@ -56,8 +56,8 @@ fn collision_shape(g: &Geometry) -> Option<SharedShape> {
         Geometry::Box { size } => SharedShape::cuboid(size.x as f32 / 2.0, size.y as f32 / 2.0, size.z as f32 / 2.0),
         Geometry::Sphere { radius } => SharedShape::ball(*radius as f32),
         Geometry::Cylinder { radius, length } => SharedShape::cylinder(*length as f32 / 2.0, *radius as f32),
-        Geometry::ConvexHull { points } => {
-            let pts: Vec<Vec3> = points.iter().map(|p| p.as_vec3()).collect();
+        hull @ (Geometry::ConvexHull { .. } | Geometry::Mesh { .. }) => {
+            let pts: Vec<Vec3> = hull.hull_points()?.iter().map(|p| p.as_vec3()).collect();
             hull_shape(&pts)?
         }
     })
@@ -281,6 +281,13 @@ impl RapierHand {
                 .build();
             let handle =
                 world.insert_multibody_joint(parent, child, joint).with_context(|| format!("cannot add joint {name} to the hand"))?;
+            // A multibody joint starts at coordinate 0 (the URDF's zero, e.g. a Panda's closed
+            // fingers): start it at `value`, the preshape, as the bodies were placed.
+            if let Some((mb, link)) = world.multibody_joints.get_mut(handle)
+                && let Some(l) = mb.link_mut(link)
+            {
+                l.joint.apply_displacement(&[value as f32]);
+            }
             joints.push(HandJoint {
                 body: child,
                 parent,
@@ -293,6 +300,13 @@ impl RapierHand {
                 drive,
                 follower,
             });
+        }
+        // The links where the joint coordinates put them.
+        for j in &joints {
+            if let Some((mb, _)) = world.multibody_joints.get_mut(j.joint) {
+                mb.forward_kinematics(&world.bodies, false);
+                mb.update_rigid_bodies(&mut world.bodies, false);
+            }
         }
         let touch_colliders = robot.touch_links.iter().map(|&l| link_colliders[l].clone()).collect();
         self.world = world;

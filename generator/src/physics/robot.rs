@@ -9,7 +9,7 @@ use glam::{DAffine3, DQuat, DVec3};
 use vt_objects::TexturedMesh;
 use vt_robot::Robot;
 
-use crate::assets::robot::{ROBOTS_WITH_MESHES, load_hand_meshes, robot_assets_dir, with_real_hand};
+use crate::assets::robot::{load_hand_meshes, robot_assets_dir, with_real_hand};
 use crate::config::{LoadedConfig, RobotConfig};
 use crate::physics::grasp::{
     FingerGait, GraspContext, GraspEvent, MIN_REACHABLE_SHARE, REACH_SAMPLES, Trajectory, TrajectoryKey, reachable_share,
@@ -46,7 +46,7 @@ pub struct Simulated {
 }
 
 /// What the grasp loop needs of a worker's robot besides its physics.
-fn grasp_context<'a>(
+pub fn grasp_context<'a>(
     robot: &'a Robot,
     t_world_base: DAffine3,
     rc: &'a RobotConfig,
@@ -79,14 +79,6 @@ pub struct RobotScene {
 impl RobotScene {
     pub fn new(cfg: &LoadedConfig, robot: &RobotConfig, objects: &[crate::assets::LoadedObject]) -> Result<Self> {
         let mut model = cfg.robot.clone().context("a config with a robot section has its robot loaded")?;
-        if cfg.robot_assets.is_some() && !ROBOTS_WITH_MESHES.contains(&model.name.as_str()) {
-            anyhow::bail!(
-                "robot meshes (--robot-assets or robot.assets) are those of the built-in robots ({}); robot '{}' is drawn \
-                 from its URDF's shapes: leave them out",
-                ROBOTS_WITH_MESHES.join(", "),
-                model.name
-            );
-        }
         // The Allegro hand collides as its real meshes' hulls, its pads on their surfaces; the
         // 2F-85 collides as its URDF's boxes (its meshes are drawn).
         let hand_meshes = match robot_assets_dir(cfg) {

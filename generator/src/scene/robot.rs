@@ -7,6 +7,7 @@ use vt_objects::{Texture, TexturedMesh};
 use vt_robot::{Geometry, Robot, RobotModel};
 
 use super::pose_of;
+use crate::assets::robot::{RawMesh, URDF_MESH_TRIANGLES_PER_LINK, drawable_link};
 
 /// Mask id of a robot link (`vt_dataset::mask_ids`): the base and the arm link moved by arm joint
 /// k, the hand's body (the links fixed between flange and grasp frame), the hand link moved by
@@ -47,11 +48,15 @@ fn moves_below(model: &RobotModel, top: usize, link: usize) -> bool {
     false
 }
 
-/// A link's visual shapes as one mesh (its colours in a small texture, one texel per shape).
+/// A link's visual shapes as one mesh (its colours in a small texture, one texel per shape; a
+/// link with URDF meshes: see [`mesh_link`]).
 pub fn link_mesh(model: &RobotModel, link: usize) -> Option<TexturedMesh> {
     let shapes = &model.links[link].visuals;
     if shapes.is_empty() {
         return None;
+    }
+    if shapes.iter().any(|s| matches!(s.geometry, Geometry::Mesh { .. })) {
+        return Some(mesh_link(shapes));
     }
     let n = shapes.len();
     let mut mesh = TexturedMesh {
@@ -77,6 +82,30 @@ pub fn link_mesh(model: &RobotModel, link: usize) -> Option<TexturedMesh> {
         mesh.indices.extend(idx.iter().map(|i| i + base));
     }
     Some(mesh)
+}
+
+/// A link drawn from its URDF's meshes (and any primitives beside them), each triangle in the
+/// URDF's colour or else its mesh file's, simplified as the built-in arm's meshes are.
+fn mesh_link(shapes: &[vt_robot::Shape]) -> TexturedMesh {
+    let mut raw = RawMesh { positions: Vec::new(), triangles: Vec::new(), colours: Vec::new() };
+    for s in shapes {
+        let urdf_colour = (s.rgba != vt_robot::NO_RGBA).then(|| [s.rgba[0], s.rgba[1], s.rgba[2]]);
+        let base = raw.positions.len() as u32;
+        match &s.geometry {
+            Geometry::Mesh { mesh } => {
+                raw.positions.extend(mesh.positions.iter().map(|p| s.origin.transform_point3(*p).as_vec3()));
+                raw.triangles.extend(mesh.triangles.iter().map(|t| t.map(|i| i + base)));
+                raw.colours.extend(mesh.colours.iter().map(|c| urdf_colour.or(*c).unwrap_or(vt_robot::mesh::DEFAULT_MESH_RGB)));
+            }
+            g => {
+                let (pos, _, idx) = primitive(g);
+                raw.positions.extend(pos.iter().map(|p| s.origin.transform_point3(p.as_dvec3()).as_vec3()));
+                raw.triangles.extend(idx.chunks_exact(3).map(|t| [t[0] + base, t[1] + base, t[2] + base]));
+                raw.colours.extend(std::iter::repeat_n(urdf_colour.unwrap_or(vt_robot::mesh::DEFAULT_MESH_RGB), idx.len() / 3));
+            }
+        }
+    }
+    drawable_link(raw, URDF_MESH_TRIANGLES_PER_LINK)
 }
 
 /// Box, cylinder (along z) or sphere as positions, normals and triangles.
@@ -120,8 +149,8 @@ fn primitive(g: &Geometry) -> (Vec<Vec3>, Vec<Vec3>, Vec<u32>) {
                 }
             }
         }
-        // Visual shapes come from the URDF, which has no hulls (real meshes are drawn whole).
-        Geometry::ConvexHull { .. } => {}
+        // Hulls are collision shapes; meshes are drawn by `mesh_link`.
+        Geometry::ConvexHull { .. } | Geometry::Mesh { .. } => {}
         Geometry::Sphere { radius } => {
             let (r, st, sl) = (radius as f32, 12u32, 24u32);
             for i in 0..=st {

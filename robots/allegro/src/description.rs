@@ -8,6 +8,7 @@ use std::path::{Path, PathBuf};
 use glam::DAffine3;
 use serde::Deserialize;
 
+use crate::mesh::MeshPaths;
 use crate::model::{Geometry, JointKind, RobotError, RobotModel, xyz_rpy};
 
 /// How the grasp loop takes hold of an object.
@@ -37,9 +38,21 @@ pub enum PadGroup {
 pub struct Description {
     /// The robot's name, as datasets record it.
     pub name: String,
-    /// The URDF, relative to the description file (a config's `robot.urdf` overrides it).
+    /// The URDF, relative to the description file or `package://NAME/...` (a config's
+    /// `robot.urdf` overrides it). With `hand_urdf`: the arm's URDF.
     #[serde(default)]
-    pub urdf: Option<PathBuf>,
+    pub urdf: Option<String>,
+    /// The hand's or gripper's own URDF, mounted on the arm's link `mount.parent` (labs keep the
+    /// two apart). Its links and joints join the arm's tree; names must not clash.
+    #[serde(default)]
+    pub hand_urdf: Option<String>,
+    /// Where `hand_urdf`'s root link sits on the arm (required with `hand_urdf`).
+    #[serde(default)]
+    pub mount: Option<MountSpec>,
+    /// Folders (relative to the description) holding the `package://` roots its URDFs name,
+    /// looked in before the folders above each URDF.
+    #[serde(default)]
+    pub package_dirs: Vec<PathBuf>,
     pub arm: ArmSpec,
     pub grasp: GraspSpec,
     /// The hand's or gripper's joints that move on their own, in the order joint arrays use.
@@ -49,6 +62,16 @@ pub struct Description {
     /// Links whose contact with the object counts as touching (default: the pads' links).
     #[serde(default)]
     pub touch_links: Option<Vec<String>>,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MountSpec {
+    /// The arm link the hand is mounted on (usually the flange).
+    pub parent: String,
+    /// The hand's root link in `parent`'s frame (default: at its origin).
+    #[serde(default)]
+    pub origin: Option<OriginSpec>,
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -73,6 +96,10 @@ pub struct GraspSpec {
     /// gripper, a frame between its jaws): +x towards the object, the arm's moves keep it within
     /// `max_tilt_deg` of straight up.
     pub frame: String,
+    /// The grasp frame in `frame`'s frame, when it is not a link of its own (e.g. a gripper's
+    /// tool point with +x out of the jaws): vtgen adds a link `<frame>_grasp` there.
+    #[serde(default)]
+    pub origin: Option<OriginSpec>,
     pub kind: GraspKind,
     /// The link the simulated hand starts from: it and everything below it (default: `frame`).
     /// The grasp frame must be fixed to it.
@@ -135,6 +162,11 @@ pub struct OriginSpec {
     pub rpy: [f64; 3],
 }
 
+/// A prismatic finger's default drive pushes with its whole effort at this position error (m).
+pub const PRISMATIC_FULL_FORCE_ERROR: f64 = 0.005;
+/// A prismatic finger's default damping: its stiffness times this (s).
+pub const PRISMATIC_DAMPING_TIME: f64 = 0.02;
+
 /// A hand joint that moves on its own.
 #[derive(Debug, Clone, PartialEq)]
 pub struct HandJoint {
@@ -187,13 +219,15 @@ pub struct Robot {
 }
 
 /// The robots vtgen carries, chosen by name (`robot.model`).
-pub const BUILTIN_ROBOTS: [&str; 2] = ["ur5e_allegro", "ur5e_robotiq_2f85"];
+pub const BUILTIN_ROBOTS: [&str; 3] = ["ur5e_allegro", "ur5e_robotiq_2f85", "panda"];
 
-/// A built-in robot's URDF and description texts.
-fn builtin_texts(name: &str) -> Option<(&'static str, &'static str)> {
+/// A built-in robot's URDF text (None: its description names an upstream URDF, read from the
+/// robot assets) and description text.
+fn builtin_texts(name: &str) -> Option<(Option<&'static str>, &'static str)> {
     match name {
-        "ur5e_allegro" => Some((crate::BUILTIN_URDF, include_str!("../ur5e_allegro.yaml"))),
-        "ur5e_robotiq_2f85" => Some((include_str!("../ur5e_robotiq_2f85.urdf"), include_str!("../ur5e_robotiq_2f85.yaml"))),
+        "ur5e_allegro" => Some((Some(crate::BUILTIN_URDF), include_str!("../ur5e_allegro.yaml"))),
+        "ur5e_robotiq_2f85" => Some((Some(include_str!("../ur5e_robotiq_2f85.urdf")), include_str!("../ur5e_robotiq_2f85.yaml"))),
+        "panda" => Some((None, include_str!("../../panda/robot.yaml"))),
         _ => None,
     }
 }
@@ -203,12 +237,42 @@ pub fn builtin_description(name: &str) -> Option<&'static str> {
     builtin_texts(name).map(|t| t.1)
 }
 
+/// The file a description's `urdf` or `hand_urdf` names: `package://NAME/...` through the package
+/// folders, else relative to the description's folder.
+fn urdf_file(field: &str, named: &str, description_dir: Option<&Path>, package_dirs: &[PathBuf], source_name: &str) -> Result<PathBuf, RobotError> {
+    let paths = MeshPaths { urdf_dir: description_dir.map(Path::to_path_buf), package_dirs: package_dirs.to_vec() };
+    paths.resolve(named).map_err(|e| RobotError {
+        source_name: source_name.to_string(),
+        message: if description_dir.is_none() {
+            format!(
+                "{field}: '{named}': {e}. This robot is built from its upstream files: fetch them with `scripts/robot-assets` and \
+                 pass `--robot-assets DIR` (or set robot.assets)"
+            )
+        } else {
+            format!("{field}: '{named}': {e}")
+        },
+    })
+}
+
+fn read_text(p: &Path) -> Result<String, RobotError> {
+    std::fs::read_to_string(p).map_err(|e| RobotError { source_name: p.display().to_string(), message: format!("cannot read: {e}") })
+}
+
 impl Robot {
-    /// A built-in robot by name (`BUILTIN_ROBOTS`).
+    /// A built-in robot by name (`BUILTIN_ROBOTS`) whose URDF it carries.
     pub fn builtin(name: &str) -> Result<Self, RobotError> {
+        Robot::builtin_with(name, &[])
+    }
+
+    /// A built-in robot by name; one built from its upstream files finds them (`package://`) in
+    /// `package_dirs` (the robot assets folder of `scripts/robot-assets`).
+    pub fn builtin_with(name: &str, package_dirs: &[PathBuf]) -> Result<Self, RobotError> {
+        let description_name = format!("built-in {name}.yaml");
         match builtin_texts(name) {
-            Some((urdf, description)) => {
-                Robot::from_texts(urdf, &format!("built-in {name}.urdf"), description, &format!("built-in {name}.yaml"))
+            Some((Some(urdf), description)) => Robot::from_texts(urdf, &format!("built-in {name}.urdf"), description, &description_name),
+            Some((None, description)) => {
+                let desc = parse(description, &description_name)?;
+                Robot::from_description(desc, None, None, package_dirs, &description_name)
             }
             None => Err(RobotError {
                 source_name: "robot.model".into(),
@@ -224,26 +288,57 @@ impl Robot {
 
     /// Reads a description file and its URDF (`urdf`, or the one the description names relative
     /// to itself).
-    pub fn from_files(description: &Path, urdf: Option<&Path>) -> Result<Self, RobotError> {
-        let read = |p: &Path| {
-            std::fs::read_to_string(p)
-                .map_err(|e| RobotError { source_name: p.display().to_string(), message: format!("cannot read: {e}") })
-        };
-        let text = read(description)?;
-        let desc = parse(&text, &description.display().to_string())?;
+    /// Mesh files are found beside each URDF, in the description's `package_dirs` and in
+    /// `package_dirs` (the config's, then the robot assets folder).
+    pub fn from_files(description: &Path, urdf: Option<&Path>, package_dirs: &[PathBuf]) -> Result<Self, RobotError> {
+        let text = read_text(description)?;
+        let source_name = description.display().to_string();
+        let desc = parse(&text, &source_name)?;
+        let dir = description.parent().unwrap_or(Path::new("."));
+        Robot::from_description(desc, Some(dir), urdf, package_dirs, &source_name)
+    }
+
+    /// A parsed description with its URDF (or arm and hand URDFs) read from files.
+    fn from_description(
+        desc: Description,
+        dir: Option<&Path>,
+        urdf: Option<&Path>,
+        package_dirs: &[PathBuf],
+        source_name: &str,
+    ) -> Result<Self, RobotError> {
+        let mut packages: Vec<PathBuf> = desc.package_dirs.iter().map(|p| dir.map_or(p.clone(), |d| d.join(p))).collect();
+        packages.extend(package_dirs.iter().cloned());
         let urdf_path = match (urdf, &desc.urdf) {
             (Some(u), _) => u.to_path_buf(),
-            (None, Some(u)) => description.parent().unwrap_or(Path::new(".")).join(u),
+            (None, Some(u)) => urdf_file("urdf", u, dir, &packages, source_name)?,
             (None, None) => {
                 return Err(RobotError {
-                    source_name: description.display().to_string(),
+                    source_name: source_name.to_string(),
                     message: "urdf: no URDF named (here or in the config's robot.urdf)".into(),
                 });
             }
         };
-        let urdf_text = read(&urdf_path)?;
-        let model = RobotModel::from_urdf_str(&urdf_text, &urdf_path.display().to_string())?;
-        Robot::resolve(model, urdf_text, desc, &description.display().to_string())
+        let paths = |urdf: &Path| MeshPaths { package_dirs: packages.clone(), ..MeshPaths::beside(urdf) };
+        let mut urdf_text = read_text(&urdf_path)?;
+        let mut urdf_name = urdf_path.display().to_string();
+        match (&desc.hand_urdf, &desc.mount) {
+            (Some(hand), Some(mount)) => {
+                let hand_path = urdf_file("hand_urdf", hand, dir, &packages, source_name)?;
+                let hand_text = read_text(&hand_path)?;
+                let origin = mount.origin.map_or(DAffine3::IDENTITY, |o| xyz_rpy(o.xyz, o.rpy));
+                urdf_text = compose_urdf(&urdf_text, &urdf_name, &hand_text, &hand_path, &paths(&hand_path), &mount.parent, origin)?;
+                urdf_name = format!("{} + {}", urdf_path.display(), hand_path.display());
+            }
+            (Some(_), None) => {
+                return Err(RobotError { source_name: source_name.to_string(), message: "mount: hand_urdf needs a mount (parent link and origin)".into() });
+            }
+            (None, Some(_)) => {
+                return Err(RobotError { source_name: source_name.to_string(), message: "mount: given without a hand_urdf".into() });
+            }
+            (None, None) => {}
+        }
+        let model = RobotModel::from_urdf(&urdf_text, &urdf_name, &paths(&urdf_path))?;
+        Robot::resolve(model, urdf_text, desc, source_name)
     }
 
     /// A URDF and a description given as text (names are for errors).
@@ -278,16 +373,21 @@ impl Robot {
         if desc.arm.home.len() != arm_joints.len() {
             return Err(err("arm.home", format!("{} values for {} arm joints", desc.arm.home.len(), arm_joints.len())));
         }
-        let grasp_frame = link(&model, "grasp.frame", &desc.grasp.frame)?;
+        let mut grasp_frame = link(&model, "grasp.frame", &desc.grasp.frame)?;
+        if let Some(o) = desc.grasp.origin {
+            let name = format!("{}_grasp", desc.grasp.frame);
+            grasp_frame = model.add_fixed_link(grasp_frame, &name, xyz_rpy(o.xyz, o.rpy)).map_err(|m| err("grasp.origin", m))?;
+        }
+        let grasp_frame_name = model.links[grasp_frame].name.clone();
         match path_down(&model, flange, grasp_frame) {
             Some(p) if p.iter().all(|&j| !model.joints[j].moves()) => {}
             Some(_) => {
-                return Err(err("grasp.frame", format!("'{}' moves against the flange: a joint between them moves", desc.grasp.frame)));
+                return Err(err("grasp.frame", format!("'{grasp_frame_name}' moves against the flange: a joint between them moves")));
             }
             None => {
                 return Err(err(
                     "grasp.frame",
-                    format!("'{}' is not fixed below the flange '{}' (no joint chain connects them)", desc.grasp.frame, desc.arm.flange),
+                    format!("'{grasp_frame_name}' is not fixed below the flange '{}' (no joint chain connects them)", desc.arm.flange),
                 ));
             }
         }
@@ -296,7 +396,7 @@ impl Robot {
                 let root = link(&model, "grasp.hand_root", name)?;
                 match path_down(&model, root, grasp_frame) {
                     Some(p) if p.iter().all(|&j| !model.joints[j].moves()) => root,
-                    _ => return Err(err("grasp.hand_root", format!("the grasp frame '{}' is not fixed below '{name}'", desc.grasp.frame))),
+                    _ => return Err(err("grasp.hand_root", format!("the grasp frame '{grasp_frame_name}' is not fixed below '{name}'"))),
                 }
             }
             None => grasp_frame,
@@ -335,15 +435,21 @@ impl Robot {
             {
                 return Err(err(&format!("hand[{i}].damping"), format!("{d} must be zero or a positive number")));
             }
+            // Drive defaults: the URDF's `<limit effort>`; a prismatic joint's gains from its effort
+            // (full force at `PRISMATIC_FULL_FORCE_ERROR`), in N/m and N·s/m.
+            let effort = h.effort.or((joint.effort > 0.0 && joint.effort.is_finite()).then_some(joint.effort));
+            let prismatic = joint.kind == JointKind::Prismatic;
+            let stiffness = h.stiffness.or(effort.filter(|_| prismatic).map(|e| e / PRISMATIC_FULL_FORCE_ERROR));
+            let damping = h.damping.or(stiffness.filter(|_| prismatic && h.stiffness.is_none()).map(|k| k * PRISMATIC_DAMPING_TIME));
             hand.push(HandJoint {
                 name: h.joint.clone(),
                 joint: j,
                 dof,
                 preshape: h.preshape,
                 close: h.close,
-                effort: h.effort,
-                stiffness: h.stiffness,
-                damping: h.damping,
+                effort,
+                stiffness,
+                damping,
             });
         }
         if hand.is_empty() {
@@ -496,7 +602,8 @@ impl Robot {
                         Geometry::Box { size } => (len, wid) = (size.z, size.y),
                         Geometry::Sphere { radius } => len += radius,
                         Geometry::Cylinder { .. } => {}
-                        Geometry::ConvexHull { points } => {
+                        g @ (Geometry::ConvexHull { .. } | Geometry::Mesh { .. }) => {
+                            let points = g.hull_points().expect("a hull or a mesh");
                             let next = model.joints.iter().find(|j| j.parent == id && j.kind == JointKind::Revolute);
                             let (ylo, yhi, zhi) =
                                 points.iter().fold((f64::MAX, f64::MIN, f64::MIN), |(a, b, c), p| (a.min(p.y), b.max(p.y), c.max(p.z)));
@@ -523,6 +630,72 @@ impl Robot {
             q[h.dof] = *v;
         }
     }
+}
+
+/// An arm URDF and a hand URDF as one tree: the hand's root link fixed to the arm's `parent` at
+/// `origin`, the hand's relative and `package://` mesh names turned into its files' paths (they
+/// are found from the hand URDF's folder).
+fn compose_urdf(
+    arm: &str,
+    arm_name: &str,
+    hand: &str,
+    hand_path: &Path,
+    hand_paths: &MeshPaths,
+    parent: &str,
+    origin: DAffine3,
+) -> Result<String, RobotError> {
+    let err = |source: &str, message: String| RobotError { source_name: source.to_string(), message };
+    let hand_name = hand_path.display().to_string();
+    let mut robot = urdf_rs::read_from_string(arm).map_err(|e| err(arm_name, format!("not valid URDF: {e}")))?;
+    let mut hand = urdf_rs::read_from_string(hand).map_err(|e| err(&hand_name, format!("not valid URDF: {e}")))?;
+    if !robot.links.iter().any(|l| l.name == parent) {
+        return Err(err(arm_name, format!("mount.parent: no link '{parent}' in the arm's URDF")));
+    }
+    let children: std::collections::HashSet<&str> = hand.joints.iter().map(|j| j.child.link.as_str()).collect();
+    let roots: Vec<String> = hand.links.iter().filter(|l| !children.contains(l.name.as_str())).map(|l| l.name.clone()).collect();
+    let [root] = &roots[..] else {
+        return Err(err(&hand_name, format!("the hand's URDF must have one root link, it has {}: {}", roots.len(), roots.join(", "))));
+    };
+    for l in &hand.links {
+        if robot.links.iter().any(|a| a.name == l.name) {
+            return Err(err(&hand_name, format!("link '{}' is in the arm's URDF too: rename one", l.name)));
+        }
+    }
+    for j in &hand.joints {
+        if robot.joints.iter().any(|a| a.name == j.name) {
+            return Err(err(&hand_name, format!("joint '{}' is in the arm's URDF too: rename one", j.name)));
+        }
+    }
+    for link in &mut hand.links {
+        let geometries = link.visual.iter_mut().map(|v| &mut v.geometry).chain(link.collision.iter_mut().map(|c| &mut c.geometry));
+        for g in geometries {
+            if let urdf_rs::Geometry::Mesh { filename, .. } = g
+                && let Ok(p) = hand_paths.resolve(filename)
+            {
+                *filename = p.display().to_string();
+            }
+        }
+    }
+    let (_, rot, xyz) = origin.to_scale_rotation_translation();
+    let (yaw, pitch, roll) = rot.to_euler(glam::EulerRot::ZYX);
+    robot.joints.push(urdf_rs::Joint {
+        name: format!("{root}_mount"),
+        joint_type: urdf_rs::JointType::Fixed,
+        origin: urdf_rs::Pose { xyz: urdf_rs::Vec3(xyz.to_array()), rpy: urdf_rs::Vec3([roll, pitch, yaw]) },
+        parent: urdf_rs::LinkName { link: parent.to_string() },
+        child: urdf_rs::LinkName { link: root.clone() },
+        axis: Default::default(),
+        limit: Default::default(),
+        calibration: None,
+        dynamics: None,
+        mimic: None,
+        safety_controller: None,
+    });
+    let arm_materials: Vec<String> = robot.materials.iter().map(|m| m.name.clone()).collect();
+    robot.materials.extend(hand.materials.into_iter().filter(|m| !arm_materials.contains(&m.name)));
+    robot.links.extend(hand.links);
+    robot.joints.extend(hand.joints);
+    urdf_rs::write_to_string(&robot).map_err(|e| err(&hand_name, format!("cannot join the arm and the hand: {e}")))
 }
 
 /// The description's YAML; errors name the file, line and field (serde's path).

@@ -6,6 +6,10 @@ use glam::{DAffine3, DQuat, DVec3};
 
 use crate::description::Robot;
 
+/// How strongly a redundant arm's null-space motion pulls each joint home per iteration (rad per
+/// unit of the joint's range away).
+const NULL_SPACE_GAIN: f64 = 0.2;
+
 #[derive(Debug, Clone, Copy)]
 pub struct IkOptions {
     pub max_iterations: usize,
@@ -113,7 +117,33 @@ impl Robot {
             // Limit the step so the linearisation holds.
             let scale = (0.2 / pe.max(1e-12)).min(1.0).min((0.5 / re.max(1e-12)).min(1.0));
             let es: [f64; 6] = e.map(|x| x * scale);
-            let dq = dls_step(&jac, &es, opts.damping);
+            let mut dq = dls_step(&jac, &es, opts.damping);
+            // A redundant (7-joint) arm moves in the task's null space towards its home, each
+            // joint by the share of its range it is away: the elbow stays where the home puts
+            // it instead of drifting onto a joint limit. (A 6-joint arm has no null space.)
+            if self.arm_dofs.len() > 6 {
+                let pull: Vec<f64> = self
+                    .arm_dofs
+                    .iter()
+                    .zip(&self.arm_joints)
+                    .zip(&self.home)
+                    .map(|((&d, &j), &home)| {
+                        let jt = &m.joints[j];
+                        let range = if (jt.upper - jt.lower).is_finite() { jt.upper - jt.lower } else { std::f64::consts::TAU };
+                        NULL_SPACE_GAIN * (home - q[d]) / range
+                    })
+                    .collect();
+                let mut jz = [0.0; 6];
+                for (col, z) in jac.iter().zip(&pull) {
+                    for r in 0..6 {
+                        jz[r] += col[r] * z;
+                    }
+                }
+                let back = dls_step(&jac, &jz, opts.damping);
+                for ((s, z), b) in dq.iter_mut().zip(&pull).zip(back) {
+                    *s += z - b;
+                }
+            }
             for ((&d, &j), step) in self.arm_dofs.iter().zip(&self.arm_joints).zip(dq) {
                 let jt = &m.joints[j];
                 q[d] = (q[d] + step).clamp(jt.lower, jt.upper);

@@ -9,11 +9,13 @@
 
 mod description;
 mod ik;
+pub mod mesh;
 mod model;
 
 pub use description::{BUILTIN_ROBOTS, Description, GraspKind, HandJoint, Pad, PadGroup, Robot, builtin_description};
 pub use ik::IkOptions;
-pub use model::{Geometry, Joint, JointKind, Link, Mimic, RobotError, RobotModel, Shape, xyz_rpy};
+pub use mesh::{MeshPaths, TriangleMesh};
+pub use model::{Geometry, Joint, JointKind, Link, Mimic, NO_RGBA, RobotError, RobotModel, Shape, xyz_rpy};
 
 /// The built-in robot's URDF.
 pub const BUILTIN_URDF: &str = include_str!("../ur5e_allegro.urdf");

@@ -2,6 +2,8 @@ use std::collections::HashMap;
 
 use glam::{DAffine3, DQuat, DVec3};
 
+use crate::mesh::{MeshCache, MeshPaths, TriangleMesh};
+
 /// A robot description that cannot be used; names what is wrong.
 #[derive(Debug, thiserror::Error)]
 #[error("robot description {source_name}: {message}")]
@@ -27,6 +29,22 @@ pub enum Geometry {
     ConvexHull {
         points: std::sync::Arc<Vec<DVec3>>,
     },
+    /// A URDF `<mesh>` read from its file (scaled): drawn as its triangles; a collision mesh
+    /// collides as the convex hull of its vertices.
+    Mesh {
+        mesh: std::sync::Arc<TriangleMesh>,
+    },
+}
+
+impl Geometry {
+    /// The points whose convex hull is the collision shape of a hull or a mesh.
+    pub fn hull_points(&self) -> Option<Vec<DVec3>> {
+        match self {
+            Geometry::ConvexHull { points } => Some(points.to_vec()),
+            Geometry::Mesh { mesh } => Some(mesh.distinct_points()),
+            _ => None,
+        }
+    }
 }
 
 /// A shape placed in its link's frame, with an sRGB-ish colour (0..1, from the URDF material).
@@ -101,7 +119,12 @@ pub struct RobotModel {
     dofs: Vec<usize>,
     link_index: HashMap<String, usize>,
     joint_index: HashMap<String, usize>,
+    /// The mesh files the URDF's geometry was read from, each once, in the order first met.
+    pub mesh_files: Vec<std::path::PathBuf>,
 }
+
+/// The colour of a visual mesh the URDF gives no colour: drawn in its file's own colours.
+pub const NO_RGBA: [f64; 4] = [-1.0; 4];
 
 fn pose(p: &urdf_rs::Pose) -> DAffine3 {
     xyz_rpy(p.xyz.0, p.rpy.0)
@@ -119,28 +142,50 @@ impl RobotModel {
     pub fn from_urdf_file(path: &std::path::Path) -> Result<Self, RobotError> {
         let text = std::fs::read_to_string(path)
             .map_err(|e| RobotError { source_name: path.display().to_string(), message: format!("cannot read: {e}") })?;
-        Self::from_urdf_str(&text, &path.display().to_string())
+        Self::from_urdf(&text, &path.display().to_string(), &MeshPaths::beside(path))
+    }
+
+    /// A URDF given as text, without mesh geometry (its files could not be found).
+    pub fn from_urdf_str(text: &str, source_name: &str) -> Result<Self, RobotError> {
+        Self::from_urdf(text, source_name, &MeshPaths::default())
     }
 
     // `!(a <= b)` on purpose: a NaN limit or axis must fail the checks too.
     // Long on purpose: one pass over the URDF's links and joints, each check next to the field it
     // reads, so that every error names its link or joint in the order a reader meets them.
     #[allow(clippy::neg_cmp_op_on_partial_ord)]
-    pub fn from_urdf_str(text: &str, source_name: &str) -> Result<Self, RobotError> {
+    /// A URDF whose `<mesh>` files are found through `paths`. Every mesh problem (a missing file, an
+    /// unreadable one) is listed in one error.
+    pub fn from_urdf(text: &str, source_name: &str, paths: &MeshPaths) -> Result<Self, RobotError> {
         let err = |message: String| RobotError { source_name: source_name.to_string(), message };
         let urdf = urdf_rs::read_from_string(text).map_err(|e| err(format!("not valid URDF: {e}")))?;
+        let mut meshes = MeshCache::default();
+        let mut mesh_problems: Vec<String> = Vec::new();
         let colours: HashMap<&str, [f64; 4]> =
             urdf.materials.iter().filter_map(|m| m.color.as_ref().map(|c| (m.name.as_str(), c.rgba.0))).collect();
-        let shape = |origin: &urdf_rs::Pose, g: &urdf_rs::Geometry, rgba: [f64; 4], owner: &str| -> Result<Shape, RobotError> {
+        // A shape, or None when its mesh could not be read (the problem is listed).
+        let mut shape = |origin: &urdf_rs::Pose, g: &urdf_rs::Geometry, rgba: [f64; 4], owner: &str| -> Option<Shape> {
             let geometry = match g {
                 urdf_rs::Geometry::Box { size } => Geometry::Box { size: DVec3::from_array(size.0) },
                 urdf_rs::Geometry::Cylinder { radius, length } => Geometry::Cylinder { radius: *radius, length: *length },
+                urdf_rs::Geometry::Capsule { radius, length } => {
+                    mesh_problems.push(format!("{owner}: capsule (r {radius}, length {length}) is not supported: use a cylinder or a mesh"));
+                    return None;
+                }
                 urdf_rs::Geometry::Sphere { radius } => Geometry::Sphere { radius: *radius },
-                other => {
-                    return Err(err(format!("link '{owner}': geometry {other:?} is not supported (use box, cylinder or sphere)")));
+                urdf_rs::Geometry::Mesh { filename, scale } => {
+                    let scale = scale.map_or(DVec3::ONE, |s| DVec3::from_array(s.0));
+                    let read = paths.resolve(filename).and_then(|p| meshes.read(&p, scale).map_err(|e| format!("{}: {e}", p.display())));
+                    match read {
+                        Ok(mesh) => Geometry::Mesh { mesh },
+                        Err(e) => {
+                            mesh_problems.push(format!("{owner}: mesh '{filename}': {e}"));
+                            return None;
+                        }
+                    }
                 }
             };
-            Ok(Shape { geometry, origin: pose(origin), rgba })
+            Some(Shape { geometry, origin: pose(origin), rgba })
         };
         let mut links = Vec::new();
         let mut link_index = HashMap::new();
@@ -149,15 +194,32 @@ impl RobotModel {
                 return Err(err(format!("link '{}' is defined twice", l.name)));
             }
             let mut visuals = Vec::new();
-            for v in &l.visual {
-                let rgba = v
+            for (i, v) in l.visual.iter().enumerate() {
+                let colour = v
                     .material
                     .as_ref()
-                    .and_then(|m| m.color.as_ref().map(|c| c.rgba.0).or_else(|| colours.get(m.name.as_str()).copied()))
-                    .unwrap_or([0.5, 0.5, 0.5, 1.0]);
-                visuals.push(shape(&v.origin, &v.geometry, rgba, &l.name)?);
+                    .and_then(|m| m.color.as_ref().map(|c| c.rgba.0).or_else(|| colours.get(m.name.as_str()).copied()));
+                // A mesh without a URDF colour keeps its file's colours (`NO_RGBA` marks it).
+                let rgba = match (&v.geometry, colour) {
+                    (_, Some(c)) => c,
+                    (urdf_rs::Geometry::Mesh { .. }, None) => NO_RGBA,
+                    (_, None) => [0.5, 0.5, 0.5, 1.0],
+                };
+                visuals.extend(shape(&v.origin, &v.geometry, rgba, &format!("link '{}' visual {i}", l.name)));
             }
-            let collisions = l.collision.iter().map(|c| shape(&c.origin, &c.geometry, [0.0; 4], &l.name)).collect::<Result<_, _>>()?;
+            let collisions = l
+                .collision
+                .iter()
+                .enumerate()
+                .filter_map(|(i, c)| shape(&c.origin, &c.geometry, [0.0; 4], &format!("link '{}' collision {i}", l.name)))
+                // A collision mesh collides as the convex hull of its vertices, in both backends.
+                .map(|s| match &s.geometry {
+                    Geometry::Mesh { mesh } => {
+                        Shape { geometry: Geometry::ConvexHull { points: std::sync::Arc::new(mesh.distinct_points()) }, ..s }
+                    }
+                    _ => s,
+                })
+                .collect();
             links.push(Link {
                 name: l.name.clone(),
                 mass: l.inertial.mass.value,
@@ -166,6 +228,11 @@ impl RobotModel {
                 collisions,
                 parent_joint: None,
             });
+        }
+        if !mesh_problems.is_empty() {
+            let n = mesh_problems.len();
+            let list: String = mesh_problems.iter().map(|p| format!("\n  - {p}")).collect();
+            return Err(err(format!("{n} geometr{} cannot be loaded:{list}", if n == 1 { "y" } else { "ies" })));
         }
         let mut joints = Vec::new();
         let mut joint_index = HashMap::new();
@@ -244,7 +311,7 @@ impl RobotModel {
                 dofs.push(i);
             }
         }
-        Ok(RobotModel { links, joints, root, dofs, link_index, joint_index })
+        Ok(RobotModel { links, joints, root, dofs, link_index, joint_index, mesh_files: meshes.files() })
     }
 
     /// This model with the collision shapes of the given links replaced by the convex hull of

@@ -1,0 +1,197 @@
+//! `vtgen robot check CONFIG`: the robot a config names, checked before any data is made. Loading
+//! the config already reads every link's geometry (all mesh problems listed at once); this adds
+//! what only the arm in its workspace shows: the share of grasp-frame poses the arm reaches, links
+//! under the floor at those poses, joints pinned at a limit, and whether a gripper's jaws face
+//! each other. A short hold test is `vtgen grasps CONFIG --trajectories 2`.
+
+use anyhow::{Context, Result};
+use glam::{DAffine3, DQuat, DVec3};
+use serde::Serialize;
+use vt_robot::GraspKind;
+
+use crate::config::LoadedConfig;
+use crate::physics::grasp::{MIN_REACHABLE_SHARE, REACH_SAMPLES, reach_samples, robot_floor_clearance};
+use crate::physics::robot::grasp_context;
+
+/// A joint closer than this to a limit (rad, or m for a prismatic joint) counts as at the limit.
+pub const AT_LIMIT: f64 = 0.01;
+/// A share of reached poses above which a pinned joint or a link under the floor is a problem.
+pub const MAX_BAD_SHARE: f64 = 0.1;
+
+#[derive(Debug, Clone, Serialize)]
+pub struct JointAtLimit {
+    pub joint: String,
+    /// Share of the reached poses with this joint within `AT_LIMIT` of a limit.
+    pub share: f64,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct RobotCheckReport {
+    pub robot: String,
+    pub links: usize,
+    pub arm_joints: usize,
+    pub hand_joints: usize,
+    pub pads: Vec<String>,
+    /// The mesh files its geometry was read from.
+    pub mesh_files: usize,
+    /// Grasp-frame poses drawn from `robot.grasp.palm_workspace`, and the share the arm reaches.
+    pub poses: usize,
+    pub reach_share: f64,
+    /// Share of the reached poses with a moving link under the floor, and the lowest link seen.
+    pub under_floor_share: f64,
+    pub lowest_link: Option<String>,
+    pub lowest_link_height_m: Option<f64>,
+    /// Arm joints at a limit in more than none of the reached poses.
+    pub joints_at_limit: Vec<JointAtLimit>,
+    /// Parallel-jaw grippers: the first two pads face each other (their +z point at one another)
+    /// at the preshape, and the gap between them (m).
+    pub jaws_facing: Option<bool>,
+    pub jaw_gap_m: Option<f64>,
+    /// What must be fixed before making data (empty: none).
+    pub problems: Vec<String>,
+}
+
+pub fn check_robot(cfg: &LoadedConfig) -> Result<RobotCheckReport> {
+    let rc = cfg.config.robot.as_ref().with_context(|| format!("{}: the config has no `robot:` section", cfg.path.display()))?;
+    let robot = cfg.robot.as_ref().context("a config with a robot section has its robot loaded")?;
+    let t_world_base = DAffine3::from_rotation_translation(DQuat::from_rotation_z(rc.base_yaw_deg.to_radians()), DVec3::from_array(rc.base_position));
+    let ctx = grasp_context(robot, t_world_base, rc, DVec3::from_array(cfg.config.camera.position), None);
+    let pre: Vec<f64> = rc.grasp.preshape.iter().map(|&(lo, _)| lo).collect();
+    let reached: Vec<Vec<f64>> = reach_samples(&ctx, REACH_SAMPLES)
+        .into_iter()
+        .flatten()
+        .map(|mut q| {
+            robot.set_hand(&mut q, &pre);
+            q
+        })
+        .collect();
+    let n = reached.len().max(1) as f64;
+    let mut problems = Vec::new();
+    let reach_share = reached.len() as f64 / REACH_SAMPLES as f64;
+    if reach_share < MIN_REACHABLE_SHARE {
+        problems.push(format!(
+            "the arm reaches {:.0}% of {REACH_SAMPLES} grasp-frame poses drawn from robot.grasp.palm_workspace (at least {:.0}% needed): \
+             move the workspace or robot.base_position",
+            100.0 * reach_share,
+            100.0 * MIN_REACHABLE_SHARE
+        ));
+    }
+    let model = &robot.model;
+    let mut under = 0usize;
+    let mut lowest: Option<(usize, f64)> = None;
+    for q in &reached {
+        if let Some((link, z)) = robot_floor_clearance(robot, &t_world_base, q) {
+            under += usize::from(z < 0.0);
+            if lowest.is_none_or(|(_, l)| z < l) {
+                lowest = Some((link, z));
+            }
+        }
+    }
+    let under_floor_share = under as f64 / n;
+    if under_floor_share > 0.0 {
+        let (link, z) = lowest.expect("a link under the floor was seen");
+        problems.push(format!(
+            "a link is under the floor in {:.0}% of the reached grasp poses (lowest: '{}' at {:.0} mm): raise robot.base_position \
+             or the workspace (the grasp loop redoes such moves)",
+            100.0 * under_floor_share,
+            model.links[link].name,
+            1000.0 * z
+        ));
+    }
+    let mut joints_at_limit = Vec::new();
+    for &j in &robot.arm_joints {
+        let joint = &model.joints[j];
+        let d = joint.dof.expect("an arm joint has a degree of freedom");
+        let at = reached.iter().filter(|q| (q[d] - joint.lower).abs() < AT_LIMIT || (joint.upper - q[d]).abs() < AT_LIMIT).count();
+        if at > 0 {
+            let share = at as f64 / n;
+            if share > MAX_BAD_SHARE {
+                problems.push(format!(
+                    "arm joint '{}' is at a limit in {:.0}% of the reached grasp poses: the inverse kinematics pins it there; \
+                     check arm.home and the workspace",
+                    joint.name,
+                    100.0 * share
+                ));
+            }
+            joints_at_limit.push(JointAtLimit { joint: joint.name.clone(), share });
+        }
+    }
+    let (mut jaws_facing, mut jaw_gap_m) = (None, None);
+    if robot.kind == GraspKind::ParallelJaw && robot.pads.len() >= 2 {
+        let mut q = ctx.home();
+        robot.set_hand(&mut q, &pre);
+        let poses = model.forward_kinematics(&q);
+        let (a, b) = (poses[robot.pads[0].frame], poses[robot.pads[1].frame]);
+        let (za, zb) = (a.transform_vector3(DVec3::Z), b.transform_vector3(DVec3::Z));
+        let ab = b.translation - a.translation;
+        let facing = za.dot(ab) > 0.0 && zb.dot(-ab) > 0.0 && za.dot(zb) < -0.9;
+        jaws_facing = Some(facing);
+        jaw_gap_m = Some(ab.length());
+        if !facing {
+            problems.push(format!(
+                "pads '{}' and '{}' do not face each other at the preshape (a pad's +z must point out of its jaw at the other pad)",
+                robot.pads[0].name, robot.pads[1].name
+            ));
+        }
+    }
+    Ok(RobotCheckReport {
+        robot: robot.name.clone(),
+        links: model.links.len(),
+        arm_joints: robot.arm_joints.len(),
+        hand_joints: robot.hand.len(),
+        pads: robot.pad_names(),
+        mesh_files: model.mesh_files.len(),
+        poses: REACH_SAMPLES,
+        reach_share,
+        under_floor_share,
+        lowest_link: lowest.map(|(l, _)| model.links[l].name.clone()),
+        lowest_link_height_m: lowest.map(|(_, z)| z),
+        joints_at_limit,
+        jaws_facing,
+        jaw_gap_m,
+        problems,
+    })
+}
+
+impl std::fmt::Display for RobotCheckReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        writeln!(
+            f,
+            "robot {}: {} links ({} mesh files), {} arm joints, {} hand joints, pads {}",
+            self.robot,
+            self.links,
+            self.mesh_files,
+            self.arm_joints,
+            self.hand_joints,
+            self.pads.join(", ")
+        )?;
+        writeln!(f, "reach: {:.0}% of {} grasp-frame poses from the workspace", 100.0 * self.reach_share, self.poses)?;
+        match (&self.lowest_link, self.lowest_link_height_m) {
+            (Some(l), Some(z)) => writeln!(
+                f,
+                "floor: a link under it in {:.0}% of the reached poses; lowest link '{l}' at {:.0} mm",
+                100.0 * self.under_floor_share,
+                1000.0 * z
+            )?,
+            _ => writeln!(f, "floor: no moving link has collision geometry")?,
+        }
+        if self.joints_at_limit.is_empty() {
+            writeln!(f, "joint limits: no arm joint at a limit")?;
+        }
+        for j in &self.joints_at_limit {
+            writeln!(f, "joint limits: '{}' at a limit in {:.0}% of the reached poses", j.joint, 100.0 * j.share)?;
+        }
+        if let (Some(facing), Some(gap)) = (self.jaws_facing, self.jaw_gap_m) {
+            writeln!(f, "jaws: pads {} each other, {:.1} mm apart at the preshape", if facing { "face" } else { "do NOT face" }, 1000.0 * gap)?;
+        }
+        if self.problems.is_empty() {
+            write!(f, "ok: no problem found (next: `vtgen grasps CONFIG --trajectories 2` holds a few objects)")
+        } else {
+            write!(f, "{} problem(s):", self.problems.len())?;
+            for p in &self.problems {
+                write!(f, "\n  - {p}")?;
+            }
+            Ok(())
+        }
+    }
+}
