@@ -34,6 +34,24 @@ pub const SHARD_METADATA: &str = "vtgen.shard";
 pub const PARTIAL_SUFFIX: &str = ".partial";
 /// The dataset's mesh sources (FORMAT.md, "Directory layout"): with `config.json`, its identity.
 pub const SOURCES_FILE: &str = "sources.json";
+/// The folder of the robot a dataset was made with (FORMAT.md, "Directory layout"):
+/// `robot.urdf`, `robot.yaml` and `meshes.json` ([`RobotFiles`]).
+pub const ROBOT_DIR: &str = "robot";
+
+/// `robot/meshes.json`: the robot's name and the mesh files its URDF names.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct RobotFiles {
+    pub name: String,
+    pub meshes: Vec<RobotMeshFile>,
+}
+
+/// One mesh file of the robot: where the generating machine read it, its size and its SHA-256.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct RobotMeshFile {
+    pub file: String,
+    pub bytes: u64,
+    pub sha256: String,
+}
 
 /// Topic names (FORMAT.md, "MCAP shard").
 pub mod topics {

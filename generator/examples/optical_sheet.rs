@@ -78,7 +78,7 @@ fn samples(
     rows: usize,
     pads: Option<&[String]>,
 ) -> Result<Vec<(String, RgbImage, RgbImage)>> {
-    let cfg = LoadedConfig::load_with(config, overrides)?.with_robot_assets(assets);
+    let cfg = LoadedConfig::load_with_assets(config, overrides, assets.as_deref())?;
     let objects = load_objects(&cfg, ycb)?;
     let mut factory = SampleFactory::new(&cfg, &objects, Box::new(WgpuRenderer::new(&cfg.config.renderer)?))?;
     let plan = Plan::new(&cfg.config);

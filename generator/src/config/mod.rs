@@ -225,6 +225,7 @@ impl LoadedConfig {
                         let text = vt_robot::builtin_description(name).expect("a built-in robot has a description");
                         let desc = serde_yaml::from_str(text).expect("the built-in description parses (unit-tested)");
                         vt_robot::Robot::resolve(model, urdf_text, desc, &format!("built-in {name}.yaml with {}", u.display()))
+                            .map(|r| r.with_description_text(text))
                             .map_err(|e| (vec!["robot", "urdf"], e.to_string()))
                     }
                     None => Ok(builtin),

@@ -146,6 +146,29 @@ fn prepare_output(out: &Path, config_json: &str, sources: &MeshSources, plan: &P
     vt_dataset::write_atomic(&sources_path, (serde_json::to_string_pretty(sources)? + "\n").as_bytes())
 }
 
+/// Writes `robot/` (FORMAT.md): the robot's URDF (an arm and a hand joined into one), its
+/// description, and the mesh files its URDF names by name, size and SHA-256, so that a reader can
+/// redraw the robot from its own copy of them.
+fn write_robot(out: &Path, robot: &vt_robot::Robot) -> Result<()> {
+    use sha2::Digest;
+    let dir = out.join(vt_dataset::ROBOT_DIR);
+    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    vt_dataset::write_atomic(&dir.join("robot.urdf"), robot.urdf_text.as_bytes())?;
+    vt_dataset::write_atomic(&dir.join("robot.yaml"), robot.description_text.as_bytes())?;
+    let meshes = robot
+        .model
+        .mesh_files
+        .iter()
+        .map(|f| {
+            let bytes = std::fs::read(f).with_context(|| format!("cannot read {}", f.display()))?;
+            let sha: String = sha2::Sha256::digest(&bytes).iter().map(|b| format!("{b:02x}")).collect();
+            Ok(vt_dataset::RobotMeshFile { file: f.display().to_string(), bytes: bytes.len() as u64, sha256: sha })
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let text = serde_json::to_string_pretty(&vt_dataset::RobotFiles { name: robot.name.clone(), meshes })? + "\n";
+    vt_dataset::write_atomic(&dir.join("meshes.json"), text.as_bytes())
+}
+
 /// The dataset's mesh sources, when it has recorded them.
 fn read_sources(path: &Path) -> Result<Option<MeshSources>> {
     match std::fs::read_to_string(path) {
@@ -332,6 +355,9 @@ pub fn generate(cfg: &LoadedConfig, opts: &GenerateOptions) -> Result<GenerateSu
     let objects = load_objects(cfg, opts.ycb_dir.as_ref())?;
     let sources = MeshSources::of(cfg, &objects)?;
     prepare_output(out, &config_json, &sources, &plan, opts)?;
+    if let Some(robot) = &cfg.robot {
+        write_robot(out, robot)?;
+    }
     for line in write_models(out, &objects)? {
         if !opts.quiet {
             eprintln!("symmetry: {line}");

@@ -81,6 +81,9 @@ impl HandPhysics for FakeHand {
     fn max_penetration(&self) -> f64 {
         self.penetration
     }
+    fn deepest_link(&self) -> Option<(usize, f64)> {
+        None
+    }
     fn save(&mut self) {
         self.saved = Some((self.object, self.joints.clone(), self.gravity, self.steps));
     }

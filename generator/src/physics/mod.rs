@@ -76,6 +76,9 @@ pub trait HandPhysics {
     fn touch_contacts(&self) -> Vec<Option<f64>>;
     /// Deepest penetration (m, >= 0) of any hand link into the object.
     fn max_penetration(&self) -> f64;
+    /// The hand link (`RobotModel::links` index) that reaches deepest into the object, and how
+    /// deep (m, >= 0); None when no link touches it. Errors name it (an `InitialOverlap`).
+    fn deepest_link(&self) -> Option<(usize, f64)>;
     /// Remembers the whole simulation state so that `restore` can undo what follows (an arm move
     /// that dropped the object or ended in a pose that cannot be recorded). Every backend must:
     /// the grasp loop's redo of a move depends on it, and so do the data's bytes.

@@ -29,6 +29,8 @@ struct Sim {
     object_geom: usize,
     touch_geoms: Vec<Vec<usize>>,
     hand_geoms: Vec<usize>,
+    /// Each hand link with collision geometry and its geoms.
+    link_geoms: Vec<(usize, Vec<usize>)>,
 }
 
 pub struct MujocoHand {
@@ -57,6 +59,9 @@ fn quat_wxyz(t: &DAffine3) -> [f64; 4] {
 /// (within 0.53 mm and 0.31°; `tests/grasping.rs`) for 3–5 % more physics time (`vtgen bench`).
 /// 30 iterations, or 50 with torsional friction 0.01, left one or two grasps pivoting.
 const NOSLIP_ITERATIONS: u32 = 50;
+
+/// The armature of a hand joint (kg·m² or kg) unless its drive needs more (`mjcf`).
+const DEFAULT_ARMATURE: f64 = 0.0005;
 
 /// Torsional friction coefficient (condim 4): resistance to spinning about the contact normal,
 /// what keeps an object held by two opposed pads from pivoting between them.
@@ -138,7 +143,20 @@ impl MujocoHand {
         fn matters(m: &RobotModel, link: usize) -> bool {
             !m.links[link].collisions.is_empty() || m.joints.iter().any(|j| j.parent == link && (j.moves() || matters(m, j.child)))
         }
-        fn children(m: &RobotModel, link: usize, x: &mut String, geoms: &dyn Fn(&mut String, usize)) {
+        // A drive's stiffness is explicit in MuJoCo's integrator (implicitfast takes only the
+        // damping implicitly): a stiff drive on a light link (the Panda's 15 g fingers at
+        // 14 000 N/m) would ring. Each driven joint (and its mimics) gets at least the armature
+        // that keeps `kp·dt²/armature` at 1; the Allegro's and the 2F-85's keep the default.
+        let armature: Vec<f64> = m
+            .joints
+            .iter()
+            .map(|j| {
+                let leader = j.mimic.map_or(j.name.as_str(), |mm| m.joints[mm.leader].name.as_str());
+                let kp = robot.hand.iter().find(|h| h.name == leader).map_or(0.0, |h| h.stiffness.unwrap_or(s.stiffness));
+                DEFAULT_ARMATURE.max(kp * s.timestep * s.timestep)
+            })
+            .collect();
+        fn children(m: &RobotModel, link: usize, x: &mut String, geoms: &dyn Fn(&mut String, usize), armature: &[f64]) {
             for j in m.joints.iter().filter(|j| j.parent == link && (j.moves() || matters(m, j.child))) {
                 let c = &m.links[j.child];
                 let q = quat_wxyz(&j.origin);
@@ -155,7 +173,7 @@ impl MujocoHand {
                         );
                     }
                     geoms(x, j.child);
-                    children(m, j.child, x, geoms);
+                    children(m, j.child, x, geoms, armature);
                     x.push_str("</body>");
                     continue;
                 }
@@ -164,7 +182,7 @@ impl MujocoHand {
                 let i = mass * 0.02 * 0.02 / 6.0;
                 let _ = write!(
                     x,
-                    r#"<body name="{}" pos="{} {} {}" quat="{} {} {} {}"><inertial pos="{} {} {}" mass="{mass}" diaginertia="{i} {i} {i}"/><joint name="{}" type="{kind}" axis="{} {} {}" range="{} {}" damping="0.01" armature="0.0005"/>"#,
+                    r#"<body name="{}" pos="{} {} {}" quat="{} {} {} {}"><inertial pos="{} {} {}" mass="{mass}" diaginertia="{i} {i} {i}"/><joint name="{}" type="{kind}" axis="{} {} {}" range="{} {}" damping="0.01" armature="{}"/>"#,
                     c.name,
                     t.x,
                     t.y,
@@ -181,14 +199,15 @@ impl MujocoHand {
                     j.axis.y,
                     j.axis.z,
                     j.lower,
-                    j.upper
+                    j.upper,
+                    armature[m.joint_id(&j.name).expect("a joint of the model")]
                 );
                 geoms(x, j.child);
-                children(m, j.child, x, geoms);
+                children(m, j.child, x, geoms, armature);
                 x.push_str("</body>");
             }
         }
-        children(m, palm, &mut x, &geoms);
+        children(m, palm, &mut x, &geoms, &armature);
         x.push_str("</body>");
         let _ = write!(
             x,
@@ -258,6 +277,10 @@ impl MujocoHand {
         };
         let touch_geoms = self.robot.touch_link_names().iter().map(|l| geom_of_link(l)).collect();
         let hand_geoms = (0..model.ngeom() as usize).filter(|&g| g != object_geom).collect();
+        let link_geoms = (0..self.robot.model.links.len())
+            .map(|l| (l, geom_of_link(&self.robot.model.links[l].name)))
+            .filter(|(_, g)| !g.is_empty())
+            .collect();
         let data = MjData::new(Box::new(model));
         self.sim = Some(Sim {
             data,
@@ -271,6 +294,7 @@ impl MujocoHand {
             object_geom,
             touch_geoms,
             hand_geoms,
+            link_geoms,
         });
         Ok(())
     }
@@ -374,6 +398,14 @@ impl HandPhysics for MujocoHand {
 
     fn max_penetration(&self) -> f64 {
         self.contact_dists(&self.sim().hand_geoms).map(|d| (-d).max(0.0)).fold(0.0, f64::max)
+    }
+
+    fn deepest_link(&self) -> Option<(usize, f64)> {
+        self.sim()
+            .link_geoms
+            .iter()
+            .filter_map(|(l, g)| self.contact_dists(g).map(|d| (-d).max(0.0)).reduce(f64::max).map(|d| (*l, d)))
+            .max_by(|a, b| a.1.total_cmp(&b.1))
     }
 
     fn save(&mut self) {

@@ -94,6 +94,8 @@ pub struct RapierHand {
     /// Collider handles per touch link and all hand colliders.
     touch_colliders: Vec<Vec<ColliderHandle>>,
     hand_colliders: Vec<ColliderHandle>,
+    /// The link of each of `hand_colliders`.
+    hand_collider_links: Vec<usize>,
     object: Option<(RigidBodyHandle, ColliderHandle)>,
     /// The convex hull of the last object reset with, keyed by its points: computing the hull of
     /// a scanned mesh's ~8 000 vertices costs more than a grasp attempt's first steps, and every
@@ -124,6 +126,7 @@ impl RapierHand {
             link_shapes,
             touch_colliders: Vec::new(),
             hand_colliders: Vec::new(),
+            hand_collider_links: Vec::new(),
             object: None,
             hull: None,
             saved: None,
@@ -186,6 +189,7 @@ impl RapierHand {
         let groups = InteractionGroups::new(HAND_GROUP, OBJECT_GROUP, InteractionTestMode::And);
         let mut bodies = vec![None; m.links.len()];
         let mut hand_colliders = Vec::new();
+        let mut hand_collider_links = Vec::new();
         let mut link_colliders: Vec<Vec<ColliderHandle>> = vec![Vec::new(); m.links.len()];
         // Bodies for the palm and every link below it that has mass or collision geometry.
         for (li, link) in m.links.iter().enumerate() {
@@ -213,6 +217,7 @@ impl RapierHand {
                     .collision_groups(groups);
                 let ch = world.insert_collider(c, Some(handle));
                 hand_colliders.push(ch);
+                hand_collider_links.push(li);
                 link_colliders[li].push(ch);
             }
         }
@@ -304,7 +309,7 @@ impl RapierHand {
         // The links where the joint coordinates put them.
         for j in &joints {
             if let Some((mb, _)) = world.multibody_joints.get_mut(j.joint) {
-                mb.forward_kinematics(&world.bodies, false);
+                mb.forward_kinematics(&world.bodies, true);
                 mb.update_rigid_bodies(&mut world.bodies, false);
             }
         }
@@ -312,6 +317,7 @@ impl RapierHand {
         self.world = world;
         self.joints = joints;
         self.hand_colliders = hand_colliders;
+        self.hand_collider_links = hand_collider_links;
         self.touch_colliders = touch_colliders;
         self.object = None;
         self.saved = None;
@@ -437,6 +443,14 @@ impl HandPhysics for RapierHand {
 
     fn max_penetration(&self) -> f64 {
         self.hand_colliders.iter().filter_map(|&c| self.contact_distance(c)).map(|d| (-d).max(0.0)).fold(0.0, f64::max)
+    }
+
+    fn deepest_link(&self) -> Option<(usize, f64)> {
+        self.hand_colliders
+            .iter()
+            .zip(&self.hand_collider_links)
+            .filter_map(|(&c, &l)| self.contact_distance(c).map(|d| (l, (-d).max(0.0))))
+            .max_by(|a, b| a.1.total_cmp(&b.1))
     }
 
     fn save(&mut self) {

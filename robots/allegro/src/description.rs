@@ -197,8 +197,10 @@ pub struct Pad {
 pub struct Robot {
     pub name: String,
     pub model: RobotModel,
-    /// The URDF's text (a dataset's identity names it).
+    /// The URDF's text (a dataset's identity names it; an arm and a hand: the two joined).
     pub urdf_text: String,
+    /// The description's text, as written (a dataset carries it beside the URDF).
+    pub description_text: String,
     /// Moving joints from the base to the flange, and their entries in the joint-value vector.
     pub arm_joints: Vec<usize>,
     pub arm_dofs: Vec<usize>,
@@ -272,7 +274,7 @@ impl Robot {
             Some((Some(urdf), description)) => Robot::from_texts(urdf, &format!("built-in {name}.urdf"), description, &description_name),
             Some((None, description)) => {
                 let desc = parse(description, &description_name)?;
-                Robot::from_description(desc, None, None, package_dirs, &description_name)
+                Ok(Robot::from_description(desc, None, None, package_dirs, &description_name)?.with_description_text(description))
             }
             None => Err(RobotError {
                 source_name: "robot.model".into(),
@@ -295,7 +297,12 @@ impl Robot {
         let source_name = description.display().to_string();
         let desc = parse(&text, &source_name)?;
         let dir = description.parent().unwrap_or(Path::new("."));
-        Robot::from_description(desc, Some(dir), urdf, package_dirs, &source_name)
+        Ok(Robot::from_description(desc, Some(dir), urdf, package_dirs, &source_name)?.with_description_text(&text))
+    }
+
+    /// This robot with the text of its description kept.
+    pub fn with_description_text(self, text: &str) -> Self {
+        Robot { description_text: text.to_string(), ..self }
     }
 
     /// A parsed description with its URDF (or arm and hand URDFs) read from files.
@@ -344,7 +351,7 @@ impl Robot {
     /// A URDF and a description given as text (names are for errors).
     pub fn from_texts(urdf: &str, urdf_name: &str, description: &str, description_name: &str) -> Result<Self, RobotError> {
         let model = RobotModel::from_urdf_str(urdf, urdf_name)?;
-        Robot::resolve(model, urdf.to_string(), parse(description, description_name)?, description_name)
+        Ok(Robot::resolve(model, urdf.to_string(), parse(description, description_name)?, description_name)?.with_description_text(description))
     }
 
     /// The URDF model checked against the description; errors name the description's field.
@@ -374,6 +381,8 @@ impl Robot {
             return Err(err("arm.home", format!("{} values for {} arm joints", desc.arm.home.len(), arm_joints.len())));
         }
         let mut grasp_frame = link(&model, "grasp.frame", &desc.grasp.frame)?;
+        // The hand's root defaults to the link the grasp frame is named by (not its offset child).
+        let grasp_link = grasp_frame;
         if let Some(o) = desc.grasp.origin {
             let name = format!("{}_grasp", desc.grasp.frame);
             grasp_frame = model.add_fixed_link(grasp_frame, &name, xyz_rpy(o.xyz, o.rpy)).map_err(|m| err("grasp.origin", m))?;
@@ -399,7 +408,7 @@ impl Robot {
                     _ => return Err(err("grasp.hand_root", format!("the grasp frame '{grasp_frame_name}' is not fixed below '{name}'"))),
                 }
             }
-            None => grasp_frame,
+            None => grasp_link,
         };
         let root_name = model.links[hand_root].name.clone();
         let mut hand = Vec::new();
@@ -539,6 +548,7 @@ impl Robot {
             name: desc.name,
             model,
             urdf_text,
+            description_text: String::new(),
             arm_joints,
             arm_dofs,
             base,

@@ -12,7 +12,9 @@ mod ik;
 pub mod mesh;
 mod model;
 
-pub use description::{BUILTIN_ROBOTS, Description, GraspKind, HandJoint, Pad, PadGroup, Robot, builtin_description};
+pub use description::{
+    BUILTIN_ROBOTS, Description, GraspKind, HandJoint, PRISMATIC_DAMPING_TIME, PRISMATIC_FULL_FORCE_ERROR, Pad, PadGroup, Robot, builtin_description,
+};
 pub use ik::IkOptions;
 pub use mesh::{MeshPaths, TriangleMesh};
 pub use model::{Geometry, Joint, JointKind, Link, Mimic, NO_RGBA, RobotError, RobotModel, Shape, xyz_rpy};

@@ -64,7 +64,7 @@ impl MeshPaths {
                 }
             }
             return match roots.iter().map(|r| r.join(inner)).find(|p| p.is_file()) {
-                Some(p) => Ok(p),
+                Some(p) => Ok(canonical(p)),
                 None if roots.is_empty() => Err("file not found: no folder to look for package roots in".into()),
                 None => Err(format!(
                     "file not found: no package root '{package}' holding it above the URDF's folder or in the given package folders \
@@ -78,8 +78,13 @@ impl MeshPaths {
             (Some(dir), false) => dir.join(path),
             (None, false) => return Err("a relative mesh path needs the URDF's folder (the URDF was given as text)".into()),
         };
-        if path.is_file() { Ok(path) } else { Err(format!("file not found: {}", path.display())) }
+        if path.is_file() { Ok(canonical(path)) } else { Err(format!("file not found: {}", path.display())) }
     }
+}
+
+/// One name per file (`a/urdf/../meshes/m.stl` and `a/meshes/m.stl` are one mesh, read once).
+fn canonical(path: PathBuf) -> PathBuf {
+    std::fs::canonicalize(&path).unwrap_or(path)
 }
 
 /// Meshes read once per file and scale while a URDF is parsed (one mesh can serve several links).
@@ -248,8 +253,9 @@ mod tests {
         let urdf_dir = dir.path().join("my_robot/urdf");
         std::fs::create_dir_all(&urdf_dir).unwrap();
         let paths = MeshPaths { urdf_dir: Some(urdf_dir.clone()), package_dirs: vec![] };
+        let mesh = mesh.canonicalize().unwrap();
         assert_eq!(paths.resolve("package://my_robot/meshes/a.obj").unwrap(), mesh);
-        assert_eq!(paths.resolve("../meshes/a.obj").unwrap().canonicalize().unwrap(), mesh.canonicalize().unwrap());
+        assert_eq!(paths.resolve("../meshes/a.obj").unwrap(), mesh);
         let err = paths.resolve("package://other/meshes/a.obj").unwrap_err();
         assert!(err.contains("no package root 'other'"), "{err}");
         let given = MeshPaths { urdf_dir: None, package_dirs: vec![dir.path().to_path_buf()] };

@@ -204,3 +204,176 @@ fn the_robotiq_gripper_closes_its_parallel_pads_symmetrically() {
         }
     }
 }
+
+/// A two-link gripper URDF whose hand and finger are mesh files in a package laid out as ROS
+/// keeps it (`<root>/my_gripper/{urdf,meshes}`), and a cube OBJ of half-size `h` there.
+fn mesh_package(root: &std::path::Path, finger_mesh: &str) -> std::path::PathBuf {
+    let pkg = root.join("my_gripper");
+    std::fs::create_dir_all(pkg.join("urdf")).unwrap();
+    std::fs::create_dir_all(pkg.join("meshes")).unwrap();
+    let cube = |h: f64| {
+        let mut s = String::new();
+        for i in 0..8 {
+            let c = |b: usize| if i & b == 0 { -h } else { h };
+            s += &format!("v {} {} {}\n", c(1), c(2), c(4));
+        }
+        for f in ["1 3 4 2", "5 6 8 7", "1 2 6 5", "3 7 8 4", "1 5 7 3", "2 4 8 6"] {
+            s += &format!("f {f}\n");
+        }
+        s
+    };
+    std::fs::write(pkg.join("meshes/hand.obj"), cube(0.02)).unwrap();
+    std::fs::write(pkg.join("meshes/finger.obj"), cube(0.005)).unwrap();
+    let urdf = format!(
+        r#"<robot name="g">
+      <link name="hand"><visual><geometry><mesh filename="package://my_gripper/meshes/hand.obj"/></geometry></visual>
+        <collision><geometry><mesh filename="package://my_gripper/meshes/hand.obj" scale="1 1 2"/></geometry></collision></link>
+      <link name="finger"><inertial><mass value="0.02"/><inertia ixx="1e-6" ixy="0" ixz="0" iyy="1e-6" iyz="0" izz="1e-6"/></inertial>
+        <visual><geometry><mesh filename="{finger_mesh}"/></geometry></visual>
+        <collision><geometry><mesh filename="../meshes/finger.obj"/></geometry></collision></link>
+      <link name="tool"/>
+      <joint name="slide" type="prismatic"><parent link="hand"/><child link="finger"/><origin xyz="0 0 0.05"/><axis xyz="0 1 0"/>
+        <limit lower="0" upper="0.04" effort="30" velocity="1"/></joint>
+      <joint name="tool_joint" type="fixed"><parent link="hand"/><child link="tool"/><origin xyz="0 0 0.1"/></joint>
+    </robot>"#
+    );
+    let path = pkg.join("urdf/gripper.urdf");
+    std::fs::write(&path, urdf).unwrap();
+    path
+}
+
+#[test]
+fn mesh_geometry_is_read_and_collides_as_its_hull() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = mesh_package(dir.path(), "package://my_gripper/meshes/finger.obj");
+    let m = RobotModel::from_urdf_file(&path).unwrap();
+    let hand = m.link("hand").unwrap();
+    let Geometry::Mesh { mesh } = &hand.visuals[0].geometry else { panic!("a visual mesh: {:?}", hand.visuals[0].geometry) };
+    assert_eq!((mesh.triangles.len(), mesh.distinct_points().len()), (12, 8));
+    // The collision mesh is its hull's points, scaled per axis.
+    let Geometry::ConvexHull { points } = &hand.collisions[0].geometry else { panic!("a hull") };
+    assert_eq!(points.len(), 8);
+    assert!(points.iter().all(|p| (p.z.abs() - 0.04).abs() < 1e-9 && (p.x.abs() - 0.02).abs() < 1e-9));
+    assert_eq!(m.mesh_files.len(), 2, "{:?}", m.mesh_files);
+}
+
+#[test]
+fn every_missing_mesh_is_listed_at_once_with_its_link() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = mesh_package(dir.path(), "package://my_gripper/meshes/fingr.obj");
+    std::fs::remove_file(dir.path().join("my_gripper/meshes/hand.obj")).unwrap();
+    let e = RobotModel::from_urdf_file(&path).unwrap_err().to_string();
+    assert!(e.contains("3 geometries cannot be loaded"), "{e}");
+    for want in [
+        "link 'hand' visual 0: mesh 'package://my_gripper/meshes/hand.obj': file not found",
+        "link 'hand' collision 0: mesh 'package://my_gripper/meshes/hand.obj'",
+        "link 'finger' visual 0: mesh 'package://my_gripper/meshes/fingr.obj'",
+    ] {
+        assert!(e.contains(want), "{want}: {e}");
+    }
+    assert!(!e.contains("Mesh {"), "no Debug text: {e}");
+    // A URDF given as text cannot find relative meshes, and says so.
+    let text = std::fs::read_to_string(&path).unwrap();
+    let e = RobotModel::from_urdf_str(&text, "g.urdf").unwrap_err().to_string();
+    assert!(e.contains("needs the URDF's folder"), "{e}");
+}
+
+/// The UR5e arm of the built-in URDF up to its flange, as a URDF of its own.
+fn ur5e_arm_urdf() -> String {
+    let cut = BUILTIN_URDF.find("  <link name=\"hand_adapter\">").unwrap();
+    format!("{}</robot>\n", &BUILTIN_URDF[..cut])
+}
+
+#[test]
+fn an_arm_and_a_gripper_from_two_files_with_a_grasp_frame_offset_and_urdf_drive_defaults() {
+    let dir = tempfile::tempdir().unwrap();
+    mesh_package(dir.path(), "package://my_gripper/meshes/finger.obj");
+    std::fs::write(dir.path().join("arm.urdf"), ur5e_arm_urdf()).unwrap();
+    let description = "name: two_files\nurdf: arm.urdf\nhand_urdf: my_gripper/urdf/gripper.urdf\n\
+        mount: {parent: flange, origin: {xyz: [0, 0, 0.01], rpy: [0, 0, 0.5]}}\n\
+        arm: {base: base_link, flange: flange, home: [-1.5707963267948966, -1.5707963267948966, 1.5707963267948966, -1.5707963267948966, -1.5707963267948966, 0.0]}\n\
+        grasp: {frame: hand, origin: {xyz: [0, 0, 0.1], rpy: [0, -1.5707963267948966, 0]}, kind: palm, min_touching: 1}\n\
+        hand:\n  - {joint: slide, preshape: [0.04, 0.04], close: 0.0}\n\
+        pads:\n  - {name: p, link: finger, origin: {xyz: [0, -0.005, 0], rpy: [1.5707963267948966, 0, 0]}}\n";
+    let desc = dir.path().join("robot.yaml");
+    std::fs::write(&desc, description).unwrap();
+    let robot = Robot::from_files(&desc, None, &[]).unwrap();
+    let m = &robot.model;
+    // One tree: the hand's root on the flange, its meshes found from its own folder.
+    assert_eq!(m.links[m.links[m.link_id("hand").unwrap()].parent_joint.map(|j| m.joints[j].parent).unwrap()].name, "flange");
+    assert_eq!(m.mesh_files.len(), 2);
+    let t = m.relative_pose(&m.zero(), m.link_id("flange").unwrap(), m.link_id("hand").unwrap());
+    assert!((t.translation - DVec3::new(0.0, 0.0, 0.01)).length() < 1e-12);
+    let turn = DQuat::from_mat3(&t.matrix3).angle_between(DQuat::from_rotation_z(0.5));
+    assert!(turn.abs() < 1e-6, "{turn} {t:?}");
+    // The grasp frame is a link of its own at the offset.
+    assert_eq!(m.links[robot.grasp_frame].name, "hand_grasp");
+    let g = m.relative_pose(&m.zero(), m.link_id("hand").unwrap(), robot.grasp_frame);
+    assert!((g.translation - DVec3::new(0.0, 0.0, 0.1)).length() < 1e-12 && (g.transform_vector3(DVec3::X) - DVec3::Z).length() < 1e-9);
+    // The prismatic finger's drive: the URDF's effort (N), gains from it (N/m, N·s/m).
+    let h = &robot.hand[0];
+    assert_eq!(h.effort, Some(30.0));
+    assert_eq!(h.stiffness, Some(30.0 / PRISMATIC_FULL_FORCE_ERROR));
+    assert_eq!(h.damping, Some(30.0 / PRISMATIC_FULL_FORCE_ERROR * PRISMATIC_DAMPING_TIME));
+    // Names that clash, and a hand without a mount, are refused.
+    std::fs::write(&desc, description.replace("mount: {parent: flange, origin: {xyz: [0, 0, 0.01], rpy: [0, 0, 0.5]}}\n", "")).unwrap();
+    let e = Robot::from_files(&desc, None, &[]).unwrap_err().to_string();
+    assert!(e.contains("mount: hand_urdf needs a mount"), "{e}");
+    std::fs::write(&desc, description.replace("parent: flange", "parent: wrist_9")).unwrap();
+    let e = Robot::from_files(&desc, None, &[]).unwrap_err().to_string();
+    assert!(e.contains("mount.parent: no link 'wrist_9' in the arm's URDF"), "{e}");
+    let clash = std::fs::read_to_string(dir.path().join("my_gripper/urdf/gripper.urdf")).unwrap().replace("\"tool\"", "\"flange\"");
+    std::fs::write(dir.path().join("my_gripper/urdf/gripper.urdf"), clash).unwrap();
+    std::fs::write(&desc, description).unwrap();
+    let e = Robot::from_files(&desc, None, &[]).unwrap_err().to_string();
+    assert!(e.contains("link 'flange' is in the arm's URDF too: rename one"), "{e}");
+}
+
+#[test]
+fn the_builtin_revolute_hands_keep_their_drives_and_an_upstream_robot_says_where_its_files_come_from() {
+    // The Allegro's URDF effort is the physics default: its drives are the ones it always had.
+    let robot = Robot::allegro();
+    assert!(robot.hand.iter().all(|h| h.effort == Some(0.7) && h.stiffness.is_none() && h.damping.is_none()));
+    let e = Robot::builtin("panda").unwrap_err().to_string();
+    assert!(e.contains("package://example-robot-data/robots/panda_description/urdf/panda.urdf"), "{e}");
+    assert!(e.contains("scripts/robot-assets") && e.contains("--robot-assets"), "{e}");
+}
+
+#[test]
+fn a_redundant_arm_keeps_its_joints_off_their_limits() {
+    // The UR5e with a seventh joint (a wrist roll on the flange): the null-space pull keeps every
+    // joint within its range's inner 95 % over reachable targets.
+    let urdf = BUILTIN_URDF.replacen(
+        "<link name=\"hand_adapter\">",
+        "<link name=\"roll_link\"><inertial><mass value=\"0.1\"/><inertia ixx=\"1e-4\" ixy=\"0\" ixz=\"0\" iyy=\"1e-4\" iyz=\"0\" izz=\"1e-4\"/></inertial></link>\
+         <joint name=\"roll\" type=\"revolute\"><parent link=\"flange\"/><child link=\"roll_link\"/><axis xyz=\"0 0 1\"/>\
+         <limit lower=\"-2\" upper=\"2\" effort=\"10\" velocity=\"1\"/></joint><link name=\"hand_adapter\">",
+        1,
+    );
+    let adapter_joint = urdf.find("<parent link=\"flange\"/><child link=\"hand_adapter\"/>").expect("the adapter hangs on the flange");
+    let urdf = format!("{}<parent link=\"roll_link\"/>{}", &urdf[..adapter_joint], &urdf[adapter_joint + "<parent link=\"flange\"/>".len()..]);
+    let text = include_str!("../ur5e_allegro.yaml")
+        .replace("flange: flange", "flange: roll_link")
+        .replace("home: [-1.5707963267948966, -1.5707963267948966, 1.5707963267948966, -1.5707963267948966, -1.5707963267948966, 0.0]", "home: [-1.5707963267948966, -1.5707963267948966, 1.5707963267948966, -1.5707963267948966, -1.5707963267948966, 0.0, 0.0]");
+    let robot = Robot::from_texts(&urdf, "seven.urdf", &text, "seven.yaml").unwrap();
+    assert_eq!(robot.arm_joints.len(), 7);
+    let home = {
+        let mut q = robot.model.zero();
+        for (&d, &v) in robot.arm_dofs.iter().zip(&robot.home) {
+            q[d] = v;
+        }
+        q
+    };
+    let start = robot.grasp_frame_pose(&home);
+    let mut reached = 0;
+    for k in 0..12 {
+        let target = DAffine3::from_translation(DVec3::new(0.02 * (k % 4) as f64 - 0.03, 0.02 * (k / 4) as f64 - 0.02, -0.05)) * start;
+        if let Some(q) = robot.solve_grasp_ik(&target, &home, &IkOptions::default()) {
+            reached += 1;
+            assert!((robot.grasp_frame_pose(&q).translation - target.translation).length() < 1e-4);
+            let roll = robot.model.joints[robot.arm_joints[6]].dof.unwrap();
+            assert!(q[roll].abs() < 0.95 * 2.0, "the redundant joint stays off its limit: {}", q[roll]);
+        }
+    }
+    assert!(reached >= 10, "{reached}");
+}
