@@ -32,9 +32,11 @@ pub fn check_dataset(dir: &std::path::Path, samples: usize) {
                 hidden += 1;
                 continue;
             }
+            // 1% may sit on an occluder's silhouette, where a pixel's centre and a model point on
+            // either side of an edge disagree; with fewer than 100 visible points, one such point.
             let share = r.agreeing as f64 / r.visible as f64;
             assert!(
-                share >= 0.99,
+                r.visible - r.agreeing <= (r.visible / 100).max(1),
                 "{split} {}: only {:.2}% of {} visible model points agree with mask and depth",
                 s.index,
                 100.0 * share,

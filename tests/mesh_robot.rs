@@ -9,15 +9,31 @@ use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use crate::common::*;
-use crate::own_robot::{generated, shard_job_matches, tactile_points_lie_on_the_object_within_their_pad, three_finger_urdf, three_finger_yaml};
+use crate::own_robot::{
+    generated, shard_job_matches, tactile_points_lie_on_the_object_within_their_pad, three_finger_urdf, three_finger_yaml,
+};
 
 /// A box of `size` centred at the origin as a mesh file of the given format.
 fn box_file(size: [f64; 3], ext: &str) -> String {
     let h = size.map(|s| s / 2.0);
-    let v: Vec<[f64; 3]> =
-        (0..8).map(|i| [if i & 1 == 0 { -h[0] } else { h[0] }, if i & 2 == 0 { -h[1] } else { h[1] }, if i & 4 == 0 { -h[2] } else { h[2] }]).collect();
+    let v: Vec<[f64; 3]> = (0..8)
+        .map(|i| [if i & 1 == 0 { -h[0] } else { h[0] }, if i & 2 == 0 { -h[1] } else { h[1] }, if i & 4 == 0 { -h[2] } else { h[2] }])
+        .collect();
     // Outward-facing triangles of the 6 faces.
-    let tris = [[0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4], [2, 6, 3], [3, 6, 7], [0, 4, 2], [2, 4, 6], [1, 3, 5], [3, 7, 5]];
+    let tris = [
+        [0, 2, 1],
+        [1, 2, 3],
+        [4, 5, 6],
+        [5, 7, 6],
+        [0, 1, 4],
+        [1, 5, 4],
+        [2, 6, 3],
+        [3, 6, 7],
+        [0, 4, 2],
+        [2, 4, 6],
+        [1, 3, 5],
+        [3, 7, 5],
+    ];
     let mut s = String::new();
     match ext {
         "stl" => {
@@ -142,7 +158,9 @@ fn a_mesh_robot_from_two_files_generates_a_valid_exact_deterministic_dataset() {
     let ds = vt_dataset::DatasetReader::open(dir).unwrap();
     let mut ids = std::collections::BTreeSet::new();
     for s in ds.samples("train").unwrap() {
-        ids.extend(s.unwrap().mask.iter().copied().filter(|m| vt_dataset::mask_ids::HAND_LINKS.contains(m) || *m == vt_dataset::mask_ids::PALM));
+        ids.extend(
+            s.unwrap().mask.iter().copied().filter(|m| vt_dataset::mask_ids::HAND_LINKS.contains(m) || *m == vt_dataset::mask_ids::PALM),
+        );
     }
     assert!(ids.contains(&vt_dataset::mask_ids::PALM) && ids.len() >= 4, "{ids:?}");
     // The dataset names the mesh files it was made from.
@@ -158,7 +176,13 @@ fn robot_check_reads_a_mesh_robot_and_catches_the_floor() {
     assert!(o.status.success(), "{out}{}", stderr(&o));
     assert!(out.contains("robot ur5e_three_finger_meshes:") && out.contains("mesh files") && out.contains("ok: no problem found"), "{out}");
     // A workspace at the floor: the arm's links go under it, and the check names the lowest.
-    let o = run(&["--set", "robot.grasp.palm_workspace={min: [-0.05, -0.05, 0.02], max: [0.05, 0.05, 0.05]}", "robot", "check", cfg.to_str().unwrap()]);
+    let o = run(&[
+        "--set",
+        "robot.grasp.palm_workspace={min: [-0.05, -0.05, 0.02], max: [0.05, 0.05, 0.05]}",
+        "robot",
+        "check",
+        cfg.to_str().unwrap(),
+    ]);
     let out = String::from_utf8_lossy(&o.stdout);
     assert!(!o.status.success(), "{out}");
     assert!(out.contains("a link is under the floor in") && out.contains("lowest:"), "{out}");
@@ -174,7 +198,9 @@ fn robot_check_catches_a_pad_facing_away_and_lists_every_missing_mesh() {
     let at = urdf.find("<joint name=\"right_pad_joint\"").unwrap();
     let turned = urdf[at..].replacen("rpy=\"1.57079633 0 0\"", "rpy=\"-1.57079633 0 0\"", 1);
     std::fs::write(d.path().join("gripper.urdf"), format!("{}{turned}", &urdf[..at])).unwrap();
-    let text = std::fs::read_to_string(root().join("scenes/tiny-gripper.yaml")).unwrap().replace("  model: ur5e_robotiq_2f85", "  description: gripper.yaml");
+    let text = std::fs::read_to_string(root().join("scenes/tiny-gripper.yaml"))
+        .unwrap()
+        .replace("  model: ur5e_robotiq_2f85", "  description: gripper.yaml");
     std::fs::write(d.path().join("c.yaml"), text).unwrap();
     let o = run(&["robot", "check", d.path().join("c.yaml").to_str().unwrap()]);
     let out = String::from_utf8_lossy(&o.stdout);

@@ -25,9 +25,10 @@ fn config() -> PathBuf {
     root().join("scenes/tiny-panda.yaml")
 }
 
-/// vtgen with the robot assets and `args`.
+/// vtgen with the robot assets, the physics backend under test (`VTGEN_TEST_PHYSICS`) and `args`.
 fn run_with(assets: &Path, args: &[&str]) -> std::process::Output {
-    let mut all = vec!["--robot-assets", assets.to_str().unwrap()];
+    let backend = format!("robot.physics.backend={}", std::env::var("VTGEN_TEST_PHYSICS").unwrap_or_else(|_| "rapier".into()));
+    let mut all = vec!["--robot-assets", assets.to_str().unwrap(), "--set", &backend];
     all.extend_from_slice(args);
     run(&all)
 }
@@ -82,7 +83,9 @@ fn a_panda_dataset_is_valid_exact_and_deterministic() {
     let ds = vt_dataset::DatasetReader::open(dir).unwrap();
     let mut ids = std::collections::BTreeSet::new();
     for s in ds.samples("train").unwrap() {
-        let robot = |m: u8| vt_dataset::mask_ids::ARM_LINKS.contains(&m) || m == vt_dataset::mask_ids::ARM_LINK_SEVENTH || m >= vt_dataset::mask_ids::PALM;
+        let robot = |m: u8| {
+            vt_dataset::mask_ids::ARM_LINKS.contains(&m) || m == vt_dataset::mask_ids::ARM_LINK_SEVENTH || m >= vt_dataset::mask_ids::PALM
+        };
         ids.extend(s.unwrap().mask.iter().copied().filter(|&m| robot(m)));
     }
     assert!(ids.len() >= 6, "robot links seen in the masks: {ids:?}");

@@ -55,7 +55,8 @@ pub struct RobotCheckReport {
 pub fn check_robot(cfg: &LoadedConfig) -> Result<RobotCheckReport> {
     let rc = cfg.config.robot.as_ref().with_context(|| format!("{}: the config has no `robot:` section", cfg.path.display()))?;
     let robot = cfg.robot.as_ref().context("a config with a robot section has its robot loaded")?;
-    let t_world_base = DAffine3::from_rotation_translation(DQuat::from_rotation_z(rc.base_yaw_deg.to_radians()), DVec3::from_array(rc.base_position));
+    let t_world_base =
+        DAffine3::from_rotation_translation(DQuat::from_rotation_z(rc.base_yaw_deg.to_radians()), DVec3::from_array(rc.base_position));
     let ctx = grasp_context(robot, t_world_base, rc, DVec3::from_array(cfg.config.camera.position), None);
     let pre: Vec<f64> = rc.grasp.preshape.iter().map(|&(lo, _)| lo).collect();
     let reached: Vec<Vec<f64>> = reach_samples(&ctx, REACH_SAMPLES)
@@ -183,7 +184,12 @@ impl std::fmt::Display for RobotCheckReport {
             writeln!(f, "joint limits: '{}' at a limit in {:.0}% of the reached poses", j.joint, 100.0 * j.share)?;
         }
         if let (Some(facing), Some(gap)) = (self.jaws_facing, self.jaw_gap_m) {
-            writeln!(f, "jaws: pads {} each other, {:.1} mm apart at the preshape", if facing { "face" } else { "do NOT face" }, 1000.0 * gap)?;
+            writeln!(
+                f,
+                "jaws: pads {} each other, {:.1} mm apart at the preshape",
+                if facing { "face" } else { "do NOT face" },
+                1000.0 * gap
+            )?;
         }
         if self.problems.is_empty() {
             write!(f, "ok: no problem found (next: `vtgen grasps CONFIG --trajectories 2` holds a few objects)")

@@ -106,7 +106,11 @@ impl LoadedConfig {
             field: String::new(),
             message: format!("cannot read config: {e}"),
         })?;
-        if overrides.is_empty() { Self::parse_assets(&text, path, robot_assets) } else { Self::parse_with_assets(&text, path, overrides, robot_assets) }
+        if overrides.is_empty() {
+            Self::parse_assets(&text, path, robot_assets)
+        } else {
+            Self::parse_with_assets(&text, path, overrides, robot_assets)
+        }
     }
 
     /// Parses config text; `path` is used for messages and to resolve relative paths.
@@ -207,10 +211,8 @@ impl LoadedConfig {
         let urdf = rc.urdf.as_ref().map(|p| self.resolve(p));
         match (&rc.model, &rc.description) {
             (Some(_), Some(_)) => Err((vec!["robot", "description"], "give either a built-in robot.model or a robot.description".into())),
-            (_, Some(d)) => {
-                vt_robot::Robot::from_files(&self.resolve(d), urdf.as_deref(), &self.package_dirs(rc))
-                    .map_err(|e| (vec!["robot", "description"], e.to_string()))
-            }
+            (_, Some(d)) => vt_robot::Robot::from_files(&self.resolve(d), urdf.as_deref(), &self.package_dirs(rc))
+                .map_err(|e| (vec!["robot", "description"], e.to_string())),
             (model, None) => {
                 let name = model.as_deref().unwrap_or("ur5e_allegro");
                 let field = if rc.model.is_some() { vec!["robot", "model"] } else { vec!["robot"] };
@@ -239,6 +241,12 @@ impl LoadedConfig {
     /// the upstream packages there).
     fn package_dirs(&self, rc: &RobotConfig) -> Vec<PathBuf> {
         rc.package_dirs.iter().map(|p| self.resolve(p)).chain(self.robot_assets.clone()).collect()
+    }
+
+    /// Where vtgen keeps what it computes once and reuses across runs (the robots' convex
+    /// decompositions): `$XDG_CACHE_HOME`, else `$HOME/.cache`; None when neither is set.
+    pub fn cache_dir(&self) -> Option<PathBuf> {
+        std::env::var_os("XDG_CACHE_HOME").map(PathBuf::from).or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")))
     }
 
     /// Resolves a path written in the config relative to the config file's directory.

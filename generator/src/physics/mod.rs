@@ -6,6 +6,7 @@
 //! the arm's speeds, are neglected.) This keeps the grasp stable and identical for every backend.
 
 pub mod antipodal;
+pub mod convex_parts;
 #[cfg(test)]
 pub(crate) mod fake;
 pub mod grasp;

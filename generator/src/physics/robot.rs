@@ -88,6 +88,8 @@ impl RobotScene {
         if let Some(hand) = &hand_meshes {
             model.model = with_real_hand(&model, hand)?;
         }
+        // Links the description decomposes collide as their convex parts.
+        let model = crate::physics::convex_parts::with_convex_parts(&model, cfg.cache_dir().as_deref())?;
         let pc = &robot.physics;
         let settings = PhysicsSettings::from(pc);
         let physics: Box<dyn HandPhysics> = match pc.backend {

@@ -62,6 +62,39 @@ pub struct Description {
     /// Links whose contact with the object counts as touching (default: the pads' links).
     #[serde(default)]
     pub touch_links: Option<Vec<String>>,
+    /// Collision meshes that collide as several convex parts instead of one hull.
+    #[serde(default)]
+    pub convex_decomposition: Option<DecompositionSpec>,
+}
+
+/// Which links' collision meshes are decomposed into convex parts (V-HACD) and how finely.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DecompositionSpec {
+    /// Link names, or `[all]` for every link with a collision mesh.
+    pub links: Vec<String>,
+    /// At most this many parts per mesh.
+    #[serde(default = "default_max_hulls")]
+    pub max_hulls: u32,
+    /// Voxels along the mesh's longest side.
+    #[serde(default = "default_resolution")]
+    pub resolution: u32,
+}
+
+fn default_max_hulls() -> u32 {
+    16
+}
+
+fn default_resolution() -> u32 {
+    64
+}
+
+/// The collision meshes to decompose, resolved: link indices and the decomposition's parameters.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Decomposition {
+    pub links: Vec<usize>,
+    pub max_hulls: u32,
+    pub resolution: u32,
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -218,6 +251,8 @@ pub struct Robot {
     pub followers: Vec<usize>,
     pub pads: Vec<Pad>,
     pub touch_links: Vec<usize>,
+    /// The links whose collision meshes collide as convex parts (None: each mesh as its hull).
+    pub decomposition: Option<Decomposition>,
 }
 
 /// The robots vtgen carries, chosen by name (`robot.model`).
@@ -241,7 +276,13 @@ pub fn builtin_description(name: &str) -> Option<&'static str> {
 
 /// The file a description's `urdf` or `hand_urdf` names: `package://NAME/...` through the package
 /// folders, else relative to the description's folder.
-fn urdf_file(field: &str, named: &str, description_dir: Option<&Path>, package_dirs: &[PathBuf], source_name: &str) -> Result<PathBuf, RobotError> {
+fn urdf_file(
+    field: &str,
+    named: &str,
+    description_dir: Option<&Path>,
+    package_dirs: &[PathBuf],
+    source_name: &str,
+) -> Result<PathBuf, RobotError> {
     let paths = MeshPaths { urdf_dir: description_dir.map(Path::to_path_buf), package_dirs: package_dirs.to_vec() };
     paths.resolve(named).map_err(|e| RobotError {
         source_name: source_name.to_string(),
@@ -337,7 +378,10 @@ impl Robot {
                 urdf_name = format!("{} + {}", urdf_path.display(), hand_path.display());
             }
             (Some(_), None) => {
-                return Err(RobotError { source_name: source_name.to_string(), message: "mount: hand_urdf needs a mount (parent link and origin)".into() });
+                return Err(RobotError {
+                    source_name: source_name.to_string(),
+                    message: "mount: hand_urdf needs a mount (parent link and origin)".into(),
+                });
             }
             (None, Some(_)) => {
                 return Err(RobotError { source_name: source_name.to_string(), message: "mount: given without a hand_urdf".into() });
@@ -351,7 +395,8 @@ impl Robot {
     /// A URDF and a description given as text (names are for errors).
     pub fn from_texts(urdf: &str, urdf_name: &str, description: &str, description_name: &str) -> Result<Self, RobotError> {
         let model = RobotModel::from_urdf_str(urdf, urdf_name)?;
-        Ok(Robot::resolve(model, urdf.to_string(), parse(description, description_name)?, description_name)?.with_description_text(description))
+        Ok(Robot::resolve(model, urdf.to_string(), parse(description, description_name)?, description_name)?
+            .with_description_text(description))
     }
 
     /// The URDF model checked against the description; errors name the description's field.
@@ -450,16 +495,7 @@ impl Robot {
             let prismatic = joint.kind == JointKind::Prismatic;
             let stiffness = h.stiffness.or(effort.filter(|_| prismatic).map(|e| e / PRISMATIC_FULL_FORCE_ERROR));
             let damping = h.damping.or(stiffness.filter(|_| prismatic && h.stiffness.is_none()).map(|k| k * PRISMATIC_DAMPING_TIME));
-            hand.push(HandJoint {
-                name: h.joint.clone(),
-                joint: j,
-                dof,
-                preshape: h.preshape,
-                close: h.close,
-                effort,
-                stiffness,
-                damping,
-            });
+            hand.push(HandJoint { name: h.joint.clone(), joint: j, dof, preshape: h.preshape, close: h.close, effort, stiffness, damping });
         }
         if hand.is_empty() {
             return Err(err("hand", "no joints: a hand or gripper needs at least one".into()));
@@ -544,6 +580,33 @@ impl Robot {
                 format!("{} is not within 1 ..= the {} touch links", desc.grasp.min_touching, touch_links.len()),
             ));
         }
+        let decomposition = match &desc.convex_decomposition {
+            None => None,
+            Some(spec) => {
+                let has_mesh = |l: usize| model.links[l].collisions.iter().any(|s| matches!(s.geometry, Geometry::Mesh { .. }));
+                let links = if spec.links == ["all"] {
+                    (0..model.links.len()).filter(|&l| has_mesh(l)).collect()
+                } else {
+                    let mut ids = Vec::new();
+                    for (i, name) in spec.links.iter().enumerate() {
+                        let field = format!("convex_decomposition.links[{i}]");
+                        let id = link(&model, &field, name)?;
+                        if !has_mesh(id) {
+                            return Err(err(&field, format!("'{name}' has no collision mesh to decompose")));
+                        }
+                        ids.push(id);
+                    }
+                    ids
+                };
+                if !(1..=64).contains(&spec.max_hulls) {
+                    return Err(err("convex_decomposition.max_hulls", format!("{} is not within 1 ..= 64", spec.max_hulls)));
+                }
+                if !(16..=256).contains(&spec.resolution) {
+                    return Err(err("convex_decomposition.resolution", format!("{} is not within 16 ..= 256", spec.resolution)));
+                }
+                Some(Decomposition { links, max_hulls: spec.max_hulls, resolution: spec.resolution })
+            }
+        };
         let mut robot = Robot {
             name: desc.name,
             model,
@@ -563,6 +626,7 @@ impl Robot {
             followers,
             pads,
             touch_links,
+            decomposition,
         };
         robot.azimuth_offset = match desc.arm.azimuth_offset {
             Some(a) => a,

@@ -13,7 +13,8 @@ pub mod mesh;
 mod model;
 
 pub use description::{
-    BUILTIN_ROBOTS, Description, GraspKind, HandJoint, PRISMATIC_DAMPING_TIME, PRISMATIC_FULL_FORCE_ERROR, Pad, PadGroup, Robot, builtin_description,
+    BUILTIN_ROBOTS, Decomposition, DecompositionSpec, Description, GraspKind, HandJoint, PRISMATIC_DAMPING_TIME,
+    PRISMATIC_FULL_FORCE_ERROR, Pad, PadGroup, Robot, builtin_description,
 };
 pub use ik::IkOptions;
 pub use mesh::{MeshPaths, TriangleMesh};

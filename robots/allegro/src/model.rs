@@ -30,7 +30,7 @@ pub enum Geometry {
         points: std::sync::Arc<Vec<DVec3>>,
     },
     /// A URDF `<mesh>` read from its file (scaled): drawn as its triangles; a collision mesh
-    /// collides as the convex hull of its vertices.
+    /// collides as the convex hull of its vertices ([`Geometry::hull_points`]).
     Mesh {
         mesh: std::sync::Arc<TriangleMesh>,
     },
@@ -169,7 +169,8 @@ impl RobotModel {
                 urdf_rs::Geometry::Box { size } => Geometry::Box { size: DVec3::from_array(size.0) },
                 urdf_rs::Geometry::Cylinder { radius, length } => Geometry::Cylinder { radius: *radius, length: *length },
                 urdf_rs::Geometry::Capsule { radius, length } => {
-                    mesh_problems.push(format!("{owner}: capsule (r {radius}, length {length}) is not supported: use a cylinder or a mesh"));
+                    mesh_problems
+                        .push(format!("{owner}: capsule (r {radius}, length {length}) is not supported: use a cylinder or a mesh"));
                     return None;
                 }
                 urdf_rs::Geometry::Sphere { radius } => Geometry::Sphere { radius: *radius },
@@ -195,10 +196,8 @@ impl RobotModel {
             }
             let mut visuals = Vec::new();
             for (i, v) in l.visual.iter().enumerate() {
-                let colour = v
-                    .material
-                    .as_ref()
-                    .and_then(|m| m.color.as_ref().map(|c| c.rgba.0).or_else(|| colours.get(m.name.as_str()).copied()));
+                let colour =
+                    v.material.as_ref().and_then(|m| m.color.as_ref().map(|c| c.rgba.0).or_else(|| colours.get(m.name.as_str()).copied()));
                 // A mesh without a URDF colour keeps its file's colours (`NO_RGBA` marks it).
                 let rgba = match (&v.geometry, colour) {
                     (_, Some(c)) => c,
@@ -212,13 +211,8 @@ impl RobotModel {
                 .iter()
                 .enumerate()
                 .filter_map(|(i, c)| shape(&c.origin, &c.geometry, [0.0; 4], &format!("link '{}' collision {i}", l.name)))
-                // A collision mesh collides as the convex hull of its vertices, in both backends.
-                .map(|s| match &s.geometry {
-                    Geometry::Mesh { mesh } => {
-                        Shape { geometry: Geometry::ConvexHull { points: std::sync::Arc::new(mesh.distinct_points()) }, ..s }
-                    }
-                    _ => s,
-                })
+                // A collision mesh collides as the convex hull of its vertices in both backends (or as
+                // the hulls of its convex decomposition, when the description asks).
                 .collect();
             links.push(Link {
                 name: l.name.clone(),

@@ -251,7 +251,7 @@ fn mesh_geometry_is_read_and_collides_as_its_hull() {
     let Geometry::Mesh { mesh } = &hand.visuals[0].geometry else { panic!("a visual mesh: {:?}", hand.visuals[0].geometry) };
     assert_eq!((mesh.triangles.len(), mesh.distinct_points().len()), (12, 8));
     // The collision mesh is its hull's points, scaled per axis.
-    let Geometry::ConvexHull { points } = &hand.collisions[0].geometry else { panic!("a hull") };
+    let points = hand.collisions[0].geometry.hull_points().expect("a collision mesh collides as its hull");
     assert_eq!(points.len(), 8);
     assert!(points.iter().all(|p| (p.z.abs() - 0.04).abs() < 1e-9 && (p.x.abs() - 0.02).abs() < 1e-9));
     assert_eq!(m.mesh_files.len(), 2, "{:?}", m.mesh_files);
@@ -315,6 +315,16 @@ fn an_arm_and_a_gripper_from_two_files_with_a_grasp_frame_offset_and_urdf_drive_
     assert_eq!(h.effort, Some(30.0));
     assert_eq!(h.stiffness, Some(30.0 / PRISMATIC_FULL_FORCE_ERROR));
     assert_eq!(h.damping, Some(30.0 / PRISMATIC_FULL_FORCE_ERROR * PRISMATIC_DAMPING_TIME));
+    // A decomposition names links with collision meshes.
+    std::fs::write(&desc, format!("{description}convex_decomposition: {{links: [finger], max_hulls: 4}}\n")).unwrap();
+    let d = Robot::from_files(&desc, None, &[]).unwrap().decomposition.unwrap();
+    assert_eq!((d.links, d.max_hulls, d.resolution), (vec![m.link_id("finger").unwrap()], 4, 64));
+    std::fs::write(&desc, format!("{description}convex_decomposition: {{links: [tool]}}\n")).unwrap();
+    let e = Robot::from_files(&desc, None, &[]).unwrap_err().to_string();
+    assert!(e.contains("convex_decomposition.links[0]: 'tool' has no collision mesh to decompose"), "{e}");
+    std::fs::write(&desc, format!("{description}convex_decomposition: {{links: [all], resolution: 8}}\n")).unwrap();
+    let e = Robot::from_files(&desc, None, &[]).unwrap_err().to_string();
+    assert!(e.contains("convex_decomposition.resolution: 8 is not within 16 ..= 256"), "{e}");
     // Names that clash, and a hand without a mount, are refused.
     std::fs::write(&desc, description.replace("mount: {parent: flange, origin: {xyz: [0, 0, 0.01], rpy: [0, 0, 0.5]}}\n", "")).unwrap();
     let e = Robot::from_files(&desc, None, &[]).unwrap_err().to_string();
@@ -351,10 +361,12 @@ fn a_redundant_arm_keeps_its_joints_off_their_limits() {
         1,
     );
     let adapter_joint = urdf.find("<parent link=\"flange\"/><child link=\"hand_adapter\"/>").expect("the adapter hangs on the flange");
-    let urdf = format!("{}<parent link=\"roll_link\"/>{}", &urdf[..adapter_joint], &urdf[adapter_joint + "<parent link=\"flange\"/>".len()..]);
-    let text = include_str!("../ur5e_allegro.yaml")
-        .replace("flange: flange", "flange: roll_link")
-        .replace("home: [-1.5707963267948966, -1.5707963267948966, 1.5707963267948966, -1.5707963267948966, -1.5707963267948966, 0.0]", "home: [-1.5707963267948966, -1.5707963267948966, 1.5707963267948966, -1.5707963267948966, -1.5707963267948966, 0.0, 0.0]");
+    let urdf =
+        format!("{}<parent link=\"roll_link\"/>{}", &urdf[..adapter_joint], &urdf[adapter_joint + "<parent link=\"flange\"/>".len()..]);
+    let text = include_str!("../ur5e_allegro.yaml").replace("flange: flange", "flange: roll_link").replace(
+        "home: [-1.5707963267948966, -1.5707963267948966, 1.5707963267948966, -1.5707963267948966, -1.5707963267948966, 0.0]",
+        "home: [-1.5707963267948966, -1.5707963267948966, 1.5707963267948966, -1.5707963267948966, -1.5707963267948966, 0.0, 0.0]",
+    );
     let robot = Robot::from_texts(&urdf, "seven.urdf", &text, "seven.yaml").unwrap();
     assert_eq!(robot.arm_joints.len(), 7);
     let home = {
