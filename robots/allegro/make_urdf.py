@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
-"""Writes the built-in robots' URDFs for vtgen: ur5e_allegro.urdf (a UR5e arm carrying a right
-Allegro hand v3) and ur5e_robotiq_2f85.urdf (the UR5e with a Robotiq 2F-85 parallel gripper).
+"""Writes the built-in robots' URDFs for vtgen: robots/allegro/robot.urdf (a UR5e arm carrying a
+right Allegro hand v3) and robots/robotiq_2f85/robot.urdf (the UR5e with a Robotiq 2F-85).
 
 The numbers are kinematic facts from public robot descriptions (UR standard DH parameters and
 limits; Allegro joint axes, limits, link offsets, collision sizes and masses; the 2F-85's joint
@@ -193,8 +193,9 @@ def write(name, header, hand):
     ur5e()
     hand()
     w("</robot>")
-    Path(__file__).with_name(name).write_text("\n".join(out) + "\n")
+    (Path(__file__).parent / name).write_text("\n".join(out) + "\n")
 
 
-write("ur5e_allegro.urdf", ur5e_allegro_header, allegro)
-write("ur5e_robotiq_2f85.urdf", ur5e_robotiq_2f85_header, robotiq_2f85)
+# Each robot's folder: robots/allegro/ (this one) and robots/robotiq_2f85/.
+write("robot.urdf", ur5e_allegro_header, allegro)
+write("../robotiq_2f85/robot.urdf", ur5e_robotiq_2f85_header, robotiq_2f85)

@@ -4,7 +4,7 @@
 //!
 //! Targets: the YAML config loader and `--set` overrides, OBJ and MTL (object meshes and the UR5e
 //! arm), GLB, STL (the Allegro hand), PLY, URDF, the MCAP shard reader and `vtgen validate --full`.
-//! Seeds: `scenes/*.yaml`, `robots/allegro/ur5e_allegro.urdf`, `tests/fuzz/corpus/` (OBJ, MTL,
+//! Seeds: `scenes/*.yaml`, `robots/allegro/robot.urdf`, `tests/fuzz/corpus/` (OBJ, MTL,
 //! ASCII STL), and binary seeds made here from the procedural meshes (GLB, binary STL, PLY) and a
 //! 48x32 dataset generated at start (its shard).
 //!
@@ -426,7 +426,7 @@ fn targets(work: &Path) -> Vec<Target> {
         },
         Target {
             name: "urdf",
-            seeds: vec![read(&root().join("robots/allegro/ur5e_allegro.urdf"))],
+            seeds: vec![read(&root().join("robots/allegro/robot.urdf"))],
             tokens: TEXT_TOKENS,
             share: 0.3,
             run: Box::new(|input| drop(vt_robot::RobotModel::from_urdf_str(&String::from_utf8_lossy(input), "fuzz.urdf"))),

@@ -10,7 +10,7 @@
 //!
 //! (`../shared/assets` has the same layout). Frames:
 //! - each hand mesh is in its link's frame of the SimLab/Wonik `allegro_hand_description` URDF,
-//!   whose joint origins `robots/allegro/ur5e_allegro.urdf` uses unchanged: identity, plus the
+//!   whose joint origins `robots/allegro/robot.urdf` uses unchanged: identity, plus the
 //!   fingertip meshes at the tip joint (0.0267 m, thumb 0.0423 m along the distal link's z);
 //! - each arm mesh sits in its link of Universal Robots' ROS description through that URDF's
 //!   visual origin (`ROS_CHAIN`); the ROS link frames differ from the DH link frames of our
@@ -18,7 +18,7 @@
 //!   unit-tested to hold at any q).
 //!
 //! - each 2F-85 mesh is in its link's frame of airo-models' `robotiq_2f_85.urdf`, whose joint
-//!   origins `robots/allegro/ur5e_robotiq_2f85.urdf` uses unchanged (its `gripper_body` is the
+//!   origins `robots/robotiq_2f85/robot.urdf` uses unchanged (its `gripper_body` is the
 //!   package's `base_link_inertia`); the finger meshes are in millimetres.
 //!
 //! Colours: the hand black with white fingertips (as the URDF's materials), the arm its MTL
@@ -35,7 +35,7 @@ use vt_robot::{Robot, RobotModel, xyz_rpy};
 
 use crate::config::LoadedConfig;
 
-/// The hand's URDF colours (linear RGB, as `robots/allegro/ur5e_allegro.urdf`'s materials).
+/// The hand's URDF colours (linear RGB, as `robots/allegro/robot.urdf`'s materials).
 const HAND_BLACK: [f64; 3] = [0.2, 0.2, 0.2];
 const TIP_WHITE: [f64; 3] = [0.9, 0.9, 0.9];
 /// Fingertip mesh origins along the distal link's z (the URDF's fixed tip joints).
@@ -48,8 +48,16 @@ const MAX_SIMPLIFY_ERROR: f32 = 0.002;
 /// sharp edges that averaged normals would round off).
 const CREASE_DEG: f32 = 40.0;
 
-/// The built-in robots that have real meshes (`scripts/robot-assets` fetches them).
+/// The built-in robots drawn from primitive URDFs whose real meshes `scripts/robot-assets`
+/// fetches, matched to their links by the tables below (robots whose URDF names its own meshes,
+/// as the Panda's does, need none of this).
 pub const ROBOTS_WITH_MESHES: [&str; 2] = ["ur5e_allegro", "ur5e_robotiq_2f85"];
+
+/// Whether a built-in robot's hand collides as its real meshes' hulls when the run has them (the
+/// Allegro's; the 2F-85 keeps its URDF's boxes).
+pub fn collides_as_real_meshes(robot: &str) -> bool {
+    robot == ROBOTS_WITH_MESHES[0]
+}
 
 /// The folders of a robot mesh directory the loaders read for robot `name` (`scripts/robot-assets`
 /// fills them).

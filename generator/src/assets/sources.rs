@@ -103,7 +103,7 @@ fn mesh_sha256(o: &LoadedObject) -> String {
 fn robot_source(cfg: &LoadedConfig, rc: &crate::config::RobotConfig) -> Result<Source> {
     let mut h = Sha256::new();
     let mut from = Vec::new();
-    let name = cfg.robot.as_ref().map_or("ur5e_allegro", |r| r.name.as_str());
+    let name = cfg.robot.as_ref().map_or(vt_robot::DEFAULT_ROBOT, |r| r.name.as_str());
     let read = |p: &Path| {
         let path = cfg.resolve(p);
         std::fs::read(&path).with_context(|| format!("cannot read {}", path.display())).map(|b| (b, path))
@@ -124,7 +124,7 @@ fn robot_source(cfg: &LoadedConfig, rc: &crate::config::RobotConfig) -> Result<S
             h.update(robot.urdf_text.as_bytes());
             from.push("the description's URDF".to_string());
         }
-        (None, None) if name == "ur5e_allegro" => {
+        (None, None) if name == vt_robot::DEFAULT_ROBOT => {
             h.update(vt_robot::BUILTIN_URDF.as_bytes());
             from.push("built-in URDF".to_string());
         }

@@ -214,7 +214,7 @@ impl LoadedConfig {
             (_, Some(d)) => vt_robot::Robot::from_files(&self.resolve(d), urdf.as_deref(), &self.package_dirs(rc))
                 .map_err(|e| (vec!["robot", "description"], e.to_string())),
             (model, None) => {
-                let name = model.as_deref().unwrap_or("ur5e_allegro");
+                let name = model.as_deref().unwrap_or(vt_robot::DEFAULT_ROBOT);
                 let field = if rc.model.is_some() { vec!["robot", "model"] } else { vec!["robot"] };
                 let builtin = vt_robot::Robot::builtin_with(name, &self.package_dirs(rc)).map_err(|e| (field, e.message))?;
                 match urdf {

@@ -9,7 +9,7 @@ use glam::{DAffine3, DQuat, DVec3};
 use vt_objects::TexturedMesh;
 use vt_robot::Robot;
 
-use crate::assets::robot::{load_hand_meshes, robot_assets_dir, with_real_hand};
+use crate::assets::robot::{collides_as_real_meshes, load_hand_meshes, robot_assets_dir, with_real_hand};
 use crate::config::{LoadedConfig, RobotConfig};
 use crate::physics::grasp::{
     FingerGait, GraspContext, GraspEvent, MIN_REACHABLE_SHARE, REACH_SAMPLES, Trajectory, TrajectoryKey, reachable_share,
@@ -82,7 +82,7 @@ impl RobotScene {
         // The Allegro hand collides as its real meshes' hulls, its pads on their surfaces; the
         // 2F-85 collides as its URDF's boxes (its meshes are drawn).
         let hand_meshes = match robot_assets_dir(cfg) {
-            Some(dir) if model.name == "ur5e_allegro" => Some(load_hand_meshes(&dir, &model.model, None)?),
+            Some(dir) if collides_as_real_meshes(&model.name) => Some(load_hand_meshes(&dir, &model.model, None)?),
             _ => None,
         };
         if let Some(hand) = &hand_meshes {

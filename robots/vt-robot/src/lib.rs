@@ -1,7 +1,7 @@
 //! The robot as data: a URDF (arm and hand or gripper) and the short description beside it that
 //! names what the URDF cannot say (the arm chain, the grasp frame and kind, the hand's joints and
-//! the tactile pads). Built in: the UR5e with a right Allegro hand (`ur5e_allegro.urdf`, generated
-//! by `make_urdf.py` from public kinematic facts, and `ur5e_allegro.yaml`).
+//! the tactile pads). Each built-in robot is a folder of data under `robots/` (`robot.yaml`, and
+//! `robot.urdf` unless the description names its upstream URDF), found by `build.rs`.
 //!
 //! This crate turns them into a checked kinematic model: forward kinematics of every link
 //! (revolute, prismatic and `<mimic>` joints), inverse kinematics of the grasp frame over the arm
@@ -20,8 +20,10 @@ pub use ik::IkOptions;
 pub use mesh::{MeshPaths, TriangleMesh};
 pub use model::{Geometry, Joint, JointKind, Link, Mimic, NO_RGBA, RobotError, RobotModel, Shape, xyz_rpy};
 
-/// The built-in robot's URDF.
-pub const BUILTIN_URDF: &str = include_str!("../ur5e_allegro.urdf");
+/// The robot a config without `robot.model` gets: the paper's.
+pub const DEFAULT_ROBOT: &str = "ur5e_allegro";
+/// The default robot's URDF (its folder, `robots/allegro/`).
+pub const BUILTIN_URDF: &str = include_str!("../../allegro/robot.urdf");
 
 #[cfg(test)]
 mod tests;

@@ -127,7 +127,7 @@ fn broken_urdfs_give_clear_errors() {
 
 /// The Allegro description with `from` replaced by `to`, resolved; the error it gives.
 fn description_error(from: &str, to: &str) -> String {
-    let text = include_str!("../ur5e_allegro.yaml");
+    let text = include_str!("../../allegro/robot.yaml");
     assert!(text.contains(from), "{from}");
     Robot::from_texts(BUILTIN_URDF, "ur5e_allegro.urdf", &text.replacen(from, to, 1), "bad.yaml").unwrap_err().to_string()
 }
@@ -154,7 +154,7 @@ fn broken_descriptions_name_the_file_and_the_field() {
         assert!(e.contains(want), "{from} -> {to}: {e}");
     }
     // A pad given by an origin on its link becomes a frame of its own.
-    let text = include_str!("../ur5e_allegro.yaml").replacen(
+    let text = include_str!("../../allegro/robot.yaml").replacen(
         "name: ff_distal, link: ff_distal, frame: ff_distal_pad,",
         "name: ff_tip, link: ff_distal, origin: {xyz: [0.0098, 0, 0.02], rpy: [0, 1.5707963267948966, 0]}, size: [0.03, 0.02],",
         1,
@@ -363,7 +363,7 @@ fn a_redundant_arm_keeps_its_joints_off_their_limits() {
     let adapter_joint = urdf.find("<parent link=\"flange\"/><child link=\"hand_adapter\"/>").expect("the adapter hangs on the flange");
     let urdf =
         format!("{}<parent link=\"roll_link\"/>{}", &urdf[..adapter_joint], &urdf[adapter_joint + "<parent link=\"flange\"/>".len()..]);
-    let text = include_str!("../ur5e_allegro.yaml").replace("flange: flange", "flange: roll_link").replace(
+    let text = include_str!("../../allegro/robot.yaml").replace("flange: flange", "flange: roll_link").replace(
         "home: [-1.5707963267948966, -1.5707963267948966, 1.5707963267948966, -1.5707963267948966, -1.5707963267948966, 0.0]",
         "home: [-1.5707963267948966, -1.5707963267948966, 1.5707963267948966, -1.5707963267948966, -1.5707963267948966, 0.0, 0.0]",
     );

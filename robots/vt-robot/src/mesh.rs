@@ -319,6 +319,27 @@ mod tests {
     }
 
     #[test]
+    fn gltf_with_its_node_transform_and_base_colour() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut bin: Vec<u8> = [[0f32, 0., 0.], [1., 0., 0.], [0., 1., 0.]].iter().flatten().flat_map(|c| c.to_le_bytes()).collect();
+        bin.extend([0u16, 1, 2].iter().flat_map(|i| i.to_le_bytes()));
+        bin.extend([0u8, 0]);
+        std::fs::write(dir.path().join("t.bin"), &bin).unwrap();
+        let gltf = r#"{"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
+          "nodes": [{"mesh": 0, "translation": [0, 0, 2], "scale": [0.5, 0.5, 0.5]}],
+          "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1, "material": 0}]}],
+          "materials": [{"pbrMetallicRoughness": {"baseColorFactor": [0.2, 0.4, 0.6, 1.0]}}],
+          "buffers": [{"uri": "t.bin", "byteLength": 44}],
+          "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36}, {"buffer": 0, "byteOffset": 36, "byteLength": 6}],
+          "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
+                        {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}]}"#;
+        let m = read_mesh(&write(dir.path(), "t.gltf", gltf), DVec3::ONE).unwrap();
+        assert_eq!(m.triangles, vec![[0, 1, 2]]);
+        assert!((m.positions[1] - DVec3::new(0.5, 0.0, 2.0)).length() < 1e-6, "{:?}", m.positions);
+        assert!((m.colours[0].unwrap()[1] - 0.4).abs() < 1e-6);
+    }
+
+    #[test]
     fn bad_files_say_what_is_wrong() {
         let dir = tempfile::tempdir().unwrap();
         assert!(read_mesh(&write(dir.path(), "a.ply", "ply"), DVec3::ONE).unwrap_err().contains("unsupported mesh format '.ply'"));

@@ -32,7 +32,7 @@ pub enum PadGroup {
     Distal,
 }
 
-/// The description file as written (see `robots/allegro/ur5e_allegro.yaml`).
+/// The description file as written (see `robots/allegro/robot.yaml`).
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Description {
@@ -255,18 +255,14 @@ pub struct Robot {
     pub decomposition: Option<Decomposition>,
 }
 
-/// The robots vtgen carries, chosen by name (`robot.model`).
-pub const BUILTIN_ROBOTS: [&str; 3] = ["ur5e_allegro", "ur5e_robotiq_2f85", "panda"];
+// The robots vtgen carries, chosen by name (`robot.model`): one folder each under `robots/`
+// (`build.rs` finds them).
+include!(concat!(env!("OUT_DIR"), "/builtin_robots.rs"));
 
 /// A built-in robot's URDF text (None: its description names an upstream URDF, read from the
 /// robot assets) and description text.
 fn builtin_texts(name: &str) -> Option<(Option<&'static str>, &'static str)> {
-    match name {
-        "ur5e_allegro" => Some((Some(crate::BUILTIN_URDF), include_str!("../ur5e_allegro.yaml"))),
-        "ur5e_robotiq_2f85" => Some((Some(include_str!("../ur5e_robotiq_2f85.urdf")), include_str!("../ur5e_robotiq_2f85.yaml"))),
-        "panda" => Some((None, include_str!("../../panda/robot.yaml"))),
-        _ => None,
-    }
+    BUILTIN_TEXTS.iter().find(|r| r.0 == name).map(|r| (r.1, r.2))
 }
 
 /// A built-in robot's description text.
@@ -324,9 +320,9 @@ impl Robot {
         }
     }
 
-    /// The default robot: the UR5e with the Allegro hand.
+    /// The default robot ([`crate::DEFAULT_ROBOT`]: the paper's UR5e with the Allegro hand).
     pub fn allegro() -> Self {
-        Robot::builtin("ur5e_allegro").expect("the built-in robot is valid (unit-tested)")
+        Robot::builtin(crate::DEFAULT_ROBOT).expect("the built-in robot is valid (unit-tested)")
     }
 
     /// Reads a description file and its URDF (`urdf`, or the one the description names relative
