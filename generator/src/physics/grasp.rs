@@ -668,7 +668,11 @@ fn move_and_settle(
     let mut target = None;
     for _ in 0..20 {
         let t = ctx.sample_move_palm(arm_rng);
-        if let Some(qt) = ctx.reach(&t, q) {
+        // A pose that puts a link under the floor is drawn again before any physics is spent on
+        // it (the check after the move stays, for the hand's links).
+        if let Some(qt) = ctx.reach(&t, q)
+            && robot_floor_clearance(robot, &ctx.t_world_base, &qt).is_none_or(|(_, z)| z >= 0.0)
+        {
             target = Some(qt);
             break;
         }
