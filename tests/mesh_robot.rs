@@ -10,7 +10,8 @@ use std::sync::OnceLock;
 
 use crate::common::*;
 use crate::own_robot::{
-    generated, shard_job_matches, tactile_points_lie_on_the_object_within_their_pad, three_finger_urdf, three_finger_yaml,
+    config_once, generated, shard_job_matches, tactile_points_lie_on_the_object_within_their_pad, three_finger_config, three_finger_urdf,
+    three_finger_yaml,
 };
 
 /// A box of `size` centred at the origin as a mesh file of the given format.
@@ -119,25 +120,12 @@ fn write_two_file_robot(dir: &Path) -> String {
 /// `scenes/tiny-hand.yaml` with the two-file mesh robot, in `dir`.
 fn write_config(dir: &Path) -> PathBuf {
     std::fs::write(dir.join("robot.yaml"), write_two_file_robot(dir)).unwrap();
-    let text = std::fs::read_to_string(root().join("scenes/tiny-hand.yaml")).unwrap();
-    let backend = std::env::var("VTGEN_TEST_PHYSICS").unwrap_or_else(|_| "rapier".into());
-    let text = text
-        .replace("robot:\n", "robot:\n  description: robot.yaml\n")
-        .replace("  grasp:\n", "  grasp:\n    object_offset: {min: [0.0, -0.01, -0.06], max: [0.0, 0.01, -0.035]}\n")
-        .replace("backend: rapier", &format!("backend: {backend}"));
-    let cfg = dir.join("mesh-robot.yaml");
-    std::fs::write(&cfg, text).unwrap();
-    cfg
+    three_finger_config(dir, "robot.yaml", "mesh-robot.yaml")
 }
 
 fn config() -> &'static Path {
     static DIR: OnceLock<(tempfile::TempDir, PathBuf)> = OnceLock::new();
-    &DIR.get_or_init(|| {
-        let d = tempdir();
-        let cfg = write_config(d.path());
-        (d, cfg)
-    })
-    .1
+    config_once(&DIR, write_config)
 }
 
 fn dataset() -> &'static Path {

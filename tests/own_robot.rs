@@ -116,25 +116,37 @@ pub fn three_finger_yaml() -> String {
 fn write_config(dir: &Path) -> PathBuf {
     std::fs::write(dir.join("three_finger.urdf"), three_finger_urdf()).unwrap();
     std::fs::write(dir.join("three_finger.yaml"), three_finger_yaml()).unwrap();
+    three_finger_config(dir, "three_finger.yaml", "three-finger.yaml")
+}
+
+/// `scenes/tiny-hand.yaml` written as `config` in `dir` with the robot of `description` (beside
+/// it) grasping at the palm's middle, on the backend under test (`VTGEN_TEST_PHYSICS`).
+pub fn three_finger_config(dir: &Path, description: &str, config: &str) -> PathBuf {
     let text = std::fs::read_to_string(root().join("scenes/tiny-hand.yaml")).unwrap();
     let backend = std::env::var("VTGEN_TEST_PHYSICS").unwrap_or_else(|_| "rapier".into());
     let text = text
-        .replace("robot:\n", "robot:\n  description: three_finger.yaml\n")
+        .replace("robot:\n", &format!("robot:\n  description: {description}\n"))
         .replace("  grasp:\n", "  grasp:\n    object_offset: {min: [0.0, -0.01, -0.06], max: [0.0, 0.01, -0.035]}\n")
         .replace("backend: rapier", &format!("backend: {backend}"));
-    let cfg = dir.join("three-finger.yaml");
+    let cfg = dir.join(config);
     std::fs::write(&cfg, text).unwrap();
     cfg
 }
 
+/// A config written once into a temporary directory that lives as long as the tests.
+pub fn config_once(cell: &'static OnceLock<(tempfile::TempDir, PathBuf)>, write: fn(&Path) -> PathBuf) -> &'static Path {
+    &cell
+        .get_or_init(|| {
+            let d = tempdir();
+            let cfg = write(d.path());
+            (d, cfg)
+        })
+        .1
+}
+
 fn config() -> &'static Path {
     static DIR: OnceLock<(tempfile::TempDir, PathBuf)> = OnceLock::new();
-    &DIR.get_or_init(|| {
-        let d = tempdir();
-        let cfg = write_config(d.path());
-        (d, cfg)
-    })
-    .1
+    config_once(&DIR, write_config)
 }
 
 /// `config` generated into a fresh directory.
