@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use glam::DAffine3;
+use glam::{DAffine3, DVec3};
 use serde::Deserialize;
 
 use crate::mesh::MeshPaths;
@@ -654,7 +654,8 @@ impl Robot {
 
     /// Sensing area of each pad: (length along the pad's x, width along its y), metres. The
     /// description's size when it gives one; else, from the pad link's collision geometry. With
-    /// primitives: the collision box, plus the fingertip sphere on the distal phalanges. With the
+    /// primitives: the collision box's extent along the pad's axes, plus the fingertip sphere on
+    /// the distal phalanges. With the
     /// real meshes (a convex-hull collision shape): from the joint to the next joint, or to the end
     /// of the fingertip on the distal phalanges, by the mesh's width.
     pub fn pad_sizes(&self) -> Vec<(f64, f64)> {
@@ -667,9 +668,22 @@ impl Robot {
                 }
                 let id = pad.link;
                 let (mut len, mut wid) = (0.02, 0.02);
+                // The pad's own x and y axes in the link frame (components below 1e-6 are zero, so
+                // that a right angle written to 8 digits, as URDFs do, gives exactly the box's side).
+                let t_link_pad = model.relative_pose(&model.zero(), id, pad.frame);
+                let axis = |v: DVec3| {
+                    let a = t_link_pad.transform_vector3(v);
+                    DVec3::new(snap(a.x), snap(a.y), snap(a.z))
+                };
+                let (pad_x, pad_y) = (axis(DVec3::X), axis(DVec3::Y));
                 for s in &model.links[id].collisions {
                     match &s.geometry {
-                        Geometry::Box { size } => (len, wid) = (size.z, size.y),
+                        // The box's extent along the pad's axes (the last box on the link: a
+                        // finger's tip).
+                        Geometry::Box { size } => {
+                            let along = |u: DVec3| (0..3).map(|i| (s.origin.matrix3.col(i).dot(u)).abs() * size[i]).sum::<f64>();
+                            (len, wid) = (along(pad_x), along(pad_y));
+                        }
                         Geometry::Sphere { radius } => len += radius,
                         Geometry::Cylinder { .. } => {}
                         g @ (Geometry::ConvexHull { .. } | Geometry::Mesh { .. }) => {
@@ -766,6 +780,11 @@ fn compose_urdf(
     robot.links.extend(hand.links);
     robot.joints.extend(hand.joints);
     urdf_rs::write_to_string(&robot).map_err(|e| err(&hand_name, format!("cannot join the arm and the hand: {e}")))
+}
+
+/// `x`, or 0 when it is a rounding error's size (cos(1.57079633) is 3e-9).
+fn snap(x: f64) -> f64 {
+    if x.abs() < 1e-6 { 0.0 } else { x }
 }
 
 /// The description's YAML; errors name the file, line and field (serde's path).

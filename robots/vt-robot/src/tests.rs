@@ -389,3 +389,38 @@ fn a_redundant_arm_keeps_its_joints_off_their_limits() {
     }
     assert!(reached >= 10, "{reached}");
 }
+
+#[test]
+fn a_pads_default_size_runs_along_its_own_axes() {
+    // A fingertip box 10 (x) by 20 (y) by 30 (z) mm, its pad facing -y with x along the finger (z)
+    // and y across it (-x): 30 by 10 mm, whatever the link's axes are called.
+    let urdf = r#"<robot name="f">
+      <link name="base"/><link name="finger"><inertial><mass value="0.02"/><inertia ixx="1e-6" ixy="0" ixz="0" iyy="1e-6" iyz="0" izz="1e-6"/></inertial>
+        <collision><geometry><box size="0.01 0.02 0.03"/></geometry></collision></link>
+      <joint name="j" type="prismatic"><parent link="base"/><child link="finger"/><axis xyz="0 1 0"/><limit lower="0" upper="0.04" effort="20" velocity="1"/></joint>
+    </robot>"#;
+    let m = RobotModel::from_urdf_str(urdf, "f.urdf").unwrap();
+    let mut robot = Robot::allegro();
+    let mut model = m.clone();
+    let finger = model.link_id("finger").unwrap();
+    let frame = model
+        .add_fixed_link(finger, "tip_pad", xyz_rpy([0.0, 0.01, 0.0], [0.0, -std::f64::consts::FRAC_PI_2, std::f64::consts::FRAC_PI_2]))
+        .unwrap();
+    robot.model = model;
+    robot.pads = vec![Pad { name: "tip".into(), link: finger, frame, size: None, group: PadGroup::Distal }];
+    let (len, wid) = robot.pad_sizes()[0];
+    assert!((len - 0.03).abs() < 1e-12 && (wid - 0.01).abs() < 1e-12, "{len} {wid}");
+    // The Allegro's pads keep their sizes: box z by box y, plus the tip sphere on the distal ones.
+    let allegro = Robot::allegro();
+    let sizes = allegro.pad_sizes();
+    for (pad, (len, wid)) in allegro.pads.iter().zip(&sizes) {
+        let boxes: Vec<DVec3> = allegro.model.links[pad.link]
+            .collisions
+            .iter()
+            .filter_map(|s| if let Geometry::Box { size } = s.geometry { Some(size) } else { None })
+            .collect();
+        let last = boxes.last().unwrap();
+        assert_eq!(*wid, last.y, "{}", pad.name);
+        assert!(*len == last.z || *len > last.z + 0.005, "{}: the box's length, exactly, or with the tip sphere", pad.name);
+    }
+}
