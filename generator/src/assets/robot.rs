@@ -51,12 +51,13 @@ const CREASE_DEG: f32 = 40.0;
 /// The built-in robots drawn from primitive URDFs whose real meshes `scripts/robot-assets`
 /// fetches, matched to their links by the tables below (robots whose URDF names its own meshes,
 /// as the Panda's does, need none of this).
-pub const ROBOTS_WITH_MESHES: [&str; 2] = ["ur5e_allegro", "ur5e_robotiq_2f85"];
+pub const ROBOTS_WITH_MESHES: [&str; 2] = [ROBOT_COLLIDING_AS_MESHES, "ur5e_robotiq_2f85"];
+/// The one of them whose hand collides as its real meshes' hulls when the run has them (the
+/// 2F-85 keeps its URDF's boxes).
+const ROBOT_COLLIDING_AS_MESHES: &str = "ur5e_allegro";
 
-/// Whether a built-in robot's hand collides as its real meshes' hulls when the run has them (the
-/// Allegro's; the 2F-85 keeps its URDF's boxes).
 pub fn collides_as_real_meshes(robot: &str) -> bool {
-    robot == ROBOTS_WITH_MESHES[0]
+    robot == ROBOT_COLLIDING_AS_MESHES
 }
 
 /// The folders of a robot mesh directory the loaders read for robot `name` (`scripts/robot-assets`

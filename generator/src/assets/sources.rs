@@ -137,11 +137,10 @@ fn robot_source(cfg: &LoadedConfig, rc: &crate::config::RobotConfig) -> Result<S
     }
     // The mesh files a URDF names (the robot's own geometry), by content.
     if let Some(robot) = cfg.robot.as_ref().filter(|r| !r.model.mesh_files.is_empty()) {
-        for file in &robot.model.mesh_files {
-            let bytes = std::fs::read(file).with_context(|| format!("cannot read {}", file.display()))?;
+        for (file, m) in robot.model.mesh_files.iter().zip(robot_mesh_files(robot)?) {
             h.update(tail(file, 1).as_bytes());
-            h.update((bytes.len() as u64).to_le_bytes());
-            h.update(&bytes);
+            h.update(m.bytes.to_le_bytes());
+            h.update(m.sha256.as_bytes());
         }
         from.push(format!("{} URDF mesh files", robot.model.mesh_files.len()));
     }
@@ -156,6 +155,21 @@ fn robot_source(cfg: &LoadedConfig, rc: &crate::config::RobotConfig) -> Result<S
         None => from.push("primitives".to_string()),
     }
     Ok(Source { from: from.join(", "), sha256: hex(h) })
+}
+
+/// The mesh files a robot's URDF names, each with its size and SHA-256 (`robot/meshes.json`).
+pub fn robot_mesh_files(robot: &vt_robot::Robot) -> Result<Vec<vt_dataset::RobotMeshFile>> {
+    robot
+        .model
+        .mesh_files
+        .iter()
+        .map(|f| {
+            let bytes = std::fs::read(f).with_context(|| format!("cannot read {}", f.display()))?;
+            let mut h = Sha256::new();
+            h.update(&bytes);
+            Ok(vt_dataset::RobotMeshFile { file: f.display().to_string(), bytes: bytes.len() as u64, sha256: hex(h) })
+        })
+        .collect()
 }
 
 /// Every regular file below `dir` in name order: its path relative to `root`, its length and bytes.

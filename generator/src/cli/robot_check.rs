@@ -5,13 +5,13 @@
 //! each other. A short hold test is `vtgen grasps CONFIG --trajectories 2`.
 
 use anyhow::{Context, Result};
-use glam::{DAffine3, DQuat, DVec3};
+use glam::DVec3;
 use serde::Serialize;
 use vt_robot::GraspKind;
 
 use crate::config::LoadedConfig;
 use crate::physics::grasp::{MIN_REACHABLE_SHARE, REACH_SAMPLES, reach_samples, robot_floor_clearance};
-use crate::physics::robot::grasp_context;
+use crate::physics::robot::{grasp_context, t_world_base};
 
 /// A joint closer than this to a limit (rad, or m for a prismatic joint) counts as at the limit.
 pub const AT_LIMIT: f64 = 0.01;
@@ -55,8 +55,7 @@ pub struct RobotCheckReport {
 pub fn check_robot(cfg: &LoadedConfig) -> Result<RobotCheckReport> {
     let rc = cfg.config.robot.as_ref().with_context(|| format!("{}: the config has no `robot:` section", cfg.path.display()))?;
     let robot = cfg.robot.as_ref().context("a config with a robot section has its robot loaded")?;
-    let t_world_base =
-        DAffine3::from_rotation_translation(DQuat::from_rotation_z(rc.base_yaw_deg.to_radians()), DVec3::from_array(rc.base_position));
+    let t_world_base = t_world_base(rc);
     let ctx = grasp_context(robot, t_world_base, rc, DVec3::from_array(cfg.config.camera.position), None);
     let pre: Vec<f64> = rc.grasp.preshape.iter().map(|&(lo, _)| lo).collect();
     let reached: Vec<Vec<f64>> = reach_samples(&ctx, REACH_SAMPLES)

@@ -150,21 +150,11 @@ fn prepare_output(out: &Path, config_json: &str, sources: &MeshSources, plan: &P
 /// description, and the mesh files its URDF names by name, size and SHA-256, so that a reader can
 /// redraw the robot from its own copy of them.
 fn write_robot(out: &Path, robot: &vt_robot::Robot) -> Result<()> {
-    use sha2::Digest;
     let dir = out.join(vt_dataset::ROBOT_DIR);
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
     vt_dataset::write_atomic(&dir.join("robot.urdf"), robot.urdf_text.as_bytes())?;
     vt_dataset::write_atomic(&dir.join("robot.yaml"), robot.description_text.as_bytes())?;
-    let meshes = robot
-        .model
-        .mesh_files
-        .iter()
-        .map(|f| {
-            let bytes = std::fs::read(f).with_context(|| format!("cannot read {}", f.display()))?;
-            let sha: String = sha2::Sha256::digest(&bytes).iter().map(|b| format!("{b:02x}")).collect();
-            Ok(vt_dataset::RobotMeshFile { file: f.display().to_string(), bytes: bytes.len() as u64, sha256: sha })
-        })
-        .collect::<Result<Vec<_>>>()?;
+    let meshes = crate::assets::sources::robot_mesh_files(robot)?;
     let text = serde_json::to_string_pretty(&vt_dataset::RobotFiles { name: robot.name.clone(), meshes })? + "\n";
     vt_dataset::write_atomic(&dir.join("meshes.json"), text.as_bytes())
 }

@@ -115,7 +115,7 @@ mod tests {
             triangles.push([i, j, n + j]);
             triangles.push([i, n + j, n + i]);
         }
-        TriangleMesh { positions, triangles, colours: vec![None; 20], file: PathBuf::from("l.obj") }
+        TriangleMesh::new(positions, triangles, vec![None; 20], PathBuf::from("l.obj"))
     }
 
     #[test]

@@ -823,7 +823,7 @@ pub fn robot_floor_clearance(robot: &Robot, t_world_base: &DAffine3, q: &[f64]) 
                     let uz = t.transform_vector3(DVec3::Z).normalize().z;
                     t.translation.z - uz.abs() * length / 2.0 - radius * (1.0 - uz * uz).max(0.0).sqrt()
                 }
-                g => g.hull_points().unwrap_or_default().iter().map(|p| t.transform_point3(*p).z).fold(f64::MAX, f64::min),
+                g => g.hull_points().unwrap_or(&[]).iter().map(|p| t.transform_point3(*p).z).fold(f64::MAX, f64::min),
             };
             if lowest.is_none_or(|(_, l)| z < l) {
                 lowest = Some((id, z));

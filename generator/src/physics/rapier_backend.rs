@@ -306,9 +306,15 @@ impl RapierHand {
                 follower,
             });
         }
-        // The links where the joint coordinates put them.
-        for j in &joints {
-            if let Some((mb, _)) = world.multibody_joints.get_mut(j.joint) {
+        // The links where the joint coordinates put them: once per multibody (one per finger).
+        let mut multibodies = Vec::new();
+        for link in joints.iter().filter_map(|j| world.multibody_joints.rigid_body_link(j.body)) {
+            if !multibodies.contains(&link.multibody) {
+                multibodies.push(link.multibody);
+            }
+        }
+        for index in multibodies {
+            if let Some(mb) = world.multibody_joints.get_multibody_mut(index) {
                 mb.forward_kinematics(&world.bodies, true);
                 mb.update_rigid_bodies(&mut world.bodies, false);
             }

@@ -45,6 +45,11 @@ pub struct Simulated {
     pub stats: GraspStats,
 }
 
+/// The robot's base in the world (`robot.base_position`, `robot.base_yaw_deg`).
+pub fn t_world_base(rc: &RobotConfig) -> DAffine3 {
+    DAffine3::from_rotation_translation(DQuat::from_rotation_z(rc.base_yaw_deg.to_radians()), DVec3::from_array(rc.base_position))
+}
+
 /// What the grasp loop needs of a worker's robot besides its physics.
 pub fn grasp_context<'a>(
     robot: &'a Robot,
@@ -103,10 +108,7 @@ impl RobotScene {
                 )
             }
         };
-        let t_world_base = DAffine3::from_rotation_translation(
-            DQuat::from_rotation_z(robot.base_yaw_deg.to_radians()),
-            DVec3::from_array(robot.base_position),
-        );
+        let t_world_base = t_world_base(robot);
         // A workspace the arm cannot reach would fail every grasp as Unreachable: said up front.
         let camera_position = DVec3::from_array(cfg.config.camera.position);
         let share = reachable_share(&grasp_context(&model, t_world_base, robot, camera_position, None), REACH_SAMPLES);

@@ -21,14 +21,21 @@ pub struct TriangleMesh {
     pub colours: Vec<Option<[f64; 3]>>,
     /// The file it was read from (a dataset's sources name it by content).
     pub file: PathBuf,
+    /// `positions` with their duplicates merged (STL repeats each vertex per facet): the points a
+    /// collision mesh's convex hull is taken of, found once.
+    points: Vec<DVec3>,
 }
 
 impl TriangleMesh {
-    /// Vertices with their duplicates merged (STL repeats each vertex per facet): the points a
-    /// convex hull is taken of.
-    pub fn distinct_points(&self) -> Vec<DVec3> {
+    pub fn new(positions: Vec<DVec3>, triangles: Vec<[u32; 3]>, colours: Vec<Option<[f64; 3]>>, file: PathBuf) -> Self {
         let mut seen = std::collections::HashSet::new();
-        self.positions.iter().copied().filter(|p| seen.insert(p.to_array().map(f64::to_bits))).collect()
+        let points = positions.iter().copied().filter(|p| seen.insert(p.to_array().map(f64::to_bits))).collect();
+        TriangleMesh { positions, triangles, colours, file, points }
+    }
+
+    /// The distinct vertices, in the order first met.
+    pub fn distinct_points(&self) -> &[DVec3] {
+        &self.points
     }
 }
 
@@ -132,7 +139,7 @@ pub fn read_mesh(path: &Path, scale: DVec3) -> Result<TriangleMesh, String> {
     for p in &mut positions {
         *p *= scale;
     }
-    Ok(TriangleMesh { positions, triangles, colours, file: path.to_path_buf() })
+    Ok(TriangleMesh::new(positions, triangles, colours, path.to_path_buf()))
 }
 
 type Triangles = (Vec<DVec3>, Vec<[u32; 3]>, Vec<Option<[f64; 3]>>);
@@ -142,7 +149,8 @@ fn read_with_mesh_loader(path: &Path, ext: &str) -> Result<Triangles, String> {
     let loader = mesh_loader::Loader::default();
     let scene = match ext {
         "stl" => loader.load_stl_from_slice(&bytes, path),
-        "obj" => loader.load_obj(path),
+        // The MTL it names is read from beside `path`.
+        "obj" => loader.load_obj_from_slice(&bytes, path),
         _ => loader.load_collada_from_slice(&bytes, path),
     }
     .map_err(|e| format!("not a readable {} file: {e}", ext.to_ascii_uppercase()))?;

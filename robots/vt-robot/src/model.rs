@@ -38,9 +38,9 @@ pub enum Geometry {
 
 impl Geometry {
     /// The points whose convex hull is the collision shape of a hull or a mesh.
-    pub fn hull_points(&self) -> Option<Vec<DVec3>> {
+    pub fn hull_points(&self) -> Option<&[DVec3]> {
         match self {
-            Geometry::ConvexHull { points } => Some(points.to_vec()),
+            Geometry::ConvexHull { points } => Some(points),
             Geometry::Mesh { mesh } => Some(mesh.distinct_points()),
             _ => None,
         }
