@@ -12,6 +12,31 @@ use serde::{Deserialize, Serialize};
 
 use crate::Pose;
 
+/// An episode shard's `vtgen.shard` `episode` entry (FORMAT.md, "Episodes"): the episode's object
+/// and trajectory, its length and its streams' rates (each also as physics steps per period).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EpisodeRecord {
+    pub object_id: String,
+    pub trajectory: u32,
+    /// Camera frames (samples) of the episode.
+    pub frames: u64,
+    pub duration_s: f64,
+    pub physics_hz: f64,
+    pub camera_hz: f64,
+    pub tactile_hz: f64,
+    pub state_hz: f64,
+    pub camera_period_steps: u64,
+    pub tactile_period_steps: u64,
+    pub state_period_steps: u64,
+}
+
+impl EpisodeRecord {
+    /// The record as shards store it: one line of JSON, keys in alphabetical order.
+    pub fn to_json(&self) -> String {
+        serde_json::to_value(self).expect("plain data serializes").to_string()
+    }
+}
+
 /// The two splits; trajectories (grasps) are split 4:1, never samples.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -196,61 +221,63 @@ impl SampleInfo {
     }
 }
 
+/// A sample info with every field filled (with `robot`: the robot's, touch and an episode frame
+/// too): the key lists of `format.json` and the tests' fixture.
+pub(crate) fn example_info(robot: bool) -> SampleInfo {
+    let pose = Pose { position: [0.1, -0.2, 0.7], orientation: [0.0, 0.6, 0.0, 0.8] };
+    SampleInfo {
+        split: Split::Test,
+        index: 42,
+        object_id: "037_scissors".into(),
+        object_index: 1,
+        mask_id: 1,
+        trajectory: 9,
+        instance: 3,
+        randomized: true,
+        appearance: serde_json::json!({"randomized": true}),
+        distractors: vec![PlacedDistractor { object_id: "011_banana".into(), mask_id: 2, t_world_distractor: pose }],
+        visible_pixels: 1234,
+        occlusion: Some(OcclusionInfo {
+            level: 0.87,
+            visible_points: 65,
+            model_points: 500,
+            epsilon_mm: 5.0,
+            silhouette_pixels: 4000,
+            silhouette_visible_fraction: 0.31,
+        }),
+        t_world_camera: pose,
+        t_camera_object: pose.inverse(),
+        robot: robot.then(|| RobotInfo {
+            physics_backend: "rapier".into(),
+            phalanges_in_contact: vec!["ff_distal".into(), "th_distal".into()],
+            slip_mm: 1.5,
+            slip_deg: 2.0,
+            penetration_mm: 0.4,
+            grasp_attempts: 2,
+            joint_positions: [("ff_j0".to_string(), 0.1)].into(),
+            t_world_palm: pose,
+            tactile: Some(TouchInfo {
+                contact_threshold_mm: 2.0,
+                sensors: serde_json::json!({"proximal": {"model": "depth_camera"}}),
+                near_mm: -5.0,
+                far_mm: 30.0,
+                pads: [("ff_distal".to_string(), [0.02, 0.015])].into(),
+                points: [("ff_distal".to_string(), 40), ("th_distal".to_string(), 12)].into(),
+                optical: Some([("th_distal".to_string(), serde_json::json!({"image_size": [320, 240]}))].into()),
+            }),
+        }),
+        episode: robot.then_some(EpisodeFrameInfo { frame: 3, time_s: 0.1, arm_move: 0 }),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    fn example(robot: bool) -> SampleInfo {
-        let pose = Pose { position: [0.1, -0.2, 0.7], orientation: [0.0, 0.6, 0.0, 0.8] };
-        SampleInfo {
-            split: Split::Test,
-            index: 42,
-            object_id: "037_scissors".into(),
-            object_index: 1,
-            mask_id: 1,
-            trajectory: 9,
-            instance: 3,
-            randomized: true,
-            appearance: serde_json::json!({"randomized": true}),
-            distractors: vec![PlacedDistractor { object_id: "011_banana".into(), mask_id: 2, t_world_distractor: pose }],
-            visible_pixels: 1234,
-            occlusion: Some(OcclusionInfo {
-                level: 0.87,
-                visible_points: 65,
-                model_points: 500,
-                epsilon_mm: 5.0,
-                silhouette_pixels: 4000,
-                silhouette_visible_fraction: 0.31,
-            }),
-            t_world_camera: pose,
-            t_camera_object: pose.inverse(),
-            robot: robot.then(|| RobotInfo {
-                physics_backend: "rapier".into(),
-                phalanges_in_contact: vec!["ff_distal".into(), "th_distal".into()],
-                slip_mm: 1.5,
-                slip_deg: 2.0,
-                penetration_mm: 0.4,
-                grasp_attempts: 2,
-                joint_positions: [("ff_j0".to_string(), 0.1)].into(),
-                t_world_palm: pose,
-                tactile: Some(TouchInfo {
-                    contact_threshold_mm: 2.0,
-                    sensors: serde_json::json!({"proximal": {"model": "depth_camera"}}),
-                    near_mm: -5.0,
-                    far_mm: 30.0,
-                    pads: [("ff_distal".to_string(), [0.02, 0.015])].into(),
-                    points: [("ff_distal".to_string(), 40), ("th_distal".to_string(), 12)].into(),
-                    optical: Some([("th_distal".to_string(), serde_json::json!({"image_size": [320, 240]}))].into()),
-                }),
-            }),
-            episode: robot.then_some(EpisodeFrameInfo { frame: 3, time_s: 0.1, arm_move: 0 }),
-        }
-    }
-
     #[test]
     fn round_trips_and_the_robot_part_is_flat_and_optional() {
         for robot in [false, true] {
-            let info = example(robot);
+            let info = example_info(robot);
             let v = info.to_value();
             assert_eq!(serde_json::from_value::<SampleInfo>(v.clone()).unwrap(), info);
             // The robot's fields sit at the top level, as FORMAT.md lists them.
@@ -258,13 +285,13 @@ mod tests {
             assert_eq!(v["split"], "test");
             assert_eq!(v["T_camera_object"]["orientation"].as_array().unwrap().len(), 4);
         }
-        assert_eq!(example(true).tactile_points(), Some(52));
-        assert_eq!(example(false).tactile_points(), None);
+        assert_eq!(example_info(true).tactile_points(), Some(52));
+        assert_eq!(example_info(false).tactile_points(), None);
     }
 
     #[test]
     fn older_infos_without_occlusion_or_distractors_still_read_and_unknown_keys_are_ignored() {
-        let mut v = example(false).to_value();
+        let mut v = example_info(false).to_value();
         let o = v.as_object_mut().unwrap();
         o.remove("occlusion");
         o.remove("distractors");
@@ -272,7 +299,7 @@ mod tests {
         let info: SampleInfo = serde_json::from_value(v).unwrap();
         assert!(info.occlusion.is_none() && info.distractors.is_empty());
         // A wrong split is named.
-        let mut v = example(false).to_value();
+        let mut v = example_info(false).to_value();
         v["split"] = "validation".into();
         let e = serde_json::from_value::<SampleInfo>(v).unwrap_err().to_string();
         assert!(e.contains("validation"), "{e}");
@@ -281,7 +308,7 @@ mod tests {
     #[test]
     fn the_schema_shards_carry_lists_the_typed_fields() {
         let schema: serde_json::Value = serde_json::from_str(crate::writer::SAMPLE_INFO_SCHEMA).unwrap();
-        let v = example(true).to_value();
+        let v = example_info(true).to_value();
         for (key, prop) in schema["properties"].as_object().unwrap() {
             let value = v.get(key).unwrap_or_else(|| panic!("the schema's '{key}' is not a SampleInfo field"));
             let ok = match prop["type"].as_str().unwrap() {

@@ -4,6 +4,7 @@
 //! One implementation of the format per language: this crate for Rust (the generator writes with
 //! it; inspection, validation and the trainer read with it), `datasets/python` for Python.
 
+mod format;
 mod glb;
 mod info;
 mod manifest;
@@ -13,21 +14,34 @@ mod reader;
 mod sample;
 mod writer;
 
+pub use format::description as format_description;
 pub use glb::{ColoredMesh, encode_glb, srgb_to_linear};
-pub use info::{EpisodeFrameInfo, OcclusionInfo, PlacedDistractor, RobotInfo, SampleInfo, Split, StateRecord, TouchInfo};
-pub use manifest::{ContinuousSymmetry, Manifest, ModelInfo, ModelsInfo, ShardEntry, SplitManifest, sha256_file, write_atomic};
+pub use info::{EpisodeFrameInfo, EpisodeRecord, OcclusionInfo, PlacedDistractor, RobotInfo, SampleInfo, Split, StateRecord, TouchInfo};
+pub use manifest::{ContinuousSymmetry, GraspStats, Manifest, OcclusionHistogram, ModelInfo, ModelsInfo, ShardEntry, SplitManifest, sha256_file, write_atomic};
 pub use occlusion::OcclusionBin;
 pub use ply::{LengthUnit, PlyMesh, read_ply, write_ply};
 pub use reader::{DatasetReader, ShardReader};
 pub use sample::{EpisodeData, OpticalPadImage, Pose, Sample, ShardMeta, TactileData, TactilePointRecord};
 pub use writer::{Compression, SceneModel, ShardReceipt, ShardWriter};
 
+/// `manifest.json`'s `format`: what makes a folder a vtgen dataset.
+pub const FORMAT_NAME: &str = "vtgen-dataset";
 /// Version of the on-disk format written by this crate.
 pub const FORMAT_VERSION: u32 = 1;
 /// Nanoseconds between consecutive samples on the MCAP timeline (10 Hz).
 pub const SAMPLE_PERIOD_NS: u64 = 100_000_000;
 /// The shard metadata key that marks an episode shard (its value: the episode's JSON record).
 pub const EPISODE_METADATA_KEY: &str = "episode";
+/// The dataset's manifest, at its root (FORMAT.md, "Directory layout").
+pub const MANIFEST_FILE: &str = "manifest.json";
+/// The folder of the object models and their `models_info.json`.
+pub const MODELS_DIR: &str = "models";
+pub const MODELS_INFO_FILE: &str = "models_info.json";
+/// `vtgen.shard` keys of the shard's figures (JSON values): the occlusion histogram's counts
+/// ([`OcclusionHistogram::counts`]) and, with a robot, the [`GraspStats`] of the trajectories
+/// that start in the shard.
+pub const OCCLUSION_HISTOGRAM_KEY: &str = "occlusion_histogram";
+pub const GRASP_STATS_KEY: &str = "grasp_stats";
 /// Name of the per-shard MCAP metadata record.
 pub const SHARD_METADATA: &str = "vtgen.shard";
 /// Suffix of a shard that is still being written.
@@ -83,6 +97,26 @@ pub mod topics {
     }
     /// Every topic a complete sample has, in the order they are written.
     pub const ALL: [&str; 7] = [RGB, DEPTH, MASK, CALIBRATION, OBJECT_POSE, TF, SAMPLE_INFO];
+}
+
+/// `foxglove.RawImage` encodings (FORMAT.md, "MCAP shard"): bytes per pixel, little-endian.
+pub mod encodings {
+    /// Colour (`/camera/rgb`, an optical pad's image and reference): 3 bytes, sRGB.
+    pub const RGB8: &str = "rgb8";
+    /// z-depth in metres (`/camera/depth`, `/camera/depth_noisy`, a pad's depth): one `f32`.
+    pub const DEPTH_32FC1: &str = "32FC1";
+    /// Instance ids (`/camera/mask`): one byte.
+    pub const MASK_MONO8: &str = "mono8";
+    /// (encoding, channels, bytes per channel) of every encoding the format writes.
+    pub const ALL: [(&str, u32, u32); 3] = [(RGB8, 3, 1), (MASK_MONO8, 1, 1), (DEPTH_32FC1, 1, 4)];
+}
+
+/// `/tactile/points` (FORMAT.md, "Tactile point cloud"): one packed point per contact pixel.
+pub mod tactile_points {
+    /// A point's fields: name, byte offset and whether it is an unsigned integer (else `f32`).
+    pub const FIELDS: [(&str, u32, bool); 5] = [("x", 0, false), ("y", 4, false), ("z", 8, false), ("distance", 12, false), ("phalanx", 16, true)];
+    /// Bytes per point.
+    pub const STRIDE: u32 = 20;
 }
 
 /// Frame ids (FORMAT.md, "Conventions").

@@ -6,6 +6,8 @@ use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
+use crate::OcclusionBin;
+
 /// `manifest.json` (FORMAT.md).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Manifest {
@@ -17,11 +19,63 @@ pub struct Manifest {
     pub complete: bool,
     pub splits: BTreeMap<String, SplitManifest>,
     /// Grasp-loop figures summed over the complete shards (when a robot is in the scene).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub grasp: Option<serde_json::Value>,
+    #[serde(default, skip_serializing_if = "Option::is_none", serialize_with = "keys_sorted")]
+    pub grasp: Option<GraspStats>,
     /// Occlusion-level histogram over the paper's bins, summed over the complete shards.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub occlusion: Option<serde_json::Value>,
+    pub occlusion: Option<OcclusionHistogram>,
+}
+
+/// The manifest writes its records with their keys in alphabetical order (a shard's
+/// `grasp_stats` keeps the struct's order): the bytes datasets have always had.
+fn keys_sorted<T: Serialize, S: serde::Serializer>(value: &Option<T>, s: S) -> Result<S::Ok, S::Error> {
+    serde_json::to_value(value).map_err(serde::ser::Error::custom)?.serialize(s)
+}
+
+/// The grasp loop's figures (FORMAT.md, "Grasp statistics"): a shard's `grasp_stats` (of the
+/// trajectories that start in it) and the manifest's `grasp` (summed over the complete shards).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct GraspStats {
+    pub trajectories: u64,
+    pub attempts: u64,
+    /// Failed attempts by outcome name.
+    pub failures: BTreeMap<String, u64>,
+    pub max_slip_mm: f64,
+    pub max_penetration_mm: f64,
+}
+
+impl GraspStats {
+    pub fn merge(&mut self, o: &GraspStats) {
+        self.trajectories += o.trajectories;
+        self.attempts += o.attempts;
+        for (k, v) in &o.failures {
+            *self.failures.entry(k.clone()).or_default() += v;
+        }
+        self.max_slip_mm = self.max_slip_mm.max(o.max_slip_mm);
+        self.max_penetration_mm = self.max_penetration_mm.max(o.max_penetration_mm);
+    }
+}
+
+/// One line of JSON, keys in alphabetical order, as the manifest holds the figures.
+impl std::fmt::Display for GraspStats {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}", serde_json::to_value(self).map_err(|_| std::fmt::Error)?)
+    }
+}
+
+/// The manifest's `occlusion`: samples per occlusion bin ([`OcclusionBin::ALL`] order), summed
+/// over the complete shards; a shard's `occlusion_histogram` holds its `counts` alone.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct OcclusionHistogram {
+    /// The bins' keys ([`OcclusionBin::key`]).
+    pub bins: Vec<String>,
+    pub counts: [u64; 3],
+}
+
+impl OcclusionHistogram {
+    pub fn new(counts: [u64; 3]) -> Self {
+        OcclusionHistogram { bins: OcclusionBin::ALL.map(|b| b.key().to_string()).to_vec(), counts }
+    }
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -11,7 +11,7 @@ use prost::Message;
 
 use crate::manifest::Manifest;
 use crate::sample::{Pose, Sample, ShardMeta};
-use crate::{SAMPLE_PERIOD_NS, SHARD_METADATA, frames, topics};
+use crate::{SAMPLE_PERIOD_NS, SHARD_METADATA, encodings, frames, topics};
 
 pub struct ShardReader {
     path: PathBuf,
@@ -240,7 +240,7 @@ impl ShardReader {
             let topic = crate::topics::tactile_reference(&o.pad);
             let raw = references.get(&topic).ok_or_else(|| anyhow!("{topic} is missing"))?;
             let img = RawImage::decode(&raw[..])?;
-            if (img.width, img.height, img.encoding.as_str()) != (o.width, o.height, "rgb8") || img.data.len() != o.image.len() {
+            if (img.width, img.height, img.encoding.as_str()) != (o.width, o.height, encodings::RGB8) || img.data.len() != o.image.len() {
                 bail!("{topic} is not a {}x{} rgb8 image like its pad's images", o.width, o.height);
             }
             o.reference = img.data.to_vec();
@@ -329,11 +329,11 @@ impl ShardReader {
             }
             Ok(())
         };
-        expect_enc(&rgb, "rgb8")?;
-        expect_enc(&depth, "32FC1")?;
-        expect_enc(&mask, "mono8")?;
+        expect_enc(&rgb, encodings::RGB8)?;
+        expect_enc(&depth, encodings::DEPTH_32FC1)?;
+        expect_enc(&mask, encodings::MASK_MONO8)?;
         let floats = |img: &RawImage| -> Result<Vec<f32>> {
-            expect_enc(img, "32FC1")?;
+            expect_enc(img, encodings::DEPTH_32FC1)?;
             Ok(unpad(img, 4)?.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect())
         };
         let depth = floats(&depth)?;
@@ -427,13 +427,13 @@ fn read_tactile(by_topic: &BTreeMap<String, Vec<u8>>, pads: &[String]) -> Result
     use foxglove::schemas::PointCloud;
     let Some(raw) = by_topic.get(topics::TACTILE_POINTS) else { return Ok(None) };
     let cloud = PointCloud::decode(&raw[..])?;
-    if cloud.point_stride != 20 {
-        bail!("tactile points have stride {}, expected 20", cloud.point_stride);
+    if cloud.point_stride != crate::tactile_points::STRIDE {
+        bail!("tactile points have stride {}, expected {}", cloud.point_stride, crate::tactile_points::STRIDE);
     }
     let f32_at = |c: &[u8], o: usize| f32::from_le_bytes([c[o], c[o + 1], c[o + 2], c[o + 3]]);
     let points = cloud
         .data
-        .chunks_exact(20)
+        .chunks_exact(crate::tactile_points::STRIDE as usize)
         .map(|c| crate::sample::TactilePointRecord {
             position: [f32_at(c, 0), f32_at(c, 4), f32_at(c, 8)],
             distance: f32_at(c, 12),
@@ -455,7 +455,7 @@ fn read_tactile(by_topic: &BTreeMap<String, Vec<u8>>, pads: &[String]) -> Result
         let Some(raw) = by_topic.get(&crate::topics::tactile_image(name)) else { continue };
         let rgb = |raw: &[u8], what: &str| -> Result<RawImage> {
             let img = RawImage::decode(raw)?;
-            if img.encoding != "rgb8" || img.data.len() != (img.width * img.height * 3) as usize || img.step != img.width * 3 {
+            if img.encoding != encodings::RGB8 || img.data.len() != (img.width * img.height * 3) as usize || img.step != img.width * 3 {
                 bail!("/tactile/{name}/{what}: expected {}x{} rgb8 without padding", img.width, img.height);
             }
             Ok(img)
@@ -497,7 +497,7 @@ pub struct DatasetReader {
 
 impl DatasetReader {
     pub fn open(root: &Path) -> Result<Self> {
-        let manifest = Manifest::load(&root.join("manifest.json"))?;
+        let manifest = Manifest::load(&root.join(crate::MANIFEST_FILE))?;
         Ok(DatasetReader { root: root.to_path_buf(), manifest })
     }
 

@@ -142,19 +142,24 @@ pub struct ShardMeta {
 }
 
 impl ShardMeta {
+    /// The keys every `vtgen.shard` record has, in this order; [`ShardMeta::extra`] adds others.
+    pub const KEYS: [&str; 8] = ["format_version", "generator", "seed", "config_sha256", "split", "shard_index", "first_sample", "sample_count"];
+
     pub fn to_map(&self) -> std::collections::BTreeMap<String, String> {
-        [
-            ("format_version", crate::FORMAT_VERSION.to_string()),
-            ("generator", self.generator.clone()),
-            ("seed", self.seed.to_string()),
-            ("config_sha256", self.config_sha256.clone()),
-            ("split", self.split.clone()),
-            ("shard_index", self.shard_index.to_string()),
-            ("first_sample", self.first_sample.to_string()),
-            ("sample_count", self.sample_count.to_string()),
-        ]
-        .into_iter()
-        .map(|(k, v)| (k.to_string(), v))
+        let values = [
+            crate::FORMAT_VERSION.to_string(),
+            self.generator.clone(),
+            self.seed.to_string(),
+            self.config_sha256.clone(),
+            self.split.clone(),
+            self.shard_index.to_string(),
+            self.first_sample.to_string(),
+            self.sample_count.to_string(),
+        ];
+        Self::KEYS
+            .into_iter()
+            .zip(values)
+            .map(|(k, v)| (k.to_string(), v))
         .chain(self.extra.clone())
         .collect()
     }
@@ -172,10 +177,7 @@ impl ShardMeta {
             sample_count: num("sample_count")?,
             extra: m
                 .iter()
-                .filter(|(k, _)| {
-                    !["format_version", "generator", "seed", "config_sha256", "split", "shard_index", "first_sample", "sample_count"]
-                        .contains(&k.as_str())
-                })
+                .filter(|(k, _)| !Self::KEYS.contains(&k.as_str()))
                 .map(|(k, v)| (k.clone(), v.clone()))
                 .collect(),
         })

@@ -15,7 +15,7 @@ use foxglove::schemas::{
 use prost::Message;
 
 use crate::sample::{Pose, Sample, ShardMeta};
-use crate::{PARTIAL_SUFFIX, SAMPLE_PERIOD_NS, SHARD_METADATA, frames, topics};
+use crate::{PARTIAL_SUFFIX, SAMPLE_PERIOD_NS, SHARD_METADATA, encodings, frames, topics};
 
 /// Chunk compression of a shard.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -55,9 +55,11 @@ struct Channels {
 }
 
 /// JSON schema of `/sample/info` (FORMAT.md). Open for extension: readers ignore unknown keys.
+pub(crate) const SAMPLE_INFO_SCHEMA_NAME: &str = "vtgen.SampleInfo";
 pub(crate) const SAMPLE_INFO_SCHEMA: &str = r#"{"title":"vtgen.SampleInfo","type":"object","properties":{"split":{"type":"string"},"index":{"type":"integer"},"object_id":{"type":"string"},"object_index":{"type":"integer"},"mask_id":{"type":"integer"},"trajectory":{"type":"integer"},"instance":{"type":"integer"},"randomized":{"type":"boolean"},"visible_pixels":{"type":"integer"},"T_world_camera":{"type":"object"},"T_camera_object":{"type":"object"}},"required":["split","index","object_id","trajectory","instance"]}"#;
 
 /// JSON schema of `/episode/state` (FORMAT.md, "Episodes").
+pub(crate) const STATE_RECORD_SCHEMA_NAME: &str = "vtgen.StateRecord";
 pub(crate) const STATE_RECORD_SCHEMA: &str = r#"{"title":"vtgen.StateRecord","type":"object","properties":{"time_s":{"type":"number"},"joint_positions":{"type":"object"},"T_world_object":{"type":"object"},"T_camera_object":{"type":"object"},"T_world_palm":{"type":"object"},"linear_velocity":{"type":"array","items":{"type":"number"}},"angular_velocity":{"type":"array","items":{"type":"number"}},"phalanges_in_contact":{"type":"array","items":{"type":"string"}}},"required":["time_s","joint_positions","T_world_object","T_camera_object"]}"#;
 
 pub struct ShardWriter {
@@ -145,7 +147,7 @@ impl ShardWriter {
             pose: add::<PoseInFrame>(&mut mcap, topics::OBJECT_POSE)?,
             tf: add::<FrameTransforms>(&mut mcap, topics::TF)?,
             info: {
-                let sid = mcap.add_schema("vtgen.SampleInfo", "jsonschema", SAMPLE_INFO_SCHEMA.as_bytes())?;
+                let sid = mcap.add_schema(SAMPLE_INFO_SCHEMA_NAME, "jsonschema", SAMPLE_INFO_SCHEMA.as_bytes())?;
                 mcap.add_channel(sid, topics::SAMPLE_INFO, "json", &BTreeMap::new())?
             },
         };
@@ -189,10 +191,10 @@ impl ShardWriter {
             step,
             data: prost::bytes::Bytes::copy_from_slice(data),
         };
-        let rgb = image("rgb8", w * 3, &s.rgb).encode_to_vec();
+        let rgb = image(encodings::RGB8, w * 3, &s.rgb).encode_to_vec();
         self.put(self.channels.rgb, t, &rgb)?;
         let depth_bytes: Vec<u8> = s.depth.iter().flat_map(|d| d.to_le_bytes()).collect();
-        let depth = image("32FC1", w * 4, &depth_bytes).encode_to_vec();
+        let depth = image(encodings::DEPTH_32FC1, w * 4, &depth_bytes).encode_to_vec();
         self.put(self.channels.depth, t, &depth)?;
         if let Some(noisy) = &s.depth_noisy {
             anyhow::ensure!(noisy.len() == (w * h) as usize, "noisy depth size does not match {w}x{h}");
@@ -205,10 +207,10 @@ impl ShardWriter {
                 }
             };
             let bytes: Vec<u8> = noisy.iter().flat_map(|d| d.to_le_bytes()).collect();
-            let msg = image("32FC1", w * 4, &bytes).encode_to_vec();
+            let msg = image(encodings::DEPTH_32FC1, w * 4, &bytes).encode_to_vec();
             self.put(ch, t, &msg)?;
         }
-        let mask = image("mono8", w, &s.mask).encode_to_vec();
+        let mask = image(encodings::MASK_MONO8, w, &s.mask).encode_to_vec();
         self.put(self.channels.mask, t, &mask)?;
         let k = s.k;
         let calib = CameraCalibration {
@@ -257,7 +259,7 @@ impl ShardWriter {
         let channel = match self.state_channel {
             Some(c) => c,
             None => {
-                let c = self.mcap.add_schema("vtgen.StateRecord", "jsonschema", STATE_RECORD_SCHEMA.as_bytes())?;
+                let c = self.mcap.add_schema(STATE_RECORD_SCHEMA_NAME, "jsonschema", STATE_RECORD_SCHEMA.as_bytes())?;
                 let c = self.mcap.add_channel(c, topics::EPISODE_STATE, "json", &BTreeMap::new())?;
                 self.state_channel = Some(c);
                 c
@@ -303,7 +305,7 @@ impl ShardWriter {
         );
         use foxglove::schemas::packed_element_field::NumericType;
         let field = |name: &str, offset: u32, ty: NumericType| PackedElementField { name: name.into(), offset, r#type: ty as i32 };
-        let mut data = Vec::with_capacity(tac.points.len() * 20);
+        let mut data = Vec::with_capacity(tac.points.len() * crate::tactile_points::STRIDE as usize);
         for p in &tac.points {
             for v in p.position.iter().chain([&p.distance]) {
                 data.extend(v.to_le_bytes());
@@ -314,14 +316,11 @@ impl ShardWriter {
             timestamp: ts(t),
             frame_id: frames::CAMERA.into(),
             pose: Some(fg_pose(&Pose::IDENTITY)),
-            point_stride: 20,
-            fields: vec![
-                field("x", 0, NumericType::Float32),
-                field("y", 4, NumericType::Float32),
-                field("z", 8, NumericType::Float32),
-                field("distance", 12, NumericType::Float32),
-                field("phalanx", 16, NumericType::Uint32),
-            ],
+            point_stride: crate::tactile_points::STRIDE,
+            fields: crate::tactile_points::FIELDS
+                .iter()
+                .map(|&(name, offset, unsigned)| field(name, offset, if unsigned { NumericType::Uint32 } else { NumericType::Float32 }))
+                .collect(),
             data: prost::bytes::Bytes::from(data),
         }
         .encode_to_vec();
@@ -334,7 +333,7 @@ impl ShardWriter {
                 frame_id: format!("{}_pad", tac.phalanges[k]),
                 width: r,
                 height: r,
-                encoding: "32FC1".into(),
+                encoding: encodings::DEPTH_32FC1.into(),
                 step: r * 4,
                 data: prost::bytes::Bytes::from(bytes),
             }
@@ -357,7 +356,7 @@ impl ShardWriter {
                     frame_id: format!("{}_pad", o.pad),
                     width: o.width,
                     height: o.height,
-                    encoding: "rgb8".into(),
+                    encoding: encodings::RGB8.into(),
                     step: o.width * 3,
                     data: prost::bytes::Bytes::copy_from_slice(bytes),
                 }

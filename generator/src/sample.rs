@@ -6,7 +6,7 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result};
 use glam::{DAffine3, DMat4};
 use vt_dataset::{
-    EpisodeData, EpisodeFrameInfo, OcclusionBin, OcclusionInfo, OpticalPadImage, PlacedDistractor, Pose, RobotInfo, Sample, SampleInfo,
+    EpisodeData, EpisodeFrameInfo, GraspStats, OcclusionBin, OcclusionInfo, OpticalPadImage, PlacedDistractor, Pose, RobotInfo, Sample, SampleInfo,
     SceneModel, Split, StateRecord, TactileData, TactilePointRecord, TouchInfo, frames, mask_ids,
 };
 use vt_objects::Texture;
@@ -18,7 +18,7 @@ use crate::assets::robot::{load_drawn_meshes, robot_assets_dir};
 use crate::config::{Config, LoadedConfig};
 use crate::config::{OpticalSensor, SensorModel};
 use crate::physics::grasp::Trajectory;
-use crate::physics::robot::{GraspStats, RobotScene};
+use crate::physics::robot::RobotScene;
 use crate::plan::{EpisodeTimeline, SampleRef};
 use crate::render::{Draw, DrawRole, Lighting, Material, MeshHandle, Renderer, View};
 use crate::scene::environment::{backdrop_mesh, floor_mesh, glb_of, place_distractors};

@@ -5,7 +5,7 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use serde::Serialize;
 use vt_dataset::{DatasetReader, Manifest, OcclusionBin};
 
@@ -25,10 +25,10 @@ pub struct Inspection {
     pub tactile_points: Option<[u64; 3]>,
     /// Share of samples in which each phalanx touches the object.
     pub contact_share: BTreeMap<String, f64>,
-    pub grasp: Option<serde_json::Value>,
+    pub grasp: Option<vt_dataset::GraspStats>,
     /// Episode datasets: the complete episodes' shard metadata (`episode`), in shard order.
     #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub episodes: Vec<serde_json::Value>,
+    pub episodes: Vec<vt_dataset::EpisodeRecord>,
 }
 
 fn median(mut v: Vec<u64>) -> Option<[u64; 3]> {
@@ -40,7 +40,7 @@ fn median(mut v: Vec<u64>) -> Option<[u64; 3]> {
 }
 
 pub fn inspect(root: &Path) -> Result<Inspection> {
-    let manifest: Manifest = Manifest::load(&root.join("manifest.json"))?;
+    let manifest: Manifest = Manifest::load(&root.join(vt_dataset::MANIFEST_FILE))?;
     let ds = DatasetReader::open(root)?;
     let entries: Vec<_> = manifest.splits.values().flat_map(|s| &s.shards).collect();
     let mut samples: BTreeMap<String, BTreeMap<String, u64>> = BTreeMap::new();
@@ -68,7 +68,7 @@ pub fn inspect(root: &Path) -> Result<Inspection> {
     for split in manifest.splits.keys() {
         for shard in ds.shards(split)? {
             if let Some(e) = shard.meta().extra.get(vt_dataset::EPISODE_METADATA_KEY) {
-                episodes.push(serde_json::from_str(e)?);
+                episodes.push(serde_json::from_str(e).with_context(|| format!("{}: {}", shard.path().display(), vt_dataset::EPISODE_METADATA_KEY))?);
             }
         }
     }
@@ -110,15 +110,14 @@ impl Inspection {
             out.push(format!("occlusion   {split}: {}", occ.join(", ")));
         }
         if let Some(e) = r.episodes.first() {
-            let f = |k: &str| e[k].as_f64().unwrap_or(f64::NAN);
             out.push(format!(
                 "episodes    {} of {} frames ({:.2} s): camera {:.1} Hz, touch {:.1} Hz, state {:.1} Hz",
                 r.episodes.len(),
-                e["frames"],
-                f("duration_s"),
-                f("camera_hz"),
-                f("tactile_hz"),
-                f("state_hz")
+                e.frames,
+                e.duration_s,
+                e.camera_hz,
+                e.tactile_hz,
+                e.state_hz
             ));
         }
         out.push(format!("randomized  {:.1}%", 100.0 * r.randomized_share));

@@ -11,7 +11,7 @@ use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use sha2::{Digest, Sha256};
 use vt_dataset::{
-    Compression, Manifest, ModelInfo, ModelsInfo, OcclusionBin, ShardEntry, ShardMeta, ShardReceipt, SplitManifest, mask_ids,
+    Compression, GraspStats, Manifest, ModelInfo, ModelsInfo, OcclusionHistogram, ShardEntry, ShardMeta, ShardReceipt, SplitManifest, mask_ids,
 };
 
 use crate::assets::sources::MeshSources;
@@ -19,7 +19,6 @@ use crate::assets::{LoadedObject, MeshSource, load_objects};
 use crate::config::{Config, LoadedConfig};
 use crate::output::workers::run_pool;
 use crate::output::writer_thread::WriterThread;
-use crate::physics::robot::GraspStats;
 use crate::plan::{Plan, SPLITS, ShardPlan, ShardSelector};
 use crate::render::WgpuRenderer;
 use crate::sample::SampleFactory;
@@ -57,7 +56,7 @@ pub fn sha256_hex(data: &[u8]) -> String {
 /// procedural stand-in). Returns one line per declared symmetry that does not hold on the mesh and
 /// was dropped, for the caller to report.
 fn write_models(out: &Path, objects: &[LoadedObject]) -> Result<Vec<String>> {
-    let dir = out.join("models");
+    let dir = out.join(vt_dataset::MODELS_DIR);
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let mut infos = Vec::new();
     let mut dropped = Vec::new();
@@ -98,7 +97,7 @@ fn write_models(out: &Path, objects: &[LoadedObject]) -> Result<Vec<String>> {
         });
     }
     let text = serde_json::to_string_pretty(&ModelsInfo { objects: infos })? + "\n";
-    vt_dataset::write_atomic(&dir.join("models_info.json"), text.as_bytes())?;
+    vt_dataset::write_atomic(&dir.join(vt_dataset::MODELS_INFO_FILE), text.as_bytes())?;
     Ok(dropped)
 }
 
@@ -113,13 +112,13 @@ fn prepare_output(out: &Path, config_json: &str, sources: &MeshSources, plan: &P
     if let Ok(existing) = std::fs::read_to_string(&cfg_path) {
         let same = existing == config_json;
         if opts.overwrite {
-            for d in SPLITS.iter().map(|s| s.as_str()).chain(["models"]) {
+            for d in SPLITS.iter().map(|s| s.as_str()).chain([vt_dataset::MODELS_DIR]) {
                 let p = out.join(d);
                 if p.exists() {
                     std::fs::remove_dir_all(&p).with_context(|| format!("cannot remove {}", p.display()))?;
                 }
             }
-            let _ = std::fs::remove_file(out.join("manifest.json"));
+            let _ = std::fs::remove_file(out.join(vt_dataset::MANIFEST_FILE));
         } else if !same {
             bail!(
                 "{} holds a dataset generated from a different config; choose another --out, or pass --overwrite to replace it",
@@ -192,7 +191,7 @@ fn update_manifest(out: &Path, config: &Config, config_sha: &str, plan: &Plan, r
     // misses a shard another just listed.
     let _lock = lock_dataset(out)?;
     let mut known: BTreeMap<String, (u64, String)> = BTreeMap::new();
-    if let Ok(old) = Manifest::load(&out.join("manifest.json"))
+    if let Ok(old) = Manifest::load(&out.join(vt_dataset::MANIFEST_FILE))
         && old.config_sha256 == config_sha
     {
         for s in old.splits.values().flat_map(|s| &s.shards) {
@@ -245,29 +244,27 @@ fn update_manifest(out: &Path, config: &Config, config_sha: &str, plan: &Plan, r
     for e in splits.values().flat_map(|s: &SplitManifest| &s.shards).filter(|e| e.sha256.is_some()) {
         let reader = vt_dataset::ShardReader::open(&out.join(&e.file))?;
         let extra = &reader.meta().extra;
-        if let Some(j) = extra.get("grasp_stats") {
+        if let Some(j) = extra.get(vt_dataset::GRASP_STATS_KEY) {
             let st: GraspStats = serde_json::from_str(j).with_context(|| format!("{}: grasp_stats", e.file))?;
             grasp_total.merge(&st);
         }
-        if let Some(j) = extra.get("occlusion_histogram") {
+        if let Some(j) = extra.get(vt_dataset::OCCLUSION_HISTOGRAM_KEY) {
             let h: [u64; 3] = serde_json::from_str(j).with_context(|| format!("{}: occlusion_histogram", e.file))?;
             (0..3).for_each(|i| histogram[i] += h[i]);
         }
     }
-    let grasp = config.robot.is_some().then(|| serde_json::to_value(grasp_total)).transpose()?;
-    let occlusion = Some(serde_json::json!({"bins": OcclusionBin::ALL.map(OcclusionBin::key), "counts": histogram}));
     let m = Manifest {
-        format: "vtgen-dataset".into(),
+        format: vt_dataset::FORMAT_NAME.into(),
         format_version: vt_dataset::FORMAT_VERSION,
         generator: GENERATOR.into(),
         seed: config.seed,
         config_sha256: config_sha.into(),
         complete,
         splits,
-        grasp,
-        occlusion,
+        grasp: config.robot.is_some().then_some(grasp_total),
+        occlusion: Some(OcclusionHistogram::new(histogram)),
     };
-    m.save(&out.join("manifest.json"))?;
+    m.save(&out.join(vt_dataset::MANIFEST_FILE))?;
     Ok(m)
 }
 
@@ -324,9 +321,9 @@ fn write_shard(
         writer.write_sample(sample)?;
         progress.inc(1);
     }
-    writer.set_metadata("occlusion_histogram", serde_json::to_string(&factory.occlusion_histogram)?)?;
+    writer.set_metadata(vt_dataset::OCCLUSION_HISTOGRAM_KEY, serde_json::to_string(&factory.occlusion_histogram)?)?;
     if factory.has_robot() {
-        writer.set_metadata("grasp_stats", serde_json::to_string(&factory.shard_stats)?)?;
+        writer.set_metadata(vt_dataset::GRASP_STATS_KEY, serde_json::to_string(&factory.shard_stats)?)?;
     }
     Ok(Some(writer.finish()?.0))
 }
@@ -464,18 +461,18 @@ fn episode_metadata(config: &crate::config::Config, shard: &crate::plan::ShardPl
     let first = shard.samples.first()?;
     let rate = |steps: u64| 1.0 / (steps as f64 * timeline.timestep);
     let p = timeline.periods;
-    let record = serde_json::json!({
-        "object_id": config.objects[first.object_index as usize].id(),
-        "trajectory": first.trajectory,
-        "frames": timeline.frames,
-        "duration_s": timeline.steps as f64 * timeline.timestep,
-        "physics_hz": rate(1),
-        "camera_hz": rate(p.camera),
-        "tactile_hz": rate(p.tactile),
-        "state_hz": rate(p.state),
-        "camera_period_steps": p.camera,
-        "tactile_period_steps": p.tactile,
-        "state_period_steps": p.state,
-    });
-    Some((vt_dataset::EPISODE_METADATA_KEY.to_string(), record.to_string()))
+    let record = vt_dataset::EpisodeRecord {
+        object_id: config.objects[first.object_index as usize].id().to_string(),
+        trajectory: first.trajectory,
+        frames: timeline.frames,
+        duration_s: timeline.steps as f64 * timeline.timestep,
+        physics_hz: rate(1),
+        camera_hz: rate(p.camera),
+        tactile_hz: rate(p.tactile),
+        state_hz: rate(p.state),
+        camera_period_steps: p.camera,
+        tactile_period_steps: p.tactile,
+        state_period_steps: p.state,
+    };
+    Some((vt_dataset::EPISODE_METADATA_KEY.to_string(), record.to_json()))
 }

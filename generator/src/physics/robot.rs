@@ -2,11 +2,11 @@
 //! the real meshes), its physics backend and the objects' physics shapes; it simulates whole
 //! trajectories (`grasp.rs`) and counts the grasp loop's figures.
 
-use std::collections::BTreeMap;
 
 use anyhow::{Context, Result};
 use glam::{DAffine3, DQuat, DVec3};
 use vt_objects::TexturedMesh;
+use vt_dataset::GraspStats;
 use vt_robot::Robot;
 
 use crate::assets::robot::{collides_as_real_meshes, load_hand_meshes, robot_assets_dir, with_real_hand};
@@ -16,28 +16,6 @@ use crate::physics::grasp::{
     simulate_trajectory,
 };
 use crate::physics::{HandPhysics, PhysicsObject, PhysicsSettings, RapierHand};
-
-/// Counts for the run's summary.
-#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct GraspStats {
-    pub trajectories: u64,
-    pub attempts: u64,
-    pub failures: BTreeMap<String, u64>,
-    pub max_slip_mm: f64,
-    pub max_penetration_mm: f64,
-}
-
-impl GraspStats {
-    pub fn merge(&mut self, o: &GraspStats) {
-        self.trajectories += o.trajectories;
-        self.attempts += o.attempts;
-        for (k, v) in &o.failures {
-            *self.failures.entry(k.clone()).or_default() += v;
-        }
-        self.max_slip_mm = self.max_slip_mm.max(o.max_slip_mm);
-        self.max_penetration_mm = self.max_penetration_mm.max(o.max_penetration_mm);
-    }
-}
 
 /// A simulated trajectory and the grasp loop's figures for it.
 pub struct Simulated {
