@@ -18,8 +18,8 @@ fn episode_dataset() -> &'static Path {
 }
 
 /// The `episode` entry of a shard's metadata.
-fn episode_of(meta: &vt_dataset::ShardMeta) -> serde_json::Value {
-    serde_json::from_str(&meta.extra[vt_dataset::EPISODE_METADATA_KEY]).expect("episode metadata is JSON")
+fn episode_of(meta: &vt_dataset::ShardMeta) -> vt_dataset::EpisodeRecord {
+    serde_json::from_str(&meta.extra[vt_dataset::EPISODE_METADATA_KEY]).expect("episode metadata is the episode record")
 }
 
 #[test]
@@ -31,16 +31,11 @@ fn every_stream_of_an_episode_is_at_its_rate_and_its_ground_truth_holds_on_every
     for split in ["train", "test"] {
         for shard in ds.shards(split).unwrap() {
             let e = episode_of(shard.meta());
-            let (frames, cam, tac, state) = (
-                e["frames"].as_u64().unwrap(),
-                e["camera_period_steps"].as_u64().unwrap(),
-                e["tactile_period_steps"].as_u64().unwrap(),
-                e["state_period_steps"].as_u64().unwrap(),
-            );
+            let (frames, cam, tac, state) = (e.frames, e.camera_period_steps, e.tactile_period_steps, e.state_period_steps);
             // 30 Hz camera, 60 Hz touch, every physics step of 0.0041667 s.
-            assert_eq!((cam, tac, state), (8, 4, 1), "{e}");
-            assert!((e["camera_hz"].as_f64().unwrap() - 30.0).abs() < 0.01 && (e["tactile_hz"].as_f64().unwrap() - 60.0).abs() < 0.01);
-            let steps = (e["duration_s"].as_f64().unwrap() / 0.0041667).round() as u64;
+            assert_eq!((cam, tac, state), (8, 4, 1), "{e:?}");
+            assert!((e.camera_hz - 30.0).abs() < 0.01 && (e.tactile_hz - 60.0).abs() < 0.01);
+            let steps = (e.duration_s / 0.0041667).round() as u64;
             assert_eq!(frames, steps / cam + 1);
             assert_eq!(shard.len() as u64, frames);
             let time = |step: u64| (step as f64 * 0.0041667 * 1e9).round() as u64;
@@ -136,7 +131,7 @@ fn a_finger_motion_moves_the_fingers_and_keeps_the_ground_truth() {
     let shard = &ds.shards("train").unwrap()[0];
     let e = episode_of(shard.meta());
     // Two moves of the plain episode's 1.90 s, each 0.5 s longer.
-    assert!((e["duration_s"].as_f64().unwrap() - 2.90).abs() < 0.01, "{e}");
+    assert!((e.duration_s - 2.90).abs() < 0.01, "{e:?}");
     let mut ff = Vec::new();
     for index in shard.indices() {
         let s = shard.read(index).unwrap();

@@ -76,8 +76,8 @@ fn every_recorded_instance_is_a_plausible_grasp() {
     assert!(robot_pixels > 40 * 2000, "the robot is in the pictures");
     let m = vt_dataset::Manifest::load(&dir.join("manifest.json")).unwrap();
     let g = m.grasp.expect("grasp figures in the manifest");
-    assert_eq!(g["trajectories"], 10);
-    assert!(g["attempts"].as_u64().unwrap() >= 10);
+    assert_eq!(g.trajectories, 10);
+    assert!(g.attempts >= 10);
 }
 
 #[test]
@@ -234,7 +234,7 @@ fn the_grasp_check_reports_the_same_trajectories_as_generation() {
         attempts += ob["attempts"].as_u64().unwrap();
     }
     let m = vt_dataset::Manifest::load(&hand_dataset().join("manifest.json")).unwrap();
-    assert_eq!(m.grasp.unwrap()["attempts"].as_u64().unwrap(), attempts);
+    assert_eq!(m.grasp.unwrap().attempts, attempts);
     // A config without a robot has nothing to check.
     let o = run(&["grasps", tiny_config().to_str().unwrap(), "--quiet"]);
     assert!(!o.status.success());

@@ -32,6 +32,29 @@ pub fn process_cpu_time() -> Option<Duration> {
     None
 }
 
+/// One stage's clock: the wall time and the calling thread's CPU time since it was started.
+#[derive(Debug, Clone, Copy)]
+pub struct StageClock {
+    wall: std::time::Instant,
+    cpu: Option<Duration>,
+}
+
+impl StageClock {
+    pub fn start() -> Self {
+        StageClock { wall: std::time::Instant::now(), cpu: thread_cpu_time() }
+    }
+
+    /// Wall time since the start.
+    pub fn wall(&self) -> Duration {
+        self.wall.elapsed()
+    }
+
+    /// The thread's CPU time since the start (zero without a per-thread clock).
+    pub fn cpu(&self) -> Duration {
+        cpu_since(self.cpu)
+    }
+}
+
 /// CPU time of the calling thread between `start` and now (zero without a per-thread clock).
 pub fn cpu_since(start: Option<Duration>) -> Duration {
     match (start, thread_cpu_time()) {

@@ -1,7 +1,7 @@
 //! One sample: scene sampling, the robot's recorded grasp state, rendering, and the ground truth
 //! and metadata that go with it. A factory lives in one worker thread with its own renderer.
 
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use anyhow::{Context, Result};
 use glam::{DAffine3, DMat4};
@@ -16,6 +16,7 @@ use crate::annotate::occlusion::{model_points, occlusion_level};
 use crate::assets::LoadedObject;
 use crate::assets::robot::{load_drawn_meshes, robot_assets_dir};
 use crate::config::{Config, LoadedConfig};
+use crate::cpu_clock::StageClock;
 use crate::config::{OpticalSensor, SensorModel};
 use crate::physics::grasp::Trajectory;
 use crate::physics::robot::RobotScene;
@@ -112,41 +113,65 @@ pub struct SampleFactory<'a> {
     pub config: &'a Config,
     pub objects: &'a [LoadedObject],
     renderer: Box<dyn Renderer + 'a>,
+    uploaded: Uploaded,
+    held: HeldLooks,
+    /// The robot and the trajectory it is recording (with a robot).
+    trajectories: Option<TrajectoryCache>,
+    /// Time spent per stage, for `vtgen bench`.
+    pub times: StageTimes,
+}
+
+/// What a worker uploads and derives once, at its start, and only reads afterwards.
+struct Uploaded {
     object_meshes: Vec<MeshHandle>,
     floor: MeshHandle,
     backdrop: MeshHandle,
-    floor_texture: TextureSlot,
-    backdrop_texture: TextureSlot,
     /// Images for the `image` texture kind of the randomizer.
     images: ImageLibrary,
-    robot: Option<RobotScene>,
     /// (link, mesh, mask id) of every drawn robot link.
     robot_meshes: Vec<(usize, MeshHandle, u8)>,
     /// Every drawn robot link's own texture and material, for `randomization.robot_materials`
     /// (the randomized look is set per sample, the canonical samples get these back).
     robot_materials: Vec<(MeshHandle, vt_objects::Texture, Material)>,
-    /// The robot look the renderer holds now (None: not set yet), so an unchanged one (a run of
-    /// canonical samples) is not uploaded again.
-    robot_look: Option<Option<vt_randomizers::RobotLook>>,
     /// The meshes shards carry for Foxglove's 3D view: per object, and the drawn robot links.
     object_glbs: Vec<std::sync::Arc<Vec<u8>>>,
     robot_glbs: Vec<SceneModel>,
-    /// Grasp statistics of the trajectories that start in the shard being written.
-    pub shard_stats: GraspStats,
-    /// The trajectory being recorded (with a robot).
-    recording: Option<Recording>,
     /// Sensing area of the robot's pads.
     pad_sizes: Vec<(f64, f64)>,
     /// The real fingers' surface under the pads (with robot meshes).
     finger_surface: Option<FingerSurface>,
-    /// Per pad: the last optical sensor's reference image, reused while the sensor stays the same.
-    optical_references: Vec<Option<(OpticalSensor, Vec<u8>)>>,
     /// Per object: the model points the occlusion level is measured with.
     model_points: Vec<Vec<glam::DVec3>>,
-    /// Occlusion-level histogram (`OcclusionBin` order) of the shard being written.
-    pub occlusion_histogram: [u64; 3],
-    /// Time spent per stage, for `vtgen bench`.
-    pub times: StageTimes,
+}
+
+/// What the renderer holds now, so that what a sample leaves unchanged is not made or uploaded
+/// again.
+#[derive(Default)]
+struct HeldLooks {
+    floor_texture: TextureSlot,
+    backdrop_texture: TextureSlot,
+    /// The robot look the renderer holds now (None: not set yet), so an unchanged one (a run of
+    /// canonical samples) is not uploaded again.
+    robot_look: Option<Option<vt_randomizers::RobotLook>>,
+    /// Per pad: the last optical sensor's reference image, reused while the sensor stays the same.
+    optical_references: Vec<Option<(OpticalSensor, Vec<u8>)>>,
+}
+
+/// The robot and its last simulated trajectory: simulated when its first sample is made, then
+/// read by the samples that follow.
+struct TrajectoryCache {
+    robot: RobotScene,
+    recording: Option<Recording>,
+}
+
+/// What a shard's samples add up to: the figures its `vtgen.shard` record carries. The shard's
+/// writer owns it; [`SampleFactory::make`] adds each sample.
+#[derive(Debug, Clone, Default)]
+pub struct ShardTally {
+    /// Samples per occlusion bin ([`OcclusionBin::ALL`] order).
+    pub occlusion: [u64; 3],
+    /// The grasp loop's figures of the trajectories that start in the shard.
+    pub grasp: GraspStats,
 }
 
 /// Accumulated time of each stage of making samples.
@@ -178,8 +203,39 @@ pub struct StageTimes {
     pub other_cpu: Duration,
 }
 
-/// The trajectory a worker is recording: simulated when its first sample is made, then read by
-/// the samples that follow.
+impl std::ops::AddAssign<&StageTimes> for StageTimes {
+    fn add_assign(&mut self, o: &StageTimes) {
+        // Destructured, so that a new field is a compile error here until it is added up.
+        let StageTimes {
+            physics,
+            main_render,
+            tactile_render,
+            tactile_extract,
+            tactile_optical,
+            tactile_optical_cpu,
+            optical_images,
+            occlusion,
+            physics_steps,
+            physics_cpu,
+            render_call_cpu,
+            other_cpu,
+        } = o;
+        self.physics += *physics;
+        self.main_render += *main_render;
+        self.tactile_render += *tactile_render;
+        self.tactile_extract += *tactile_extract;
+        self.tactile_optical += *tactile_optical;
+        self.tactile_optical_cpu += *tactile_optical_cpu;
+        self.optical_images += *optical_images;
+        self.occlusion += *occlusion;
+        self.physics_steps += *physics_steps;
+        self.physics_cpu += *physics_cpu;
+        self.render_call_cpu += *render_call_cpu;
+        self.other_cpu += *other_cpu;
+    }
+}
+
+/// A simulated trajectory and its grasp-loop figures.
 struct Recording {
     /// (object index, trajectory)
     key: (u32, u32),
@@ -191,6 +247,8 @@ struct Recording {
 /// the frames `/tf` carries.
 struct PosedRobot {
     info: RobotInfo,
+    /// The links touching the object (the robot's touch links in contact).
+    links_in_contact: Vec<usize>,
     pads: Vec<DAffine3>,
     transforms: Vec<(String, String, Pose)>,
     t_world_object: DAffine3,
@@ -279,25 +337,21 @@ impl<'a> SampleFactory<'a> {
             config,
             objects,
             renderer,
-            object_meshes,
-            floor,
-            backdrop,
-            floor_texture: TextureSlot::default(),
-            backdrop_texture: TextureSlot::default(),
-            images,
-            robot,
-            robot_meshes,
-            robot_materials,
-            robot_look: None,
-            object_glbs,
-            robot_glbs,
-            shard_stats: GraspStats::default(),
-            recording: None,
-            pad_sizes,
-            finger_surface,
-            optical_references: Vec::new(),
-            model_points,
-            occlusion_histogram: [0; 3],
+            uploaded: Uploaded {
+                object_meshes,
+                floor,
+                backdrop,
+                images,
+                robot_meshes,
+                robot_materials,
+                object_glbs,
+                robot_glbs,
+                pad_sizes,
+                finger_surface,
+                model_points,
+            },
+            held: HeldLooks::default(),
+            trajectories: robot.map(|robot| TrajectoryCache { robot, recording: None }),
             times: StageTimes::default(),
         })
     }
@@ -312,7 +366,7 @@ impl<'a> SampleFactory<'a> {
     }
 
     pub fn has_robot(&self) -> bool {
-        self.robot.is_some()
+        self.trajectories.is_some()
     }
 
     /// What `/scene/models` shows while `object_index` is the target: its mesh in the `object`
@@ -322,9 +376,9 @@ impl<'a> SampleFactory<'a> {
         let mut models = vec![SceneModel {
             id: format!("object/{}", obj.id),
             frame_id: frames::OBJECT.into(),
-            glb: self.object_glbs[object_index as usize].clone(),
+            glb: self.uploaded.object_glbs[object_index as usize].clone(),
         }];
-        models.extend(self.robot_glbs.iter().cloned());
+        models.extend(self.uploaded.robot_glbs.iter().cloned());
         models
     }
 
@@ -332,13 +386,23 @@ impl<'a> SampleFactory<'a> {
     /// poses the object and the robot) -> draw list -> main render (+ RGB-D noise) -> touch ->
     /// occlusion -> the assembled sample and its `/sample/info`. Counts the worker thread's CPU
     /// time per part (`StageTimes`).
-    pub fn make(&mut self, split: Split, index: u64, r: &SampleRef) -> Result<Sample> {
-        let cpu0 = crate::cpu_clock::thread_cpu_time();
+    pub fn make(&mut self, split: Split, index: u64, r: &SampleRef, tally: &mut ShardTally) -> Result<Sample> {
+        let clock = StageClock::start();
         let (physics0, render0) = (self.times.physics_cpu, self.times.render_call_cpu);
         let sample = self.make_sample(split, index, r);
         let inside = (self.times.physics_cpu - physics0) + (self.times.render_call_cpu - render0);
-        self.times.other_cpu += crate::cpu_clock::cpu_since(cpu0).saturating_sub(inside);
-        sample
+        self.times.other_cpu += clock.cpu().saturating_sub(inside);
+        let sample = sample?;
+        if let Some(bin) = sample.info.occlusion.and_then(|o| OcclusionBin::of(o.level)) {
+            tally.occlusion[bin.index()] += 1;
+        }
+        // A trajectory's figures count in the shard where it starts, whichever worker made it.
+        if let Some(TrajectoryCache { recording: Some(rec), .. }) = &self.trajectories
+            && r.instance == 0
+        {
+            tally.grasp.merge(&rec.stats);
+        }
+        Ok(sample)
     }
 
     /// The stages of `make`.
@@ -353,29 +417,24 @@ impl<'a> SampleFactory<'a> {
         let at = timeline.map_or(StateAt::Instance(r.instance), |t| StateAt::Step(r.instance as u64 * t.periods.camera));
         let mut scene = self.sample_scene(&scene_key)?;
         let mut draws = vec![
-            Draw { mesh: self.floor, t_world_model: DMat4::IDENTITY, mask_id: mask_ids::BACKGROUND, role: DrawRole::Environment },
-            Draw { mesh: self.backdrop, t_world_model: DMat4::IDENTITY, mask_id: mask_ids::BACKGROUND, role: DrawRole::Environment },
+            Draw { mesh: self.uploaded.floor, t_world_model: DMat4::IDENTITY, mask_id: mask_ids::BACKGROUND, role: DrawRole::Environment },
+            Draw { mesh: self.uploaded.backdrop, t_world_model: DMat4::IDENTITY, mask_id: mask_ids::BACKGROUND, role: DrawRole::Environment },
         ];
-        let mut posed = if self.robot.is_some() { Some(self.pose_robot(r, &obj.id, at, &mut draws)?) } else { None };
+        let mut posed = if self.has_robot() { Some(self.pose_robot(r, &obj.id, at, &mut draws)?) } else { None };
         if let Some(p) = &posed {
             scene.t_world_object = pose_of(&p.t_world_object);
-            // A trajectory's figures count in the shard where it starts, whichever worker made it.
-            if r.instance == 0 {
-                let stats = &self.recording.as_ref().expect("simulated by pose_robot").stats;
-                self.shard_stats.merge(stats);
-            }
         }
         let distractors = place_distractors(self.objects, &scene, r.object_index as usize);
         for d in &distractors {
             draws.push(Draw {
-                mesh: self.object_meshes[d.object],
+                mesh: self.uploaded.object_meshes[d.object],
                 t_world_model: d.pose.matrix(),
                 mask_id: d.mask_id,
                 role: DrawRole::Occluder,
             });
         }
         let object_draw = Draw {
-            mesh: self.object_meshes[r.object_index as usize],
+            mesh: self.uploaded.object_meshes[r.object_index as usize],
             t_world_model: scene.t_world_object.matrix(),
             mask_id: mask_ids::TARGET_OBJECT,
             role: DrawRole::Target,
@@ -452,15 +511,15 @@ impl<'a> SampleFactory<'a> {
             workspace_center,
             workspace_half_extent: [0.3, 0.2],
             distractor_candidates: self.objects.len() - 1,
-            images: &self.images,
+            images: &self.uploaded.images,
         };
         let scene = sample_scene(self.config, key, &ctx);
         let a = &scene.appearance;
-        self.floor_texture.set(self.renderer.as_mut(), self.floor, &a.floor, a.floor_tile)?;
-        self.backdrop_texture.set(self.renderer.as_mut(), self.backdrop, &a.backdrop, a.backdrop_tile)?;
+        self.held.floor_texture.set(self.renderer.as_mut(), self.uploaded.floor, &a.floor, a.floor_tile)?;
+        self.held.backdrop_texture.set(self.renderer.as_mut(), self.uploaded.backdrop, &a.backdrop, a.backdrop_tile)?;
         // The robot's look: randomized, or its own (empty unless `robot_materials` is configured).
-        if self.robot_look != Some(a.robot) {
-            for (mesh, texture, material) in &self.robot_materials {
+        if self.held.robot_look != Some(a.robot) {
+            for (mesh, texture, material) in &self.uploaded.robot_materials {
                 match a.robot {
                     Some(look) => {
                         self.renderer.set_texture(*mesh, &tinted(texture, look.tint), 1.0)?;
@@ -472,7 +531,7 @@ impl<'a> SampleFactory<'a> {
                     }
                 }
             }
-            self.robot_look = Some(a.robot);
+            self.held.robot_look = Some(a.robot);
         }
         Ok(scene)
     }
@@ -480,32 +539,34 @@ impl<'a> SampleFactory<'a> {
     /// The physics stage: the grasp loop's recorded instance (the trajectory is simulated when its
     /// first sample is made) poses the object and the robot; the robot's links join the draw list.
     fn pose_robot(&mut self, r: &SampleRef, object_id: &str, at: StateAt, draws: &mut Vec<Draw>) -> Result<PosedRobot> {
-        let robot = self.robot.as_mut().expect("called with a robot");
+        let TrajectoryCache { robot, recording } = self.trajectories.as_mut().expect("called with a robot");
         let instances = self.config.sampling.instances_per_trajectory;
         let key = (r.object_index, r.trajectory);
-        if self.recording.as_ref().map(|rec| rec.key) != Some(key) {
-            let (t0, cpu0, steps0) = (Instant::now(), crate::cpu_clock::thread_cpu_time(), robot.physics_steps());
+        if recording.as_ref().map(|rec| rec.key) != Some(key) {
+            let (clock, steps0) = (StageClock::start(), robot.physics_steps());
             let sim = robot.simulate(self.config.seed, r.object_index, object_id, r.trajectory, instances);
-            self.times.physics += t0.elapsed();
-            self.times.physics_cpu += crate::cpu_clock::cpu_since(cpu0);
+            self.times.physics += clock.wall();
+            self.times.physics_cpu += clock.cpu();
             self.times.physics_steps += robot.physics_steps() - steps0;
-            self.recording = Some(Recording { key, trajectory: sim.trajectory?, stats: sim.stats });
+            *recording = Some(Recording { key, trajectory: sim.trajectory?, stats: sim.stats });
         }
-        let rec = self.recording.as_ref().expect("set above");
+        let rec = recording.as_ref().expect("set above");
         let attempts = rec.trajectory.attempts;
         let st = match at {
             StateAt::Instance(i) => &rec.trajectory.instances[i as usize],
             StateAt::Step(k) => &rec.trajectory.steps[k as usize],
         };
         let t_world_palm = robot.t_world_base * st.t_base_palm;
-        let posed = pose_links(&robot.robot, robot.t_world_base, t_world_palm, &st.q, self.robot_meshes.iter().map(|m| m.0));
-        for (&(_, mesh, id), (_, t_world_link)) in self.robot_meshes.iter().zip(&posed.links) {
+        let posed = pose_links(&robot.robot, robot.t_world_base, t_world_palm, &st.q, self.uploaded.robot_meshes.iter().map(|m| m.0));
+        for (&(_, mesh, id), (_, t_world_link)) in self.uploaded.robot_meshes.iter().zip(&posed.links) {
             draws.push(Draw { mesh, t_world_model: DMat4::from(*t_world_link), mask_id: id, role: DrawRole::Occluder });
         }
-        let touch_names = robot.robot.touch_link_names();
+        let model = &robot.robot.model;
+        let links_in_contact: Vec<usize> =
+            robot.robot.touch_links.iter().zip(&st.contacts).filter(|(_, c)| c.is_some()).map(|(&link, _)| link).collect();
         let info = RobotInfo {
             physics_backend: robot.backend_name().into(),
-            phalanges_in_contact: touch_names.iter().zip(&st.contacts).filter(|(_, c)| c.is_some()).map(|(n, _)| n.clone()).collect(),
+            phalanges_in_contact: links_in_contact.iter().map(|&l| model.links[l].name.clone()).collect(),
             slip_mm: st.slip_translation * 1e3,
             slip_deg: st.slip_rotation.to_degrees(),
             penetration_mm: st.penetration * 1e3,
@@ -514,7 +575,7 @@ impl<'a> SampleFactory<'a> {
             t_world_palm: pose_of(&t_world_palm),
             tactile: None,
         };
-        Ok(PosedRobot { info, pads: posed.pads, transforms: posed.transforms, t_world_object: t_world_palm * st.t_palm_object })
+        Ok(PosedRobot { info, links_in_contact, pads: posed.pads, transforms: posed.transforms, t_world_object: t_world_palm * st.t_palm_object })
     }
 
     /// An episode frame's faster streams: the touch at the tactile rate after the frame and the
@@ -534,7 +595,7 @@ impl<'a> SampleFactory<'a> {
         for step in (step0 + p.tactile..end).step_by(p.tactile as usize) {
             let mut posed = self.pose_robot(r, object_id, StateAt::Step(step), &mut Vec::new())?;
             let object = Draw {
-                mesh: self.object_meshes[r.object_index as usize],
+                mesh: self.uploaded.object_meshes[r.object_index as usize],
                 t_world_model: DMat4::from(posed.t_world_object),
                 mask_id: mask_ids::TARGET_OBJECT,
                 role: DrawRole::Target,
@@ -550,8 +611,8 @@ impl<'a> SampleFactory<'a> {
     /// The episode's state at physics step `step`: joints, the object's pose and its twist since
     /// the step before.
     fn state_record(&self, step: u64, scene: &crate::scene::SampledScene, timeline: &EpisodeTimeline) -> StateRecord {
-        let robot = self.robot.as_ref().expect("episodes have a robot");
-        let steps = &self.recording.as_ref().expect("simulated by the frame").trajectory.steps;
+        let TrajectoryCache { robot, recording } = self.trajectories.as_ref().expect("episodes have a robot");
+        let steps = &recording.as_ref().expect("simulated by the frame").trajectory.steps;
         let st = &steps[step as usize];
         let world = |s: &crate::physics::grasp::InstanceState| robot.t_world_base * s.t_base_palm * s.t_palm_object;
         let now = world(st);
@@ -598,10 +659,10 @@ impl<'a> SampleFactory<'a> {
             background: self.config.scene.background,
             shadows: true,
         };
-        let (t0, cpu0) = (Instant::now(), crate::cpu_clock::thread_cpu_time());
+        let clock = StageClock::start();
         let mut img = self.renderer.render(&view, &lighting, draws)?;
-        self.times.main_render += t0.elapsed();
-        self.times.render_call_cpu += crate::cpu_clock::cpu_since(cpu0);
+        self.times.main_render += clock.wall();
+        self.times.render_call_cpu += clock.cpu();
         let noise = &self.config.camera.noise;
         let mut noise_rng = SampleStream::sample(key, "sensor_noise");
         let k = view.k;
@@ -625,28 +686,27 @@ impl<'a> SampleFactory<'a> {
         object: Draw,
         posed: &mut PosedRobot,
     ) -> Result<TactileData> {
-        let robot = self.robot.as_ref().expect("called with a robot");
+        let robot = &self.trajectories.as_ref().expect("called with a robot").robot;
         let cfg = &robot.config.tactile;
         let optical_sensor = cfg.has_optical().then(|| cfg.optical_sensor());
         // Sensor-to-sensor variation: per pad, in the randomized samples only.
         let variation = self.config.randomization.tactile_sensors.filter(|_| scene.appearance.randomized);
         let t_camera_world = scene.t_world_camera.inverse().matrix();
-        let (t0, cpu0) = (Instant::now(), crate::cpu_clock::thread_cpu_time());
-        let surface = self.finger_surface.as_ref();
+        let clock = StageClock::start();
+        let surface = self.uploaded.finger_surface.as_ref();
         let names = robot.robot.pad_names();
-        let model = &robot.robot.model;
         // A pad feels the object when its link touches it (FORMAT.md, "Touch and contact").
         let pads: Vec<PadView> = robot
             .robot
             .pads
             .iter()
-            .zip(&self.pad_sizes)
+            .zip(&self.uploaded.pad_sizes)
             .zip(&posed.pads)
             .map(|((pad, &size), &t_world_pad)| PadView {
                 size,
                 model: cfg.sensors.of(pad.group),
                 t_world_pad,
-                touching: posed.info.phalanges_in_contact.contains(&model.links[pad.link].name),
+                touching: posed.links_in_contact.contains(&pad.link),
                 optical: optical_sensor.as_ref().filter(|_| cfg.sensors.of(pad.group) == SensorModel::Optical).map(|s| match &variation {
                     Some(v) => varied(s, &sample_sensor_variation(v, unit_key, &pad.name, s.lights.len())),
                     None => s.clone(),
@@ -656,15 +716,15 @@ impl<'a> SampleFactory<'a> {
         let t_camera_world = DAffine3::from_mat4(t_camera_world);
         let reading = sense(self.renderer.as_mut(), cfg, &pads, surface, object, &t_camera_world)?;
         // The extraction (hundredths of a millisecond) is counted with the renderer's call.
-        self.times.render_call_cpu += crate::cpu_clock::cpu_since(cpu0);
+        self.times.render_call_cpu += clock.cpu();
         self.times.tactile_render += reading.render_time;
-        self.times.tactile_extract += t0.elapsed() - reading.render_time;
-        let (t1, cpu1) = (Instant::now(), crate::cpu_clock::thread_cpu_time());
+        self.times.tactile_extract += clock.wall() - reading.render_time;
+        let clock = StageClock::start();
         // Episodes write the reference images once, with their first frame.
         let write_reference = self.config.sampling.record.is_none() || (key.instance == 0 && noise_tag.is_empty());
-        let optical = optical_images(&mut self.optical_references, key, noise_tag, write_reference, &names, &pads, &reading.optical_depth);
-        self.times.tactile_optical += t1.elapsed();
-        self.times.tactile_optical_cpu += crate::cpu_clock::cpu_since(cpu1);
+        let optical = optical_images(&mut self.held.optical_references, key, noise_tag, write_reference, &names, &pads, &reading.optical_depth);
+        self.times.tactile_optical += clock.wall();
+        self.times.tactile_optical_cpu += clock.cpu();
         self.times.optical_images += optical.len() as u64;
         let optical_info = pads
             .iter()
@@ -676,7 +736,7 @@ impl<'a> SampleFactory<'a> {
             sensors: serde_json::to_value(cfg.sensors)?,
             near_mm: cfg.near_mm,
             far_mm: cfg.far_mm,
-            pads: names.iter().zip(&self.pad_sizes).map(|(n, (l, w))| (n.clone(), [*l, *w])).collect(),
+            pads: names.iter().zip(&self.uploaded.pad_sizes).map(|(n, (l, w))| (n.clone(), [*l, *w])).collect(),
             points: names.iter().zip(reading.counts).map(|(n, c)| (n.clone(), c as u64)).collect(),
             optical: (!optical_info.is_empty()).then_some(optical_info),
         });
@@ -703,14 +763,11 @@ impl<'a> SampleFactory<'a> {
         visible_pixels: usize,
     ) -> OcclusionInfo {
         let k = self.config.camera.k();
-        let pts: Vec<glam::DVec3> = self.model_points[object_index].iter().map(|p| t_camera_object.transform_point(*p)).collect();
+        let pts: Vec<glam::DVec3> = self.uploaded.model_points[object_index].iter().map(|p| t_camera_object.transform_point(*p)).collect();
         let eps = self.config.scene.occlusion_epsilon_mm * 1e-3;
-        let t0 = Instant::now();
+        let clock = StageClock::start();
         let (level, visible_points) = occlusion_level(&pts, &img.depth, img.width, img.height, &k, eps);
-        self.times.occlusion += t0.elapsed();
-        if let Some(bin) = OcclusionBin::of(level) {
-            self.occlusion_histogram[bin.index()] += 1;
-        }
+        self.times.occlusion += clock.wall();
         let alone = img.silhouette_pixels;
         OcclusionInfo {
             level,

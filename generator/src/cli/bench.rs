@@ -20,7 +20,7 @@ use crate::output::workers::run_pool;
 use crate::output::writer_thread::{WriterThread, WriterTimes};
 use crate::plan::{Plan, SampleRef, Split};
 use crate::render::WgpuRenderer;
-use crate::sample::{SampleFactory, StageTimes};
+use crate::sample::{SampleFactory, ShardTally, StageTimes};
 
 #[derive(Debug, Clone, Serialize)]
 pub struct BenchReport {
@@ -214,21 +214,6 @@ fn select(plan: &Plan, samples: u64) -> Vec<Work> {
     out
 }
 
-fn add(a: &mut StageTimes, b: &StageTimes) {
-    a.physics_steps += b.physics_steps;
-    a.physics_cpu += b.physics_cpu;
-    a.render_call_cpu += b.render_call_cpu;
-    a.other_cpu += b.other_cpu;
-    a.physics += b.physics;
-    a.main_render += b.main_render;
-    a.tactile_render += b.tactile_render;
-    a.tactile_extract += b.tactile_extract;
-    a.tactile_optical += b.tactile_optical;
-    a.tactile_optical_cpu += b.tactile_optical_cpu;
-    a.optical_images += b.optical_images;
-    a.occlusion += b.occlusion;
-}
-
 /// What one benchmarked trajectory gave.
 struct TrajectoryRun {
     object_id: String,
@@ -270,9 +255,9 @@ fn bench_trajectory(
     };
     let mut writer = WriterThread::create(&dir.join(format!("bench-{i}.mcap")), &meta, cfg.config.output.shard_compression())?;
     writer.set_scene(factory.scene_models(object_index))?;
-    let before = factory.occlusion_histogram;
+    let mut tally = ShardTally::default();
     for (k, (split, index, r)) in traj.iter().enumerate() {
-        match factory.make(*split, *index, r) {
+        match factory.make(*split, *index, r, &mut tally) {
             Ok(s) => writer.write_sample(s)?,
             // The grasp loop gave up on this trajectory (its first sample simulates it): measure
             // the others.
@@ -288,7 +273,7 @@ fn bench_trajectory(
     run.bytes = receipt.bytes;
     write.busy += times.busy;
     write.cpu += times.cpu;
-    (0..3).for_each(|k| run.occlusion[k] = factory.occlusion_histogram[k] - before[k]);
+    run.occlusion = tally.occlusion;
     Ok(run)
 }
 
@@ -364,7 +349,7 @@ fn report(runs: Vec<TrajectoryRun>, workers: Vec<(StageTimes, WriterTimes, Durat
     }
     let (mut t, mut write, mut readback, mut adapter) = (StageTimes::default(), WriterTimes::default(), Duration::ZERO, String::new());
     for (times, w, r, a) in workers {
-        add(&mut t, &times);
+        t += &times;
         write.busy += w.busy;
         write.cpu += w.cpu;
         readback += r;

@@ -15,7 +15,7 @@ use crate::assets::load_objects;
 use crate::config::{LoadedConfig, Override};
 use crate::plan::Plan;
 use crate::render::WgpuRenderer;
-use crate::sample::SampleFactory;
+use crate::sample::{SampleFactory, ShardTally};
 
 /// `n` samples spread over a config's plan (generated in memory, with `overrides` applied and the
 /// robot drawn from `robot_assets` when given) or over a dataset directory's train split.
@@ -42,7 +42,7 @@ pub fn samples(
     let all: Vec<_> =
         plan.shards.iter().flat_map(|s| s.samples.iter().enumerate().map(move |(k, r)| (s.split, s.first_sample + k as u64, *r))).collect();
     let step = (all.len() / n.max(1)).max(1);
-    all.iter().step_by(step).take(n).map(|(split, i, r)| factory.make(*split, *i, r)).collect()
+    all.iter().step_by(step).take(n).map(|(split, i, r)| factory.make(*split, *i, r, &mut ShardTally::default())).collect()
 }
 
 fn project(s: &Sample, p: DVec3) -> Option<(f64, f64)> {

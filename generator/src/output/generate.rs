@@ -21,7 +21,7 @@ use crate::output::workers::run_pool;
 use crate::output::writer_thread::WriterThread;
 use crate::plan::{Plan, SPLITS, ShardPlan, ShardSelector};
 use crate::render::WgpuRenderer;
-use crate::sample::SampleFactory;
+use crate::sample::{SampleFactory, ShardTally};
 
 pub const GENERATOR: &str = concat!("vtgen ", env!("CARGO_PKG_VERSION"));
 
@@ -307,8 +307,7 @@ fn write_shard(
 ) -> Result<Option<ShardReceipt>> {
     let path = out.join(shard.file());
     let mut writer = WriterThread::create(&path, meta, compression)?;
-    factory.shard_stats = GraspStats::default();
-    factory.occlusion_histogram = [0; 3];
+    let mut tally = ShardTally::default();
     for (k, r) in shard.samples.iter().enumerate() {
         if abort.load(Ordering::Relaxed) {
             return Ok(None);
@@ -317,13 +316,13 @@ fn write_shard(
         if k == 0 || shard.samples[k - 1].object_index != r.object_index {
             writer.set_scene(factory.scene_models(r.object_index))?;
         }
-        let sample = factory.make(shard.split, index, r).with_context(|| format!("{} sample {index}", shard.split))?;
+        let sample = factory.make(shard.split, index, r, &mut tally).with_context(|| format!("{} sample {index}", shard.split))?;
         writer.write_sample(sample)?;
         progress.inc(1);
     }
-    writer.set_metadata(vt_dataset::OCCLUSION_HISTOGRAM_KEY, serde_json::to_string(&factory.occlusion_histogram)?)?;
+    writer.set_metadata(vt_dataset::OCCLUSION_HISTOGRAM_KEY, serde_json::to_string(&tally.occlusion)?)?;
     if factory.has_robot() {
-        writer.set_metadata(vt_dataset::GRASP_STATS_KEY, serde_json::to_string(&factory.shard_stats)?)?;
+        writer.set_metadata(vt_dataset::GRASP_STATS_KEY, serde_json::to_string(&tally.grasp)?)?;
     }
     Ok(Some(writer.finish()?.0))
 }
