@@ -282,3 +282,6 @@ def test_reader_re_exports_the_format_constants() -> None:
     assert vtdata.reader._IMAGE_ENCODINGS is fmt.IMAGE_ENCODINGS
     assert vtdata.reader._TACTILE_DTYPE is fmt.TACTILE_POINT_DTYPE
     assert vtdata.reader._pad_of is fmt.pad_of
+    # vtdata.reader's TOPIC_* names are topics only (callers list them with vars()).
+    topics = {k: v for k, v in vars(vtdata.reader).items() if k.startswith("TOPIC_")}
+    assert topics == {name: getattr(fmt, name) for name in TOPIC_CONSTANTS}

@@ -70,7 +70,6 @@ from .format import (  # noqa: F401
     TOPIC_DEPTH,
     TOPIC_DEPTH_NOISY,
     TOPIC_EPISODE_STATE,
-    TOPIC_IMAGE_ENCODINGS,
     TOPIC_INFO,
     TOPIC_MASK,
     TOPIC_POSE,
@@ -84,6 +83,8 @@ from .format import (  # noqa: F401
 )
 from .format import IMAGE_ENCODINGS as _IMAGE_ENCODINGS  # noqa: F401
 from .format import TACTILE_POINT_DTYPE as _TACTILE_DTYPE  # noqa: F401
+# Private: this module's TOPIC_* names are the topics (callers list them with vars()).
+from .format import TOPIC_IMAGE_ENCODINGS as _TOPIC_IMAGE_ENCODINGS
 from .format import pad_of as _pad_of
 from .index import (  # noqa: F401
     _build_index,
@@ -470,7 +471,7 @@ class Dataset(Sequence[Sample]):
         if TOPIC_DEPTH_NOISY in decoded:
             sample["depth_noisy"] = decode_raw_image(
                 decoded[TOPIC_DEPTH_NOISY],
-                expect=TOPIC_IMAGE_ENCODINGS[TOPIC_DEPTH_NOISY],
+                expect=_TOPIC_IMAGE_ENCODINGS[TOPIC_DEPTH_NOISY],
                 where=where + f" {TOPIC_DEPTH_NOISY}",
             )
         if TOPIC_TACTILE_POINTS in decoded:
