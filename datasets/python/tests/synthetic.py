@@ -1,6 +1,8 @@
 """Write small vtgen-format datasets in pure Python, following ``datasets/FORMAT.md``.
 
-Used by ``test_synthetic.py`` so the reader is tested without the Rust generator. The writer uses
+Used by ``test_synthetic.py`` so the reader is tested without the Rust generator. Its topics,
+schemas, encodings, file names, metadata and record keys are :mod:`vtdata.format`'s (which
+``test_format.py`` checks against ``datasets/format.json``, the Rust crate's). The writer uses
 ``mcap.writer.Writer`` (zstd, one chunk per sample via ``Writer.flush``, mcap >= 1.5) and the
 Foxglove protobuf classes of the ``foxglove-schemas-protobuf`` package. ``write_episode_dataset``
 writes episode datasets (FORMAT.md, "Episodes": one shard per episode, one chunk per camera frame
@@ -27,10 +29,59 @@ from mcap.writer import CompressionType
 from mcap.writer import Writer as McapWriter
 from mcap_protobuf.schema import build_file_descriptor_set
 
-SAMPLE_PERIOD_NS = 100_000_000
+from vtdata.format import (
+    ALLEGRO_PHALANGES,
+    EPISODE_FRAME_KEYS,
+    EPISODE_METADATA_KEY,
+    EPISODE_RECORD_KEYS,
+    FORMAT_VERSION,
+    FRAME_CAMERA,
+    FRAME_OBJECT,
+    FRAME_WORLD,
+    MANIFEST_FILE,
+    MANIFEST_FORMAT,
+    MASK_BACKGROUND,
+    MASK_TARGET_OBJECT,
+    MESSAGE_ENCODING_PROTOBUF,
+    MODELS_DIR,
+    MODELS_INFO_FILE,
+    PAD_TOPIC_SCHEMAS,
+    SAMPLE_PERIOD_NS,
+    SHARD_METADATA,
+    SHARD_METADATA_KEYS,
+    SHARD_METADATA_OPTIONAL_KEYS,
+    STATE_RECORD_KEYS,
+    TACTILE_DEPTH_ENCODING,
+    TACTILE_DEPTH_SUFFIX,
+    TACTILE_IMAGE_ENCODING,
+    TACTILE_IMAGE_SUFFIX,
+    TACTILE_POINT_DTYPE,
+    TACTILE_POINT_FIELDS,
+    TACTILE_POINT_STRIDE,
+    TACTILE_REFERENCE_SUFFIX,
+    TOPIC_CALIBRATION,
+    TOPIC_DEPTH,
+    TOPIC_EPISODE_STATE,
+    TOPIC_IMAGE_ENCODINGS,
+    TOPIC_INFO,
+    TOPIC_MASK,
+    TOPIC_POSE,
+    TOPIC_RGB,
+    TOPIC_SCHEMAS,
+    TOPIC_TACTILE_POINTS,
+    TOPIC_TF,
+    shard_file,
+    tactile_depth_topic,
+    tactile_image_topic,
+    tactile_reference_topic,
+)
+
 #: Episodes: the state stream (JSON, schema ``vtgen.StateRecord``).
-STATE_TOPIC = "/episode/state"
+STATE_TOPIC = TOPIC_EPISODE_STATE
 OBJECT_ID = "test_cube"
+#: The ``generator`` of the manifest and the shards' metadata (and the MCAP ``library``).
+GENERATOR = "vtgen 0.1.0"
+CONFIG_SHA256 = "0" * 64
 HEIGHT, WIDTH = 6, 8
 #: Pixels per side of a pad's depth image in the synthetic robot datasets.
 TACTILE_RESOLUTION = 4
@@ -39,7 +90,7 @@ TACTILE_RESOLUTION = 4
 OPTICAL_SIZE = (5, 3)
 #: The robots the synthetic writer can put in a sample: their pads in index order (the order of
 #: the ``phalanx`` index and of the ``/tactile/<pad>/depth`` channels) and their joints.
-ALLEGRO_PADS = tuple(f"{f}_{p}" for f in ("ff", "mf", "rf", "th") for p in ("proximal", "medial", "distal"))
+ALLEGRO_PADS = ALLEGRO_PHALANGES
 ROBOTS: Dict[str, Dict[str, Any]] = {
     "ur5e_allegro": {
         "pads": ALLEGRO_PADS,
@@ -152,8 +203,9 @@ def make_sample(
     rgb = rng.integers(0, 256, size=(HEIGHT, WIDTH, 3), dtype=np.uint8)
     depth = rng.uniform(0.2, 1.5, size=(HEIGHT, WIDTH)).astype(np.float32)
     mask = np.zeros((HEIGHT, WIDTH), dtype=np.uint8)
-    mask[1:4, 2:6] = 1
-    depth[mask == 0] = np.where(rng.random(int((mask == 0).sum())) < 0.5, 0.0, 2.0)
+    mask[1:4, 2:6] = MASK_TARGET_OBJECT
+    background = mask == MASK_BACKGROUND
+    depth[background] = np.where(rng.random(int(background.sum())) < 0.5, 0.0, 2.0)
     fx, fy = 500.0 + index, 510.0 + index
     K = np.array([[fx, 0.0, (WIDTH - 1) / 2], [0.0, fy, (HEIGHT - 1) / 2], [0.0, 0.0, 1.0]])
     camera_object, world_camera, world_object = (random_pose(rng) for _ in range(3))
@@ -162,11 +214,11 @@ def make_sample(
         "index": index,
         "object_id": OBJECT_ID,
         "object_index": 0,
-        "mask_id": 1,
+        "mask_id": MASK_TARGET_OBJECT,
         "trajectory": index // 2,
         "instance": index % 2,
         "randomized": bool(index % 2),
-        "visible_pixels": int((mask == 1).sum()),
+        "visible_pixels": int((mask == MASK_TARGET_OBJECT).sum()),
         "T_world_camera": {"position": list(world_camera[0]), "orientation": list(world_camera[1])},
         "T_camera_object": {
             "position": list(camera_object[0]),
@@ -211,7 +263,7 @@ def _stamp(msg: Any, log_time: int) -> None:
 
 def _raw_image(array: np.ndarray, encoding: str, log_time: int) -> RawImage:
     msg = RawImage(
-        frame_id="camera",
+        frame_id=FRAME_CAMERA,
         width=array.shape[1],
         height=array.shape[0],
         encoding=encoding,
@@ -227,40 +279,33 @@ def _set_pose(position: Any, orientation: Any, pose: Pose) -> None:
     (orientation.x, orientation.y, orientation.z, orientation.w) = pose[1]
 
 
-def tactile_topic(pad: str) -> str:
-    return f"/tactile/{pad}/depth"
-
-
-def tactile_image_topic(pad: str) -> str:
-    return f"/tactile/{pad}/image"
-
-
-def tactile_reference_topic(pad: str) -> str:
-    return f"/tactile/{pad}/reference"
+def _tactile_points(tac: Dict[str, Any]) -> bytes:
+    """The ``/tactile/points`` data: one :data:`~vtdata.format.TACTILE_POINT_DTYPE` per point."""
+    points = np.zeros(len(tac["phalanx"]), dtype=TACTILE_POINT_DTYPE)
+    for axis, name in enumerate("xyz"):
+        points[name] = tac["points"][:, axis]
+    points["distance"], points["phalanx"] = tac["distance"], tac["phalanx"]
+    return points.tobytes()
 
 
 def _tactile_messages(
-    tac: Dict[str, Any], t: int, optical_encoding: str = "rgb8", references: bool = True
+    tac: Dict[str, Any],
+    t: int,
+    optical_encoding: str = TACTILE_IMAGE_ENCODING,
+    references: bool = True,
 ) -> List[Tuple[str, bytes]]:
-    data = bytearray()
-    for p, d, k in zip(tac["points"], tac["distance"], tac["phalanx"]):
-        data += struct.pack("<4fI", *p, d, k)
-    cloud = PointCloud(frame_id="camera", point_stride=20, data=bytes(data))
+    cloud = PointCloud(
+        frame_id=FRAME_CAMERA, point_stride=TACTILE_POINT_STRIDE, data=_tactile_points(tac)
+    )
     _stamp(cloud, t)
     cloud.pose.orientation.w = 1.0
-    for name, offset, kind in (
-        ("x", 0, PackedElementField.FLOAT32),
-        ("y", 4, PackedElementField.FLOAT32),
-        ("z", 8, PackedElementField.FLOAT32),
-        ("distance", 12, PackedElementField.FLOAT32),
-        ("phalanx", 16, PackedElementField.UINT32),
-    ):
-        cloud.fields.add(name=name, offset=offset, type=kind)
-    out = [("/tactile/points", cloud.SerializeToString())]
+    for name, offset, kind in TACTILE_POINT_FIELDS:
+        cloud.fields.add(name=name, offset=offset, type=PackedElementField.NumericType.Value(kind))
+    out = [(TOPIC_TACTILE_POINTS, cloud.SerializeToString())]
     for pad, image in zip(tac["pads"], tac["depth"]):
-        msg = _raw_image(image, "32FC1", t)
+        msg = _raw_image(image, TACTILE_DEPTH_ENCODING, t)
         msg.frame_id = f"{pad}_pad"
-        out.append((tactile_topic(pad), msg.SerializeToString()))
+        out.append((tactile_depth_topic(pad), msg.SerializeToString()))
     # As the Rust writer: after the depth images, each optical pad's image, then its reference.
     for pad, image in tac["images"].items():
         for topic, array in [(tactile_image_topic(pad), image)] + (
@@ -273,7 +318,7 @@ def _tactile_messages(
 
 
 def sample_messages(
-    s: SyntheticSample, optical_encoding: str = "rgb8", references: bool = True
+    s: SyntheticSample, optical_encoding: str = TACTILE_IMAGE_ENCODING, references: bool = True
 ) -> List[Tuple[str, bytes]]:
     """The (topic, payload) pairs of one sample, as FORMAT.md lists them.
 
@@ -282,7 +327,7 @@ def sample_messages(
     """
     t = s.log_time
     calibration = CameraCalibration(
-        frame_id="camera",
+        frame_id=FRAME_CAMERA,
         width=WIDTH,
         height=HEIGHT,
         distortion_model="plumb_bob",
@@ -292,22 +337,23 @@ def sample_messages(
         P=np.hstack([s.K, np.zeros((3, 1))]).reshape(-1).tolist(),
     )
     _stamp(calibration, t)
-    pose = PoseInFrame(frame_id="camera")
+    pose = PoseInFrame(frame_id=FRAME_CAMERA)
     _stamp(pose, t)
     _set_pose(pose.pose.position, pose.pose.orientation, s.camera_object)
     tf = FrameTransforms()
-    for child, value in (("camera", s.world_camera), ("object", s.world_object)):
-        transform = tf.transforms.add(parent_frame_id="world", child_frame_id=child)
+    for child, value in ((FRAME_CAMERA, s.world_camera), (FRAME_OBJECT, s.world_object)):
+        transform = tf.transforms.add(parent_frame_id=FRAME_WORLD, child_frame_id=child)
         _stamp(transform, t)
         _set_pose(transform.translation, transform.rotation, value)
-    return [
-        ("/camera/rgb", _raw_image(s.rgb, "rgb8", t).SerializeToString()),
-        ("/camera/depth", _raw_image(s.depth, "32FC1", t).SerializeToString()),
-        ("/camera/mask", _raw_image(s.mask, "mono8", t).SerializeToString()),
-        ("/camera/calibration", calibration.SerializeToString()),
-        ("/object/pose", pose.SerializeToString()),
-        ("/tf", tf.SerializeToString()),
-        ("/sample/info", json.dumps(s.info, separators=(",", ":")).encode("utf-8")),
+    images = [
+        (topic, _raw_image(array, TOPIC_IMAGE_ENCODINGS[topic], t).SerializeToString())
+        for topic, array in ((TOPIC_RGB, s.rgb), (TOPIC_DEPTH, s.depth), (TOPIC_MASK, s.mask))
+    ]
+    return images + [
+        (TOPIC_CALIBRATION, calibration.SerializeToString()),
+        (TOPIC_POSE, pose.SerializeToString()),
+        (TOPIC_TF, tf.SerializeToString()),
+        (TOPIC_INFO, json.dumps(s.info, separators=(",", ":")).encode("utf-8")),
     ] + (
         _tactile_messages(s.tactile, t, optical_encoding, references)
         if s.tactile is not None
@@ -316,12 +362,12 @@ def sample_messages(
 
 
 _PROTOBUF_TOPICS = {
-    "/camera/rgb": RawImage,
-    "/camera/depth": RawImage,
-    "/camera/mask": RawImage,
-    "/camera/calibration": CameraCalibration,
-    "/object/pose": PoseInFrame,
-    "/tf": FrameTransforms,
+    TOPIC_RGB: RawImage,
+    TOPIC_DEPTH: RawImage,
+    TOPIC_MASK: RawImage,
+    TOPIC_CALIBRATION: CameraCalibration,
+    TOPIC_POSE: PoseInFrame,
+    TOPIC_TF: FrameTransforms,
 }
 
 
@@ -335,49 +381,35 @@ def _register_channels(
     schema_ids: Dict[str, int] = {}
     channels: Dict[str, int] = {}
 
-    def register(topic: str, cls: Any) -> None:
-        """A protobuf channel for `topic`, its schema registered once."""
-        name = cls.DESCRIPTOR.full_name
+    def register(topic: str, spec: Tuple[str, ...], cls: Any = None) -> None:
+        """A channel for `topic` with the format's schema name and message encoding (`spec`), its
+        schema registered once: protobuf class `cls`'s, or a JSON schema."""
+        name, encoding = spec[:2]
         if name not in schema_ids:
-            schema_ids[name] = writer.register_schema(
-                name=name,
-                encoding="protobuf",
-                data=build_file_descriptor_set(cls).SerializeToString(),
-            )
+            if encoding == MESSAGE_ENCODING_PROTOBUF:
+                assert cls.DESCRIPTOR.full_name == name, (topic, cls.DESCRIPTOR.full_name, name)
+                kind, data = "protobuf", build_file_descriptor_set(cls).SerializeToString()
+            else:
+                kind, data = "jsonschema", json.dumps({"type": "object"}).encode("utf-8")
+            schema_ids[name] = writer.register_schema(name=name, encoding=kind, data=data)
         channels[topic] = writer.register_channel(
-            topic=topic, message_encoding="protobuf", schema_id=schema_ids[name]
+            topic=topic, message_encoding=encoding, schema_id=schema_ids[name]
         )
 
     for topic, cls in _PROTOBUF_TOPICS.items():
-        register(topic, cls)
-    info_schema = writer.register_schema(
-        name="vtgen.SampleInfo",
-        encoding="jsonschema",
-        data=json.dumps({"type": "object"}).encode("utf-8"),
-    )
-    channels["/sample/info"] = writer.register_channel(
-        topic="/sample/info", message_encoding="json", schema_id=info_schema
-    )
+        register(topic, TOPIC_SCHEMAS[topic], cls)
+    register(TOPIC_INFO, TOPIC_SCHEMAS[TOPIC_INFO])
     if robot is not None:
-        for topic, cls in (
-            [("/tactile/points", PointCloud)]
-            + [(tactile_topic(p), RawImage) for p in robot["pads"]]
-            + [
-                (topic, RawImage)
-                for p in robot["images"]
-                for topic in (tactile_image_topic(p), tactile_reference_topic(p))
-            ]
-        ):
-            register(topic, cls)
+        register(TOPIC_TACTILE_POINTS, TOPIC_SCHEMAS[TOPIC_TACTILE_POINTS], PointCloud)
+        for p in robot["pads"]:
+            register(tactile_depth_topic(p), PAD_TOPIC_SCHEMAS[TACTILE_DEPTH_SUFFIX], RawImage)
+        for p in robot["images"]:
+            register(tactile_image_topic(p), PAD_TOPIC_SCHEMAS[TACTILE_IMAGE_SUFFIX], RawImage)
+            register(
+                tactile_reference_topic(p), PAD_TOPIC_SCHEMAS[TACTILE_REFERENCE_SUFFIX], RawImage
+            )
     if episode:
-        state_schema = writer.register_schema(
-            name="vtgen.StateRecord",
-            encoding="jsonschema",
-            data=json.dumps({"type": "object"}).encode("utf-8"),
-        )
-        channels[STATE_TOPIC] = writer.register_channel(
-            topic=STATE_TOPIC, message_encoding="json", schema_id=state_schema
-        )
+        register(STATE_TOPIC, TOPIC_SCHEMAS[STATE_TOPIC])
     return channels
 
 
@@ -388,7 +420,7 @@ def write_shard(
     samples: Sequence[SyntheticSample],
     omit: Optional[Tuple[int, str]] = None,
     reverse_messages: bool = False,
-    optical_encoding: str = "rgb8",
+    optical_encoding: str = TACTILE_IMAGE_ENCODING,
 ) -> None:
     """Write one shard: zstd, one chunk per sample, the ``vtgen.shard`` metadata record.
 
@@ -402,7 +434,7 @@ def write_shard(
     path.parent.mkdir(parents=True, exist_ok=True)
     with open(path, "wb") as f:
         writer = McapWriter(f, chunk_size=1 << 40, compression=CompressionType.ZSTD)
-        writer.start(profile="", library="vtgen 0.1.0")
+        writer.start(profile="", library=GENERATOR)
         robot = next((s.tactile for s in samples if s.tactile is not None), None)
         channels = _register_channels(writer, robot)
         for s in samples:
@@ -420,19 +452,30 @@ def write_shard(
                 )
             writer.flush()  # close the chunk: exactly one chunk per sample
         writer.add_metadata(
-            "vtgen.shard",
-            {
-                "format_version": "1",
-                "generator": "vtgen 0.1.0",
-                "seed": "7",
-                "config_sha256": "0" * 64,
-                "split": split,
-                "shard_index": str(shard_index),
-                "first_sample": str(samples[0].index if samples else 0),
-                "sample_count": str(len(samples)),
-            },
+            SHARD_METADATA,
+            _shard_metadata(split, shard_index, samples[0].index if samples else 0, len(samples)),
         )
         writer.finish()
+
+
+def _shard_metadata(
+    split: str, shard_index: int, first_sample: int, sample_count: int, **optional: str
+) -> Dict[str, str]:
+    """A shard's ``vtgen.shard`` metadata record: the keys every shard has, in the format's
+    order, then ``optional`` (keys only some shards have, e.g. ``episode``)."""
+    record = {
+        "format_version": str(FORMAT_VERSION),
+        "generator": GENERATOR,
+        "seed": "7",
+        "config_sha256": CONFIG_SHA256,
+        "split": split,
+        "shard_index": str(shard_index),
+        "first_sample": str(first_sample),
+        "sample_count": str(sample_count),
+    }
+    assert tuple(record) == SHARD_METADATA_KEYS, (tuple(record), SHARD_METADATA_KEYS)
+    assert set(optional) <= set(SHARD_METADATA_OPTIONAL_KEYS), optional
+    return {**record, **optional}
 
 
 def cube_mesh() -> Dict[str, np.ndarray]:
@@ -481,28 +524,28 @@ def _write_manifest_and_models(
     root: Path, splits: Dict[str, Any], seed: int, robot: Optional[str]
 ) -> None:
     manifest = {
-        "format": "vtgen-dataset",
-        "format_version": 1,
-        "generator": "vtgen 0.1.0",
+        "format": MANIFEST_FORMAT,
+        "format_version": FORMAT_VERSION,
+        "generator": GENERATOR,
         "seed": seed,
-        "config_sha256": "0" * 64,
+        "config_sha256": CONFIG_SHA256,
         "complete": True,
         "splits": splits,
     }
-    (root / "manifest.json").write_text(json.dumps(manifest, indent=2))
+    (root / MANIFEST_FILE).write_text(json.dumps(manifest, indent=2))
     (root / "config.json").write_text(json.dumps({"robot": {"model": robot}} if robot else {}))
-    models = root / "models"
+    models = root / MODELS_DIR
     models.mkdir(exist_ok=True)
     mesh = cube_mesh()
     write_ply(models / f"{OBJECT_ID}.ply", mesh["vertices"], mesh["normals"], mesh["faces"])
-    (models / "models_info.json").write_text(
+    (root / MODELS_INFO_FILE).write_text(
         json.dumps(
             {
                 "objects": [
                     {
                         "id": OBJECT_ID,
                         "object_index": 0,
-                        "mask_id": 1,
+                        "mask_id": MASK_TARGET_OBJECT,
                         "symmetry": "discrete",
                         "mass": 0.1,
                         "extents": [0.1, 0.1, 0.1],
@@ -537,7 +580,7 @@ def write_dataset(
     robot: Optional[str] = None,
     reverse_messages: bool = False,
     optical: Sequence[str] = (),
-    optical_encoding: str = "rgb8",
+    optical_encoding: str = TACTILE_IMAGE_ENCODING,
 ) -> Dict[str, List[SyntheticSample]]:
     """Write a complete dataset (manifest, models, shards) and return its samples per split.
 
@@ -559,7 +602,7 @@ def write_dataset(
         shards = []
         for shard_index, first in enumerate(range(0, len(items), samples_per_shard)):
             chunk = items[first : first + samples_per_shard]
-            rel = f"{split}/shard-{shard_index:05d}.mcap"
+            rel = shard_file(split, shard_index)
             shard_omit = None
             if omit is not None and omit[0] == split:
                 shard_omit = (omit[1], omit[2])
@@ -642,6 +685,7 @@ def make_episode(
                 },
             }
         )
+        assert tuple(sample.info["episode"]) == EPISODE_FRAME_KEYS
         samples.append(sample)
     references = dict(samples[0].tactile["references"]) if samples[0].tactile else {}
     for sample in samples[1:]:  # every image of the episode has frame 0's reference
@@ -674,6 +718,7 @@ def make_episode(
                 }
             twist = [0.0] * 6 if step == 0 else rng.uniform(-0.5, 0.5, size=6).tolist()
             record["linear_velocity"], record["angular_velocity"] = twist[:3], twist[3:]
+            assert set(record) == set(STATE_RECORD_KEYS), set(record) ^ set(STATE_RECORD_KEYS)
             states.append((t, record))
         if frame is not None:
             touches.append((t, frame.tactile))
@@ -693,6 +738,7 @@ def make_episode(
         "tactile_period_steps": tactile_period,
         "state_period_steps": state_period,
     }
+    assert tuple(record) == EPISODE_RECORD_KEYS, (tuple(record), EPISODE_RECORD_KEYS)
     return SyntheticEpisode(split, shard_index, first, samples, states, touches, record, references)
 
 
@@ -714,7 +760,7 @@ def write_episode_shard(
     times = episode.times
     with open(path, "wb") as f:
         writer = McapWriter(f, chunk_size=1 << 40, compression=CompressionType.ZSTD)
-        writer.start(profile="", library="vtgen 0.1.0")
+        writer.start(profile="", library=GENERATOR)
         channels = _register_channels(writer, episode.frames[0].tactile, episode=True)
         states = dict(episode.states)
         touches = dict(episode.touches)
@@ -744,19 +790,16 @@ def write_episode_shard(
             for t, topic, payload in messages:
                 writer.add_message(channel_id=channels[topic], log_time=t, publish_time=t, data=payload)
             writer.flush()  # one chunk per frame
+        episode_record = json.dumps(episode.record if record is None else record)
         writer.add_metadata(
-            "vtgen.shard",
-            {
-                "format_version": "1",
-                "generator": "vtgen 0.1.0",
-                "seed": "7",
-                "config_sha256": "0" * 64,
-                "split": episode.split,
-                "shard_index": str(episode.shard_index),
-                "first_sample": str(episode.first_sample),
-                "sample_count": str(len(episode.frames)),
-                "episode": json.dumps(episode.record if record is None else record),
-            },
+            SHARD_METADATA,
+            _shard_metadata(
+                episode.split,
+                episode.shard_index,
+                episode.first_sample,
+                len(episode.frames),
+                **{EPISODE_METADATA_KEY: episode_record},
+            ),
         )
         writer.finish()
 
@@ -784,7 +827,7 @@ def write_episode_dataset(
         shards = []
         for j in range(n):
             episode = make_episode(split, j, frames, rng, robot=robot, optical=optical, **timing)
-            rel = f"{split}/shard-{j:05d}.mcap"
+            rel = shard_file(split, j)
             write_episode_shard(root / rel, episode, reverse_messages=reverse_messages)
             shards.append(_shard_entry(root, rel, j, episode.first_sample, frames))
             out[split].append(episode)

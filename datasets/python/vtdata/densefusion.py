@@ -26,6 +26,7 @@ from typing import Any, Dict, List, Mapping, Optional, Sequence, Union
 
 import numpy as np
 
+from .format import MASK_TARGET_OBJECT
 from .reader import Dataset, PathLike, Sample
 
 __all__ = [
@@ -56,7 +57,7 @@ IMAGENET_MEAN = np.array([0.485, 0.456, 0.406], dtype=np.float32)
 IMAGENET_STD = np.array([0.229, 0.224, 0.225], dtype=np.float32)
 
 # Mask id of the target object when /sample/info does not say (FORMAT.md, "Instance mask ids").
-_TARGET_MASK_ID = 1
+_TARGET_MASK_ID = MASK_TARGET_OBJECT
 
 
 def _draw(rng: np.random.Generator, count: int, n: int) -> np.ndarray:
@@ -158,17 +159,64 @@ def densefusion_sample(
     """
     rng_cloud, rng_tactile, rng_model = _streams(seed, 3)
     info = sample["info"]
-    rgb, depth, mask, K = sample["rgb"], sample["depth"], sample["mask"], sample["K"]
-    target_mask = mask == info.get("mask_id", _TARGET_MASK_ID)
+    target_mask = sample["mask"] == info.get("mask_id", _TARGET_MASK_ID)
+    depth_view = _depth_view(
+        sample["rgb"], sample["depth"], target_mask, sample["K"], rng_cloud,
+        n_points=n_points, crop_size=crop_size, normalize=normalize,
+    )
 
-    # --- depth points: n random object pixels with a depth, back-projected (OpenCV pinhole) ----
+    # --- tactile points (camera frame), resampled to n_tactile ----------------------------------
+    touch = sample.get("tactile")
+    touch_points = touch["points"] if touch is not None else np.zeros((0, 3), np.float32)
+    if len(touch_points) > 0:
+        tactile = touch_points[_draw(rng_tactile, len(touch_points), n_tactile)]
+    else:
+        tactile = np.zeros((n_tactile, 3), dtype=np.float32)
+    tactile = np.ascontiguousarray(tactile, dtype=np.float32)
+
+    # --- model points (object frame) and the same points under the ground-truth pose -----------
+    T = np.asarray(sample["T_camera_object"], dtype=np.float64)
+    points = sample_surface(model["vertices"], model["faces"], n_model_points, rng_model)
+    target = points @ T[:3, :3].T + T[:3, 3]
+
+    occlusion = info.get("occlusion", {}).get("level", math.nan)
+    return {
+        **depth_view,
+        "tactile": tactile,
+        "tactile_count": np.asarray(len(touch_points), dtype=np.int64),
+        "model_points": points.astype(np.float32),
+        "target": target.astype(np.float32),
+        "R": T[:3, :3].astype(np.float32),
+        "t": T[:3, 3].astype(np.float32),
+        "object_index": np.asarray(info["object_index"], dtype=np.int64),
+        "symmetric": np.asarray(model["info"].get("symmetry", "none") != "none"),
+        "occlusion": np.asarray(occlusion, dtype=np.float32),
+        "object_id": info["object_id"],
+        "index": int(sample["index"]),
+    }
+
+
+def _depth_view(
+    rgb: np.ndarray,
+    depth: np.ndarray,
+    target_mask: np.ndarray,
+    K: np.ndarray,
+    rng: np.random.Generator,
+    *,
+    n_points: int,
+    crop_size: Optional[int],
+    normalize: bool,
+) -> Dict[str, np.ndarray]:
+    """:func:`densefusion_sample`'s ``cloud``, ``choose``, ``img``, ``bbox`` and ``cloud_count``:
+    ``n_points`` random object pixels with a depth, back-projected (OpenCV pinhole), and the RGB
+    crop of the object's bounding box they index; zeros when the object is not visible."""
     valid = np.flatnonzero(target_mask & (depth > 0.0))  # row-major flat pixel indices
-    width = mask.shape[1]
+    width = target_mask.shape[1]
     out_size = (crop_size, crop_size) if crop_size is not None else None
     if valid.size > 0:
         rows, cols = np.nonzero(target_mask)
         rmin, rmax, cmin, cmax = rows.min(), rows.max() + 1, cols.min(), cols.max() + 1
-        pixels = valid[_draw(rng_cloud, valid.size, n_points)]
+        pixels = valid[_draw(rng, valid.size, n_points)]
         v, u = np.divmod(pixels, width)
         z = depth.reshape(-1)[pixels].astype(np.float64)
         x = (u - K[0, 2]) * z / K[0, 0]
@@ -197,39 +245,12 @@ def densefusion_sample(
         choose = np.zeros((1, n_points), dtype=np.int64)
         img = np.zeros((3, *(out_size or (1, 1))), dtype=np.float32)
         bbox = np.zeros(4, dtype=np.int64)
-
-    # --- tactile points (camera frame), resampled to n_tactile ----------------------------------
-    touch = sample.get("tactile")
-    touch_points = touch["points"] if touch is not None else np.zeros((0, 3), np.float32)
-    if len(touch_points) > 0:
-        tactile = touch_points[_draw(rng_tactile, len(touch_points), n_tactile)]
-    else:
-        tactile = np.zeros((n_tactile, 3), dtype=np.float32)
-    tactile = np.ascontiguousarray(tactile, dtype=np.float32)
-
-    # --- model points (object frame) and the same points under the ground-truth pose -----------
-    T = np.asarray(sample["T_camera_object"], dtype=np.float64)
-    points = sample_surface(model["vertices"], model["faces"], n_model_points, rng_model)
-    target = points @ T[:3, :3].T + T[:3, 3]
-
-    occlusion = info.get("occlusion", {}).get("level", math.nan)
     return {
         "cloud": cloud,
         "choose": choose,
         "img": img,
         "bbox": bbox,
         "cloud_count": np.asarray(valid.size, dtype=np.int64),
-        "tactile": tactile,
-        "tactile_count": np.asarray(len(touch_points), dtype=np.int64),
-        "model_points": points.astype(np.float32),
-        "target": target.astype(np.float32),
-        "R": T[:3, :3].astype(np.float32),
-        "t": T[:3, 3].astype(np.float32),
-        "object_index": np.asarray(info["object_index"], dtype=np.int64),
-        "symmetric": np.asarray(model["info"].get("symmetry", "none") != "none"),
-        "occlusion": np.asarray(occlusion, dtype=np.float32),
-        "object_id": info["object_id"],
-        "index": int(sample["index"]),
     }
 
 

@@ -23,6 +23,7 @@ from typing import Any, Callable, Dict, Iterator, List, Optional, Sequence, Tupl
 
 import numpy as np
 
+from .format import EPISODE_METADATA_KEY, SHARD_METADATA, TOPIC_EPISODE_STATE
 from .reader import (
     Dataset,
     DatasetError,
@@ -125,7 +126,7 @@ class EpisodeDataset:
         if not self.dataset.is_episodic:
             raise DatasetError(
                 f"split {self.dataset.split!r} of {self.dataset.root} has no episode shards (no "
-                f"'episode' in their vtgen.shard metadata): read a snapshot dataset with "
+                f"'{EPISODE_METADATA_KEY}' in their {SHARD_METADATA} metadata): read a snapshot dataset with "
                 f"vtdata.Dataset"
             )
         self.window = int(window)
@@ -317,7 +318,7 @@ class EpisodeDataset:
         entries = [r for s in samples for r in states(s)]
         joints = self.joint_names
         if "state" in self.streams:
-            aligned = self._aligned(entries, times, e, start, states, "/episode/state record", where)
+            aligned = self._aligned(entries, times, e, start, states, f"{TOPIC_EPISODE_STATE} record", where)
             item["state"] = _state_arrays(aligned, joints, where)
         if "state_seq" in self.streams:
             inside = [(t, r) for t, r in entries if times[0] <= t <= times[-1]]

@@ -18,111 +18,89 @@ import hashlib
 import inspect
 import json
 import os
-import warnings
 from pathlib import Path
 from typing import (
     IO,
     Any,
-    Callable,
     Dict,
     Iterator,
     List,
-    Mapping,
     Optional,
     Sequence,
     Tuple,
     Union,
 )
 
-import numpy as np
-from mcap.decoder import DecoderFactory as _McapDecoderFactory
 from mcap.reader import McapReader, make_reader
-from mcap.records import Schema
 from mcap_protobuf.decoder import DecoderFactory as _ProtobufDecoderFactory
 
+# The decoders, the index builder and the format constants moved to their own modules; their
+# names stay importable from here (``from vtdata.reader import TOPIC_RGB`` keeps working).
+from .decoders import (  # noqa: F401
+    _JsonDecoderFactory,
+    _McapDecoderFactory,
+    _camera_fields,
+    _decode_json,
+    _episode_streams,
+    _frame_transforms,
+    _intrinsics,
+    _optical,
+    _tactile,
+    decode_raw_image,
+    pose_matrix,
+    quaternion_matrix,
+)
+from .errors import DatasetError, DatasetNotFoundError
+from .format import (  # noqa: F401
+    ALLEGRO_PHALANGES,
+    EPISODE_METADATA_KEY,
+    FORMAT_VERSION,
+    MANIFEST_FILE,
+    MANIFEST_FORMAT,
+    MODELS_DIR,
+    MODELS_INFO_FILE,
+    PHALANGES,
+    REQUIRED_TOPICS,
+    SAMPLE_PERIOD_NS,
+    TACTILE_DEPTH_PREFIX,
+    TACTILE_DEPTH_SUFFIX,
+    TACTILE_IMAGE_SUFFIX,
+    TACTILE_REFERENCE_SUFFIX,
+    TOPIC_CALIBRATION,
+    TOPIC_DEPTH,
+    TOPIC_DEPTH_NOISY,
+    TOPIC_EPISODE_STATE,
+    TOPIC_INFO,
+    TOPIC_MASK,
+    TOPIC_POSE,
+    TOPIC_RGB,
+    TOPIC_SCENE_MODELS,
+    TOPIC_TACTILE_POINTS,
+    TOPIC_TF,
+    optical_pad_of_topic,
+    pad_of_topic,
+    tactile_reference_topic,
+)
+from .format import IMAGE_ENCODINGS as _IMAGE_ENCODINGS  # noqa: F401
+from .format import TACTILE_POINT_DTYPE as _TACTILE_DTYPE  # noqa: F401
+# Private: this module's TOPIC_* names are the topics (callers list them with vars()).
+from .format import TOPIC_IMAGE_ENCODINGS as _TOPIC_IMAGE_ENCODINGS
+from .format import pad_of as _pad_of
+from .index import (  # noqa: F401
+    _build_index,
+    _check_shard_belongs,
+    _describe_range,
+    _episode_record,
+    _read_manifest,
+)
 from .ply import load_ply
 
 PathLike = Union[str, "os.PathLike[str]"]
-
-#: Nanoseconds between two consecutive samples on the dataset timeline (10 Hz).
-SAMPLE_PERIOD_NS = 100_000_000
-#: The ``format`` value of a vtgen ``manifest.json``.
-MANIFEST_FORMAT = "vtgen-dataset"
-#: The newest ``format_version`` this reader was written for.
-FORMAT_VERSION = 1
-
-TOPIC_RGB = "/camera/rgb"
-TOPIC_DEPTH = "/camera/depth"
-TOPIC_DEPTH_NOISY = "/camera/depth_noisy"
-TOPIC_MASK = "/camera/mask"
-TOPIC_CALIBRATION = "/camera/calibration"
-TOPIC_POSE = "/object/pose"
-TOPIC_TF = "/tf"
-TOPIC_INFO = "/sample/info"
-TOPIC_TACTILE_POINTS = "/tactile/points"
-#: The scene's meshes as Foxglove SceneUpdate (for viewing); the reader does not decode it.
-TOPIC_SCENE_MODELS = "/scene/models"
-#: The UR5e + Allegro's 12 pads in tactile index order (FORMAT.md): the names a dataset of that
-#: robot holds. Other robots name their own pads (a parallel gripper: 2, e.g. ``left``,
-#: ``right``), so the reader never assumes these: a sample's ``tactile["phalanges"]`` lists the
-#: pads its shard has, in the order of the ``phalanx`` index.
-ALLEGRO_PHALANGES = tuple(
-    f"{f}_{p}" for f in ("ff", "mf", "rf", "th") for p in ("proximal", "medial", "distal")
-)
-#: Same as :data:`ALLEGRO_PHALANGES` (the name earlier versions used; not the pads of every robot).
-PHALANGES = ALLEGRO_PHALANGES
-#: ``/tactile/<pad>/depth``: the depth image of one pad; the pad's name is the middle part.
-TACTILE_DEPTH_PREFIX, TACTILE_DEPTH_SUFFIX = "/tactile/", "/depth"
-#: ``/tactile/<pad>/image``: the RGB image (``rgb8``) of a pad with an optical (GelSight/DIGIT-style)
-#: sensor; only such pads have it.
-TACTILE_IMAGE_SUFFIX = "/image"
-#: ``/tactile/<pad>/reference``: that sensor's no-contact image without noise (``rgb8``, the size of
-#: its image), written with every sample beside the image (in an episode: once, with its frame 0).
-TACTILE_REFERENCE_SUFFIX = "/reference"
-#: Episode shards: the state stream (JSON ``vtgen.StateRecord``) at the state rate.
-TOPIC_EPISODE_STATE = "/episode/state"
-#: The ``vtgen.shard`` metadata key whose presence makes a shard an episode (JSON value).
-EPISODE_METADATA_KEY = "episode"
-_TACTILE_DTYPE = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("distance", "<f4"), ("phalanx", "<u4")])
-#: Topics every sample must have; other topics (later format versions) are ignored.
-REQUIRED_TOPICS = (
-    TOPIC_RGB,
-    TOPIC_DEPTH,
-    TOPIC_MASK,
-    TOPIC_CALIBRATION,
-    TOPIC_POSE,
-    TOPIC_TF,
-    TOPIC_INFO,
-)
-
-# RawImage encoding -> (numpy dtype of one channel as stored, channels, dtype returned).
-_IMAGE_ENCODINGS: Dict[str, Tuple[str, int, Any]] = {
-    "rgb8": ("u1", 3, np.uint8),
-    "mono8": ("u1", 1, np.uint8),
-    "mono16": ("<u2", 1, np.uint16),
-    "32FC1": ("<f4", 1, np.float32),
-}
 
 # mcap >= 1.6 renamed the time bounds of iter_messages (start_time/end_time are deprecated there).
 _HAS_NEW_TIME_BOUNDS = (
     "starting_at" in inspect.signature(McapReader.iter_decoded_messages).parameters
 )
-
-
-class DatasetError(RuntimeError):
-    """A dataset does not follow the vtgen format (missing or inconsistent files or messages).
-
-    The one exception type the reader raises for a damaged, incomplete or foreign dataset: a
-    truncated shard, a damaged chunk, a shard from another dataset, a checksum that does not match
-    the manifest. Its message names the file and, when reading a sample, the sample.
-    """
-
-
-class DatasetNotFoundError(DatasetError, FileNotFoundError):
-    """A file the dataset needs is missing: the folder, ``manifest.json``, a shard or a model.
-
-    Both a :class:`DatasetError` and a :class:`FileNotFoundError`.
-    """
 
 
 class Sample(Dict[str, Any]):
@@ -171,20 +149,6 @@ class Sample(Dict[str, Any]):
             raise AttributeError(name) from None
 
 
-class _JsonDecoderFactory(_McapDecoderFactory):
-    """Decodes channels with message encoding ``json`` (the ``/sample/info`` channel)."""
-
-    def decoder_for(
-        self, message_encoding: str, schema: Optional[Schema]
-    ) -> Optional[Callable[[bytes], Any]]:
-        if message_encoding == "json":
-            return _decode_json
-        return None
-
-
-def _decode_json(data: bytes) -> Any:
-    return json.loads(data.decode("utf-8"))
-
 
 class _OpenShard:
     """An open shard file and the MCAP reader on it."""
@@ -206,6 +170,7 @@ class _OpenShard:
 
     def close(self) -> None:
         self.file.close()
+
 
 
 class Dataset(Sequence[Sample]):
@@ -241,7 +206,7 @@ class Dataset(Sequence[Sample]):
         if not isinstance(splits, dict) or split not in splits:
             available = sorted(splits) if isinstance(splits, dict) else []
             raise KeyError(
-                f"split {split!r} is not in {self.root / 'manifest.json'} (splits: {available})"
+                f"split {split!r} is not in {self.root / MANIFEST_FILE} (splits: {available})"
             )
         #: Paths of the split's shard files that the index was built from, in manifest order.
         self.shards: List[str] = []
@@ -266,7 +231,7 @@ class Dataset(Sequence[Sample]):
         if verify:
             self.verify_checksums()
 
-    # --- sequence protocol -------------------------------------------------------------------
+    # --- sequence protocol --------------------------------------------------------------------
 
     def __len__(self) -> int:
         return len(self._samples)
@@ -288,7 +253,7 @@ class Dataset(Sequence[Sample]):
             f"samples={len(self)}, shards={len(self.shards)})"
         )
 
-    # --- public helpers ----------------------------------------------------------------------
+    # --- public helpers -----------------------------------------------------------------------
 
     def location(self, index: int) -> Tuple[str, int]:
         """The shard path and ``log_time`` (ns) of sample ``index`` (an episode frame: its time)."""
@@ -372,7 +337,7 @@ class Dataset(Sequence[Sample]):
         self.__dict__.update(state)
         self._open_pid = os.getpid()
 
-    # --- reading -----------------------------------------------------------------------------
+    # --- reading ------------------------------------------------------------------------------
 
     def _reader(self, shard: str) -> McapReader:
         pid = os.getpid()
@@ -436,16 +401,16 @@ class Dataset(Sequence[Sample]):
         self._references[shard] = found
         return found
 
-    def _read_sample(self, shard: str, log_time: int, index: int) -> Sample:
-        episode = self._episode_of_shard.get(shard)
-        # A snapshot's chunk is its sample; an episode frame's chunk runs on to the frame's later
-        # touch and state messages (FORMAT.md, "Episodes": the sample is the first log time's).
-        end = self._ends[index] if episode is not None else log_time
+    def _sample_messages(
+        self, shard: str, log_time: int, end: int, index: int
+    ) -> Tuple[Dict[str, Any], Dict[str, int], List[Tuple[int, str, int, Any]]]:
+        """Read sample ``index``'s chunk: its messages at ``log_time`` by topic (each required
+        topic once), their channel ids and (an episode frame's) the later messages up to ``end``
+        as ``(log_time, topic, channel id, message)``."""
         messages = self._messages(shard, log_time, end)
         decoded: Dict[str, Any] = {}
         # Topic -> channel id: the writer adds a robot's pad channels in its pads' index order.
         channel_ids: Dict[str, int] = {}
-        # An episode frame's messages after its instant: (log_time, topic, channel id, message).
         later: List[Tuple[int, str, int, Any]] = []
         try:
             for _schema, channel, message, value in messages:
@@ -474,43 +439,46 @@ class Dataset(Sequence[Sample]):
                 f"{shard}: sample {index} of split {self.split!r} (log_time {log_time}) has no "
                 f"message on {', '.join(missing)}"
             )
+        return decoded, channel_ids, later
+
+    def _add_first_frame_references(
+        self, shard: str, decoded: Dict[str, Any], channel_ids: Dict[str, int], where: str
+    ) -> None:
+        """Give a later episode frame's optical images the reference images of its frame 0
+        (FORMAT.md: an episode's reference images come once, with its frame 0)."""
+        references = self._first_frame_references(shard, where)
+        for topic in list(decoded):
+            pad = optical_pad_of_topic(topic)
+            if pad is None:
+                continue
+            reference = tactile_reference_topic(pad)
+            if reference not in decoded and reference in references:
+                channel_ids[reference], decoded[reference] = references[reference]
+
+    def _read_sample(self, shard: str, log_time: int, index: int) -> Sample:
+        episode = self._episode_of_shard.get(shard)
+        # A snapshot's chunk is its sample; an episode frame's chunk runs on to the frame's later
+        # touch and state messages (FORMAT.md, "Episodes": the sample is the first log time's).
+        end = self._ends[index] if episode is not None else log_time
+        decoded, channel_ids, later = self._sample_messages(shard, log_time, end, index)
         where = f"{shard}: sample {index} of split {self.split!r}"
-        transforms = _frame_transforms(decoded[TOPIC_TF], where)
-        pose = decoded[TOPIC_POSE].pose
         sample = Sample(
-            rgb=decode_raw_image(decoded[TOPIC_RGB], expect="rgb8", where=where + f" {TOPIC_RGB}"),
-            depth=decode_raw_image(
-                decoded[TOPIC_DEPTH], expect="32FC1", where=where + f" {TOPIC_DEPTH}"
-            ),
-            mask=decode_raw_image(
-                decoded[TOPIC_MASK], expect="mono8", where=where + f" {TOPIC_MASK}"
-            ),
-            K=_intrinsics(decoded[TOPIC_CALIBRATION], where),
-            T_camera_object=pose_matrix(
-                (pose.position.x, pose.position.y, pose.position.z),
-                (pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w),
-            ),
-            T_world_camera=transforms[("world", "camera")],
-            T_world_object=transforms[("world", "object")],
+            **_camera_fields(decoded, where),
             info=decoded[TOPIC_INFO],
             index=index,
             split=self.split,
         )
         if TOPIC_DEPTH_NOISY in decoded:
             sample["depth_noisy"] = decode_raw_image(
-                decoded[TOPIC_DEPTH_NOISY], expect="32FC1", where=where + f" {TOPIC_DEPTH_NOISY}"
+                decoded[TOPIC_DEPTH_NOISY],
+                expect=_TOPIC_IMAGE_ENCODINGS[TOPIC_DEPTH_NOISY],
+                where=where + f" {TOPIC_DEPTH_NOISY}",
             )
         if TOPIC_TACTILE_POINTS in decoded:
             sample["tactile"] = _tactile(decoded, channel_ids, where)
         frame = index - episode["first_sample"] if episode is not None else 0
         if frame > 0:
-            # FORMAT.md: an episode's reference images come once, with its frame 0.
-            references = self._first_frame_references(shard, where)
-            for topic in list(decoded):
-                pad = optical_pad_of_topic(topic)
-                reference = f"{TACTILE_DEPTH_PREFIX}{pad}{TACTILE_REFERENCE_SUFFIX}"
-                if pad is not None and reference not in decoded and reference in references:
-                    channel_ids[reference], decoded[reference] = references[reference]
+            self._add_first_frame_references(shard, decoded, channel_ids, where)
         optical = _optical(decoded, channel_ids, where, sample.get("tactile"))
         if optical is not None:
             sample["tactile_images"], sample["tactile_references"] = optical
@@ -522,478 +490,6 @@ class Dataset(Sequence[Sample]):
 def open_dataset(root: PathLike, split: str = "train") -> Dataset:
     """Open one split of the vtgen dataset at ``root`` (same as ``Dataset(root, split)``)."""
     return Dataset(root, split)
-
-
-# --- decoding helpers ------------------------------------------------------------------------
-
-
-def decode_raw_image(image: Any, expect: Optional[str] = None, where: str = "image") -> np.ndarray:
-    """Convert a ``foxglove.RawImage`` message into a C-contiguous numpy array.
-
-    Supports ``rgb8`` (``(H, W, 3)`` uint8), ``mono8`` (``(H, W)`` uint8), ``mono16`` (``(H, W)``
-    uint16, little-endian) and ``32FC1`` (``(H, W)`` float32, little-endian). Rows are read
-    ``step`` bytes apart, so padded rows are handled. ``expect`` checks the encoding.
-    """
-    encoding = image.encoding
-    if expect is not None and encoding != expect:
-        raise DatasetError(f"{where}: expected encoding {expect!r}, found {encoding!r}")
-    if encoding not in _IMAGE_ENCODINGS:
-        raise DatasetError(
-            f"{where}: unsupported image encoding {encoding!r} "
-            f"(supported: {', '.join(_IMAGE_ENCODINGS)})"
-        )
-    stored, channels, out_dtype = _IMAGE_ENCODINGS[encoding]
-    height, width, step = int(image.height), int(image.width), int(image.step)
-    row_bytes = width * channels * np.dtype(stored).itemsize
-    if step < row_bytes:
-        raise DatasetError(
-            f"{where}: step {step} is smaller than a {width}-pixel {encoding} row "
-            f"({row_bytes} bytes)"
-        )
-    data = np.frombuffer(image.data, dtype=np.uint8)
-    needed = (height - 1) * step + row_bytes if height > 0 else 0
-    if data.size < needed:
-        raise DatasetError(
-            f"{where}: {height}x{width} {encoding} image with step {step} needs {needed} bytes, "
-            f"data has {data.size}"
-        )
-    rows = np.lib.stride_tricks.as_strided(data, shape=(height, row_bytes), strides=(step, 1))
-    # Copy the rows into a new contiguous (writable) buffer, then reinterpret the bytes as pixels.
-    pixels = rows.copy(order="C").view(stored)
-    shape: Tuple[int, ...] = (height, width, channels) if channels > 1 else (height, width)
-    return np.ascontiguousarray(pixels.reshape(shape), dtype=out_dtype)
-
-
-def quaternion_matrix(q: Sequence[float]) -> np.ndarray:
-    """The 3x3 float64 rotation matrix of the unit quaternion ``q = (x, y, z, w)``.
-
-    Uses exactly the arithmetic of glam's ``DMat3::from_quat`` and
-    ``DMat4::from_rotation_translation`` (same operations in the same order, IEEE double), so
-    matrices built here and by the Rust tools from the same stored quaternion are bit-identical.
-    The quaternion is not renormalised.
-    """
-    x, y, z, w = (float(c) for c in q)
-    x2, y2, z2 = x + x, y + y, z + z
-    xx, xy, xz = x * x2, x * y2, x * z2
-    yy, yz, zz = y * y2, y * z2, z * z2
-    wx, wy, wz = w * x2, w * y2, w * z2
-    return np.array(
-        [
-            [1.0 - (yy + zz), xy - wz, xz + wy],
-            [xy + wz, 1.0 - (xx + zz), yz - wx],
-            [xz - wy, yz + wx, 1.0 - (xx + yy)],
-        ],
-        dtype=np.float64,
-    )
-
-
-def pose_matrix(position: Sequence[float], orientation: Sequence[float]) -> np.ndarray:
-    """The 4x4 float64 homogeneous transform of a translation and an ``(x, y, z, w)`` quaternion."""
-    T = np.eye(4, dtype=np.float64)
-    T[:3, :3] = quaternion_matrix(orientation)
-    T[:3, 3] = [float(c) for c in position]
-    return T
-
-
-def _pad_of(topic: str, suffix: str) -> Optional[str]:
-    if topic.startswith(TACTILE_DEPTH_PREFIX) and topic.endswith(suffix):
-        name = topic[len(TACTILE_DEPTH_PREFIX) : -len(suffix)]
-        if name and "/" not in name:
-            return name
-    return None
-
-
-def pad_of_topic(topic: str) -> Optional[str]:
-    """The pad name of a ``/tactile/<pad>/depth`` topic, else ``None``."""
-    return _pad_of(topic, TACTILE_DEPTH_SUFFIX)
-
-
-def optical_pad_of_topic(topic: str) -> Optional[str]:
-    """The pad name of a ``/tactile/<pad>/image`` topic (an optical sensor's image), else ``None``."""
-    return _pad_of(topic, TACTILE_IMAGE_SUFFIX)
-
-
-def _optical(
-    decoded: Dict[str, Any],
-    channel_ids: Mapping[str, int],
-    where: str,
-    tactile: Optional[Dict[str, Any]],
-) -> Optional[Tuple[Dict[str, np.ndarray], Dict[str, np.ndarray]]]:
-    """The optical pads' images and reference images, ``None`` when the sample has none.
-
-    The pads are the sample's ``/tactile/<pad>/image`` topics in the order of their channels (the
-    writer adds them in the robot's pad order). Each needs its ``/tactile/<pad>/reference`` of the
-    same size, both ``rgb8``; the pads must be pads of the tactile data and, when ``/sample/info``
-    has ``tactile.optical``, the pads it lists, at its ``image_size``.
-    """
-    found = sorted(
-        (channel_ids.get(t, 0), name)
-        for t in decoded
-        for name in [optical_pad_of_topic(t)]
-        if name
-    )
-    pads = [name for _, name in found]
-    orphans = sorted(
-        name
-        for t in decoded
-        for name in [_pad_of(t, TACTILE_REFERENCE_SUFFIX)]
-        if name and name not in pads
-    )
-    if orphans:
-        raise DatasetError(
-            f"{where}: {', '.join(f'/tactile/{p}/reference' for p in orphans)} without its "
-            f"/tactile/<pad>/image"
-        )
-    info = decoded.get(TOPIC_INFO)
-    touch = info.get("tactile") if isinstance(info, dict) else None
-    listed = touch.get("optical") if isinstance(touch, dict) else None
-    if isinstance(listed, dict) and set(listed) != set(pads):
-        raise DatasetError(
-            f"{where}: /sample/info tactile.optical lists the optical pads {sorted(listed)}, the "
-            f"sample has images of {sorted(pads)} (/tactile/<pad>/image)"
-        )
-    if not pads:
-        return None
-    if tactile is None:
-        raise DatasetError(
-            f"{where}: optical images of {', '.join(pads)} but no {TOPIC_TACTILE_POINTS} "
-            "(optical pads are pads of the robot's tactile data)"
-        )
-    unknown = [p for p in pads if p not in tactile["phalanges"]]
-    if unknown:
-        raise DatasetError(
-            f"{where}: optical images of {', '.join(unknown)}, which are not pads of the sample "
-            f"(no /tactile/<pad>/depth; pads: {', '.join(tactile['phalanges'])})"
-        )
-    images: Dict[str, np.ndarray] = {}
-    references: Dict[str, np.ndarray] = {}
-    for pad in pads:
-        image_topic = f"{TACTILE_DEPTH_PREFIX}{pad}{TACTILE_IMAGE_SUFFIX}"
-        reference_topic = f"{TACTILE_DEPTH_PREFIX}{pad}{TACTILE_REFERENCE_SUFFIX}"
-        if reference_topic not in decoded:
-            raise DatasetError(f"{where}: {image_topic} without its {reference_topic}")
-        image = decode_raw_image(decoded[image_topic], expect="rgb8", where=f"{where} {image_topic}")
-        reference = decode_raw_image(
-            decoded[reference_topic], expect="rgb8", where=f"{where} {reference_topic}"
-        )
-        h, w = image.shape[:2]
-        if reference.shape != image.shape:
-            raise DatasetError(
-                f"{where}: {reference_topic} is {reference.shape[1]}x{reference.shape[0]}, its "
-                f"image {w}x{h}"
-            )
-        if h == 0 or w == 0:
-            raise DatasetError(f"{where} {image_topic}: empty {w}x{h} image")
-        sensor = listed.get(pad) if isinstance(listed, dict) else None
-        size = sensor.get("image_size") if isinstance(sensor, dict) else None
-        if size is not None and size != [w, h]:
-            raise DatasetError(
-                f"{where}: {image_topic} is {w}x{h}, but /sample/info "
-                f"tactile.optical.{pad}.image_size is {size} ([width, height])"
-            )
-        images[pad] = image
-        references[pad] = reference
-    return images, references
-
-
-def _episode_streams(
-    frame: int,
-    time_ns: int,
-    decoded: Mapping[str, Any],
-    later: Sequence[Tuple[int, str, int, Any]],
-    channel_ids: Dict[str, int],
-    where: str,
-) -> Dict[str, Any]:
-    """An episode frame's ``sample["episode"]``: the states from its instant on and the touch
-    readings after its own, up to the next frame (the rest of its chunk), in time order."""
-    states: List[Tuple[int, Any]] = []
-    if TOPIC_EPISODE_STATE in decoded:
-        states.append((time_ns, decoded[TOPIC_EPISODE_STATE]))
-    touch: Dict[int, Dict[str, Any]] = {}
-    for t, topic, channel_id, value in later:
-        if topic == TOPIC_EPISODE_STATE:
-            if any(s == t for s, _ in states):
-                raise DatasetError(f"{where}: two {TOPIC_EPISODE_STATE} messages at {t} ns")
-            states.append((t, value))
-        elif topic.startswith(TACTILE_DEPTH_PREFIX) and not topic.endswith(TACTILE_REFERENCE_SUFFIX):
-            group = touch.setdefault(t, {})
-            if topic in group:
-                raise DatasetError(f"{where}: two {topic} messages at {t} ns")
-            group[topic] = value
-            channel_ids.setdefault(topic, channel_id)
-    tactile: List[Tuple[int, Dict[str, Any]]] = []
-    for t in sorted(touch):
-        group = touch[t]
-        at = f"{where} (touch at {t} ns)"
-        if TOPIC_TACTILE_POINTS not in group:
-            raise DatasetError(f"{at}: /tactile/<pad> messages without {TOPIC_TACTILE_POINTS}")
-        reading = _tactile(group, channel_ids, at)
-        pads = sorted(
-            (channel_ids.get(topic, 0), pad, topic)
-            for topic in group
-            for pad in [optical_pad_of_topic(topic)]
-            if pad
-        )
-        if pads:
-            reading["images"] = {
-                pad: decode_raw_image(group[topic], expect="rgb8", where=f"{at} {topic}")
-                for _, pad, topic in pads
-            }
-        tactile.append((t, reading))
-    states.sort(key=lambda item: item[0])
-    return {"frame": frame, "time_ns": time_ns, "states": states, "tactile": tactile}
-
-
-def _tactile(decoded: Dict[str, Any], channel_ids: Mapping[str, int], where: str) -> Dict[str, Any]:
-    """The tactile point cloud and the pad depth images of a sample.
-
-    The pads are the sample's ``/tactile/<pad>/depth`` topics, whatever the robot: in the order of
-    their channels (the writer adds them in the robot's pad order, the order of the points'
-    ``phalanx`` index; names sort otherwise, e.g. ``right`` before ``left``), checked
-    against ``/sample/info`` ``tactile.pads`` when the info has it.
-    """
-    cloud = decoded[TOPIC_TACTILE_POINTS]
-    if cloud.point_stride != _TACTILE_DTYPE.itemsize:
-        raise DatasetError(f"{where} {TOPIC_TACTILE_POINTS}: point stride {cloud.point_stride}, expected 20")
-    pts = np.frombuffer(bytes(cloud.data), dtype=_TACTILE_DTYPE)
-    pads = sorted(
-        ((channel_ids.get(t, 0), t, name) for t in decoded for name in [pad_of_topic(t)] if name),
-    )
-    topics = [t for _, t, _ in pads]
-    names = [name for _, _, name in pads]
-    info = decoded.get(TOPIC_INFO)
-    touch = info.get("tactile") if isinstance(info, dict) else None
-    listed = touch.get("pads") if isinstance(touch, dict) else None
-    if isinstance(listed, dict) and set(listed) != set(names):
-        raise DatasetError(
-            f"{where}: /sample/info tactile.pads lists the pads {sorted(listed)}, the sample has "
-            f"depth images of {sorted(names)} (/tactile/<pad>/depth)"
-        )
-    if not names:
-        raise DatasetError(
-            f"{where}: {TOPIC_TACTILE_POINTS} but no /tactile/<pad>/depth message (no pad)"
-        )
-    depth = [
-        decode_raw_image(decoded[t], expect="32FC1", where=f"{where} {t}") for t in topics
-    ]
-    shapes = {d.shape for d in depth}
-    if len(shapes) != 1:
-        raise DatasetError(
-            f"{where}: the pad depth images differ in size: "
-            + ", ".join(f"{n} {d.shape[1]}x{d.shape[0]}" for n, d in zip(names, depth))
-        )
-    if len(pts) and int(pts["phalanx"].max()) >= len(names):
-        raise DatasetError(
-            f"{where} {TOPIC_TACTILE_POINTS}: phalanx index {int(pts['phalanx'].max())} but the "
-            f"sample has {len(names)} pads ({', '.join(names)})"
-        )
-    return {
-        "points": np.ascontiguousarray(np.stack([pts["x"], pts["y"], pts["z"]], axis=1)),
-        "distance": pts["distance"].copy(),
-        "phalanx": pts["phalanx"].copy(),
-        "phalanges": names,
-        "depth": np.stack(depth),
-    }
-
-
-def _intrinsics(calibration: Any, where: str) -> np.ndarray:
-    K = np.array(list(calibration.K), dtype=np.float64)
-    if K.size != 9:
-        raise DatasetError(f"{where} {TOPIC_CALIBRATION}: K has {K.size} values, expected 9")
-    return K.reshape(3, 3)
-
-
-def _frame_transforms(message: Any, where: str) -> Dict[Tuple[str, str], np.ndarray]:
-    out: Dict[Tuple[str, str], np.ndarray] = {}
-    for tf in message.transforms:
-        t, r = tf.translation, tf.rotation
-        out[(tf.parent_frame_id, tf.child_frame_id)] = pose_matrix(
-            (t.x, t.y, t.z), (r.x, r.y, r.z, r.w)
-        )
-    for key in (("world", "camera"), ("world", "object")):
-        if key not in out:
-            raise DatasetError(
-                f"{where} {TOPIC_TF}: no {key[0]} -> {key[1]} transform "
-                f"(found {sorted(out) or 'none'})"
-            )
-    return out
-
-
-# --- manifest, index and models --------------------------------------------------------------
-
-
-def _read_manifest(root: Path) -> Dict[str, Any]:
-    path = root / "manifest.json"
-    if not path.is_file():
-        if not root.is_dir():
-            raise DatasetNotFoundError(f"dataset folder {root} does not exist")
-        raise DatasetNotFoundError(f"{path} is missing: {root} is not a vtgen dataset")
-    try:
-        with open(path, "r", encoding="utf-8") as f:
-            manifest = json.load(f)
-    except json.JSONDecodeError as e:
-        raise DatasetError(f"{path} is not valid JSON: {e}") from e
-    if not isinstance(manifest, dict) or manifest.get("format") != MANIFEST_FORMAT:
-        found = manifest.get("format") if isinstance(manifest, dict) else type(manifest).__name__
-        raise DatasetError(f"{path}: format is {found!r}, expected {MANIFEST_FORMAT!r}")
-    version = manifest.get("format_version")
-    if not isinstance(version, int) or version < 1:
-        raise DatasetError(f"{path}: invalid format_version {version!r}")
-    if version > FORMAT_VERSION:
-        warnings.warn(
-            f"{path}: format_version {version} is newer than this reader ({FORMAT_VERSION}); "
-            "unknown fields are ignored",
-            stacklevel=3,
-        )
-    return manifest
-
-
-def _check_shard_belongs(
-    shard: str,
-    meta: Optional[Mapping[str, str]],
-    split: str,
-    entry: Mapping[str, Any],
-    manifest: Mapping[str, Any],
-) -> None:
-    """The shard's ``vtgen.shard`` metadata names this dataset (its config hash), split and shard."""
-    if meta is None:
-        raise DatasetError(f"{shard}: no 'vtgen.shard' metadata record: not a vtgen shard")
-    theirs, ours = meta.get("config_sha256"), manifest.get("config_sha256")
-    if ours is not None and theirs != ours:
-        raise DatasetError(
-            f"{shard}: this shard belongs to another dataset (its config_sha256 is {theirs}, "
-            f"the manifest's {ours})"
-        )
-    where = (meta.get("split"), meta.get("shard_index"))
-    want = (split, str(entry.get("shard_index")))
-    if entry.get("shard_index") is not None and where != want:
-        raise DatasetError(
-            f"{shard}: holds shard {where[1]} of split {where[0]!r}, but the manifest lists it "
-            f"as shard {want[1]} of split {want[0]!r}"
-        )
-
-
-def _episode_record(shard: str, meta: Mapping[str, str]) -> Optional[Dict[str, Any]]:
-    """The shard's ``vtgen.shard`` ``episode`` record (JSON), ``None`` in a snapshot shard."""
-    raw = meta.get(EPISODE_METADATA_KEY)
-    if raw is None:
-        return None
-    try:
-        record = json.loads(raw)
-    except json.JSONDecodeError as e:
-        raise DatasetError(f"{shard}: vtgen.shard '{EPISODE_METADATA_KEY}' is not valid JSON: {e}") from e
-    if not isinstance(record, dict):
-        raise DatasetError(f"{shard}: vtgen.shard '{EPISODE_METADATA_KEY}' is not a JSON object")
-    return record
-
-
-def _build_index(
-    root: Path,
-    split: str,
-    split_entry: Mapping[str, Any],
-    shards_out: List[str],
-    manifest: Mapping[str, Any],
-    episodes_out: List[Dict[str, Any]],
-) -> List[Tuple[str, int, int]]:
-    """Map every sample of the split to (shard path, chunk start, chunk end log time) from the
-    shards' chunk indexes; each episode shard's record goes to ``episodes_out``."""
-    manifest_path = root / "manifest.json"
-    found: Dict[int, Tuple[str, int, int]] = {}
-    for entry in split_entry.get("shards", []):
-        if entry.get("sha256") is None:
-            continue  # listed but not generated yet (interrupted or distributed run)
-        path = root / entry["file"]
-        if not path.is_file():
-            raise DatasetNotFoundError(
-                f"shard {path} is listed in {manifest_path} but missing on disk"
-            )
-        shard = str(path)
-        shards_out.append(shard)
-        with open(path, "rb") as f:
-            try:
-                reader = make_reader(f)
-                summary = reader.get_summary()
-                metadata = {m.name: m.metadata for m in reader.iter_metadata()}
-            except Exception as e:
-                raise DatasetError(
-                    f"{shard}: cannot read the MCAP summary (truncated or damaged file?): {e}"
-                ) from e
-        if summary is None:
-            raise DatasetError(f"{shard}: MCAP file has no summary section")
-        meta = metadata.get("vtgen.shard")
-        _check_shard_belongs(shard, meta, split, entry, manifest)
-        assert meta is not None
-        episode = _episode_record(shard, meta)
-        # (split index, chunk start, chunk end) of each chunk of the shard.
-        located: List[Tuple[int, int, int]] = []
-        if episode is None:
-            for chunk in summary.chunk_indexes:
-                start, end = chunk.message_start_time, chunk.message_end_time
-                if start % SAMPLE_PERIOD_NS != 0 or end != start:
-                    raise DatasetError(
-                        f"{shard}: chunk at offset {chunk.chunk_start_offset} spans log times "
-                        f"{start}..{end} ns; every chunk must hold exactly one sample at a multiple "
-                        f"of {SAMPLE_PERIOD_NS} ns"
-                    )
-                located.append((start // SAMPLE_PERIOD_NS, start, end))
-        else:
-            # An episode: its chunks in time order are its frames, numbered from first_sample.
-            # Their time spans must not overlap, so a frame's time range selects its chunk alone.
-            first = meta.get("first_sample", entry.get("first_sample"))
-            try:
-                first = int(first)  # type: ignore[arg-type]
-            except (TypeError, ValueError):
-                raise DatasetError(f"{shard}: episode shard without a valid first_sample ({first!r})") from None
-            chunks = sorted(
-                (c for c in summary.chunk_indexes if c.message_index_offsets),
-                key=lambda c: (c.message_start_time, c.message_end_time),
-            )
-            for k, chunk in enumerate(chunks):
-                start, end = chunk.message_start_time, chunk.message_end_time
-                if k > 0 and start <= located[-1][2]:
-                    raise DatasetError(
-                        f"{shard}: the chunks of frames {k - 1} and {k} overlap in time "
-                        f"({located[-1][1]}..{located[-1][2]} ns and {start}..{end} ns); each "
-                        f"chunk of an episode is one camera frame up to the next"
-                    )
-                located.append((first + k, start, end))
-            frames = episode.get("frames")
-            if isinstance(frames, int) and frames != len(chunks):
-                raise DatasetError(
-                    f"{shard}: its episode record has {frames} frames, the shard {len(chunks)} chunks"
-                )
-            episodes_out.append({**episode, "shard": shard, "first_sample": first, "frames": len(chunks)})
-        indices: List[int] = []
-        for index, start, end in located:
-            if index in found:
-                other = found[index][0]
-                raise DatasetError(
-                    f"sample {index} of split {split!r} is stored twice: in {other} and {shard}"
-                )
-            found[index] = (shard, start, end)
-            indices.append(index)
-        first, count = entry.get("first_sample"), entry.get("samples")
-        if isinstance(first, int) and isinstance(count, int):
-            if sorted(indices) != list(range(first, first + count)):
-                raise DatasetError(
-                    f"{shard}: the manifest lists samples {first}..{first + count - 1} but the "
-                    f"shard's chunk indexes hold {len(indices)} samples "
-                    f"({_describe_range(sorted(indices))})"
-                )
-    n = len(found)
-    if n and (min(found) != 0 or max(found) != n - 1):
-        missing = next(i for i in range(max(found) + 1) if i not in found)
-        raise DatasetError(
-            f"split {split!r} of {root} is not contiguous: {n} samples found but sample {missing} "
-            f"is missing (is a shard still unwritten? see 'complete' in {manifest_path})"
-        )
-    return [found[i] for i in range(n)]
-
-
-def _describe_range(indices: Sequence[int]) -> str:
-    if not indices:
-        return "none"
-    return f"{indices[0]}..{indices[-1]}"
 
 
 def _check_index(index: int, length: int) -> int:
@@ -1012,8 +508,8 @@ def _check_index(index: int, length: int) -> int:
 
 def load_models(root: PathLike) -> Dict[str, Dict[str, Any]]:
     """Load ``models/models_info.json`` and every model's PLY mesh of the dataset at ``root``."""
-    models_dir = Path(root) / "models"
-    info_path = models_dir / "models_info.json"
+    models_dir = Path(root) / MODELS_DIR
+    info_path = Path(root) / MODELS_INFO_FILE
     if not info_path.is_file():
         raise DatasetNotFoundError(f"{info_path} is missing")
     with open(info_path, "r", encoding="utf-8") as f:

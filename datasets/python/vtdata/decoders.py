@@ -1,0 +1,421 @@
+"""Decoding a sample's messages into numpy arrays (FORMAT.md, "MCAP shard").
+
+The decoders take the messages the MCAP readers decoded (Foxglove protobuf objects and JSON
+values, keyed by topic) and return arrays: images, the tactile point cloud and the pads' images,
+transforms and an episode frame's faster streams. Each checks what it reads and raises
+:class:`~vtdata.errors.DatasetError` naming ``where`` (the shard and sample) when the data does not
+follow the format.
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple
+
+import numpy as np
+from mcap.decoder import DecoderFactory as _McapDecoderFactory
+from mcap.records import Schema
+
+from .errors import DatasetError
+from .format import (
+    FRAME_CAMERA,
+    FRAME_OBJECT,
+    FRAME_WORLD,
+    IMAGE_ENCODINGS,
+    MESSAGE_ENCODING_JSON,
+    TACTILE_DEPTH_ENCODING,
+    TACTILE_DEPTH_PREFIX,
+    TACTILE_DEPTH_SUFFIX,
+    TACTILE_IMAGE_ENCODING,
+    TACTILE_IMAGE_SUFFIX,
+    TACTILE_POINT_DTYPE,
+    TACTILE_REFERENCE_SUFFIX,
+    TOPIC_CALIBRATION,
+    TOPIC_DEPTH,
+    TOPIC_EPISODE_STATE,
+    TOPIC_IMAGE_ENCODINGS,
+    TOPIC_INFO,
+    TOPIC_MASK,
+    TOPIC_POSE,
+    TOPIC_RGB,
+    TOPIC_TACTILE_POINTS,
+    TOPIC_TF,
+    pad_of,
+    tactile_depth_topic,
+    tactile_image_topic,
+    tactile_reference_topic,
+)
+
+# --- JSON messages ----------------------------------------------------------------------------
+
+
+class _JsonDecoderFactory(_McapDecoderFactory):
+    """Decodes channels with message encoding ``json`` (``/sample/info``, ``/episode/state``)."""
+
+    def decoder_for(
+        self, message_encoding: str, schema: Optional[Schema]
+    ) -> Optional[Callable[[bytes], Any]]:
+        if message_encoding == MESSAGE_ENCODING_JSON:
+            return _decode_json
+        return None
+
+
+def _decode_json(data: bytes) -> Any:
+    return json.loads(data.decode("utf-8"))
+
+
+# --- images and transforms --------------------------------------------------------------------
+
+
+def decode_raw_image(image: Any, expect: Optional[str] = None, where: str = "image") -> np.ndarray:
+    """Convert a ``foxglove.RawImage`` message into a C-contiguous numpy array.
+
+    Supports ``rgb8`` (``(H, W, 3)`` uint8), ``mono8`` (``(H, W)`` uint8), ``mono16`` (``(H, W)``
+    uint16, little-endian) and ``32FC1`` (``(H, W)`` float32, little-endian). Rows are read
+    ``step`` bytes apart, so padded rows are handled. ``expect`` checks the encoding.
+    """
+    encoding = image.encoding
+    if expect is not None and encoding != expect:
+        raise DatasetError(f"{where}: expected encoding {expect!r}, found {encoding!r}")
+    if encoding not in IMAGE_ENCODINGS:
+        raise DatasetError(
+            f"{where}: unsupported image encoding {encoding!r} "
+            f"(supported: {', '.join(IMAGE_ENCODINGS)})"
+        )
+    stored, channels, out_dtype = IMAGE_ENCODINGS[encoding]
+    height, width, step = int(image.height), int(image.width), int(image.step)
+    row_bytes = width * channels * np.dtype(stored).itemsize
+    if step < row_bytes:
+        raise DatasetError(
+            f"{where}: step {step} is smaller than a {width}-pixel {encoding} row "
+            f"({row_bytes} bytes)"
+        )
+    data = np.frombuffer(image.data, dtype=np.uint8)
+    needed = (height - 1) * step + row_bytes if height > 0 else 0
+    if data.size < needed:
+        raise DatasetError(
+            f"{where}: {height}x{width} {encoding} image with step {step} needs {needed} bytes, "
+            f"data has {data.size}"
+        )
+    rows = np.lib.stride_tricks.as_strided(data, shape=(height, row_bytes), strides=(step, 1))
+    # Copy the rows into a new contiguous (writable) buffer, then reinterpret the bytes as pixels.
+    pixels = rows.copy(order="C").view(stored)
+    shape: Tuple[int, ...] = (height, width, channels) if channels > 1 else (height, width)
+    return np.ascontiguousarray(pixels.reshape(shape), dtype=out_dtype)
+
+
+def quaternion_matrix(q: Sequence[float]) -> np.ndarray:
+    """The 3x3 float64 rotation matrix of the unit quaternion ``q = (x, y, z, w)``.
+
+    Uses exactly the arithmetic of glam's ``DMat3::from_quat`` and
+    ``DMat4::from_rotation_translation`` (same operations in the same order, IEEE double), so
+    matrices built here and by the Rust tools from the same stored quaternion are bit-identical.
+    The quaternion is not renormalised.
+    """
+    x, y, z, w = (float(c) for c in q)
+    x2, y2, z2 = x + x, y + y, z + z
+    xx, xy, xz = x * x2, x * y2, x * z2
+    yy, yz, zz = y * y2, y * z2, z * z2
+    wx, wy, wz = w * x2, w * y2, w * z2
+    return np.array(
+        [
+            [1.0 - (yy + zz), xy - wz, xz + wy],
+            [xy + wz, 1.0 - (xx + zz), yz - wx],
+            [xz - wy, yz + wx, 1.0 - (xx + yy)],
+        ],
+        dtype=np.float64,
+    )
+
+
+def pose_matrix(position: Sequence[float], orientation: Sequence[float]) -> np.ndarray:
+    """The 4x4 float64 homogeneous transform of a translation and an ``(x, y, z, w)`` quaternion."""
+    T = np.eye(4, dtype=np.float64)
+    T[:3, :3] = quaternion_matrix(orientation)
+    T[:3, 3] = [float(c) for c in position]
+    return T
+
+
+def _intrinsics(calibration: Any, where: str) -> np.ndarray:
+    K = np.array(list(calibration.K), dtype=np.float64)
+    if K.size != 9:
+        raise DatasetError(f"{where} {TOPIC_CALIBRATION}: K has {K.size} values, expected 9")
+    return K.reshape(3, 3)
+
+
+def _frame_transforms(message: Any, where: str) -> Dict[Tuple[str, str], np.ndarray]:
+    out: Dict[Tuple[str, str], np.ndarray] = {}
+    for tf in message.transforms:
+        t, r = tf.translation, tf.rotation
+        out[(tf.parent_frame_id, tf.child_frame_id)] = pose_matrix(
+            (t.x, t.y, t.z), (r.x, r.y, r.z, r.w)
+        )
+    for key in ((FRAME_WORLD, FRAME_CAMERA), (FRAME_WORLD, FRAME_OBJECT)):
+        if key not in out:
+            raise DatasetError(
+                f"{where} {TOPIC_TF}: no {key[0]} -> {key[1]} transform "
+                f"(found {sorted(out) or 'none'})"
+            )
+    return out
+
+
+def _camera_fields(decoded: Mapping[str, Any], where: str) -> Dict[str, Any]:
+    """A sample's camera images, intrinsics and ground-truth transforms (its first keys)."""
+    transforms = _frame_transforms(decoded[TOPIC_TF], where)
+    pose = decoded[TOPIC_POSE].pose
+    images = {
+        key: decode_raw_image(
+            decoded[topic], expect=TOPIC_IMAGE_ENCODINGS[topic], where=where + f" {topic}"
+        )
+        for key, topic in (("rgb", TOPIC_RGB), ("depth", TOPIC_DEPTH), ("mask", TOPIC_MASK))
+    }
+    return {
+        **images,
+        "K": _intrinsics(decoded[TOPIC_CALIBRATION], where),
+        "T_camera_object": pose_matrix(
+            (pose.position.x, pose.position.y, pose.position.z),
+            (pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w),
+        ),
+        "T_world_camera": transforms[(FRAME_WORLD, FRAME_CAMERA)],
+        "T_world_object": transforms[(FRAME_WORLD, FRAME_OBJECT)],
+    }
+
+
+# --- pads -------------------------------------------------------------------------------------
+
+#: The ``/tactile/<pad><suffix>`` topics whose pads ``/sample/info`` lists: suffix -> (the
+#: ``tactile`` key listing them, what the pads are, what the sample has of them).
+_LISTED_PADS: Dict[str, Tuple[str, str, str]] = {
+    TACTILE_DEPTH_SUFFIX: ("pads", "pads", "depth images"),
+    TACTILE_IMAGE_SUFFIX: ("optical", "optical pads", "images"),
+}
+
+
+def _pads_in_channel_order(
+    decoded: Mapping[str, Any], channel_ids: Mapping[str, int], suffix: str
+) -> List[str]:
+    """The pads of the ``/tactile/<pad><suffix>`` topics in ``decoded``, in the order of their
+    channels: the writer adds a robot's pad channels in its pads' order, the order of the points'
+    ``phalanx`` index (names would sort otherwise, e.g. ``right`` before ``left``)."""
+    return [
+        name
+        for _, name in sorted(
+            (channel_ids.get(t, 0), name) for t in decoded for name in [pad_of(t, suffix)] if name
+        )
+    ]
+
+
+def _check_listed_pads(
+    decoded: Mapping[str, Any], pads: Sequence[str], suffix: str, where: str
+) -> Optional[Dict[str, Any]]:
+    """Check the sample's pads with a ``/tactile/<pad><suffix>`` topic against the ones its
+    ``/sample/info`` lists (``tactile.pads`` for the depth images, ``tactile.optical`` for the
+    optical images), when the info has that list; return the list (``{pad: ...}``) or ``None``."""
+    key, pads_are, images_are = _LISTED_PADS[suffix]
+    info = decoded.get(TOPIC_INFO)
+    touch = info.get("tactile") if isinstance(info, dict) else None
+    listed = touch.get(key) if isinstance(touch, dict) else None
+    if not isinstance(listed, dict):
+        return None
+    if set(listed) != set(pads):
+        raise DatasetError(
+            f"{where}: /sample/info tactile.{key} lists the {pads_are} {sorted(listed)}, the "
+            f"sample has {images_are} of {sorted(pads)} ({TACTILE_DEPTH_PREFIX}<pad>{suffix})"
+        )
+    return listed
+
+
+def _tactile_points(cloud: Any, where: str) -> np.ndarray:
+    """The ``/tactile/points`` PointCloud's points (:data:`~vtdata.format.TACTILE_POINT_DTYPE`)."""
+    if cloud.point_stride != TACTILE_POINT_DTYPE.itemsize:
+        raise DatasetError(
+            f"{where} {TOPIC_TACTILE_POINTS}: point stride {cloud.point_stride}, expected "
+            f"{TACTILE_POINT_DTYPE.itemsize}"
+        )
+    return np.frombuffer(bytes(cloud.data), dtype=TACTILE_POINT_DTYPE)
+
+
+def _tactile(decoded: Dict[str, Any], channel_ids: Mapping[str, int], where: str) -> Dict[str, Any]:
+    """The tactile point cloud and the pad depth images of a sample.
+
+    The pads are the sample's ``/tactile/<pad>/depth`` topics, whatever the robot: in the order of
+    their channels (:func:`_pads_in_channel_order`), checked against ``/sample/info``
+    ``tactile.pads`` when the info has it.
+    """
+    pts = _tactile_points(decoded[TOPIC_TACTILE_POINTS], where)
+    names = _pads_in_channel_order(decoded, channel_ids, TACTILE_DEPTH_SUFFIX)
+    _check_listed_pads(decoded, names, TACTILE_DEPTH_SUFFIX, where)
+    if not names:
+        raise DatasetError(
+            f"{where}: {TOPIC_TACTILE_POINTS} but no /tactile/<pad>/depth message (no pad)"
+        )
+    depth = [
+        decode_raw_image(decoded[t], expect=TACTILE_DEPTH_ENCODING, where=f"{where} {t}")
+        for t in map(tactile_depth_topic, names)
+    ]
+    shapes = {d.shape for d in depth}
+    if len(shapes) != 1:
+        raise DatasetError(
+            f"{where}: the pad depth images differ in size: "
+            + ", ".join(f"{n} {d.shape[1]}x{d.shape[0]}" for n, d in zip(names, depth))
+        )
+    if len(pts) and int(pts["phalanx"].max()) >= len(names):
+        raise DatasetError(
+            f"{where} {TOPIC_TACTILE_POINTS}: phalanx index {int(pts['phalanx'].max())} but the "
+            f"sample has {len(names)} pads ({', '.join(names)})"
+        )
+    return {
+        "points": np.ascontiguousarray(np.stack([pts["x"], pts["y"], pts["z"]], axis=1)),
+        "distance": pts["distance"].copy(),
+        "phalanx": pts["phalanx"].copy(),
+        "phalanges": names,
+        "depth": np.stack(depth),
+    }
+
+
+def _optical_pads(
+    decoded: Dict[str, Any],
+    channel_ids: Mapping[str, int],
+    where: str,
+    tactile: Optional[Dict[str, Any]],
+) -> Tuple[List[str], Optional[Dict[str, Any]]]:
+    """The optical pads of a sample (its ``/tactile/<pad>/image`` topics in channel order) and
+    their ``/sample/info`` ``tactile.optical`` entries (``None`` without them), checked: each
+    reference has its image, the info lists these pads, they are pads of the tactile data."""
+    pads = _pads_in_channel_order(decoded, channel_ids, TACTILE_IMAGE_SUFFIX)
+    orphans = sorted(
+        name
+        for t in decoded
+        for name in [pad_of(t, TACTILE_REFERENCE_SUFFIX)]
+        if name and name not in pads
+    )
+    if orphans:
+        raise DatasetError(
+            f"{where}: {', '.join(tactile_reference_topic(p) for p in orphans)} without its "
+            f"/tactile/<pad>/image"
+        )
+    listed = _check_listed_pads(decoded, pads, TACTILE_IMAGE_SUFFIX, where)
+    if not pads:
+        return pads, listed
+    if tactile is None:
+        raise DatasetError(
+            f"{where}: optical images of {', '.join(pads)} but no {TOPIC_TACTILE_POINTS} "
+            "(optical pads are pads of the robot's tactile data)"
+        )
+    unknown = [p for p in pads if p not in tactile["phalanges"]]
+    if unknown:
+        raise DatasetError(
+            f"{where}: optical images of {', '.join(unknown)}, which are not pads of the sample "
+            f"(no /tactile/<pad>/depth; pads: {', '.join(tactile['phalanges'])})"
+        )
+    return pads, listed
+
+
+def _optical_pair(
+    decoded: Dict[str, Any], pad: str, listed: Optional[Dict[str, Any]], where: str
+) -> Tuple[np.ndarray, np.ndarray]:
+    """One optical pad's image and reference image, checked: same size, not empty, the size
+    ``/sample/info`` gives the sensor (``listed``: its ``tactile.optical``) when it gives one."""
+    image_topic = tactile_image_topic(pad)
+    reference_topic = tactile_reference_topic(pad)
+    if reference_topic not in decoded:
+        raise DatasetError(f"{where}: {image_topic} without its {reference_topic}")
+    image = decode_raw_image(
+        decoded[image_topic], expect=TACTILE_IMAGE_ENCODING, where=f"{where} {image_topic}"
+    )
+    reference = decode_raw_image(
+        decoded[reference_topic], expect=TACTILE_IMAGE_ENCODING, where=f"{where} {reference_topic}"
+    )
+    h, w = image.shape[:2]
+    if reference.shape != image.shape:
+        raise DatasetError(
+            f"{where}: {reference_topic} is {reference.shape[1]}x{reference.shape[0]}, its "
+            f"image {w}x{h}"
+        )
+    if h == 0 or w == 0:
+        raise DatasetError(f"{where} {image_topic}: empty {w}x{h} image")
+    sensor = listed.get(pad) if listed is not None else None
+    size = sensor.get("image_size") if isinstance(sensor, dict) else None
+    if size is not None and size != [w, h]:
+        raise DatasetError(
+            f"{where}: {image_topic} is {w}x{h}, but /sample/info "
+            f"tactile.optical.{pad}.image_size is {size} ([width, height])"
+        )
+    return image, reference
+
+
+def _optical(
+    decoded: Dict[str, Any],
+    channel_ids: Mapping[str, int],
+    where: str,
+    tactile: Optional[Dict[str, Any]],
+) -> Optional[Tuple[Dict[str, np.ndarray], Dict[str, np.ndarray]]]:
+    """The optical pads' images and reference images, ``None`` when the sample has none.
+
+    The pads are the sample's ``/tactile/<pad>/image`` topics in the order of their channels (the
+    writer adds them in the robot's pad order). Each needs its ``/tactile/<pad>/reference`` of the
+    same size, both ``rgb8``; the pads must be pads of the tactile data and, when ``/sample/info``
+    has ``tactile.optical``, the pads it lists, at its ``image_size``.
+    """
+    pads, listed = _optical_pads(decoded, channel_ids, where, tactile)
+    if not pads:
+        return None
+    images: Dict[str, np.ndarray] = {}
+    references: Dict[str, np.ndarray] = {}
+    for pad in pads:
+        images[pad], references[pad] = _optical_pair(decoded, pad, listed, where)
+    return images, references
+
+
+# --- episodes ---------------------------------------------------------------------------------
+
+
+def _touch_reading(
+    group: Dict[str, Any], channel_ids: Mapping[str, int], where: str
+) -> Dict[str, Any]:
+    """One touch reading of an episode (its ``/tactile/*`` messages of one time) like a sample's
+    ``tactile``, plus, with optical pads, ``images`` ``{pad: (H, W, 3) uint8}``."""
+    if TOPIC_TACTILE_POINTS not in group:
+        raise DatasetError(f"{where}: /tactile/<pad> messages without {TOPIC_TACTILE_POINTS}")
+    reading = _tactile(group, channel_ids, where)
+    pads = _pads_in_channel_order(group, channel_ids, TACTILE_IMAGE_SUFFIX)
+    if pads:
+        reading["images"] = {
+            pad: decode_raw_image(
+                group[topic], expect=TACTILE_IMAGE_ENCODING, where=f"{where} {topic}"
+            )
+            for pad, topic in zip(pads, map(tactile_image_topic, pads))
+        }
+    return reading
+
+
+def _episode_streams(
+    frame: int,
+    time_ns: int,
+    decoded: Mapping[str, Any],
+    later: Sequence[Tuple[int, str, int, Any]],
+    channel_ids: Dict[str, int],
+    where: str,
+) -> Dict[str, Any]:
+    """An episode frame's ``sample["episode"]``: the states from its instant on and the touch
+    readings after its own, up to the next frame (the rest of its chunk), in time order."""
+    states: List[Tuple[int, Any]] = []
+    if TOPIC_EPISODE_STATE in decoded:
+        states.append((time_ns, decoded[TOPIC_EPISODE_STATE]))
+    touch: Dict[int, Dict[str, Any]] = {}
+    for t, topic, channel_id, value in later:
+        if topic == TOPIC_EPISODE_STATE:
+            if any(s == t for s, _ in states):
+                raise DatasetError(f"{where}: two {TOPIC_EPISODE_STATE} messages at {t} ns")
+            states.append((t, value))
+        elif topic.startswith(TACTILE_DEPTH_PREFIX) and not topic.endswith(TACTILE_REFERENCE_SUFFIX):
+            group = touch.setdefault(t, {})
+            if topic in group:
+                raise DatasetError(f"{where}: two {topic} messages at {t} ns")
+            group[topic] = value
+            channel_ids.setdefault(topic, channel_id)
+    tactile = [
+        (t, _touch_reading(touch[t], channel_ids, f"{where} (touch at {t} ns)"))
+        for t in sorted(touch)
+    ]
+    states.sort(key=lambda item: item[0])
+    return {"frame": frame, "time_ns": time_ns, "states": states, "tactile": tactile}

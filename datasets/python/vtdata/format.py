@@ -1,0 +1,277 @@
+"""The constants of the vtgen dataset format (``datasets/FORMAT.md``, format version 1).
+
+Every name, key, encoding and layout the reader relies on is written here once; the index, the
+decoders and :class:`vtdata.Dataset` take them from this module, and so does the test suite's
+synthetic writer. ``datasets/format.json``, which the Rust crate writes from its own constants,
+describes the same format: ``tests/test_format.py`` checks every constant here against it.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Dict, Optional, Tuple
+
+import numpy as np
+
+# --- identity and timeline --------------------------------------------------------------------
+
+#: The ``format`` value of a vtgen ``manifest.json``.
+MANIFEST_FORMAT = "vtgen-dataset"
+#: The newest ``format_version`` this reader was written for.
+FORMAT_VERSION = 1
+#: Nanoseconds between two consecutive samples on the dataset timeline (10 Hz).
+SAMPLE_PERIOD_NS = 100_000_000
+
+# --- files (FORMAT.md, "Directory layout"; paths relative to the dataset root) ----------------
+
+MANIFEST_FILE = "manifest.json"
+#: Where the meshes came from, by content (with ``config.json``, the dataset's identity).
+SOURCES_FILE = "sources.json"
+#: The robot the dataset was made with (``robot.urdf``, ``robot.yaml``, ``meshes.json``).
+ROBOT_DIR = "robot"
+MODELS_DIR = "models"
+MODELS_INFO_FILE = "models/models_info.json"
+#: Shard ``index`` of ``split`` (:func:`shard_file`); the same pattern in Python and Rust.
+SHARD_FILE = "{split}/shard-{index:05}.mcap"
+#: The suffix of a shard still being written (a ``*.mcap`` file is always complete).
+PARTIAL_SUFFIX = ".partial"
+
+
+def shard_file(split: str, index: int) -> str:
+    """The path of shard ``index`` of ``split``, relative to the dataset root."""
+    return SHARD_FILE.format(split=split, index=index)
+
+
+# --- the vtgen.shard metadata record of every shard (FORMAT.md, "Shard metadata") -------------
+
+SHARD_METADATA = "vtgen.shard"
+#: The keys every shard's record has (all values strings), in the order they are written.
+SHARD_METADATA_KEYS = (
+    "format_version",
+    "generator",
+    "seed",
+    "config_sha256",
+    "split",
+    "shard_index",
+    "first_sample",
+    "sample_count",
+)
+#: Keys only some shards have (JSON values).
+SHARD_METADATA_OPTIONAL_KEYS = ("occlusion_histogram", "grasp_stats", "episode")
+#: The key whose presence makes a shard an episode (JSON value: the episode record).
+EPISODE_METADATA_KEY = "episode"
+
+# --- topics (FORMAT.md, "MCAP shard") ---------------------------------------------------------
+
+TOPIC_RGB = "/camera/rgb"
+TOPIC_DEPTH = "/camera/depth"
+TOPIC_DEPTH_NOISY = "/camera/depth_noisy"
+TOPIC_MASK = "/camera/mask"
+TOPIC_CALIBRATION = "/camera/calibration"
+TOPIC_POSE = "/object/pose"
+TOPIC_TF = "/tf"
+TOPIC_INFO = "/sample/info"
+TOPIC_TACTILE_POINTS = "/tactile/points"
+#: The scene's meshes as Foxglove SceneUpdate (for viewing); the reader does not decode it.
+TOPIC_SCENE_MODELS = "/scene/models"
+#: Episode shards: the state stream (JSON ``vtgen.StateRecord``) at the state rate.
+TOPIC_EPISODE_STATE = "/episode/state"
+#: Topics every sample must have, in the order they are written; other topics (later format
+#: versions) are ignored.
+REQUIRED_TOPICS = (
+    TOPIC_RGB,
+    TOPIC_DEPTH,
+    TOPIC_MASK,
+    TOPIC_CALIBRATION,
+    TOPIC_POSE,
+    TOPIC_TF,
+    TOPIC_INFO,
+)
+
+MESSAGE_ENCODING_PROTOBUF = "protobuf"
+MESSAGE_ENCODING_JSON = "json"
+SCHEMA_RAW_IMAGE = "foxglove.RawImage"
+SCHEMA_CAMERA_CALIBRATION = "foxglove.CameraCalibration"
+SCHEMA_POSE_IN_FRAME = "foxglove.PoseInFrame"
+SCHEMA_FRAME_TRANSFORMS = "foxglove.FrameTransforms"
+SCHEMA_POINT_CLOUD = "foxglove.PointCloud"
+SCHEMA_SCENE_UPDATE = "foxglove.SceneUpdate"
+SCHEMA_SAMPLE_INFO = "vtgen.SampleInfo"
+SCHEMA_STATE_RECORD = "vtgen.StateRecord"
+
+#: Topic -> (schema name, message encoding) of every fixed topic (the pads' are below).
+TOPIC_SCHEMAS: Dict[str, Tuple[str, str]] = {
+    TOPIC_RGB: (SCHEMA_RAW_IMAGE, MESSAGE_ENCODING_PROTOBUF),
+    TOPIC_DEPTH: (SCHEMA_RAW_IMAGE, MESSAGE_ENCODING_PROTOBUF),
+    TOPIC_DEPTH_NOISY: (SCHEMA_RAW_IMAGE, MESSAGE_ENCODING_PROTOBUF),
+    TOPIC_MASK: (SCHEMA_RAW_IMAGE, MESSAGE_ENCODING_PROTOBUF),
+    TOPIC_CALIBRATION: (SCHEMA_CAMERA_CALIBRATION, MESSAGE_ENCODING_PROTOBUF),
+    TOPIC_POSE: (SCHEMA_POSE_IN_FRAME, MESSAGE_ENCODING_PROTOBUF),
+    TOPIC_TF: (SCHEMA_FRAME_TRANSFORMS, MESSAGE_ENCODING_PROTOBUF),
+    TOPIC_INFO: (SCHEMA_SAMPLE_INFO, MESSAGE_ENCODING_JSON),
+    TOPIC_TACTILE_POINTS: (SCHEMA_POINT_CLOUD, MESSAGE_ENCODING_PROTOBUF),
+    TOPIC_SCENE_MODELS: (SCHEMA_SCENE_UPDATE, MESSAGE_ENCODING_PROTOBUF),
+    TOPIC_EPISODE_STATE: (SCHEMA_STATE_RECORD, MESSAGE_ENCODING_JSON),
+}
+#: The RawImage encoding of each fixed image topic.
+TOPIC_IMAGE_ENCODINGS: Dict[str, str] = {
+    TOPIC_RGB: "rgb8",
+    TOPIC_DEPTH: "32FC1",
+    TOPIC_DEPTH_NOISY: "32FC1",
+    TOPIC_MASK: "mono8",
+}
+
+# --- the pads' topics -------------------------------------------------------------------------
+
+#: ``/tactile/<pad>/depth``: the depth image of one pad; the pad's name is the middle part.
+TACTILE_DEPTH_PREFIX, TACTILE_DEPTH_SUFFIX = "/tactile/", "/depth"
+#: ``/tactile/<pad>/image``: the RGB image (``rgb8``) of a pad with an optical (GelSight/DIGIT-style)
+#: sensor; only such pads have it.
+TACTILE_IMAGE_SUFFIX = "/image"
+#: ``/tactile/<pad>/reference``: that sensor's no-contact image without noise (``rgb8``, the size of
+#: its image), written with every sample beside the image (in an episode: once, with its frame 0).
+TACTILE_REFERENCE_SUFFIX = "/reference"
+#: Suffix -> (schema name, message encoding, RawImage encoding) of the ``/tactile/<pad><suffix>``
+#: topics.
+PAD_TOPIC_SCHEMAS: Dict[str, Tuple[str, str, str]] = {
+    TACTILE_DEPTH_SUFFIX: (SCHEMA_RAW_IMAGE, MESSAGE_ENCODING_PROTOBUF, "32FC1"),
+    TACTILE_IMAGE_SUFFIX: (SCHEMA_RAW_IMAGE, MESSAGE_ENCODING_PROTOBUF, "rgb8"),
+    TACTILE_REFERENCE_SUFFIX: (SCHEMA_RAW_IMAGE, MESSAGE_ENCODING_PROTOBUF, "rgb8"),
+}
+#: The RawImage encoding of the pads' depth images.
+TACTILE_DEPTH_ENCODING = PAD_TOPIC_SCHEMAS[TACTILE_DEPTH_SUFFIX][2]
+#: The RawImage encoding of the optical pads' images and reference images.
+TACTILE_IMAGE_ENCODING = PAD_TOPIC_SCHEMAS[TACTILE_IMAGE_SUFFIX][2]
+
+
+def tactile_depth_topic(pad: str) -> str:
+    """``/tactile/<pad>/depth``."""
+    return f"{TACTILE_DEPTH_PREFIX}{pad}{TACTILE_DEPTH_SUFFIX}"
+
+
+def tactile_image_topic(pad: str) -> str:
+    """``/tactile/<pad>/image``."""
+    return f"{TACTILE_DEPTH_PREFIX}{pad}{TACTILE_IMAGE_SUFFIX}"
+
+
+def tactile_reference_topic(pad: str) -> str:
+    """``/tactile/<pad>/reference``."""
+    return f"{TACTILE_DEPTH_PREFIX}{pad}{TACTILE_REFERENCE_SUFFIX}"
+
+
+def pad_of(topic: str, suffix: str) -> Optional[str]:
+    """The pad name of a ``/tactile/<pad><suffix>`` topic, else ``None``."""
+    if topic.startswith(TACTILE_DEPTH_PREFIX) and topic.endswith(suffix):
+        name = topic[len(TACTILE_DEPTH_PREFIX) : -len(suffix)]
+        if name and "/" not in name:
+            return name
+    return None
+
+
+def pad_of_topic(topic: str) -> Optional[str]:
+    """The pad name of a ``/tactile/<pad>/depth`` topic, else ``None``."""
+    return pad_of(topic, TACTILE_DEPTH_SUFFIX)
+
+
+def optical_pad_of_topic(topic: str) -> Optional[str]:
+    """The pad name of a ``/tactile/<pad>/image`` topic (an optical sensor's image), else ``None``."""
+    return pad_of(topic, TACTILE_IMAGE_SUFFIX)
+
+
+# --- images and points ------------------------------------------------------------------------
+
+#: RawImage encoding -> (numpy dtype of one channel as stored, channels, dtype returned).
+IMAGE_ENCODINGS: Dict[str, Tuple[str, int, Any]] = {
+    "rgb8": ("u1", 3, np.uint8),
+    "mono8": ("u1", 1, np.uint8),
+    "mono16": ("<u2", 1, np.uint16),
+    "32FC1": ("<f4", 1, np.float32),
+}
+
+#: The ``/tactile/points`` PointCloud fields: (name, byte offset, ``PackedElementField`` type).
+TACTILE_POINT_FIELDS: Tuple[Tuple[str, int, str], ...] = (
+    ("x", 0, "FLOAT32"),
+    ("y", 4, "FLOAT32"),
+    ("z", 8, "FLOAT32"),
+    ("distance", 12, "FLOAT32"),
+    ("phalanx", 16, "UINT32"),
+)
+#: Bytes per tactile point (the PointCloud's ``point_stride``).
+TACTILE_POINT_STRIDE = 20
+#: ``PackedElementField`` type -> the numpy dtype of the stored value (little-endian).
+PACKED_ELEMENT_DTYPES: Dict[str, str] = {"FLOAT32": "<f4", "UINT32": "<u4"}
+#: One tactile point as stored.
+TACTILE_POINT_DTYPE = np.dtype(
+    {
+        "names": [name for name, _, _ in TACTILE_POINT_FIELDS],
+        "formats": [PACKED_ELEMENT_DTYPES[kind] for _, _, kind in TACTILE_POINT_FIELDS],
+        "offsets": [offset for _, offset, _ in TACTILE_POINT_FIELDS],
+        "itemsize": TACTILE_POINT_STRIDE,
+    }
+)
+
+# --- frames and mask ids (FORMAT.md, "Conventions" and "Instance mask ids") -------------------
+
+FRAME_WORLD = "world"
+FRAME_CAMERA = "camera"
+FRAME_OBJECT = "object"
+
+MASK_BACKGROUND = 0
+#: The object whose pose is the ground truth.
+MASK_TARGET_OBJECT = 1
+#: Inclusive id ranges: the k-th distractor, arm link and hand link is ``first + k``.
+MASK_DISTRACTORS = (2, 9)
+MASK_ARM_LINKS = (10, 15)
+#: The link moved by a seventh arm joint.
+MASK_ARM_LINK_SEVENTH = 81
+#: The hand's body (palm and the links fixed between it and the flange).
+MASK_PALM = 16
+MASK_HAND_LINKS = (17, 80)
+
+# --- occlusion bins (FORMAT.md, "Occlusion bins") ---------------------------------------------
+
+#: The bins' names in the data files (the manifest's ``occlusion.bins``), in histogram order.
+OCCLUSION_BIN_KEYS = ("<80%", "80-85%", ">85%")
+#: The levels between the bins: below the first, up to and including the second, above it.
+OCCLUSION_BIN_BOUNDS = (0.80, 0.85)
+
+# --- JSON records (the keys of each, optional ones included) ----------------------------------
+
+#: An episode shard's ``vtgen.shard`` ``episode`` record.
+EPISODE_RECORD_KEYS = (
+    "object_id",
+    "trajectory",
+    "frames",
+    "duration_s",
+    "physics_hz",
+    "camera_hz",
+    "tactile_hz",
+    "state_hz",
+    "camera_period_steps",
+    "tactile_period_steps",
+    "state_period_steps",
+)
+#: An ``/episode/state`` record (``vtgen.StateRecord``).
+STATE_RECORD_KEYS = (
+    "time_s",
+    "joint_positions",
+    "T_world_object",
+    "T_camera_object",
+    "T_world_palm",
+    "linear_velocity",
+    "angular_velocity",
+    "phalanges_in_contact",
+)
+#: An episode frame's ``/sample/info`` ``episode`` object.
+EPISODE_FRAME_KEYS = ("frame", "time_s", "arm_move")
+
+# --- robots -----------------------------------------------------------------------------------
+
+#: The UR5e + Allegro's 12 pads in tactile index order (FORMAT.md): the names a dataset of that
+#: robot holds. Other robots name their own pads (a parallel gripper: 2, e.g. ``left``,
+#: ``right``), so the reader never assumes these: a sample's ``tactile["phalanges"]`` lists the
+#: pads its shard has, in the order of the ``phalanx`` index.
+ALLEGRO_PHALANGES = tuple(
+    f"{f}_{p}" for f in ("ff", "mf", "rf", "th") for p in ("proximal", "medial", "distal")
+)
+#: Same as :data:`ALLEGRO_PHALANGES` (the name earlier versions used; not the pads of every robot).
+PHALANGES = ALLEGRO_PHALANGES
