@@ -1,0 +1,279 @@
+//! Phase 4 of an attempt: the instances. Each is one arm move from the last recorded state to a
+//! random reachable palm pose, along a simulated smooth joint-space path (the palm's motion
+//! enters as apparent gravity), then the hold, the scripted finger motion (episodes), the wait for
+//! squeezing transients and the instance's checks. A move that cannot stand is undone and
+//! redrawn, up to `MAX_MOVES_PER_INSTANCE` times.
+
+use anyhow::Result;
+use glam::{DAffine3, DQuat, DVec3};
+use rand_chacha::ChaCha8Rng;
+use vt_randomizers::{SampleKey, SampleStream};
+
+use super::floor::{MIN_FLOOR_CLEARANCE, floor_clearance, robot_floor_clearance};
+use super::{Attempt, Failure, GRAVITY, GraspContext, GraspEvent, Held, InstanceState, Recorded, Redo, Stop, lost, rot};
+use crate::physics::HandPhysics;
+
+/// Arm moves tried for one instance (each from the last recorded state, when the backend can
+/// undo) before the attempt is given up. A grasp whose four moves all drop the object or press a
+/// finger in is seldom saved by more: 4 tries made the grasp loop 10% faster than 8, and 16 20%
+/// slower, over 4 trajectories of every object with the same kept share.
+const MAX_MOVES_PER_INSTANCE: u32 = 4;
+
+/// Palm poses drawn for one arm move before it counts as unreachable.
+const MOVE_TARGET_DRAWS: usize = 20;
+
+/// After a move, up to this many waits of `PENETRATION_WAIT_SECONDS` for squeezing transients.
+pub(super) const PENETRATION_WAITS: usize = 10;
+pub(super) const PENETRATION_WAIT_SECONDS: f64 = 0.025;
+
+/// How one arm move of an instance ended.
+// One value per arm move, moved once: boxing the recordable pose would buy nothing.
+#[allow(clippy::large_enum_variant)]
+enum MoveOutcome {
+    /// Object pose in the palm, touch-link contacts, deepest penetration: a recordable instance.
+    Recordable(DAffine3, Vec<Option<f64>>, f64),
+    /// The pose cannot be recorded (penetration, too few contacts, the object on the floor), but
+    /// the grasp still holds: another move may give a recordable one.
+    NotRecordable(Failure),
+    /// The grasp is lost (or the target unreachable): the attempt ends.
+    Failed(Failure),
+}
+
+/// The states of the recorded arm moves, one per physics step (episodes).
+struct StepLog<'a> {
+    steps: &'a mut Vec<InstanceState>,
+    grasped: DAffine3,
+}
+
+impl StepLog<'_> {
+    /// The state now, with the arm at `q`.
+    fn push(&mut self, ctx: &GraspContext, physics: &dyn HandPhysics, q: &[f64]) {
+        let state =
+            instance_state(ctx, physics, q, physics.object_pose(), self.grasped, physics.touch_contacts(), physics.max_penetration());
+        self.steps.push(state);
+    }
+}
+
+/// The state of the grasp with the arm at `q` (its hand joints read from the physics).
+fn instance_state(
+    ctx: &GraspContext,
+    physics: &dyn HandPhysics,
+    q: &[f64],
+    obj: DAffine3,
+    grasped: DAffine3,
+    contacts: Vec<Option<f64>>,
+    penetration: f64,
+) -> InstanceState {
+    let mut qr = q.to_vec();
+    ctx.robot.set_hand(&mut qr, &physics.joint_positions());
+    let rel = grasped.inverse() * obj;
+    InstanceState {
+        t_base_palm: ctx.robot.grasp_frame_pose(&qr),
+        q: qr,
+        t_palm_object: obj,
+        contacts,
+        slip_translation: rel.translation.length(),
+        slip_rotation: rot(&rel).angle_between(DQuat::IDENTITY),
+        penetration,
+    }
+}
+
+/// The joint values a fraction `s` ∈ [0, 1] along the smooth (smoothstep) path from `from` to `to`.
+fn along_path(from: &[f64], to: &[f64], s: f64) -> Vec<f64> {
+    let w = s * s * (3.0 - 2.0 * s);
+    from.iter().zip(to).map(|(a, b)| a + (b - a) * w).collect()
+}
+
+impl Attempt<'_> {
+    /// Phase 4: one arm move per instance from the settled grasp at joint values `q`.
+    pub(super) fn record_instances(&mut self, mut q: Vec<f64>, held: Held, events: &mut Vec<GraspEvent>) -> Result<Recorded, Stop> {
+        let key = self.key;
+        let mut out = Vec::with_capacity(key.instances as usize);
+        let mut steps = Vec::new();
+        let mut log = self.ctx.record_steps.then_some(StepLog { steps: &mut steps, grasped: held.t_palm_object });
+        if let Some(log) = log.as_mut() {
+            log.push(self.ctx, &*self.physics, &q);
+        }
+        for instance in 0..key.instances {
+            let sample_key = SampleKey { seed: key.seed, object_id: key.object_id, trajectory: key.trajectory, instance };
+            let mut moved = 0;
+            let (obj, contacts, penetration) = loop {
+                // The first move of an instance draws from `arm/<attempt>`, later ones (after a
+                // pose that could not be recorded) from `arm/<attempt>/<move>`.
+                let stream = if moved == 0 { format!("arm/{}", self.number) } else { format!("arm/{}/{moved}", self.number) };
+                let mut arm_rng = SampleStream::sample(&sample_key, &stream);
+                moved += 1;
+                // A move that drops the object or ends in a pose that cannot be recorded is undone
+                // (the arm then only takes moves that keep a recordable grasp): redoing one move
+                // costs far less than a fresh grasp and every instance before it.
+                self.physics.save();
+                let q_before = q.clone();
+                let logged = log.as_ref().map_or(0, |l| l.steps.len());
+                // Why this move cannot stand: the attempt's failure if it was the last try, and
+                // the redo counted otherwise.
+                let (failure, redo) = match self.move_and_settle(&mut q, &mut arm_rng, held.targets, log.as_mut())? {
+                    MoveOutcome::Recordable(obj, contacts, penetration) => break (obj, contacts, penetration),
+                    MoveOutcome::Failed(Failure::LostDuringMotion) => (Failure::LostDuringMotion, Redo::Drop),
+                    MoveOutcome::Failed(f) => return Err(f.into()),
+                    MoveOutcome::NotRecordable(f @ Failure::Penetration) => (f, Redo::Penetration),
+                    MoveOutcome::NotRecordable(f @ Failure::TouchesFloor) => (f, Redo::Floor),
+                    MoveOutcome::NotRecordable(f) => (f, Redo::Contacts),
+                };
+                if moved >= MAX_MOVES_PER_INSTANCE {
+                    return Err(failure.into());
+                }
+                events.push(GraspEvent::Redone(redo));
+                self.physics.restore();
+                q = q_before;
+                if let Some(log) = log.as_mut() {
+                    log.steps.truncate(logged);
+                }
+            };
+            out.push(instance_state(self.ctx, &*self.physics, &q, obj, held.t_palm_object, contacts, penetration));
+        }
+        Ok((out, steps))
+    }
+
+    /// One arm move from `q`, in its steps: draw a reachable palm pose, follow the path and hold,
+    /// the finger motion, wait out the squeeze, check the instance. `q` becomes the target.
+    fn move_and_settle(
+        &mut self,
+        q: &mut Vec<f64>,
+        arm_rng: &mut ChaCha8Rng,
+        grasp_targets: &[f64],
+        mut log: Option<&mut StepLog>,
+    ) -> Result<MoveOutcome> {
+        let Some(q_target) = self.draw_move_target(q, arm_rng) else {
+            return Ok(MoveOutcome::Failed(Failure::Unreachable));
+        };
+        if !self.follow_path(q, &q_target, log.as_deref_mut()) || !self.swing_fingers(&q_target, grasp_targets, log.as_deref_mut()) {
+            return Ok(MoveOutcome::Failed(Failure::LostDuringMotion));
+        }
+        *q = q_target;
+        let touching = self.physics.touch_contacts().iter().filter(|c| c.is_some()).count();
+        if lost(&*self.physics) || touching == 0 {
+            return Ok(MoveOutcome::Failed(Failure::LostDuringMotion));
+        }
+        if touching < self.ctx.robot.min_touching {
+            return Ok(MoveOutcome::NotRecordable(Failure::TooFewContacts));
+        }
+        let penetration = self.wait_out_squeeze(q, log);
+        Ok(self.check_instance(q, penetration))
+    }
+
+    /// A palm pose the arm reaches from `q` without putting a link under the floor (drawn again
+    /// before any physics is spent on it; the check after the move stays, for the hand's links).
+    fn draw_move_target(&self, q: &[f64], arm_rng: &mut ChaCha8Rng) -> Option<Vec<f64>> {
+        let ctx = self.ctx;
+        for _ in 0..MOVE_TARGET_DRAWS {
+            let t = ctx.sample_move_palm(arm_rng);
+            if let Some(qt) = ctx.reach(&t, q)
+                && robot_floor_clearance(ctx.robot, &ctx.t_world_base, &qt).is_none_or(|(_, z)| z >= 0.0)
+            {
+                return Some(qt);
+            }
+        }
+        None
+    }
+
+    /// The move along the smooth joint-space path from `q_from` to `q_target`, then the hold: the
+    /// palm's acceleration enters as apparent gravity. False when the object falls out of the hand.
+    fn follow_path(&mut self, q_from: &[f64], q_target: &[f64], mut log: Option<&mut StepLog>) -> bool {
+        let (ctx, physics) = (self.ctx, &mut *self.physics);
+        let n = ctx.steps(ctx.config.move_seconds);
+        let palm_at = |s: f64| -> DAffine3 { ctx.t_world_base * ctx.robot.grasp_frame_pose(&along_path(q_from, q_target, s)) };
+        let dt = ctx.timestep;
+        let ds = 1.0 / n as f64;
+        for k in 1..=n + ctx.steps(ctx.config.hold_seconds) {
+            let s = (k as f64 * ds).min(1.0);
+            let p = palm_at(s);
+            let acc = if k <= n {
+                let (a, b) = (palm_at((s - ds).max(0.0)).translation, palm_at((s + ds).min(1.0)).translation);
+                (b - 2.0 * p.translation + a) / (dt * dt)
+            } else {
+                DVec3::ZERO
+            };
+            physics.set_gravity(rot(&p).inverse() * (GRAVITY - acc));
+            physics.step();
+            if let Some(log) = log.as_deref_mut() {
+                log.push(ctx, &*physics, &along_path(q_from, q_target, s));
+            }
+            // An object this far from the palm has fallen out of the hand and cannot come back:
+            // the move's outcome is known, and the rest of it (up to 0.7 s) would simulate the
+            // fall. (Same outcome, same bytes: the failed move is undone and the next draws from
+            // its own random stream.)
+            if lost(&*physics) {
+                return false;
+            }
+        }
+        true
+    }
+
+    /// The scripted finger motion (episodes), the arm still at `q` (apparent gravity as in the
+    /// hold), then the grasp's targets again. False when the object falls out of the hand.
+    fn swing_fingers(&mut self, q: &[f64], grasp_targets: &[f64], mut log: Option<&mut StepLog>) -> bool {
+        let (ctx, physics) = (self.ctx, &mut *self.physics);
+        let Some(gait) = &ctx.finger_gait else { return true };
+        let start = physics.joint_positions();
+        for k in 1..=gait.steps {
+            physics.set_targets(&gait.targets(grasp_targets, &start, k as f64 * ctx.timestep));
+            physics.step();
+            if let Some(log) = log.as_deref_mut() {
+                log.push(ctx, &*physics, q);
+            }
+            if lost(&*physics) {
+                physics.set_targets(grasp_targets);
+                return false;
+            }
+        }
+        physics.set_targets(grasp_targets);
+        true
+    }
+
+    /// Squeezing transients settle within a few tens of milliseconds: waits for them (an episode
+    /// waits out the whole window, so that every move takes the same time). The deepest
+    /// penetration after the wait.
+    fn wait_out_squeeze(&mut self, q: &[f64], mut log: Option<&mut StepLog>) -> f64 {
+        let (ctx, physics) = (self.ctx, &mut *self.physics);
+        let mut penetration = physics.max_penetration();
+        for _ in 0..PENETRATION_WAITS {
+            if penetration <= ctx.config.max_penetration && log.is_none() {
+                break;
+            }
+            for _ in 0..ctx.steps(PENETRATION_WAIT_SECONDS) {
+                physics.step();
+                if let Some(log) = log.as_deref_mut() {
+                    log.push(ctx, &*physics, q);
+                }
+            }
+            penetration = physics.max_penetration();
+        }
+        penetration
+    }
+
+    /// Whether the grasp at `q` (after the wait) is a recordable instance: shallow enough, touched
+    /// by enough touch links, the object hanging free above the floor and no link under it.
+    fn check_instance(&self, q: &[f64], penetration: f64) -> MoveOutcome {
+        let (ctx, physics) = (self.ctx, &*self.physics);
+        let robot = ctx.robot;
+        if penetration > ctx.config.max_penetration {
+            return MoveOutcome::NotRecordable(Failure::Penetration);
+        }
+        let obj = physics.object_pose();
+        let contacts = physics.touch_contacts();
+        if contacts.iter().filter(|c| c.is_some()).count() < robot.min_touching {
+            return MoveOutcome::NotRecordable(Failure::TooFewContacts);
+        }
+        // The object must hang free: its lowest point above the floor (z = 0); and no link of the
+        // robot may be under the floor (a real arm would have hit it).
+        if floor_clearance(&self.object.points, &(ctx.t_world_base * robot.grasp_frame_pose(q) * obj)) < MIN_FLOOR_CLEARANCE {
+            return MoveOutcome::NotRecordable(Failure::TouchesFloor);
+        }
+        let mut q_now = q.to_vec();
+        robot.set_hand(&mut q_now, &physics.joint_positions());
+        if robot_floor_clearance(robot, &ctx.t_world_base, &q_now).is_some_and(|(_, z)| z < 0.0) {
+            return MoveOutcome::NotRecordable(Failure::TouchesFloor);
+        }
+        MoveOutcome::Recordable(obj, contacts, penetration)
+    }
+}

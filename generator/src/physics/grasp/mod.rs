@@ -1,0 +1,180 @@
+//! The paper's grasp loop (Algorithm 1), one trajectory at a time: place the object against the
+//! palm at a random orientation, random preshape, close the fingers under PD control, check the
+//! grasp holds, then move the arm to a new random palm pose for every instance (a simulated
+//! joint-space path, so the object may slip or turn), let it settle and record. A failed attempt
+//! (dropped object, fewer touch links in contact than the robot's `min_touching`, object lost
+//! during motion) is retried with
+//! fresh randomness from the same trajectory stream; attempts are counted.
+//!
+//! One file per step: [`context`] (what the loop knows besides the physics, and the grasp-frame
+//! samplers), [`placement`] (the object into the open hand, one way per grasp kind), [`phases`]
+//! (close the hand, settle the grasp), [`arm_move`] (the instances: one arm move each, undone and
+//! redrawn when it cannot be recorded), [`floor`] (heights above the floor) and [`outcome`] (what
+//! the loop counts).
+
+mod arm_move;
+mod context;
+mod floor;
+mod outcome;
+mod phases;
+mod placement;
+#[cfg(test)]
+mod tests;
+
+use anyhow::{Result, bail};
+use glam::{DAffine3, DMat3, DQuat, DVec3};
+use rand::Rng;
+use vt_randomizers::SampleStream;
+
+pub use context::{FingerGait, GraspContext, MIN_REACHABLE_SHARE, REACH_SAMPLES, TrajectoryKey, move_steps, reach_samples, reachable_share};
+pub use floor::{floor_clearance, robot_floor_clearance};
+pub use outcome::{Failure, GraspEvent, Redo};
+
+use crate::physics::{HandPhysics, PhysicsObject};
+use placement::Placement;
+
+/// The state recorded at one instance.
+#[derive(Debug, Clone)]
+pub struct InstanceState {
+    /// All robot joint values (`RobotModel::dof_names` order).
+    pub q: Vec<f64>,
+    /// Palm pose in the robot base frame.
+    pub t_base_palm: DAffine3,
+    /// Object pose in the palm frame.
+    pub t_palm_object: DAffine3,
+    /// Per touch link (`Robot::touch_links` order): contact distance when touching.
+    pub contacts: Vec<Option<f64>>,
+    /// Object motion relative to the palm since the grasp settled: metres and radians.
+    pub slip_translation: f64,
+    pub slip_rotation: f64,
+    pub penetration: f64,
+}
+
+/// What a held attempt recorded: its instances and (episodes) its steps.
+type Recorded = (Vec<InstanceState>, Vec<InstanceState>);
+
+#[derive(Debug, Clone)]
+pub struct Trajectory {
+    pub instances: Vec<InstanceState>,
+    /// Attempts it took (1 = the first grasp held through every instance).
+    pub attempts: u32,
+    /// With `GraspContext::record_steps`: the state at the settled grasp, then after every
+    /// physics step of the recorded arm moves (`1 + instances * move_steps` states); else empty.
+    pub steps: Vec<InstanceState>,
+}
+
+const GRAVITY: DVec3 = DVec3::new(0.0, 0.0, -9.81);
+/// Gravity in the palm frame while the palm faces straight up (its normal is +x).
+const PALM_UP_GRAVITY: DVec3 = DVec3::new(-9.81, 0.0, 0.0);
+
+/// The neutral palm orientation (world). Palm frame: +x palmar normal, +z along the fingers.
+/// Neutral: palm up (x -> world z), fingers towards the camera side (z -> world -y), so the arm
+/// stays behind the hand.
+fn palm_up() -> DQuat {
+    DQuat::from_mat3(&DMat3::from_cols(DVec3::Z, DVec3::NEG_X, DVec3::NEG_Y))
+}
+
+fn rot(t: &DAffine3) -> DQuat {
+    DQuat::from_mat3(&t.matrix3).normalize()
+}
+
+/// Distance (m) from the palm at which an object is lost from the hand (a move's end check; the
+/// settle and the moves stop as soon as the object is this far).
+const LOST_DISTANCE: f64 = 0.25;
+
+/// Whether the object has fallen `LOST_DISTANCE` from the palm (out of the hand for good).
+fn lost(physics: &dyn HandPhysics) -> bool {
+    physics.object_pose().translation.length() > LOST_DISTANCE
+}
+
+/// Why an attempt stopped short of a trajectory: the grasp failed (the loop tries again with
+/// fresh randomness) or the run cannot go on (an error, returned as is).
+enum Stop {
+    Failed(Failure),
+    Error(anyhow::Error),
+}
+
+impl From<Failure> for Stop {
+    fn from(f: Failure) -> Self {
+        Stop::Failed(f)
+    }
+}
+
+impl From<anyhow::Error> for Stop {
+    fn from(e: anyhow::Error) -> Self {
+        Stop::Error(e)
+    }
+}
+
+/// One attempt at a trajectory: what its phases read, and the physics they step.
+struct Attempt<'a> {
+    ctx: &'a GraspContext<'a>,
+    physics: &'a mut dyn HandPhysics,
+    object: &'a PhysicsObject,
+    key: TrajectoryKey<'a>,
+    /// 0 for the first attempt: names its random streams (`grasp/<n>`, `arm/<n>…`).
+    number: u32,
+}
+
+/// Simulates a trajectory and returns its recorded instances: attempts with fresh randomness
+/// until one grasp holds through every instance, or `max_attempts` is spent.
+pub fn simulate_trajectory(
+    ctx: &GraspContext,
+    physics: &mut dyn HandPhysics,
+    object: &PhysicsObject,
+    key: TrajectoryKey,
+    events: &mut Vec<GraspEvent>,
+) -> Result<Trajectory> {
+    let cfg = ctx.config;
+    let placement = Placement::of(ctx.robot.kind, object)?;
+    let mut last = None;
+    for number in 0..cfg.max_attempts {
+        let mut attempt = Attempt { ctx, physics: &mut *physics, object, key, number };
+        match attempt.run(&placement, events) {
+            Ok((instances, steps)) => return Ok(Trajectory { instances, attempts: number + 1, steps }),
+            Err(Stop::Failed(f)) => {
+                events.push(GraspEvent::Failed(f));
+                last = Some(f);
+            }
+            Err(Stop::Error(e)) => return Err(e),
+        }
+    }
+    // The last placement is still in the physics: an overlap names the link it is with.
+    let why = match last {
+        Some(Failure::InitialOverlap) => match physics.deepest_link() {
+            Some((link, depth)) => format!(
+                "InitialOverlap: the object overlaps link '{}' by {:.1} mm wherever it is put",
+                ctx.robot.model.links[link].name,
+                1000.0 * depth
+            ),
+            None => "InitialOverlap".to_string(),
+        },
+        Some(f) => GraspEvent::Failed(f).name().to_string(),
+        None => "no attempt".to_string(),
+    };
+    bail!("{} trajectory {}: no grasp held in {} attempts ({why})", key.object_id, key.trajectory, cfg.max_attempts)
+}
+
+impl Attempt<'_> {
+    /// The attempt, in its phases: reach the grasp pose, put the object in the open hand, close
+    /// the fingers, settle while the palm turns to its pose, then record the instances (arm moves).
+    fn run(&mut self, placement: &Placement, events: &mut Vec<GraspEvent>) -> Result<Recorded, Stop> {
+        let (ctx, key) = (self.ctx, self.key);
+        let rng = &mut SampleStream::trajectory(key.seed, key.object_id, key.trajectory, &format!("grasp/{}", self.number));
+        let t_world_palm = ctx.sample_palm(rng);
+        let q = ctx.reach(&t_world_palm, &ctx.home()).ok_or(Failure::Unreachable)?;
+        let pre: Vec<f64> = ctx.config.preshape.iter().map(|&(lo, hi)| rng.random_range(lo..=hi)).collect();
+        self.place(placement, rng, &pre)?;
+        let grasp_targets = self.close_hand(&pre);
+        let grasped = self.settle(&t_world_palm)?;
+        self.record_instances(q, Held { t_palm_object: grasped, targets: &grasp_targets }, events)
+    }
+}
+
+/// The settled grasp the arm moves start from: the object's pose in the palm and the hand's
+/// joint targets.
+#[derive(Clone, Copy)]
+struct Held<'a> {
+    t_palm_object: DAffine3,
+    targets: &'a [f64],
+}

@@ -1,0 +1,262 @@
+use glam::{DAffine3, DQuat, DVec3};
+use rand_chacha::ChaCha8Rng;
+use vt_robot::Robot;
+
+use super::*;
+use crate::config::{GraspConfig, PhysicsConfig};
+use crate::physics::{PhysicsSettings, RapierHand};
+use rand::SeedableRng;
+
+/// The object's physics shape: the real mesh when `YCB_DIR` is set, else the procedural one.
+pub fn physics_object(id: &str) -> PhysicsObject {
+    let e = vt_objects::Catalog::builtin().get(id).unwrap().clone();
+    let m = match std::env::var_os("YCB_DIR") {
+        Some(d) => vt_objects::load_mesh(&vt_objects::find_ycb_mesh(std::path::Path::new(&d), id).unwrap()).unwrap(),
+        None => vt_objects::procedural_mesh(&e),
+    };
+    PhysicsObject { points: m.positions.clone(), mass: e.mass }
+}
+
+/// The grasp config's defaults with the Allegro hand's joint arrays.
+fn allegro_grasp() -> GraspConfig {
+    GraspConfig::default().with_robot_defaults(&Robot::allegro())
+}
+
+/// The robot base and the camera of `scenes/paper.yaml`.
+fn paper_context() -> (DAffine3, DVec3) {
+    (
+        DAffine3::from_rotation_translation(DQuat::from_rotation_z(std::f64::consts::PI), DVec3::new(0.0, 0.5, 0.0)),
+        DVec3::new(0.0, -0.75, 0.55),
+    )
+}
+
+/// The palm's normal (world) of `n` arm moves drawn with `cfg`.
+fn move_normals(cfg: &GraspConfig, n: u64) -> Vec<(DVec3, DVec3)> {
+    let robot = Robot::allegro();
+    let (t_world_base, camera_position) = paper_context();
+    let ctx = GraspContext {
+        robot: &robot,
+        t_world_base,
+        config: cfg,
+        timestep: 1.0 / 240.0,
+        camera_position,
+        record_steps: false,
+        finger_gait: None,
+    };
+    (0..n)
+        .map(|k| {
+            let mut rng = ChaCha8Rng::seed_from_u64(k);
+            let t = ctx.sample_move_palm(&mut rng);
+            (t.matrix3 * DVec3::X, t.translation)
+        })
+        .collect()
+}
+
+#[test]
+fn back_to_camera_moves_turn_the_palm_away_from_the_camera() {
+    let mut cfg = GraspConfig { back_to_camera_share: 0.5, ..allegro_grasp() };
+    let camera = DVec3::new(0.0, -0.75, 0.55);
+    let normals = move_normals(&cfg, 400);
+    let (lo, hi) = cfg.back_to_camera_tilt_deg;
+    let mut back = 0;
+    for (n, p) in &normals {
+        assert!((n.length() - 1.0).abs() < 1e-9);
+        let tilt = n.z.clamp(-1.0, 1.0).acos().to_degrees();
+        if tilt <= cfg.max_tilt_deg + 1e-9 {
+            continue;
+        }
+        // Outside the cone: a back-to-camera move, tilted within its range, away from the
+        // camera (the normal's horizontal part points from the camera past the palm).
+        back += 1;
+        assert!(tilt >= lo - 1e-9 && tilt <= hi + 1e-9, "tilt {tilt}");
+        let away = (*p - camera).with_z(0.0).normalize();
+        let horizontal = n.with_z(0.0).normalize();
+        assert!(horizontal.dot(away) > 0.99, "normal {n} is not turned away from the camera");
+        // The camera looks at the back of the hand: the palm normal points along its view.
+        assert!(n.dot((*p - camera).normalize()) > 0.0);
+    }
+    // About half of the moves (binomial, 400 draws: 5 standard deviations either way).
+    assert!((150..=250).contains(&back), "{back} of 400 back-to-camera moves");
+    // Without the knob no move leaves the cone, and the draws are those of the plain sampler.
+    cfg.back_to_camera_share = 0.0;
+    let robot = Robot::allegro();
+    let (t_world_base, camera_position) = paper_context();
+    let ctx = GraspContext {
+        robot: &robot,
+        t_world_base,
+        config: &cfg,
+        timestep: 1.0 / 240.0,
+        camera_position,
+        record_steps: false,
+        finger_gait: None,
+    };
+    for k in 0..50 {
+        let a = ctx.sample_move_palm(&mut ChaCha8Rng::seed_from_u64(k));
+        let b = ctx.sample_palm(&mut ChaCha8Rng::seed_from_u64(k));
+        assert_eq!(a, b);
+        assert!((a.matrix3 * DVec3::X).z >= cfg.max_tilt_deg.to_radians().cos() - 1e-9);
+    }
+}
+
+/// The grasp loop over the scripted hand: `cfg` with the paper's robot and camera.
+fn run_fake(hand: &mut crate::physics::fake::FakeHand, cfg: &GraspConfig, instances: u32) -> (Result<Trajectory>, Vec<GraspEvent>) {
+    let robot = Robot::allegro();
+    let (t_world_base, camera_position) = paper_context();
+    let ctx = GraspContext {
+        robot: &robot,
+        t_world_base,
+        config: cfg,
+        timestep: 1.0 / 240.0,
+        camera_position,
+        record_steps: false,
+        finger_gait: None,
+    };
+    let object = PhysicsObject {
+        points: vt_objects::procedural_mesh(vt_objects::Catalog::builtin().get("005_tomato_soup_can").unwrap()).positions,
+        mass: 0.35,
+    };
+    let mut failures = Vec::new();
+    let key = TrajectoryKey { seed: 3, object_id: "005_tomato_soup_can", trajectory: 0, instances };
+    (simulate_trajectory(&ctx, hand, &object, key, &mut failures), failures)
+}
+
+#[test]
+fn a_held_object_gives_every_instance_without_slip_and_the_same_key_the_same_trajectory() {
+    let cfg = allegro_grasp();
+    let robot = Robot::allegro();
+    let mut hand = crate::physics::fake::FakeHand::holding(3);
+    let (t, failures) = run_fake(&mut hand, &cfg, 4);
+    let t = t.unwrap();
+    assert_eq!((t.instances.len(), t.attempts), (4, 1), "{failures:?}");
+    let grasped = t.instances[0].t_palm_object;
+    for i in &t.instances {
+        assert_eq!(i.t_palm_object, grasped);
+        assert_eq!((i.slip_translation, i.slip_rotation), (0.0, 0.0));
+        assert_eq!(i.contacts.iter().filter(|c| c.is_some()).count(), 3);
+        // The recorded hand joints are the physics' (the fake reaches the closing targets).
+        for (k, h) in robot.hand.iter().enumerate() {
+            if let Some(target) = cfg.close[k] {
+                assert_eq!(i.q[h.dof], target, "{}", h.name);
+            }
+        }
+    }
+    // Arm moves differ from instance to instance; the same key gives the same trajectory.
+    assert_ne!(t.instances[0].t_base_palm, t.instances[1].t_base_palm);
+    let (again, _) = run_fake(&mut crate::physics::fake::FakeHand::holding(3), &cfg, 4);
+    let again = again.unwrap();
+    assert!(t.instances.iter().zip(&again.instances).all(|(a, b)| a.q == b.q && a.t_palm_object == b.t_palm_object));
+}
+
+#[test]
+fn grasps_that_do_not_hold_fail_each_attempt_and_the_trajectory_names_the_cause() {
+    let cfg = GraspConfig { max_attempts: 3, ..allegro_grasp() };
+    // The object slides 1 mm per step: more than 2 cm while the hand holds still.
+    let mut sliding = crate::physics::fake::FakeHand::holding(3);
+    sliding.drift_per_step = DVec3::new(0.0, 0.0, 0.001);
+    let (t, failures) = run_fake(&mut sliding, &cfg, 2);
+    let e = t.unwrap_err().to_string();
+    assert!(e.contains("005_tomato_soup_can trajectory 0: no grasp held in 3 attempts"), "{e}");
+    assert!(failures.iter().all(|f| matches!(f, GraspEvent::Failed(Failure::GraspNotHeld | Failure::Unreachable))), "{failures:?}");
+    assert!(failures.contains(&GraspEvent::Failed(Failure::GraspNotHeld)));
+    // One phalanx alone does not hold an object either.
+    let (t, failures) = run_fake(&mut crate::physics::fake::FakeHand::holding(1), &cfg, 2);
+    assert!(t.is_err());
+    assert!(failures.contains(&GraspEvent::Failed(Failure::GraspNotHeld)), "{failures:?}");
+    // A hand that presses into the object never records an instance (1.2 mm: placed, since
+    // placement tolerates 1.5 mm, but over the 1 mm a recorded instance may have).
+    let mut pressing = crate::physics::fake::FakeHand::holding(3);
+    pressing.penetration = 1.2 * cfg.max_penetration;
+    let (t, failures) = run_fake(&mut pressing, &cfg, 2);
+    assert!(t.is_err());
+    assert!(
+        failures.contains(&GraspEvent::Redone(Redo::Penetration)) && failures.contains(&GraspEvent::Failed(Failure::Penetration)),
+        "{failures:?}"
+    );
+}
+
+#[test]
+fn a_move_that_drops_the_object_is_undone_and_redrawn() {
+    let cfg = allegro_grasp();
+    // Steps of placing, resting, closing and settling, then well into the first arm move.
+    let settle_steps = (0.15f64 + cfg.close_seconds + cfg.settle_seconds) * 240.0;
+    let mut hand = crate::physics::fake::FakeHand::holding(3);
+    hand.drop_at_step = Some(settle_steps as u64 + 60);
+    let (t, failures) = run_fake(&mut hand, &cfg, 3);
+    let t = t.unwrap();
+    assert_eq!((t.instances.len(), t.attempts), (3, 1));
+    assert_eq!(failures, vec![GraspEvent::Redone(Redo::Drop)]);
+    // The redone move starts from the state saved before the drop: the object is back in the hand.
+    assert!(t.instances.iter().all(|i| i.slip_translation == 0.0));
+}
+
+#[test]
+fn both_built_in_robots_reach_the_paper_workspace() {
+    // The robots the binary carries (the Panda, built from its upstream files, has its own
+    // tests where they are fetched: tests/panda.rs).
+    for name in vt_robot::BUILTIN_ROBOTS.into_iter().filter(|&n| vt_robot::Robot::builtin(n).is_ok()) {
+        let robot = Robot::builtin(name).unwrap();
+        let cfg = GraspConfig::default().with_robot_defaults(&robot);
+        let (t_world_base, camera_position) = paper_context();
+        let ctx = GraspContext {
+            robot: &robot,
+            t_world_base,
+            config: &cfg,
+            timestep: 1.0 / 240.0,
+            camera_position,
+            record_steps: false,
+            finger_gait: None,
+        };
+        let share = reachable_share(&ctx, REACH_SAMPLES);
+        eprintln!("{name}: {:.0}% of {REACH_SAMPLES} workspace poses reached", 100.0 * share);
+        assert!(share >= 0.9, "{name}: {share}");
+    }
+}
+
+#[test]
+fn the_simulated_hand_starts_at_its_preshape_not_at_the_urdfs_zero() {
+    let robot = Robot::allegro();
+    let settings = PhysicsSettings::from(&PhysicsConfig::default());
+    let mut hand = RapierHand::new(&robot, settings).unwrap();
+    let pre: Vec<f64> = robot.hand.iter().map(|h| 0.5 * (h.preshape.0 + h.preshape.1) + 0.1).collect();
+    // The object far away: nothing touches the hand.
+    hand.reset(&physics_object("009_gelatin_box"), DAffine3::from_translation(DVec3::new(1.0, 0.0, 0.0)), &pre).unwrap();
+    hand.set_targets(&pre);
+    hand.set_gravity(DVec3::ZERO);
+    // Where the joints are before and after the first step: at the preshape, not at 0.
+    for _ in 0..2 {
+        for ((got, want), h) in hand.joint_positions().iter().zip(&pre).zip(&robot.hand) {
+            let want = want.clamp(robot.model.joints[h.joint].lower, robot.model.joints[h.joint].upper);
+            assert!((got - want).abs() < 0.02, "{}: {got} vs the preshape {want}", h.name);
+        }
+        hand.step();
+    }
+}
+
+#[test]
+fn a_link_under_the_floor_is_found_and_named() {
+    let robot = Robot::allegro();
+    let mut q = robot.model.zero();
+    for (&d, &v) in robot.arm_dofs.iter().zip(&robot.home) {
+        q[d] = v;
+    }
+    let (link, z) = robot_floor_clearance(&robot, &DAffine3::IDENTITY, &q).unwrap();
+    // Lowered by 2 m, the same link is 2 m lower: under the floor.
+    let (low, zl) = robot_floor_clearance(&robot, &DAffine3::from_translation(DVec3::new(0.0, 0.0, -2.0)), &q).unwrap();
+    assert_eq!(link, low);
+    assert!((z - 2.0 - zl).abs() < 1e-9 && zl < 0.0, "{z} {zl}");
+    // The base, fixed to the floor, does not count: the lowest link is one the arm moves.
+    assert!(robot.model.is_below(link, robot.model.joints[robot.arm_joints[0]].child), "{}", robot.model.links[link].name);
+}
+
+#[test]
+fn event_names_are_the_ones_earlier_datasets_count_under() {
+    use Failure::*;
+    let failed =
+        [InitialOverlap, GraspNotHeld, LostDuringMotion, TooFewContacts, Penetration, TouchesFloor, Unreachable, NoAntipodalPair];
+    for f in failed {
+        assert_eq!(GraspEvent::Failed(f).name(), format!("{f:?}"));
+    }
+    for r in [Redo::Penetration, Redo::Contacts, Redo::Floor, Redo::Drop] {
+        assert_eq!(GraspEvent::Redone(r).name(), format!("MoveRedoneFor{r:?}"));
+    }
+}
