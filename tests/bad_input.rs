@@ -11,7 +11,7 @@ fn fails(yaml: &str, expect: &[&str]) -> String {
     let cfg = d.path().join("bad.yaml");
     std::fs::write(&cfg, yaml).unwrap();
     let out = d.path().join("out");
-    let o = run(&["generate", cfg.to_str().unwrap(), "--out", out.to_str().unwrap(), "--quiet"]);
+    let o = run_generate(&cfg, &out, &[]);
     let err = stderr(&o);
     assert!(!o.status.success(), "must fail: {yaml}");
     assert_eq!(err.lines().count(), 1, "one clear line: {err}");
@@ -103,7 +103,7 @@ fn a_missing_or_corrupt_mesh_names_the_path() {
     std::fs::write(d.path().join("broken.obj"), "v 0 0 0\nv 1 0 0\nf 1 2 9\n").unwrap();
     let cfg = d.path().join("c.yaml");
     std::fs::write(&cfg, tiny_with("- 005_tomato_soup_can", "- {id: thing, mesh: broken.obj}")).unwrap();
-    let o = run(&["generate", cfg.to_str().unwrap(), "--out", d.path().join("out").to_str().unwrap(), "--quiet"]);
+    let o = run_generate(&cfg, &d.path().join("out"), &[]);
     assert!(!o.status.success());
     assert!(stderr(&o).contains("broken.obj"), "{}", stderr(&o));
     assert_nothing_complete(&d.path().join("out"));
@@ -128,7 +128,7 @@ fn an_unwritable_output_directory_is_named() {
     let file = d.path().join("a-file");
     std::fs::write(&file, "x").unwrap();
     let out = file.join("out");
-    let o = run(&["generate", tiny_config().to_str().unwrap(), "--out", out.to_str().unwrap(), "--quiet"]);
+    let o = run_generate(&tiny_config(), &out, &[]);
     assert!(!o.status.success());
     assert!(stderr(&o).contains("cannot create output directory") && stderr(&o).contains("a-file/out"), "{}", stderr(&o));
 }
@@ -146,7 +146,7 @@ fn a_missing_config_and_a_bad_shard_selector_are_clear() {
 #[test]
 fn a_different_config_never_mixes_into_an_existing_dataset() {
     let d = tempdir();
-    generate(d.path(), &["--shard", "0/5"]);
+    generate(&tiny_config(), d.path(), &["--shard", "0/5"]);
     let cfg = d.path().join("other.yaml");
     std::fs::write(&cfg, tiny_with("seed: 7", "seed: 8")).unwrap();
     let o = run(&["generate", cfg.to_str().unwrap(), "--out", d.path().to_str().unwrap(), "--resume", "--quiet"]);
@@ -174,7 +174,7 @@ fn an_adapter_without_float_targets_gets_a_clear_error() {
     let text = std::fs::read_to_string(tiny_config()).unwrap();
     std::fs::write(&cfg, format!("{text}\nrenderer:\n  backend: gl\n")).unwrap();
     let out = d.path().join("out");
-    let o = run(&["generate", cfg.to_str().unwrap(), "--out", out.to_str().unwrap(), "--quiet"]);
+    let o = run_generate(&cfg, &out, &[]);
     let err = stderr(&o);
     assert!(!err.contains("panicked"), "{err}");
     if !o.status.success() {
@@ -249,7 +249,7 @@ fn a_full_disk_stops_cleanly_and_resume_completes_byte_identical() {
     assert!(err.contains("shard-00000.mcap: this shard needs about ") && err.contains("--resume"), "{err}");
     assert!(complete_shards(&out).is_empty(), "no complete-looking shard");
     assert!(files_named(&out, |n| n.ends_with(".partial")).is_empty(), "the unfinished shard's bytes are freed");
-    generate(&out, &["--resume"]);
+    generate(&tiny_config(), &out, &["--resume"]);
     let (a, b) = (files(&out), files(reference_dataset()));
     assert_eq!(a.iter().map(|f| &f.0).collect::<Vec<_>>(), b.iter().map(|f| &f.0).collect::<Vec<_>>());
     for ((name, x), (_, y)) in a.iter().zip(&b) {
@@ -284,7 +284,7 @@ fn shards_of_other_mesh_sources_never_mix_into_a_dataset() {
     let d = tempdir();
     let (out, ycb) = (d.path().join("out"), d.path().join("ycb"));
     small_ycb_download(&ycb);
-    generate(&out, &["--shard", "0/2", "--ycb-dir", ycb.to_str().unwrap()]);
+    generate(&tiny_config(), &out, &["--shard", "0/2", "--ycb-dir", ycb.to_str().unwrap()]);
     let models = files(&out.join("models"));
     let shards = complete_shards(&out);
     let config = tiny_config();

@@ -30,13 +30,17 @@ pub fn tempdir() -> tempfile::TempDir {
     tempfile::Builder::new().prefix("vtgen-test-").tempdir().expect("temp dir")
 }
 
-/// Generates `scenes/tiny.yaml` into `out` with the CLI, asserting success.
-pub fn generate(out: &Path, extra: &[&str]) {
-    let config = tiny_config();
+/// `vtgen generate CONFIG --out OUT --quiet EXTRA…`: the run's output, success or not.
+pub fn run_generate(config: &Path, out: &Path, extra: &[&str]) -> Output {
     let mut args = vec!["generate", config.to_str().unwrap(), "--out", out.to_str().unwrap(), "--quiet"];
     args.extend_from_slice(extra);
-    let o = run(&args);
-    assert!(o.status.success(), "vtgen generate failed: {}", stderr(&o));
+    run(&args)
+}
+
+/// Generates `config` into `out` with the CLI, asserting success.
+pub fn generate(config: &Path, out: &Path, extra: &[&str]) {
+    let o = run_generate(config, out, extra);
+    assert!(o.status.success(), "vtgen generate {} failed: {}", config.display(), stderr(&o));
 }
 
 /// The reference dataset: `scenes/tiny.yaml` generated once with the README's main command.
@@ -44,7 +48,7 @@ pub fn reference_dataset() -> &'static Path {
     static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();
     DIR.get_or_init(|| {
         let d = tempdir();
-        generate(d.path(), &[]);
+        generate(&tiny_config(), d.path(), &[]);
         d
     })
     .path()

@@ -27,7 +27,7 @@ fn the_main_command_makes_a_complete_dataset() {
 #[test]
 fn two_full_runs_are_byte_identical() {
     let other = tempdir();
-    generate(other.path(), &[]);
+    generate(&tiny_config(), other.path(), &[]);
     let a = files(reference_dataset());
     let b = files(other.path());
     assert_eq!(a.len(), b.len());
@@ -42,7 +42,7 @@ fn parallel_workers_write_the_same_bytes_as_one() {
     // `--jobs 2`: two workers, each with its own renderer (and, on lavapipe, its own share of the
     // rasterizer threads) and a writer thread: the same files as the single-worker run.
     let other = tempdir();
-    generate(other.path(), &["--jobs", "2"]);
+    generate(&tiny_config(), other.path(), &["--jobs", "2"]);
     let a = files(reference_dataset());
     let b = files(other.path());
     assert_eq!(a.iter().map(|f| &f.0).collect::<Vec<_>>(), b.iter().map(|f| &f.0).collect::<Vec<_>>());
@@ -54,7 +54,7 @@ fn parallel_workers_write_the_same_bytes_as_one() {
 #[test]
 fn a_shard_job_alone_writes_the_same_bytes_as_the_full_run() {
     let part = tempdir();
-    generate(part.path(), &["--shard", "1/2"]);
+    generate(&tiny_config(), part.path(), &["--shard", "1/2"]);
     let mine = complete_shards(part.path());
     // Jobs are train shards 0..4 then test shard 0: job 1 of 2 takes train 1 and train 3.
     assert_eq!(mine, ["train/shard-00001.mcap", "train/shard-00003.mcap"]);
@@ -67,7 +67,7 @@ fn a_shard_job_alone_writes_the_same_bytes_as_the_full_run() {
     let m = vt_dataset::Manifest::load(&part.path().join("manifest.json")).unwrap();
     assert!(!m.complete, "a partial run says so in its manifest");
     // The other job completes the dataset in the same directory.
-    generate(part.path(), &["--shard", "0/2"]);
+    generate(&tiny_config(), part.path(), &["--shard", "0/2"]);
     let m = vt_dataset::Manifest::load(&part.path().join("manifest.json")).unwrap();
     assert!(m.complete);
     assert_eq!(
@@ -103,10 +103,10 @@ fn a_killed_run_leaves_no_complete_looking_shard_and_resume_finishes_it_identica
         assert!(std::fs::read(d.path().join(f)).unwrap() == std::fs::read(reference_dataset().join(f)).unwrap(), "{f}");
     }
     // Without --resume the directory is not silently reused.
-    let o = run(&["generate", tiny_config().to_str().unwrap(), "--out", d.path().to_str().unwrap(), "--quiet"]);
+    let o = run_generate(&tiny_config(), d.path(), &[]);
     assert!(!o.status.success());
     assert!(stderr(&o).contains("--resume"), "{}", stderr(&o));
-    generate(d.path(), &["--resume"]);
+    generate(&tiny_config(), d.path(), &["--resume"]);
     assert!(files_named(d.path(), |n| n.ends_with(".partial")).is_empty());
     let a = files(reference_dataset());
     let b = files(d.path());

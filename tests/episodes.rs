@@ -99,7 +99,7 @@ fn rates_that_do_not_fit_the_physics_step_are_refused_with_the_field() {
         ("sampling.record.camera_hz=0", "sampling.record.camera_hz", "out of range"),
     ] {
         let d = tempdir();
-        let o = run(&["generate", cfg.to_str().unwrap(), "--out", d.path().to_str().unwrap(), "--quiet", "--set", set]);
+        let o = run_generate(&cfg, d.path(), &["--set", set]);
         let e = stderr(&o);
         assert!(!o.status.success() && e.contains(field) && e.contains(message), "{set}: {e}");
     }

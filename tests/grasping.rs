@@ -32,7 +32,7 @@ pub fn hand_dataset() -> &'static std::path::Path {
     static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();
     DIR.get_or_init(|| {
         let d = tempdir();
-        let o = run(&["generate", hand_config().to_str().unwrap(), "--out", d.path().to_str().unwrap(), "--quiet"]);
+        let o = run_generate(&hand_config(), d.path(), &[]);
         assert!(o.status.success(), "{}", stderr(&o));
         d
     })
@@ -88,7 +88,7 @@ fn ground_truth_holds_with_the_hand_in_the_picture() {
 #[test]
 fn the_grasp_loop_is_deterministic() {
     let other = tempdir();
-    let o = run(&["generate", hand_config().to_str().unwrap(), "--out", other.path().to_str().unwrap(), "--quiet", "--shard", "2/5"]);
+    let o = run_generate(&hand_config(), other.path(), &["--shard", "2/5"]);
     assert!(o.status.success(), "{}", stderr(&o));
     // Job 2 of 5 writes train shard 2 alone, re-simulating its trajectories from their start.
     for f in complete_shards(other.path()) {
@@ -103,14 +103,14 @@ fn bad_robot_input_gives_clear_errors() {
     let d = tempdir();
     let cfg = d.path().join("robot.yaml");
     std::fs::write(&cfg, text.replace("backend: rapier", "backend: bullet")).unwrap();
-    let o = run(&["generate", cfg.to_str().unwrap(), "--out", d.path().join("o").to_str().unwrap(), "--quiet"]);
+    let o = run_generate(&cfg, &d.path().join("o"), &[]);
     assert!(!o.status.success());
     assert!(stderr(&o).contains("robot.physics.backend: unknown variant `bullet`"), "{}", stderr(&o));
 
     let urdf = vt_robot::BUILTIN_URDF.replace("<child link=\"ff_medial\"/>", "<child link=\"ff_middle\"/>");
     std::fs::write(d.path().join("hand.urdf"), urdf).unwrap();
     std::fs::write(&cfg, text.replace("robot:\n", "robot:\n  urdf: hand.urdf\n")).unwrap();
-    let o = run(&["generate", cfg.to_str().unwrap(), "--out", d.path().join("o2").to_str().unwrap(), "--quiet"]);
+    let o = run_generate(&cfg, &d.path().join("o2"), &[]);
     assert!(!o.status.success());
     let e = stderr(&o);
     assert!(e.contains("hand.urdf") && e.contains("missing child link 'ff_middle'"), "{e}");
@@ -274,15 +274,7 @@ fn most_held_objects_stay_still_while_the_arm_is_still() {
             "mujoco" => Box::new(vtgen::physics::MujocoHand::new(model, settings).unwrap()),
             _ => Box::new(RapierHand::new(model, settings).unwrap()),
         };
-        let ctx = GraspContext {
-            robot: model,
-            t_world_base,
-            config: &cfg,
-            timestep: pc.timestep,
-            camera_position: DVec3::new(0.0, -0.75, 0.55),
-            record_steps: false,
-            finger_gait: None,
-        };
+        let ctx = GraspContext::new(model, t_world_base, &cfg, pc.timestep, DVec3::new(0.0, -0.75, 0.55));
         for id in ["005_tomato_soup_can", "009_gelatin_box", "006_mustard_bottle"] {
             let entry = catalog.get(id).unwrap();
             let object = PhysicsObject { points: vt_objects::procedural_mesh(entry).positions, mass: entry.mass };

@@ -152,7 +152,7 @@ fn config() -> &'static Path {
 /// `config` generated into a fresh directory.
 pub fn generated(config: &Path) -> tempfile::TempDir {
     let d = tempdir();
-    let o = run(&["generate", config.to_str().unwrap(), "--out", d.path().to_str().unwrap(), "--quiet"]);
+    let o = run_generate(&config, d.path(), &[]);
     assert!(o.status.success(), "{}", stderr(&o));
     d
 }
@@ -160,7 +160,7 @@ pub fn generated(config: &Path) -> tempfile::TempDir {
 /// `--shard i/5` of `config` alone writes train shard i, byte for byte the whole run's.
 pub fn shard_job_matches(config: &Path, i: u32, whole: &Path) {
     let other = tempdir();
-    let o = run(&["generate", config.to_str().unwrap(), "--out", other.path().to_str().unwrap(), "--quiet", "--shard", &format!("{i}/5")]);
+    let o = run_generate(&config, other.path(), &["--shard", &format!("{i}/5")]);
     assert!(o.status.success(), "{}", stderr(&o));
     let shards = complete_shards(other.path());
     assert_eq!(shards, [format!("train/shard-{i:05}.mcap")]);
@@ -239,7 +239,7 @@ fn bad_descriptions_are_reported_with_file_and_field() {
     ];
     for (text, want) in cases {
         std::fs::write(d.path().join("three_finger.yaml"), text).unwrap();
-        let o = run(&["generate", cfg.to_str().unwrap(), "--out", d.path().join("o").to_str().unwrap(), "--quiet"]);
+        let o = run_generate(&cfg, &d.path().join("o"), &[]);
         let e = stderr(&o);
         assert!(!o.status.success(), "{want}: {e}");
         assert!(e.contains("robot.description:") && e.contains("three_finger.yaml: ") && e.contains(want), "{want}: {e}");
@@ -249,7 +249,7 @@ fn bad_descriptions_are_reported_with_file_and_field() {
     std::fs::write(d.path().join("three_finger.yaml"), &yaml).unwrap();
     let urdf = three_finger_urdf().replace(r#"<mimic joint="left_proximal_joint""#, r#"<mimic joint="left_joint""#);
     std::fs::write(d.path().join("three_finger.urdf"), urdf).unwrap();
-    let o = run(&["generate", cfg.to_str().unwrap(), "--out", d.path().join("o").to_str().unwrap(), "--quiet"]);
+    let o = run_generate(&cfg, &d.path().join("o"), &[]);
     let e = stderr(&o);
     assert!(
         e.contains("three_finger.urdf: joint 'left_distal_joint': <mimic joint=\"left_joint\"> names a joint that does not exist"),

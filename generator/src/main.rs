@@ -4,7 +4,7 @@ use std::process::ExitCode;
 use anyhow::Result;
 use clap::{Parser, Subcommand};
 use vtgen::config::{LoadedConfig, Override};
-use vtgen::output::generate::{GenerateOptions, generate};
+use vtgen::output::generate::GenerateOptions;
 use vtgen::plan::ShardSelector;
 
 /// Synthetic visuotactile training data for in-hand 6D object pose estimation.
@@ -199,7 +199,7 @@ enum ExportFormat {
     },
 }
 
-// Long on purpose: one match arm per subcommand, each a few lines from parsed flags to a library call.
+// A table: one match arm per subcommand, from parsed flags to its `cli::<command>::run`.
 fn run(cli: Cli) -> Result<()> {
     let load = |config: &PathBuf| anyhow::Ok(LoadedConfig::load_with_assets(config, &cli.overrides, cli.robot_assets.as_deref())?);
     let reads_config = matches!(
@@ -213,129 +213,38 @@ fn run(cli: Cli) -> Result<()> {
             | Command::Preview { .. }
     );
     anyhow::ensure!(reads_config || cli.overrides.is_empty(), "--set overrides a config's keys, and this command reads a dataset");
+    use vtgen::cli;
     match cli.command {
         Command::Generate { config, out, shard, resume, overwrite, jobs, ycb_dir, quiet } => {
             let cfg = load(&config)?;
             let out = out.unwrap_or_else(|| cfg.config.output.dir.clone());
-            let opts =
-                GenerateOptions { out: out.clone(), shard: shard.unwrap_or(ShardSelector::ALL), resume, overwrite, jobs, quiet, ycb_dir };
-            let s = generate(&cfg, &opts)?;
-            if !quiet {
-                eprintln!("renderer: {}", s.adapter);
-                eprintln!(
-                    "generated {} samples in {} shard(s) ({} skipped as complete), {} in {:.1} s: {:.1} samples/s",
-                    s.samples,
-                    s.shards_written,
-                    s.shards_skipped,
-                    vtgen::cli::human_bytes(s.bytes as f64),
-                    s.seconds,
-                    s.samples as f64 / s.seconds.max(1e-9)
-                );
-                eprintln!("dataset {}: {}", out.display(), if s.complete { "complete" } else { "incomplete (other shards pending)" });
-            }
-            Ok(())
+            let opts = GenerateOptions { out, shard: shard.unwrap_or(ShardSelector::ALL), resume, overwrite, jobs, quiet, ycb_dir };
+            cli::generate::run(&cfg, &opts)
         }
         Command::Plan { config } => {
-            let cfg = load(&config)?;
-            print!("{}", vtgen::cli::plan::describe(&config, &cfg.config));
+            cli::plan::run(&config, &load(&config)?);
             Ok(())
         }
-        Command::Config { config } => {
-            print!("{}", serde_yaml::to_string(&load(&config)?.config)?);
-            Ok(())
-        }
+        Command::Config { config } => cli::plan::run_config(&load(&config)?),
         Command::Bench { config, samples, jobs, ycb_dir, json, predict_cores } => {
-            let cfg = load(&config)?;
-            let r = vtgen::cli::bench::bench(&cfg, samples, jobs, ycb_dir.as_ref(), predict_cores.map(|n| n as usize))?;
-            if json {
-                println!("{}", serde_json::to_string_pretty(&r)?);
-            } else {
-                print!("{r}");
-            }
-            Ok(())
+            cli::bench::run(&load(&config)?, samples, jobs, ycb_dir.as_ref(), predict_cores.map(|n| n as usize), json)
         }
         Command::Grasps { config, trajectories, instances, jobs, ycb_dir, min_kept, json, quiet } => {
-            let cfg = load(&config)?;
-            let objects = vtgen::assets::load_objects(&cfg, ycb_dir.as_ref())?;
             let jobs = jobs.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
-            let opts = vtgen::cli::grasps::GraspCheckOptions { trajectories, instances, jobs, quiet };
-            let r = vtgen::cli::grasps::check_grasps(&cfg, &objects, &opts)?;
-            if json {
-                println!("{}", serde_json::to_string_pretty(&r)?);
-            } else {
-                print!("{}", r.markdown());
-            }
-            if let Some(min) = min_kept
-                && r.worst_kept_fraction() < min
-            {
-                anyhow::bail!("an object kept {:.1}% of its trajectories, below --min-kept {min}", 100.0 * r.worst_kept_fraction());
-            }
-            Ok(())
+            let opts = cli::grasps::GraspCheckOptions { trajectories, instances, jobs, quiet };
+            cli::grasps::run(&load(&config)?, ycb_dir.as_ref(), &opts, json, min_kept)
         }
-        Command::Robot { action: RobotAction::Check { config, json } } => {
-            let r = vtgen::cli::robot_check::check_robot(&load(&config)?)?;
-            if json {
-                println!("{}", serde_json::to_string_pretty(&r)?);
-            } else {
-                println!("{r}");
-            }
-            anyhow::ensure!(r.problems.is_empty(), "robot check: {} problem(s) found", r.problems.len());
-            Ok(())
-        }
+        Command::Robot { action: RobotAction::Check { config, json } } => cli::robot_check::run(&load(&config)?, json),
         Command::Preview { source, n, out, width, columns, ycb_dir } => {
-            let samples = vtgen::cli::preview::samples(&source, n, ycb_dir.as_ref(), cli.robot_assets.clone(), &cli.overrides)?;
-            vtgen::cli::preview::write_sheet(&samples, &out, width, columns)?;
-            println!("wrote {} ({} samples)", out.display(), samples.len());
-            Ok(())
+            cli::preview::run(&source, n, &out, (width, columns), ycb_dir.as_ref(), cli.robot_assets.clone(), &cli.overrides)
         }
-        Command::Inspect { dataset, json } => {
-            let r = vtgen::cli::inspect::inspect(&dataset)?;
-            if json {
-                println!("{}", serde_json::to_string_pretty(&r)?);
-            } else {
-                print!("{}", r.text(&dataset));
-            }
-            Ok(())
-        }
-        Command::Validate { dataset, full } => {
-            let r = vtgen::cli::validate::validate(&dataset, full)?;
-            for p in &r.problems {
-                eprintln!("problem: {p}");
-            }
-            println!(
-                "{}: {} shards, {} samples read, ground truth checked on {}: {}",
-                dataset.display(),
-                r.shards,
-                r.samples,
-                r.ground_truth_checked,
-                if r.problems.is_empty() { "valid".to_string() } else { format!("{} problem(s)", r.problems.len()) }
-            );
-            anyhow::ensure!(r.problems.is_empty(), "{} is not valid ({} problem(s))", dataset.display(), r.problems.len());
-            Ok(())
-        }
-        Command::Stats { dataset, out } => {
-            let files = vtgen::cli::stats::write_stats(&dataset, &out)?;
-            println!("wrote {} files to {}: {}", files.len(), out.display(), files.join(", "));
-            Ok(())
-        }
+        Command::Inspect { dataset, json } => cli::inspect::run(&dataset, json),
+        Command::Validate { dataset, full } => cli::validate::run(&dataset, full),
+        Command::Stats { dataset, out } => cli::stats::run(&dataset, &out),
         Command::Export { format: ExportFormat::Bop { dataset, out, quiet, exr, targets_min_visib } } => {
-            // The renderer the dataset was made with (its adapter choice), for the amodal masks.
-            let renderer = std::fs::read(dataset.join("config.json"))
-                .ok()
-                .and_then(|b| serde_json::from_slice::<serde_json::Value>(&b).ok())
-                .and_then(|c| serde_json::from_value(c["renderer"].clone()).ok())
-                .unwrap_or_default();
-            let r = vtgen::cli::export::export_bop(
-                &dataset,
-                &out,
-                &renderer,
-                quiet,
-                vtgen::cli::export::BopOptions { exr, targets_min_visib },
-            )?;
-            println!("wrote {}: {} objects, {} scenes, {} images (BOP format)", out.display(), r.objects, r.scenes, r.images);
-            Ok(())
+            cli::export::run_bop(&dataset, &out, quiet, cli::export::BopOptions { exr, targets_min_visib })
         }
-        Command::Dump { dataset, split, index, out, exr } => vtgen::cli::dump::dump(&dataset, &split, index, &out, exr),
+        Command::Dump { dataset, split, index, out, exr } => cli::dump::dump(&dataset, &split, index, &out, exr),
     }
 }
 

@@ -390,3 +390,14 @@ fn report(runs: Vec<TrajectoryRun>, workers: Vec<(StageTimes, WriterTimes, Durat
         occlusion_bins,
     })
 }
+
+/// `vtgen bench`: the benchmark, printed as a table (or JSON).
+pub fn run(cfg: &LoadedConfig, samples: u64, jobs: usize, ycb_dir: Option<&std::path::PathBuf>, predict_cores: Option<usize>, json: bool) -> Result<()> {
+    let r = bench(cfg, samples, jobs, ycb_dir, predict_cores)?;
+    if json {
+        println!("{}", serde_json::to_string_pretty(&r)?);
+    } else {
+        print!("{r}");
+    }
+    Ok(())
+}

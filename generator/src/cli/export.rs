@@ -303,6 +303,19 @@ fn write_image(scene: &mut Scene, dir: &Path, s: &Sample, obj_id: usize, amodal:
     Ok((px_visib, visib_fract))
 }
 
+/// `vtgen export bop`: the dataset in the BOP format, rendered (its amodal masks) with the
+/// renderer the dataset was made with (its `config.json`'s adapter choice).
+pub fn run_bop(dataset: &Path, out: &Path, quiet: bool, opts: BopOptions) -> Result<()> {
+    let renderer = std::fs::read(dataset.join("config.json"))
+        .ok()
+        .and_then(|b| serde_json::from_slice::<serde_json::Value>(&b).ok())
+        .and_then(|c| serde_json::from_value(c["renderer"].clone()).ok())
+        .unwrap_or_default();
+    let r = export_bop(dataset, out, &renderer, quiet, opts)?;
+    println!("wrote {}: {} objects, {} scenes, {} images (BOP format)", out.display(), r.objects, r.scenes, r.images);
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

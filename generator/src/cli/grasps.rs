@@ -254,3 +254,21 @@ fn per_object_figures(objects: &[LoadedObject], mut results: Vec<TrajectoryResul
     }
     per_object
 }
+
+/// `vtgen grasps`: the grasp loop's report per object (markdown or JSON); an error when an object
+/// kept less than `min_kept` of its trajectories.
+pub fn run(cfg: &LoadedConfig, ycb_dir: Option<&std::path::PathBuf>, opts: &GraspCheckOptions, json: bool, min_kept: Option<f64>) -> Result<()> {
+    let objects = crate::assets::load_objects(cfg, ycb_dir)?;
+    let r = check_grasps(cfg, &objects, opts)?;
+    if json {
+        println!("{}", serde_json::to_string_pretty(&r)?);
+    } else {
+        print!("{}", r.markdown());
+    }
+    if let Some(min) = min_kept
+        && r.worst_kept_fraction() < min
+    {
+        bail!("an object kept {:.1}% of its trajectories, below --min-kept {min}", 100.0 * r.worst_kept_fraction());
+    }
+    Ok(())
+}

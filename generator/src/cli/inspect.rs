@@ -132,3 +132,14 @@ impl Inspection {
         out.iter().map(|l| format!("{l}\n")).collect()
     }
 }
+
+/// `vtgen inspect`: the summary (text or JSON).
+pub fn run(dataset: &Path, json: bool) -> Result<()> {
+    let r = inspect(dataset)?;
+    if json {
+        println!("{}", serde_json::to_string_pretty(&r)?);
+    } else {
+        print!("{}", r.text(dataset));
+    }
+    Ok(())
+}

@@ -1,10 +1,11 @@
-//! The subcommands that plan, read, check, measure or convert rather than generate: one file each.
-//! `generate` itself is the output stage (`crate::output::generate`); `main.rs` parses the
-//! command line and prints what these return.
+//! The subcommands, one file each: each owns its `run` (what the command does and prints);
+//! `main.rs` only parses the command line and dispatches. `generate` is the output stage
+//! (`crate::output::generate`); `generate.rs` here reports on it.
 
 pub mod bench;
 pub mod dump;
 pub mod export;
+pub mod generate;
 pub mod grasps;
 pub mod inspect;
 pub mod plan;

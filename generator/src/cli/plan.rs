@@ -67,3 +67,14 @@ pub fn describe(path: &Path, c: &Config) -> String {
     }
     out
 }
+
+/// `vtgen plan`: the plan of the config at `path`, printed.
+pub fn run(path: &Path, cfg: &crate::config::LoadedConfig) {
+    print!("{}", describe(path, &cfg.config));
+}
+
+/// `vtgen config`: the config as vtgen reads it (defaults filled in, overrides applied), as YAML.
+pub fn run_config(cfg: &crate::config::LoadedConfig) -> anyhow::Result<()> {
+    print!("{}", serde_yaml::to_string(&cfg.config)?);
+    Ok(())
+}

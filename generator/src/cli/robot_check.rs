@@ -201,3 +201,15 @@ impl std::fmt::Display for RobotCheckReport {
         }
     }
 }
+
+/// `vtgen robot check`: the report (text or JSON); an error when it found a problem.
+pub fn run(cfg: &LoadedConfig, json: bool) -> Result<()> {
+    let r = check_robot(cfg)?;
+    if json {
+        println!("{}", serde_json::to_string_pretty(&r)?);
+    } else {
+        println!("{r}");
+    }
+    anyhow::ensure!(r.problems.is_empty(), "robot check: {} problem(s) found", r.problems.len());
+    Ok(())
+}

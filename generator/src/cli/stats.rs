@@ -253,3 +253,10 @@ pub fn write_stats(root: &Path, out: &Path) -> Result<Vec<String>> {
     files.push("stats.md".into());
     Ok(files)
 }
+
+/// `vtgen stats`: the statistics files, written to `out`.
+pub fn run(dataset: &Path, out: &Path) -> Result<()> {
+    let files = write_stats(dataset, out)?;
+    println!("wrote {} files to {}: {}", files.len(), out.display(), files.join(", "));
+    Ok(())
+}

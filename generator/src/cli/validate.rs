@@ -273,3 +273,21 @@ pub fn check_ground_truth(s: &Sample, models: &[Model]) -> Option<String> {
     let share = r.agreeing as f64 / r.visible as f64;
     (share < AGREEMENT).then(|| format!("only {:.1}% of {} visible model points agree with mask and depth", 100.0 * share, r.visible))
 }
+
+/// `vtgen validate`: every problem found, the verdict; an error when the dataset is not valid.
+pub fn run(dataset: &Path, full: bool) -> Result<()> {
+    let r = validate(dataset, full)?;
+    for p in &r.problems {
+        eprintln!("problem: {p}");
+    }
+    println!(
+        "{}: {} shards, {} samples read, ground truth checked on {}: {}",
+        dataset.display(),
+        r.shards,
+        r.samples,
+        r.ground_truth_checked,
+        if r.problems.is_empty() { "valid".to_string() } else { format!("{} problem(s)", r.problems.len()) }
+    );
+    anyhow::ensure!(r.problems.is_empty(), "{} is not valid ({} problem(s))", dataset.display(), r.problems.len());
+    Ok(())
+}

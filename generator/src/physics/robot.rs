@@ -38,7 +38,7 @@ pub fn grasp_context<'a>(
 ) -> GraspContext<'a> {
     let finger_gait = record.and_then(|r| r.finger_motion.as_ref()).map(|m| FingerGait::of(m, robot, rc.physics.timestep));
     let record_steps = record.is_some();
-    GraspContext { robot, t_world_base, config: &rc.grasp, timestep: rc.physics.timestep, camera_position, record_steps, finger_gait }
+    GraspContext { record_steps, finger_gait, ..GraspContext::new(robot, t_world_base, &rc.grasp, rc.physics.timestep, camera_position) }
 }
 
 /// The robot half of a worker: model and physics. The trajectory being recorded is the sample

@@ -64,7 +64,12 @@ impl FingerGait {
     }
 }
 
-impl GraspContext<'_> {
+impl<'a> GraspContext<'a> {
+    /// The context of snapshot trajectories (no step recording, no finger motion).
+    pub fn new(robot: &'a Robot, t_world_base: DAffine3, config: &'a GraspConfig, timestep: f64, camera_position: DVec3) -> Self {
+        GraspContext { robot, t_world_base, config, timestep, camera_position, record_steps: false, finger_gait: None }
+    }
+
     /// The arm's home: elbow up, palm facing up over the workspace.
     pub fn home(&self) -> Vec<f64> {
         let mut q = self.robot.model.zero();

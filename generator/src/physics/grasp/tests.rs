@@ -22,27 +22,16 @@ fn allegro_grasp() -> GraspConfig {
     GraspConfig::default().with_robot_defaults(&Robot::allegro())
 }
 
-/// The robot base and the camera of `scenes/paper.yaml`.
-fn paper_context() -> (DAffine3, DVec3) {
-    (
-        DAffine3::from_rotation_translation(DQuat::from_rotation_z(std::f64::consts::PI), DVec3::new(0.0, 0.5, 0.0)),
-        DVec3::new(0.0, -0.75, 0.55),
-    )
+/// The grasp loop's context with the robot base and the camera of `scenes/paper.yaml`, at 240 Hz.
+fn paper_context<'a>(robot: &'a Robot, cfg: &'a GraspConfig) -> GraspContext<'a> {
+    let t_world_base = DAffine3::from_rotation_translation(DQuat::from_rotation_z(std::f64::consts::PI), DVec3::new(0.0, 0.5, 0.0));
+    GraspContext::new(robot, t_world_base, cfg, 1.0 / 240.0, DVec3::new(0.0, -0.75, 0.55))
 }
 
 /// The palm's normal (world) of `n` arm moves drawn with `cfg`.
 fn move_normals(cfg: &GraspConfig, n: u64) -> Vec<(DVec3, DVec3)> {
     let robot = Robot::allegro();
-    let (t_world_base, camera_position) = paper_context();
-    let ctx = GraspContext {
-        robot: &robot,
-        t_world_base,
-        config: cfg,
-        timestep: 1.0 / 240.0,
-        camera_position,
-        record_steps: false,
-        finger_gait: None,
-    };
+    let ctx = paper_context(&robot, cfg);
     (0..n)
         .map(|k| {
             let mut rng = ChaCha8Rng::seed_from_u64(k);
@@ -80,16 +69,7 @@ fn back_to_camera_moves_turn_the_palm_away_from_the_camera() {
     // Without the knob no move leaves the cone, and the draws are those of the plain sampler.
     cfg.back_to_camera_share = 0.0;
     let robot = Robot::allegro();
-    let (t_world_base, camera_position) = paper_context();
-    let ctx = GraspContext {
-        robot: &robot,
-        t_world_base,
-        config: &cfg,
-        timestep: 1.0 / 240.0,
-        camera_position,
-        record_steps: false,
-        finger_gait: None,
-    };
+    let ctx = paper_context(&robot, &cfg);
     for k in 0..50 {
         let a = ctx.sample_move_palm(&mut ChaCha8Rng::seed_from_u64(k));
         let b = ctx.sample_palm(&mut ChaCha8Rng::seed_from_u64(k));
@@ -101,16 +81,7 @@ fn back_to_camera_moves_turn_the_palm_away_from_the_camera() {
 /// The grasp loop over the scripted hand: `cfg` with the paper's robot and camera.
 fn run_fake(hand: &mut crate::physics::fake::FakeHand, cfg: &GraspConfig, instances: u32) -> (Result<Trajectory>, Vec<GraspEvent>) {
     let robot = Robot::allegro();
-    let (t_world_base, camera_position) = paper_context();
-    let ctx = GraspContext {
-        robot: &robot,
-        t_world_base,
-        config: cfg,
-        timestep: 1.0 / 240.0,
-        camera_position,
-        record_steps: false,
-        finger_gait: None,
-    };
+    let ctx = paper_context(&robot, cfg);
     let object = PhysicsObject {
         points: vt_objects::procedural_mesh(vt_objects::Catalog::builtin().get("005_tomato_soup_can").unwrap()).positions,
         mass: 0.35,
@@ -196,16 +167,7 @@ fn both_built_in_robots_reach_the_paper_workspace() {
     for name in vt_robot::BUILTIN_ROBOTS.into_iter().filter(|&n| vt_robot::Robot::builtin(n).is_ok()) {
         let robot = Robot::builtin(name).unwrap();
         let cfg = GraspConfig::default().with_robot_defaults(&robot);
-        let (t_world_base, camera_position) = paper_context();
-        let ctx = GraspContext {
-            robot: &robot,
-            t_world_base,
-            config: &cfg,
-            timestep: 1.0 / 240.0,
-            camera_position,
-            record_steps: false,
-            finger_gait: None,
-        };
+        let ctx = paper_context(&robot, &cfg);
         let share = reachable_share(&ctx, REACH_SAMPLES);
         eprintln!("{name}: {:.0}% of {REACH_SAMPLES} workspace poses reached", 100.0 * share);
         assert!(share >= 0.9, "{name}: {share}");
