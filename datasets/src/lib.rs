@@ -17,7 +17,10 @@ mod writer;
 pub use format::description as format_description;
 pub use glb::{ColoredMesh, encode_glb, srgb_to_linear};
 pub use info::{EpisodeFrameInfo, EpisodeRecord, OcclusionInfo, PlacedDistractor, RobotInfo, SampleInfo, Split, StateRecord, TouchInfo};
-pub use manifest::{ContinuousSymmetry, GraspStats, Manifest, OcclusionHistogram, ModelInfo, ModelsInfo, ShardEntry, SplitManifest, sha256_file, write_atomic};
+pub use manifest::{
+    ContinuousSymmetry, GraspStats, Manifest, ModelInfo, ModelsInfo, OcclusionHistogram, ShardEntry, SplitManifest, sha256_file,
+    write_atomic,
+};
 pub use occlusion::OcclusionBin;
 pub use ply::{LengthUnit, PlyMesh, read_ply, write_ply};
 pub use reader::{DatasetReader, ShardReader};
@@ -114,7 +117,8 @@ pub mod encodings {
 /// `/tactile/points` (FORMAT.md, "Tactile point cloud"): one packed point per contact pixel.
 pub mod tactile_points {
     /// A point's fields: name, byte offset and whether it is an unsigned integer (else `f32`).
-    pub const FIELDS: [(&str, u32, bool); 5] = [("x", 0, false), ("y", 4, false), ("z", 8, false), ("distance", 12, false), ("phalanx", 16, true)];
+    pub const FIELDS: [(&str, u32, bool); 5] =
+        [("x", 0, false), ("y", 4, false), ("z", 8, false), ("distance", 12, false), ("phalanx", 16, true)];
     /// Bytes per point.
     pub const STRIDE: u32 = 20;
 }

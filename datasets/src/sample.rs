@@ -143,7 +143,8 @@ pub struct ShardMeta {
 
 impl ShardMeta {
     /// The keys every `vtgen.shard` record has, in this order; [`ShardMeta::extra`] adds others.
-    pub const KEYS: [&str; 8] = ["format_version", "generator", "seed", "config_sha256", "split", "shard_index", "first_sample", "sample_count"];
+    pub const KEYS: [&str; 8] =
+        ["format_version", "generator", "seed", "config_sha256", "split", "shard_index", "first_sample", "sample_count"];
 
     pub fn to_map(&self) -> std::collections::BTreeMap<String, String> {
         let values = [
@@ -156,12 +157,7 @@ impl ShardMeta {
             self.first_sample.to_string(),
             self.sample_count.to_string(),
         ];
-        Self::KEYS
-            .into_iter()
-            .zip(values)
-            .map(|(k, v)| (k.to_string(), v))
-        .chain(self.extra.clone())
-        .collect()
+        Self::KEYS.into_iter().zip(values).map(|(k, v)| (k.to_string(), v)).chain(self.extra.clone()).collect()
     }
 
     pub fn from_map(m: &std::collections::BTreeMap<String, String>) -> anyhow::Result<Self> {
@@ -175,11 +171,7 @@ impl ShardMeta {
             shard_index: num("shard_index")? as u32,
             first_sample: num("first_sample")?,
             sample_count: num("sample_count")?,
-            extra: m
-                .iter()
-                .filter(|(k, _)| !Self::KEYS.contains(&k.as_str()))
-                .map(|(k, v)| (k.clone(), v.clone()))
-                .collect(),
+            extra: m.iter().filter(|(k, _)| !Self::KEYS.contains(&k.as_str())).map(|(k, v)| (k.clone(), v.clone())).collect(),
         })
     }
 }

@@ -6,8 +6,8 @@ use std::time::Duration;
 use anyhow::{Context, Result};
 use glam::{DAffine3, DMat4};
 use vt_dataset::{
-    EpisodeData, EpisodeFrameInfo, GraspStats, OcclusionBin, OcclusionInfo, OpticalPadImage, PlacedDistractor, Pose, RobotInfo, Sample, SampleInfo,
-    SceneModel, Split, StateRecord, TactileData, TactilePointRecord, TouchInfo, frames, mask_ids,
+    EpisodeData, EpisodeFrameInfo, GraspStats, OcclusionBin, OcclusionInfo, OpticalPadImage, PlacedDistractor, Pose, RobotInfo, Sample,
+    SampleInfo, SceneModel, Split, StateRecord, TactileData, TactilePointRecord, TouchInfo, frames, mask_ids,
 };
 use vt_objects::Texture;
 use vt_randomizers::{AppearanceContext, ImageLibrary, ProceduralTexture, SampleKey, SampleStream, sample_sensor_variation};
@@ -16,8 +16,8 @@ use crate::annotate::occlusion::{model_points, occlusion_level};
 use crate::assets::LoadedObject;
 use crate::assets::robot::{load_drawn_meshes, robot_assets_dir};
 use crate::config::{Config, LoadedConfig};
-use crate::cpu_clock::StageClock;
 use crate::config::{OpticalSensor, SensorModel};
+use crate::cpu_clock::StageClock;
 use crate::physics::grasp::Trajectory;
 use crate::physics::robot::RobotScene;
 use crate::plan::{EpisodeTimeline, SampleRef};
@@ -418,7 +418,12 @@ impl<'a> SampleFactory<'a> {
         let mut scene = self.sample_scene(&scene_key)?;
         let mut draws = vec![
             Draw { mesh: self.uploaded.floor, t_world_model: DMat4::IDENTITY, mask_id: mask_ids::BACKGROUND, role: DrawRole::Environment },
-            Draw { mesh: self.uploaded.backdrop, t_world_model: DMat4::IDENTITY, mask_id: mask_ids::BACKGROUND, role: DrawRole::Environment },
+            Draw {
+                mesh: self.uploaded.backdrop,
+                t_world_model: DMat4::IDENTITY,
+                mask_id: mask_ids::BACKGROUND,
+                role: DrawRole::Environment,
+            },
         ];
         let mut posed = if self.has_robot() { Some(self.pose_robot(r, &obj.id, at, &mut draws)?) } else { None };
         if let Some(p) = &posed {
@@ -575,7 +580,13 @@ impl<'a> SampleFactory<'a> {
             t_world_palm: pose_of(&t_world_palm),
             tactile: None,
         };
-        Ok(PosedRobot { info, links_in_contact, pads: posed.pads, transforms: posed.transforms, t_world_object: t_world_palm * st.t_palm_object })
+        Ok(PosedRobot {
+            info,
+            links_in_contact,
+            pads: posed.pads,
+            transforms: posed.transforms,
+            t_world_object: t_world_palm * st.t_palm_object,
+        })
     }
 
     /// An episode frame's faster streams: the touch at the tactile rate after the frame and the
@@ -722,7 +733,8 @@ impl<'a> SampleFactory<'a> {
         let clock = StageClock::start();
         // Episodes write the reference images once, with their first frame.
         let write_reference = self.config.sampling.record.is_none() || (key.instance == 0 && noise_tag.is_empty());
-        let optical = optical_images(&mut self.held.optical_references, key, noise_tag, write_reference, &names, &pads, &reading.optical_depth);
+        let optical =
+            optical_images(&mut self.held.optical_references, key, noise_tag, write_reference, &names, &pads, &reading.optical_depth);
         self.times.tactile_optical += clock.wall();
         self.times.tactile_optical_cpu += clock.cpu();
         self.times.optical_images += optical.len() as u64;

@@ -392,7 +392,14 @@ fn report(runs: Vec<TrajectoryRun>, workers: Vec<(StageTimes, WriterTimes, Durat
 }
 
 /// `vtgen bench`: the benchmark, printed as a table (or JSON).
-pub fn run(cfg: &LoadedConfig, samples: u64, jobs: usize, ycb_dir: Option<&std::path::PathBuf>, predict_cores: Option<usize>, json: bool) -> Result<()> {
+pub fn run(
+    cfg: &LoadedConfig,
+    samples: u64,
+    jobs: usize,
+    ycb_dir: Option<&std::path::PathBuf>,
+    predict_cores: Option<usize>,
+    json: bool,
+) -> Result<()> {
     let r = bench(cfg, samples, jobs, ycb_dir, predict_cores)?;
     if json {
         println!("{}", serde_json::to_string_pretty(&r)?);

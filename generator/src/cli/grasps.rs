@@ -257,7 +257,13 @@ fn per_object_figures(objects: &[LoadedObject], mut results: Vec<TrajectoryResul
 
 /// `vtgen grasps`: the grasp loop's report per object (markdown or JSON); an error when an object
 /// kept less than `min_kept` of its trajectories.
-pub fn run(cfg: &LoadedConfig, ycb_dir: Option<&std::path::PathBuf>, opts: &GraspCheckOptions, json: bool, min_kept: Option<f64>) -> Result<()> {
+pub fn run(
+    cfg: &LoadedConfig,
+    ycb_dir: Option<&std::path::PathBuf>,
+    opts: &GraspCheckOptions,
+    json: bool,
+    min_kept: Option<f64>,
+) -> Result<()> {
     let objects = crate::assets::load_objects(cfg, ycb_dir)?;
     let r = check_grasps(cfg, &objects, opts)?;
     if json {

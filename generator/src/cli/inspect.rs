@@ -68,7 +68,9 @@ pub fn inspect(root: &Path) -> Result<Inspection> {
     for split in manifest.splits.keys() {
         for shard in ds.shards(split)? {
             if let Some(e) = shard.meta().extra.get(vt_dataset::EPISODE_METADATA_KEY) {
-                episodes.push(serde_json::from_str(e).with_context(|| format!("{}: {}", shard.path().display(), vt_dataset::EPISODE_METADATA_KEY))?);
+                episodes.push(
+                    serde_json::from_str(e).with_context(|| format!("{}: {}", shard.path().display(), vt_dataset::EPISODE_METADATA_KEY))?,
+                );
             }
         }
     }

@@ -194,7 +194,15 @@ pub fn write_sheet(samples: &[Sample], out: &Path, row_width: u32, columns: u32)
 }
 
 /// `vtgen preview`: the contact sheet of `n` samples of a config or dataset, written to `out`.
-pub fn run(source: &Path, n: usize, out: &Path, layout: (u32, u32), ycb_dir: Option<&std::path::PathBuf>, robot_assets: Option<std::path::PathBuf>, overrides: &[Override]) -> Result<()> {
+pub fn run(
+    source: &Path,
+    n: usize,
+    out: &Path,
+    layout: (u32, u32),
+    ycb_dir: Option<&std::path::PathBuf>,
+    robot_assets: Option<std::path::PathBuf>,
+    overrides: &[Override],
+) -> Result<()> {
     let samples = samples(source, n, ycb_dir, robot_assets, overrides)?;
     write_sheet(&samples, out, layout.0, layout.1)?;
     println!("wrote {} ({} samples)", out.display(), samples.len());

@@ -571,13 +571,11 @@ impl<'de> Deserialize<'de> for ObjectSpec {
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, default)]
 pub struct Sampling {
     /// Random trajectories per object (the paper: 200).
-    #[serde(default = "default_trajectories")]
     pub trajectories_per_object: u32,
     /// Recorded instances per trajectory (the paper: 100).
-    #[serde(default = "default_instances")]
     pub instances_per_trajectory: u32,
     #[serde(default)]
     pub split: Split,
@@ -707,21 +705,9 @@ impl RecordConfig {
     }
 }
 
-fn default_trajectories() -> u32 {
-    200
-}
-fn default_instances() -> u32 {
-    100
-}
-
 impl Default for Sampling {
     fn default() -> Self {
-        Sampling {
-            trajectories_per_object: default_trajectories(),
-            instances_per_trajectory: default_instances(),
-            split: Split::default(),
-            record: None,
-        }
+        Sampling { trajectories_per_object: 200, instances_per_trajectory: 100, split: Split::default(), record: None }
     }
 }
 
@@ -735,24 +721,15 @@ impl Check for Sampling {
 
 /// Train/test ratio, decided per trajectory (FORMAT.md).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, default)]
 pub struct Split {
-    #[serde(default = "default_split_train")]
     pub train: u32,
-    #[serde(default = "default_split_test")]
     pub test: u32,
-}
-
-fn default_split_train() -> u32 {
-    4
-}
-fn default_split_test() -> u32 {
-    1
 }
 
 impl Default for Split {
     fn default() -> Self {
-        Split { train: default_split_train(), test: default_split_test() }
+        Split { train: 4, test: 1 }
     }
 }
 
@@ -768,11 +745,9 @@ impl Check for Split {
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, default)]
 pub struct Camera {
-    #[serde(default = "default_width")]
     pub width: u32,
-    #[serde(default = "default_height")]
     pub height: u32,
     /// Pinhole intrinsics in pixels (FORMAT.md pixel-centre convention) …
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -782,14 +757,10 @@ pub struct Camera {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fov_y_deg: Option<f64>,
     /// Camera position in the world frame (metres).
-    #[serde(default = "default_camera_position")]
     pub position: [f64; 3],
     /// World point the optical axis goes through.
-    #[serde(default = "default_look_at")]
     pub look_at: [f64; 3],
-    #[serde(default = "default_near")]
     pub near: f64,
-    #[serde(default = "default_far")]
     pub far: f64,
     /// RGB-D sensor noise (off by default): the noisy depth goes to `/camera/depth_noisy`, the
     /// clean one stays the ground truth.
@@ -801,42 +772,24 @@ fn is_default<T: Default + PartialEq>(v: &T) -> bool {
     *v == T::default()
 }
 
-fn default_near() -> f64 {
-    0.05
-}
-fn default_width() -> u32 {
-    640
-}
-fn default_height() -> u32 {
-    480
-}
-/// The paper camera: 0.75 m in front of the robot's workspace, looking down at it.
-fn default_camera_position() -> [f64; 3] {
-    [0.0, -0.75, 0.55]
-}
-fn default_look_at() -> [f64; 3] {
-    [0.0, 0.0, 0.28]
-}
 /// The paper camera's focal length (pixels) at 480 rows.
 const PAPER_FOCAL_PX_AT_480: f64 = 615.0;
 
 impl Default for Camera {
     fn default() -> Self {
         Camera {
-            width: default_width(),
-            height: default_height(),
+            width: 640,
+            height: 480,
             intrinsics: None,
             fov_y_deg: None,
-            position: default_camera_position(),
-            look_at: default_look_at(),
-            near: default_near(),
-            far: default_far(),
+            // The paper camera: 0.75 m in front of the robot's workspace, looking down at it.
+            position: [0.0, -0.75, 0.55],
+            look_at: [0.0, 0.0, 0.28],
+            near: 0.05,
+            far: 10.0,
             noise: Default::default(),
         }
     }
-}
-fn default_far() -> f64 {
-    10.0
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -900,42 +853,23 @@ impl Check for Camera {
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, default)]
 pub struct SceneConfig {
     /// Box (world frame) in which the object's centre is placed.
     #[serde(default)]
     pub workspace: Workspace,
     /// Background colour (sRGB) where nothing is drawn.
-    #[serde(default = "default_background")]
     pub background: [u8; 3],
     /// Occlusion level: model points per object, and how close (mm) a depth point must be for a
     /// model point to count as visible.
-    #[serde(default = "default_occlusion_points")]
     pub occlusion_points: u32,
-    #[serde(default = "default_occlusion_epsilon")]
     pub occlusion_epsilon_mm: f64,
-}
-
-fn default_occlusion_points() -> u32 {
-    2000
-}
-fn default_occlusion_epsilon() -> f64 {
-    3.0
 }
 
 impl Default for SceneConfig {
     fn default() -> Self {
-        SceneConfig {
-            workspace: Workspace::default(),
-            background: default_background(),
-            occlusion_points: default_occlusion_points(),
-            occlusion_epsilon_mm: default_occlusion_epsilon(),
-        }
+        SceneConfig { workspace: Workspace::default(), background: [70, 78, 92], occlusion_points: 2000, occlusion_epsilon_mm: 3.0 }
     }
-}
-
-fn default_background() -> [u8; 3] {
-    [70, 78, 92]
 }
 
 impl Check for SceneConfig {
@@ -984,7 +918,7 @@ impl Check for Workspace {
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, default)]
 pub struct RendererConfig {
     #[serde(default)]
     pub backend: Backend,
@@ -992,34 +926,18 @@ pub struct RendererConfig {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub adapter: Option<String>,
     /// Side of the spotlight's shadow map in texels (256–8192).
-    #[serde(default = "default_shadow_map_size")]
     pub shadow_map_size: u32,
     /// Tone mapping of the linear colour before sRGB encoding: `none` (clamp) or `aces` (filmic).
     #[serde(default)]
     pub tonemapping: ToneMapping,
     /// Multisample anti-aliasing of the colour image: 1 (off) or 4. Depth and mask stay exact
     /// (one sample per pixel centre) either way.
-    #[serde(default = "default_msaa")]
     pub msaa: u32,
-}
-
-fn default_msaa() -> u32 {
-    1
-}
-
-fn default_shadow_map_size() -> u32 {
-    1024
 }
 
 impl Default for RendererConfig {
     fn default() -> Self {
-        RendererConfig {
-            backend: Backend::Auto,
-            adapter: None,
-            shadow_map_size: default_shadow_map_size(),
-            tonemapping: ToneMapping::None,
-            msaa: default_msaa(),
-        }
+        RendererConfig { backend: Backend::Auto, adapter: None, shadow_map_size: 1024, tonemapping: ToneMapping::None, msaa: 1 }
     }
 }
 
@@ -1054,17 +972,15 @@ pub enum Backend {
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, default)]
 pub struct Output {
     /// Dataset directory, relative to the current directory (overridable with `--out`); default
     /// `out/<config file name without .yaml>`.
     #[serde(default)]
     pub dir: PathBuf,
-    #[serde(default = "default_samples_per_shard")]
     pub samples_per_shard: u32,
     #[serde(default)]
     pub compression: CompressionKind,
-    #[serde(default = "default_zstd_level")]
     pub zstd_level: i32,
 }
 
@@ -1078,22 +994,10 @@ impl Output {
     }
 }
 
-fn default_samples_per_shard() -> u32 {
-    500
-}
-
 impl Default for Output {
     fn default() -> Self {
-        Output {
-            dir: PathBuf::new(),
-            samples_per_shard: default_samples_per_shard(),
-            compression: CompressionKind::default(),
-            zstd_level: default_zstd_level(),
-        }
+        Output { dir: PathBuf::new(), samples_per_shard: 500, compression: CompressionKind::default(), zstd_level: 3 }
     }
-}
-fn default_zstd_level() -> i32 {
-    3
 }
 
 impl Check for Output {

@@ -11,7 +11,8 @@ use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use sha2::{Digest, Sha256};
 use vt_dataset::{
-    Compression, GraspStats, Manifest, ModelInfo, ModelsInfo, OcclusionHistogram, ShardEntry, ShardMeta, ShardReceipt, SplitManifest, mask_ids,
+    Compression, GraspStats, Manifest, ModelInfo, ModelsInfo, OcclusionHistogram, ShardEntry, ShardMeta, ShardReceipt, SplitManifest,
+    mask_ids,
 };
 
 use crate::assets::sources::MeshSources;

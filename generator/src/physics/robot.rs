@@ -2,11 +2,10 @@
 //! the real meshes), its physics backend and the objects' physics shapes; it simulates whole
 //! trajectories (`grasp.rs`) and counts the grasp loop's figures.
 
-
 use anyhow::{Context, Result};
 use glam::{DAffine3, DQuat, DVec3};
-use vt_objects::TexturedMesh;
 use vt_dataset::GraspStats;
+use vt_objects::TexturedMesh;
 use vt_robot::Robot;
 
 use crate::assets::robot::{collides_as_real_meshes, load_hand_meshes, robot_assets_dir, with_real_hand};

@@ -26,7 +26,9 @@ use glam::{DAffine3, DMat3, DQuat, DVec3};
 use rand::Rng;
 use vt_randomizers::SampleStream;
 
-pub use context::{FingerGait, GraspContext, MIN_REACHABLE_SHARE, REACH_SAMPLES, TrajectoryKey, move_steps, reach_samples, reachable_share};
+pub use context::{
+    FingerGait, GraspContext, MIN_REACHABLE_SHARE, REACH_SAMPLES, TrajectoryKey, move_steps, reach_samples, reachable_share,
+};
 pub use floor::{floor_clearance, robot_floor_clearance};
 pub use outcome::{Failure, GraspEvent, Redo};
 

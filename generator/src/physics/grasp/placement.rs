@@ -108,8 +108,11 @@ impl Attempt<'_> {
         let r_obj = sample_object_orientation(cfg, object, rng);
         let back = depth_along(object, r_obj).1;
         let o = &cfg.object_offset;
-        let pos =
-            DVec3::new(cfg.palm_surface_x + PLACEMENT_GAP + back, rng.random_range(o.min[1]..=o.max[1]), rng.random_range(o.min[2]..=o.max[2]));
+        let pos = DVec3::new(
+            cfg.palm_surface_x + PLACEMENT_GAP + back,
+            rng.random_range(o.min[1]..=o.max[1]),
+            rng.random_range(o.min[2]..=o.max[2]),
+        );
         // An object spawned inside a link (large objects reach the thumb, which sits in front of the
         // palm) would be launched by the solver: one step finds the overlap, and the object is moved
         // out along the palm normal until it is clear.

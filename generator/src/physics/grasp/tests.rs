@@ -213,8 +213,7 @@ fn a_link_under_the_floor_is_found_and_named() {
 #[test]
 fn event_names_are_the_ones_earlier_datasets_count_under() {
     use Failure::*;
-    let failed =
-        [InitialOverlap, GraspNotHeld, LostDuringMotion, TooFewContacts, Penetration, TouchesFloor, Unreachable, NoAntipodalPair];
+    let failed = [InitialOverlap, GraspNotHeld, LostDuringMotion, TooFewContacts, Penetration, TouchesFloor, Unreachable, NoAntipodalPair];
     for f in failed {
         assert_eq!(GraspEvent::Failed(f).name(), format!("{f:?}"));
     }
