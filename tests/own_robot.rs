@@ -152,7 +152,7 @@ fn config() -> &'static Path {
 /// `config` generated into a fresh directory.
 pub fn generated(config: &Path) -> tempfile::TempDir {
     let d = tempdir();
-    let o = run_generate(&config, d.path(), &[]);
+    let o = run_generate(config, d.path(), &[]);
     assert!(o.status.success(), "{}", stderr(&o));
     d
 }
@@ -160,7 +160,7 @@ pub fn generated(config: &Path) -> tempfile::TempDir {
 /// `--shard i/5` of `config` alone writes train shard i, byte for byte the whole run's.
 pub fn shard_job_matches(config: &Path, i: u32, whole: &Path) {
     let other = tempdir();
-    let o = run_generate(&config, other.path(), &["--shard", &format!("{i}/5")]);
+    let o = run_generate(config, other.path(), &["--shard", &format!("{i}/5")]);
     assert!(o.status.success(), "{}", stderr(&o));
     let shards = complete_shards(other.path());
     assert_eq!(shards, [format!("train/shard-{i:05}.mcap")]);

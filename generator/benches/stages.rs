@@ -47,15 +47,8 @@ fn physics(c: &mut Criterion) {
     }
     group.bench_function("step (hand closed on the soup can)", |b| b.iter(|| hand.step()));
     // A whole trajectory of 5 instances: grasp, then 5 arm moves with their holds and checks.
-    let ctx = GraspContext {
-        robot: &robot,
-        t_world_base: DAffine3::from_rotation_translation(DQuat::from_rotation_z(std::f64::consts::PI), DVec3::new(0.0, 0.5, 0.0)),
-        config: &grasp,
-        timestep: settings().timestep,
-        camera_position: DVec3::new(0.0, -0.75, 0.55),
-        record_steps: false,
-        finger_gait: None,
-    };
+    let t_world_base = DAffine3::from_rotation_translation(DQuat::from_rotation_z(std::f64::consts::PI), DVec3::new(0.0, 0.5, 0.0));
+    let ctx = GraspContext::new(&robot, t_world_base, &grasp, settings().timestep, DVec3::new(0.0, -0.75, 0.55));
     group.sample_size(10);
     group.bench_function("trajectory of 5 instances (soup can)", |b| {
         b.iter(|| {

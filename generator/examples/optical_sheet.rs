@@ -16,7 +16,7 @@ use vtgen::assets::load_objects;
 use vtgen::config::{LoadedConfig, OpticalSensor, Override};
 use vtgen::plan::Plan;
 use vtgen::render::WgpuRenderer;
-use vtgen::sample::SampleFactory;
+use vtgen::sample::{SampleFactory, ShardTally};
 use vtgen::sensors::optical::pixel_position;
 
 /// The columns: a label and the config overrides of its sensor.
@@ -90,7 +90,7 @@ fn samples(
     let step = (picks.len() / rows.max(1)).max(1);
     let mut out = Vec::new();
     for (row, (split, index, r)) in picks.iter().step_by(step).take(rows).enumerate() {
-        let s = factory.make(*split, *index, r)?;
+        let s = factory.make(*split, *index, r, &mut ShardTally::default())?;
         let tac = s.tactile.as_ref().context("the config has no robot")?;
         // The pad whose image shows the most contact (pixels well off its reference).
         let contact = |o: &&vt_dataset::OpticalPadImage| o.image.iter().zip(&o.reference).filter(|(a, b)| a.abs_diff(**b) > 12).count();
