@@ -108,6 +108,59 @@ impl TextureSlot {
     }
 }
 
+/// The robot's drawn links as the renderer holds them.
+#[derive(Default)]
+struct DrawnRobot {
+    /// (link, mesh, mask id) of every drawn link.
+    meshes: Vec<(usize, MeshHandle, u8)>,
+    /// Each drawn link's own texture and material (with `randomization.robot_materials`).
+    materials: Vec<(MeshHandle, vt_objects::Texture, Material)>,
+    /// The links' meshes for Foxglove's 3D view.
+    glbs: Vec<SceneModel>,
+}
+
+/// Uploads every drawn link of the robot: its real mesh where the robot assets have one (the
+/// built-in robots drawn from primitives), else its URDF's own geometry (meshes included).
+fn upload_robot(renderer: &mut dyn Renderer, cfg: &LoadedConfig, r: &RobotScene) -> Result<DrawnRobot> {
+    let mut out = DrawnRobot::default();
+    // The robot assets hold real meshes for the built-in robots drawn from primitives;
+    // other robots draw their URDF's own geometry (meshes included).
+    let has_meshes = crate::assets::robot::ROBOTS_WITH_MESHES.contains(&r.robot.name.as_str());
+    let mut real = match robot_assets_dir(cfg) {
+        Some(dir) if has_meshes => load_drawn_meshes(&dir, &r.robot, true)?,
+        Some(_) => Default::default(),
+        None => {
+            static SAID: std::sync::Once = std::sync::Once::new();
+            if has_meshes {
+                SAID.call_once(|| {
+                    eprintln!(
+                        "vtgen: drawing the robot from primitives (no robot meshes: --robot-assets DIR, e.g. \
+                             `--robot-assets \"$(scripts/robot-assets)\"`, draws the real meshes of {})",
+                        r.robot.name
+                    )
+                });
+            }
+            Default::default()
+        }
+    };
+    for link in 0..r.robot.model.links.len() {
+        let mesh = real.remove(&link).or_else(|| link_mesh(&r.robot.model, link));
+        if let (Some(mesh), Some(id)) = (mesh, robot_mask_id(&r.robot, link)) {
+            // Matte black hand (white tips), the arm's painted aluminium.
+            let arm = mask_ids::ARM_LINKS.contains(&id) || id == mask_ids::ARM_LINK_SEVENTH;
+            let material = if arm { Material { roughness: 0.45, metallic: 0.3 } } else { Material { roughness: 0.75, metallic: 0.0 } };
+            let handle = renderer.upload_mesh_with(&mesh, material)?;
+            out.meshes.push((link, handle, id));
+            if cfg.config.randomization.robot_materials.is_some() {
+                out.materials.push((handle, mesh.texture.clone(), material));
+            }
+            let name = &r.robot.model.links[link].name;
+            out.glbs.push(SceneModel { id: format!("robot/{name}"), frame_id: name.clone(), glb: glb_of(&mesh) });
+        }
+    }
+    Ok(out)
+}
+
 /// Everything a worker needs to turn sample coordinates into a sample.
 pub struct SampleFactory<'a> {
     pub config: &'a Config,
@@ -264,8 +317,8 @@ enum StateAt {
 
 impl<'a> SampleFactory<'a> {
     /// A worker's factory: the objects and the robot uploaded to its renderer once.
-    // Long on purpose: one upload per kind of mesh (objects, floor and backdrop, robot links and
-    // their looks, pad surfaces), in the order the renderer's handles are handed out.
+    // The uploads in the order the renderer hands out their handles: floor, backdrop, objects,
+    // robot links.
     pub fn new(cfg: &'a LoadedConfig, objects: &'a [LoadedObject], mut renderer: Box<dyn Renderer + 'a>) -> Result<Self> {
         let config = &cfg.config;
         let floor = renderer.upload_mesh_with(&floor_mesh(), Material { roughness: 0.85, metallic: 0.0 })?;
@@ -285,47 +338,11 @@ impl<'a> SampleFactory<'a> {
             ImageLibrary::empty()
         };
         let robot = config.robot.as_ref().map(|r| RobotScene::new(cfg, r, objects)).transpose()?;
-        let mut robot_meshes = Vec::new();
-        let mut robot_materials = Vec::new();
-        let mut robot_glbs = Vec::new();
-        if let Some(r) = &robot {
-            // The robot assets hold real meshes for the built-in robots drawn from primitives;
-            // other robots draw their URDF's own geometry (meshes included).
-            let has_meshes = crate::assets::robot::ROBOTS_WITH_MESHES.contains(&r.robot.name.as_str());
-            let mut real = match robot_assets_dir(cfg) {
-                Some(dir) if has_meshes => load_drawn_meshes(&dir, &r.robot, true)?,
-                Some(_) => Default::default(),
-                None => {
-                    static SAID: std::sync::Once = std::sync::Once::new();
-                    if has_meshes {
-                        SAID.call_once(|| {
-                            eprintln!(
-                                "vtgen: drawing the robot from primitives (no robot meshes: --robot-assets DIR, e.g. \
-                                 `--robot-assets \"$(scripts/robot-assets)\"`, draws the real meshes of {})",
-                                r.robot.name
-                            )
-                        });
-                    }
-                    Default::default()
-                }
-            };
-            for link in 0..r.robot.model.links.len() {
-                let mesh = real.remove(&link).or_else(|| link_mesh(&r.robot.model, link));
-                if let (Some(mesh), Some(id)) = (mesh, robot_mask_id(&r.robot, link)) {
-                    // Matte black hand (white tips), the arm's painted aluminium.
-                    let arm = mask_ids::ARM_LINKS.contains(&id) || id == mask_ids::ARM_LINK_SEVENTH;
-                    let material =
-                        if arm { Material { roughness: 0.45, metallic: 0.3 } } else { Material { roughness: 0.75, metallic: 0.0 } };
-                    let handle = renderer.upload_mesh_with(&mesh, material)?;
-                    robot_meshes.push((link, handle, id));
-                    if config.randomization.robot_materials.is_some() {
-                        robot_materials.push((handle, mesh.texture.clone(), material));
-                    }
-                    let name = &r.robot.model.links[link].name;
-                    robot_glbs.push(SceneModel { id: format!("robot/{name}"), frame_id: name.clone(), glb: glb_of(&mesh) });
-                }
-            }
-        }
+        let drawn = match &robot {
+            Some(r) => upload_robot(renderer.as_mut(), cfg, r)?,
+            None => DrawnRobot::default(),
+        };
+        let DrawnRobot { meshes: robot_meshes, materials: robot_materials, glbs: robot_glbs } = drawn;
         let object_glbs = objects.iter().map(|o| glb_of(&o.mesh)).collect();
         let pad_sizes = robot.as_ref().map(|r| r.robot.pad_sizes()).unwrap_or_default();
         let finger_surface = match &robot {
@@ -416,28 +433,21 @@ impl<'a> SampleFactory<'a> {
         let scene_key = SampleKey { instance: if timeline.is_some() { 0 } else { r.instance }, ..key };
         let at = timeline.map_or(StateAt::Instance(r.instance), |t| StateAt::Step(r.instance as u64 * t.periods.camera));
         let mut scene = self.sample_scene(&scene_key)?;
-        let mut draws = vec![
-            Draw { mesh: self.uploaded.floor, t_world_model: DMat4::IDENTITY, mask_id: mask_ids::BACKGROUND, role: DrawRole::Environment },
-            Draw {
-                mesh: self.uploaded.backdrop,
-                t_world_model: DMat4::IDENTITY,
-                mask_id: mask_ids::BACKGROUND,
-                role: DrawRole::Environment,
-            },
-        ];
+        let mut draws = [self.uploaded.floor, self.uploaded.backdrop]
+            .map(|mesh| Draw { mesh, t_world_model: DMat4::IDENTITY, mask_id: mask_ids::BACKGROUND, role: DrawRole::Environment })
+            .to_vec();
         let mut posed = if self.has_robot() { Some(self.pose_robot(r, &obj.id, at, &mut draws)?) } else { None };
         if let Some(p) = &posed {
             scene.t_world_object = pose_of(&p.t_world_object);
         }
         let distractors = place_distractors(self.objects, &scene, r.object_index as usize);
-        for d in &distractors {
-            draws.push(Draw {
-                mesh: self.uploaded.object_meshes[d.object],
-                t_world_model: d.pose.matrix(),
-                mask_id: d.mask_id,
-                role: DrawRole::Occluder,
-            });
-        }
+        let meshes = &self.uploaded.object_meshes;
+        draws.extend(distractors.iter().map(|d| Draw {
+            mesh: meshes[d.object],
+            t_world_model: d.pose.matrix(),
+            mask_id: d.mask_id,
+            role: DrawRole::Occluder,
+        }));
         let object_draw = Draw {
             mesh: self.uploaded.object_meshes[r.object_index as usize],
             t_world_model: scene.t_world_object.matrix(),
@@ -474,15 +484,7 @@ impl<'a> SampleFactory<'a> {
             t_world_camera: scene.t_world_camera,
             t_camera_object,
             robot: robot_info,
-            episode: timeline.map(|t| {
-                let step = r.instance as u64 * t.periods.camera;
-                let per_move = (t.steps / self.config.sampling.instances_per_trajectory as u64).max(1);
-                EpisodeFrameInfo {
-                    frame: r.instance,
-                    time_s: step as f64 * t.timestep,
-                    arm_move: (step.max(1) - 1).div_euclid(per_move) as u32,
-                }
-            }),
+            episode: timeline.map(|t| self.episode_frame(r, &t)),
         };
         let episode = match &timeline {
             Some(t) => Some(self.episode_streams(r, &obj.id, &scene, (&scene_key, &key), t)?),
@@ -505,6 +507,13 @@ impl<'a> SampleFactory<'a> {
             tactile,
             episode,
         })
+    }
+
+    /// Where frame `r.instance` of an episode stands: its time and the arm move it shows.
+    fn episode_frame(&self, r: &SampleRef, t: &EpisodeTimeline) -> EpisodeFrameInfo {
+        let step = r.instance as u64 * t.periods.camera;
+        let per_move = (t.steps / self.config.sampling.instances_per_trajectory as u64).max(1);
+        EpisodeFrameInfo { frame: r.instance, time_s: step as f64 * t.timestep, arm_move: (step.max(1) - 1).div_euclid(per_move) as u32 }
     }
 
     /// The scene stage: camera, look and candidate distractors from the sample's key, with the
