@@ -44,7 +44,7 @@ impl<'a> Checks<'a> {
 
     /// The checks of the value under `key` (a field name, from [`key!`] or [`field!`]).
     pub fn key(&mut self, key: &'static str) -> Checks<'_> {
-        self.child(Seg::Key(key))
+        self.child(Seg::key(key))
     }
 
     /// The checks of item `i` of this list.

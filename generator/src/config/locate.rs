@@ -3,11 +3,18 @@
 //! collections, which is how configs are written; returns None when it cannot tell, and the error
 //! then names the file and field only.
 
-/// One step of a field path.
+/// One step of a field path: a key (a schema field's name, or one a section reports by its
+/// dotted path) or an item's index.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Seg {
-    Key(&'static str),
+    Key(std::borrow::Cow<'static, str>),
     Index(usize),
+}
+
+impl Seg {
+    pub fn key(k: impl Into<std::borrow::Cow<'static, str>>) -> Self {
+        Seg::Key(k.into())
+    }
 }
 
 pub fn display_path(path: &[Seg]) -> String {
@@ -58,7 +65,7 @@ pub fn locate(text: &str, path: &[Seg]) -> Option<(usize, usize)> {
     for (depth, seg) in path.iter().enumerate() {
         let (i, c) = match seg {
             // Keys of a mapping inside a sequence item start at the item's own column.
-            Seg::Key(k) => find_key(&ls, &node, k, depth > 0 && matches!(path[depth - 1], Seg::Index(_)), depth == 0)?,
+            Seg::Key(k) => find_key(&ls, &node, k.as_ref(), depth > 0 && matches!(path[depth - 1], Seg::Index(_)), depth == 0)?,
             Seg::Index(n) => match find_item(&ls, &node, *n) {
                 Some(hit) => hit,
                 // A flow sequence `[a, b]` on the parent's line: point at the parent.
@@ -139,13 +146,13 @@ mod tests {
 
     #[test]
     fn finds_block_flow_and_sequence_fields() {
-        assert_eq!(locate(YAML, &[Seg::Key("seed")]), Some((1, 1)));
-        assert_eq!(locate(YAML, &[Seg::Key("camera"), Seg::Key("near")]), Some((9, 3)));
-        assert_eq!(locate(YAML, &[Seg::Key("camera"), Seg::Key("intrinsics"), Seg::Key("fy")]), Some((8, 25)));
-        assert_eq!(locate(YAML, &[Seg::Key("objects"), Seg::Index(1)]), Some((4, 5)));
-        assert_eq!(locate(YAML, &[Seg::Key("objects"), Seg::Index(1), Seg::Key("mesh")]), Some((5, 5)));
-        assert_eq!(locate(YAML, &[Seg::Key("scene"), Seg::Key("workspace"), Seg::Key("min")]), Some((12, 5)));
-        assert_eq!(locate(YAML, &[Seg::Key("camera"), Seg::Key("far")]), None);
-        assert_eq!(display_path(&[Seg::Key("objects"), Seg::Index(1), Seg::Key("mesh")]), "objects[1].mesh");
+        assert_eq!(locate(YAML, &[Seg::key("seed")]), Some((1, 1)));
+        assert_eq!(locate(YAML, &[Seg::key("camera"), Seg::key("near")]), Some((9, 3)));
+        assert_eq!(locate(YAML, &[Seg::key("camera"), Seg::key("intrinsics"), Seg::key("fy")]), Some((8, 25)));
+        assert_eq!(locate(YAML, &[Seg::key("objects"), Seg::Index(1)]), Some((4, 5)));
+        assert_eq!(locate(YAML, &[Seg::key("objects"), Seg::Index(1), Seg::key("mesh")]), Some((5, 5)));
+        assert_eq!(locate(YAML, &[Seg::key("scene"), Seg::key("workspace"), Seg::key("min")]), Some((12, 5)));
+        assert_eq!(locate(YAML, &[Seg::key("camera"), Seg::key("far")]), None);
+        assert_eq!(display_path(&[Seg::key("objects"), Seg::Index(1), Seg::key("mesh")]), "objects[1].mesh");
     }
 }

@@ -127,7 +127,7 @@ impl LoadedConfig {
             return Err(ConfigError { file: path.to_path_buf(), line, column, field: locate::display_path(&p.path), message: p.message });
         }
         Self::with_path(config, path, robot_assets).map_err(|(keys, message)| {
-            let keys: Vec<locate::Seg> = keys.into_iter().map(locate::Seg::Key).collect();
+            let keys: Vec<locate::Seg> = keys.into_iter().map(locate::Seg::key).collect();
             let (line, column) = locate::locate(text, &keys).map_or((None, None), |(l, c)| (Some(l), Some(c)));
             ConfigError { file: path.to_path_buf(), line, column, field: locate::display_path(&keys), message }
         })

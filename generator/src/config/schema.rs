@@ -102,14 +102,12 @@ impl Config {
 
     /// The randomizers' own checks, under `randomization`.
     fn check_randomization(&self, c: &mut Checks) {
-        use Seg::{Index, Key};
         let mut randomization = c.key(key!(self.randomization));
         for (field, message) in self.randomization.validate() {
-            // The randomizers name a field by its dotted path. Field paths are static names;
-            // leaking a few bytes per error is fine.
+            // The randomizers name a field by its dotted path.
             let path = field.split('.').map(|k| match k.parse::<usize>() {
-                Ok(i) => Index(i),
-                Err(_) => Key(Box::leak(k.to_string().into_boxed_str())),
+                Ok(i) => Seg::Index(i),
+                Err(_) => Seg::key(k.to_string()),
             });
             randomization.path(path).fail(message);
         }
