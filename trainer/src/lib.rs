@@ -25,7 +25,7 @@
 //!   directory; it scores the network on held-out samples with [`eval::evaluate`] every
 //!   `train.eval_every` epochs.
 //! - [`report`]: `report.md`, `results.json`, per-sample CSV and SVG charts of those results.
-//! - [`bench`] (inference and training-step timing) and [`sweep`] (train and evaluate one network
+//! - [`bench`](mod@bench) (inference and training-step timing) and [`sweep`] (train and evaluate one network
 //!   per tactile point count): the commands on top.
 //!
 //! The order is checked, not only written down: a unit test (`module_order.rs`) reads every

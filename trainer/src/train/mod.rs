@@ -18,8 +18,8 @@
 //! sees the same data as an uninterrupted one.
 //!
 //! This file sets a run up (a fresh or resumed run directory, the network, the loader);
-//! [`step`] is one optimizer step, [`epochs`] the loop over the epochs, and [`metrics_csv`] the
-//! columns of `metrics.csv`.
+//! `step.rs` is one optimizer step ([`train_step`]), `epochs.rs` the loop over the epochs, and
+//! [`metrics_csv`] the columns of `metrics.csv`.
 
 use std::path::PathBuf;
 
