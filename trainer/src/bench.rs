@@ -8,27 +8,21 @@
 //!   loss, backward, Adam: [`train_step`]) with one thread and with the step's threads, the
 //!   process's CPU share while stepping, and the per-stage time of a one-thread step.
 //!
-//! Inputs are synthetic with the config's shapes: the same tensors on every call and device.
+//! Inputs are synthetic with the config's shapes ([`crate::synthetic`]): the same tensors on every
+//! call and device.
 
 use std::time::Instant;
 
-use burn::optim::AdamConfig;
 use burn::prelude::*;
-use burn::tensor::Int;
-use glam::{DQuat, DVec3};
 use serde::Serialize;
 
-use crate::config::{DataConfig, TrainConfig};
-use crate::data::{Batch, Prepared};
+use crate::config::TrainConfig;
+use crate::data::DataConfig;
 use crate::eval::metrics::MeanSe;
 use crate::host::process_cpu_seconds;
-use crate::model::{PoseInput, PoseNet, Variant};
-use crate::train::{StepStage, train_step};
-
-/// A fixed low-discrepancy sequence in [-0.5, 0.5).
-fn wave(k: usize, salt: usize) -> f32 {
-    ((k * 2654435761 + salt * 40503) % 1_000_003) as f32 / 1_000_003.0 - 0.5
-}
+use crate::model::{PoseNet, Variant};
+use crate::synthetic;
+use crate::train::{StepStage, adam, train_step};
 
 /// One benchmarked network.
 #[derive(Debug, Clone, Serialize)]
@@ -44,31 +38,9 @@ pub struct BenchRow {
     pub iters: usize,
 }
 
-/// A synthetic batch of one sample with the shapes of `data`: points around 0.7 m in front of
-/// the camera, a pseudo-random normalised crop, spread pixels. Deterministic: the same tensors on
-/// every call and device.
-pub fn synthetic_input(data: &DataConfig, device: &Device) -> PoseInput {
-    let (n, nt, s) = (data.n_points, data.n_tactile, data.crop_size);
-    let around = |k: usize, salt: usize| {
-        let v: Vec<f32> = (0..k * 3).map(|i| if i % 3 == 2 { 0.7 } else { 0.0 } + 0.1 * wave(i, salt)).collect();
-        Tensor::<3>::from_data(TensorData::new(v, [1, k, 3]), device)
-    };
-    PoseInput {
-        img: Tensor::from_data(TensorData::new((0..3 * s * s).map(|i| 2.0 * wave(i, 7)).collect::<Vec<f32>>(), [1, 3, s, s]), device),
-        choose: Tensor::<2, Int>::from_data(
-            TensorData::new((0..n).map(|i| ((i * 7919) % (s * s)) as i64).collect::<Vec<_>>(), [1, n]),
-            device,
-        ),
-        cloud: around(n, 1),
-        tactile: around(nt, 2),
-        has_touch: Tensor::ones([1, 1], device),
-        object: Tensor::<1, Int>::zeros([1], device),
-    }
-}
-
 /// Times `model` (already on `device`, without autodiff) over `iters` runs after `warmup`.
 pub fn bench_model(name: &str, model: &PoseNet, data: &DataConfig, device: &Device, iters: usize, warmup: usize) -> BenchRow {
-    let input = synthetic_input(data, device);
+    let input = synthetic::input(data, device);
     for _ in 0..warmup {
         let _ = model.forward(&input).best();
     }
@@ -130,44 +102,14 @@ pub struct TrainBenchRow {
     pub iters: usize,
 }
 
-/// A synthetic batch of `batch_size` prepared samples with the shapes of `data` and `m` model
-/// points: points around 0.7 m in front of the camera, every sample touched, poses near identity.
-pub fn synthetic_batch(data: &DataConfig, batch_size: usize, m: usize) -> Batch {
-    let (n, nt, s) = (data.n_points, data.n_tactile, data.crop_size);
-    let points = |k: usize, salt: usize, z: f32| -> Vec<f32> {
-        (0..k * 3).map(|i| if i % 3 == 2 { z } else { 0.0 } + 0.1 * wave(i, salt)).collect()
-    };
-    let samples = (0..batch_size)
-        .map(|b| Prepared {
-            index: b as u64,
-            object: 0,
-            slot: 0,
-            symmetric: false,
-            occlusion: 0.5,
-            trajectory: b as u32,
-            instance: 0,
-            cloud: points(n, 10 + b, 0.7),
-            choose: (0..n).map(|i| (((i + b) * 7919) % (s * s)) as i64).collect(),
-            img: (0..3 * s * s).map(|i| 2.0 * wave(i, 100 + b)).collect(),
-            cloud_count: n,
-            tactile: points(nt, 200 + b, 0.7),
-            tactile_count: nt,
-            model_points: points(m, 300 + b, 0.0),
-            rotation: DQuat::from_rotation_y(0.1 * b as f64),
-            translation: DVec3::new(0.0, 0.0, 0.7),
-        })
-        .collect();
-    Batch { samples }
-}
-
 /// Times training steps of `cfg`'s network (fresh weights, seeded by `train.seed`) on `device`
 /// with `threads` threads per step: `iters` timed steps after `warmup`.
 pub fn bench_training(name: &str, cfg: &TrainConfig, device: &Device, threads: usize, iters: usize, warmup: usize) -> TrainBenchRow {
     let device = device.clone().autodiff();
     device.seed(cfg.train.seed);
-    let mut model = cfg.model.net(1).init(&device);
-    let mut optim = AdamConfig::new().with_epsilon(1e-8).init();
-    let batch = synthetic_batch(&cfg.data, cfg.train.batch_size, cfg.data.n_model_points);
+    let mut model = cfg.model.init(1, &device);
+    let mut optim = adam();
+    let batch = synthetic::batch(&cfg.data, cfg.train.batch_size, cfg.data.n_model_points);
     for _ in 0..warmup {
         model = train_step(model, &mut optim, &batch, cfg.train.loss_weights(), cfg.train.lr, threads, &device, &mut |_| {}).0;
     }

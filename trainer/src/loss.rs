@@ -369,7 +369,7 @@ mod tests {
     fn gradient_flows_and_one_adam_step_changes_the_network() {
         use burn::module::Module;
         use burn::optim::{AdamConfig, GradientsParams};
-        let data = crate::config::DataConfig { n_points: 32, n_tactile: 8, n_model_points: 16, crop_size: 16, ..Default::default() };
+        let data = crate::data::DataConfig { n_points: 32, n_tactile: 8, n_model_points: 16, crop_size: 16, ..Default::default() };
         // Both CPU backends (flex, the default, and ndarray).
         // And the 6D rotation representation.
         use crate::model::{RotationKind, Variant};
@@ -381,18 +381,21 @@ mod tests {
         ] {
             let device = plain_device.clone().autodiff();
             device.seed(1);
-            let model = crate::model::PoseNetConfig::new(variant, 1)
-                .with_global_dims(vec![32])
-                .with_head_dims(vec![32])
-                .with_rotation(rotation)
-                .init(&device);
-            let input = crate::bench::synthetic_input(&data, &device);
+            let model = crate::model::ModelConfig {
+                variant,
+                global_dims: vec![32],
+                head_dims: vec![32],
+                rotation,
+                ..crate::model::ModelConfig::default()
+            }
+            .init(1, &device);
+            let input = crate::synthetic::input(&data, &device);
             let x = [[0.02f32, 0.0, 0.0], [0.0, 0.03, 0.0], [0.0, 0.0, 0.01], [0.01, 0.01, 0.01]];
             for symmetric in [false, true] {
                 let mut batch = one_sample(&x, symmetric);
                 batch.samples[0].translation = DVec3::new(0.0, 0.0, 0.7);
                 let targets = batch.targets(&device);
-                let plain = crate::bench::synthetic_input(&data, &plain_device);
+                let plain = crate::synthetic::input(&data, &plain_device);
                 let pose = |m: &crate::model::PoseNet| -> Vec<f32> {
                     let out = m.valid().forward(&plain);
                     out.translation.into_data().iter::<f32>().chain(out.rotation.into_data().iter::<f32>()).collect()

@@ -78,7 +78,7 @@ struct SweepArgs {
     /// Where the runs (nt-NNNN/) and the report go (default: out/sweeps/<config name>).
     #[arg(long)]
     out: Option<PathBuf>,
-    #[arg(long, value_delimiter = ',', default_values_t = vt_trainer::config::TACTILE_SWEEP)]
+    #[arg(long, value_delimiter = ',', default_values_t = vt_trainer::data::TACTILE_SWEEP)]
     counts: Vec<usize>,
     /// Use this dataset instead of the config's.
     #[arg(long)]
@@ -325,7 +325,7 @@ fn bench_command(args: BenchArgs) -> Result<()> {
         for v in vs {
             let mut m = cfg.model.clone();
             m.variant = v;
-            let model = m.net(1).init(&device);
+            let model = m.init(1, &device);
             rows.push(bench_model(&format!("{name}/{v}"), &model, &cfg.data, &device, iters, warmup));
         }
     }

@@ -64,7 +64,7 @@ impl RunDir {
     pub fn load_model(&self, device: &Device) -> Result<(TrainConfig, RunState, PoseNet)> {
         let cfg = TrainConfig::load(&self.config())?;
         let state = self.load_state()?;
-        let model = cfg.model.net(state.objects.len()).init(device);
+        let model = cfg.model.init(state.objects.len(), device);
         let model = model.try_load_file(self.model()).map_err(|e| anyhow::anyhow!("cannot load {}: {e}", self.model().display()))?;
         Ok((cfg, state, model))
     }

@@ -14,7 +14,8 @@ use std::path::{Path, PathBuf};
 use anyhow::{Result, bail};
 use burn::prelude::Device;
 
-use crate::config::{N_TACTILE_RANGE, TrainConfig};
+use crate::config::TrainConfig;
+use crate::data::N_TACTILE_RANGE;
 use crate::eval::metrics::MeanSe;
 use crate::eval::{EvalCommand, ModelEval, Summary, evaluate_runs};
 use crate::report::plots::bar_chart;

@@ -1,8 +1,9 @@
 //! The data pipeline: vtgen shards (via `vt-dataset`) to fixed-size network inputs, on a
 //! background thread.
 //!
-//! Per sample it does what the Python `vtdata.DenseFusionView` does (`datasets/python/vtdata/
-//! densefusion.py`), so both sides of the project feed a network the same thing:
+//! Per sample it follows the recipe of the Python `vtdata.DenseFusionView` (`datasets/python/
+//! vtdata/densefusion.py`), the same steps, sizes and normalisation, so both sides of the project
+//! feed a network the same kind of input:
 //!
 //! - `cloud`: `n` random pixels of the object's mask (the sample's `mask_id`, 1) with depth > 0,
 //!   back-projected to camera-frame points (OpenCV pinhole); without replacement when the mask has
@@ -18,7 +19,12 @@
 //!
 //! The depth points, tactile points, model points and augmentation draw from independent ChaCha8
 //! streams seeded by (seed, epoch, split, sample index) only: the same inputs whatever the order
-//! of access. Training adds seeded augmentation ([`AugmentConfig`]).
+//! of access. The Python view draws from numpy's generators instead: for one sample the two sides
+//! give arrays of the same kind, not the same arrays. Training adds seeded augmentation
+//! ([`AugmentConfig`]).
+//!
+//! The config sections this module reads (`data:`, `augment:`, `objects:`) live here too
+//! ([`DataConfig`], [`AugmentConfig`], [`ObjectSelection`]).
 //!
 //! A [`SplitSource`] reads one split; with `cache` it keeps each decoded [`ObjectView`] (the crop,
 //! the object's pixels and points, the touch and the pose: tens of KB instead of 640×480 images).
@@ -39,7 +45,6 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use vt_dataset::{DatasetReader, ModelsInfo, ShardReader};
 
-use crate::config::{AugmentConfig, DataConfig, DepthSource, ObjectSelection};
 use crate::geometry::matrix_rows;
 use crate::model::PoseInput;
 
@@ -51,6 +56,7 @@ pub const IMAGENET_STD: [f32; 3] = [0.229, 0.224, 0.225];
 pub const EVAL_MODEL_POINTS: usize = 2000;
 
 mod batch;
+mod config;
 mod loader;
 mod models;
 mod sampling;
@@ -58,6 +64,7 @@ mod source;
 mod view;
 
 pub use batch::*;
+pub use config::*;
 pub use loader::*;
 pub use models::*;
 pub use sampling::*;

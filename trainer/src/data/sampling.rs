@@ -1,5 +1,5 @@
-//! Sampling helpers, mirroring `datasets/python/vtdata/densefusion.py`: index draws, the bilinear
-//! resize, crop cells and seed mixing.
+//! Sampling helpers, by the rules of `datasets/python/vtdata/densefusion.py` (not its random
+//! draws: the generators differ): index draws, the bilinear resize, crop cells and seed mixing.
 
 use super::*;
 

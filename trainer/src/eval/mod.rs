@@ -20,8 +20,8 @@ use burn::prelude::*;
 use glam::DVec3;
 use serde::Serialize;
 
-use crate::config::{AugmentConfig, TACTILE_SWEEP, TrainConfig};
-use crate::data::{Batch, Loaded, Loader, Pass, PrepareOptions, SplitSource, load_models};
+use crate::config::TrainConfig;
+use crate::data::{AugmentConfig, Batch, Loaded, Loader, Pass, PrepareOptions, SplitSource, TACTILE_SWEEP, load_models};
 use crate::geometry::wxyz_to_quat;
 use crate::model::{PoseNet, Variant};
 use crate::run::{RunDir, slot_table};

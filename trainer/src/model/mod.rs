@@ -30,7 +30,7 @@
 //! `non_siamese` gives the tactile channel its own rotation head; `no_global` drops the global
 //! feature; `tactile_only` drops the colour input and the visual channel (depth + touch remain).
 //!
-//! The widths are configurable ([`PoseNetConfig`]); the defaults are small enough for a CPU.
+//! The widths are configurable ([`ModelConfig`]); the defaults are small enough for a CPU.
 
 pub mod encoder;
 
@@ -291,31 +291,45 @@ fn select_object(out: Tensor<3>, object: &Tensor<1, Int>, k: usize) -> Tensor<3>
 // The network
 // --------------------------------------------------------------------------------------------
 
-/// The network's hyper-parameters (see the module docs and [`crate::config::ModelConfig`]).
-#[derive(Config, Debug)]
-pub struct PoseNetConfig {
+/// The network's hyper-parameters, the `model:` section of a training config (see the module
+/// docs). The number of objects, which sets the heads' output slots, comes from the dataset, not
+/// from the file: [`ModelConfig::init`] takes it. Defaults are small enough to train on a CPU.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ModelConfig {
     pub variant: Variant,
-    /// Output slots of the heads (objects the network is trained on).
-    pub num_objects: usize,
-    /// The colour encoder.
-    #[config(default = "EncoderKind::Small")]
+    /// The colour encoder: `small` (tests, quick CPU runs) or `resnet_psp` (the paper's).
     pub encoder: EncoderKind,
-    /// Widths of the small encoder.
-    #[config(default = "vec![16, 32]")]
-    pub cnn_channels: Vec<usize>,
-    /// First-stage width of the ResNet-18 encoder (64: the real ResNet-18).
-    #[config(default = 64)]
+    /// `resnet_psp`: the first stage's width (64 = ResNet-18; smaller for CPU runs).
     pub resnet_width: usize,
-    #[config(default = 32)]
+    /// `small`: widths at full and half resolution.
+    pub cnn_channels: [usize; 2],
+    /// Per-pixel colour embedding.
     pub color_dim: usize,
-    #[config(default = "vec![32, 64]")]
-    pub point_dims: Vec<usize>,
-    #[config(default = "vec![128, 256]")]
+    /// The two point-wise stages (depth, colour, tactile).
+    pub point_dims: [usize; 2],
+    /// The global feature MLP; the last is the global feature's width.
     pub global_dims: Vec<usize>,
-    #[config(default = "vec![128, 64]")]
+    /// Hidden widths of the pose heads.
     pub head_dims: Vec<usize>,
-    #[config(default = "RotationKind::Quaternion")]
+    /// How the rotation heads express a rotation: `quaternion` (the paper's) or `rot6d`.
     pub rotation: RotationKind,
+}
+
+impl Default for ModelConfig {
+    fn default() -> Self {
+        ModelConfig {
+            variant: Variant::TactileChannel,
+            encoder: EncoderKind::Small,
+            resnet_width: 64,
+            cnn_channels: [16, 32],
+            color_dim: 32,
+            point_dims: [32, 64],
+            global_dims: vec![128, 256],
+            head_dims: vec![128, 64],
+            rotation: RotationKind::Quaternion,
+        }
+    }
 }
 
 /// See the module docs.
@@ -334,10 +348,22 @@ pub struct PoseNet {
     rotation: RotationKind,
 }
 
-impl PoseNetConfig {
-    pub fn init(&self, device: &Device) -> PoseNet {
+impl ModelConfig {
+    /// The range checks the type system does not make.
+    pub fn validate(&self) -> anyhow::Result<()> {
+        if self.cnn_channels.contains(&0) || self.resnet_width == 0 || self.color_dim == 0 || self.point_dims.contains(&0) {
+            anyhow::bail!("model widths must be >= 1");
+        }
+        if self.global_dims.is_empty() || self.global_dims.contains(&0) || self.head_dims.contains(&0) {
+            anyhow::bail!("model.global_dims needs >= 1 width, and no width may be 0");
+        }
+        Ok(())
+    }
+
+    /// A network with fresh weights and `num_objects` output slots per head, on `device`.
+    pub fn init(&self, num_objects: usize, device: &Device) -> PoseNet {
         let v = self.variant;
-        let [p1, p2] = [self.point_dims[0], self.point_dims[1]];
+        let [p1, p2] = self.point_dims;
         let two_stage = |d_input| TwoStageConfig::new(d_input, [p1, p2]).init(device);
         let global_dim = if v.global_feature() { *self.global_dims.last().expect("validated: >= 1 global width") } else { 0 };
         // Every channel's point features: [depth stage 1, other stage 1, depth stage 2, other stage 2],
@@ -346,14 +372,13 @@ impl PoseNetConfig {
         let own_dim = channel_dim + global_dim;
         let translation_dim = channel_dim * v.channels() + global_dim;
         let global_in = p2 * (1 + v.channels());
-        let o = self.num_objects;
+        let o = num_objects;
         let siamese = v != Variant::NonSiamese;
         let k_rot = self.rotation.outputs();
         PoseNet {
-            color_cnn: v.uses_color().then(|| {
-                ColorEncoderConfig::new(self.encoder, [self.cnn_channels[0], self.cnn_channels[1]], self.resnet_width, self.color_dim)
-                    .init(device)
-            }),
+            color_cnn: v
+                .uses_color()
+                .then(|| ColorEncoderConfig::new(self.encoder, self.cnn_channels, self.resnet_width, self.color_dim).init(device)),
             color_mlp: v.uses_color().then(|| two_stage(self.color_dim)),
             depth_mlp: two_stage(3),
             tactile_mlp: v.uses_tactile().then(|| two_stage(3)),
@@ -608,7 +633,7 @@ mod tests {
     fn visual_translation_sees_touch_visual_rotation_does_not() {
         let device = cpu();
         let (b, n, nt, s) = (2, 16, 8, 16);
-        let net = PoseNetConfig::new(Variant::NoGlobal, 1).with_cnn_channels(vec![4, 8]).with_color_dim(8).init(&device);
+        let net = ModelConfig { variant: Variant::NoGlobal, cnn_channels: [4, 8], color_dim: 8, ..ModelConfig::default() }.init(1, &device);
         let a = input(b, n, nt, s, &device);
         let mut moved = a.clone();
         moved.tactile = moved.tactile.add_scalar(0.02);

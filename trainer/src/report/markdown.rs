@@ -6,7 +6,7 @@ use std::fmt::Write as _;
 
 use vt_dataset::OcclusionBin;
 
-use crate::config::TACTILE_SWEEP;
+use crate::data::TACTILE_SWEEP;
 use crate::eval::compare::{Comparison, Paired, channel_use, comparisons};
 use crate::eval::control::{ControlComparison, TouchControl};
 use crate::eval::{ModelEval, SampleResult, Summary};

@@ -15,6 +15,7 @@ use vt_dataset::OcclusionBin;
 use crate::eval::compare::Comparison;
 use crate::eval::metrics::MeanSe;
 use crate::eval::{ModelEval, Summary};
+use crate::run::CurvePoint;
 
 /// One colour per run (seaborn's "deep" palette); the scatter's dots: green where touch helped,
 /// red where it did not.
@@ -301,10 +302,18 @@ type Metric = fn(&Summary) -> MeanSe;
 /// evaluated while training `learning-position.svg` and `learning-angle.svg`, and, per tactile
 /// network paired with the vision-only one, `paired-<tactile>-vs-<vision>.svg`.
 pub fn write_plots(evals: &[ModelEval], pairs: &[Comparison], out: &Path) -> Result<()> {
-    let write = |name: &str, svg: String| {
-        let p = out.join(name);
-        std::fs::write(&p, svg).with_context(|| format!("cannot write {}", p.display()))
-    };
+    write_breakdowns(evals, out)?;
+    write_learning_curves(evals, out)?;
+    write_paired(pairs, out)
+}
+
+fn write_svg(out: &Path, name: &str, svg: String) -> Result<()> {
+    let p = out.join(name);
+    std::fs::write(&p, svg).with_context(|| format!("cannot write {}", p.display()))
+}
+
+/// The bar charts: errors by occlusion level (and overall), and by object.
+fn write_breakdowns(evals: &[ModelEval], out: &Path) -> Result<()> {
     let names: Vec<String> = evals.iter().map(|e| format!("{} ({})", e.name, e.variant.name())).collect();
     let series = |f: Metric, by: &dyn Fn(&ModelEval, Metric) -> Vec<MeanSe>| {
         evals.iter().zip(&names).map(|(e, n)| (n.clone(), by(e, f))).collect::<Vec<_>>()
@@ -321,11 +330,13 @@ pub fn write_plots(evals: &[ModelEval], pairs: &[Comparison], out: &Path) -> Res
             )
             .collect()
     };
-    write(
+    write_svg(
+        out,
         "occlusion-position.svg",
         bar_chart("Position error by occlusion level", "position error (cm)", &groups, &series(|s| s.position_cm, &bins))?,
     )?;
-    write(
+    write_svg(
+        out,
         "occlusion-angle.svg",
         bar_chart("Angle error by occlusion level", "angle error (°)", &groups, &series(|s| s.angle_deg, &bins))?,
     )?;
@@ -339,37 +350,48 @@ pub fn write_plots(evals: &[ModelEval], pairs: &[Comparison], out: &Path) -> Res
     let per_object = |e: &ModelEval, f: Metric| -> Vec<MeanSe> {
         objects.iter().map(|o| f(&Summary::of(e.results.iter().filter(|r| &r.object == o)))).collect()
     };
-    write(
+    write_svg(
+        out,
         "objects-position.svg",
         bar_chart("Position error by object", "position error (cm)", &objects, &series(|s| s.position_cm, &per_object))?,
-    )?;
-    // Learning curves: the held-out errors during training.
+    )
+}
+
+/// The held-out errors during training, for the runs that evaluated at least twice.
+fn write_learning_curves(evals: &[ModelEval], out: &Path) -> Result<()> {
     let with_curve: Vec<(usize, &ModelEval)> = evals.iter().enumerate().filter(|(_, e)| e.curve.len() >= 2).collect();
-    if !with_curve.is_empty() {
-        let line = |k: usize, e: &ModelEval, what: &str, dashed: bool, f: fn(&crate::run::CurvePoint) -> f64| Curve {
-            name: format!("{} {what}", e.name),
-            color: k,
-            dashed,
-            points: e.curve.iter().map(|p| (p.epoch as f64, f(p))).collect(),
-        };
-        let position: Vec<Curve> = with_curve.iter().map(|&(k, e)| line(k, e, "mean", false, |p| p.position_cm)).collect();
-        write(
-            "learning-position.svg",
-            line_chart("Held-out position error during training", "epoch", "position error (cm)", &position, &[])?,
-        )?;
-        let angle: Vec<Curve> = with_curve
-            .iter()
-            .flat_map(|&(k, e)| [line(k, e, "mean", false, |p| p.angle_deg), line(k, e, "median", true, |p| p.angle_median_deg)])
-            .collect();
-        // A uniformly random rotation's angle error: mean 126.5°, median 132.3° (report/markdown.rs).
-        let random = [("uniformly random rotation: median 132°, mean 126°".to_string(), 132.3), (String::new(), 126.5)];
-        write("learning-angle.svg", line_chart("Held-out angle error during training", "epoch", "angle error (°)", &angle, &random)?)?;
+    if with_curve.is_empty() {
+        return Ok(());
     }
-    // Paired per grasp.
+    let line = |k: usize, e: &ModelEval, what: &str, dashed: bool, f: fn(&CurvePoint) -> f64| Curve {
+        name: format!("{} {what}", e.name),
+        color: k,
+        dashed,
+        points: e.curve.iter().map(|p| (p.epoch as f64, f(p))).collect(),
+    };
+    let position: Vec<Curve> = with_curve.iter().map(|&(k, e)| line(k, e, "mean", false, |p| p.position_cm)).collect();
+    write_svg(
+        out,
+        "learning-position.svg",
+        line_chart("Held-out position error during training", "epoch", "position error (cm)", &position, &[])?,
+    )?;
+    let angle: Vec<Curve> = with_curve
+        .iter()
+        .flat_map(|&(k, e)| [line(k, e, "mean", false, |p| p.angle_deg), line(k, e, "median", true, |p| p.angle_median_deg)])
+        .collect();
+    // A uniformly random rotation's angle error: mean 126.5°, median 132.3° (report/markdown.rs).
+    let random = [("uniformly random rotation: median 132°, mean 126°".to_string(), 132.3), (String::new(), 126.5)];
+    write_svg(out, "learning-angle.svg", line_chart("Held-out angle error during training", "epoch", "angle error (°)", &angle, &random)?)
+}
+
+/// Per tactile network paired with the vision-only one: each grasp's mean position error, one
+/// against the other.
+fn write_paired(pairs: &[Comparison], out: &Path) -> Result<()> {
     for Comparison { tactile: t, vision: v, paired } in pairs {
         let Some(p) = paired else { continue };
         let pts: Vec<(f64, f64)> = p.grasps.iter().map(|g| (g.vision_position_cm, g.tactile_position_cm)).collect();
-        write(
+        write_svg(
+            out,
             &format!("paired-{}-vs-{}.svg", t.name, v.name),
             paired_scatter(
                 &format!("Mean position error per grasp: {} vs {}", t.name, v.name),
