@@ -199,7 +199,7 @@ enum ExportFormat {
     },
 }
 
-// A table: one match arm per subcommand, from parsed flags to its `cli::<command>::run`.
+// A table: one match arm per subcommand, from parsed flags to its `vtgen::cli::<command>::run`.
 fn run(cli: Cli) -> Result<()> {
     let load = |config: &PathBuf| anyhow::Ok(LoadedConfig::load_with_assets(config, &cli.overrides, cli.robot_assets.as_deref())?);
     let reads_config = matches!(
@@ -213,38 +213,38 @@ fn run(cli: Cli) -> Result<()> {
             | Command::Preview { .. }
     );
     anyhow::ensure!(reads_config || cli.overrides.is_empty(), "--set overrides a config's keys, and this command reads a dataset");
-    use vtgen::cli;
+    use vtgen::cli as commands;
     match cli.command {
         Command::Generate { config, out, shard, resume, overwrite, jobs, ycb_dir, quiet } => {
             let cfg = load(&config)?;
             let out = out.unwrap_or_else(|| cfg.config.output.dir.clone());
             let opts = GenerateOptions { out, shard: shard.unwrap_or(ShardSelector::ALL), resume, overwrite, jobs, quiet, ycb_dir };
-            cli::generate::run(&cfg, &opts)
+            commands::generate::run(&cfg, &opts)
         }
         Command::Plan { config } => {
-            cli::plan::run(&config, &load(&config)?);
+            commands::plan::run(&config, &load(&config)?);
             Ok(())
         }
-        Command::Config { config } => cli::plan::run_config(&load(&config)?),
+        Command::Config { config } => commands::plan::run_config(&load(&config)?),
         Command::Bench { config, samples, jobs, ycb_dir, json, predict_cores } => {
-            cli::bench::run(&load(&config)?, samples, jobs, ycb_dir.as_ref(), predict_cores.map(|n| n as usize), json)
+            commands::bench::run(&load(&config)?, samples, jobs, ycb_dir.as_ref(), predict_cores.map(|n| n as usize), json)
         }
         Command::Grasps { config, trajectories, instances, jobs, ycb_dir, min_kept, json, quiet } => {
             let jobs = jobs.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
-            let opts = cli::grasps::GraspCheckOptions { trajectories, instances, jobs, quiet };
-            cli::grasps::run(&load(&config)?, ycb_dir.as_ref(), &opts, json, min_kept)
+            let opts = commands::grasps::GraspCheckOptions { trajectories, instances, jobs, quiet };
+            commands::grasps::run(&load(&config)?, ycb_dir.as_ref(), &opts, json, min_kept)
         }
-        Command::Robot { action: RobotAction::Check { config, json } } => cli::robot_check::run(&load(&config)?, json),
+        Command::Robot { action: RobotAction::Check { config, json } } => commands::robot_check::run(&load(&config)?, json),
         Command::Preview { source, n, out, width, columns, ycb_dir } => {
-            cli::preview::run(&source, n, &out, (width, columns), ycb_dir.as_ref(), cli.robot_assets.clone(), &cli.overrides)
+            commands::preview::run(&source, n, &out, (width, columns), ycb_dir.as_ref(), cli.robot_assets.clone(), &cli.overrides)
         }
-        Command::Inspect { dataset, json } => cli::inspect::run(&dataset, json),
-        Command::Validate { dataset, full } => cli::validate::run(&dataset, full),
-        Command::Stats { dataset, out } => cli::stats::run(&dataset, &out),
+        Command::Inspect { dataset, json } => commands::inspect::run(&dataset, json),
+        Command::Validate { dataset, full } => commands::validate::run(&dataset, full),
+        Command::Stats { dataset, out } => commands::stats::run(&dataset, &out),
         Command::Export { format: ExportFormat::Bop { dataset, out, quiet, exr, targets_min_visib } } => {
-            cli::export::run_bop(&dataset, &out, quiet, cli::export::BopOptions { exr, targets_min_visib })
+            commands::export::run_bop(&dataset, &out, quiet, commands::export::BopOptions { exr, targets_min_visib })
         }
-        Command::Dump { dataset, split, index, out, exr } => cli::dump::dump(&dataset, &split, index, &out, exr),
+        Command::Dump { dataset, split, index, out, exr } => commands::dump::dump(&dataset, &split, index, &out, exr),
     }
 }
 
