@@ -1,10 +1,11 @@
 //! The `randomization:` section of a scene config: which appearance parameters vary, and over
-//! which ranges. Every field has a default, unknown keys are errors, and [`RandomizationConfig::validate`]
-//! names each bad field by its dotted path under `randomization`.
+//! which ranges. Every field has a default, unknown keys are errors, and its [`Check`]
+//! names each bad field by its path under `randomization`.
 
 use std::path::PathBuf;
 
 use serde::{Deserialize, Serialize};
+use vt_check::{Check, Checks, excl, field, incl, key};
 
 /// Domain randomization of a sample's appearance (YAML section `randomization:`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -180,104 +181,72 @@ pub struct CameraJitter {
 /// Blackbody temperatures the colour approximation covers (Kim et al.'s Planckian locus fit).
 pub const COLOR_TEMPERATURE_RANGE_K: [f64; 2] = [1667.0, 25000.0];
 
-/// Bound of an allowed range: (value, inclusive).
-type Bound = Option<(f64, bool)>;
-
-fn describe(min: Bound, max: Bound, what: &str, unit: &str) -> String {
-    let mut s = String::new();
-    if let Some((m, incl)) = min {
-        s += &format!("{m} {} ", if incl { "<=" } else { "<" });
-    }
-    s += what;
-    if let Some((m, incl)) = max {
-        s += &format!(" {} {m}", if incl { "<=" } else { "<" });
-    }
-    if !unit.is_empty() {
-        s += &format!(" ({unit})");
-    }
-    s
-}
-
-fn within(x: f64, min: Bound, max: Bound) -> bool {
-    x.is_finite()
-        && min.is_none_or(|(m, incl)| if incl { x >= m } else { x > m })
-        && max.is_none_or(|(m, incl)| if incl { x <= m } else { x < m })
-}
-
 /// An f32 as the f64 it prints as (0.1f32 -> 0.1, not 0.10000000149011612), for messages.
 fn wide(x: f32) -> f64 {
     x.to_string().parse().unwrap_or(f64::NAN)
 }
 
-struct Errors(Vec<(String, String)>);
-
-impl Errors {
-    fn range(&mut self, path: &str, r: [f64; 2], min: Bound, max: Bound, unit: &str) {
-        if !(within(r[0], min, max) && within(r[1], min, max) && r[0] <= r[1]) {
-            let rule = describe(min, max, "lo <= hi", unit);
-            self.0.push((path.into(), format!("must be [lo, hi] with {rule}, got [{}, {}]", r[0], r[1])));
-        }
-    }
-
-    fn scalar(&mut self, path: &str, x: f64, min: Bound, max: Bound, unit: &str) {
-        if !within(x, min, max) {
-            self.0.push((path.into(), format!("must be {}, got {x}", describe(min, max, "x", unit))));
-        }
-    }
-
-    fn texture(&mut self, path: &str, t: &TextureRandomization) {
-        if t.kinds.is_empty() {
-            self.0.push((format!("{path}.kinds"), "must list at least one of noise, stripes, checker, gradient, tiles, image".into()));
-        }
-        if t.kinds.contains(&TextureKind::Image) && t.image_dir.is_none() {
-            self.0.push((format!("{path}.image_dir"), format!("is required when {path}.kinds contains image")));
-        }
-        self.range(&format!("{path}.tile_m"), t.tile_m, Some((0.0, false)), None, "metres");
+/// Every problem of the config under its field path (below `randomization`), each message naming
+/// the allowed range. Checked whether or not `enabled` is set.
+impl Check for RandomizationConfig {
+    fn check(&self, c: &mut Checks) {
+        c.key(key!(self.unrandomized_share)).bounded(self.unrandomized_share, incl(0.0), incl(1.0), "");
+        c.section(field!(self.floor));
+        c.section(field!(self.backdrop));
+        c.section(field!(self.light));
+        c.key(key!(self.ambient)).bounded_range(self.ambient.map(wide), incl(0.0), None, "linear");
+        c.key(key!(self.distractors)).bounded_range(self.distractors.map(f64::from), incl(0.0), incl(64.0), "objects");
+        c.section(field!(self.camera_jitter));
+        c.key(key!(self.texture_size)).bounded(self.texture_size as f64, incl(8.0), incl(4096.0), "pixels");
+        c.section(field!(self.robot_materials));
+        c.section(field!(self.tactile_sensors));
     }
 }
 
-impl RandomizationConfig {
-    /// Every problem of the config as (dotted field path under `randomization`, message naming the
-    /// allowed range). Empty when the config is valid. Checked whether or not `enabled` is set.
-    pub fn validate(&self) -> Vec<(String, String)> {
-        const ZERO: Bound = Some((0.0, true));
-        let mut e = Errors(Vec::new());
-        e.scalar("unrandomized_share", self.unrandomized_share, ZERO, Some((1.0, true)), "");
-        e.texture("floor", &self.floor);
-        e.texture("backdrop", &self.backdrop);
-        let l = &self.light;
-        let finite = l.position_min.iter().chain(&l.position_max).all(|v| v.is_finite());
-        if !finite || (0..3).any(|i| l.position_min[i] > l.position_max[i]) {
-            e.0.push((
-                "light.position_max".into(),
-                format!(
-                    "must be >= light.position_min in every axis (finite metres), got min {:?} max {:?}",
-                    l.position_min, l.position_max
-                ),
+impl Check for TextureRandomization {
+    fn check(&self, c: &mut Checks) {
+        if self.kinds.is_empty() {
+            c.key(key!(self.kinds)).fail("must list at least one of noise, stripes, checker, gradient, tiles, image");
+        }
+        if self.kinds.contains(&TextureKind::Image) && self.image_dir.is_none() {
+            c.key(key!(self.image_dir)).fail("is required when kinds contains image");
+        }
+        c.key(key!(self.tile_m)).bounded_range(self.tile_m, excl(0.0), None, "metres");
+    }
+}
+
+impl Check for LightRandomization {
+    fn check(&self, c: &mut Checks) {
+        let finite = self.position_min.iter().chain(&self.position_max).all(|v| v.is_finite());
+        if !finite || (0..3).any(|i| self.position_min[i] > self.position_max[i]) {
+            c.key(key!(self.position_max)).fail(format!(
+                "must be >= position_min in every axis (finite metres), got min {:?} max {:?}",
+                self.position_min, self.position_max
             ));
         }
-        e.scalar("light.position_min[2]", l.position_min[2], Some((0.0, false)), None, "metres, above the floor");
-        e.scalar("light.target_radius_m", l.target_radius_m, ZERO, None, "metres");
+        c.key(key!(self.position_min)).index(2).bounded(self.position_min[2], excl(0.0), None, "metres, above the floor");
+        c.key(key!(self.target_radius_m)).bounded(self.target_radius_m, incl(0.0), None, "metres");
         let [tmin, tmax] = COLOR_TEMPERATURE_RANGE_K;
-        e.range("light.color_temperature_k", l.color_temperature_k, Some((tmin, true)), Some((tmax, true)), "kelvin");
-        e.scalar("light.tint", wide(l.tint), ZERO, Some((1.0, true)), "");
-        e.range("light.intensity", l.intensity.map(wide), ZERO, None, "");
-        e.range("light.cone_deg", l.cone_deg, Some((0.0, false)), Some((90.0, false)), "degrees");
-        e.range("light.softness", l.softness, ZERO, Some((1.0, true)), "");
-        e.range("ambient", self.ambient.map(wide), ZERO, None, "linear");
-        e.range("distractors", self.distractors.map(f64::from), ZERO, Some((64.0, true)), "objects");
-        e.scalar("camera_jitter.translation_m", self.camera_jitter.translation_m, ZERO, Some((1.0, true)), "metres");
-        e.scalar("camera_jitter.rotation_deg", self.camera_jitter.rotation_deg, ZERO, Some((90.0, true)), "degrees");
-        e.scalar("texture_size", self.texture_size as f64, Some((8.0, true)), Some((4096.0, true)), "pixels");
-        if let Some(r) = &self.robot_materials {
-            e.range("robot_materials.roughness", r.roughness, ZERO, Some((1.0, true)), "");
-            e.range("robot_materials.metallic", r.metallic, ZERO, Some((1.0, true)), "");
-            e.scalar("robot_materials.tint", r.tint, ZERO, Some((1.0, true)), "");
-        }
-        if let Some(t) = &self.tactile_sensors {
-            e.0.extend(t.problems().into_iter().map(|(path, message)| (format!("tactile_sensors.{path}"), message)));
-        }
-        e.0
+        c.key(key!(self.color_temperature_k)).bounded_range(self.color_temperature_k, incl(tmin), incl(tmax), "kelvin");
+        c.key(key!(self.tint)).bounded(wide(self.tint), incl(0.0), incl(1.0), "");
+        c.key(key!(self.intensity)).bounded_range(self.intensity.map(wide), incl(0.0), None, "");
+        c.key(key!(self.cone_deg)).bounded_range(self.cone_deg, excl(0.0), excl(90.0), "degrees");
+        c.key(key!(self.softness)).bounded_range(self.softness, incl(0.0), incl(1.0), "");
+    }
+}
+
+impl Check for CameraJitter {
+    fn check(&self, c: &mut Checks) {
+        c.key(key!(self.translation_m)).bounded(self.translation_m, incl(0.0), incl(1.0), "metres");
+        c.key(key!(self.rotation_deg)).bounded(self.rotation_deg, incl(0.0), incl(90.0), "degrees");
+    }
+}
+
+impl Check for RobotMaterialRandomization {
+    fn check(&self, c: &mut Checks) {
+        c.key(key!(self.roughness)).bounded_range(self.roughness, incl(0.0), incl(1.0), "");
+        c.key(key!(self.metallic)).bounded_range(self.metallic, incl(0.0), incl(1.0), "");
+        c.key(key!(self.tint)).bounded(self.tint, incl(0.0), incl(1.0), "");
     }
 }
 
@@ -286,13 +255,13 @@ mod tests {
     use super::*;
 
     fn paths(c: &RandomizationConfig) -> Vec<String> {
-        c.validate().into_iter().map(|(p, _)| p).collect()
+        vt_check::problems(c).iter().map(|p| p.field()).collect()
     }
 
     #[test]
     fn defaults_are_valid_and_documented_values() {
         let c = RandomizationConfig::default();
-        assert!(c.validate().is_empty(), "{:?}", c.validate());
+        assert!(vt_check::problems(&c).is_empty(), "{:?}", vt_check::problems(&c));
         assert!(!c.enabled);
         assert_eq!(c.unrandomized_share, 0.2);
         assert_eq!(c.ambient, [0.05, 0.45]);
@@ -317,21 +286,22 @@ mod tests {
         c.camera_jitter.translation_m = -0.01;
         c.texture_size = 4;
         c.robot_materials = Some(RobotMaterialRandomization { roughness: [0.9, 0.2], metallic: [0.0, 1.5], tint: 2.0 });
-        let errs = c.validate();
-        let msg =
-            |p: &str| errs.iter().find(|(q, _)| q == p).map(|(_, m)| m.clone()).unwrap_or_else(|| panic!("no error for {p}: {errs:?}"));
+        let errs = vt_check::problems(&c);
+        let msg = |p: &str| {
+            errs.iter().find(|q| q.field() == p).map(|q| q.message.clone()).unwrap_or_else(|| panic!("no error for {p}: {errs:?}"))
+        };
         assert_eq!(msg("unrandomized_share"), "must be 0 <= x <= 1, got 1.5");
         assert_eq!(msg("light.intensity"), "must be [lo, hi] with 0 <= lo <= hi, got [1.6, 0.6]");
         assert_eq!(msg("light.cone_deg"), "must be [lo, hi] with 0 < lo <= hi < 90 (degrees), got [10, 95]");
         assert_eq!(msg("light.color_temperature_k"), "must be [lo, hi] with 1667 <= lo <= hi <= 25000 (kelvin), got [1000, 5000]");
         assert_eq!(msg("light.tint"), "must be 0 <= x <= 1, got -0.1");
         assert!(msg("light.target_radius_m").contains("got NaN"));
-        assert!(msg("light.position_max").contains("light.position_min"));
+        assert!(msg("light.position_max").contains("position_min"));
         assert!(msg("ambient").contains("0 <= lo <= hi"));
         assert!(msg("distractors").contains("got [3, 1]"));
         assert!(msg("floor.kinds").contains("at least one"));
         assert!(msg("floor.tile_m").contains("0 < lo <= hi"));
-        assert_eq!(msg("backdrop.image_dir"), "is required when backdrop.kinds contains image");
+        assert_eq!(msg("backdrop.image_dir"), "is required when kinds contains image");
         assert!(msg("camera_jitter.translation_m").contains("0 <= x"));
         assert!(msg("texture_size").contains("8 <= x <= 4096"));
         assert!(msg("robot_materials.roughness").contains("got [0.9, 0.2]"));

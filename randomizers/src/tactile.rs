@@ -4,6 +4,7 @@
 
 use rand::Rng;
 use serde::{Deserialize, Serialize};
+use vt_check::{Bound, Check, Checks, incl, key};
 
 use crate::stream::{SampleKey, SampleStream};
 
@@ -42,28 +43,16 @@ impl Default for TactileSensorRandomization {
     }
 }
 
-impl TactileSensorRandomization {
-    /// Every problem as (path under `randomization.tactile_sensors`, message).
-    pub fn problems(&self) -> Vec<(String, String)> {
-        let mut out = Vec::new();
-        let mut scalar = |name: &str, x: f64| {
-            if !(0.0..=0.9).contains(&x) {
-                out.push((name.to_string(), format!("must be 0 <= x <= 0.9, got {x}")));
-            }
-        };
-        scalar("led_color", self.led_color);
-        scalar("background", self.background);
-        let mut range = |name: &str, [lo, hi]: [f64; 2], min: f64, max: f64| {
-            if !(lo >= min && lo <= hi && hi <= max) {
-                out.push((name.to_string(), format!("must be [lo, hi] with {min} <= lo <= hi <= {max}, got [{lo}, {hi}]")));
-            }
-        };
-        range("led_intensity", self.led_intensity, 0.0, 4.0);
-        range("vignetting", self.vignetting, -0.95, 0.95);
-        range("gel_thickness", self.gel_thickness, 0.1, 4.0);
-        range("elastic_spread", self.elastic_spread, 0.0, 4.0);
-        range("marker_pitch", self.marker_pitch, 0.5, 2.0);
-        out
+impl Check for TactileSensorRandomization {
+    fn check(&self, c: &mut Checks) {
+        const MAX_SPREAD: Bound = incl(0.9);
+        c.key(key!(self.led_color)).bounded(self.led_color, incl(0.0), MAX_SPREAD, "");
+        c.key(key!(self.background)).bounded(self.background, incl(0.0), MAX_SPREAD, "");
+        c.key(key!(self.led_intensity)).bounded_range(self.led_intensity, incl(0.0), incl(4.0), "");
+        c.key(key!(self.vignetting)).bounded_range(self.vignetting, incl(-0.95), incl(0.95), "");
+        c.key(key!(self.gel_thickness)).bounded_range(self.gel_thickness, incl(0.1), incl(4.0), "");
+        c.key(key!(self.elastic_spread)).bounded_range(self.elastic_spread, incl(0.0), incl(4.0), "");
+        c.key(key!(self.marker_pitch)).bounded_range(self.marker_pitch, incl(0.5), incl(2.0), "");
     }
 }
 
@@ -131,13 +120,13 @@ mod tests {
             assert!((0.8 * 0.85..=1.2 * 1.15).contains(f), "{f}");
         }
         assert!((0.8..=1.2).contains(&a.gel_thickness));
-        assert!(cfg.problems().is_empty());
+        assert!(vt_check::problems(&cfg).is_empty());
     }
 
     #[test]
     fn bad_ranges_are_named() {
         let cfg = TactileSensorRandomization { led_color: 1.5, gel_thickness: [1.2, 0.8], ..Default::default() };
-        let names: Vec<String> = cfg.problems().into_iter().map(|(n, _)| n).collect();
+        let names: Vec<String> = vt_check::problems(&cfg).iter().map(|p| p.field()).collect();
         assert_eq!(names, ["led_color", "gel_thickness"]);
     }
 }

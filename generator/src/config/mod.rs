@@ -1,8 +1,6 @@
 //! The YAML config. Parsing rejects unknown keys; every error names the file, line, column and
 //! field path, and out-of-range values name the allowed range.
 
-mod check;
-mod locate;
 mod noise;
 mod optical;
 mod overrides;
@@ -10,7 +8,7 @@ mod schema;
 
 use std::path::{Path, PathBuf};
 
-pub use check::{Check, Checks, Problem};
+pub use vt_check::{Check, Checks, Problem};
 pub use noise::{ColorNoise, DepthNoise, SensorNoise};
 pub use optical::{Led, MarkerConfig, Markers, OpticalConfig, OpticalPreset, OpticalSensor, led_falloff, light_matrix};
 pub use overrides::Override;
@@ -121,15 +119,15 @@ impl LoadedConfig {
     fn parse_assets(text: &str, path: &Path, robot_assets: Option<&Path>) -> Result<Self, ConfigError> {
         let de = serde_yaml::Deserializer::from_str(text);
         let config: Config = serde_path_to_error::deserialize(de).map_err(|e| yaml_error(e, path))?;
-        let problems = config.validate();
+        let problems = vt_check::problems(&config);
         if let Some(p) = problems.into_iter().next() {
-            let (line, column) = locate::locate(text, &p.path).map_or((None, None), |(l, c)| (Some(l), Some(c)));
-            return Err(ConfigError { file: path.to_path_buf(), line, column, field: locate::display_path(&p.path), message: p.message });
+            let (line, column) = vt_check::locate::locate(text, &p.path).map_or((None, None), |(l, c)| (Some(l), Some(c)));
+            return Err(ConfigError { file: path.to_path_buf(), line, column, field: vt_check::display_path(&p.path), message: p.message });
         }
         Self::with_path(config, path, robot_assets).map_err(|(keys, message)| {
-            let keys: Vec<locate::Seg> = keys.into_iter().map(locate::Seg::key).collect();
-            let (line, column) = locate::locate(text, &keys).map_or((None, None), |(l, c)| (Some(l), Some(c)));
-            ConfigError { file: path.to_path_buf(), line, column, field: locate::display_path(&keys), message }
+            let keys: Vec<vt_check::Seg> = keys.into_iter().map(vt_check::Seg::key).collect();
+            let (line, column) = vt_check::locate::locate(text, &keys).map_or((None, None), |(l, c)| (Some(l), Some(c)));
+            ConfigError { file: path.to_path_buf(), line, column, field: vt_check::display_path(&keys), message }
         })
     }
 
@@ -167,8 +165,8 @@ impl LoadedConfig {
             let message = strip_field(e.into_inner().to_string(), &field);
             blame(&field, message)
         })?;
-        if let Some(p) = config.validate().into_iter().next() {
-            return Err(blame(&locate::display_path(&p.path), p.message));
+        if let Some(p) = vt_check::problems(&config).into_iter().next() {
+            return Err(blame(&vt_check::display_path(&p.path), p.message));
         }
         Self::with_path(config, path, robot_assets).map_err(|(keys, message)| blame(&keys.join("."), message))
     }

@@ -2,7 +2,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::check::{Check, Checks, field};
+use vt_check::{Check, Checks, field};
 
 /// `camera.noise` in the config.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]

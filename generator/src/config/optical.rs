@@ -4,7 +4,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::check::{Check, Checks, field, key};
+use vt_check::{Check, Checks, field, key};
 
 /// A published sensor the parameters start from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]

@@ -10,8 +10,7 @@ use std::f64::consts::{PI, TAU};
 
 use serde::{Deserialize, Serialize};
 
-use super::check::{Check, Checks, Problem, field, key};
-use super::locate::Seg;
+use vt_check::{Check, Checks, field, key};
 
 /// Every section but `objects` has a default (the paper's camera, 200 x 100 samples per object,
 /// split 4:1, …), so `objects: [...]` alone is a config; `vtgen config FILE` prints it resolved.
@@ -44,23 +43,22 @@ pub struct Config {
     pub output: Output,
 }
 
-impl Config {
-    /// Every problem of a parsed config, section by section (the loader reports the first).
-    pub fn validate(&self) -> Vec<Problem> {
-        let mut out = Vec::new();
-        let c = &mut Checks::new(&mut out);
+/// Every problem of a parsed config, section by section (the loader reports the first).
+impl Check for Config {
+    fn check(&self, c: &mut Checks) {
         self.check_objects(c);
         c.section(field!(self.sampling));
         c.section(field!(self.camera));
         c.section(field!(self.renderer));
-        self.check_randomization(c);
+        c.section(field!(self.randomization));
         c.section(field!(self.scene));
         c.section(field!(self.output));
         c.section(field!(self.robot));
         self.check_record(c);
-        out
     }
+}
 
+impl Config {
     /// Episodes need the grasp loop, and their rates fit its physics step.
     fn check_record(&self, c: &mut Checks) {
         let Some(record) = &self.sampling.record else { return };
@@ -97,19 +95,6 @@ impl Config {
             if !seen.insert(id.to_string()) {
                 item.fail(format!("object '{id}' is listed twice"));
             }
-        }
-    }
-
-    /// The randomizers' own checks, under `randomization`.
-    fn check_randomization(&self, c: &mut Checks) {
-        let mut randomization = c.key(key!(self.randomization));
-        for (field, message) in self.randomization.validate() {
-            // The randomizers name a field by its dotted path.
-            let path = field.split('.').map(|k| match k.parse::<usize>() {
-                Ok(i) => Seg::Index(i),
-                Err(_) => Seg::key(k.to_string()),
-            });
-            randomization.path(path).fail(message);
         }
     }
 }

@@ -3,34 +3,7 @@
 //! collections, which is how configs are written; returns None when it cannot tell, and the error
 //! then names the file and field only.
 
-/// One step of a field path: a key (a schema field's name, or one a section reports by its
-/// dotted path) or an item's index.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Seg {
-    Key(std::borrow::Cow<'static, str>),
-    Index(usize),
-}
-
-impl Seg {
-    pub fn key(k: impl Into<std::borrow::Cow<'static, str>>) -> Self {
-        Seg::Key(k.into())
-    }
-}
-
-pub fn display_path(path: &[Seg]) -> String {
-    let mut s = String::new();
-    for seg in path {
-        match seg {
-            Seg::Key(k) if s.is_empty() => s.push_str(k),
-            Seg::Key(k) => {
-                s.push('.');
-                s.push_str(k);
-            }
-            Seg::Index(i) => s.push_str(&format!("[{i}]")),
-        }
-    }
-    s
-}
+use crate::Seg;
 
 struct Line<'a> {
     text: &'a str,
@@ -141,6 +114,7 @@ fn extent(ls: &[Line], i: usize, c: usize, to: usize, seg: &Seg) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::display_path;
 
     const YAML: &str = "seed: 1\nobjects:\n  - 003_cracker_box\n  - id: custom\n    mesh: a.obj\ncamera:\n  width: 640\n  intrinsics: {fx: 600, fy: 610, cx: 1, cy: 2}\n  near: 0.1 # comment\nscene:\n  workspace:\n    min: [0, 0, 0]\n";
 
