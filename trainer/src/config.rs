@@ -36,6 +36,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use serde::{Deserialize, Serialize};
+use vt_check::{Check, Checks, field, key};
 
 pub use crate::data::{AugmentConfig, DataConfig, DepthSource, ObjectSelection};
 pub use crate::model::ModelConfig;
@@ -84,7 +85,17 @@ impl TrainConfig {
             let at = inner.location().map(|l| format!(":{}:{}", l.line(), l.column())).unwrap_or_default();
             anyhow::anyhow!("{}{at}: {}: {inner}", origin.display(), if path == "." { "config".into() } else { path })
         })?;
-        cfg.validate().with_context(|| format!("{}", origin.display()))?;
+        // Every problem on a line of its own, each with the line of its field.
+        let problems: Vec<String> = vt_check::problems(&cfg)
+            .iter()
+            .map(|p| {
+                let at = vt_check::locate::locate(text, &p.path).map(|(l, c)| format!(":{l}:{c}")).unwrap_or_default();
+                format!("{}{at}: {p}", origin.display())
+            })
+            .collect();
+        if !problems.is_empty() {
+            bail!("{}", problems.join("\n"));
+        }
         Ok(cfg)
     }
 
@@ -103,22 +114,33 @@ impl TrainConfig {
         std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))
     }
 
-    /// Range checks the type system does not make: each section's own, and the one that spans
-    /// two sections, the crop size against the colour encoder's stride.
+    /// The config's problems as one error (each on a line of its own), for configs built in code.
     pub fn validate(&self) -> Result<()> {
-        self.data.validate()?;
-        let multiple = self.model.encoder.crop_multiple();
-        if self.data.crop_size < 4 || !self.data.crop_size.is_multiple_of(multiple) {
-            bail!(
-                "data.crop_size must be >= 4 and a multiple of {multiple} (the {:?} colour encoder's stride), got {}",
-                self.model.encoder,
-                self.data.crop_size
-            );
+        let problems = vt_check::problems(self);
+        if !problems.is_empty() {
+            bail!("{}", problems.iter().map(|p| p.to_string()).collect::<Vec<_>>().join("\n"));
         }
-        self.model.validate()?;
-        self.train.validate()?;
-        self.augment.validate()?;
-        self.objects.validate()
+        Ok(())
+    }
+}
+
+/// Range checks the type system does not make: each section's own, and the one that spans two
+/// sections, the crop size against the colour encoder's stride.
+impl Check for TrainConfig {
+    fn check(&self, c: &mut Checks) {
+        c.section(field!(self.objects));
+        c.section(field!(self.model));
+        c.section(field!(self.data));
+        c.section(field!(self.augment));
+        c.section(field!(self.train));
+        let multiple = self.model.encoder.crop_multiple();
+        let data = &self.data;
+        if data.crop_size < 4 || !data.crop_size.is_multiple_of(multiple) {
+            c.key(key!(self.data)).key(key!(data.crop_size)).fail(format!(
+                "must be >= 4 and a multiple of {multiple} (the {:?} colour encoder's stride), got {}",
+                self.model.encoder, data.crop_size
+            ));
+        }
     }
 }
 
@@ -144,7 +166,25 @@ mod tests {
         let e = TrainConfig::parse("dataset: d\ntrain: {bogus: 1}\n", Path::new("c.yaml")).unwrap_err().to_string();
         assert!(e.contains("bogus"), "{e}");
         let e = TrainConfig::parse("dataset: d\ndata: {n_tactile: 2}\n", Path::new("c.yaml")).unwrap_err();
-        assert!(format!("{e:#}").contains("n_tactile"), "{e:#}");
+        assert!(format!("{e:#}").starts_with("c.yaml:2:8: data.n_tactile: 2 is out of range"), "{e:#}");
+        // Every bad field is named on a line of its own, with its line and column.
+        let text = "dataset: d\ntrain:\n  epochs: 0\n  batch_size: 0\n  lr: .nan\n  w: -1\n  rotation_loss: -1\nmodel: {global_dims: [], head_dims: [0]}\naugment: {color_jitter: 1}\nobjects: []\n";
+        let e = TrainConfig::parse(text, Path::new("c.yaml")).unwrap_err().to_string();
+        let lines: Vec<&str> = e.lines().collect();
+        for (want, line) in [
+            ("objects", 10),
+            ("model.head_dims[0]", 8),
+            ("model.global_dims", 8),
+            ("augment.color_jitter", 9),
+            ("train.epochs", 3),
+            ("train.batch_size", 4),
+            ("train.lr", 5),
+            ("train.w", 6),
+            ("train.rotation_loss", 7),
+        ] {
+            assert!(lines.iter().any(|l| l.starts_with(&format!("c.yaml:{line}:")) && l.contains(&format!(": {want}: "))), "{want}: {e}");
+        }
+        assert_eq!(lines.len(), 9, "{e}");
         // Round trip through YAML (the run directory keeps the config it was trained with).
         let text = serde_yaml::to_string(&c_full()).unwrap();
         assert_eq!(TrainConfig::parse(&text, Path::new("c.yaml")).unwrap(), c_full());

@@ -5,8 +5,8 @@
 //! It sits below [`crate::config`], which composes it with the other sections, and
 //! [`crate::train`] reads it with the rest of the config.
 
-use anyhow::{Result, bail};
 use serde::{Deserialize, Serialize};
+use vt_check::{Check, Checks, excl, incl, key};
 
 use crate::loss::LossWeights;
 
@@ -92,22 +92,16 @@ impl OptimConfig {
             }
         }
     }
+}
 
-    /// The range checks the type system does not make.
-    pub fn validate(&self) -> Result<()> {
-        // (written so that NaN fails too)
-        if self.batch_size == 0
-            || self.epochs == 0
-            || self.lr.is_nan()
-            || self.lr <= 0.0
-            || self.w.is_nan()
-            || self.w < 0.0
-            || self.rotation_loss.is_nan()
-            || self.rotation_loss < 0.0
-        {
-            bail!("train.batch_size and train.epochs must be >= 1, train.lr > 0, train.w >= 0, train.rotation_loss >= 0");
-        }
-        Ok(())
+/// The range checks the type system does not make (NaN fails them too).
+impl Check for OptimConfig {
+    fn check(&self, c: &mut Checks) {
+        c.key(key!(self.epochs)).bounded(self.epochs as f64, incl(1.0), None, "");
+        c.key(key!(self.batch_size)).bounded(self.batch_size as f64, incl(1.0), None, "");
+        c.key(key!(self.lr)).bounded(self.lr, excl(0.0), None, "");
+        c.key(key!(self.w)).bounded(self.w, incl(0.0), None, "");
+        c.key(key!(self.rotation_loss)).bounded(self.rotation_loss, incl(0.0), None, "");
     }
 }
 

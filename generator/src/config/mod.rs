@@ -8,11 +8,11 @@ mod schema;
 
 use std::path::{Path, PathBuf};
 
-pub use vt_check::{Check, Checks, Problem};
 pub use noise::{ColorNoise, DepthNoise, SensorNoise};
 pub use optical::{Led, MarkerConfig, Markers, OpticalConfig, OpticalPreset, OpticalSensor, led_falloff, light_matrix};
 pub use overrides::Override;
 pub use schema::*;
+pub use vt_check::{Check, Checks, Problem};
 
 /// A serde_yaml error as a config error at its line and column.
 fn yaml_error(e: serde_path_to_error::Error<serde_yaml::Error>, path: &Path) -> ConfigError {
@@ -224,8 +224,7 @@ impl LoadedConfig {
                             .map_err(|e| (vec!["robot", "urdf"], e.to_string()))?;
                         let text = vt_robot::builtin_description(name).expect("a built-in robot has a description");
                         let desc = serde_yaml::from_str(text).expect("the built-in description parses (unit-tested)");
-                        vt_robot::Robot::resolve(model, urdf_text, desc, &format!("built-in {name}.yaml with {}", u.display()))
-                            .map(|r| r.with_description_text(text))
+                        vt_robot::Robot::resolve(model, urdf_text, desc, text, &format!("built-in {name}.yaml with {}", u.display()))
                             .map_err(|e| (vec!["robot", "urdf"], e.to_string()))
                     }
                     None => Ok(builtin),

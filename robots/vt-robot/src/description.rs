@@ -311,7 +311,7 @@ impl Robot {
             Some((Some(urdf), description)) => Robot::from_texts(urdf, &format!("built-in {name}.urdf"), description, &description_name),
             Some((None, description)) => {
                 let desc = parse(description, &description_name)?;
-                Ok(Robot::from_description(desc, None, None, package_dirs, &description_name)?.with_description_text(description))
+                Robot::from_description(desc, description, None, None, package_dirs, &description_name)
             }
             None => Err(RobotError {
                 source_name: "robot.model".into(),
@@ -334,17 +334,13 @@ impl Robot {
         let source_name = description.display().to_string();
         let desc = parse(&text, &source_name)?;
         let dir = description.parent().unwrap_or(Path::new("."));
-        Ok(Robot::from_description(desc, Some(dir), urdf, package_dirs, &source_name)?.with_description_text(&text))
-    }
-
-    /// This robot with the text of its description kept.
-    pub fn with_description_text(self, text: &str) -> Self {
-        Robot { description_text: text.to_string(), ..self }
+        Robot::from_description(desc, &text, Some(dir), urdf, package_dirs, &source_name)
     }
 
     /// A parsed description with its URDF (or arm and hand URDFs) read from files.
     fn from_description(
         desc: Description,
+        description_text: &str,
         dir: Option<&Path>,
         urdf: Option<&Path>,
         package_dirs: &[PathBuf],
@@ -385,254 +381,17 @@ impl Robot {
             (None, None) => {}
         }
         let model = RobotModel::from_urdf(&urdf_text, &urdf_name, &paths(&urdf_path))?;
-        Robot::resolve(model, urdf_text, desc, source_name)
+        Robot::resolve(model, urdf_text, desc, description_text, source_name)
     }
 
     /// A URDF and a description given as text (names are for errors).
     pub fn from_texts(urdf: &str, urdf_name: &str, description: &str, description_name: &str) -> Result<Self, RobotError> {
         let model = RobotModel::from_urdf_str(urdf, urdf_name)?;
-        Ok(Robot::resolve(model, urdf.to_string(), parse(description, description_name)?, description_name)?
-            .with_description_text(description))
-    }
-
-    /// The URDF model checked against the description; errors name the description's field.
-    // Long on purpose: one check per field, in the order the file has them. `!(a <= b)` on purpose:
-    // a NaN must fail the checks too.
-    #[allow(clippy::neg_cmp_op_on_partial_ord)]
-    pub fn resolve(mut model: RobotModel, urdf_text: String, desc: Description, source_name: &str) -> Result<Self, RobotError> {
-        let err =
-            |field: &str, message: String| RobotError { source_name: source_name.to_string(), message: format!("{field}: {message}") };
-        let link = |model: &RobotModel, field: &str, name: &str| {
-            model.link_id(name).ok_or_else(|| err(field, format!("no link '{name}' in the URDF")))
-        };
-        let base = link(&model, "arm.base", &desc.arm.base)?;
-        let flange = link(&model, "arm.flange", &desc.arm.flange)?;
-        let Some(chain) = path_down(&model, base, flange) else {
-            return Err(err("arm", format!("'{}' is not below '{}': the arm is not one serial chain", desc.arm.flange, desc.arm.base)));
-        };
-        let arm_joints: Vec<usize> = chain.into_iter().filter(|&j| model.joints[j].moves()).collect();
-        if let Some(&j) = arm_joints.iter().find(|&&j| model.joints[j].mimic.is_some()) {
-            return Err(err("arm", format!("joint '{}' mimics another: arm joints move on their own", model.joints[j].name)));
-        }
-        if !(6..=7).contains(&arm_joints.len()) {
-            return Err(err("arm", format!("the chain from base to flange has {} moving joints; 6 or 7 are supported", arm_joints.len())));
-        }
-        let arm_dofs: Vec<usize> = arm_joints.iter().map(|&j| model.joints[j].dof.expect("moving, no mimic")).collect();
-        if desc.arm.home.len() != arm_joints.len() {
-            return Err(err("arm.home", format!("{} values for {} arm joints", desc.arm.home.len(), arm_joints.len())));
-        }
-        let mut grasp_frame = link(&model, "grasp.frame", &desc.grasp.frame)?;
-        // The hand's root defaults to the link the grasp frame is named by (not its offset child).
-        let grasp_link = grasp_frame;
-        if let Some(o) = desc.grasp.origin {
-            let name = format!("{}_grasp", desc.grasp.frame);
-            grasp_frame = model.add_fixed_link(grasp_frame, &name, xyz_rpy(o.xyz, o.rpy)).map_err(|m| err("grasp.origin", m))?;
-        }
-        let grasp_frame_name = model.links[grasp_frame].name.clone();
-        match path_down(&model, flange, grasp_frame) {
-            Some(p) if p.iter().all(|&j| !model.joints[j].moves()) => {}
-            Some(_) => {
-                return Err(err("grasp.frame", format!("'{grasp_frame_name}' moves against the flange: a joint between them moves")));
-            }
-            None => {
-                return Err(err(
-                    "grasp.frame",
-                    format!("'{grasp_frame_name}' is not fixed below the flange '{}' (no joint chain connects them)", desc.arm.flange),
-                ));
-            }
-        }
-        let hand_root = match &desc.grasp.hand_root {
-            Some(name) => {
-                let root = link(&model, "grasp.hand_root", name)?;
-                match path_down(&model, root, grasp_frame) {
-                    Some(p) if p.iter().all(|&j| !model.joints[j].moves()) => root,
-                    _ => return Err(err("grasp.hand_root", format!("the grasp frame '{grasp_frame_name}' is not fixed below '{name}'"))),
-                }
-            }
-            None => grasp_link,
-        };
-        let root_name = model.links[hand_root].name.clone();
-        let mut hand = Vec::new();
-        for (i, h) in desc.hand.iter().enumerate() {
-            let field = format!("hand[{i}].joint");
-            let j = model.joint_id(&h.joint).ok_or_else(|| err(&field, format!("no joint '{}' in the URDF", h.joint)))?;
-            let joint = &model.joints[j];
-            if joint.mimic.is_some() {
-                return Err(err(&field, format!("'{}' mimics another joint: list the joint it follows", h.joint)));
-            }
-            let Some(dof) = joint.dof else { return Err(err(&field, format!("'{}' is fixed", h.joint))) };
-            if !model.is_below(joint.child, hand_root) {
-                return Err(err(&field, format!("'{}' is not below the hand's root '{root_name}'", h.joint)));
-            }
-            if hand.iter().any(|o: &HandJoint| o.joint == j) {
-                return Err(err(&field, format!("'{}' is listed twice", h.joint)));
-            }
-            if !(h.preshape.0 <= h.preshape.1) {
-                return Err(err(
-                    &format!("hand[{i}].preshape"),
-                    format!("[{}, {}] is not a range (low first)", h.preshape.0, h.preshape.1),
-                ));
-            }
-            for (key, value) in [("effort", h.effort), ("stiffness", h.stiffness)] {
-                if let Some(v) = value
-                    && !(v > 0.0 && v.is_finite())
-                {
-                    return Err(err(&format!("hand[{i}].{key}"), format!("{v} must be a positive number")));
-                }
-            }
-            if let Some(d) = h.damping
-                && !(d >= 0.0 && d.is_finite())
-            {
-                return Err(err(&format!("hand[{i}].damping"), format!("{d} must be zero or a positive number")));
-            }
-            // Drive defaults: the URDF's `<limit effort>`; a prismatic joint's gains from its effort
-            // (full force at `PRISMATIC_FULL_FORCE_ERROR`), in N/m and N·s/m.
-            let effort = h.effort.or((joint.effort > 0.0 && joint.effort.is_finite()).then_some(joint.effort));
-            let prismatic = joint.kind == JointKind::Prismatic;
-            let stiffness = h.stiffness.or(effort.filter(|_| prismatic).map(|e| e / PRISMATIC_FULL_FORCE_ERROR));
-            let damping = h.damping.or(stiffness.filter(|_| prismatic && h.stiffness.is_none()).map(|k| k * PRISMATIC_DAMPING_TIME));
-            hand.push(HandJoint { name: h.joint.clone(), joint: j, dof, preshape: h.preshape, close: h.close, effort, stiffness, damping });
-        }
-        if hand.is_empty() {
-            return Err(err("hand", "no joints: a hand or gripper needs at least one".into()));
-        }
-        let mut followers = Vec::new();
-        for (j, joint) in model.joints.iter().enumerate() {
-            if !joint.moves() || !model.is_below(joint.child, hand_root) || hand.iter().any(|h| h.joint == j) {
-                continue;
-            }
-            match joint.mimic {
-                Some(m) if hand.iter().any(|h| h.joint == m.leader) => followers.push(j),
-                _ => {
-                    return Err(err(
-                        "hand",
-                        format!("joint '{}' moves in the hand but is neither listed nor a <mimic> of a listed joint", joint.name),
-                    ));
-                }
-            }
-        }
-        let mut pads = Vec::new();
-        for (i, p) in desc.pads.iter().enumerate() {
-            let at = |f: &str| format!("pads[{i}].{f}");
-            let on = link(&model, &at("link"), &p.link)?;
-            if !model.is_below(on, hand_root) {
-                return Err(err(&at("link"), format!("'{}' is not part of the hand (below '{root_name}')", p.link)));
-            }
-            if pads.iter().any(|o: &Pad| o.name == p.name) || p.name.is_empty() || p.name.contains('/') {
-                return Err(err(&at("name"), format!("'{}' must be unique, not empty and without '/'", p.name)));
-            }
-            let frame = match (&p.frame, &p.origin) {
-                (Some(f), None) => {
-                    let id = link(&model, &at("frame"), f)?;
-                    match model.links[id].parent_joint {
-                        Some(j) if model.joints[j].parent == on && !model.joints[j].moves() => id,
-                        _ => return Err(err(&at("frame"), format!("'{f}' is not a link fixed to '{}'", p.link))),
-                    }
-                }
-                (None, Some(o)) => {
-                    model.add_fixed_link(on, &format!("{}_pad", p.name), xyz_rpy(o.xyz, o.rpy)).map_err(|m| err(&at("origin"), m))?
-                }
-                _ => return Err(err(&at("frame"), "give either a frame link or an origin".into())),
-            };
-            let size = match p.size {
-                Some([l, w]) if l > 0.0 && w > 0.0 && l.is_finite() && w.is_finite() => Some((l, w)),
-                Some(s) => return Err(err(&at("size"), format!("{s:?}: length and width must be positive (m)"))),
-                None => None,
-            };
-            pads.push(Pad { name: p.name.clone(), link: on, frame, size, group: p.group });
-        }
-        if pads.is_empty() {
-            return Err(err("pads", "no pads: the tactile point cloud needs at least one".into()));
-        }
-        let touch_links = match &desc.touch_links {
-            Some(names) => names
-                .iter()
-                .enumerate()
-                .map(|(i, n)| {
-                    let id = link(&model, &format!("touch_links[{i}]"), n)?;
-                    if model.is_below(id, hand_root) {
-                        Ok(id)
-                    } else {
-                        Err(err(&format!("touch_links[{i}]"), format!("'{n}' is not part of the hand")))
-                    }
-                })
-                .collect::<Result<Vec<_>, _>>()?,
-            None => {
-                let mut v: Vec<usize> = Vec::new();
-                for p in &pads {
-                    if !v.contains(&p.link) {
-                        v.push(p.link);
-                    }
-                }
-                v
-            }
-        };
-        if desc.grasp.kind == GraspKind::ParallelJaw && pads.len() < 2 {
-            return Err(err("pads", "a parallel-jaw grasp needs two pads, one on each jaw (the first two)".into()));
-        }
-        if desc.grasp.min_touching == 0 || desc.grasp.min_touching > touch_links.len() {
-            return Err(err(
-                "grasp.min_touching",
-                format!("{} is not within 1 ..= the {} touch links", desc.grasp.min_touching, touch_links.len()),
-            ));
-        }
-        let decomposition = match &desc.convex_decomposition {
-            None => None,
-            Some(spec) => {
-                let has_mesh = |l: usize| model.links[l].collisions.iter().any(|s| matches!(s.geometry, Geometry::Mesh { .. }));
-                let links = if spec.links == ["all"] {
-                    (0..model.links.len()).filter(|&l| has_mesh(l)).collect()
-                } else {
-                    let mut ids = Vec::new();
-                    for (i, name) in spec.links.iter().enumerate() {
-                        let field = format!("convex_decomposition.links[{i}]");
-                        let id = link(&model, &field, name)?;
-                        if !has_mesh(id) {
-                            return Err(err(&field, format!("'{name}' has no collision mesh to decompose")));
-                        }
-                        ids.push(id);
-                    }
-                    ids
-                };
-                if !(1..=64).contains(&spec.max_hulls) {
-                    return Err(err("convex_decomposition.max_hulls", format!("{} is not within 1 ..= 64", spec.max_hulls)));
-                }
-                if !(16..=256).contains(&spec.resolution) {
-                    return Err(err("convex_decomposition.resolution", format!("{} is not within 16 ..= 256", spec.resolution)));
-                }
-                Some(Decomposition { links, max_hulls: spec.max_hulls, resolution: spec.resolution })
-            }
-        };
-        let mut robot = Robot {
-            name: desc.name,
-            model,
-            urdf_text,
-            description_text: String::new(),
-            arm_joints,
-            arm_dofs,
-            base,
-            flange,
-            home: desc.arm.home,
-            azimuth_offset: 0.0,
-            grasp_frame,
-            hand_root,
-            kind: desc.grasp.kind,
-            min_touching: desc.grasp.min_touching,
-            hand,
-            followers,
-            pads,
-            touch_links,
-            decomposition,
-        };
-        robot.azimuth_offset = match desc.arm.azimuth_offset {
-            Some(a) => a,
-            None => robot.measured_azimuth_offset(),
-        };
-        Ok(robot)
+        Robot::resolve(model, urdf.to_string(), parse(description, description_name)?, description, description_name)
     }
 
     /// The grasp frame's azimuth minus the first arm joint's angle, at home.
-    fn measured_azimuth_offset(&self) -> f64 {
+    pub(crate) fn measured_azimuth_offset(&self) -> f64 {
         let q = self.home_q();
         let p = self.grasp_frame_pose(&q).translation;
         p.y.atan2(p.x) - q[self.arm_dofs[0]]
@@ -793,17 +552,4 @@ fn parse(text: &str, source_name: &str) -> Result<Description, RobotError> {
         let at = e.location().map(|l| format!("line {}: ", l.line())).unwrap_or_default();
         RobotError { source_name: source_name.to_string(), message: format!("{at}{e}") }
     })
-}
-
-/// The joints from `top` down to `link` (in order), or None when `link` is not below `top`.
-fn path_down(model: &RobotModel, top: usize, link: usize) -> Option<Vec<usize>> {
-    let mut joints = Vec::new();
-    let mut l = link;
-    while l != top {
-        let j = model.links[l].parent_joint?;
-        joints.push(j);
-        l = model.joints[j].parent;
-    }
-    joints.reverse();
-    Some(joints)
 }

@@ -11,6 +11,7 @@ mod description;
 mod ik;
 pub mod mesh;
 mod model;
+mod resolve;
 
 pub use description::{
     BUILTIN_ROBOTS, Decomposition, DecompositionSpec, Description, GraspKind, HandJoint, PRISMATIC_DAMPING_TIME,

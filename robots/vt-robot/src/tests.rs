@@ -135,23 +135,24 @@ fn description_error(from: &str, to: &str) -> String {
 #[test]
 fn broken_descriptions_name_the_file_and_the_field() {
     let cases = [
-        ("link: ff_distal,", "link: ff_distl,", "bad.yaml: pads[2].link: no link 'ff_distl' in the URDF"),
-        ("base: base_link", "base: palm", "bad.yaml: arm: 'flange' is not below 'palm': the arm is not one serial chain"),
-        ("frame: palm", "frame: base_link", "bad.yaml: grasp.frame: 'base_link' is not fixed below the flange 'flange'"),
-        ("frame: palm", "frame: ff_distal", "bad.yaml: grasp.frame: 'ff_distal' moves against the flange"),
-        ("joint: th_joint_2,", "joint: th_joint_x,", "bad.yaml: hand[14].joint: no joint 'th_joint_x' in the URDF"),
+        ("link: ff_distal,", "link: ff_distl,", "line 39: pads[2].link: no link 'ff_distl' in the URDF"),
+        ("base: base_link", "base: palm", "arm: 'flange' is not below 'palm': the arm is not one serial chain"),
+        ("frame: palm", "frame: base_link", "grasp.frame: 'base_link' is not fixed below the flange 'flange'"),
+        ("frame: palm", "frame: ff_distal", "grasp.frame: 'ff_distal' moves against the flange"),
+        ("joint: th_joint_2,", "joint: th_joint_x,", "hand[14].joint: no joint 'th_joint_x' in the URDF"),
         ("joint: th_joint_2,", "joint: shoulder_pan_joint,", "hand[14].joint: 'shoulder_pan_joint' is not below the hand's root 'palm'"),
         ("- {joint: th_joint_3, preshape: [-0.1, 0.3], close: 1.2}\n", "", "joint 'th_joint_3' moves in the hand but is neither listed"),
         ("preshape: [0.3, 0.5]", "preshape: [0.5, 0.3]", "hand[12].preshape: [0.5, 0.3] is not a range"),
         ("frame: th_distal_pad,", "frame: th_medial_pad,", "pads[11].frame: 'th_medial_pad' is not a link fixed to 'th_distal'"),
         ("min_touching: 2", "min_touching: 13", "grasp.min_touching: 13 is not within 1 ..= the 12 touch links"),
         ("home: [-1.5707963267948966, ", "home: [", "arm.home: 5 values for 6 arm joints"),
-        ("kind: palm", "kind: suction", "bad.yaml: line 13: grasp.kind: unknown variant `suction`"),
-        ("min_touching: 2", "min_touching: 2\n  fingers: 4", "bad.yaml: line 15: grasp: unknown field `fingers`"),
+        ("kind: palm", "kind: suction", "line 13: grasp.kind: unknown variant `suction`"),
+        ("min_touching: 2", "min_touching: 2\n  fingers: 4", "line 15: grasp: unknown field `fingers`"),
     ];
     for (from, to, want) in cases {
         let e = description_error(from, to);
-        assert!(e.contains(want), "{from} -> {to}: {e}");
+        // Every error names the file, the line and the field.
+        assert!(e.starts_with("robot description bad.yaml: line ") && e.contains(want), "{from} -> {to}: {e}");
     }
     // A pad given by an origin on its link becomes a frame of its own.
     let text = include_str!("../../allegro/robot.yaml").replacen(

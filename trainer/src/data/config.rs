@@ -1,8 +1,8 @@
 //! The `data:`, `augment:` and `objects:` sections of a training config: what the pipeline draws
 //! per sample, how training perturbs it, and which objects it reads.
 
-use anyhow::{Result, bail};
 use serde::{Deserialize, Serialize};
+use vt_check::{Check, Checks, excl, field, incl, key};
 
 /// Tactile point counts of the paper's sweep (Fig. "Effect of number of tactile points").
 pub const TACTILE_SWEEP: [usize; 5] = [4, 12, 36, 60, 240];
@@ -33,15 +33,14 @@ mod all_keyword {
     }
 }
 
-impl ObjectSelection {
-    /// Checks what serde cannot: a list names at least one object.
-    pub fn validate(&self) -> Result<()> {
+/// What serde cannot check: a list names at least one object.
+impl Check for ObjectSelection {
+    fn check(&self, c: &mut Checks) {
         if let ObjectSelection::List(ids) = self
             && ids.is_empty()
         {
-            bail!("objects: the list is empty (use `all`)");
+            c.fail("the list is empty (use `all`)");
         }
-        Ok(())
     }
 }
 
@@ -90,19 +89,14 @@ impl Default for DataConfig {
     }
 }
 
-impl DataConfig {
-    /// The range checks the type system does not make. The crop size also has to suit the colour
-    /// encoder's stride, which the model section decides: [`crate::config::TrainConfig::validate`]
-    /// checks that.
-    pub fn validate(&self) -> Result<()> {
+/// The range checks the type system does not make. The crop size also has to suit the colour
+/// encoder's stride, which the model section decides: [`crate::config::TrainConfig`] checks that.
+impl Check for DataConfig {
+    fn check(&self, c: &mut Checks) {
         let (lo, hi) = N_TACTILE_RANGE;
-        if !(lo..=hi).contains(&self.n_tactile) {
-            bail!("data.n_tactile must be in {lo}..={hi}, got {}", self.n_tactile);
-        }
-        if self.n_points == 0 || self.n_model_points == 0 {
-            bail!("data.n_points and data.n_model_points must be >= 1");
-        }
-        Ok(())
+        c.range(field!(self.n_tactile), lo, hi);
+        c.key(key!(self.n_points)).bounded(self.n_points as f64, incl(1.0), None, "points");
+        c.key(key!(self.n_model_points)).bounded(self.n_model_points as f64, incl(1.0), None, "points");
     }
 }
 
@@ -126,11 +120,11 @@ impl Default for AugmentConfig {
 impl AugmentConfig {
     /// Augmentation off: what evaluation and benchmarks use.
     pub const NONE: AugmentConfig = AugmentConfig { color_jitter: 0.0, translation_noise_m: 0.0 };
+}
 
-    pub fn validate(&self) -> Result<()> {
-        if self.color_jitter < 0.0 || self.color_jitter >= 1.0 || self.translation_noise_m < 0.0 {
-            bail!("augment.color_jitter must be in [0, 1) and augment.translation_noise_m >= 0");
-        }
-        Ok(())
+impl Check for AugmentConfig {
+    fn check(&self, c: &mut Checks) {
+        c.key(key!(self.color_jitter)).bounded(self.color_jitter.into(), incl(0.0), excl(1.0), "");
+        c.key(key!(self.translation_noise_m)).bounded(self.translation_noise_m.into(), incl(0.0), None, "metres");
     }
 }

@@ -35,6 +35,7 @@
 pub mod encoder;
 
 use std::str::FromStr;
+use vt_check::{Check, Checks, incl, key};
 
 use burn::nn::{Linear, LinearConfig};
 use burn::prelude::*;
@@ -348,18 +349,30 @@ pub struct PoseNet {
     rotation: RotationKind,
 }
 
-impl ModelConfig {
-    /// The range checks the type system does not make.
-    pub fn validate(&self) -> anyhow::Result<()> {
-        if self.cnn_channels.contains(&0) || self.resnet_width == 0 || self.color_dim == 0 || self.point_dims.contains(&0) {
-            anyhow::bail!("model widths must be >= 1");
+/// The range checks the type system does not make: every width at least 1, and a global feature.
+impl Check for ModelConfig {
+    fn check(&self, c: &mut Checks) {
+        let width = |c: &mut Checks, w: usize| c.bounded(w as f64, incl(1.0), None, "channels");
+        width(&mut c.key(key!(self.resnet_width)), self.resnet_width);
+        width(&mut c.key(key!(self.color_dim)), self.color_dim);
+        let lists: [(&'static str, &[usize]); 4] = [
+            (key!(self.cnn_channels), &self.cnn_channels),
+            (key!(self.point_dims), &self.point_dims),
+            (key!(self.global_dims), &self.global_dims),
+            (key!(self.head_dims), &self.head_dims),
+        ];
+        for (key, widths) in lists {
+            for (i, &w) in widths.iter().enumerate() {
+                width(&mut c.key(key).index(i), w);
+            }
         }
-        if self.global_dims.is_empty() || self.global_dims.contains(&0) || self.head_dims.contains(&0) {
-            anyhow::bail!("model.global_dims needs >= 1 width, and no width may be 0");
+        if self.global_dims.is_empty() {
+            c.key(key!(self.global_dims)).fail("needs at least one width (the last is the global feature's)");
         }
-        Ok(())
     }
+}
 
+impl ModelConfig {
     /// A network with fresh weights and `num_objects` output slots per head, on `device`.
     pub fn init(&self, num_objects: usize, device: &Device) -> PoseNet {
         let v = self.variant;
