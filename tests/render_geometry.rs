@@ -208,11 +208,12 @@ fn tilted_face() -> (WgpuRenderer, Draw, [glam::DAffine3; 12], DVec3, DVec3) {
 
 #[test]
 fn the_three_sensor_models_report_the_same_surface_patch() {
-    use vtgen::config::{SensorGroups, SensorModel, TactileConfig};
+    use vtgen::config::{SensorModel, TactileConfig, TactileSensorsConfig};
     use vtgen::sensors::tactile::sense;
     let (mut r, object, pads, normal, on_face) = tilted_face();
     let mut cloud = |model: SensorModel| {
-        let cfg = TactileConfig { sensors: SensorGroups { proximal: model, medial: model, distal: model }, ..TactileConfig::default() };
+        let cfg =
+            TactileConfig { sensors: TactileSensorsConfig { proximal: model, medial: model, distal: model }, ..TactileConfig::default() };
         let reading = sense(&mut r, &cfg, &pad_views(&cfg, &pads), None, object, &glam::DAffine3::IDENTITY).unwrap();
         reading.points.iter().filter(|p| p.phalanx == 0).map(|p| p.position).collect::<Vec<_>>()
     };

@@ -1,18 +1,43 @@
 //! The YAML config. Parsing rejects unknown keys; every error names the file, line, column and
 //! field path, and out-of-range values name the allowed range.
 
+mod camera;
+mod grasp;
 mod noise;
+mod objects;
 mod optical;
+mod output;
 mod overrides;
+mod physics;
+mod renderer;
+mod robot;
+mod sampling;
+mod scene;
 mod schema;
+mod tactile;
 
 use std::path::{Path, PathBuf};
 
-pub use noise::{ColorNoise, DepthNoise, SensorNoise};
+pub use camera::*;
+pub use grasp::*;
+pub use noise::{CameraNoiseConfig, ColorNoise, DepthNoise};
+pub use objects::*;
 pub use optical::{Led, MarkerConfig, Markers, OpticalConfig, OpticalPreset, OpticalSensor, led_falloff, light_matrix};
+pub use output::*;
 pub use overrides::Override;
+pub use physics::*;
+pub use renderer::*;
+pub use robot::*;
+pub use sampling::*;
+pub use scene::*;
 pub use schema::*;
+pub use tactile::*;
 pub use vt_check::{Check, Checks, Problem};
+
+/// A field left at its default is left out of the serialized config (`config.json`).
+fn is_default<T: Default + PartialEq>(v: &T) -> bool {
+    *v == T::default()
+}
 
 /// A serde_yaml error as a config error at its line and column.
 fn yaml_error(e: serde_path_to_error::Error<serde_yaml::Error>, path: &Path) -> ConfigError {

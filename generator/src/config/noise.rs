@@ -7,14 +7,14 @@ use vt_check::{Check, Checks, field};
 /// `camera.noise` in the config.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct SensorNoise {
+pub struct CameraNoiseConfig {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub depth: Option<DepthNoise>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub color: Option<ColorNoise>,
 }
 
-impl Check for SensorNoise {
+impl Check for CameraNoiseConfig {
     fn check(&self, c: &mut Checks) {
         c.section(field!(self.depth));
         c.section(field!(self.color));

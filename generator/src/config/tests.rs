@@ -137,6 +137,21 @@ fn overrides_set_any_key_with_the_same_checks() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// A palm-only grasp key set for a parallel-jaw gripper is refused, naming the key (its value
+/// would be silently unused); the gripper's config without it loads.
+#[test]
+fn palm_only_grasp_keys_are_refused_for_a_gripper() {
+    let gripper = root().join("scenes/tiny-gripper.yaml");
+    LoadedConfig::load(&gripper).unwrap();
+    for key in ["robot.grasp.palm_surface_x=0.02", "robot.grasp.max_grasp_depth=0.05"] {
+        let e = LoadedConfig::load_with(&gripper, &set(&[key])).unwrap_err().to_string();
+        let field = key.split('=').next().unwrap();
+        assert!(e.contains(&format!("{field}: only palm grasps use it")), "{e}");
+    }
+    // The same keys are the palm grasp's to set.
+    LoadedConfig::load_with(&root().join("scenes/tiny-hand.yaml"), &set(&["robot.grasp.palm_surface_x=0.02"])).unwrap();
+}
+
 /// A type error names its field once (serde_yaml's message starts with the path too).
 #[test]
 fn type_errors_name_the_field_once() {

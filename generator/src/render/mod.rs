@@ -30,7 +30,7 @@ pub struct View {
 
 impl View {
     /// The config's camera at `t_world_camera`.
-    pub fn of_camera(camera: &crate::config::Camera, t_world_camera: DMat4) -> View {
+    pub fn of_camera(camera: &crate::config::CameraConfig, t_world_camera: DMat4) -> View {
         View { width: camera.width, height: camera.height, k: camera.k(), near: camera.near, far: camera.far, t_world_camera }
     }
 }

@@ -13,7 +13,7 @@
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
-pub use crate::config::{ColorNoise, DepthNoise, SensorNoise};
+pub use crate::config::{CameraNoiseConfig, ColorNoise, DepthNoise};
 
 /// A standard normal draw (Box–Muller; one draw per call keeps the stream simple to reason about).
 fn normal(rng: &mut ChaCha8Rng) -> f64 {

@@ -237,7 +237,7 @@ mod tests {
         }
         // A taxel array reports one point per fired taxel, on the same surface.
         let taxels = TactileConfig {
-            sensors: crate::config::SensorGroups { proximal: SensorModel::TaxelArray { rows: 4, cols: 2 }, ..cfg.sensors },
+            sensors: crate::config::TactileSensorsConfig { proximal: SensorModel::TaxelArray { rows: 4, cols: 2 }, ..cfg.sensors },
             ..cfg.clone()
         };
         let r = sense(&mut renderer, &taxels, &views(&taxels, &t_world_pads), None, object, &t_world_camera.inverse()).unwrap();

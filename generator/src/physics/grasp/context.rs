@@ -41,7 +41,7 @@ pub struct FingerGait {
 
 impl FingerGait {
     /// The configured motion for `robot` at `timestep` (its joints are checked at load).
-    pub fn of(motion: &crate::config::FingerMotion, robot: &Robot, timestep: f64) -> Self {
+    pub fn of(motion: &crate::config::FingerMotionConfig, robot: &Robot, timestep: f64) -> Self {
         let joints = motion
             .joints
             .iter()

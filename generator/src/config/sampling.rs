@@ -1,0 +1,180 @@
+//! `sampling:` how many trajectories and instances per object, the train/test split, and the
+//! episode streams' rates and finger motion.
+
+use serde::{Deserialize, Serialize};
+use vt_check::{Check, Checks, field, key};
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SamplingConfig {
+    /// Random trajectories per object (the paper: 200).
+    pub trajectories_per_object: u32,
+    /// Recorded instances per trajectory (the paper: 100).
+    pub instances_per_trajectory: u32,
+    #[serde(default)]
+    pub split: SplitConfig,
+    /// Episodes instead of snapshots: each trajectory becomes one episode, every stream at its own
+    /// rate (FORMAT.md, "Episodes"). Left out of the config when off.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub record: Option<RecordConfig>,
+}
+
+/// `sampling.record`: the rates of an episode's streams. Each is a whole number of physics steps,
+/// the touch and state rates whole multiples of the camera's and the state's of the touch's, so
+/// every camera frame has the touch and the state of its own instant, and every touch its state.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RecordConfig {
+    /// The main camera: RGB, depth, mask (Hz).
+    pub camera_hz: f64,
+    /// The tactile pads: depth views, the point cloud, optical images (Hz).
+    pub tactile_hz: f64,
+    /// Joint states and the object's pose and twist (Hz); none: every physics step.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub state_hz: Option<f64>,
+    /// Scripted finger motion after each arm move (off unless given).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub finger_motion: Option<FingerMotionConfig>,
+}
+
+impl Default for RecordConfig {
+    fn default() -> Self {
+        RecordConfig { camera_hz: 30.0, tactile_hz: 60.0, state_hz: None, finger_motion: None }
+    }
+}
+
+/// `sampling.record.finger_motion`: after each arm move's hold, the listed hand joints swing about
+/// where they stand against the object, `q + amplitude · (sin(2π t / period + phase) − sin phase)`,
+/// for `cycles` periods, then squeeze again, while the arm stands still and the other joints keep
+/// squeezing: a finger gait that works the object in the hand. Each arm move then takes
+/// `cycles · period` longer.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FingerMotionConfig {
+    #[serde(default = "default_gait_period")]
+    pub period_s: f64,
+    #[serde(default = "default_gait_cycles")]
+    pub cycles: u32,
+    pub joints: Vec<FingerJointMotion>,
+}
+
+fn default_gait_period() -> f64 {
+    0.5
+}
+
+fn default_gait_cycles() -> u32 {
+    2
+}
+
+/// One hand joint of a finger motion.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FingerJointMotion {
+    /// A hand joint of the robot's description (`hand[].joint`).
+    pub joint: String,
+    pub amplitude_deg: f64,
+    #[serde(default)]
+    pub phase_deg: f64,
+}
+
+impl Check for FingerMotionConfig {
+    fn check(&self, c: &mut Checks) {
+        c.positive(field!(self.period_s), 60.0, "s");
+        c.range(field!(self.cycles), 1, 1000);
+        let joints_key = key!(self.joints);
+        if self.joints.is_empty() {
+            c.key(joints_key).fail("list at least one hand joint");
+        }
+        for (i, j) in self.joints.iter().enumerate() {
+            let mut joints = c.key(joints_key);
+            let mut at = joints.index(i);
+            at.range(field!(j.amplitude_deg), -90.0, 90.0);
+            at.range(field!(j.phase_deg), -360.0, 360.0);
+        }
+    }
+}
+
+impl FingerMotionConfig {
+    /// Physics steps of the motion at `timestep`.
+    pub fn steps(&self, timestep: f64) -> usize {
+        (self.cycles as f64 * self.period_s / timestep).round() as usize
+    }
+}
+
+/// Physics steps between two messages of each stream of an episode.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct StreamPeriods {
+    pub camera: u64,
+    pub tactile: u64,
+    pub state: u64,
+}
+
+impl RecordConfig {
+    /// Each stream's period in physics steps of `timestep` seconds (the nearest whole number).
+    pub fn periods(&self, timestep: f64) -> StreamPeriods {
+        let steps = |hz: f64| (1.0 / (hz * timestep)).round().max(1.0) as u64;
+        StreamPeriods { camera: steps(self.camera_hz), tactile: steps(self.tactile_hz), state: self.state_hz.map_or(1, steps) }
+    }
+
+    /// The rates against the physics step: each a whole number of steps (within 1 %), touch and
+    /// state whole multiples of the camera.
+    pub(super) fn check_rates(&self, timestep: f64, c: &mut Checks) {
+        let p = self.periods(timestep);
+        let rates = [(key!(self.camera_hz), self.camera_hz, p.camera), (key!(self.tactile_hz), self.tactile_hz, p.tactile)]
+            .into_iter()
+            .chain(self.state_hz.map(|hz| (key!(self.state_hz), hz, p.state)));
+        for (key, hz, steps) in rates {
+            if !(hz > 0.0 && hz <= 1.0 / timestep * 1.0001) {
+                c.key(key).fail(format!("{hz} Hz is out of range: allowed 0 < rate <= the physics rate ({:.1} Hz)", 1.0 / timestep));
+            } else if ((steps as f64) * hz * timestep - 1.0).abs() > 0.01 {
+                c.key(key).fail(format!(
+                    "{hz} Hz is not a whole number of physics steps ({timestep} s each): {:.1} Hz ({steps} steps) is",
+                    1.0 / (steps as f64 * timestep)
+                ));
+            } else if key != key!(self.camera_hz) && !p.camera.is_multiple_of(steps) {
+                c.key(key).fail(format!("{hz} Hz must be a whole multiple of camera_hz ({} Hz)", self.camera_hz));
+            } else if key == key!(self.state_hz) && !p.tactile.is_multiple_of(steps) {
+                c.key(key).fail(format!("{hz} Hz must be a whole multiple of tactile_hz ({} Hz)", self.tactile_hz));
+            }
+        }
+    }
+}
+
+impl Default for SamplingConfig {
+    fn default() -> Self {
+        SamplingConfig { trajectories_per_object: 200, instances_per_trajectory: 100, split: SplitConfig::default(), record: None }
+    }
+}
+
+impl Check for SamplingConfig {
+    fn check(&self, c: &mut Checks) {
+        c.range(field!(self.trajectories_per_object), 1, 1_000_000);
+        c.range(field!(self.instances_per_trajectory), 1, 100_000);
+        c.section(field!(self.split));
+    }
+}
+
+/// Train/test ratio, decided per trajectory (FORMAT.md).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SplitConfig {
+    pub train: u32,
+    pub test: u32,
+}
+
+impl Default for SplitConfig {
+    fn default() -> Self {
+        SplitConfig { train: 4, test: 1 }
+    }
+}
+
+impl Check for SplitConfig {
+    /// Both in range, and a split that keeps something.
+    fn check(&self, c: &mut Checks) {
+        c.range(field!(self.train), 0, 1000);
+        c.range(field!(self.test), 0, 1000);
+        if self.train == 0 && self.test == 0 {
+            c.fail("train + test must be at least 1");
+        }
+    }
+}
