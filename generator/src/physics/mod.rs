@@ -10,6 +10,7 @@ pub mod convex_parts;
 #[cfg(test)]
 pub(crate) mod fake;
 pub mod grasp;
+pub mod hand_assembly;
 mod hull_shape;
 #[cfg(feature = "mujoco")]
 mod mujoco_backend;

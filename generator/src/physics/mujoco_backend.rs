@@ -9,8 +9,9 @@ use std::fmt::Write as _;
 use anyhow::{Context, Result, anyhow};
 use glam::{DAffine3, DQuat, DVec3};
 use mujoco_rs::prelude::*;
-use vt_robot::{Geometry, JointKind, Robot, RobotModel};
+use vt_robot::{Geometry, Robot, RobotModel};
 
+use super::hand_assembly::{Drive, HandAssembly, SimJoint};
 use super::{HandPhysics, PhysicsObject, PhysicsSettings};
 
 struct Sim {
@@ -36,6 +37,8 @@ struct Sim {
 pub struct MujocoHand {
     robot: Robot,
     settings: PhysicsSettings,
+    /// The hand's bodies, colliders and joints, as the MJCF writes them.
+    assembly: HandAssembly,
     sim: Option<Sim>,
     damping: (f64, f64),
     mass: f64,
@@ -53,6 +56,12 @@ fn quat_wxyz(t: &DAffine3) -> [f64; 4] {
     [q.w, q.x, q.y, q.z]
 }
 
+/// A pose as MJCF's `pos` and `quat` attributes.
+fn pos_quat(t: &DAffine3) -> String {
+    let (p, q) = (t.translation, quat_wxyz(t));
+    format!(r#"pos="{} {} {}" quat="{} {} {} {}""#, p.x, p.y, p.z, q[0], q[1], q[2], q[3])
+}
+
 /// MuJoCo's soft contacts let a held object creep under a steady load (measured with the arm
 /// still: 1 of 12 grasps within 1 mm and 1° over 10 s, the rest 1 to 7 mm). Its noslip solver pass
 /// removes it: 10 iterations left 8 of 12 still, 50 with the torsional friction below all 12
@@ -60,7 +69,7 @@ fn quat_wxyz(t: &DAffine3) -> [f64; 4] {
 /// 30 iterations, or 50 with torsional friction 0.01, left one or two grasps pivoting.
 const NOSLIP_ITERATIONS: u32 = 50;
 
-/// The armature of a hand joint (kg·m² or kg) unless its drive needs more (`mjcf`).
+/// The armature of a hand joint (kg·m² or kg) unless its drive needs more (`write_children`).
 const DEFAULT_ARMATURE: f64 = 0.0005;
 
 /// Torsional friction coefficient (condim 4): resistance to spinning about the contact normal,
@@ -85,17 +94,22 @@ fn write_hull_meshes(x: &mut String, m: &RobotModel) {
 
 impl MujocoHand {
     pub fn new(robot: &Robot, settings: PhysicsSettings) -> Result<Self> {
-        Ok(MujocoHand { robot: robot.clone(), settings, sim: None, damping: (0.0, 0.0), mass: 1.0, saved: None, steps: 0 })
+        Ok(MujocoHand {
+            robot: robot.clone(),
+            assembly: HandAssembly::new(robot, &settings)?,
+            settings,
+            sim: None,
+            damping: (0.0, 0.0),
+            mass: 1.0,
+            saved: None,
+            steps: 0,
+        })
     }
 
-    /// MJCF of the hand below the palm and one free object.
-    // Long on purpose: one MJCF document written top to bottom, as MuJoCo reads it.
+    /// MJCF of the hand below its root (the assembly's bodies, colliders, joints and drives) and
+    /// one free object.
     fn mjcf(&self, object: &PhysicsObject) -> String {
-        let robot = &self.robot;
-        let m = &robot.model;
-        let s = &self.settings;
-        // The hand's root (the palm, or a gripper's base), placed in the grasp frame.
-        let palm = robot.hand_root;
+        let (robot, a, s) = (&self.robot, &self.assembly, &self.settings);
         let mut x = String::new();
         let _ = write!(
             x,
@@ -109,105 +123,16 @@ impl MujocoHand {
             let _ = write!(x, "{} {} {} ", p[0], p[1], p[2]);
         }
         x.push_str("\"/>");
-        write_hull_meshes(&mut x, m);
+        write_hull_meshes(&mut x, &robot.model);
         x.push_str("</asset><worldbody>");
-        // Hand geoms collide with the object only (contype 1 / conaffinity 2, the object 2 / 1).
-        let geoms = |x: &mut String, link: usize| {
-            for (i, sh) in m.links[link].collisions.iter().enumerate() {
-                let name = &m.links[link].name;
-                let (kind, size) = match &sh.geometry {
-                    Geometry::Box { size } => ("box", format!(r#"size="{} {} {}""#, size.x / 2.0, size.y / 2.0, size.z / 2.0)),
-                    Geometry::Sphere { radius } => ("sphere", format!(r#"size="{radius}""#)),
-                    Geometry::Cylinder { radius, length } => ("cylinder", format!(r#"size="{radius} {}""#, length / 2.0)),
-                    Geometry::ConvexHull { .. } | Geometry::Mesh { .. } => ("mesh", format!(r#"mesh="{name}_{i}""#)),
-                };
-                let q = quat_wxyz(&sh.origin);
-                let t = sh.origin.translation;
-                let _ = write!(
-                    x,
-                    r#"<geom name="{name}_{i}" type="{kind}" {size} pos="{} {} {}" quat="{} {} {} {}" contype="1" conaffinity="2" mass="0"/>"#,
-                    t.x, t.y, t.z, q[0], q[1], q[2], q[3]
-                );
-            }
-        };
-        if palm == robot.grasp_frame {
-            x.push_str(r#"<body name="palm">"#);
-        } else {
-            let t = m.relative_pose(&m.zero(), palm, robot.grasp_frame).inverse();
-            let (q, p) = (quat_wxyz(&t), t.translation);
-            let _ = write!(x, r#"<body name="palm" pos="{} {} {}" quat="{} {} {} {}">"#, p.x, p.y, p.z, q[0], q[1], q[2], q[3]);
-        }
-        geoms(&mut x, palm);
-        // Depth-first over the joints below the palm. A fixed joint's child is a body welded to its
-        // parent, left out when nothing in it collides or moves (the sensor pads).
-        fn matters(m: &RobotModel, link: usize) -> bool {
-            !m.links[link].collisions.is_empty() || m.joints.iter().any(|j| j.parent == link && (j.moves() || matters(m, j.child)))
-        }
-        // A drive's stiffness is explicit in MuJoCo's integrator (implicitfast takes only the
-        // damping implicitly): a stiff drive on a light link (the Panda's 15 g fingers at
-        // 14 000 N/m) would ring. Each driven joint (and its mimics) gets at least the armature
-        // that keeps `kp·dt²/armature` at 1; the Allegro's and the 2F-85's keep the default.
-        let armature: Vec<f64> = m
-            .joints
-            .iter()
-            .map(|j| {
-                let leader = j.mimic.map_or(j.name.as_str(), |mm| m.joints[mm.leader].name.as_str());
-                let kp = robot.hand.iter().find(|h| h.name == leader).map_or(0.0, |h| h.stiffness.unwrap_or(s.stiffness));
-                DEFAULT_ARMATURE.max(kp * s.timestep * s.timestep)
-            })
-            .collect();
-        fn children(m: &RobotModel, link: usize, x: &mut String, geoms: &dyn Fn(&mut String, usize), armature: &[f64]) {
-            for j in m.joints.iter().filter(|j| j.parent == link && (j.moves() || matters(m, j.child))) {
-                let c = &m.links[j.child];
-                let q = quat_wxyz(&j.origin);
-                let t = j.origin.translation;
-                if !j.moves() {
-                    let _ =
-                        write!(x, r#"<body name="{}" pos="{} {} {}" quat="{} {} {} {}">"#, c.name, t.x, t.y, t.z, q[0], q[1], q[2], q[3]);
-                    if c.mass > 0.0 {
-                        let i = c.mass * 0.02 * 0.02 / 6.0;
-                        let _ = write!(
-                            x,
-                            r#"<inertial pos="{} {} {}" mass="{}" diaginertia="{i} {i} {i}"/>"#,
-                            c.com.x, c.com.y, c.com.z, c.mass
-                        );
-                    }
-                    geoms(x, j.child);
-                    children(m, j.child, x, geoms, armature);
-                    x.push_str("</body>");
-                    continue;
-                }
-                let kind = if j.kind == JointKind::Prismatic { "slide" } else { "hinge" };
-                let mass = c.mass.max(0.005);
-                let i = mass * 0.02 * 0.02 / 6.0;
-                let _ = write!(
-                    x,
-                    r#"<body name="{}" pos="{} {} {}" quat="{} {} {} {}"><inertial pos="{} {} {}" mass="{mass}" diaginertia="{i} {i} {i}"/><joint name="{}" type="{kind}" axis="{} {} {}" range="{} {}" damping="0.01" armature="{}"/>"#,
-                    c.name,
-                    t.x,
-                    t.y,
-                    t.z,
-                    q[0],
-                    q[1],
-                    q[2],
-                    q[3],
-                    c.com.x,
-                    c.com.y,
-                    c.com.z,
-                    j.name,
-                    j.axis.x,
-                    j.axis.y,
-                    j.axis.z,
-                    j.lower,
-                    j.upper,
-                    armature[m.joint_id(&j.name).expect("a joint of the model")]
-                );
-                geoms(x, j.child);
-                children(m, j.child, x, geoms, armature);
-                x.push_str("</body>");
+        match a.t_grasp_root {
+            None => x.push_str(r#"<body name="palm">"#),
+            Some(t) => {
+                let _ = write!(x, r#"<body name="palm" {}>"#, pos_quat(&t));
             }
         }
-        children(m, palm, &mut x, &geoms, &armature);
+        self.write_geoms(&mut x, 0);
+        self.write_children(&mut x, 0);
         x.push_str("</body>");
         let _ = write!(
             x,
@@ -215,23 +140,19 @@ impl MujocoHand {
             object.mass
         );
         // A mimic joint follows its leader: q = offset + multiplier * q_leader.
-        if !robot.followers.is_empty() {
+        let followers: Vec<&SimJoint> = a.joints.iter().filter(|j| j.follower).collect();
+        if !followers.is_empty() {
             x.push_str("<equality>");
-            for &f in &robot.followers {
-                let mimic = m.joints[f].mimic.expect("a follower mimics");
-                let _ = write!(
-                    x,
-                    r#"<joint joint1="{}" joint2="{}" polycoef="{} {} 0 0 0"/>"#,
-                    m.joints[f].name, m.joints[mimic.leader].name, mimic.offset, mimic.multiplier
-                );
+            for j in followers {
+                let (name, leader) = (&robot.model.joints[j.joint].name, &robot.hand[j.hand].name);
+                let _ = write!(x, r#"<joint joint1="{name}" joint2="{leader}" polycoef="{} {} 0 0 0"/>"#, j.offset, j.multiplier);
             }
             x.push_str("</equality>");
         }
         x.push_str("<actuator>");
-        for h in &robot.hand {
-            let (name, j) = (&h.name, &m.joints[h.joint]);
-            let effort = h.effort.unwrap_or(s.max_torque);
-            let (kp, kv) = (h.stiffness.unwrap_or(s.stiffness), h.damping.unwrap_or(s.damping));
+        for j in a.joints.iter().filter(|j| !j.follower) {
+            let name = &robot.hand[j.hand].name;
+            let Drive { stiffness: kp, damping: kv, effort } = j.drive;
             let _ = write!(
                 x,
                 r#"<position name="{name}" joint="{name}" kp="{kp}" kv="{kv}" ctrlrange="{} {}" forcerange="{} {}"/>"#,
@@ -240,6 +161,58 @@ impl MujocoHand {
         }
         x.push_str("</actuator></mujoco>");
         x
+    }
+
+    /// The geoms of body `b`'s colliders. Hand geoms collide with the object only (contype 1 /
+    /// conaffinity 2, the object 2 / 1), and have no mass: the body's is the assembly's.
+    fn write_geoms(&self, x: &mut String, b: usize) {
+        let m = &self.robot.model;
+        for c in self.assembly.colliders.iter().filter(|c| c.body == b) {
+            let name = format!("{}_{}", m.links[c.link].name, c.shape);
+            let (kind, size) = match &m.links[c.link].collisions[c.shape].geometry {
+                Geometry::Box { size } => ("box", format!(r#"size="{} {} {}""#, size.x / 2.0, size.y / 2.0, size.z / 2.0)),
+                Geometry::Sphere { radius } => ("sphere", format!(r#"size="{radius}""#)),
+                Geometry::Cylinder { radius, length } => ("cylinder", format!(r#"size="{radius} {}""#, length / 2.0)),
+                Geometry::ConvexHull { .. } | Geometry::Mesh { .. } => ("mesh", format!(r#"mesh="{name}""#)),
+            };
+            let _ = write!(x, r#"<geom name="{name}" type="{kind}" {size} {} contype="1" conaffinity="2" mass="0"/>"#, pos_quat(&c.pose));
+        }
+    }
+
+    /// The bodies the joints of body `b` move, each with its lumped inertia, its joint and geoms,
+    /// depth first.
+    fn write_children(&self, x: &mut String, b: usize) {
+        let (a, m, s) = (&self.assembly, &self.robot.model, &self.settings);
+        for j in a.joints.iter().filter(|j| j.parent == b) {
+            let body = &a.bodies[j.child];
+            let (c, i) = (body.com, body.inertia());
+            let kind = if j.prismatic { "slide" } else { "hinge" };
+            // A drive's stiffness is explicit in MuJoCo's integrator (implicitfast takes only the
+            // damping implicitly): a stiff drive on a light link (the Panda's 15 g fingers at
+            // 14 000 N/m) would ring. Each driven joint (and its mimics) gets at least the
+            // armature that keeps `kp·dt²/armature` at 1; the Allegro's and the 2F-85's keep the
+            // default.
+            let armature = DEFAULT_ARMATURE.max(j.drive.stiffness * s.timestep * s.timestep);
+            let _ = write!(
+                x,
+                r#"<body name="{}" {}><inertial pos="{} {} {}" mass="{}" diaginertia="{i} {i} {i}"/><joint name="{}" type="{kind}" axis="{} {} {}" range="{} {}" damping="0.01" armature="{armature}"/>"#,
+                m.links[body.link].name,
+                pos_quat(&j.origin),
+                c.x,
+                c.y,
+                c.z,
+                body.mass,
+                m.joints[j.joint].name,
+                j.axis.x,
+                j.axis.y,
+                j.axis.z,
+                j.lower,
+                j.upper,
+            );
+            self.write_geoms(x, j.child);
+            self.write_children(x, j.child);
+            x.push_str("</body>");
+        }
     }
 
     fn build(&mut self, object: &PhysicsObject) -> Result<()> {

@@ -2,11 +2,12 @@
 //! stay stiff), joint motors as PD controllers (a `<mimic>` joint's motor tracks its leader's
 //! target), the object as a convex hull.
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use glam::{DAffine3, DQuat, DVec3, Vec3};
 use rapier3d::prelude::*;
-use vt_robot::{Geometry, JointKind, Robot};
+use vt_robot::{Geometry, Robot};
 
+use super::hand_assembly::{Drive, HandAssembly, SimJoint};
 use super::hull_shape::WalkedHull;
 use super::{HandPhysics, PhysicsObject, PhysicsSettings};
 
@@ -22,27 +23,12 @@ fn from_pose(p: &Pose) -> DAffine3 {
     DAffine3::from_rotation_translation(p.rotation.as_dquat(), p.translation.as_dvec3())
 }
 
-/// A simulated joint: a hand joint, or a follower (mimic) of one.
+/// A simulated joint of the assembly, with its bodies and its joint in the world.
 struct HandJoint {
     body: RigidBodyHandle,
     parent: RigidBodyHandle,
     joint: MultibodyJointHandle,
-    /// The joint's origin in the parent body and its URDF axis, to read the joint's value back
-    /// from body poses.
-    origin: DAffine3,
-    axis: DVec3,
-    prismatic: bool,
-    lower: f64,
-    upper: f64,
-    /// The hand joint that drives this one: (index in `Robot::hand`, multiplier, offset).
-    drive: (usize, f64, f64),
-    /// A mimic joint: its target follows its leader's position, every step.
-    follower: bool,
-}
-
-/// A hand joint's PD gains and effort limit: the description's, or the config's.
-fn gains(h: &vt_robot::HandJoint, s: &PhysicsSettings) -> (f64, f64, f64) {
-    (h.stiffness.unwrap_or(s.stiffness), h.damping.unwrap_or(s.damping), h.effort.unwrap_or(s.max_torque))
+    assembly: SimJoint,
 }
 
 /// A mimic joint stands for a rigid linkage (the 2F-85's four-bar): its drive tracks the leader's
@@ -70,6 +56,69 @@ fn hull_shape(points: &[Vec3]) -> Option<SharedShape> {
     Some(SharedShape::new(WalkedHull::from_points(points)?))
 }
 
+/// An empty world with the hand's solver parameters.
+fn hand_world(settings: &PhysicsSettings) -> PhysicsWorld {
+    let mut world = PhysicsWorld::new();
+    world.integration_parameters.dt = settings.timestep as f32;
+    // Tighter than the default so resting contacts penetrate well under a millimetre.
+    world.integration_parameters.normalized_allowed_linear_error = 0.0002;
+    world.integration_parameters.num_solver_iterations = 4;
+    // Four Gauss-Seidel sweeps per solver iteration instead of one: with one, the friction of
+    // a held object's 5 to 7 contacts did not converge, and objects crept 1 to 5 mm and up to
+    // 3.5° in 10 s with the arm still (7 of 12 test grasps still); with four and the stiffer
+    // contacts below, 12 of 12 stay within 0.5 mm and 0.6° (tests/grasping.rs) at the same
+    // physics time per sample, measured with `vtgen bench`. More substeps (16 solver
+    // iterations), no contact recycling or friction in the bias pass did not help.
+    world.integration_parameters.num_internal_pgs_iterations = 4;
+    // Stiff contacts: fingers squeeze with up to 0.7 N·m, which soft contacts turn into
+    // millimetres of overlap.
+    let nf = 1000.0;
+    world.integration_parameters.contact_softness = SpringCoefficients::new(nf, 5.0);
+    world.integration_parameters.static_contact_softness = SpringCoefficients::new(2.0 * nf, 5.0);
+    world
+}
+
+/// A simulated joint as rapier's: a generic joint whose free axis (AngX for a revolute joint,
+/// LinX for a prismatic one) is the URDF axis, its motor at `value` with the drive's gains (times
+/// [`FOLLOWER_GAIN`] for a follower).
+fn multibody_joint(sj: &SimJoint, value: f64) -> GenericJoint {
+    let to_axis = DQuat::from_rotation_arc(DVec3::X, sj.axis);
+    let origin_rot = DQuat::from_mat3(&sj.origin.matrix3);
+    let frame1 = DAffine3::from_rotation_translation(origin_rot * to_axis, sj.origin.translation);
+    let frame2 = DAffine3::from_quat(to_axis);
+    let (locked, axis) = if sj.prismatic {
+        (JointAxesMask::LOCKED_PRISMATIC_AXES, JointAxis::LinX)
+    } else {
+        (JointAxesMask::LOCKED_REVOLUTE_AXES, JointAxis::AngX)
+    };
+    let gain = if sj.follower { FOLLOWER_GAIN } else { 1.0 };
+    let Drive { stiffness, damping, effort } = sj.drive;
+    GenericJointBuilder::new(locked)
+        .local_frame1(to_pose(&frame1))
+        .local_frame2(to_pose(&frame2))
+        .limits(axis, [sj.lower as f32, sj.upper as f32])
+        .motor_model(axis, MotorModel::ForceBased)
+        .motor_position(axis, value as f32, (stiffness * gain) as f32, (damping * gain) as f32)
+        .motor_max_force(axis, (effort * gain) as f32)
+        .build()
+}
+
+/// Each multibody's (one per finger) links where its joint coordinates put them.
+fn place_multibodies(world: &mut PhysicsWorld, joints: &[HandJoint]) {
+    let mut multibodies = Vec::new();
+    for link in joints.iter().filter_map(|j| world.multibody_joints.rigid_body_link(j.body)) {
+        if !multibodies.contains(&link.multibody) {
+            multibodies.push(link.multibody);
+        }
+    }
+    for index in multibodies {
+        if let Some(mb) = world.multibody_joints.get_multibody_mut(index) {
+            mb.forward_kinematics(&world.bodies, true);
+            mb.update_rigid_bodies(&mut world.bodies, false);
+        }
+    }
+}
+
 /// rapier's simulation state: what its snapshots serialize (the pipelines are only workspaces).
 #[derive(Clone)]
 struct WorldState {
@@ -86,6 +135,8 @@ struct WorldState {
 pub struct RapierHand {
     robot: Robot,
     settings: PhysicsSettings,
+    /// The hand's bodies, colliders and joints (the same at every rebuild).
+    assembly: HandAssembly,
     world: PhysicsWorld,
     joints: Vec<HandJoint>,
     /// Each link's collision shapes (`model.links[i].collisions` order), made once: every grasp
@@ -120,6 +171,7 @@ impl RapierHand {
             .collect::<Result<Vec<_>>>()?;
         let mut h = RapierHand {
             robot: robot.clone(),
+            assembly: HandAssembly::new(robot, &settings)?,
             settings,
             world: PhysicsWorld::new(),
             joints: Vec::new(),
@@ -137,153 +189,57 @@ impl RapierHand {
     }
 
     /// Builds the hand at hand joint values `q` in a fresh world.
-    // Long on purpose: one multibody built link by link (colliders, joints, motors), in one place.
     fn build(&mut self, q: &[f64]) -> Result<()> {
         let robot = &self.robot;
         let m = &robot.model;
-        let mut world = PhysicsWorld::new();
-        world.integration_parameters.dt = self.settings.timestep as f32;
-        // Tighter than the default so resting contacts penetrate well under a millimetre.
-        world.integration_parameters.normalized_allowed_linear_error = 0.0002;
-        world.integration_parameters.num_solver_iterations = 4;
-        // Four Gauss-Seidel sweeps per solver iteration instead of one: with one, the friction of
-        // a held object's 5 to 7 contacts did not converge, and objects crept 1 to 5 mm and up to
-        // 3.5° in 10 s with the arm still (7 of 12 test grasps still); with four and the stiffer
-        // contacts below, 12 of 12 stay within 0.5 mm and 0.6° (tests/grasping.rs) at the same
-        // physics time per sample, measured with `vtgen bench`. More substeps (16 solver
-        // iterations), no contact recycling or friction in the bias pass did not help.
-        world.integration_parameters.num_internal_pgs_iterations = 4;
-        // Stiff contacts: fingers squeeze with up to 0.7 N·m, which soft contacts turn into
-        // millimetres of overlap.
-        let nf = 1000.0;
-        world.integration_parameters.contact_softness = SpringCoefficients::new(nf, 5.0);
-        world.integration_parameters.static_contact_softness = SpringCoefficients::new(2.0 * nf, 5.0);
-        // The hand's root (the palm, or a gripper's base) and its pose in the grasp frame, the
-        // frame the simulation is in (None: the root is the grasp frame).
+        let mut world = hand_world(&self.settings);
+        // The hand's root (the palm, or a gripper's base), its bodies, colliders and joints.
         let palm = robot.hand_root;
+        let assembly = &self.assembly;
         let mut full_q = m.zero();
         robot.set_hand(&mut full_q, q);
-        let t_grasp_root = (palm != robot.grasp_frame).then(|| m.relative_pose(&full_q, palm, robot.grasp_frame).inverse());
-        let in_grasp_frame = |t: DAffine3| t_grasp_root.map_or(t, |g| g * t);
-        // The simulated joints: the hand's, then their followers (in tree order, parents first).
-        let mut simulated: Vec<(usize, (usize, f64, f64))> = robot.hand.iter().enumerate().map(|(k, h)| (h.joint, (k, 1.0, 0.0))).collect();
-        for &f in &robot.followers {
-            let mimic = m.joints[f].mimic.expect("a follower mimics");
-            let k = robot.hand.iter().position(|h| h.joint == mimic.leader).expect("a follower's leader is a hand joint");
-            simulated.push((f, (k, mimic.multiplier, mimic.offset)));
-        }
-        // Each link below the palm moves with a body: its own when a simulated joint moves it,
-        // else its parent's (links fixed to another, e.g. sensor pads or a finger's outer shell).
-        let mut body_link = vec![usize::MAX; m.links.len()];
-        for (li, link) in m.links.iter().enumerate() {
-            if !m.is_below(li, palm) {
-                continue;
-            }
-            body_link[li] = match link.parent_joint {
-                _ if li == palm => li,
-                Some(j) if m.joints[j].moves() => li,
-                Some(j) => body_link[m.joints[j].parent],
-                None => li,
-            };
-        }
         let groups = InteractionGroups::new(HAND_GROUP, OBJECT_GROUP, InteractionTestMode::And);
-        let mut bodies = vec![None; m.links.len()];
+        let bodies: Vec<RigidBodyHandle> = assembly
+            .bodies
+            .iter()
+            .map(|body| {
+                let pose = to_pose(&assembly.in_grasp_frame(m.relative_pose(&full_q, palm, body.link)));
+                let rb = if body.link == palm { RigidBodyBuilder::fixed() } else { RigidBodyBuilder::dynamic() };
+                world.insert_body(rb.pose(pose).can_sleep(false))
+            })
+            .collect();
         let mut hand_colliders = Vec::new();
         let mut hand_collider_links = Vec::new();
         let mut link_colliders: Vec<Vec<ColliderHandle>> = vec![Vec::new(); m.links.len()];
-        // Bodies for the palm and every link below it that has mass or collision geometry.
-        for (li, link) in m.links.iter().enumerate() {
-            let b = body_link[li];
-            if b == usize::MAX || (li != palm && link.mass <= 0.0 && link.collisions.is_empty()) {
-                continue;
-            }
-            let handle = match bodies[b] {
-                Some(h) => h,
-                None => {
-                    let pose = to_pose(&in_grasp_frame(m.relative_pose(&full_q, palm, b)));
-                    let rb = if b == palm { RigidBodyBuilder::fixed() } else { RigidBodyBuilder::dynamic() };
-                    let h = world.insert_body(rb.pose(pose).can_sleep(false));
-                    bodies[b] = Some(h);
-                    h
-                }
-            };
-            let t_body_link = if b == li { DAffine3::IDENTITY } else { m.relative_pose(&full_q, b, li) };
-            for (s, shape) in link.collisions.iter().zip(&self.link_shapes[li]) {
-                // Colliders share the link's mass; their density is set so the link mass is exact.
-                let c = ColliderBuilder::new(shape.clone())
-                    .position(to_pose(&(t_body_link * s.origin)))
-                    .friction(self.settings.friction as f32)
-                    .density(0.0)
-                    .collision_groups(groups);
-                let ch = world.insert_collider(c, Some(handle));
-                hand_colliders.push(ch);
-                hand_collider_links.push(li);
-                link_colliders[li].push(ch);
-            }
+        for c in &assembly.colliders {
+            // Colliders have no mass: the body's is the assembly's (below).
+            let collider = ColliderBuilder::new(self.link_shapes[c.link][c.shape].clone())
+                .position(to_pose(&c.pose))
+                .friction(self.settings.friction as f32)
+                .density(0.0)
+                .collision_groups(groups);
+            let ch = world.insert_collider(collider, Some(bodies[c.body]));
+            hand_colliders.push(ch);
+            hand_collider_links.push(c.link);
+            link_colliders[c.link].push(ch);
         }
-        // Mass properties from the URDF (a small box inertia about the centre of mass), the links
-        // fixed to a body's link counted with it.
-        for (b, handle) in bodies.iter().enumerate() {
-            let Some(handle) = *handle else { continue };
-            if b == palm {
-                continue;
-            }
-            let parts: Vec<usize> = (0..m.links.len()).filter(|&l| body_link[l] == b && m.links[l].mass > 0.0).collect();
-            let (mass, com) = match parts[..] {
-                [] => (0.0, m.links[b].com),
-                [only] if only == b => (m.links[b].mass, m.links[b].com),
-                _ => {
-                    let total: f64 = parts.iter().map(|&l| m.links[l].mass).sum();
-                    let moment = parts.iter().fold(DVec3::ZERO, |acc, &l| {
-                        acc + m.relative_pose(&full_q, b, l).transform_point3(m.links[l].com) * m.links[l].mass
-                    });
-                    (total, moment / total)
-                }
-            };
-            let mass = mass.max(0.005) as f32;
-            let i = mass * 0.02 * 0.02 / 6.0;
-            if let Some(body) = world.bodies.get_mut(handle) {
-                body.set_additional_mass_properties(MassProperties::new(com.as_vec3(), mass, Vec3::splat(i)), true);
+        for (body, &handle) in assembly.bodies.iter().zip(&bodies).filter(|(b, _)| b.link != palm) {
+            if let Some(rb) = world.bodies.get_mut(handle) {
+                let props = MassProperties::new(body.com.as_vec3(), body.mass as f32, Vec3::splat(body.inertia_f32()));
+                rb.set_additional_mass_properties(props, true);
             }
         }
         let mut joints = Vec::new();
-        for &(ji, drive) in &simulated {
-            let j = &m.joints[ji];
-            let name = &j.name;
-            let pb = body_link[j.parent];
-            let (Some(mut parent), Some(child)) = (bodies[pb], bodies[j.child]) else {
-                bail!("joint {name} links bodies without geometry")
-            };
-            if pb == palm {
+        for sj in &assembly.joints {
+            let name = &m.joints[sj.joint].name;
+            let (mut parent, child) = (bodies[sj.parent], bodies[sj.child]);
+            if assembly.bodies[sj.parent].link == palm {
                 // One multibody per finger, each on its own fixed root at the palm: contact
                 // constraints then solve against 4x4 instead of 16x16 mass matrices.
-                parent = world.insert_body(RigidBodyBuilder::fixed().pose(to_pose(&in_grasp_frame(DAffine3::IDENTITY))));
+                parent = world.insert_body(RigidBodyBuilder::fixed().pose(to_pose(&assembly.in_grasp_frame(DAffine3::IDENTITY))));
             }
-            // Joint frames whose x axis is the URDF axis: rapier's free revolute axis is AngX,
-            // its free prismatic axis LinX.
-            let to_axis = DQuat::from_rotation_arc(DVec3::X, j.axis);
-            let origin = if pb == j.parent { j.origin } else { m.relative_pose(&full_q, pb, j.parent) * j.origin };
-            let origin_rot = DQuat::from_mat3(&origin.matrix3);
-            let frame1 = DAffine3::from_rotation_translation(origin_rot * to_axis, origin.translation);
-            let frame2 = DAffine3::from_quat(to_axis);
-            let value = m.joint_value(ji, &full_q).expect("a simulated joint moves");
-            let prismatic = j.kind == JointKind::Prismatic;
-            let (locked, axis) = if prismatic {
-                (JointAxesMask::LOCKED_PRISMATIC_AXES, JointAxis::LinX)
-            } else {
-                (JointAxesMask::LOCKED_REVOLUTE_AXES, JointAxis::AngX)
-            };
-            let follower = j.mimic.is_some();
-            let gain = if follower { FOLLOWER_GAIN } else { 1.0 };
-            let (stiffness, damping, effort) = gains(&robot.hand[drive.0], &self.settings);
-            let joint = GenericJointBuilder::new(locked)
-                .local_frame1(to_pose(&frame1))
-                .local_frame2(to_pose(&frame2))
-                .limits(axis, [j.lower as f32, j.upper as f32])
-                .motor_model(axis, MotorModel::ForceBased)
-                .motor_position(axis, value as f32, (stiffness * gain) as f32, (damping * gain) as f32)
-                .motor_max_force(axis, (effort * gain) as f32)
-                .build();
+            let value = m.joint_value(sj.joint, &full_q).expect("a simulated joint moves");
+            let joint = multibody_joint(sj, value);
             let handle =
                 world.insert_multibody_joint(parent, child, joint).with_context(|| format!("cannot add joint {name} to the hand"))?;
             // A multibody joint starts at coordinate 0 (the URDF's zero, e.g. a Panda's closed
@@ -293,32 +249,9 @@ impl RapierHand {
             {
                 l.joint.apply_displacement(&[value as f32]);
             }
-            joints.push(HandJoint {
-                body: child,
-                parent,
-                joint: handle,
-                origin,
-                axis: j.axis,
-                prismatic,
-                lower: j.lower,
-                upper: j.upper,
-                drive,
-                follower,
-            });
+            joints.push(HandJoint { body: child, parent, joint: handle, assembly: sj.clone() });
         }
-        // The links where the joint coordinates put them: once per multibody (one per finger).
-        let mut multibodies = Vec::new();
-        for link in joints.iter().filter_map(|j| world.multibody_joints.rigid_body_link(j.body)) {
-            if !multibodies.contains(&link.multibody) {
-                multibodies.push(link.multibody);
-            }
-        }
-        for index in multibodies {
-            if let Some(mb) = world.multibody_joints.get_multibody_mut(index) {
-                mb.forward_kinematics(&world.bodies, true);
-                mb.update_rigid_bodies(&mut world.bodies, false);
-            }
-        }
+        place_multibodies(&mut world, &joints);
         let touch_colliders = robot.touch_links.iter().map(|&l| link_colliders[l].clone()).collect();
         self.world = world;
         self.joints = joints;
@@ -333,13 +266,11 @@ impl RapierHand {
     /// Drives simulated joint `k` towards its drive's `value` (mapped by its multiplier and offset)
     /// with the hand's PD gains times `gain`.
     fn set_motor(&mut self, k: usize, value: f64, gain: f64) {
-        let hj = &self.joints[k];
-        let (leader, multiplier, offset) = hj.drive;
-        let t = (multiplier * value + offset).clamp(hj.lower, hj.upper) as f32;
-        let axis = if hj.prismatic { JointAxis::LinX } else { JointAxis::AngX };
-        let (stiffness, damping, _) = gains(&self.robot.hand[leader], &self.settings);
-        let (stiffness, damping) = ((stiffness * gain) as f32, (damping * gain) as f32);
-        if let Some((mb, link)) = self.world.multibody_joints.get_mut(hj.joint)
+        let (handle, sj) = (self.joints[k].joint, &self.joints[k].assembly);
+        let t = (sj.multiplier * value + sj.offset).clamp(sj.lower, sj.upper) as f32;
+        let axis = if sj.prismatic { JointAxis::LinX } else { JointAxis::AngX };
+        let (stiffness, damping) = ((sj.drive.stiffness * gain) as f32, (sj.drive.damping * gain) as f32);
+        if let Some((mb, link)) = self.world.multibody_joints.get_mut(handle)
             && let Some(l) = mb.link_mut(link)
         {
             l.joint.data.set_motor_position(axis, t, stiffness, damping);
@@ -349,15 +280,16 @@ impl RapierHand {
     /// The value of simulated joint `k` from its bodies' poses.
     fn joint_value(&self, k: usize) -> f64 {
         let hj = &self.joints[k];
+        let sj = &hj.assembly;
         let p = from_pose(self.world.bodies[hj.parent].position());
         let c = from_pose(self.world.bodies[hj.body].position());
         let rel = p.inverse() * c;
-        if hj.prismatic {
+        if sj.prismatic {
             // The child's offset from the joint origin, along the axis.
-            return (hj.origin.inverse() * rel).translation.dot(hj.axis);
+            return (sj.origin.inverse() * rel).translation.dot(sj.axis);
         }
-        let q = DQuat::from_mat3(&hj.origin.matrix3).inverse() * DQuat::from_mat3(&rel.matrix3);
-        2.0 * DVec3::new(q.x, q.y, q.z).dot(hj.axis).atan2(q.w)
+        let q = DQuat::from_mat3(&sj.origin.matrix3).inverse() * DQuat::from_mat3(&rel.matrix3);
+        2.0 * DVec3::new(q.x, q.y, q.z).dot(sj.axis).atan2(q.w)
     }
 
     /// Signed distance (negative = penetration) between a hand collider and the object at their
@@ -378,7 +310,7 @@ impl HandPhysics for RapierHand {
 
     fn reset(&mut self, object: &PhysicsObject, object_pose: DAffine3, q: &[f64]) -> Result<()> {
         // `new` built the hand joints first: their limits clamp the requested values.
-        let q: Vec<f64> = q.iter().zip(&self.joints).map(|(v, j)| v.clamp(j.lower, j.upper)).collect();
+        let q: Vec<f64> = q.iter().zip(&self.joints).map(|(v, j)| v.clamp(j.assembly.lower, j.assembly.upper)).collect();
         self.build(&q)?;
         if self.hull.as_ref().is_none_or(|(pts, _)| *pts != object.points) {
             let pts: Vec<Vec3> = object.points.iter().map(|p| Vec3::from_array(*p)).collect();
@@ -399,8 +331,8 @@ impl HandPhysics for RapierHand {
 
     fn set_targets(&mut self, targets: &[f64]) {
         for k in 0..self.joints.len() {
-            if !self.joints[k].follower {
-                self.set_motor(k, targets[self.joints[k].drive.0], 1.0);
+            if !self.joints[k].assembly.follower {
+                self.set_motor(k, targets[self.joints[k].assembly.hand], 1.0);
             }
         }
     }
@@ -421,8 +353,8 @@ impl HandPhysics for RapierHand {
     fn step(&mut self) {
         // Mimic joints follow where their leader is.
         for k in 0..self.joints.len() {
-            if self.joints[k].follower {
-                let leader = self.joint_value(self.joints[k].drive.0);
+            if self.joints[k].assembly.follower {
+                let leader = self.joint_value(self.joints[k].assembly.hand);
                 self.set_motor(k, leader, FOLLOWER_GAIN);
             }
         }
