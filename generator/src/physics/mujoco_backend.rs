@@ -1,8 +1,9 @@
 //! MuJoCo backend (cargo feature `mujoco`): the same hand-frame simulation as the rapier backend,
-//! as an MJCF model translated from the hand's assembly (`hand_assembly.rs`): the hand's root fixed
-//! in the world, its bodies with their lumped inertia, the hand joints with position actuators (PD gains and effort limits from the config and
-//! the description), `<mimic>` joints as joint equality constraints, and the object as a free body
-//! whose collision shape MuJoCo takes as its mesh's convex hull.
+//! as an MJCF model translated from the hand's assembly (`hand_assembly.rs`): the hand's root
+//! fixed in the world, its bodies with their lumped inertia, the hand joints with position
+//! actuators (PD gains and effort limits from the config and the description), `<mimic>` joints
+//! as joint equality constraints, and the object as a free body whose collision shape MuJoCo takes
+//! as its mesh's convex hull.
 
 use std::fmt::Write as _;
 
