@@ -150,154 +150,26 @@ impl RobotModel {
         Self::from_urdf(text, source_name, &MeshPaths::default())
     }
 
-    // `!(a <= b)` on purpose: a NaN limit or axis must fail the checks too.
-    // Long on purpose: one pass over the URDF's links and joints, each check next to the field it
-    // reads, so that every error names its link or joint in the order a reader meets them.
-    #[allow(clippy::neg_cmp_op_on_partial_ord)]
     /// A URDF whose `<mesh>` files are found through `paths`. Every mesh problem (a missing file, an
-    /// unreadable one) is listed in one error.
+    /// unreadable one) is listed in one error; every other names its link or joint.
     pub fn from_urdf(text: &str, source_name: &str, paths: &MeshPaths) -> Result<Self, RobotError> {
         let err = |message: String| RobotError { source_name: source_name.to_string(), message };
         let urdf = urdf_rs::read_from_string(text).map_err(|e| err(format!("not valid URDF: {e}")))?;
         let mut meshes = MeshCache::default();
-        let mut mesh_problems: Vec<String> = Vec::new();
-        let colours: HashMap<&str, [f64; 4]> =
-            urdf.materials.iter().filter_map(|m| m.color.as_ref().map(|c| (m.name.as_str(), c.rgba.0))).collect();
-        // A shape, or None when its mesh could not be read (the problem is listed).
-        let mut shape = |origin: &urdf_rs::Pose, g: &urdf_rs::Geometry, rgba: [f64; 4], owner: &str| -> Option<Shape> {
-            let geometry = match g {
-                urdf_rs::Geometry::Box { size } => Geometry::Box { size: DVec3::from_array(size.0) },
-                urdf_rs::Geometry::Cylinder { radius, length } => Geometry::Cylinder { radius: *radius, length: *length },
-                urdf_rs::Geometry::Capsule { radius, length } => {
-                    mesh_problems
-                        .push(format!("{owner}: capsule (r {radius}, length {length}) is not supported: use a cylinder or a mesh"));
-                    return None;
-                }
-                urdf_rs::Geometry::Sphere { radius } => Geometry::Sphere { radius: *radius },
-                urdf_rs::Geometry::Mesh { filename, scale } => {
-                    let scale = scale.map_or(DVec3::ONE, |s| DVec3::from_array(s.0));
-                    let read = paths.resolve(filename).and_then(|p| meshes.read(&p, scale).map_err(|e| format!("{}: {e}", p.display())));
-                    match read {
-                        Ok(mesh) => Geometry::Mesh { mesh },
-                        Err(e) => {
-                            mesh_problems.push(format!("{owner}: mesh '{filename}': {e}"));
-                            return None;
-                        }
-                    }
-                }
-            };
-            Some(Shape { geometry, origin: pose(origin), rgba })
-        };
-        let mut links = Vec::new();
-        let mut link_index = HashMap::new();
-        for l in &urdf.links {
-            if link_index.insert(l.name.clone(), links.len()).is_some() {
-                return Err(err(format!("link '{}' is defined twice", l.name)));
-            }
-            let mut visuals = Vec::new();
-            for (i, v) in l.visual.iter().enumerate() {
-                let colour =
-                    v.material.as_ref().and_then(|m| m.color.as_ref().map(|c| c.rgba.0).or_else(|| colours.get(m.name.as_str()).copied()));
-                // A mesh without a URDF colour keeps its file's colours (`NO_RGBA` marks it).
-                let rgba = match (&v.geometry, colour) {
-                    (_, Some(c)) => c,
-                    (urdf_rs::Geometry::Mesh { .. }, None) => NO_RGBA,
-                    (_, None) => [0.5, 0.5, 0.5, 1.0],
-                };
-                visuals.extend(shape(&v.origin, &v.geometry, rgba, &format!("link '{}' visual {i}", l.name)));
-            }
-            let collisions = l
-                .collision
-                .iter()
-                .enumerate()
-                .filter_map(|(i, c)| shape(&c.origin, &c.geometry, [0.0; 4], &format!("link '{}' collision {i}", l.name)))
-                // A collision mesh collides as the convex hull of its vertices in both backends (or as
-                // the hulls of its convex decomposition, when the description asks).
-                .collect();
-            links.push(Link {
-                name: l.name.clone(),
-                mass: l.inertial.mass.value,
-                com: DVec3::from_array(l.inertial.origin.xyz.0),
-                visuals,
-                collisions,
-                parent_joint: None,
-            });
-        }
-        if !mesh_problems.is_empty() {
-            let n = mesh_problems.len();
-            let list: String = mesh_problems.iter().map(|p| format!("\n  - {p}")).collect();
-            return Err(err(format!("{n} geometr{} cannot be loaded:{list}", if n == 1 { "y" } else { "ies" })));
-        }
+        let (mut links, link_index) = read_links(&urdf, paths, &mut meshes).map_err(err)?;
         let mut joints = Vec::new();
         let mut joint_index = HashMap::new();
         for j in &urdf.joints {
-            let find = |name: &str, role: &str| {
-                link_index.get(name).copied().ok_or_else(|| err(format!("joint '{}' refers to a missing {role} link '{name}'", j.name)))
-            };
-            let (parent, child) = (find(&j.parent.link, "parent")?, find(&j.child.link, "child")?);
-            let kind = match j.joint_type {
-                urdf_rs::JointType::Revolute | urdf_rs::JointType::Continuous => JointKind::Revolute,
-                urdf_rs::JointType::Prismatic => JointKind::Prismatic,
-                urdf_rs::JointType::Fixed => JointKind::Fixed,
-                ref other => {
-                    return Err(err(format!(
-                        "joint '{}': type {other:?} is not supported (revolute, continuous, prismatic, fixed)",
-                        j.name
-                    )));
-                }
-            };
-            let (mut lower, mut upper) = (j.limit.lower, j.limit.upper);
-            if j.joint_type == urdf_rs::JointType::Continuous {
-                (lower, upper) = (f64::NEG_INFINITY, f64::INFINITY);
-            }
-            if kind != JointKind::Fixed && !(lower <= upper) {
-                return Err(err(format!("joint '{}': lower limit {lower} is above upper limit {upper}", j.name)));
-            }
-            let axis = DVec3::from_array(j.axis.xyz.0);
-            if kind != JointKind::Fixed && !(axis.length() > 1e-9) {
-                return Err(err(format!("joint '{}': axis is zero", j.name)));
-            }
-            if links[child].parent_joint.is_some() {
+            let joint = read_joint(j, &link_index).map_err(err)?;
+            if links[joint.child].parent_joint.is_some() {
                 return Err(err(format!("link '{}' is the child of two joints", j.child.link)));
             }
-            links[child].parent_joint = Some(joints.len());
+            links[joint.child].parent_joint = Some(joints.len());
             joint_index.insert(j.name.clone(), joints.len());
-            joints.push(Joint {
-                name: j.name.clone(),
-                kind,
-                parent,
-                child,
-                origin: pose(&j.origin),
-                axis: axis.normalize_or_zero(),
-                lower,
-                upper,
-                effort: j.limit.effort,
-                velocity: j.limit.velocity,
-                dof: None,
-                mimic: None,
-            });
+            joints.push(joint);
         }
-        // Mimics refer to joints by name: resolved once every joint is known.
-        for j in &urdf.joints {
-            let Some(m) = &j.mimic else { continue };
-            let Some(&leader) = joint_index.get(&m.joint) else {
-                return Err(err(format!("joint '{}': <mimic joint=\"{}\"> names a joint that does not exist", j.name, m.joint)));
-            };
-            let follower = joint_index[&j.name];
-            if joints[follower].kind == JointKind::Fixed {
-                return Err(err(format!("joint '{}': a fixed joint cannot mimic another", j.name)));
-            }
-            if !joints[leader].moves() || urdf.joints.iter().any(|o| o.name == m.joint && o.mimic.is_some()) {
-                return Err(err(format!("joint '{}': mimics '{}', which does not move on its own", j.name, m.joint)));
-            }
-            let (multiplier, offset) = (m.multiplier.unwrap_or(1.0), m.offset.unwrap_or(0.0));
-            if !(multiplier.is_finite() && offset.is_finite()) {
-                return Err(err(format!("joint '{}': mimic multiplier and offset must be finite numbers", j.name)));
-            }
-            joints[follower].mimic = Some(Mimic { leader, multiplier, offset });
-        }
-        let (root, joints, joint_index) = topological_order(&mut links, joints, joint_index).map_err(err)?;
-        let mut joints = joints;
+        resolve_mimics(&urdf, &mut joints, &joint_index).map_err(err)?;
+        let (root, mut joints, joint_index) = topological_order(&mut links, joints, joint_index).map_err(err)?;
         let mut dofs = Vec::new();
         for (i, j) in joints.iter_mut().enumerate() {
             if j.moves() && j.mimic.is_none() {
@@ -463,6 +335,143 @@ impl RobotModel {
             }
         }
     }
+}
+
+/// The URDF's links with their visual and collision shapes, and their index by name. Every mesh
+/// that cannot be read is listed in the one error.
+fn read_links(urdf: &urdf_rs::Robot, paths: &MeshPaths, meshes: &mut MeshCache) -> Result<(Vec<Link>, HashMap<String, usize>), String> {
+    let mut mesh_problems: Vec<String> = Vec::new();
+    let colours: HashMap<&str, [f64; 4]> =
+        urdf.materials.iter().filter_map(|m| m.color.as_ref().map(|c| (m.name.as_str(), c.rgba.0))).collect();
+    // A shape, or None when its mesh could not be read (the problem is listed).
+    let mut shape = |origin: &urdf_rs::Pose, g: &urdf_rs::Geometry, rgba: [f64; 4], owner: &str| -> Option<Shape> {
+        let geometry = match g {
+            urdf_rs::Geometry::Box { size } => Geometry::Box { size: DVec3::from_array(size.0) },
+            urdf_rs::Geometry::Cylinder { radius, length } => Geometry::Cylinder { radius: *radius, length: *length },
+            urdf_rs::Geometry::Capsule { radius, length } => {
+                mesh_problems.push(format!("{owner}: capsule (r {radius}, length {length}) is not supported: use a cylinder or a mesh"));
+                return None;
+            }
+            urdf_rs::Geometry::Sphere { radius } => Geometry::Sphere { radius: *radius },
+            urdf_rs::Geometry::Mesh { filename, scale } => {
+                let scale = scale.map_or(DVec3::ONE, |s| DVec3::from_array(s.0));
+                let read = paths.resolve(filename).and_then(|p| meshes.read(&p, scale).map_err(|e| format!("{}: {e}", p.display())));
+                match read {
+                    Ok(mesh) => Geometry::Mesh { mesh },
+                    Err(e) => {
+                        mesh_problems.push(format!("{owner}: mesh '{filename}': {e}"));
+                        return None;
+                    }
+                }
+            }
+        };
+        Some(Shape { geometry, origin: pose(origin), rgba })
+    };
+    let mut links = Vec::new();
+    let mut link_index = HashMap::new();
+    for l in &urdf.links {
+        if link_index.insert(l.name.clone(), links.len()).is_some() {
+            return Err(format!("link '{}' is defined twice", l.name));
+        }
+        let mut visuals = Vec::new();
+        for (i, v) in l.visual.iter().enumerate() {
+            let colour =
+                v.material.as_ref().and_then(|m| m.color.as_ref().map(|c| c.rgba.0).or_else(|| colours.get(m.name.as_str()).copied()));
+            // A mesh without a URDF colour keeps its file's colours (`NO_RGBA` marks it).
+            let rgba = match (&v.geometry, colour) {
+                (_, Some(c)) => c,
+                (urdf_rs::Geometry::Mesh { .. }, None) => NO_RGBA,
+                (_, None) => [0.5, 0.5, 0.5, 1.0],
+            };
+            visuals.extend(shape(&v.origin, &v.geometry, rgba, &format!("link '{}' visual {i}", l.name)));
+        }
+        let collisions = l
+            .collision
+            .iter()
+            .enumerate()
+            .filter_map(|(i, c)| shape(&c.origin, &c.geometry, [0.0; 4], &format!("link '{}' collision {i}", l.name)))
+            // A collision mesh collides as the convex hull of its vertices in both backends (or as
+            // the hulls of its convex decomposition, when the description asks).
+            .collect();
+        links.push(Link {
+            name: l.name.clone(),
+            mass: l.inertial.mass.value,
+            com: DVec3::from_array(l.inertial.origin.xyz.0),
+            visuals,
+            collisions,
+            parent_joint: None,
+        });
+    }
+    if !mesh_problems.is_empty() {
+        let n = mesh_problems.len();
+        let list: String = mesh_problems.iter().map(|p| format!("\n  - {p}")).collect();
+        return Err(format!("{n} geometr{} cannot be loaded:{list}", if n == 1 { "y" } else { "ies" }));
+    }
+    Ok((links, link_index))
+}
+
+/// A URDF joint between known links, its type supported, its limits a range and its axis not zero
+/// (`!(a <= b)` on purpose: a NaN limit or axis fails too). Its mimic is resolved later.
+#[allow(clippy::neg_cmp_op_on_partial_ord)]
+fn read_joint(j: &urdf_rs::Joint, link_index: &HashMap<String, usize>) -> Result<Joint, String> {
+    let find = |name: &str, role: &str| {
+        link_index.get(name).copied().ok_or_else(|| format!("joint '{}' refers to a missing {role} link '{name}'", j.name))
+    };
+    let (parent, child) = (find(&j.parent.link, "parent")?, find(&j.child.link, "child")?);
+    let kind = match j.joint_type {
+        urdf_rs::JointType::Revolute | urdf_rs::JointType::Continuous => JointKind::Revolute,
+        urdf_rs::JointType::Prismatic => JointKind::Prismatic,
+        urdf_rs::JointType::Fixed => JointKind::Fixed,
+        ref other => return Err(format!("joint '{}': type {other:?} is not supported (revolute, continuous, prismatic, fixed)", j.name)),
+    };
+    let (mut lower, mut upper) = (j.limit.lower, j.limit.upper);
+    if j.joint_type == urdf_rs::JointType::Continuous {
+        (lower, upper) = (f64::NEG_INFINITY, f64::INFINITY);
+    }
+    if kind != JointKind::Fixed && !(lower <= upper) {
+        return Err(format!("joint '{}': lower limit {lower} is above upper limit {upper}", j.name));
+    }
+    let axis = DVec3::from_array(j.axis.xyz.0);
+    if kind != JointKind::Fixed && !(axis.length() > 1e-9) {
+        return Err(format!("joint '{}': axis is zero", j.name));
+    }
+    Ok(Joint {
+        name: j.name.clone(),
+        kind,
+        parent,
+        child,
+        origin: pose(&j.origin),
+        axis: axis.normalize_or_zero(),
+        lower,
+        upper,
+        effort: j.limit.effort,
+        velocity: j.limit.velocity,
+        dof: None,
+        mimic: None,
+    })
+}
+
+/// Each `<mimic>`'s leader, by name once every joint is known: a joint that moves on its own.
+fn resolve_mimics(urdf: &urdf_rs::Robot, joints: &mut [Joint], joint_index: &HashMap<String, usize>) -> Result<(), String> {
+    for j in &urdf.joints {
+        let Some(m) = &j.mimic else { continue };
+        let Some(&leader) = joint_index.get(&m.joint) else {
+            return Err(format!("joint '{}': <mimic joint=\"{}\"> names a joint that does not exist", j.name, m.joint));
+        };
+        let follower = joint_index[&j.name];
+        if joints[follower].kind == JointKind::Fixed {
+            return Err(format!("joint '{}': a fixed joint cannot mimic another", j.name));
+        }
+        if !joints[leader].moves() || urdf.joints.iter().any(|o| o.name == m.joint && o.mimic.is_some()) {
+            return Err(format!("joint '{}': mimics '{}', which does not move on its own", j.name, m.joint));
+        }
+        let (multiplier, offset) = (m.multiplier.unwrap_or(1.0), m.offset.unwrap_or(0.0));
+        if !(multiplier.is_finite() && offset.is_finite()) {
+            return Err(format!("joint '{}': mimic multiplier and offset must be finite numbers", j.name));
+        }
+        joints[follower].mimic = Some(Mimic { leader, multiplier, offset });
+    }
+    Ok(())
 }
 
 /// The root link and the joints in topological order from it (a joint after the joint of its
