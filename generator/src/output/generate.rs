@@ -182,28 +182,9 @@ fn lock_dataset(out: &Path) -> Result<std::fs::File> {
     Ok(lock)
 }
 
-/// Rebuilds `manifest.json` from the shards on disk. Checksums already known (from this run or the
-/// previous manifest, same size) are reused; unknown complete shards are hashed. Parallel `--shard`
-/// processes on one directory each rewrite it this way, so the last one to finish lists them all.
-// Long on purpose: lock, read, reconcile with the shards on disk, write atomically, unlock: one
-// critical section, kept in one function so that nothing runs between its steps.
-fn update_manifest(out: &Path, config: &Config, config_sha: &str, plan: &Plan, receipts: &[(String, ShardReceipt)]) -> Result<Manifest> {
-    // Parallel `--shard` processes finishing together take turns, so none writes a manifest that
-    // misses a shard another just listed.
-    let _lock = lock_dataset(out)?;
-    let mut known: BTreeMap<String, (u64, String)> = BTreeMap::new();
-    if let Ok(old) = Manifest::load(&out.join(vt_dataset::MANIFEST_FILE))
-        && old.config_sha256 == config_sha
-    {
-        for s in old.splits.values().flat_map(|s| &s.shards) {
-            if let (Some(b), Some(h)) = (s.bytes, &s.sha256) {
-                known.insert(s.file.clone(), (b, h.clone()));
-            }
-        }
-    }
-    for (file, r) in receipts {
-        known.insert(file.clone(), (r.bytes, r.sha256.clone()));
-    }
+/// Each split's shards as they are on disk (size and checksum: known ones reused when the size is
+/// the same, complete unknown ones hashed), and whether every shard is there.
+fn split_manifests(out: &Path, plan: &Plan, known: &BTreeMap<String, (u64, String)>) -> Result<(BTreeMap<String, SplitManifest>, bool)> {
     let mut splits = BTreeMap::new();
     let mut complete = true;
     for (si, split) in SPLITS.iter().enumerate() {
@@ -238,8 +219,12 @@ fn update_manifest(out: &Path, config: &Config, config_sha: &str, plan: &Plan, r
             SplitManifest { samples: plan.samples_per_split[si], samples_per_shard: plan.samples_per_shard, shards },
         );
     }
-    // Figures summed over the complete shards: the occlusion histogram, and the grasp loop's
-    // (each shard stores those of the trajectories that start in it).
+    Ok((splits, complete))
+}
+
+/// Figures summed over the complete shards: the grasp loop's (each shard stores those of the
+/// trajectories that start in it) and the occlusion histogram.
+fn summed_figures(out: &Path, splits: &BTreeMap<String, SplitManifest>) -> Result<(GraspStats, [u64; 3])> {
     let mut grasp_total = GraspStats::default();
     let mut histogram = [0u64; 3];
     for e in splits.values().flat_map(|s: &SplitManifest| &s.shards).filter(|e| e.sha256.is_some()) {
@@ -254,6 +239,32 @@ fn update_manifest(out: &Path, config: &Config, config_sha: &str, plan: &Plan, r
             (0..3).for_each(|i| histogram[i] += h[i]);
         }
     }
+    Ok((grasp_total, histogram))
+}
+
+/// Rebuilds `manifest.json` from the shards on disk. Checksums already known (from this run or the
+/// previous manifest, same size) are reused; unknown complete shards are hashed. Parallel `--shard`
+/// processes on one directory each rewrite it this way, so the last one to finish lists them all.
+// The lock is held from the read to the atomic write: one critical section.
+fn update_manifest(out: &Path, config: &Config, config_sha: &str, plan: &Plan, receipts: &[(String, ShardReceipt)]) -> Result<Manifest> {
+    // Parallel `--shard` processes finishing together take turns, so none writes a manifest that
+    // misses a shard another just listed.
+    let _lock = lock_dataset(out)?;
+    let mut known: BTreeMap<String, (u64, String)> = BTreeMap::new();
+    if let Ok(old) = Manifest::load(&out.join(vt_dataset::MANIFEST_FILE))
+        && old.config_sha256 == config_sha
+    {
+        for s in old.splits.values().flat_map(|s| &s.shards) {
+            if let (Some(b), Some(h)) = (s.bytes, &s.sha256) {
+                known.insert(s.file.clone(), (b, h.clone()));
+            }
+        }
+    }
+    for (file, r) in receipts {
+        known.insert(file.clone(), (r.bytes, r.sha256.clone()));
+    }
+    let (splits, complete) = split_manifests(out, plan, &known)?;
+    let (grasp_total, histogram) = summed_figures(out, &splits)?;
     let m = Manifest {
         format: vt_dataset::FORMAT_NAME.into(),
         format_version: vt_dataset::FORMAT_VERSION,
@@ -328,9 +339,72 @@ fn write_shard(
     Ok(Some(writer.finish()?.0))
 }
 
+/// The selected shards still to write (a complete one is kept; a `.partial` leftover of an
+/// interrupted run is removed and its shard redone), and how many were kept.
+fn shards_to_write<'p>(out: &Path, plan: &'p Plan, opts: &GenerateOptions) -> Result<(Vec<&'p ShardPlan>, usize)> {
+    let mut todo = Vec::new();
+    let mut skipped = 0;
+    for s in plan.shards.iter().filter(|s| opts.shard.selects(s)) {
+        let path = out.join(s.file());
+        if path.is_file() {
+            skipped += 1;
+            continue;
+        }
+        // A leftover from an interrupted run: never complete, always redone.
+        let partial = PathBuf::from(format!("{}{}", path.display(), vt_dataset::PARTIAL_SUFFIX));
+        if partial.exists() {
+            std::fs::remove_file(&partial).with_context(|| format!("cannot remove {}", partial.display()))?;
+        }
+        todo.push(s);
+    }
+    Ok((todo, skipped))
+}
+
+/// A warning up front when the disk holding `out` may be too small for `samples` samples.
+fn warn_if_short_of_space(out: &Path, config: &Config, samples: u64, quiet: bool) {
+    let needed = crate::plan::bytes_per_sample(config).1 * samples as f64;
+    if let Some(free) = free_bytes(out)
+        && (free as f64) < needed
+        && !quiet
+    {
+        eprintln!(
+            "warning: {} has {} free and this run may write {} (estimate); a full disk stops it cleanly and --resume continues",
+            out.display(),
+            super::human_bytes(free as f64),
+            estimate(config, samples)
+        );
+    }
+}
+
+fn progress_bar(samples: u64, quiet: bool) -> ProgressBar {
+    let progress = if quiet { ProgressBar::hidden() } else { ProgressBar::new(samples) };
+    progress.set_style(
+        ProgressStyle::with_template("{spinner} {elapsed_precise} [{bar:36}] {pos}/{len} samples  {per_sec}  ETA {eta}  {msg}")
+            .expect("valid template")
+            .progress_chars("=> "),
+    );
+    progress
+}
+
+/// A shard that failed: its unfinished file removed, and a full disk explained (how much the
+/// shard and the run still need, and that `--resume` keeps the complete shards).
+fn shard_failed(e: anyhow::Error, out: &Path, config: &Config, shard: &ShardPlan, run_samples: u64) -> anyhow::Error {
+    // The unfinished shard is never complete: its bytes are freed now (a full disk needs them),
+    // and a resume would redo it anyway.
+    let path = out.join(shard.file());
+    let _ = std::fs::remove_file(format!("{}{}", path.display(), vt_dataset::PARTIAL_SUFFIX));
+    if !is_disk_full(&e) {
+        return e;
+    }
+    e.context(format!(
+        "the disk is full writing {}: this shard needs about {}, the run's unwritten shards about {}; free space, then rerun with --resume (complete shards are kept)",
+        path.display(),
+        estimate(config, shard.samples.len() as u64),
+        estimate(config, run_samples)
+    ))
+}
+
 /// Generates the dataset (or this process's `--shard` part of it).
-// Long on purpose: the run's steps in order (plan, resume check, models, workers, writers,
-// manifest, summary); each is a call, the length is their wiring.
 pub fn generate(cfg: &LoadedConfig, opts: &GenerateOptions) -> Result<GenerateSummary> {
     let started = Instant::now();
     let config = &cfg.config;
@@ -351,41 +425,10 @@ pub fn generate(cfg: &LoadedConfig, opts: &GenerateOptions) -> Result<GenerateSu
         }
     }
 
-    let selected: Vec<&ShardPlan> = plan.shards.iter().filter(|s| opts.shard.selects(s)).collect();
-    let mut todo = Vec::new();
-    let mut skipped = 0;
-    for s in &selected {
-        let path = out.join(s.file());
-        if path.is_file() {
-            skipped += 1;
-            continue;
-        }
-        // A leftover from an interrupted run: never complete, always redone.
-        let partial = PathBuf::from(format!("{}{}", path.display(), vt_dataset::PARTIAL_SUFFIX));
-        if partial.exists() {
-            std::fs::remove_file(&partial).with_context(|| format!("cannot remove {}", partial.display()))?;
-        }
-        todo.push(*s);
-    }
+    let (todo, skipped) = shards_to_write(out, &plan, opts)?;
     let total: u64 = todo.iter().map(|s| s.samples.len() as u64).sum();
-    let needed = crate::plan::bytes_per_sample(config).1 * total as f64;
-    if let Some(free) = free_bytes(out)
-        && (free as f64) < needed
-        && !opts.quiet
-    {
-        eprintln!(
-            "warning: {} has {} free and this run may write {} (estimate); a full disk stops it cleanly and --resume continues",
-            out.display(),
-            super::human_bytes(free as f64),
-            estimate(config, total)
-        );
-    }
-    let progress = if opts.quiet { ProgressBar::hidden() } else { ProgressBar::new(total) };
-    progress.set_style(
-        ProgressStyle::with_template("{spinner} {elapsed_precise} [{bar:36}] {pos}/{len} samples  {per_sec}  ETA {eta}  {msg}")
-            .expect("valid template")
-            .progress_chars("=> "),
-    );
+    warn_if_short_of_space(out, config, total, opts.quiet);
+    let progress = progress_bar(total, opts.quiet);
     let compression = config.output.shard_compression();
     let abort = AtomicBool::new(false);
     let adapter = Mutex::new(None);
@@ -410,24 +453,9 @@ pub fn generate(cfg: &LoadedConfig, opts: &GenerateOptions) -> Result<GenerateSu
                 sample_count: s.samples.len() as u64,
                 extra: episode_metadata(config, s).into_iter().collect(),
             };
-            match write_shard(factory, out, s, &meta, compression, &progress, &abort) {
-                Ok(r) => Ok(r.map(|r| (s.file(), r))),
-                Err(e) => {
-                    // The unfinished shard is never complete: its bytes are freed now (a full disk
-                    // needs them), and a resume would redo it anyway.
-                    let path = out.join(s.file());
-                    let _ = std::fs::remove_file(format!("{}{}", path.display(), vt_dataset::PARTIAL_SUFFIX));
-                    if !is_disk_full(&e) {
-                        return Err(e);
-                    }
-                    Err(e.context(format!(
-                        "the disk is full writing {}: this shard needs about {}, the run's unwritten shards about {}; free space, then rerun with --resume (complete shards are kept)",
-                        path.display(),
-                        estimate(config, s.samples.len() as u64),
-                        estimate(config, total)
-                    )))
-                }
-            }
+            write_shard(factory, out, s, &meta, compression, &progress, &abort)
+                .map(|r| r.map(|r| (s.file(), r)))
+                .map_err(|e| shard_failed(e, out, config, s, total))
         },
         |_| Ok(()),
     );
