@@ -5,12 +5,12 @@
 //! each other. A short hold test is `vtgen grasps CONFIG --trajectories 2`.
 
 use anyhow::{Context, Result};
-use glam::DVec3;
+use glam::{DAffine3, DVec3};
 use serde::Serialize;
-use vt_robot::GraspKind;
+use vt_robot::{GraspKind, Robot};
 
 use crate::config::LoadedConfig;
-use crate::physics::grasp::{MIN_REACHABLE_SHARE, REACH_SAMPLES, reach_samples, robot_floor_clearance};
+use crate::physics::grasp::{GraspContext, MIN_REACHABLE_SHARE, REACH_SAMPLES, reach_samples, robot_floor_clearance};
 use crate::physics::robot::{grasp_context, t_world_base};
 
 /// A joint closer than this to a limit (rad, or m for a prismatic joint) counts as at the limit.
@@ -66,7 +66,6 @@ pub fn check_robot(cfg: &LoadedConfig) -> Result<RobotCheckReport> {
             q
         })
         .collect();
-    let n = reached.len().max(1) as f64;
     let mut problems = Vec::new();
     let reach_share = reached.len() as f64 / REACH_SAMPLES as f64;
     if reach_share < MIN_REACHABLE_SHARE {
@@ -78,63 +77,9 @@ pub fn check_robot(cfg: &LoadedConfig) -> Result<RobotCheckReport> {
         ));
     }
     let model = &robot.model;
-    let mut under = 0usize;
-    let mut lowest: Option<(usize, f64)> = None;
-    for q in &reached {
-        if let Some((link, z)) = robot_floor_clearance(robot, &t_world_base, q) {
-            under += usize::from(z < 0.0);
-            if lowest.is_none_or(|(_, l)| z < l) {
-                lowest = Some((link, z));
-            }
-        }
-    }
-    let under_floor_share = under as f64 / n;
-    if under_floor_share > MAX_BAD_SHARE {
-        let (link, z) = lowest.expect("a link under the floor was seen");
-        problems.push(format!(
-            "a link is under the floor in {:.0}% of the reached grasp poses (lowest: '{}' at {:.0} mm): raise robot.base_position \
-             or the workspace (the grasp loop redoes such moves)",
-            100.0 * under_floor_share,
-            model.links[link].name,
-            1000.0 * z
-        ));
-    }
-    let mut joints_at_limit = Vec::new();
-    for &j in &robot.arm_joints {
-        let joint = &model.joints[j];
-        let d = joint.dof.expect("an arm joint has a degree of freedom");
-        let at = reached.iter().filter(|q| (q[d] - joint.lower).abs() < AT_LIMIT || (joint.upper - q[d]).abs() < AT_LIMIT).count();
-        if at > 0 {
-            let share = at as f64 / n;
-            if share > MAX_BAD_SHARE {
-                problems.push(format!(
-                    "arm joint '{}' is at a limit in {:.0}% of the reached grasp poses: the inverse kinematics pins it there; \
-                     check arm.home and the workspace",
-                    joint.name,
-                    100.0 * share
-                ));
-            }
-            joints_at_limit.push(JointAtLimit { joint: joint.name.clone(), share });
-        }
-    }
-    let (mut jaws_facing, mut jaw_gap_m) = (None, None);
-    if robot.kind == GraspKind::ParallelJaw && robot.pads.len() >= 2 {
-        let mut q = ctx.home();
-        robot.set_hand(&mut q, &pre);
-        let poses = model.forward_kinematics(&q);
-        let (a, b) = (poses[robot.pads[0].frame], poses[robot.pads[1].frame]);
-        let (za, zb) = (a.transform_vector3(DVec3::Z), b.transform_vector3(DVec3::Z));
-        let ab = b.translation - a.translation;
-        let facing = za.dot(ab) > 0.0 && zb.dot(-ab) > 0.0 && za.dot(zb) < -0.9;
-        jaws_facing = Some(facing);
-        jaw_gap_m = Some(ab.length());
-        if !facing {
-            problems.push(format!(
-                "pads '{}' and '{}' do not face each other at the preshape (a pad's +z must point out of its jaw at the other pad)",
-                robot.pads[0].name, robot.pads[1].name
-            ));
-        }
-    }
+    let (under_floor_share, lowest) = floor_clearance(robot, &t_world_base, &reached, &mut problems);
+    let joints_at_limit = joints_at_limit(robot, &reached, &mut problems);
+    let (jaws_facing, jaw_gap_m) = jaws(robot, &ctx, &pre, &mut problems).unzip();
     Ok(RobotCheckReport {
         robot: robot.name.clone(),
         links: model.links.len(),
@@ -152,6 +97,85 @@ pub fn check_robot(cfg: &LoadedConfig) -> Result<RobotCheckReport> {
         jaw_gap_m,
         problems,
     })
+}
+
+/// The share of the reached poses with a link under the floor, and the lowest link seen (its
+/// height, m); a problem when the share is too high.
+fn floor_clearance(
+    robot: &Robot,
+    t_world_base: &DAffine3,
+    reached: &[Vec<f64>],
+    problems: &mut Vec<String>,
+) -> (f64, Option<(usize, f64)>) {
+    let mut under = 0usize;
+    let mut lowest: Option<(usize, f64)> = None;
+    for q in reached {
+        if let Some((link, z)) = robot_floor_clearance(robot, t_world_base, q) {
+            under += usize::from(z < 0.0);
+            if lowest.is_none_or(|(_, l)| z < l) {
+                lowest = Some((link, z));
+            }
+        }
+    }
+    let under_floor_share = under as f64 / reached.len().max(1) as f64;
+    if under_floor_share > MAX_BAD_SHARE {
+        let (link, z) = lowest.expect("a link under the floor was seen");
+        problems.push(format!(
+            "a link is under the floor in {:.0}% of the reached grasp poses (lowest: '{}' at {:.0} mm): raise robot.base_position \
+             or the workspace (the grasp loop redoes such moves)",
+            100.0 * under_floor_share,
+            robot.model.links[link].name,
+            1000.0 * z
+        ));
+    }
+    (under_floor_share, lowest)
+}
+
+/// The arm joints at a limit in some of the reached poses, with their share; a problem for each
+/// that is there too often.
+fn joints_at_limit(robot: &Robot, reached: &[Vec<f64>], problems: &mut Vec<String>) -> Vec<JointAtLimit> {
+    let n = reached.len().max(1) as f64;
+    let mut joints_at_limit = Vec::new();
+    for &j in &robot.arm_joints {
+        let joint = &robot.model.joints[j];
+        let d = joint.dof.expect("an arm joint has a degree of freedom");
+        let at = reached.iter().filter(|q| (q[d] - joint.lower).abs() < AT_LIMIT || (joint.upper - q[d]).abs() < AT_LIMIT).count();
+        if at > 0 {
+            let share = at as f64 / n;
+            if share > MAX_BAD_SHARE {
+                problems.push(format!(
+                    "arm joint '{}' is at a limit in {:.0}% of the reached grasp poses: the inverse kinematics pins it there; \
+                     check arm.home and the workspace",
+                    joint.name,
+                    100.0 * share
+                ));
+            }
+            joints_at_limit.push(JointAtLimit { joint: joint.name.clone(), share });
+        }
+    }
+    joints_at_limit
+}
+
+/// A parallel-jaw gripper's first two pads at the preshape: whether they face each other, and
+/// their gap (m); a problem when they do not face. None for other robots.
+fn jaws(robot: &Robot, ctx: &GraspContext, pre: &[f64], problems: &mut Vec<String>) -> Option<(bool, f64)> {
+    if robot.kind != GraspKind::ParallelJaw || robot.pads.len() < 2 {
+        return None;
+    }
+    let mut q = ctx.home();
+    robot.set_hand(&mut q, pre);
+    let poses = robot.model.forward_kinematics(&q);
+    let (a, b) = (poses[robot.pads[0].frame], poses[robot.pads[1].frame]);
+    let (za, zb) = (a.transform_vector3(DVec3::Z), b.transform_vector3(DVec3::Z));
+    let ab = b.translation - a.translation;
+    let facing = za.dot(ab) > 0.0 && zb.dot(-ab) > 0.0 && za.dot(zb) < -0.9;
+    if !facing {
+        problems.push(format!(
+            "pads '{}' and '{}' do not face each other at the preshape (a pad's +z must point out of its jaw at the other pad)",
+            robot.pads[0].name, robot.pads[1].name
+        ));
+    }
+    Some((facing, ab.length()))
 }
 
 impl std::fmt::Display for RobotCheckReport {
