@@ -132,8 +132,6 @@ pub struct BopOptions {
 }
 
 /// Exports the dataset at `root` to `out` (created; must be empty or absent).
-// Long on purpose: the BOP directory layout written in its order (models, camera, per-scene
-// files); each step is a few lines of one file's fields.
 pub fn export_bop(root: &Path, out: &Path, renderer: &RendererConfig, quiet: bool, options: BopOptions) -> Result<ExportSummary> {
     let BopOptions { exr, targets_min_visib } = options;
     let ds = DatasetReader::open(root)?;
@@ -148,33 +146,7 @@ pub fn export_bop(root: &Path, out: &Path, renderer: &RendererConfig, quiet: boo
 
     // Models in mm, and uploaded for the amodal masks.
     let mut r = WgpuRenderer::new(renderer)?;
-    let mut handles: Vec<MeshHandle> = Vec::new();
-    let mut bop_info = serde_json::Map::new();
-    let mut ids = serde_json::Map::new();
-    for (k, m) in models.objects.iter().enumerate() {
-        let path = root.join("models").join(&m.file);
-        let ply = read_ply(&path)?;
-        let obj_id = k + 1;
-        let mm_positions: Vec<[f32; 3]> = ply.positions.iter().map(|p| p.map(|v| v * 1000.0)).collect();
-        let indices: Vec<u32> = ply.triangles.iter().flatten().copied().collect();
-        write_ply(&out.join(format!("models/obj_{obj_id:06}.ply")), &mm_positions, &ply.normals, &indices, LengthUnit::Millimetres)?;
-        let (lo, hi) = ply.positions.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
-            let v = glam::Vec3::from(*p).as_dvec3();
-            (lo.min(v), hi.max(v))
-        });
-        ids.insert(obj_id.to_string(), json!(m.id));
-        bop_info.insert(obj_id.to_string(), model_info(m, lo, hi, &ply.positions, &indices));
-        let mesh = TexturedMesh {
-            positions: ply.positions.clone(),
-            normals: ply.normals.clone(),
-            uvs: vec![[0.0, 0.0]; ply.positions.len()],
-            indices,
-            texture: Texture::solid([255, 255, 255]),
-        };
-        handles.push(r.upload_mesh(&mesh).with_context(|| format!("uploading {}", path.display()))?);
-    }
-    write_json(&out.join("models/models_info.json"), &Value::Object(bop_info))?;
-    write_json(&out.join("vtgen_objects.json"), &json!({"obj_id_to_object_id": ids, "source": root.display().to_string()}))?;
+    let handles = export_models(root, out, &models, &mut r)?;
 
     let total: u64 = SPLITS.iter().map(|s| ds.manifest().splits.get(s.as_str()).map(|m| m.samples).unwrap_or(0)).sum();
     let progress = if quiet { ProgressBar::hidden() } else { ProgressBar::new(total) };
@@ -230,6 +202,39 @@ pub fn export_bop(root: &Path, out: &Path, renderer: &RendererConfig, quiet: boo
     write_json(&out.join("test_targets_bop19.json"), &Value::Array(targets19))?;
     write_json(&out.join("test_targets_bop24.json"), &Value::Array(targets24))?;
     Ok(summary)
+}
+
+/// The models as BOP's (`models/obj_NNNNNN.ply` in mm, `models_info.json`, and which object id
+/// each `obj_id` is), each uploaded to `r` for the amodal masks: their handles, in `obj_id` order.
+fn export_models(root: &Path, out: &Path, models: &ModelsInfo, r: &mut WgpuRenderer) -> Result<Vec<MeshHandle>> {
+    let mut handles: Vec<MeshHandle> = Vec::new();
+    let mut bop_info = serde_json::Map::new();
+    let mut ids = serde_json::Map::new();
+    for (k, m) in models.objects.iter().enumerate() {
+        let path = root.join("models").join(&m.file);
+        let ply = read_ply(&path)?;
+        let obj_id = k + 1;
+        let mm_positions: Vec<[f32; 3]> = ply.positions.iter().map(|p| p.map(|v| v * 1000.0)).collect();
+        let indices: Vec<u32> = ply.triangles.iter().flatten().copied().collect();
+        write_ply(&out.join(format!("models/obj_{obj_id:06}.ply")), &mm_positions, &ply.normals, &indices, LengthUnit::Millimetres)?;
+        let (lo, hi) = ply.positions.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
+            let v = glam::Vec3::from(*p).as_dvec3();
+            (lo.min(v), hi.max(v))
+        });
+        ids.insert(obj_id.to_string(), json!(m.id));
+        bop_info.insert(obj_id.to_string(), model_info(m, lo, hi, &ply.positions, &indices));
+        let mesh = TexturedMesh {
+            positions: ply.positions.clone(),
+            normals: ply.normals.clone(),
+            uvs: vec![[0.0, 0.0]; ply.positions.len()],
+            indices,
+            texture: Texture::solid([255, 255, 255]),
+        };
+        handles.push(r.upload_mesh(&mesh).with_context(|| format!("uploading {}", path.display()))?);
+    }
+    write_json(&out.join("models/models_info.json"), &Value::Object(bop_info))?;
+    write_json(&out.join("vtgen_objects.json"), &json!({"obj_id_to_object_id": ids, "source": root.display().to_string()}))?;
+    Ok(handles)
 }
 
 /// The object's full silhouette: drawn alone at its ground-truth pose (camera frame = world).
