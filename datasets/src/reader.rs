@@ -288,7 +288,6 @@ impl ShardReader {
     }
 
     /// Reads sample `index` (its index within the split).
-    // Long on purpose: one topic per block, each decoded and checked against the schema.
     pub fn read(&self, index: u64) -> Result<Sample> {
         let ctx = || format!("shard {} sample {index}", self.path.display());
         let ci = *self.chunks.get(&index).ok_or_else(|| anyhow!("{}: not in this shard", ctx()))?;
@@ -315,59 +314,34 @@ impl ShardReader {
         let info: crate::SampleInfo =
             serde_json::from_slice(get(topics::SAMPLE_INFO)?).with_context(|| format!("{}: {}", ctx(), topics::SAMPLE_INFO))?;
         let (w, h) = (rgb.width, rgb.height);
-        let unpad = |img: &RawImage, bpp: usize| -> Result<Vec<u8>> {
-            let row = img.width as usize * bpp;
-            let step = img.step as usize;
-            if img.width != w || img.height != h || step < row || img.data.len() < step * h as usize {
-                bail!("{}: image '{}' has inconsistent size", ctx(), img.encoding);
-            }
-            Ok(img.data.chunks(step).take(h as usize).flat_map(|r| &r[..row]).copied().collect())
-        };
-        let expect_enc = |img: &RawImage, enc: &str| {
-            if img.encoding != enc {
-                bail!("{}: expected encoding {enc}, found {}", ctx(), img.encoding)
-            }
-            Ok(())
-        };
-        expect_enc(&rgb, encodings::RGB8)?;
-        expect_enc(&depth, encodings::DEPTH_32FC1)?;
-        expect_enc(&mask, encodings::MASK_MONO8)?;
-        let floats = |img: &RawImage| -> Result<Vec<f32>> {
-            expect_enc(img, encodings::DEPTH_32FC1)?;
-            Ok(unpad(img, 4)?.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect())
-        };
-        let depth = floats(&depth)?;
+        let at = ctx();
+        expect_encoding(&rgb, encodings::RGB8, &at)?;
+        expect_encoding(&mask, encodings::MASK_MONO8, &at)?;
+        let depth = depth_floats(&depth, (w, h), &at)?;
         let depth_noisy = match by_topic.get(topics::DEPTH_NOISY) {
-            Some(raw) => Some(floats(&RawImage::decode(&raw[..]).with_context(ctx)?)?),
+            Some(raw) => Some(depth_floats(&RawImage::decode(&raw[..]).with_context(ctx)?, (w, h), &at)?),
             None => None,
         };
-        let k: [f64; 9] = calib.k.as_slice().try_into().map_err(|_| anyhow!("{}: calibration K has {} values", ctx(), calib.k.len()))?;
-        let to_pose = |p: Option<foxglove::schemas::Vector3>, q: Option<foxglove::schemas::Quaternion>| -> Result<Pose> {
-            let (p, q) = (
-                p.ok_or_else(|| anyhow!("{}: pose lacks a position", ctx()))?,
-                q.ok_or_else(|| anyhow!("{}: pose lacks an orientation", ctx()))?,
-            );
-            Ok(Pose { position: [p.x, p.y, p.z], orientation: [q.x, q.y, q.z, q.w] })
-        };
-        let p = pose.pose.ok_or_else(|| anyhow!("{}: empty object pose", ctx()))?;
+        let k: [f64; 9] = calib.k.as_slice().try_into().map_err(|_| anyhow!("{at}: calibration K has {} values", calib.k.len()))?;
+        let p = pose.pose.ok_or_else(|| anyhow!("{at}: empty object pose"))?;
         let find_tf = |child: &str| -> Result<Pose> {
             let t = tf
                 .transforms
                 .iter()
                 .find(|t| t.parent_frame_id == frames::WORLD && t.child_frame_id == child)
-                .ok_or_else(|| anyhow!("{}: /tf lacks world -> {child}", ctx()))?;
-            to_pose(t.translation, t.rotation)
+                .ok_or_else(|| anyhow!("{at}: /tf lacks world -> {child}"))?;
+            to_pose(t.translation, t.rotation, &at)
         };
         Ok(Sample {
             index,
             width: w,
             height: h,
-            rgb: unpad(&rgb, 3)?,
+            rgb: unpadded(&rgb, 3, (w, h), &at)?,
             depth,
             depth_noisy,
-            mask: unpad(&mask, 1)?,
+            mask: unpadded(&mask, 1, (w, h), &at)?,
             k,
-            t_camera_object: to_pose(p.position, p.orientation)?,
+            t_camera_object: to_pose(p.position, p.orientation, &at)?,
             t_world_camera: find_tf(frames::CAMERA)?,
             t_world_object: find_tf(frames::OBJECT)?,
             extra_transforms: tf
@@ -376,7 +350,7 @@ impl ShardReader {
                 .filter(|t| {
                     !(t.parent_frame_id == frames::WORLD && (t.child_frame_id == frames::CAMERA || t.child_frame_id == frames::OBJECT))
                 })
-                .map(|t| Ok((t.parent_frame_id.clone(), t.child_frame_id.clone(), to_pose(t.translation, t.rotation)?)))
+                .map(|t| Ok((t.parent_frame_id.clone(), t.child_frame_id.clone(), to_pose(t.translation, t.rotation, &at)?)))
                 .collect::<Result<_>>()?,
             tactile: self.fill_references(read_tactile(&by_topic, &pads).with_context(ctx)?).with_context(ctx)?,
             episode: match self.episode {
@@ -386,6 +360,37 @@ impl ShardReader {
             info,
         })
     }
+}
+
+/// An image's rows without their padding, checked to be `size` (width, height) with `bpp` bytes
+/// per pixel; `at` names the sample in errors.
+fn unpadded(img: &RawImage, bpp: usize, (w, h): (u32, u32), at: &str) -> Result<Vec<u8>> {
+    let row = img.width as usize * bpp;
+    let step = img.step as usize;
+    if img.width != w || img.height != h || step < row || img.data.len() < step * h as usize {
+        bail!("{at}: image '{}' has inconsistent size", img.encoding);
+    }
+    Ok(img.data.chunks(step).take(h as usize).flat_map(|r| &r[..row]).copied().collect())
+}
+
+fn expect_encoding(img: &RawImage, encoding: &str, at: &str) -> Result<()> {
+    if img.encoding != encoding {
+        bail!("{at}: expected encoding {encoding}, found {}", img.encoding)
+    }
+    Ok(())
+}
+
+/// A depth image's metres.
+fn depth_floats(img: &RawImage, size: (u32, u32), at: &str) -> Result<Vec<f32>> {
+    expect_encoding(img, encodings::DEPTH_32FC1, at)?;
+    Ok(unpadded(img, 4, size, at)?.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect())
+}
+
+/// A Foxglove position and orientation as a pose; both must be there.
+fn to_pose(p: Option<foxglove::schemas::Vector3>, q: Option<foxglove::schemas::Quaternion>, at: &str) -> Result<Pose> {
+    let p = p.ok_or_else(|| anyhow!("{at}: pose lacks a position"))?;
+    let q = q.ok_or_else(|| anyhow!("{at}: pose lacks an orientation"))?;
+    Ok(Pose { position: [p.x, p.y, p.z], orientation: [q.x, q.y, q.z, q.w] })
 }
 
 /// An episode frame's streams: the state at the frame's instant, then the touch and states of the
