@@ -66,11 +66,11 @@ fn line(img: &mut RgbImage, a: (f64, f64), b: (f64, f64), c: [u8; 3]) {
     }
 }
 
-/// One row: annotated RGB | colour-mapped depth.
-fn row(s: &Sample) -> RgbImage {
+/// The sample's RGB annotated: the object's visible mask as a green outline (so its texture stays
+/// visible), the tactile points in magenta, the object's axes (x red, y green, z blue, 5 cm).
+fn annotated_rgb(s: &Sample) -> RgbImage {
     let (w, h) = (s.width, s.height);
     let mut rgb = RgbImage::from_raw(w, h, s.rgb.clone()).expect("w x h x 3 bytes");
-    // The object's visible mask as a green outline, so its texture stays visible.
     let is_object = |x: i64, y: i64| {
         x >= 0 && y >= 0 && x < w as i64 && y < h as i64 && s.mask[(y * w as i64 + x) as usize] == vt_dataset::mask_ids::TARGET_OBJECT
     };
@@ -97,7 +97,13 @@ fn row(s: &Sample) -> RgbImage {
             line(&mut rgb, a, b, c);
         }
     }
-    // Crop around the object (its mask's box, widened 2.5x, 4:3), so hand and object are legible.
+    rgb
+}
+
+/// The crop around the object (its mask's box, widened 2.5x, 4:3), so hand and object are
+/// legible: (x0, y0, width, height).
+fn object_crop(s: &Sample) -> (u32, u32, u32, u32) {
+    let (w, h) = (s.width, s.height);
     let (mut u0, mut v0, mut u1, mut v1) = (w, h, 0, 0);
     for (i, m) in s.mask.iter().enumerate() {
         if *m == 1 {
@@ -114,27 +120,38 @@ fn row(s: &Sample) -> RgbImage {
     let half_h = half_w * 3.0 / 4.0;
     let x0 = (cu - half_w).clamp(0.0, w as f64 - 2.0 * half_w) as u32;
     let y0 = (cv - half_h).clamp(0.0, (h as f64 - 2.0 * half_h).max(0.0)) as u32;
-    let (cw, ch) = ((2.0 * half_w) as u32, ((2.0 * half_h) as u32).min(h));
-    let crop = |img: &RgbImage| image::imageops::crop_imm(img, x0, y0, cw, ch).to_image();
+    (x0, y0, (2.0 * half_w) as u32, ((2.0 * half_h) as u32).min(h))
+}
+
+/// The depth colour-mapped over the range seen inside the crop: near is bright yellow, far dark
+/// purple, no reading black.
+fn depth_image(s: &Sample, (x0, y0, cw, ch): (u32, u32, u32, u32)) -> RgbImage {
+    let w = s.width;
     let in_crop = |i: usize| {
         let (u, v) = (i as u32 % w, i as u32 / w);
         u >= x0 && u < x0 + cw && v >= y0 && v < y0 + ch
     };
     let valid: Vec<f32> = s.depth.iter().enumerate().filter(|(i, d)| **d > 0.0 && d.is_finite() && in_crop(*i)).map(|(_, d)| *d).collect();
     let (lo, hi) = valid.iter().fold((f32::MAX, f32::MIN), |(l, h), d| (l.min(*d), h.max(*d)));
-    let mut depth = RgbImage::new(w, h);
+    let mut depth = RgbImage::new(w, s.height);
     for (i, d) in s.depth.iter().enumerate() {
         let c = if *d > 0.0 && d.is_finite() {
             let t = (1.0 - (d - lo) / (hi - lo).max(1e-6)).clamp(0.0, 1.0);
-            // A warm ramp: near is bright yellow, far dark purple.
             [(60.0 + 195.0 * t) as u8, (20.0 + 200.0 * t * t) as u8, (90.0 * (1.0 - t) + 30.0) as u8]
         } else {
             [0, 0, 0]
         };
         depth.put_pixel(i as u32 % w, i as u32 / w, Rgb(c));
     }
-    let (rgb, depth) = (crop(&rgb), crop(&depth));
-    // The optical pads' images in a column on the right, stacked.
+    depth
+}
+
+/// One row: annotated RGB | colour-mapped depth, cropped around the object, and the optical pads'
+/// images stacked in a column on the right.
+fn row(s: &Sample) -> RgbImage {
+    let (x0, y0, cw, ch) = object_crop(s);
+    let crop = |img: &RgbImage| image::imageops::crop_imm(img, x0, y0, cw, ch).to_image();
+    let (rgb, depth) = (crop(&annotated_rgb(s)), crop(&depth_image(s, (x0, y0, cw, ch))));
     let optical: Vec<RgbImage> = s
         .tactile
         .iter()
