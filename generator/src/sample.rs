@@ -22,9 +22,9 @@ use crate::physics::grasp::Trajectory;
 use crate::physics::robot::RobotScene;
 use crate::plan::{EpisodeTimeline, SampleRef};
 use crate::render::{Draw, DrawRole, Lighting, Material, MeshHandle, Renderer, View};
-use crate::scene::environment::{backdrop_mesh, floor_mesh, glb_of, place_distractors};
+use crate::scene::environment::{Distractor, backdrop_mesh, floor_mesh, glb_of, place_distractors};
 use crate::scene::robot::{link_mesh, mask_id as robot_mask_id, pose_links};
-use crate::scene::{pose_of, sample_scene};
+use crate::scene::{SampledScene, pose_of, sample_scene};
 use crate::sensors::optical::{optical_image, reference_image, varied};
 use crate::sensors::tactile::{FingerSurface, PadView, finger_surface, sense};
 
@@ -441,20 +441,7 @@ impl<'a> SampleFactory<'a> {
             scene.t_world_object = pose_of(&p.t_world_object);
         }
         let distractors = place_distractors(self.objects, &scene, r.object_index as usize);
-        let meshes = &self.uploaded.object_meshes;
-        draws.extend(distractors.iter().map(|d| Draw {
-            mesh: meshes[d.object],
-            t_world_model: d.pose.matrix(),
-            mask_id: d.mask_id,
-            role: DrawRole::Occluder,
-        }));
-        let object_draw = Draw {
-            mesh: self.uploaded.object_meshes[r.object_index as usize],
-            t_world_model: scene.t_world_object.matrix(),
-            mask_id: mask_ids::TARGET_OBJECT,
-            role: DrawRole::Target,
-        };
-        draws.push(object_draw);
+        let object_draw = self.add_object_draws(&scene, r.object_index as usize, &distractors, &mut draws);
         let (img, depth_noisy) = self.render_main(&scene, &key, &draws)?;
         let tactile = match posed.as_mut() {
             Some(p) => Some(self.sense_touch(&scene, (&scene_key, &key), "", object_draw, p)?),
@@ -514,6 +501,25 @@ impl<'a> SampleFactory<'a> {
         let step = r.instance as u64 * t.periods.camera;
         let per_move = (t.steps / self.config.sampling.instances_per_trajectory as u64).max(1);
         EpisodeFrameInfo { frame: r.instance, time_s: step as f64 * t.timestep, arm_move: (step.max(1) - 1).div_euclid(per_move) as u32 }
+    }
+
+    /// Adds the distractors' draws and the target object's to `draws`; the object's draw.
+    fn add_object_draws(&self, scene: &SampledScene, object: usize, distractors: &[Distractor], draws: &mut Vec<Draw>) -> Draw {
+        let meshes = &self.uploaded.object_meshes;
+        draws.extend(distractors.iter().map(|d| Draw {
+            mesh: meshes[d.object],
+            t_world_model: d.pose.matrix(),
+            mask_id: d.mask_id,
+            role: DrawRole::Occluder,
+        }));
+        let object_draw = Draw {
+            mesh: meshes[object],
+            t_world_model: scene.t_world_object.matrix(),
+            mask_id: mask_ids::TARGET_OBJECT,
+            role: DrawRole::Target,
+        };
+        draws.push(object_draw);
+        object_draw
     }
 
     /// The scene stage: camera, look and candidate distractors from the sample's key, with the
