@@ -303,27 +303,7 @@ impl ShardWriter {
             optical.len() == tac.optical.len() && optical.iter().zip(&tac.optical).all(|(c, o)| c.0 == o.pad),
             "the optical pads changed within a shard"
         );
-        use foxglove::schemas::packed_element_field::NumericType;
-        let field = |name: &str, offset: u32, ty: NumericType| PackedElementField { name: name.into(), offset, r#type: ty as i32 };
-        let mut data = Vec::with_capacity(tac.points.len() * crate::tactile_points::STRIDE as usize);
-        for p in &tac.points {
-            for v in p.position.iter().chain([&p.distance]) {
-                data.extend(v.to_le_bytes());
-            }
-            data.extend(p.phalanx.to_le_bytes());
-        }
-        let cloud = PointCloud {
-            timestamp: ts(t),
-            frame_id: frames::CAMERA.into(),
-            pose: Some(fg_pose(&Pose::IDENTITY)),
-            point_stride: crate::tactile_points::STRIDE,
-            fields: crate::tactile_points::FIELDS
-                .iter()
-                .map(|&(name, offset, unsigned)| field(name, offset, if unsigned { NumericType::Uint32 } else { NumericType::Float32 }))
-                .collect(),
-            data: prost::bytes::Bytes::from(data),
-        }
-        .encode_to_vec();
+        let cloud = tactile_cloud(t, &tac.points);
         self.put(points_ch, t, &cloud)?;
         let r = tac.resolution;
         for (k, ch) in image_chs.iter().enumerate() {
@@ -436,4 +416,30 @@ impl ShardWriter {
         let (bytes, sha256) = crate::manifest::sha256_file(&self.final_path)?;
         Ok(ShardReceipt { path: self.final_path.clone(), bytes, sha256 })
     }
+}
+
+/// The tactile points as a Foxglove `PointCloud` in the camera frame, laid out as
+/// [`crate::tactile_points::FIELDS`] says.
+fn tactile_cloud(t: u64, points: &[crate::sample::TactilePointRecord]) -> Vec<u8> {
+    use foxglove::schemas::packed_element_field::NumericType;
+    let field = |name: &str, offset: u32, ty: NumericType| PackedElementField { name: name.into(), offset, r#type: ty as i32 };
+    let mut data = Vec::with_capacity(points.len() * crate::tactile_points::STRIDE as usize);
+    for p in points {
+        for v in p.position.iter().chain([&p.distance]) {
+            data.extend(v.to_le_bytes());
+        }
+        data.extend(p.phalanx.to_le_bytes());
+    }
+    PointCloud {
+        timestamp: ts(t),
+        frame_id: frames::CAMERA.into(),
+        pose: Some(fg_pose(&Pose::IDENTITY)),
+        point_stride: crate::tactile_points::STRIDE,
+        fields: crate::tactile_points::FIELDS
+            .iter()
+            .map(|&(name, offset, unsigned)| field(name, offset, if unsigned { NumericType::Uint32 } else { NumericType::Float32 }))
+            .collect(),
+        data: prost::bytes::Bytes::from(data),
+    }
+    .encode_to_vec()
 }
