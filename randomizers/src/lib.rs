@@ -5,7 +5,7 @@
 //! - [`SampleStream`]: counter-based ChaCha8 streams keyed by (seed, object, trajectory, instance,
 //!   purpose), so any sample can be made alone, anywhere, with the same numbers.
 //! - [`RandomizationConfig`]: the `randomization:` config section (ranges, texture kinds, shares)
-//!   and its [`validate`](RandomizationConfig::validate).
+//!   and its checks (a [`vt_check::Check`]: every problem names its field).
 //! - [`sample_appearance`]: a sample's [`Appearance`]: spotlight (position, target, colour from a
 //!   blackbody temperature times a random tint, intensity, cone), ambient level, floor and
 //!   backdrop textures ([`TextureSpec`] rendered to [`ProceduralTexture`]), distractors, main-camera
