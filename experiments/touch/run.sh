@@ -7,12 +7,15 @@
 #   experiments/touch/run.sh cross-gripper --ycb-dir DIR   # Allegro <-> Robotiq 2F-85, each network on both
 #   experiments/touch/run.sh paper         --ycb-dir DIR --device cuda --jobs 16   # the paper's size, for a GPU box
 #
+# Every experiment trains the vision-only network beside the tactile ones; the reports' touch
+# control puts it beside another grasp's touch and no touch, paired per grasp.
+#
 # Options: --ycb-dir DIR (or $YCB_DIR; required: the real meshes), --robot-assets DIR (the real
 # robot meshes, as scripts/robot-assets prints; default: the robots' URDF shapes), --objects A,B
 # (cpu, orientation: other YCB objects, in out/experiments/touch-cpu-A+B), --jobs N (generator
 # workers, default: the number of cores), --device D (vtpose device, default cpu).
 set -euo pipefail
-usage() { sed -n '2,15p' "$0" | sed 's/^# \{0,1\}//'; exit 2; }
+usage() { sed -n '2,17p' "$0" | sed 's/^# \{0,1\}//'; exit 2; }
 [ $# -ge 1 ] || usage
 experiment=$1; shift
 ycb="${YCB_DIR:-}"
@@ -77,16 +80,17 @@ if [ -n "$objects" ]; then
   cpu_out="$cpu_out-${objects//,/+}"
   object_set=(--set "objects=[${objects//,/, }]")
 fi
-# The CPU-size Allegro dataset and its Tactile-Channel network: every CPU experiment starts here.
+# The CPU-size Allegro dataset, its Tactile-Channel network and the vision-only baseline trained
+# on the same data: every CPU experiment starts here, so each has its trained baseline.
 cpu_base() {
   generate experiments/touch/cpu.yaml "$cpu_out/data" "${object_set[@]}"
   train "$cpu_train" "$cpu_out/data" "$cpu_out/runs/tactile_channel" tactile_channel
+  train "$cpu_train" "$cpu_out/data" "$cpu_out/runs/vision_only" vision_only
 }
 
 case "$experiment" in
   cpu)
     cpu_base
-    train "$cpu_train" "$cpu_out/data" "$cpu_out/runs/vision_only" vision_only
     evaluate "$cpu_out/eval" "$cpu_out/runs/tactile_channel" "$cpu_out/runs/vision_only"
     evaluate "$cpu_out/eval-train" "$cpu_out/runs/tactile_channel" "$cpu_out/runs/vision_only" -- --split train --max-samples 400 --no-sweep
     log "report: $cpu_out/eval/report.md (training split: $cpu_out/eval-train/report.md)"
@@ -106,11 +110,15 @@ case "$experiment" in
     generate experiments/touch/gripper.yaml "$gripper_out/data"
     # Named by gripper: the reports name each network by its run directory.
     train "$cpu_train" "$gripper_out/data" "$gripper_out/runs/tactile_channel_2f85" tactile_channel
-    # Both networks on each gripper's test grasps (with the touch control): the diagonal is each
-    # network at home.
-    for data in touch-cpu:"$cpu_out/data" touch-gripper:"$gripper_out/data"; do
-      evaluate "out/experiments/cross-gripper/on-${data%%:*}" "$cpu_out/runs/tactile_channel" "$gripper_out/runs/tactile_channel_2f85" \
-        -- --dataset "${data#*:}" --no-sweep
+    train "$cpu_train" "$gripper_out/data" "$gripper_out/runs/vision_only_2f85" vision_only
+    # Both tactile networks on each gripper's test grasps (with the touch control), beside the
+    # vision-only network trained on that gripper's data: the diagonal is each network at home.
+    for home in touch-cpu:"$cpu_out" touch-gripper:"$gripper_out"; do
+      dir="${home#*:}"
+      vision="$dir/runs/vision_only"
+      [ "${home%%:*}" = touch-gripper ] && vision="$dir/runs/vision_only_2f85"
+      evaluate "out/experiments/cross-gripper/on-${home%%:*}" "$cpu_out/runs/tactile_channel" "$gripper_out/runs/tactile_channel_2f85" \
+        "$vision" -- --dataset "$dir/data" --no-sweep
     done
     log "reports: out/experiments/cross-gripper/on-touch-cpu/report.md (Allegro test grasps), on-touch-gripper/report.md (2F-85)"
     ;;

@@ -338,6 +338,12 @@ fn every_variant_trains_and_evaluates() {
     ] {
         assert!(md.contains(section), "report lacks {section}:\n{md}");
     }
+    // The touch control's table holds the trained vision-only network beside the swap and no
+    // touch, for every tactile network, paired per grasp (tiny-hand's test grasps can be paired).
+    let control = &md[md.find("## Touch control").unwrap()..];
+    let baseline_rows: Vec<&str> = control.lines().filter(|l| l.contains("| trained vision-only (")).collect();
+    assert_eq!(baseline_rows.len(), evals.iter().filter(|e| e.touch_control.is_some()).count(), "{control}");
+    assert!(baseline_rows.iter().all(|l| !l.contains("no grasps to pair")), "{control}");
     // Every tactile network (with colour) is paired with the baseline, per grasp.
     let pairs = vt_trainer::eval::compare::comparisons(&evals);
     assert_eq!(pairs.len(), 3, "tactile_channel, non_siamese, no_global vs vision_only");

@@ -7,9 +7,10 @@ use std::fmt::Write as _;
 use vt_dataset::OcclusionBin;
 
 use crate::data::TACTILE_SWEEP;
-use crate::eval::compare::{Comparison, Paired, channel_use, comparisons};
+use crate::eval::compare::{Comparison, Paired, channel_use, comparisons, paired};
 use crate::eval::control::{ControlComparison, TouchControl};
 use crate::eval::{ModelEval, SampleResult, Summary};
+use crate::model::Variant;
 
 fn pct(v: f64) -> String {
     if v.is_nan() { "–".into() } else { format!("{v:.1}") }
@@ -355,23 +356,30 @@ fn touch_control_section(s: &mut String, evals: &[ModelEval]) {
     let _ = writeln!(
         s,
         "Each tactile network on the same samples with its true touch, with the touch of another grasp of the same object \
-         (the next trajectory's, same instance) and with no touch. A network that uses touch gets worse with the wrong \
-         touch. Paired per grasp: `better` counts the grasps on which the true touch gives the lower mean error; p: \
-         two-sided exact sign test; Δ: mean over grasps of true − control (negative: the true touch helps).\n"
+         (the next trajectory's, same instance) and with no touch, beside the trained vision-only network (the baseline \
+         the paper compares against: a tactile network fed no touch is outside its training, a network trained without \
+         touch is not). A network that uses touch gets worse with the wrong touch. Paired per grasp: `better` counts the \
+         grasps on which the true touch gives the lower mean error; p: two-sided exact sign test; Δ: mean over grasps of \
+         true − control (negative: the true touch helps).\n"
     );
     let _ = writeln!(
         s,
         "| run | touch | n | position (cm) | angle (°) | ADD(-S) < 2 cm (%) | position: better / worse | p | Δ position (cm) |"
     );
     let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|");
+    let vision = evals.iter().find(|e| e.variant == Variant::VisionOnly);
     for (e, c) in &controlled {
         let cmp = ControlComparison::of(&e.results, c);
-        let rows: [(&str, &[SampleResult], Option<&Paired>); 3] = [
-            ("true", &e.results, None),
-            ("another grasp's", &c.other_grasp, cmp.other_grasp.as_ref()),
-            ("none", &c.no_touch, cmp.no_touch.as_ref()),
+        let trained_baseline =
+            vision.map(|v| (format!("trained vision-only ({})", v.name), &v.results[..], paired(&e.results, &v.results)));
+        let mut rows: Vec<(String, &[SampleResult], Option<Paired>)> = vec![
+            ("true".into(), &e.results, None),
+            ("another grasp's".into(), &c.other_grasp, cmp.other_grasp.clone()),
+            ("none".into(), &c.no_touch, cmp.no_touch.clone()),
         ];
+        rows.extend(trained_baseline);
         for (label, results, p) in rows {
+            let p = p.as_ref();
             let m = Summary::of(results);
             let paired = match p {
                 Some(p) => {

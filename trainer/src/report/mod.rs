@@ -35,6 +35,7 @@ pub fn write_report(evals: &[ModelEval], split: &str, device: &str, out: &Path) 
 /// `results.json`: per run the summaries overall, per object, per occlusion bin and per tactile
 /// point count; then the paired comparisons.
 fn write_results_json(evals: &[ModelEval], pairs: &[Comparison], out: &Path) -> Result<()> {
+    let vision = evals.iter().find(|e| e.variant == crate::model::Variant::VisionOnly);
     let summaries: Vec<serde_json::Value> = evals
         .iter()
         .map(|e| {
@@ -50,6 +51,10 @@ fn write_results_json(evals: &[ModelEval], pairs: &[Comparison], out: &Path) -> 
                         "other_grasp": {"summary": Summary::of(&c.other_grasp), "paired": cmp.other_grasp},
                         "no_touch": {"summary": Summary::of(&c.no_touch), "paired": cmp.no_touch},
                         "uses_touch": cmp.uses_touch(),
+                        "trained_vision_only": vision.map(|v| serde_json::json!({
+                            "name": v.name, "summary": Summary::of(&v.results),
+                            "paired": crate::eval::compare::paired(&e.results, &v.results),
+                        })),
                     })
                 }),
             })
