@@ -284,10 +284,32 @@ pub struct EvalCommand {
     pub quiet: bool,
 }
 
+/// Each run's name in the report and in its file names (`samples-NAME.csv`): its directory's
+/// name, or its parent's and its own (`a-run`, `b-run`) where two runs share one, numbered when
+/// they share that too, so that no run's rows or files stand for another's.
+fn run_names(runs: &[PathBuf]) -> Vec<String> {
+    let name = |p: &std::path::Path| p.file_name().map_or_else(|| p.display().to_string(), |n| n.to_string_lossy().into_owned());
+    let own: Vec<String> = runs.iter().map(|r| name(r)).collect();
+    let mut names: Vec<String> = runs
+        .iter()
+        .zip(&own)
+        .map(|(run, n)| match run.parent().filter(|_| own.iter().filter(|m| *m == n).count() > 1) {
+            Some(parent) => format!("{}-{n}", name(parent)),
+            None => n.clone(),
+        })
+        .collect();
+    for i in 0..names.len() {
+        if names[..i].contains(&names[i]) {
+            names[i] = format!("{}-{}", names[i], i + 1);
+        }
+    }
+    names
+}
+
 /// Evaluates every run (see [`EvalCommand`]).
 pub fn evaluate_runs(runs: &[PathBuf], cmd: &EvalCommand) -> Result<Vec<ModelEval>> {
     let mut out = Vec::new();
-    for run in runs {
+    for (run, name) in runs.iter().zip(run_names(runs)) {
         let dir = RunDir(run.clone());
         let (cfg, state, model) = dir.load_model(&cmd.device).with_context(|| format!("run {}", run.display()))?;
         let model = model.valid();
@@ -298,7 +320,6 @@ pub fn evaluate_runs(runs: &[PathBuf], cmd: &EvalCommand) -> Result<Vec<ModelEva
         source.spread(cmd.max_samples);
         let mut opts = EvalOptions::for_config(&cfg, &slots, None).on(&cmd.device);
         opts.prep.split = cmd.split.clone();
-        let name = run.file_name().map_or_else(|| run.display().to_string(), |n| n.to_string_lossy().into_owned());
         if !cmd.quiet {
             eprintln!(
                 "vtpose: evaluating {name} ({}) on {} samples of {} {}",
@@ -343,4 +364,18 @@ pub fn evaluate_runs(runs: &[PathBuf], cmd: &EvalCommand) -> Result<Vec<ModelEva
         });
     }
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn runs_with_the_same_directory_name_get_distinct_names() {
+        let runs: Vec<PathBuf> =
+            ["x/allegro/run", "x/gripper/run", "y/tactile_channel", "z/allegro/run"].iter().map(PathBuf::from).collect();
+        assert_eq!(run_names(&runs), ["allegro-run", "gripper-run", "tactile_channel", "allegro-run-4"]);
+        let runs: Vec<PathBuf> = ["a/tactile_channel", "a/vision_only"].iter().map(PathBuf::from).collect();
+        assert_eq!(run_names(&runs), ["tactile_channel", "vision_only"]);
+    }
 }
