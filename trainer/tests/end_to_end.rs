@@ -333,6 +333,7 @@ fn every_variant_trains_and_evaluates() {
         "< 80 %",
         "| 240 |",
         "## What touch buys: paired per grasp",
+        "By occlusion bin and by object",
         "## Which channel answers",
         "## Touch control",
     ] {

@@ -268,6 +268,60 @@ fn tactile_sweep_section(s: &mut String, evals: &[ModelEval]) {
     }
 }
 
+/// Part of an evaluation's samples: one occlusion bin's, or one object's.
+enum Subset<'a> {
+    Bin(OcclusionBin),
+    Object(&'a str),
+}
+
+impl Subset<'_> {
+    fn of(&self, results: &[SampleResult]) -> Vec<SampleResult> {
+        let keep = |r: &&SampleResult| match self {
+            Subset::Bin(b) => OcclusionBin::of_f32(r.occlusion) == Some(*b),
+            Subset::Object(o) => r.object == *o,
+        };
+        results.iter().filter(keep).cloned().collect()
+    }
+}
+
+/// The paired comparison within each occlusion bin and each object: a grasp's samples in the
+/// subset, their mean error under both networks, and the sign test over those grasps.
+fn paired_by_subset(s: &mut String, pairs: &[Comparison]) {
+    let _ = writeln!(
+        s,
+        "\nBy occlusion bin and by object: each grasp's samples within the subset, paired the same way.\n\n\
+         | tactile run | vs | subset | samples | position, tactile / vision (cm) | grasps: better / worse | p | angle, tactile / vision (°) |\n\
+         |---|---|---|---|---|---|---|---|"
+    );
+    for Comparison { tactile: t, vision: v, .. } in pairs {
+        let mut objects: Vec<&str> = t.results.iter().map(|r| r.object.as_str()).collect();
+        objects.sort();
+        objects.dedup();
+        let bins = OcclusionBin::ALL.map(|b| (b.label().to_string(), Subset::Bin(b)));
+        for (label, subset) in bins.into_iter().chain(objects.into_iter().map(|o| (o.to_string(), Subset::Object(o)))) {
+            let (ts, vs) = (subset.of(&t.results), subset.of(&v.results));
+            let Some(p) = paired(&ts, &vs) else { continue };
+            let n: usize = p.grasps.iter().map(|g| g.samples).sum();
+            let mean = |f: &dyn Fn(&crate::eval::compare::GraspPair) -> f64| {
+                p.grasps.iter().map(|g| f(g) * g.samples as f64).sum::<f64>() / n.max(1) as f64
+            };
+            let _ = writeln!(
+                s,
+                "| {} | {} | {label} | {n} | {:.3} / {:.3} | {} / {} | {:.3} | {:.1} / {:.1} |",
+                t.name,
+                v.name,
+                mean(&|g| g.tactile_position_cm),
+                mean(&|g| g.vision_position_cm),
+                p.position.better,
+                p.position.worse,
+                p.position.p_value,
+                mean(&|g| g.tactile_angle_deg),
+                mean(&|g| g.vision_angle_deg),
+            );
+        }
+    }
+}
+
 /// "What touch buys": the paired per-grasp comparison and how the tactile network answers.
 fn touch_section(s: &mut String, pairs: &[Comparison]) {
     if pairs.is_empty() {
@@ -309,6 +363,7 @@ fn touch_section(s: &mut String, pairs: &[Comparison]) {
             }
         }
     }
+    paired_by_subset(s, pairs);
     let _ = writeln!(s, "\n## Which channel answers\n");
     let _ = writeln!(
         s,
