@@ -51,20 +51,9 @@ pub struct Problem {
 }
 
 impl Problem {
-    /// A problem with the value at `path` (keys).
-    pub fn at(path: &[&'static str], message: impl Into<String>) -> Self {
-        Problem { path: path.iter().map(|k| Seg::key(*k)).collect(), message: message.into() }
-    }
-
     /// The field path as messages write it.
     pub fn field(&self) -> String {
         display_path(&self.path)
-    }
-
-    /// This problem one level down: under `key`.
-    pub fn under(mut self, key: &'static str) -> Self {
-        self.path.insert(0, Seg::key(key));
-        self
     }
 }
 
@@ -184,11 +173,6 @@ impl<'a> Checks<'a> {
         if !(inside(lo, min, max) && inside(hi, min, max) && lo <= hi) {
             self.fail(format!("must be [lo, hi] with {}, got [{lo}, {hi}]", describe(min, max, "lo <= hi", unit)));
         }
-    }
-
-    /// Whether any problem was found here or anywhere else so far.
-    pub fn any(&self) -> bool {
-        !self.out.is_empty()
     }
 }
 

@@ -142,7 +142,7 @@ impl HandAssembly {
                 continue;
             }
             let body = *body_of_link[b].get_or_insert_with(|| {
-                bodies.push(lumped(robot, &body_link, b));
+                bodies.push(lumped(robot, &q, &body_link, b));
                 bodies.len() - 1
             });
             let t_body_link = if b == li { DAffine3::IDENTITY } else { m.relative_pose(&q, b, li) };
@@ -185,18 +185,16 @@ impl HandAssembly {
 
 /// Body `b`'s mass and centre of mass: its link's, with the links fixed to it that have mass
 /// (positions in `b`'s frame), the mass at least [`MIN_BODY_MASS`].
-fn lumped(robot: &Robot, body_link: &[usize], b: usize) -> Body {
+fn lumped(robot: &Robot, q: &[f64], body_link: &[usize], b: usize) -> Body {
     let m = &robot.model;
-    let q = m.zero();
     let parts: Vec<usize> = (0..m.links.len()).filter(|&l| body_link[l] == b && m.links[l].mass > 0.0).collect();
     let (mass, com) = match parts[..] {
         [] => (0.0, m.links[b].com),
         [only] if only == b => (m.links[b].mass, m.links[b].com),
         _ => {
             let total: f64 = parts.iter().map(|&l| m.links[l].mass).sum();
-            let moment = parts
-                .iter()
-                .fold(DVec3::ZERO, |acc, &l| acc + m.relative_pose(&q, b, l).transform_point3(m.links[l].com) * m.links[l].mass);
+            let moment =
+                parts.iter().fold(DVec3::ZERO, |acc, &l| acc + m.relative_pose(q, b, l).transform_point3(m.links[l].com) * m.links[l].mass);
             (total, moment / total)
         }
     };

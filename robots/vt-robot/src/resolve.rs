@@ -24,7 +24,7 @@ fn link(model: &RobotModel, path: impl IntoIterator<Item = Seg>, name: &str) -> 
 }
 
 /// The joints from `top` down to `link` (in order), or None when `link` is not below `top`.
-pub(crate) fn path_down(model: &RobotModel, top: usize, link: usize) -> Option<Vec<usize>> {
+fn path_down(model: &RobotModel, top: usize, link: usize) -> Option<Vec<usize>> {
     let mut joints = Vec::new();
     let mut l = link;
     while l != top {
