@@ -6,6 +6,7 @@ mod common;
 mod bad_input;
 mod bench;
 mod bop_export;
+mod contact_forces;
 mod determinism;
 mod episodes;
 mod foxglove_scene;

@@ -14,7 +14,7 @@ use crate::writer::{SAMPLE_INFO_SCHEMA_NAME, STATE_RECORD_SCHEMA_NAME};
 use crate::{
     EPISODE_METADATA_KEY, EpisodeRecord, FORMAT_NAME, FORMAT_VERSION, GRASP_STATS_KEY, GraspStats, MANIFEST_FILE, MODELS_DIR,
     MODELS_INFO_FILE, Manifest, OCCLUSION_HISTOGRAM_KEY, OcclusionBin, OcclusionHistogram, PARTIAL_SUFFIX, ROBOT_DIR, SAMPLE_PERIOD_NS,
-    SHARD_METADATA, SOURCES_FILE, StateRecord, encodings, frames, mask_ids, tactile_points, topics,
+    SHARD_METADATA, SOURCES_FILE, StateRecord, encodings, force_cells, frames, mask_ids, tactile_points, topics,
 };
 
 /// When a topic is in a sample: `always`, with a robot, with a depth noise model, for pads with an
@@ -25,6 +25,7 @@ enum When {
     Robot,
     DepthNoise,
     Optical,
+    ForceField,
     Episode,
     SceneChange,
 }
@@ -36,10 +37,17 @@ impl When {
             When::Robot => "robot",
             When::DepthNoise => "depth_noise",
             When::Optical => "optical",
+            When::ForceField => "force_field",
             When::Episode => "episode",
             When::SceneChange => "scene_change",
         }
     }
+}
+
+/// A packed point layout: its fields (name, offset, type) and stride.
+fn packed(fields: &[(&str, u32, bool)], stride: u32) -> Value {
+    let field = |&(name, offset, unsigned): &(&str, u32, bool)| json!({"name": name, "offset": offset, "type": if unsigned { "UINT32" } else { "FLOAT32" }});
+    json!({"fields": fields.iter().map(field).collect::<Vec<_>>(), "point_stride": stride})
 }
 
 /// A protobuf topic: its schema from the Foxglove type the writer encodes.
@@ -153,12 +161,11 @@ pub fn description() -> Value {
             image(&topics::tactile_depth(pad), encodings::DEPTH_32FC1, Robot),
             image(&topics::tactile_image(pad), encodings::RGB8, Optical),
             image(&topics::tactile_reference(pad), encodings::RGB8, Optical),
+            protobuf::<PointCloud>(&topics::tactile_force(pad), None, ForceField),
         ],
         "image_encodings": encodings::ALL.iter().map(|&(name, channels, bytes)| (name.to_string(), json!({"channels": channels, "bytes_per_channel": bytes}))).collect::<serde_json::Map<_, _>>(),
-        "tactile_points": {
-            "fields": tactile_points::FIELDS.iter().map(|&(name, offset, unsigned)| json!({"name": name, "offset": offset, "type": if unsigned { "UINT32" } else { "FLOAT32" }})).collect::<Vec<_>>(),
-            "point_stride": tactile_points::STRIDE,
-        },
+        "tactile_points": packed(&tactile_points::FIELDS, tactile_points::STRIDE),
+        "force_cells": packed(&force_cells::FIELDS, force_cells::STRIDE),
         "frames": {"world": frames::WORLD, "camera": frames::CAMERA, "object": frames::OBJECT},
         "mask_ids": {
             "background": mask_ids::BACKGROUND,
@@ -177,6 +184,7 @@ pub fn description() -> Value {
             "sample_info": keys_of(&example_info(false)),
             "sample_info_robot": keys_of(&robot),
             "touch_info": keys_of(robot.tactile.as_ref().expect("the example has touch")),
+            "pad_force": keys_of(robot.tactile.as_ref().and_then(|t| t.forces.as_ref()).and_then(|f| f.values().next()).expect("the example has forces")),
             "occlusion": keys_of(&with_robot.occlusion.expect("the example has an occlusion level")),
             "episode_frame": keys_of(&with_robot.episode.expect("the example is an episode frame")),
             "episode": keys_of(&episode),

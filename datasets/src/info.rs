@@ -202,6 +202,26 @@ pub struct TouchInfo {
     /// sensor, varied per sample when `randomization.tactile_sensors` is on).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub optical: Option<BTreeMap<String, serde_json::Value>>,
+    /// With `robot.tactile.force_field`: per pad, the contact forces its field was made from.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub forces: Option<BTreeMap<String, PadForceInfo>>,
+    /// With `robot.tactile.force_field`: the force of every contact of the hand on the object's
+    /// side, summed (N, world frame): in a still hold, the object's weight.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub hand_force_n: Option<[f64; 3]>,
+}
+
+/// The physics' contact forces on one pad (FORMAT.md, "Force fields"), in the pad frame.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PadForceInfo {
+    /// The force of the contacts on the pad's sensing area (N): what its field sums to.
+    pub force_n: [f64; 3],
+    /// The force of every contact on the pad's link, on the sensing area or not (N).
+    pub link_force_n: [f64; 3],
+    /// The physics' contact points on the sensing area.
+    pub contacts: u32,
+    /// The friction coefficient of the slip rule.
+    pub friction: f64,
 }
 
 impl SampleInfo {
@@ -264,6 +284,14 @@ pub(crate) fn example_info(robot: bool) -> SampleInfo {
                 pads: [("ff_distal".to_string(), [0.02, 0.015])].into(),
                 points: [("ff_distal".to_string(), 40), ("th_distal".to_string(), 12)].into(),
                 optical: Some([("th_distal".to_string(), serde_json::json!({"image_size": [320, 240]}))].into()),
+                forces: Some(
+                    [(
+                        "ff_distal".to_string(),
+                        PadForceInfo { force_n: [0.1, 0.0, -2.0], link_force_n: [0.1, 0.0, -2.1], contacts: 3, friction: 1.0 },
+                    )]
+                    .into(),
+                ),
+                hand_force_n: Some([0.0, 0.0, -3.4]),
             }),
         }),
         episode: robot.then_some(EpisodeFrameInfo { frame: 3, time_s: 0.1, arm_move: 0 }),

@@ -16,7 +16,9 @@ mod writer;
 
 pub use format::description as format_description;
 pub use glb::{ColoredMesh, encode_glb, srgb_to_linear};
-pub use info::{EpisodeFrameInfo, EpisodeRecord, OcclusionInfo, PlacedDistractor, RobotInfo, SampleInfo, Split, StateRecord, TouchInfo};
+pub use info::{
+    EpisodeFrameInfo, EpisodeRecord, OcclusionInfo, PadForceInfo, PlacedDistractor, RobotInfo, SampleInfo, Split, StateRecord, TouchInfo,
+};
 pub use manifest::{
     ContinuousSymmetry, GraspStats, Manifest, ModelInfo, ModelsInfo, OcclusionHistogram, ShardEntry, SplitManifest, sha256_file,
     write_atomic,
@@ -24,7 +26,7 @@ pub use manifest::{
 pub use occlusion::OcclusionBin;
 pub use ply::{LengthUnit, PlyMesh, read_ply, write_ply};
 pub use reader::{DatasetReader, ShardReader};
-pub use sample::{EpisodeData, OpticalPadImage, Pose, Sample, ShardMeta, TactileData, TactilePointRecord};
+pub use sample::{EpisodeData, ForceCell, OpticalPadImage, PadForceField, Pose, Sample, ShardMeta, TactileData, TactilePointRecord};
 pub use writer::{Compression, SceneModel, ShardReceipt, ShardWriter};
 
 /// `manifest.json`'s `format`: what makes a folder a vtgen dataset.
@@ -98,6 +100,10 @@ pub mod topics {
     pub fn tactile_reference(pad: &str) -> String {
         format!("/tactile/{pad}/reference")
     }
+    /// A pad's contact force field (`robot.tactile.force_field`).
+    pub fn tactile_force(pad: &str) -> String {
+        format!("/tactile/{pad}/force")
+    }
     /// Every topic a complete sample has, in the order they are written.
     pub const ALL: [&str; 7] = [RGB, DEPTH, MASK, CALIBRATION, OBJECT_POSE, TF, SAMPLE_INFO];
 }
@@ -121,6 +127,23 @@ pub mod tactile_points {
         [("x", 0, false), ("y", 4, false), ("z", 8, false), ("distance", 12, false), ("phalanx", 16, true)];
     /// Bytes per point.
     pub const STRIDE: u32 = 20;
+}
+
+/// `/tactile/<pad>/force` (FORMAT.md, "Force fields"): one packed point per cell of a pad's grid,
+/// in the pad frame.
+pub mod force_cells {
+    /// A cell's fields: name, byte offset and whether it is an unsigned integer (else `f32`).
+    pub const FIELDS: [(&str, u32, bool); 7] = [
+        ("x", 0, false),
+        ("y", 4, false),
+        ("z", 8, false),
+        ("pressure", 12, false),
+        ("shear_x", 16, false),
+        ("shear_y", 20, false),
+        ("slip", 24, true),
+    ];
+    /// Bytes per cell.
+    pub const STRIDE: u32 = 28;
 }
 
 /// Frame ids (FORMAT.md, "Conventions").

@@ -491,7 +491,39 @@ fn read_tactile(by_topic: &BTreeMap<String, Vec<u8>>, pads: &[String]) -> Result
             reference,
         });
     }
-    Ok(Some(crate::sample::TactileData { phalanges, resolution, depth, points, optical }))
+    let mut forces = Vec::new();
+    for name in pads {
+        let Some(raw) = by_topic.get(&crate::topics::tactile_force(name)) else { continue };
+        forces.push(read_force_field(name, &PointCloud::decode(&raw[..])?)?);
+    }
+    Ok(Some(crate::sample::TactileData { phalanges, resolution, depth, points, optical, forces }))
+}
+
+/// A pad's `/tactile/<pad>/force` cloud: a square grid of cells, laid out as
+/// [`crate::force_cells::FIELDS`] says.
+fn read_force_field(pad: &str, cloud: &foxglove::schemas::PointCloud) -> Result<crate::sample::PadForceField> {
+    let stride = crate::force_cells::STRIDE as usize;
+    let n = cloud.data.len() / stride;
+    let resolution = (n as f64).sqrt().round() as u32;
+    if cloud.point_stride as usize != stride || cloud.data.len() % stride != 0 || (resolution * resolution) as usize != n {
+        bail!(
+            "/tactile/{pad}/force: expected a square grid of {stride}-byte cells, got {} bytes of stride {}",
+            cloud.data.len(),
+            cloud.point_stride
+        );
+    }
+    let f32_at = |c: &[u8], o: usize| f32::from_le_bytes([c[o], c[o + 1], c[o + 2], c[o + 3]]);
+    let cells = cloud
+        .data
+        .chunks_exact(stride)
+        .map(|c| crate::sample::ForceCell {
+            position: [f32_at(c, 0), f32_at(c, 4)],
+            pressure: f32_at(c, 12),
+            shear: [f32_at(c, 16), f32_at(c, 20)],
+            slip: u32::from_le_bytes([c[24], c[25], c[26], c[27]]) != 0,
+        })
+        .collect();
+    Ok(crate::sample::PadForceField { pad: pad.to_string(), resolution, cells })
 }
 
 /// A dataset directory opened through its manifest.

@@ -96,6 +96,33 @@ pub struct TactileData {
     /// The optical images of the pads with an optical sensor, in pad order (FORMAT.md,
     /// `/tactile/<pad>/image`); empty without one.
     pub optical: Vec<OpticalPadImage>,
+    /// Every pad's force field, in pad order (FORMAT.md, `/tactile/<pad>/force`), when the config
+    /// asks for them (`robot.tactile.force_field`); else empty.
+    pub forces: Vec<PadForceField>,
+}
+
+/// One pad's contact force field: a `resolution x resolution` grid over its sensing area, rows and
+/// columns as its depth image's (FORMAT.md, `/tactile/<pad>/force`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PadForceField {
+    /// The pad's name (one of `TactileData::phalanges`).
+    pub pad: String,
+    pub resolution: u32,
+    /// `resolution²` cells, row-major.
+    pub cells: Vec<ForceCell>,
+}
+
+/// One cell of a force field: what the object exerts on the pad's surface there.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ForceCell {
+    /// The cell's centre in the pad frame (x, y; m), on the pad plane.
+    pub position: [f32; 2],
+    /// Normal pressure (Pa, >= 0), pushing into the pad.
+    pub pressure: f32,
+    /// Shear traction along the pad's x and y (Pa).
+    pub shear: [f32; 2],
+    /// Whether the cell slips: its traction is at the friction limit.
+    pub slip: bool,
 }
 
 /// One pad's optical tactile image and its sensor's no-contact reference image.

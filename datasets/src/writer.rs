@@ -115,6 +115,7 @@ struct TactileChannels {
     points: u16,
     depth: Vec<u16>,
     optical: Vec<(String, u16, u16)>,
+    forces: Vec<u16>,
 }
 
 impl ShardWriter {
@@ -296,13 +297,16 @@ impl ShardWriter {
                     Ok((o.pad.clone(), image, add::<RawImage>(&mut self.mcap, &topics::tactile_reference(&o.pad))?))
                 })
                 .collect::<Result<_>>()?;
-            self.tactile_channels = Some(TactileChannels { points, depth, optical });
+            let forces =
+                tac.forces.iter().map(|f| add::<PointCloud>(&mut self.mcap, &topics::tactile_force(&f.pad))).collect::<Result<_>>()?;
+            self.tactile_channels = Some(TactileChannels { points, depth, optical, forces });
         }
-        let TactileChannels { points: points_ch, depth: image_chs, optical } = self.tactile_channels.clone().expect("set above");
+        let TactileChannels { points: points_ch, depth: image_chs, optical, forces } = self.tactile_channels.clone().expect("set above");
         anyhow::ensure!(
             optical.len() == tac.optical.len() && optical.iter().zip(&tac.optical).all(|(c, o)| c.0 == o.pad),
             "the optical pads changed within a shard"
         );
+        anyhow::ensure!(forces.len() == tac.forces.len(), "the pads with force fields changed within a shard");
         let cloud = tactile_cloud(t, &tac.points);
         self.put(points_ch, t, &cloud)?;
         let r = tac.resolution;
@@ -343,6 +347,10 @@ impl ShardWriter {
                 .encode_to_vec();
                 self.put(*ch, t, &img)?;
             }
+        }
+        for (ch, field) in forces.iter().zip(&tac.forces) {
+            anyhow::ensure!(tac.phalanges.contains(&field.pad), "force field of an unknown pad {}", field.pad);
+            self.put(*ch, t, &force_cloud(t, field)?)?;
         }
         Ok(())
     }
@@ -416,6 +424,34 @@ impl ShardWriter {
         let (bytes, sha256) = crate::manifest::sha256_file(&self.final_path)?;
         Ok(ShardReceipt { path: self.final_path.clone(), bytes, sha256 })
     }
+}
+
+/// A pad's force field as a Foxglove `PointCloud` in the pad frame, one point per cell at its
+/// centre on the pad plane, laid out as [`crate::force_cells::FIELDS`] says.
+fn force_cloud(t: u64, f: &crate::sample::PadForceField) -> Result<Vec<u8>> {
+    use foxglove::schemas::packed_element_field::NumericType;
+    let r = f.resolution;
+    anyhow::ensure!(f.cells.len() == (r * r) as usize, "pad {}: {} force cells, expected {r}x{r}", f.pad, f.cells.len());
+    let field = |name: &str, offset: u32, ty: NumericType| PackedElementField { name: name.into(), offset, r#type: ty as i32 };
+    let mut data = Vec::with_capacity(f.cells.len() * crate::force_cells::STRIDE as usize);
+    for c in &f.cells {
+        for v in [c.position[0], c.position[1], 0.0, c.pressure, c.shear[0], c.shear[1]] {
+            data.extend(v.to_le_bytes());
+        }
+        data.extend((c.slip as u32).to_le_bytes());
+    }
+    Ok(PointCloud {
+        timestamp: ts(t),
+        frame_id: format!("{}_pad", f.pad),
+        pose: Some(fg_pose(&Pose::IDENTITY)),
+        point_stride: crate::force_cells::STRIDE,
+        fields: crate::force_cells::FIELDS
+            .iter()
+            .map(|&(name, offset, unsigned)| field(name, offset, if unsigned { NumericType::Uint32 } else { NumericType::Float32 }))
+            .collect(),
+        data: prost::bytes::Bytes::from(data),
+    }
+    .encode_to_vec())
 }
 
 /// The tactile points as a Foxglove `PointCloud` in the camera frame, laid out as

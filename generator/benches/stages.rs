@@ -192,6 +192,7 @@ fn rendering(c: &mut Criterion) {
             depth: vec![vec![f32::INFINITY; 32 * 32]; 12],
             points: Vec::new(),
             optical: Vec::new(),
+            forces: Vec::new(),
         }),
         episode: None,
     };

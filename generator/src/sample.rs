@@ -1,13 +1,14 @@
 //! One sample: scene sampling, the robot's recorded grasp state, rendering, and the ground truth
 //! and metadata that go with it. A factory lives in one worker thread with its own renderer.
 
+use std::collections::BTreeMap;
 use std::time::Duration;
 
 use anyhow::{Context, Result};
 use glam::{DAffine3, DMat4};
 use vt_dataset::{
-    EpisodeData, EpisodeFrameInfo, GraspStats, OcclusionBin, OcclusionInfo, OpticalPadImage, PlacedDistractor, Pose, RobotInfo, Sample,
-    SampleInfo, SceneModel, Split, StateRecord, TactileData, TactilePointRecord, TouchInfo, frames, mask_ids,
+    EpisodeData, EpisodeFrameInfo, GraspStats, OcclusionBin, OcclusionInfo, OpticalPadImage, PadForceField, PadForceInfo, PlacedDistractor,
+    Pose, RobotInfo, Sample, SampleInfo, SceneModel, Split, StateRecord, TactileData, TactilePointRecord, TouchInfo, frames, mask_ids,
 };
 use vt_objects::Texture;
 use vt_randomizers::{AppearanceContext, ImageLibrary, ProceduralTexture, SampleKey, SampleStream, sample_sensor_variation};
@@ -25,8 +26,9 @@ use crate::render::{Draw, DrawRole, Lighting, Material, MeshHandle, Renderer, Vi
 use crate::scene::environment::{Distractor, backdrop_mesh, floor_mesh, glb_of, place_distractors};
 use crate::scene::robot::{link_mesh, mask_id as robot_mask_id, pose_links};
 use crate::scene::{SampledScene, pose_of, sample_scene};
+use crate::sensors::force_field;
 use crate::sensors::optical::{optical_image, reference_image, varied};
-use crate::sensors::tactile::{FingerSurface, PadView, finger_surface, sense};
+use crate::sensors::tactile::{FingerSurface, PadView, finger_surface, gap_above_surface, sense};
 
 /// The real fingers' surface under the pads, when the robot has its real hand meshes.
 fn finger_surfaces(robot: &RobotScene, pads: &[(f64, f64)]) -> Result<Option<FingerSurface>> {
@@ -305,6 +307,9 @@ struct PosedRobot {
     pads: Vec<DAffine3>,
     transforms: Vec<(String, String, Pose)>,
     t_world_object: DAffine3,
+    t_world_palm: DAffine3,
+    /// The physics' contacts and forces (palm frame), where the backend gives them.
+    hand_contacts: Option<Vec<crate::physics::HandContact>>,
 }
 
 /// Which recorded state of the trajectory a sample shows: an instance (snapshots) or a physics
@@ -601,6 +606,8 @@ impl<'a> SampleFactory<'a> {
             pads: posed.pads,
             transforms: posed.transforms,
             t_world_object: t_world_palm * st.t_palm_object,
+            t_world_palm,
+            hand_contacts: st.hand_contacts.clone(),
         })
     }
 
@@ -758,6 +765,10 @@ impl<'a> SampleFactory<'a> {
             .zip(&names)
             .filter_map(|(p, n)| p.optical.as_ref().map(|s| Ok((n.clone(), serde_json::to_value(s)?))))
             .collect::<Result<std::collections::BTreeMap<_, _>>>()?;
+        let (forces, forces_info, hand_force) = match cfg.force_field {
+            Some(field) => self.force_fields(field.resolution, &pads, &reading.depth, posed)?,
+            None => (Vec::new(), None, None),
+        };
         posed.info.tactile = Some(TouchInfo {
             contact_threshold_mm: cfg.contact_threshold_mm,
             sensors: serde_json::to_value(cfg.sensors)?,
@@ -766,6 +777,8 @@ impl<'a> SampleFactory<'a> {
             pads: names.iter().zip(&self.uploaded.pad_sizes).map(|(n, (l, w))| (n.clone(), [*l, *w])).collect(),
             points: names.iter().zip(reading.counts).map(|(n, c)| (n.clone(), c as u64)).collect(),
             optical: (!optical_info.is_empty()).then_some(optical_info),
+            forces: forces_info,
+            hand_force_n: hand_force,
         });
         Ok(TactileData {
             phalanges: names,
@@ -777,7 +790,51 @@ impl<'a> SampleFactory<'a> {
                 .map(|p| TactilePointRecord { position: p.position.as_vec3().to_array(), distance: p.distance as f32, phalanx: p.phalanx })
                 .collect(),
             optical,
+            forces,
         })
+    }
+
+    /// Every pad's force field from the physics' contacts of the posed state (its depth view
+    /// spreads them), the forces each was made from, and the whole hand's force (world).
+    fn force_fields(
+        &self,
+        resolution: u32,
+        pads: &[PadView],
+        depth: &[Vec<f32>],
+        posed: &PosedRobot,
+    ) -> Result<(Vec<PadForceField>, Option<BTreeMap<String, PadForceInfo>>, Option<[f64; 3]>)> {
+        let robot = &self.trajectories.as_ref().expect("called with a robot").robot;
+        let cfg = &robot.config;
+        // The config's check requires a backend that gives its contact forces.
+        let contacts = posed.hand_contacts.as_deref().context("the physics backend gives no contact forces for the force fields")?;
+        let surface = self.uploaded.finger_surface.as_ref();
+        let mut fields = Vec::new();
+        let mut info = BTreeMap::new();
+        for (k, (pad, view)) in robot.robot.pads.iter().zip(pads).enumerate() {
+            let t_palm_pad = posed.t_world_palm.inverse() * view.t_world_pad;
+            let (on_area, link_force) = force_field::pad_contacts(contacts, pad.link, &t_palm_pad, view.size);
+            let gap = gap_above_surface(&depth[k], surface.map(|s| &s[k][..]));
+            let touch = force_field::PadTouch {
+                pad: &pad.name,
+                contacts: &on_area,
+                gap: &gap,
+                n: cfg.tactile.resolution,
+                threshold: cfg.tactile.contact_threshold_mm * 1e-3,
+                size: view.size,
+                friction: cfg.physics.friction,
+            };
+            fields.push(force_field::force_field(&touch, resolution));
+            let force: glam::DVec3 = on_area.iter().map(|c| c.force).sum();
+            let pad_info = PadForceInfo {
+                force_n: force.to_array(),
+                link_force_n: link_force.to_array(),
+                contacts: on_area.len() as u32,
+                friction: cfg.physics.friction,
+            };
+            info.insert(pad.name.clone(), pad_info);
+        }
+        let hand_force = posed.t_world_palm.transform_vector3(contacts.iter().map(|c| c.force).sum());
+        Ok((fields, Some(info), Some(hand_force.to_array())))
     }
 
     /// The annotate stage: the paper's occlusion level (model points vs the depth cloud) and the

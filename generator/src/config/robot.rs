@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use serde::{Deserialize, Serialize};
-use vt_check::{Check, Checks, field};
+use vt_check::{Check, Checks, field, key};
 
 use super::{GraspConfig, PhysicsConfig, TactileConfig};
 
@@ -52,6 +52,12 @@ impl Check for RobotConfig {
             c.key(base).index(i).within(*v, -100.0, 100.0);
         }
         c.range(field!(self.base_yaw_deg), -360.0, 360.0);
+        if self.tactile.force_field.is_some() && self.physics.backend == super::PhysicsBackend::Rapier {
+            c.key(key!(self.tactile)).key("force_field").fail(
+                "needs the contact forces of the physics, which rapier does not give reliably (docs/tactile.md, \"Force fields\"): \
+                 set robot.physics.backend: mujoco",
+            );
+        }
     }
 }
 

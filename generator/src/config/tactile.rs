@@ -27,6 +27,26 @@ pub struct TactileConfig {
     /// preset). Left out of the config when not given, so other datasets keep their hash.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub optical: Option<super::optical::OpticalConfig>,
+    /// Each pad's contact force field from the physics (FORMAT.md, `/tactile/<pad>/force`); none
+    /// unless given, so other datasets keep their hash. Needs a backend that gives its contact
+    /// forces (`robot.physics.backend: mujoco`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub force_field: Option<ForceFieldConfig>,
+}
+
+/// `robot.tactile.force_field:` the grid each pad's contact force is spread over.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ForceFieldConfig {
+    /// Cells per side of the pad's grid (at most the pad camera's `resolution`: a cell gathers
+    /// its pixels).
+    pub resolution: u32,
+}
+
+impl Default for ForceFieldConfig {
+    fn default() -> Self {
+        ForceFieldConfig { resolution: 16 }
+    }
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -48,6 +68,7 @@ impl Default for TactileConfig {
             projection: PadProjection::Orthographic,
             perspective_standoff_mm: 10.0,
             optical: None,
+            force_field: None,
         }
     }
 }
@@ -80,6 +101,9 @@ impl Check for TactileConfig {
         c.range(field!(self.far_mm), -100.0, 1000.0);
         c.positive(field!(self.perspective_standoff_mm), 100.0, "mm");
         c.section(field!(self.optical));
+        if let Some(f) = &self.force_field {
+            c.key(key!(self.force_field)).range(field!(f.resolution), 1, self.resolution);
+        }
     }
 }
 

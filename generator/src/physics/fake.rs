@@ -78,6 +78,9 @@ impl HandPhysics for FakeHand {
         // A dropped object touches nothing.
         if self.object.translation.length() > 0.25 { vec![None; self.contacts.len()] } else { self.contacts.clone() }
     }
+    fn hand_contacts(&self) -> Option<Vec<super::HandContact>> {
+        None
+    }
     fn max_penetration(&self) -> f64 {
         self.penetration
     }

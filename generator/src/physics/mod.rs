@@ -31,6 +31,21 @@ pub struct PhysicsObject {
     pub mass: f64,
 }
 
+/// One contact point between a hand link and the object, in the grasp (palm) frame, with the force
+/// the backend's solver applied there in its last step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HandContact {
+    /// The hand link (`RobotModel::links` index).
+    pub link: usize,
+    /// The contact point (m).
+    pub point: DVec3,
+    /// Unit contact normal, out of the link towards the object.
+    pub normal: DVec3,
+    /// The force the object exerts on the link there (N): its part along `-normal` is the
+    /// pressure, the rest is friction.
+    pub force: DVec3,
+}
+
 /// Per-step settings shared by backends.
 #[derive(Debug, Clone, Copy)]
 pub struct PhysicsSettings {
@@ -76,6 +91,13 @@ pub trait HandPhysics {
     /// For each touch link (`Robot::touch_links` order): the signed distance of its closest
     /// contact with the object (negative = penetration), None when not touching.
     fn touch_contacts(&self) -> Vec<Option<f64>>;
+    /// Every contact of a hand link with the object and the force on the link there (an empty list
+    /// when nothing touches). At rest the forces on the links sum to the object's weight in the
+    /// apparent gravity (the balance `tests/contact_forces.rs` checks). None: the backend cannot
+    /// give forces that balance. rapier cannot: the impulses its solver keeps per contact miss the
+    /// weight of a settled Allegro hold by 2 to 30 times (2 of 3 test holds), so force fields need
+    /// MuJoCo (docs/tactile.md).
+    fn hand_contacts(&self) -> Option<Vec<HandContact>>;
     /// Deepest penetration (m, >= 0) of any hand link into the object.
     fn max_penetration(&self) -> f64;
     /// The hand link (`RobotModel::links` index) that reaches deepest into the object, and how

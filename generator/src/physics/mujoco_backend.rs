@@ -13,7 +13,7 @@ use mujoco_rs::prelude::*;
 use vt_robot::{Geometry, Robot, RobotModel};
 
 use super::hand_assembly::{Drive, HandAssembly, SimJoint};
-use super::{HandPhysics, PhysicsObject, PhysicsSettings};
+use super::{HandContact, HandPhysics, PhysicsObject, PhysicsSettings};
 
 struct Sim {
     data: MjData<Box<MjModel>>,
@@ -368,6 +368,32 @@ impl HandPhysics for MujocoHand {
 
     fn touch_contacts(&self) -> Vec<Option<f64>> {
         self.sim().touch_geoms.iter().map(|g| self.contact_dists(g).min_by(f64::total_cmp)).collect()
+    }
+
+    fn hand_contacts(&self) -> Option<Vec<HandContact>> {
+        let sim = self.sim();
+        let mut out = Vec::new();
+        for (i, c) in sim.data.contact().iter().enumerate() {
+            let (a, b) = (c.geom[0] as usize, c.geom[1] as usize);
+            let (link_geom, link_first) = match (a == sim.object_geom, b == sim.object_geom) {
+                (false, true) => (a, true),
+                (true, false) => (b, false),
+                _ => continue,
+            };
+            let Some(&(link, _)) = sim.link_geoms.iter().find(|(_, g)| g.contains(&link_geom)) else { continue };
+            // mj_contactForce: the force in the contact frame (normal, then the two tangents; the
+            // frame's rows), exerted by the first geom on the second; the normal points from the
+            // first to the second.
+            let f = sim.data.contact_force(i);
+            if f[0] <= 0.0 {
+                continue;
+            }
+            let row = |r: usize| DVec3::new(c.frame[3 * r], c.frame[3 * r + 1], c.frame[3 * r + 2]);
+            let on_second = row(0) * f[0] + row(1) * f[1] + row(2) * f[2];
+            let sign = if link_first { -1.0 } else { 1.0 };
+            out.push(HandContact { link, point: DVec3::from_array(c.pos), normal: -sign * row(0), force: sign * on_second });
+        }
+        Some(out)
     }
 
     fn max_penetration(&self) -> f64 {

@@ -379,6 +379,12 @@ impl HandPhysics for RapierHand {
         self.touch_colliders.iter().map(|cs| cs.iter().filter_map(|&c| self.contact_distance(c)).min_by(f64::total_cmp)).collect()
     }
 
+    fn hand_contacts(&self) -> Option<Vec<super::HandContact>> {
+        // The impulses rapier's solver keeps per contact (`ContactData`) do not balance a settled
+        // hold's weight (HandPhysics::hand_contacts): no forces rather than wrong ones.
+        None
+    }
+
     fn max_penetration(&self) -> f64 {
         self.hand_colliders.iter().filter_map(|&c| self.contact_distance(c)).map(|d| (-d).max(0.0)).fold(0.0, f64::max)
     }

@@ -134,9 +134,8 @@ pub fn sense(
         let to_camera = *t_camera_world * pad.t_world_pad;
         // An optical pad's points: the `gelsight` rule with its sensor's gel.
         let model = pad.optical.as_ref().map_or(pad.model, |o| SensorModel::Gelsight { gel_thickness_mm: o.gel_thickness_mm });
-        let above_finger: Option<Vec<f32>> = surface.map(|s| depth[k].iter().zip(&s[k]).map(|(d, h)| d - h).collect());
-        let gap = above_finger.as_deref().unwrap_or(&depth[k]);
-        for (u, v) in contact_pixels(gap, n, model, cfg.contact_threshold_mm * 1e-3) {
+        let gap = gap_above_surface(&depth[k], surface.map(|s| &s[k][..]));
+        for (u, v) in contact_pixels(&gap, n, model, cfg.contact_threshold_mm * 1e-3) {
             let d = depth[k][(v * n + u) as usize] as f64;
             // The pixel's ray meets the pad plane at (x, y); a pinhole's ray spreads with depth.
             let spread = standoff.map_or(1.0, |s| (s + d) / s);
@@ -147,6 +146,15 @@ pub fn sense(
         }
     }
     Ok(TactileReading { depth, points, counts, optical_depth, render_time })
+}
+
+/// The object's distance above the pad's surface per pixel of its depth view: above the finger's
+/// real surface under the pixel (`surface`, FingerSurface), else above the pad plane.
+pub fn gap_above_surface<'a>(depth: &'a [f32], surface: Option<&[f32]>) -> std::borrow::Cow<'a, [f32]> {
+    match surface {
+        Some(s) => depth.iter().zip(s).map(|(d, h)| d - h).collect::<Vec<_>>().into(),
+        None => depth.into(),
+    }
 }
 
 /// The pixels (u, v) of an `n x n` pad depth image that a sensor model reports as contacts. Every
