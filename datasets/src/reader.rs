@@ -505,7 +505,7 @@ fn read_force_field(pad: &str, cloud: &foxglove::schemas::PointCloud) -> Result<
     let stride = crate::force_cells::STRIDE as usize;
     let n = cloud.data.len() / stride;
     let resolution = (n as f64).sqrt().round() as u32;
-    if cloud.point_stride as usize != stride || cloud.data.len() % stride != 0 || (resolution * resolution) as usize != n {
+    if cloud.point_stride as usize != stride || !cloud.data.len().is_multiple_of(stride) || (resolution * resolution) as usize != n {
         bail!(
             "/tactile/{pad}/force: expected a square grid of {stride}-byte cells, got {} bytes of stride {}",
             cloud.data.len(),

@@ -312,6 +312,14 @@ struct PosedRobot {
     hand_contacts: Option<Vec<crate::physics::HandContact>>,
 }
 
+/// The pads' force fields of one reading, the forces each was made from, and the whole hand's
+/// force (world, N).
+struct ForceReadings {
+    fields: Vec<PadForceField>,
+    info: BTreeMap<String, PadForceInfo>,
+    hand_force_n: [f64; 3],
+}
+
 /// Which recorded state of the trajectory a sample shows: an instance (snapshots) or a physics
 /// step of the episode (`Trajectory::steps`).
 #[derive(Debug, Clone, Copy)]
@@ -765,9 +773,9 @@ impl<'a> SampleFactory<'a> {
             .zip(&names)
             .filter_map(|(p, n)| p.optical.as_ref().map(|s| Ok((n.clone(), serde_json::to_value(s)?))))
             .collect::<Result<std::collections::BTreeMap<_, _>>>()?;
-        let (forces, forces_info, hand_force) = match cfg.force_field {
-            Some(field) => self.force_fields(field.resolution, &pads, &reading.depth, posed)?,
-            None => (Vec::new(), None, None),
+        let forces = match cfg.force_field {
+            Some(field) => Some(self.force_fields(field.resolution, &pads, &reading.depth, posed)?),
+            None => None,
         };
         posed.info.tactile = Some(TouchInfo {
             contact_threshold_mm: cfg.contact_threshold_mm,
@@ -777,8 +785,8 @@ impl<'a> SampleFactory<'a> {
             pads: names.iter().zip(&self.uploaded.pad_sizes).map(|(n, (l, w))| (n.clone(), [*l, *w])).collect(),
             points: names.iter().zip(reading.counts).map(|(n, c)| (n.clone(), c as u64)).collect(),
             optical: (!optical_info.is_empty()).then_some(optical_info),
-            forces: forces_info,
-            hand_force_n: hand_force,
+            forces: forces.as_ref().map(|f| f.info.clone()),
+            hand_force_n: forces.as_ref().map(|f| f.hand_force_n),
         });
         Ok(TactileData {
             phalanges: names,
@@ -790,19 +798,13 @@ impl<'a> SampleFactory<'a> {
                 .map(|p| TactilePointRecord { position: p.position.as_vec3().to_array(), distance: p.distance as f32, phalanx: p.phalanx })
                 .collect(),
             optical,
-            forces,
+            forces: forces.map(|f| f.fields).unwrap_or_default(),
         })
     }
 
     /// Every pad's force field from the physics' contacts of the posed state (its depth view
     /// spreads them), the forces each was made from, and the whole hand's force (world).
-    fn force_fields(
-        &self,
-        resolution: u32,
-        pads: &[PadView],
-        depth: &[Vec<f32>],
-        posed: &PosedRobot,
-    ) -> Result<(Vec<PadForceField>, Option<BTreeMap<String, PadForceInfo>>, Option<[f64; 3]>)> {
+    fn force_fields(&self, resolution: u32, pads: &[PadView], depth: &[Vec<f32>], posed: &PosedRobot) -> Result<ForceReadings> {
         let robot = &self.trajectories.as_ref().expect("called with a robot").robot;
         let cfg = &robot.config;
         // The config's check requires a backend that gives its contact forces.
@@ -834,7 +836,7 @@ impl<'a> SampleFactory<'a> {
             info.insert(pad.name.clone(), pad_info);
         }
         let hand_force = posed.t_world_palm.transform_vector3(contacts.iter().map(|c| c.force).sum());
-        Ok((fields, Some(info), Some(hand_force.to_array())))
+        Ok(ForceReadings { fields, info, hand_force_n: hand_force.to_array() })
     }
 
     /// The annotate stage: the paper's occlusion level (model points vs the depth cloud) and the

@@ -1,7 +1,9 @@
 //! `vtgen preview`: a contact sheet to look at. One row per sample, cropped around the object: the
 //! RGB image with the object's mask tinted, the tactile points projected as dots and the ground-truth pose drawn as
 //! axes (x red, y green, z blue, 5 cm), next to the depth colour-mapped (near bright, far dark),
-//! and the optical tactile images of the pads that have them.
+//! the optical tactile images of the pads that have them, and the force fields of the pads the
+//! object presses on (pressure from white to red, shear as black arrows, slipping cells framed in
+//! blue; scaled to the sample's largest pressure and shear).
 //! A strip on the left of each row tells randomized samples (orange) from canonical ones (grey).
 
 use std::path::Path;
@@ -146,30 +148,69 @@ fn depth_image(s: &Sample, (x0, y0, cw, ch): (u32, u32, u32, u32)) -> RgbImage {
     depth
 }
 
-/// One row: annotated RGB | colour-mapped depth, cropped around the object, and the optical pads'
-/// images stacked in a column on the right.
+/// The force fields of a sample's pressed pads, each `CELL_PX` pixels per cell: pressure from
+/// white (none) to red (the sample's largest), the shear traction as a black arrow from each
+/// cell's centre (the sample's largest: most of a cell), slipping cells framed in blue; the pad's
+/// x to the right, its y down, as its depth image.
+fn force_images(s: &Sample) -> Vec<RgbImage> {
+    const CELL_PX: u32 = 96;
+    let fields: Vec<&vt_dataset::PadForceField> =
+        s.tactile.iter().flat_map(|t| &t.forces).filter(|f| f.cells.iter().any(|c| c.pressure > 0.0)).collect();
+    let cells = || fields.iter().flat_map(|f| &f.cells);
+    let p_max = cells().map(|c| c.pressure).fold(0.0f32, f32::max).max(1e-9);
+    let s_max = cells().map(|c| c.shear[0].hypot(c.shear[1])).fold(0.0f32, f32::max).max(1e-9);
+    fields
+        .iter()
+        .map(|f| {
+            let r = f.resolution;
+            let px = (CELL_PX / r).max(4);
+            let mut img = RgbImage::from_pixel(r * px, r * px, Rgb([235, 235, 235]));
+            for (i, c) in f.cells.iter().enumerate() {
+                let (u, v) = (i as u32 % r, i as u32 / r);
+                let t = (c.pressure / p_max).clamp(0.0, 1.0);
+                let fill = if c.pressure > 0.0 { [255, (255.0 * (1.0 - t)) as u8, (255.0 * (1.0 - t)) as u8] } else { [235, 235, 235] };
+                for y in v * px..(v + 1) * px {
+                    for x in u * px..(u + 1) * px {
+                        let edge = x == u * px || y == v * px || x + 1 == (u + 1) * px || y + 1 == (v + 1) * px;
+                        img.put_pixel(x, y, Rgb(if c.slip && edge { [30, 90, 255] } else { fill }));
+                    }
+                }
+                let centre = ((u as f64 + 0.5) * px as f64, (v as f64 + 0.5) * px as f64);
+                let k = 0.9 * px as f64 / s_max as f64;
+                let tip = (centre.0 + k * c.shear[0] as f64, centre.1 + k * c.shear[1] as f64);
+                if c.shear != [0.0, 0.0] {
+                    line(&mut img, centre, tip, [0, 0, 0]);
+                }
+            }
+            img
+        })
+        .collect()
+}
+
+/// One row: annotated RGB | colour-mapped depth, cropped around the object, and a column on the
+/// right: the optical pads' images, then the pressed pads' force fields.
 fn row(s: &Sample) -> RgbImage {
     let (x0, y0, cw, ch) = object_crop(s);
     let crop = |img: &RgbImage| image::imageops::crop_imm(img, x0, y0, cw, ch).to_image();
     let (rgb, depth) = (crop(&annotated_rgb(s)), crop(&depth_image(s, (x0, y0, cw, ch))));
-    let optical: Vec<RgbImage> = s
-        .tactile
+    let mut side: Vec<RgbImage> =
+        s.tactile.iter().flat_map(|t| &t.optical).filter_map(|o| RgbImage::from_raw(o.width, o.height, o.image.clone())).collect();
+    side.extend(force_images(s));
+    let n = side.len().max(1) as u32;
+    let side: Vec<RgbImage> = side
         .iter()
-        .flat_map(|t| &t.optical)
-        .filter_map(|o| RgbImage::from_raw(o.width, o.height, o.image.clone()))
         .map(|img| {
-            let n = s.tactile.as_ref().map_or(1, |t| t.optical.len()) as u32;
             let th = (ch / n).max(1);
             let tw = (img.width() as u64 * th as u64 / img.height().max(1) as u64).max(1) as u32;
-            image::imageops::resize(&img, tw, th, image::imageops::FilterType::Triangle)
+            image::imageops::resize(img, tw, th, image::imageops::FilterType::Triangle)
         })
         .collect();
-    let column = optical.iter().map(|i| i.width()).max().unwrap_or(0);
+    let column = side.iter().map(|i| i.width()).max().unwrap_or(0);
     let mut out = RgbImage::new(2 * cw + column, ch);
     image::imageops::overlay(&mut out, &rgb, 0, 0);
     image::imageops::overlay(&mut out, &depth, cw as i64, 0);
     let mut top = 0;
-    for img in &optical {
+    for img in &side {
         image::imageops::overlay(&mut out, img, 2 * cw as i64, top);
         top += img.height() as i64;
     }
