@@ -245,6 +245,9 @@ pub struct StageTimes {
     pub tactile_optical_cpu: Duration,
     /// Optical tactile images made.
     pub optical_images: u64,
+    /// The pads' force fields (`robot.tactile.force_field`) and how many were made.
+    pub tactile_forces: Duration,
+    pub force_fields: u64,
     /// Occlusion level (model points against the depth cloud); the object's unoccluded
     /// silhouette comes with the main render.
     pub occlusion: Duration,
@@ -269,6 +272,8 @@ impl std::ops::AddAssign<&StageTimes> for StageTimes {
             tactile_optical,
             tactile_optical_cpu,
             optical_images,
+            tactile_forces,
+            force_fields,
             occlusion,
             physics_steps,
             physics_cpu,
@@ -282,6 +287,8 @@ impl std::ops::AddAssign<&StageTimes> for StageTimes {
         self.tactile_optical += *tactile_optical;
         self.tactile_optical_cpu += *tactile_optical_cpu;
         self.optical_images += *optical_images;
+        self.tactile_forces += *tactile_forces;
+        self.force_fields += *force_fields;
         self.occlusion += *occlusion;
         self.physics_steps += *physics_steps;
         self.physics_cpu += *physics_cpu;
@@ -773,10 +780,13 @@ impl<'a> SampleFactory<'a> {
             .zip(&names)
             .filter_map(|(p, n)| p.optical.as_ref().map(|s| Ok((n.clone(), serde_json::to_value(s)?))))
             .collect::<Result<std::collections::BTreeMap<_, _>>>()?;
+        let clock = StageClock::start();
         let forces = match cfg.force_field {
             Some(field) => Some(self.force_fields(field.resolution, &pads, &reading.depth, posed)?),
             None => None,
         };
+        self.times.tactile_forces += clock.wall();
+        self.times.force_fields += forces.as_ref().map_or(0, |f| f.fields.len() as u64);
         posed.info.tactile = Some(TouchInfo {
             contact_threshold_mm: cfg.contact_threshold_mm,
             sensors: serde_json::to_value(cfg.sensors)?,

@@ -41,6 +41,9 @@ pub struct BenchReport {
     pub optical_images: u64,
     pub optical: f64,
     pub optical_cpu: f64,
+    /// The pads' force fields (`robot.tactile.force_field`): how many, their wall seconds.
+    pub force_fields: u64,
+    pub force_field_seconds: f64,
     pub occlusion: f64,
     pub encode_and_write: f64,
     /// Shard bytes per sample (the shards' size over the samples: meshes and summaries included).
@@ -115,6 +118,15 @@ impl std::fmt::Display for BenchReport {
                 r.optical_images as f64 / r.samples as f64,
                 1e3 * each,
                 1.0 / each.max(1e-12)
+            )?;
+        }
+        if r.force_fields > 0 {
+            writeln!(
+                f,
+                "  force fields     {:7.2} ms  ({:.1} per sample: {:.1} µs each)",
+                per(r.force_field_seconds),
+                r.force_fields as f64 / r.samples as f64,
+                1e6 * r.force_field_seconds / r.force_fields as f64
             )?;
         }
         writeln!(f, "  occlusion        {:7.2} ms", per(r.occlusion))?;
@@ -382,6 +394,8 @@ fn report(runs: Vec<TrajectoryRun>, workers: Vec<(StageTimes, WriterTimes, Durat
         optical_images: t.optical_images,
         optical: t.tactile_optical.as_secs_f64(),
         optical_cpu: t.tactile_optical_cpu.as_secs_f64(),
+        force_fields: t.force_fields,
+        force_field_seconds: t.tactile_forces.as_secs_f64(),
         occlusion: t.occlusion.as_secs_f64(),
         encode_and_write: write.busy.as_secs_f64(),
         tactile_over_main_render: t.tactile_render.as_secs_f64() / t.main_render.as_secs_f64().max(1e-12),

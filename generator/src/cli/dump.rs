@@ -100,6 +100,13 @@ pub fn dump(dataset: &Path, split: &str, index: u64, out: &Path, exr: bool) -> R
                 .with_context(|| format!("cannot write {}", png.display()))?;
         }
     }
+    // Force fields: per pad (R, R, 4) float32, the channels pressure (Pa), shear x, shear y (Pa),
+    // slip (0 or 1); rows along the pad's y as its depth image.
+    for f in s.tactile.iter().flat_map(|t| &t.forces) {
+        let r = f.resolution as usize;
+        let values: Vec<f32> = f.cells.iter().flat_map(|c| [c.pressure, c.shear[0], c.shear[1], c.slip as u8 as f32]).collect();
+        write_npy(&out.join(format!("tactile_{}_force.npy", f.pad)), "<f4", &[r, r, 4], bytemuck::cast_slice(&values))?;
+    }
     std::fs::write(out.join("info.json"), serde_json::to_string_pretty(&s.info.to_value())? + "\n")?;
     Ok(())
 }
