@@ -172,3 +172,48 @@ fn force_fields_sum_to_the_pads_contact_forces_and_the_hand_holds_the_weight() {
         assert!(balanced * 5 >= samples * 4, "{scene}: the hand holds the weight within 1 % in only {balanced} of {samples} samples");
     }
 }
+
+/// An episode's touch readings between camera frames carry every pad's force field too, made
+/// from the physics' contacts at their own instant: the grids are square, slip only where the
+/// object presses, and the frames' grids sum to their pads' forces.
+#[test]
+fn episode_touch_readings_carry_force_fields() {
+    use crate::common::*;
+    if backend() == "rapier" {
+        return; // refused by the config check (above)
+    }
+    let d = tempdir();
+    let args = ["--set", "robot.tactile.force_field={resolution: 4}", "--set", "robot.physics.backend=mujoco"];
+    let o = run_generate(&root().join("scenes/tiny-episode.yaml"), d.path(), &args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let ds = vt_dataset::DatasetReader::open(d.path()).unwrap();
+    let (mut readings, mut pressed) = (0, 0);
+    for s in ds.samples("train").unwrap() {
+        let s = s.unwrap();
+        let episode = s.episode.as_ref().expect("an episode frame");
+        let frame = s.tactile.as_ref().expect("touch at the frame");
+        let touch = s.info.robot.as_ref().and_then(|r| r.tactile.as_ref()).expect("touch info");
+        for field in &frame.forces {
+            let [len, wid] = touch.pads[&field.pad];
+            let area = len * wid / 16.0;
+            let grid: DVec3 =
+                field.cells.iter().map(|c| DVec3::new(c.shear[0] as f64, c.shear[1] as f64, -(c.pressure as f64)) * area).sum();
+            let pad = DVec3::from_array(touch.forces.as_ref().expect("force info")[&field.pad].force_n);
+            assert!((grid - pad).length() <= 0.05 * pad.length() + 1e-4, "frame {}: {} grid {grid} vs {pad}", s.index, field.pad);
+        }
+        for (_, tac) in std::iter::once(&(0, frame.clone())).chain(&episode.tactile) {
+            assert_eq!(tac.forces.len(), tac.phalanges.len(), "a field per pad in every touch reading");
+            for field in &tac.forces {
+                assert_eq!(field.cells.len(), 16);
+                assert!(
+                    field.cells.iter().all(|c| c.pressure >= 0.0 && (!c.slip || c.pressure > 0.0)),
+                    "{}: slip without pressure",
+                    field.pad
+                );
+                pressed += field.cells.iter().any(|c| c.pressure > 0.0) as usize;
+            }
+            readings += 1;
+        }
+    }
+    assert!(readings > 20 && pressed > readings, "{readings} touch readings, {pressed} pressed pads");
+}
