@@ -6,7 +6,9 @@ schemas, encodings, file names, metadata and record keys are :mod:`vtdata.format
 ``mcap.writer.Writer`` (zstd, one chunk per sample via ``Writer.flush``, mcap >= 1.5) and the
 Foxglove protobuf classes of the ``foxglove-schemas-protobuf`` package. ``write_episode_dataset``
 writes episode datasets (FORMAT.md, "Episodes": one shard per episode, one chunk per camera frame
-holding the frame and the later touch and state messages up to the next frame).
+holding the frame and the later touch and state messages up to the next frame). With
+``force_resolution`` every touch reading also carries each pad's ``/tactile/<pad>/force`` grid
+(FORMAT.md, "Force fields") and ``/sample/info`` its ``tactile.forces`` and ``hand_force_n``.
 """
 
 from __future__ import annotations
@@ -34,6 +36,9 @@ from vtdata.format import (
     EPISODE_FRAME_KEYS,
     EPISODE_METADATA_KEY,
     EPISODE_RECORD_KEYS,
+    FORCE_CELL_DTYPE,
+    FORCE_CELL_FIELDS,
+    FORCE_CELL_STRIDE,
     FORMAT_VERSION,
     FRAME_CAMERA,
     FRAME_OBJECT,
@@ -45,6 +50,7 @@ from vtdata.format import (
     MESSAGE_ENCODING_PROTOBUF,
     MODELS_DIR,
     MODELS_INFO_FILE,
+    PAD_FORCE_KEYS,
     PAD_TOPIC_SCHEMAS,
     SAMPLE_PERIOD_NS,
     SHARD_METADATA,
@@ -53,6 +59,7 @@ from vtdata.format import (
     STATE_RECORD_KEYS,
     TACTILE_DEPTH_ENCODING,
     TACTILE_DEPTH_SUFFIX,
+    TACTILE_FORCE_SUFFIX,
     TACTILE_IMAGE_ENCODING,
     TACTILE_IMAGE_SUFFIX,
     TACTILE_POINT_DTYPE,
@@ -70,8 +77,10 @@ from vtdata.format import (
     TOPIC_SCHEMAS,
     TOPIC_TACTILE_POINTS,
     TOPIC_TF,
+    TOUCH_FORCE_KEYS,
     shard_file,
     tactile_depth_topic,
+    tactile_force_topic,
     tactile_image_topic,
     tactile_reference_topic,
 )
@@ -88,6 +97,9 @@ TACTILE_RESOLUTION = 4
 #: (width, height) of the optical pads' RGB images (``/tactile/<pad>/image`` and ``reference``);
 #: not square, so a reader that swaps the axes is caught.
 OPTICAL_SIZE = (5, 3)
+#: Every synthetic pad's sensing area (length along its x, width along its y; m): ``/sample/info``
+#: ``tactile.pads``, and the extent of its force grid.
+PAD_SIZE = (0.02, 0.015)
 #: The robots the synthetic writer can put in a sample: their pads in index order (the order of
 #: the ``phalanx`` index and of the ``/tactile/<pad>/depth`` channels) and their joints.
 ALLEGRO_PADS = ALLEGRO_PHALANGES
@@ -125,7 +137,9 @@ class SyntheticSample:
     info: Dict[str, Any] = field(default_factory=dict)
     #: With a robot: ``pads`` (names in index order), ``points`` (N, 3) float32, ``distance`` (N,)
     #: float32, ``phalanx`` (N,) uint32, ``depth`` (P, R, R) float32; with optical pads also
-    #: ``images`` and ``references``, ``{pad: (H, W, 3) uint8}`` in pad order.
+    #: ``images`` and ``references``, ``{pad: (H, W, 3) uint8}`` in pad order; ``forces``, with
+    #: force fields ``{pad: {"position", "pressure", "shear", "slip"}}`` in pad order (the arrays
+    #: vtdata returns), else empty.
     tactile: Optional[Dict[str, Any]] = None
     #: An episode frame's time since the episode's start (ns); a snapshot's log time is
     #: ``index * SAMPLE_PERIOD_NS``.
@@ -143,11 +157,42 @@ def random_pose(rng: np.random.Generator) -> Pose:
     return (tuple(float(v) for v in t), tuple(float(v) for v in q))  # type: ignore[return-value]
 
 
+def make_force_field(r: int, pressed: bool, rng: np.random.Generator) -> Dict[str, np.ndarray]:
+    """A random ``r x r`` force field over a :data:`PAD_SIZE` pad, as vtdata returns one: cell
+    centres (FORMAT.md's ``x = ((2u + 1)/R - 1) L/2``, rows along y), and on a ``pressed`` pad some
+    cells with pressure, shear and slip (zeros elsewhere and on a pad without contact)."""
+    length, width = PAD_SIZE
+    u = ((2 * np.arange(r) + 1) / r - 1) * length / 2
+    v = ((2 * np.arange(r) + 1) / r - 1) * width / 2
+    position = np.stack(np.meshgrid(u, v, indexing="xy"), axis=-1).astype(np.float32)
+    contact = rng.random((r, r)) < 0.6 if pressed else np.zeros((r, r), dtype=bool)
+    pressure = np.where(contact, rng.uniform(10.0, 5000.0, size=(r, r)), 0.0).astype(np.float32)
+    shear = np.where(contact[..., None], rng.uniform(-800.0, 800.0, size=(r, r, 2)), 0.0).astype(np.float32)
+    slip = contact & (rng.random((r, r)) < 0.3)
+    return {"position": position, "pressure": pressure, "shear": shear, "slip": slip}
+
+
+def force_info(field: Dict[str, np.ndarray], contacts: int) -> Dict[str, Any]:
+    """A pad's ``/sample/info`` ``tactile.forces.<pad>`` entry for ``field``: ``force_n`` is what
+    its cells sum to (FORMAT.md, "Sums": pressure and shear times the cell area L*W/R^2)."""
+    r = field["pressure"].shape[0]
+    area = PAD_SIZE[0] * PAD_SIZE[1] / (r * r)
+    shear = field["shear"].astype(np.float64).sum(axis=(0, 1)) * area
+    force = [float(shear[0]), float(shear[1]), -float(field["pressure"].astype(np.float64).sum()) * area]
+    entry = {"force_n": force, "link_force_n": list(force), "contacts": contacts, "friction": 1.0}
+    assert tuple(entry) == PAD_FORCE_KEYS, (tuple(entry), PAD_FORCE_KEYS)
+    return entry
+
+
 def make_tactile(
-    pads: Sequence[str], rng: np.random.Generator, optical: Sequence[str] = ()
+    pads: Sequence[str],
+    rng: np.random.Generator,
+    optical: Sequence[str] = (),
+    force_resolution: Optional[int] = None,
 ) -> Dict[str, Any]:
-    """Random tactile data of a robot with ``pads``: points on some pads, one depth image each, and
-    an RGB image and reference image for each pad of ``optical`` (kept in the pads' order)."""
+    """Random tactile data of a robot with ``pads``: points on some pads, one depth image each, an
+    RGB image and reference image for each pad of ``optical`` (kept in the pads' order) and, with
+    ``force_resolution``, every pad's force field (pressed on the touching pads)."""
     unknown = [p for p in optical if p not in pads]
     assert not unknown, f"optical pads {unknown} are not pads of the robot {list(pads)}"
     n_pads = len(pads)
@@ -159,7 +204,7 @@ def make_tactile(
     depth[:, 0, 0] = np.inf
     w, h = OPTICAL_SIZE
     optical_pads = [p for p in pads if p in optical]
-    return {
+    tactile = {
         "pads": list(pads),
         "points": rng.uniform(-0.5, 0.5, size=(n, 3)).astype(np.float32),
         "distance": rng.uniform(-0.001, 0.002, size=n).astype(np.float32),
@@ -169,7 +214,13 @@ def make_tactile(
         "touching": [pads[k] for k in touching],
         "images": {p: rng.integers(0, 256, size=(h, w, 3), dtype=np.uint8) for p in optical_pads},
         "references": {p: rng.integers(0, 256, size=(h, w, 3), dtype=np.uint8) for p in optical_pads},
+        "forces": {},
     }
+    if force_resolution is not None:
+        tactile["forces"] = {
+            p: make_force_field(force_resolution, k in touching, rng) for k, p in enumerate(pads)
+        }
+    return tactile
 
 
 def optical_info(rng: np.random.Generator) -> Dict[str, Any]:
@@ -199,6 +250,7 @@ def make_sample(
     rng: np.random.Generator,
     robot: Optional[str] = None,
     optical: Sequence[str] = (),
+    force_resolution: Optional[int] = None,
 ) -> SyntheticSample:
     rgb = rng.integers(0, 256, size=(HEIGHT, WIDTH, 3), dtype=np.uint8)
     depth = rng.uniform(0.2, 1.5, size=(HEIGHT, WIDTH)).astype(np.float32)
@@ -228,7 +280,7 @@ def make_sample(
     tactile = None
     if robot is not None:
         spec = ROBOTS[robot]
-        tactile = make_tactile(spec["pads"], rng, optical)
+        tactile = make_tactile(spec["pads"], rng, optical, force_resolution)
         info.update(
             {
                 "physics_backend": "rapier",
@@ -244,13 +296,22 @@ def make_sample(
                     "near_mm": 0.0,
                     "far_mm": 20.0,
                     "sensors": {},
-                    "pads": {p: [0.02, 0.015] for p in spec["pads"]},
+                    "pads": {p: list(PAD_SIZE) for p in spec["pads"]},
                     "points": dict(zip(spec["pads"], tactile["counts"])),
                 },
             }
         )
         if tactile["images"]:
             info["tactile"]["optical"] = {p: optical_info(rng) for p in tactile["images"]}
+        if tactile["forces"]:
+            forces = {
+                p: force_info(field, 2 if p in tactile["touching"] else 0)
+                for p, field in tactile["forces"].items()
+            }
+            hand = np.sum([f["force_n"] for f in forces.values()], axis=0)
+            touch_forces = {"forces": forces, "hand_force_n": [float(c) for c in hand]}
+            assert tuple(touch_forces) == TOUCH_FORCE_KEYS
+            info["tactile"].update(touch_forces)
     return SyntheticSample(
         split, index, rgb, depth, mask, K, camera_object, world_camera, world_object, info, tactile
     )
@@ -288,6 +349,20 @@ def _tactile_points(tac: Dict[str, Any]) -> bytes:
     return points.tobytes()
 
 
+def _force_cells(field: Dict[str, np.ndarray]) -> bytes:
+    """A ``/tactile/<pad>/force`` cloud's data: one :data:`~vtdata.format.FORCE_CELL_DTYPE` per
+    cell, row-major (whatever the arrays' shape: a test may write a grid that is not square)."""
+    pressure = np.asarray(field["pressure"]).reshape(-1)
+    cells = np.zeros(pressure.size, dtype=FORCE_CELL_DTYPE)
+    position = np.asarray(field["position"]).reshape(-1, 2)
+    shear = np.asarray(field["shear"]).reshape(-1, 2)
+    cells["x"], cells["y"] = position[:, 0], position[:, 1]
+    cells["pressure"] = pressure
+    cells["shear_x"], cells["shear_y"] = shear[:, 0], shear[:, 1]
+    cells["slip"] = np.asarray(field["slip"]).reshape(-1)
+    return cells.tobytes()
+
+
 def _tactile_messages(
     tac: Dict[str, Any],
     t: int,
@@ -314,6 +389,14 @@ def _tactile_messages(
             msg = _raw_image(array, optical_encoding, t)
             msg.frame_id = f"{pad}_pad"
             out.append((topic, msg.SerializeToString()))
+    # Then every pad's force field, in pad order, in the pad frame (identity pose).
+    for pad, field in tac["forces"].items():
+        forces = PointCloud(frame_id=f"{pad}_pad", point_stride=FORCE_CELL_STRIDE, data=_force_cells(field))
+        _stamp(forces, t)
+        forces.pose.orientation.w = 1.0
+        for name, offset, kind in FORCE_CELL_FIELDS:
+            forces.fields.add(name=name, offset=offset, type=PackedElementField.NumericType.Value(kind))
+        out.append((tactile_force_topic(pad), forces.SerializeToString()))
     return out
 
 
@@ -376,8 +459,8 @@ def _register_channels(
 ) -> Dict[str, int]:
     """The channels of a shard, as the Rust writer adds them: the camera topics, ``/sample/info``,
     with a robot (``robot``: a sample's tactile dict) the points, one depth channel per pad in the
-    pads' index order, then each optical pad's image and reference; in an episode
-    ``/episode/state`` last. Topic -> channel id."""
+    pads' index order, then each optical pad's image and reference, then each pad's force field;
+    in an episode ``/episode/state`` last. Topic -> channel id."""
     schema_ids: Dict[str, int] = {}
     channels: Dict[str, int] = {}
 
@@ -408,6 +491,8 @@ def _register_channels(
             register(
                 tactile_reference_topic(p), PAD_TOPIC_SCHEMAS[TACTILE_REFERENCE_SUFFIX], RawImage
             )
+        for p in robot["forces"]:
+            register(tactile_force_topic(p), PAD_TOPIC_SCHEMAS[TACTILE_FORCE_SUFFIX], PointCloud)
     if episode:
         register(STATE_TOPIC, TOPIC_SCHEMAS[STATE_TOPIC])
     return channels
@@ -427,9 +512,10 @@ def write_shard(
     ``omit=(index, topic)`` leaves that message out (to test error reporting). With a robot the
     tactile channels are added as the Rust writer adds them: the points, then one depth channel per
     pad in the pads' index order, then for each optical pad (in that order) its image and its
-    reference channel. ``reverse_messages`` writes each sample's messages in reverse order (the
-    reader must not depend on the order of messages in a chunk). ``optical_encoding`` is the
-    encoding the optical images are written with (``rgb8``; another to test error reporting).
+    reference channel, then each pad's force channel. ``reverse_messages`` writes each sample's
+    messages in reverse order (the reader must not depend on the order of messages in a chunk).
+    ``optical_encoding`` is the encoding the optical images are written with (``rgb8``; another to
+    test error reporting).
     """
     path.parent.mkdir(parents=True, exist_ok=True)
     with open(path, "wb") as f:
@@ -581,6 +667,7 @@ def write_dataset(
     reverse_messages: bool = False,
     optical: Sequence[str] = (),
     optical_encoding: str = TACTILE_IMAGE_ENCODING,
+    force_resolution: Optional[int] = None,
 ) -> Dict[str, List[SyntheticSample]]:
     """Write a complete dataset (manifest, models, shards) and return its samples per split.
 
@@ -588,13 +675,17 @@ def write_dataset(
     adds the robot's ``/sample/info`` keys and tactile topics to every sample. ``optical`` names
     pads of the robot with an optical sensor: their ``/tactile/<pad>/image`` and ``reference``
     images (:data:`OPTICAL_SIZE`, written with ``optical_encoding``) and ``tactile.optical`` info.
+    ``force_resolution`` gives every pad a force field of that many cells a side
+    (``/tactile/<pad>/force``) and the info its ``tactile.forces`` and ``hand_force_n``.
     """
     if optical and robot is None:
         raise ValueError("optical pads need a robot")
+    if force_resolution is not None and robot is None:
+        raise ValueError("force fields need a robot")
     rng = np.random.default_rng(seed)
     root.mkdir(parents=True, exist_ok=True)
     samples = {
-        split: [make_sample(split, i, rng, robot, optical) for i in range(n)]
+        split: [make_sample(split, i, rng, robot, optical, force_resolution) for i in range(n)]
         for split, n in counts.items()
     }
     splits: Dict[str, Any] = {}
@@ -656,6 +747,7 @@ def make_episode(
     *,
     robot: str = "ur5e_allegro",
     optical: Sequence[str] = (),
+    force_resolution: Optional[int] = None,
     camera_period: int = 4,
     tactile_period: int = 2,
     state_period: int = 1,
@@ -671,7 +763,7 @@ def make_episode(
     steps = (frames - 1) * camera_period + tail_steps
     samples: List[SyntheticSample] = []
     for k in range(frames):
-        sample = make_sample(split, first + k, rng, robot, optical)
+        sample = make_sample(split, first + k, rng, robot, optical, force_resolution)
         sample.time_ns = k * camera_period * timestep_ns
         sample.info.update(
             {
@@ -723,7 +815,7 @@ def make_episode(
         if frame is not None:
             touches.append((t, frame.tactile))
         elif step % tactile_period == 0:
-            touches.append((t, make_tactile(spec["pads"], rng, optical)))
+            touches.append((t, make_tactile(spec["pads"], rng, optical, force_resolution)))
     physics_hz = 1e9 / timestep_ns
     record = {
         "object_id": OBJECT_ID,
@@ -812,11 +904,13 @@ def write_episode_dataset(
     *,
     robot: str = "ur5e_allegro",
     optical: Sequence[str] = (),
+    force_resolution: Optional[int] = None,
     reverse_messages: bool = False,
     **timing: int,
 ) -> Dict[str, List[SyntheticEpisode]]:
     """Write a complete episode dataset: ``episodes[split]`` episodes of ``frames`` frames each,
-    one shard per episode (``samples_per_shard`` = ``frames``). ``timing``: :func:`make_episode`'s
+    one shard per episode (``samples_per_shard`` = ``frames``); ``force_resolution`` gives every
+    touch reading force fields (:func:`write_dataset`). ``timing``: :func:`make_episode`'s
     ``camera_period``, ``tactile_period``, ``state_period``, ``timestep_ns``, ``tail_steps``."""
     rng = np.random.default_rng(seed)
     root.mkdir(parents=True, exist_ok=True)
@@ -826,7 +920,9 @@ def write_episode_dataset(
         out[split] = []
         shards = []
         for j in range(n):
-            episode = make_episode(split, j, frames, rng, robot=robot, optical=optical, **timing)
+            episode = make_episode(
+                split, j, frames, rng, robot=robot, optical=optical, force_resolution=force_resolution, **timing
+            )
             rel = shard_file(split, j)
             write_episode_shard(root / rel, episode, reverse_messages=reverse_messages)
             shards.append(_shard_entry(root, rel, j, episode.first_sample, frames))

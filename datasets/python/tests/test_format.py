@@ -54,6 +54,7 @@ DESCRIBED = {
     "TACTILE_DEPTH_SUFFIX": "pad_topics[].topic",
     "TACTILE_IMAGE_SUFFIX": "pad_topics[].topic",
     "TACTILE_REFERENCE_SUFFIX": "pad_topics[].topic",
+    "TACTILE_FORCE_SUFFIX": "pad_topics[].topic",
     "PAD_TOPIC_SCHEMAS": "pad_topics[]",
     "TACTILE_DEPTH_ENCODING": "pad_topics[].image_encoding",
     "TACTILE_IMAGE_ENCODING": "pad_topics[].image_encoding",
@@ -61,7 +62,10 @@ DESCRIBED = {
     "TACTILE_POINT_FIELDS": "tactile_points.fields",
     "TACTILE_POINT_STRIDE": "tactile_points.point_stride",
     "TACTILE_POINT_DTYPE": "tactile_points",
-    "PACKED_ELEMENT_DTYPES": "tactile_points.fields[].type",
+    "PACKED_ELEMENT_DTYPES": "tactile_points.fields[].type, force_cells.fields[].type",
+    "FORCE_CELL_FIELDS": "force_cells.fields",
+    "FORCE_CELL_STRIDE": "force_cells.point_stride",
+    "FORCE_CELL_DTYPE": "force_cells",
     "FRAME_WORLD": "frames.world",
     "FRAME_CAMERA": "frames.camera",
     "FRAME_OBJECT": "frames.object",
@@ -77,6 +81,8 @@ DESCRIBED = {
     "EPISODE_RECORD_KEYS": "records.episode",
     "STATE_RECORD_KEYS": "records.state",
     "EPISODE_FRAME_KEYS": "records.episode_frame",
+    "TOUCH_FORCE_KEYS": "records.touch_info",
+    "PAD_FORCE_KEYS": "records.pad_force",
 }
 #: Constants of vtdata.format that format.json does not describe.
 NOT_DESCRIBED = {
@@ -158,11 +164,16 @@ def test_pad_topics(spec: Dict[str, Any]) -> None:
         fmt.TACTILE_DEPTH_SUFFIX,
         fmt.TACTILE_IMAGE_SUFFIX,
         fmt.TACTILE_REFERENCE_SUFFIX,
+        fmt.TACTILE_FORCE_SUFFIX,
     }
     assert fmt.PAD_TOPIC_SCHEMAS == {
-        suffix: (e["schema"], e["message_encoding"], e["image_encoding"])
+        suffix: (e["schema"], e["message_encoding"], e.get("image_encoding"))
         for suffix, e in pads.items()
     }
+    # The force field is a point cloud (no image encoding), written with robot.tactile.force_field.
+    force = pads[fmt.TACTILE_FORCE_SUFFIX]
+    assert (force["schema"], force["when"]) == (fmt.SCHEMA_POINT_CLOUD, "force_field")
+    assert "image_encoding" not in force
     assert fmt.TACTILE_DEPTH_ENCODING == pads[fmt.TACTILE_DEPTH_SUFFIX]["image_encoding"]
     assert fmt.TACTILE_IMAGE_ENCODING == pads[fmt.TACTILE_IMAGE_SUFFIX]["image_encoding"]
     assert fmt.TACTILE_IMAGE_ENCODING == pads[fmt.TACTILE_REFERENCE_SUFFIX]["image_encoding"]
@@ -171,12 +182,15 @@ def test_pad_topics(spec: Dict[str, Any]) -> None:
         (fmt.tactile_depth_topic, fmt.TACTILE_DEPTH_SUFFIX),
         (fmt.tactile_image_topic, fmt.TACTILE_IMAGE_SUFFIX),
         (fmt.tactile_reference_topic, fmt.TACTILE_REFERENCE_SUFFIX),
+        (fmt.tactile_force_topic, fmt.TACTILE_FORCE_SUFFIX),
     ):
         assert build("{pad}") == pads[suffix]["topic"]
         topic = pads[suffix]["topic"].replace("{pad}", "th_distal")
         assert fmt.pad_of(topic, suffix) == "th_distal"
     assert fmt.pad_of_topic(fmt.tactile_depth_topic("left_pad")) == "left_pad"
     assert fmt.optical_pad_of_topic(fmt.tactile_image_topic("left_pad")) == "left_pad"
+    assert fmt.force_pad_of_topic(fmt.tactile_force_topic("left_pad")) == "left_pad"
+    assert fmt.force_pad_of_topic(fmt.tactile_depth_topic("left_pad")) is None
 
 
 def test_schemas_and_message_encodings(spec: Dict[str, Any]) -> None:
@@ -201,21 +215,36 @@ def test_image_encodings(spec: Dict[str, Any]) -> None:
     assert used <= set(fmt.IMAGE_ENCODINGS)
 
 
+NUMPY_OF = {"FLOAT32": np.dtype("<f4"), "UINT32": np.dtype("<u4")}
+
+
+def _check_packed_layout(layout: Dict[str, Any], fields: Any, stride: int, dtype: np.dtype) -> None:
+    """A packed point layout of vtdata.format (fields, stride, numpy dtype) against format.json's."""
+    want = [(f["name"], f["offset"], f["type"]) for f in layout["fields"]]
+    assert list(fields) == want
+    assert stride == layout["point_stride"]
+    assert dtype.itemsize == layout["point_stride"]
+    assert list(dtype.names) == [name for name, _, _ in want]
+    for name, offset, kind in want:
+        field_dtype, field_offset = dtype.fields[name][:2]
+        assert (field_dtype, field_offset) == (NUMPY_OF[kind], offset), name
+
+
 def test_tactile_points(spec: Dict[str, Any]) -> None:
     points = spec["tactile_points"]
-    fields = [(f["name"], f["offset"], f["type"]) for f in points["fields"]]
-    assert list(fmt.TACTILE_POINT_FIELDS) == fields
-    assert fmt.TACTILE_POINT_STRIDE == points["point_stride"]
-    dtype = fmt.TACTILE_POINT_DTYPE
-    assert dtype.itemsize == points["point_stride"]
-    assert list(dtype.names) == [name for name, _, _ in fields]
-    numpy_of = {"FLOAT32": np.dtype("<f4"), "UINT32": np.dtype("<u4")}
+    _check_packed_layout(points, fmt.TACTILE_POINT_FIELDS, fmt.TACTILE_POINT_STRIDE, fmt.TACTILE_POINT_DTYPE)
+    kinds = {f["type"] for f in points["fields"]} | {f["type"] for f in spec["force_cells"]["fields"]}
     assert {k: np.dtype(v) for k, v in fmt.PACKED_ELEMENT_DTYPES.items()} == {
-        kind: numpy_of[kind] for _, _, kind in fields
+        kind: NUMPY_OF[kind] for kind in kinds
     }
-    for name, offset, kind in fields:
-        field_dtype, field_offset = dtype.fields[name][:2]
-        assert (field_dtype, field_offset) == (numpy_of[kind], offset), name
+
+
+def test_force_cells(spec: Dict[str, Any]) -> None:
+    """``/tactile/<pad>/force``'s cell layout: x, y, z, pressure, shear_x, shear_y (float32) and
+    slip (uint32), 28 bytes a cell."""
+    cells = spec["force_cells"]
+    _check_packed_layout(cells, fmt.FORCE_CELL_FIELDS, fmt.FORCE_CELL_STRIDE, fmt.FORCE_CELL_DTYPE)
+    assert fmt.FORCE_CELL_STRIDE == 28
 
 
 def test_frames(spec: Dict[str, Any]) -> None:
@@ -250,7 +279,10 @@ def test_record_keys(spec: Dict[str, Any]) -> None:
     assert set(fmt.EPISODE_RECORD_KEYS) == set(records["episode"])
     assert set(fmt.STATE_RECORD_KEYS) == set(records["state"])
     assert set(fmt.EPISODE_FRAME_KEYS) == set(records["episode_frame"])
-    for keys in (fmt.EPISODE_RECORD_KEYS, fmt.STATE_RECORD_KEYS, fmt.EPISODE_FRAME_KEYS):
+    assert set(fmt.PAD_FORCE_KEYS) == set(records["pad_force"])
+    # The touch info's force keys are among its keys (the others: pads, points, optical, ...).
+    assert set(fmt.TOUCH_FORCE_KEYS) <= set(records["touch_info"])
+    for keys in (fmt.EPISODE_RECORD_KEYS, fmt.STATE_RECORD_KEYS, fmt.EPISODE_FRAME_KEYS, fmt.PAD_FORCE_KEYS):
         assert len(set(keys)) == len(keys)
     # The state keys EpisodeDataset turns into arrays are state record keys.
     assert set(vtdata.episodes.STATE_POSES) <= set(records["state"])

@@ -1,10 +1,10 @@
 """Decoding a sample's messages into numpy arrays (FORMAT.md, "MCAP shard").
 
 The decoders take the messages the MCAP readers decoded (Foxglove protobuf objects and JSON
-values, keyed by topic) and return arrays: images, the tactile point cloud and the pads' images,
-transforms and an episode frame's faster streams. Each checks what it reads and raises
-:class:`~vtdata.errors.DatasetError` naming ``where`` (the shard and sample) when the data does not
-follow the format.
+values, keyed by topic) and return arrays: images, the tactile point cloud, the pads' images and
+force fields, transforms and an episode frame's faster streams. Each checks what it reads and
+raises :class:`~vtdata.errors.DatasetError` naming ``where`` (the shard and sample) when the data
+does not follow the format.
 """
 
 from __future__ import annotations
@@ -18,6 +18,7 @@ from mcap.records import Schema
 
 from .errors import DatasetError
 from .format import (
+    FORCE_CELL_DTYPE,
     FRAME_CAMERA,
     FRAME_OBJECT,
     FRAME_WORLD,
@@ -26,6 +27,7 @@ from .format import (
     TACTILE_DEPTH_ENCODING,
     TACTILE_DEPTH_PREFIX,
     TACTILE_DEPTH_SUFFIX,
+    TACTILE_FORCE_SUFFIX,
     TACTILE_IMAGE_ENCODING,
     TACTILE_IMAGE_SUFFIX,
     TACTILE_POINT_DTYPE,
@@ -42,6 +44,7 @@ from .format import (
     TOPIC_TF,
     pad_of,
     tactile_depth_topic,
+    tactile_force_topic,
     tactile_image_topic,
     tactile_reference_topic,
 )
@@ -187,6 +190,7 @@ def _camera_fields(decoded: Mapping[str, Any], where: str) -> Dict[str, Any]:
 _LISTED_PADS: Dict[str, Tuple[str, str, str]] = {
     TACTILE_DEPTH_SUFFIX: ("pads", "pads", "depth images"),
     TACTILE_IMAGE_SUFFIX: ("optical", "optical pads", "images"),
+    TACTILE_FORCE_SUFFIX: ("forces", "pads", "force fields"),
 }
 
 
@@ -209,7 +213,8 @@ def _check_listed_pads(
 ) -> Optional[Dict[str, Any]]:
     """Check the sample's pads with a ``/tactile/<pad><suffix>`` topic against the ones its
     ``/sample/info`` lists (``tactile.pads`` for the depth images, ``tactile.optical`` for the
-    optical images), when the info has that list; return the list (``{pad: ...}``) or ``None``."""
+    optical images, ``tactile.forces`` for the force fields), when the info has that list; return
+    the list (``{pad: ...}``) or ``None``."""
     key, pads_are, images_are = _LISTED_PADS[suffix]
     info = decoded.get(TOPIC_INFO)
     touch = info.get("tactile") if isinstance(info, dict) else None
@@ -235,11 +240,13 @@ def _tactile_points(cloud: Any, where: str) -> np.ndarray:
 
 
 def _tactile(decoded: Dict[str, Any], channel_ids: Mapping[str, int], where: str) -> Dict[str, Any]:
-    """The tactile point cloud and the pad depth images of a sample.
+    """The tactile point cloud, the pad depth images and (with force topics) the pads' force fields
+    of a sample.
 
     The pads are the sample's ``/tactile/<pad>/depth`` topics, whatever the robot: in the order of
     their channels (:func:`_pads_in_channel_order`), checked against ``/sample/info``
-    ``tactile.pads`` when the info has it.
+    ``tactile.pads`` when the info has it. ``forces`` is there only when the sample has
+    ``/tactile/<pad>/force`` topics (:func:`_forces`).
     """
     pts = _tactile_points(decoded[TOPIC_TACTILE_POINTS], where)
     names = _pads_in_channel_order(decoded, channel_ids, TACTILE_DEPTH_SUFFIX)
@@ -263,13 +270,109 @@ def _tactile(decoded: Dict[str, Any], channel_ids: Mapping[str, int], where: str
             f"{where} {TOPIC_TACTILE_POINTS}: phalanx index {int(pts['phalanx'].max())} but the "
             f"sample has {len(names)} pads ({', '.join(names)})"
         )
-    return {
+    out = {
         "points": np.ascontiguousarray(np.stack([pts["x"], pts["y"], pts["z"]], axis=1)),
         "distance": pts["distance"].copy(),
         "phalanx": pts["phalanx"].copy(),
         "phalanges": names,
         "depth": np.stack(depth),
     }
+    forces = _forces(decoded, channel_ids, where, names)
+    if forces is not None:
+        out["forces"] = forces
+    return out
+
+
+# --- force fields (FORMAT.md, "Force fields") -------------------------------------------------
+
+#: The last axis of :func:`force_array`: a cell's normal pressure, its shear traction along the
+#: pad's x and y (Pa) and its slip flag (1.0 or 0.0).
+FORCE_CHANNELS = ("pressure", "shear_x", "shear_y", "slip")
+
+
+def _force_field(cloud: Any, where: str) -> Dict[str, np.ndarray]:
+    """One pad's ``/tactile/<pad>/force`` PointCloud as ``R x R`` arrays (row ``v``, column ``u``:
+    cell ``(u, v)`` is point ``v * R + u``, rows along the pad's y as its depth image's):
+    ``position`` ``(R, R, 2)`` float32 (the cell's centre, pad frame, m), ``pressure`` ``(R, R)``
+    float32 (Pa), ``shear`` ``(R, R, 2)`` float32 (Pa, along the pad's x and y), ``slip`` ``(R, R)``
+    bool. The cloud must be a square grid of at least one cell of
+    :data:`~vtdata.format.FORCE_CELL_DTYPE`."""
+    stride = FORCE_CELL_DTYPE.itemsize
+    data = bytes(cloud.data)
+    n = len(data) // stride
+    r = int(round(np.sqrt(n)))
+    if cloud.point_stride != stride or len(data) % stride != 0:
+        raise DatasetError(
+            f"{where}: expected {stride}-byte force cells, got point stride {cloud.point_stride} "
+            f"and {len(data)} bytes of data"
+        )
+    if n == 0 or r * r != n:
+        raise DatasetError(f"{where}: {n} force cells, not a square R x R grid (R >= 1)")
+    cells = np.frombuffer(data, dtype=FORCE_CELL_DTYPE).reshape(r, r)
+    return {
+        "position": np.ascontiguousarray(np.stack([cells["x"], cells["y"]], axis=-1)),
+        "pressure": np.ascontiguousarray(cells["pressure"]),
+        "shear": np.ascontiguousarray(np.stack([cells["shear_x"], cells["shear_y"]], axis=-1)),
+        "slip": cells["slip"] != 0,
+    }
+
+
+def _forces(
+    decoded: Dict[str, Any],
+    channel_ids: Mapping[str, int],
+    where: str,
+    pads: Optional[Sequence[str]],
+) -> Optional[Dict[str, Dict[str, np.ndarray]]]:
+    """The pads' force fields ``{pad: field}`` (:func:`_force_field`), ``None`` when the sample has
+    no ``/tactile/<pad>/force`` topic.
+
+    The pads are the sample's force topics in the order of their channels (the writer adds them
+    in the robot's pad order); they must be pads of the tactile data (``pads``: the sample's
+    ``/tactile/<pad>/depth`` pads; ``None`` when it has no tactile data, which no force field may
+    come without) and, when ``/sample/info`` has ``tactile.forces``, the pads it lists. Every
+    field has the same resolution.
+    """
+    names = _pads_in_channel_order(decoded, channel_ids, TACTILE_FORCE_SUFFIX)
+    _check_listed_pads(decoded, names, TACTILE_FORCE_SUFFIX, where)
+    if not names:
+        return None
+    if pads is None:
+        raise DatasetError(
+            f"{where}: force fields of {', '.join(names)} but no {TOPIC_TACTILE_POINTS} "
+            "(force fields are of the pads of the robot's tactile data)"
+        )
+    unknown = [p for p in names if p not in pads]
+    if unknown:
+        raise DatasetError(
+            f"{where}: force fields of {', '.join(unknown)}, which are not pads of the sample "
+            f"(no /tactile/<pad>/depth; pads: {', '.join(pads)})"
+        )
+    fields = {
+        pad: _force_field(decoded[topic], f"{where} {topic}")
+        for pad, topic in zip(names, map(tactile_force_topic, names))
+    }
+    sizes = {f["pressure"].shape for f in fields.values()}
+    if len(sizes) != 1:
+        raise DatasetError(
+            f"{where}: the pads' force fields differ in resolution: "
+            + ", ".join(f"{p} {f['pressure'].shape[0]}x{f['pressure'].shape[1]}" for p, f in fields.items())
+        )
+    return fields
+
+
+def force_array(forces: Mapping[str, Mapping[str, np.ndarray]]) -> np.ndarray:
+    """The force fields of a touch reading (a sample's ``tactile["forces"]``) as one ``(P, R, R,
+    4)`` float32 array: for each pad in the dict's (pad) order, per cell :data:`FORCE_CHANNELS`
+    (pressure, shear_x, shear_y in Pa, slip as 1.0 or 0.0)."""
+    return np.stack(
+        [
+            np.concatenate(
+                [f["pressure"][..., None], f["shear"], f["slip"][..., None].astype(np.float32)],
+                axis=-1,
+            )
+            for f in forces.values()
+        ]
+    ).astype(np.float32, copy=False)
 
 
 def _optical_pads(
@@ -373,7 +476,8 @@ def _touch_reading(
     group: Dict[str, Any], channel_ids: Mapping[str, int], where: str
 ) -> Dict[str, Any]:
     """One touch reading of an episode (its ``/tactile/*`` messages of one time) like a sample's
-    ``tactile``, plus, with optical pads, ``images`` ``{pad: (H, W, 3) uint8}``."""
+    ``tactile`` (with force fields, their ``forces``), plus, with optical pads, ``images`` ``{pad:
+    (H, W, 3) uint8}``."""
     if TOPIC_TACTILE_POINTS not in group:
         raise DatasetError(f"{where}: /tactile/<pad> messages without {TOPIC_TACTILE_POINTS}")
     reading = _tactile(group, channel_ids, where)

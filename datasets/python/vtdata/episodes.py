@@ -23,6 +23,7 @@ from typing import Any, Callable, Dict, Iterator, List, Optional, Sequence, Tupl
 
 import numpy as np
 
+from .decoders import force_array
 from .format import EPISODE_METADATA_KEY, SHARD_METADATA, TOPIC_EPISODE_STATE
 from .reader import (
     Dataset,
@@ -77,15 +78,18 @@ class EpisodeDataset:
       ``T_world_camera``, ``T_world_object`` ``(K, 4, 4)`` float64, of each frame.
     - ``tactile``: ``{"time_ns": (K,) int64, "depth": (K, P, R, R) float32, "counts": (K, P)
       int64}``: the touch reading aligned to each frame (its pads' depth images and points per
-      pad, pads in ``ds.pads`` order) and its time.
+      pad, pads in ``ds.pads`` order) and its time; with force fields also ``"forces": (K, P, F,
+      F, 4) float32`` (each pad's ``F x F`` grid of pressure, shear_x, shear_y, slip:
+      :func:`vtdata.reader.force_array`).
     - ``tactile_points``: a list of ``K`` dicts (``points`` ``(N, 3)``, ``distance``, ``phalanx``,
-      ``phalanges``, ``depth``: a sample's ``tactile``), the aligned readings' point clouds.
+      ``phalanges``, ``depth``, with force fields ``forces``: a sample's ``tactile``), the aligned
+      readings' point clouds.
     - ``tactile_images``: ``{pad: (K, H, W, 3) uint8}`` the optical pads' aligned images, and
       ``tactile_references`` ``{pad: (H, W, 3) uint8}`` (one per episode).
     - ``tactile_seq``: every touch reading from the first frame's time to the last one's
       (inclusive, ``M = (K - 1) * camera_period / tactile_period + 1`` of them): ``{"time_ns":
-      (M,), "depth": (M, P, R, R), "counts": (M, P)}`` and, with optical pads, ``"images": {pad:
-      (M, H, W, 3)}``.
+      (M,), "depth": (M, P, R, R), "counts": (M, P)}``, with force fields ``"forces": (M, P, F, F,
+      4)`` and, with optical pads, ``"images": {pad: (M, H, W, 3)}``.
     - ``state``: the ``/episode/state`` record aligned to each frame: ``{"time_ns": (K,),
       "T_world_object", "T_camera_object", "T_world_palm": (K, 4, 4) float64, "linear_velocity",
       "angular_velocity": (K, 3) float64, "joint_positions": (K, J) float64}`` (joints in
@@ -333,7 +337,8 @@ def _image(reading: Dict[str, Any], pad: str, t: int, where: str) -> np.ndarray:
 
 
 def _touch_arrays(readings: List[Tuple[int, Dict[str, Any]]], where: str) -> Dict[str, np.ndarray]:
-    """``time_ns``, ``depth`` (pad depth images) and ``counts`` (points per pad) of touch readings."""
+    """``time_ns``, ``depth`` (pad depth images), ``counts`` (points per pad) and, when the readings
+    have force fields, ``forces`` (:func:`~vtdata.reader.force_array` of each) of touch readings."""
     if not readings:
         return {
             "time_ns": np.zeros(0, dtype=np.int64),
@@ -344,13 +349,29 @@ def _touch_arrays(readings: List[Tuple[int, Dict[str, Any]]], where: str) -> Dic
     for t, reading in readings:
         if reading["phalanges"] != pads:
             raise DatasetError(f"{where}: the touch reading at {t} ns has pads {reading['phalanges']}, not {pads}")
-    return {
+    out = {
         "time_ns": np.array([t for t, _ in readings], dtype=np.int64),
         "depth": np.stack([reading["depth"] for _, reading in readings]),
         "counts": np.stack(
             [np.bincount(reading["phalanx"], minlength=len(pads)).astype(np.int64) for _, reading in readings]
         ),
     }
+    force_pads = [list(reading.get("forces", {})) for _, reading in readings]
+    if any(force_pads):
+        for (t, _), have in zip(readings, force_pads):
+            if have != force_pads[0]:
+                raise DatasetError(
+                    f"{where}: the touch reading at {t} ns has force fields of {have}, the one at "
+                    f"{readings[0][0]} ns of {force_pads[0]}"
+                )
+        fields = [force_array(reading["forces"]) for _, reading in readings]
+        if len({f.shape for f in fields}) != 1:
+            raise DatasetError(
+                f"{where}: the touch readings' force fields differ in resolution: "
+                + ", ".join(f"{t} ns {f.shape[1]}x{f.shape[2]}" for (t, _), f in zip(readings, fields))
+            )
+        out["forces"] = np.stack(fields)
+    return out
 
 
 def _state_arrays(

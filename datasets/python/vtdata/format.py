@@ -130,12 +130,17 @@ TACTILE_IMAGE_SUFFIX = "/image"
 #: ``/tactile/<pad>/reference``: that sensor's no-contact image without noise (``rgb8``, the size of
 #: its image), written with every sample beside the image (in an episode: once, with its frame 0).
 TACTILE_REFERENCE_SUFFIX = "/reference"
-#: Suffix -> (schema name, message encoding, RawImage encoding) of the ``/tactile/<pad><suffix>``
-#: topics.
-PAD_TOPIC_SCHEMAS: Dict[str, Tuple[str, str, str]] = {
+#: ``/tactile/<pad>/force``: the pad's contact force field (FORMAT.md, "Force fields"), a
+#: ``foxglove.PointCloud`` of one :data:`FORCE_CELL_DTYPE` per cell of a square grid over the pad;
+#: every pad has it with ``robot.tactile.force_field``, after the optical images, in pad order.
+TACTILE_FORCE_SUFFIX = "/force"
+#: Suffix -> (schema name, message encoding, RawImage encoding or ``None`` for a point cloud) of the
+#: ``/tactile/<pad><suffix>`` topics.
+PAD_TOPIC_SCHEMAS: Dict[str, Tuple[str, str, Optional[str]]] = {
     TACTILE_DEPTH_SUFFIX: (SCHEMA_RAW_IMAGE, MESSAGE_ENCODING_PROTOBUF, "32FC1"),
     TACTILE_IMAGE_SUFFIX: (SCHEMA_RAW_IMAGE, MESSAGE_ENCODING_PROTOBUF, "rgb8"),
     TACTILE_REFERENCE_SUFFIX: (SCHEMA_RAW_IMAGE, MESSAGE_ENCODING_PROTOBUF, "rgb8"),
+    TACTILE_FORCE_SUFFIX: (SCHEMA_POINT_CLOUD, MESSAGE_ENCODING_PROTOBUF, None),
 }
 #: The RawImage encoding of the pads' depth images.
 TACTILE_DEPTH_ENCODING = PAD_TOPIC_SCHEMAS[TACTILE_DEPTH_SUFFIX][2]
@@ -158,6 +163,11 @@ def tactile_reference_topic(pad: str) -> str:
     return f"{TACTILE_DEPTH_PREFIX}{pad}{TACTILE_REFERENCE_SUFFIX}"
 
 
+def tactile_force_topic(pad: str) -> str:
+    """``/tactile/<pad>/force``."""
+    return f"{TACTILE_DEPTH_PREFIX}{pad}{TACTILE_FORCE_SUFFIX}"
+
+
 def pad_of(topic: str, suffix: str) -> Optional[str]:
     """The pad name of a ``/tactile/<pad><suffix>`` topic, else ``None``."""
     if topic.startswith(TACTILE_DEPTH_PREFIX) and topic.endswith(suffix):
@@ -175,6 +185,11 @@ def pad_of_topic(topic: str) -> Optional[str]:
 def optical_pad_of_topic(topic: str) -> Optional[str]:
     """The pad name of a ``/tactile/<pad>/image`` topic (an optical sensor's image), else ``None``."""
     return pad_of(topic, TACTILE_IMAGE_SUFFIX)
+
+
+def force_pad_of_topic(topic: str) -> Optional[str]:
+    """The pad name of a ``/tactile/<pad>/force`` topic (a pad's force field), else ``None``."""
+    return pad_of(topic, TACTILE_FORCE_SUFFIX)
 
 
 # --- images and points ------------------------------------------------------------------------
@@ -206,6 +221,31 @@ TACTILE_POINT_DTYPE = np.dtype(
         "formats": [PACKED_ELEMENT_DTYPES[kind] for _, _, kind in TACTILE_POINT_FIELDS],
         "offsets": [offset for _, offset, _ in TACTILE_POINT_FIELDS],
         "itemsize": TACTILE_POINT_STRIDE,
+    }
+)
+
+#: The ``/tactile/<pad>/force`` PointCloud fields (FORMAT.md, "Force fields"): the cell's centre
+#: in the pad frame (m; ``z`` = 0), the normal ``pressure`` the object puts on it (Pa, >= 0), the
+#: shear traction along the pad's x and y (Pa) and ``slip`` (1 where the traction is at the friction
+#: limit, else 0). (name, byte offset, ``PackedElementField`` type).
+FORCE_CELL_FIELDS: Tuple[Tuple[str, int, str], ...] = (
+    ("x", 0, "FLOAT32"),
+    ("y", 4, "FLOAT32"),
+    ("z", 8, "FLOAT32"),
+    ("pressure", 12, "FLOAT32"),
+    ("shear_x", 16, "FLOAT32"),
+    ("shear_y", 20, "FLOAT32"),
+    ("slip", 24, "UINT32"),
+)
+#: Bytes per force cell (the PointCloud's ``point_stride``).
+FORCE_CELL_STRIDE = 28
+#: One force cell as stored.
+FORCE_CELL_DTYPE = np.dtype(
+    {
+        "names": [name for name, _, _ in FORCE_CELL_FIELDS],
+        "formats": [PACKED_ELEMENT_DTYPES[kind] for _, _, kind in FORCE_CELL_FIELDS],
+        "offsets": [offset for _, offset, _ in FORCE_CELL_FIELDS],
+        "itemsize": FORCE_CELL_STRIDE,
     }
 )
 
@@ -263,6 +303,13 @@ STATE_RECORD_KEYS = (
 )
 #: An episode frame's ``/sample/info`` ``episode`` object.
 EPISODE_FRAME_KEYS = ("frame", "time_s", "arm_move")
+#: The keys ``/sample/info`` ``tactile`` has with ``robot.tactile.force_field`` (FORMAT.md, "Force
+#: fields"): per pad the forces its field was made from, and the whole hand's contact force.
+TOUCH_FORCE_KEYS = ("forces", "hand_force_n")
+#: A pad's ``/sample/info`` ``tactile.forces.<pad>`` entry: ``force_n`` (the force on its sensing
+#: area, pad frame, N: what its field sums to), ``link_force_n`` (every contact of its link),
+#: ``contacts`` and the slip rule's ``friction``.
+PAD_FORCE_KEYS = ("force_n", "link_force_n", "contacts", "friction")
 
 # --- robots -----------------------------------------------------------------------------------
 

@@ -42,11 +42,13 @@ from .decoders import (  # noqa: F401
     _camera_fields,
     _decode_json,
     _episode_streams,
+    _forces,
     _frame_transforms,
     _intrinsics,
     _optical,
     _tactile,
     decode_raw_image,
+    force_array,
     pose_matrix,
     quaternion_matrix,
 )
@@ -123,7 +125,14 @@ class Sample(Dict[str, Any]):
       ``phalanx`` ``(N,)`` uint32 pad index into ``phalanges``, ``phalanges`` (the robot's ``P``
       pad names in index order, read from the shard: the 12 ``ff_proximal`` … ``th_distal`` of
       the Allegro, 2 of a parallel gripper) and ``depth`` ``(P, R, R)`` float32 pad camera images
-      (``inf`` = no surface), one per ``/tactile/<pad>/depth`` topic.
+      (``inf`` = no surface), one per ``/tactile/<pad>/depth`` topic. With force fields
+      (``robot.tactile.force_field``, FORMAT.md "Force fields") also ``forces``: ``{pad: {"position":
+      (R, R, 2) float32, "pressure": (R, R) float32, "shear": (R, R, 2) float32, "slip": (R, R)
+      bool}}`` in pad order, each pad's ``/tactile/<pad>/force`` grid (row ``v``, column ``u``: the
+      cell centred at ``position`` in the pad frame, m; the normal pressure the object puts on it
+      and its shear traction along the pad's x and y, Pa; whether the cell slips); absent without
+      force topics. :func:`vtdata.reader.force_array` stacks them as ``(P, R, R, 4)``. The forces
+      they were made from are ``info["tactile"]["forces"][pad]`` (``force_n``, pad frame, N).
     - ``tactile_images`` and ``tactile_references`` (only when some pad has an optical
       GelSight/DIGIT-style sensor): ``{pad: (H, W, 3) uint8}`` in pad order, the sensor's RGB image
       (``/tactile/<pad>/image``, linear 8-bit levels) and its no-contact reference image without
@@ -136,7 +145,8 @@ class Sample(Dict[str, Any]):
       the episode's start (its log time), ``states`` the ``/episode/state`` records (dicts) from
       the frame's instant (included) up to the next frame, ``tactile`` the touch readings *after*
       the frame's own (which is ``tactile``) up to the next frame, each a dict like ``tactile``
-      plus, with optical pads, ``images`` ``{pad: (H, W, 3) uint8}``. Times ascend.
+      plus, with optical pads, ``images`` ``{pad: (H, W, 3) uint8}`` (a reading's ``forces`` are
+      the force fields of its instant). Times ascend.
       ``info["episode"]`` has the frame's ``frame``, ``time_s`` and ``arm_move``.
     """
 
@@ -476,6 +486,8 @@ class Dataset(Sequence[Sample]):
             )
         if TOPIC_TACTILE_POINTS in decoded:
             sample["tactile"] = _tactile(decoded, channel_ids, where)
+        else:
+            _forces(decoded, channel_ids, where, None)  # force fields without tactile data: an error
         frame = index - episode["first_sample"] if episode is not None else 0
         if frame > 0:
             self._add_first_frame_references(shard, decoded, channel_ids, where)

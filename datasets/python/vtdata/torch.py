@@ -8,6 +8,7 @@
 >>> batch["rgb"].shape          # (8, H, W, 3) uint8
 >>> batch["info"][0]["object_id"]
 >>> batch["tactile_images"]["left"].shape   # (8, H, W, 3) uint8, with optical tactile sensors
+>>> batch["forces"].shape       # (8, P, R, R, 4) float32, with force fields (pressure, shear, slip)
 
 ``TorchDataset`` is safe with ``num_workers > 0`` under both ``fork`` and ``spawn``: the wrapped
 :class:`vtdata.Dataset` pickles without file handles and opens shard files lazily in each worker.
@@ -40,12 +41,14 @@ import torch
 from torch.utils.data import Dataset as _TorchDataset
 
 from .densefusion import DenseFusionView
+from .decoders import FORCE_CHANNELS, force_array
 from .episodes import DEFAULT_STREAMS, EpisodeDataset
 from .reader import Dataset
 
 __all__ = [
     "DenseFusionDataset",
     "EpisodeTorchDataset",
+    "FORCE_CHANNELS",
     "PAD_IMAGE_KEYS",
     "TorchDataset",
     "collate",
@@ -65,8 +68,12 @@ def to_tensors(sample: Mapping[str, Any]) -> TensorSample:
     ``rgb`` stays ``(H, W, 3)`` uint8 (no channel reordering, no scaling), ``depth`` ``(H, W)``
     float32, ``mask`` ``(H, W)`` uint8, ``K`` and the ``T_*`` poses float64. The optical tactile
     images (``tactile_images``, ``tactile_references``, when the dataset has them) stay
-    ``{pad: tensor}`` dicts, each tensor ``(H, W, 3)`` uint8 like ``rgb``. Other values (``info``,
-    ``index``, ``split``, the ``tactile`` dict) pass through unchanged.
+    ``{pad: tensor}`` dicts, each tensor ``(H, W, 3)`` uint8 like ``rgb``. With force fields (a
+    ``tactile`` dict with ``forces``) the sample gains ``forces``: ``(P, R, R, 4)`` float32, each
+    pad's grid (pads in ``tactile["forces"]`` order, the pad order: every pad of
+    ``tactile["phalanges"]`` as vtgen writes them) with :data:`FORCE_CHANNELS` per cell (pressure,
+    shear_x, shear_y in Pa; slip 1.0 or 0.0). Other values (``info``, ``index``, ``split``, the
+    ``tactile`` dict) pass through unchanged.
     """
     out: TensorSample = {}
     for key, value in sample.items():
@@ -79,6 +86,9 @@ def to_tensors(sample: Mapping[str, Any]) -> TensorSample:
             }
         else:
             out[key] = value
+    tactile = sample.get("tactile")
+    if isinstance(tactile, Mapping) and tactile.get("forces"):
+        out["forces"] = torch.from_numpy(force_array(tactile["forces"]))
     return out
 
 
@@ -86,7 +96,8 @@ class TorchDataset(_TorchDataset):
     """A ``torch.utils.data.Dataset`` over one split of a vtgen dataset.
 
     ``ds[i]`` is a dict with the keys of :class:`vtdata.Sample`, arrays converted to tensors by
-    :func:`to_tensors`; ``transform``, if given, is applied to that dict and its result returned.
+    :func:`to_tensors` (with force fields, plus ``forces`` ``(P, R, R, 4)``); ``transform``, if
+    given, is applied to that dict and its result returned.
     Batch with :func:`collate` (``DataLoader(..., collate_fn=vtdata.torch.collate)``): the default
     collate cannot batch ``info``, whose nested dicts hold strings and may differ between samples.
     """

@@ -45,6 +45,28 @@ export function opticalPadsOf(channels: Iterable<{ id: number; topic: string }>)
     .map((c) => opticalOfTopic(c.topic)!.pad);
 }
 
+// With `robot.tactile.force_field` (the MuJoCo backend) every pad adds its contact force field
+// (FORMAT.md, "Force fields") after the optical images, in pad order: a foxglove.PointCloud in the
+// pad frame, one 28-byte cell (FORCE_FIELDS) per cell of an R x R grid over the pad, row-major with
+// rows along the pad's y; /sample/info `tactile.forces.<pad>.force_n` is the force it sums to.
+
+/** The force field topic of pad `pad`. */
+export const padForceTopic = (pad: string): string => `/tactile/${pad}/force`;
+
+/** The pad of a `/tactile/<pad>/force` topic, or undefined. */
+export function forcePadOfTopic(topic: string): string | undefined {
+  const m = /^\/tactile\/([^/]+)\/force$/.exec(topic);
+  return m?.[1];
+}
+
+/** The pads with a force field in a shard: its `/tactile/<pad>/force` channels, by channel id (pad order). */
+export function forcePadsOf(channels: Iterable<{ id: number; topic: string }>): string[] {
+  return [...channels]
+    .filter((c) => forcePadOfTopic(c.topic) != undefined)
+    .sort((a, b) => a.id - b.id)
+    .map((c) => forcePadOfTopic(c.topic)!);
+}
+
 /** The pads of a shard: its `/tactile/<pad>/depth` channels, by channel id (the `phalanx` order). */
 export function padsOf(channels: Iterable<{ id: number; topic: string }>): string[] {
   return [...channels]
@@ -70,15 +92,21 @@ export const BASE_TOPICS: Record<string, string> = {
   "/sample/info": "json",
 };
 
-/** Topics every sample of a dataset with a robot adds, with one `/tactile/<pad>/depth` per pad
- * and an image and a reference image per pad of `optical` (the pads with an optical sensor). */
-export function robotTopics(pads: readonly string[], optical: readonly string[] = []): Record<string, string> {
+/** Topics every sample of a dataset with a robot adds, with one `/tactile/<pad>/depth` per pad,
+ * an image and a reference image per pad of `optical` (the pads with an optical sensor) and a
+ * force field per pad of `forces` (every pad, with `robot.tactile.force_field`). */
+export function robotTopics(
+  pads: readonly string[],
+  optical: readonly string[] = [],
+  forces: readonly string[] = [],
+): Record<string, string> {
   return {
     "/tactile/points": "foxglove.PointCloud",
     ...Object.fromEntries(pads.map((pad) => [padDepthTopic(pad), "foxglove.RawImage"])),
     ...Object.fromEntries(
       optical.flatMap((pad) => [padImageTopic(pad), padReferenceTopic(pad)].map((topic) => [topic, "foxglove.RawImage"])),
     ),
+    ...Object.fromEntries(forces.map((pad) => [padForceTopic(pad), "foxglove.PointCloud"])),
   };
 }
 
@@ -159,6 +187,15 @@ export const OPTICAL_INFO_KEYS = [
   "noise_std",
 ];
 
+/** The keys of `/sample/info` `tactile` with `robot.tactile.force_field`: each pad's forces and
+ * the whole hand's contact force (N, world frame). */
+export const TACTILE_FORCE_INFO_KEYS = ["forces", "hand_force_n"];
+
+/** The keys of a pad's `/sample/info` `tactile.forces.<pad>` entry: the force on its sensing area
+ * (pad frame, N: what its field sums to), that of every contact of its link, the contacts on the
+ * sensing area and the slip rule's friction coefficient. */
+export const PAD_FORCE_INFO_KEYS = ["force_n", "link_force_n", "contacts", "friction"];
+
 /** The name of the per-shard metadata record. */
 export const SHARD_METADATA = "vtgen.shard";
 
@@ -183,6 +220,20 @@ export const POINT_FIELDS: [string, number, string][] = [
   ["phalanx", 16, "UINT32"],
 ];
 export const POINT_STRIDE = 20;
+
+/** Force field cells (`/tactile/<pad>/force`): name, offset, Foxglove NumericType name. The cell's
+ * centre in the pad frame (m, z = 0), the normal pressure on it (Pa, >= 0), the shear traction
+ * along the pad's x and y (Pa) and slip (1 where the traction is at the friction limit). */
+export const FORCE_FIELDS: [string, number, string][] = [
+  ["x", 0, "FLOAT32"],
+  ["y", 4, "FLOAT32"],
+  ["z", 8, "FLOAT32"],
+  ["pressure", 12, "FLOAT32"],
+  ["shear_x", 16, "FLOAT32"],
+  ["shear_y", 20, "FLOAT32"],
+  ["slip", 24, "UINT32"],
+];
+export const FORCE_STRIDE = 28;
 
 // Episodes (FORMAT.md, "Episodes"): with `sampling.record`, each trajectory is one shard; each
 // chunk is one camera frame: the frame's messages at its instant (every topic above, the optical
@@ -231,13 +282,14 @@ export const STATE_RECORD_KEYS = [
 export const SAMPLE_INFO_EPISODE_KEYS = ["frame", "time_s", "arm_move"];
 
 /** Whether `topic` may follow a frame's instant in its chunk: a touch topic (the points, a pad's
- * depth image, an optical pad's image; not its reference) or the state. */
+ * depth image, an optical pad's image, not its reference; a pad's force field) or the state. */
 export function isEpisodeStreamTopic(topic: string): boolean {
   return (
     topic === EPISODE_STATE_TOPIC ||
     topic === "/tactile/points" ||
     padOfTopic(topic) != undefined ||
-    opticalOfTopic(topic)?.kind === "image"
+    opticalOfTopic(topic)?.kind === "image" ||
+    forcePadOfTopic(topic) != undefined
   );
 }
 

@@ -16,6 +16,7 @@ type FormatJson = {
   pad_topics: TopicEntry[];
   image_encodings: Record<string, { channels: number; bytes_per_channel: number }>;
   tactile_points: { fields: { name: string; offset: number; type: string }[]; point_stride: number };
+  force_cells: { fields: { name: string; offset: number; type: string }[]; point_stride: number };
   records: Record<string, string[]>;
 };
 
@@ -29,6 +30,12 @@ const topic = (name: string): TopicEntry => {
 /** The reader's name for a topic's schema: the protobuf schema, or `json` for a JSON topic. */
 const schemaOf = (t: TopicEntry): string => (t.message_encoding === "json" ? "json" : t.schema);
 const sorted = (keys: readonly string[]): string[] => [...keys].sort();
+/** The pad topic of format.json whose pattern is `pattern` (`/tactile/{pad}/...`). */
+const padTopic = (pattern: string): TopicEntry => {
+  const t = format.pad_topics.find((e) => e.topic === pattern);
+  assert.ok(t, `format.json has no pad topic ${pattern}`);
+  return t;
+};
 const bytesPerPixel = (encoding: string): number => {
   const e = format.image_encodings[encoding];
   assert.ok(e, `format.json has no image encoding ${encoding}`);
@@ -73,6 +80,28 @@ describe("src/format.ts agrees with datasets/format.json", () => {
     });
   });
 
+  it("each pad's force field: a point cloud with robot.tactile.force_field, cells as force_cells lays them out", () => {
+    const force = padTopic(F.padForceTopic("{pad}"));
+    assert.equal(force.schema, "foxglove.PointCloud");
+    assert.equal(force.message_encoding, "protobuf");
+    assert.equal(force.when, "force_field");
+    assert.equal(force.image_encoding, undefined);
+    // Every pad topic of format.json is one the reader names.
+    const patterns = [F.padDepthTopic, F.padImageTopic, F.padReferenceTopic, F.padForceTopic].map((f) => f("{pad}"));
+    assert.deepEqual(sorted(format.pad_topics.map((t) => t.topic)), sorted(patterns));
+    assert.deepEqual(F.robotTopics(["p"], [], ["p"]), {
+      "/tactile/points": topic("/tactile/points").schema,
+      [F.padDepthTopic("p")]: padTopic(F.padDepthTopic("{pad}")).schema,
+      [F.padForceTopic("p")]: force.schema,
+    });
+    assert.equal(F.forcePadOfTopic(force.topic.replace("{pad}", "th_distal")), "th_distal");
+    assert.deepEqual(
+      F.FORCE_FIELDS,
+      format.force_cells.fields.map((f) => [f.name, f.offset, f.type]),
+    );
+    assert.equal(F.FORCE_STRIDE, format.force_cells.point_stride);
+  });
+
   it("image encodings and their bytes per pixel", () => {
     for (const [name, spec] of Object.entries(F.IMAGE_ENCODINGS)) {
       assert.equal(spec.encoding, topic(name).image_encoding, name);
@@ -103,5 +132,7 @@ describe("src/format.ts agrees with datasets/format.json", () => {
     assert.deepEqual(sorted(F.SAMPLE_INFO_EPISODE_KEYS), r.episode_frame);
     assert.deepEqual(sorted(F.EPISODE_RECORD_KEYS), r.episode);
     assert.deepEqual(sorted(F.STATE_RECORD_KEYS), r.state);
+    assert.deepEqual(sorted(F.PAD_FORCE_INFO_KEYS), r.pad_force);
+    for (const key of F.TACTILE_FORCE_INFO_KEYS) assert.ok(r.touch_info?.includes(key), `touch_info has no ${key}`);
   });
 });

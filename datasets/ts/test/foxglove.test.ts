@@ -34,6 +34,8 @@ import {
   EPISODE_RECORD_KEYS,
   EPISODE_STATE_TOPIC,
   EPISODE_TOPICS,
+  FORCE_FIELDS,
+  FORCE_STRIDE,
   SAMPLE_INFO_EPISODE_KEYS,
   STATE_RECORD_KEYS,
   episodeTiming,
@@ -49,7 +51,10 @@ import {
   SCENE_SCHEMA,
   SCENE_TOPIC,
   SHARD_METADATA_KEYS,
+  TACTILE_FORCE_INFO_KEYS,
   TACTILE_RESOLUTION,
+  forcePadOfTopic,
+  forcePadsOf,
   imageSpec,
   isAllegro,
   opticalOfTopic,
@@ -59,6 +64,7 @@ import {
   robotTopics,
 } from "../src/format.js";
 import { checkSceneModels, obj, only, tfTree, unitQuaternion, type ModelInfo, type Obj, type Sample } from "../src/checks.js";
+import { forceSum, readForceFields } from "../src/force.js";
 import { frameReferences, loadLayout, plotSeries, topicReferences, valueAtPath, type LayoutFile } from "../src/layout.js";
 import { readOpticalImages } from "../src/optical.js";
 import { frameTimeOf, readShard, type Decoded, type ShardData } from "../src/shard.js";
@@ -146,18 +152,20 @@ function isRobot(dataset: Dataset, shard: ShardData): boolean {
 }
 
 /** The topics of every sample: with a robot, `/tactile/points`, the depth image of each of its
- * pads (`pads`, read from the shard: the robot's, not a fixed list) and the image and reference
- * image of each pad with an optical sensor (`optical`, read from the shard too). */
+ * pads (`pads`, read from the shard: the robot's, not a fixed list), the image and reference
+ * image of each pad with an optical sensor (`optical`, read from the shard too) and the force
+ * field of each pad of `forces` (with `robot.tactile.force_field`, read from the shard). */
 function expectedTopics(
   robot: boolean,
   pads: readonly string[],
   noisy = false,
   optical: readonly string[] = [],
   episode = false,
+  forces: readonly string[] = [],
 ): Record<string, string> {
   return {
     ...BASE_TOPICS,
-    ...(robot ? robotTopics(pads, optical) : {}),
+    ...(robot ? robotTopics(pads, optical, forces) : {}),
     ...(noisy ? NOISE_TOPICS : {}),
     ...(episode ? EPISODE_TOPICS : {}),
   };
@@ -316,6 +324,8 @@ for (const dataset of all) {
         let pads: string[] = [];
         /** The pads with an optical sensor, from the shard's /tactile/<pad>/image channels (pad order). */
         let optical: string[] = [];
+        /** The pads with a force field, from the shard's /tactile/<pad>/force channels (pad order). */
+        let forces: string[] = [];
         let allegro = false;
         /** An episode shard's timing (FORMAT.md, "Episodes"); undefined for a snapshot shard. */
         let episode: EpisodeTiming | undefined;
@@ -326,6 +336,7 @@ for (const dataset of all) {
           robot = isRobot(dataset, shard);
           pads = padsOf([...shard.channels.values()].map((c) => c.channel));
           optical = opticalPadsOf([...shard.channels.values()].map((c) => c.channel));
+          forces = forcePadsOf([...shard.channels.values()].map((c) => c.channel));
           allegro = isAllegro(pads);
           episode = shard.episode == undefined ? undefined : episodeTiming(shard.episode);
           frame0 = shard.frames.values().next().value ?? new Map();
@@ -399,7 +410,7 @@ for (const dataset of all) {
           }
           assert.deepEqual(problems, []);
           const expected: Record<string, string> = {
-            ...expectedTopics(robot, pads, shard.topics.has("/camera/depth_noisy"), optical, episode != undefined),
+            ...expectedTopics(robot, pads, shard.topics.has("/camera/depth_noisy"), optical, episode != undefined, forces),
             [SCENE_TOPIC]: SCENE_SCHEMA,
           };
           if (episode != undefined) {
@@ -441,7 +452,7 @@ for (const dataset of all) {
           if (episode == undefined) {
             assert.equal(shard.samples.size, count, "samples (distinct log times) != sample_count");
           }
-          const topics = Object.keys(expectedTopics(robot, pads, shard.topics.has("/camera/depth_noisy"), optical, episode != undefined));
+          const topics = Object.keys(expectedTopics(robot, pads, shard.topics.has("/camera/depth_noisy"), optical, episode != undefined, forces));
           // An episode writes its optical references once, with frame 0.
           const later = topics.filter((topic) => opticalOfTopic(topic)?.kind !== "reference");
           let move = 0;
@@ -567,6 +578,56 @@ for (const dataset of all) {
               const reference = tactileReferences.get(pad)!;
               assert.equal(image.data.byteLength, image.width * image.height * 3, `${where}: ${pad} image bytes`);
               assert.deepEqual([reference.width, reference.height], [image.width, image.height], `${where}: ${pad} reference size`);
+            }
+          }
+        });
+
+        it("force fields (robot.tactile.force_field): every pad's, in every touch reading, summing to /sample/info tactile.forces", () => {
+          if (forces.length === 0) {
+            for (const [t, sample] of shard.frames) {
+              const tactile = obj(only(sample, "/sample/info").tactile ?? {});
+              for (const key of TACTILE_FORCE_INFO_KEYS) {
+                assert.ok(!(key in tactile), `sample @ ${t}: /sample/info tactile.${key} without /tactile/<pad>/force`);
+              }
+            }
+            return;
+          }
+          assert.ok(robot, "force fields without a robot");
+          assert.deepEqual(forces, pads, "FORMAT.md: every pad has a force field, channels in pad order");
+          const type = shard.topics.get(`/tactile/${forces[0]!}/force`)!.parsed as { kind: "protobuf"; type: import("protobufjs").Type };
+          const fieldType = type.type.lookupType("foxglove.PackedElementField");
+          const fields = FORCE_FIELDS.map(([name, offset, numeric]) => [name, offset, enumValue(fieldType, "NumericType", numeric)]);
+          for (const m of shard.messages.filter((x) => forcePadOfTopic(x.topic) != undefined)) {
+            const where = `${m.topic} @ ${m.logTime}`;
+            assert.equal(m.value.frame_id, `${forcePadOfTopic(m.topic)!}_pad`, `${where}: frame_id`);
+            assert.equal(m.value.point_stride, FORCE_STRIDE, `${where}: point_stride`);
+            assert.deepEqual((m.value.fields as Obj[]).map((f) => [f.name, f.offset, f.type]), fields, `${where}: cell fields`);
+            assert.deepEqual(obj(obj(m.value.pose).orientation), { x: 0, y: 0, z: 0, w: 1 }, `${where}: pose`);
+          }
+          // Every touch reading (a sample; an episode's readings between frames too) has every pad's field.
+          let resolution: number | undefined;
+          for (const [t, group] of shard.samples) {
+            if (!group.has("/tactile/points")) {
+              continue;
+            }
+            const where = `touch @ ${t}`;
+            const read = readForceFields(group, where, pads);
+            assert.deepEqual([...read.keys()], pads, `${where}: force fields`);
+            for (const [pad, field] of read) {
+              resolution ??= field.resolution;
+              assert.equal(field.resolution, resolution, `${where} ${pad}: resolution differs from the shard's first`);
+            }
+            if (!shard.frames.has(t)) {
+              continue;
+            }
+            const tactile = obj(only(group, "/sample/info").tactile);
+            const listed = obj(tactile.forces) as Record<string, Obj>;
+            for (const [pad, field] of read) {
+              const [length, width] = obj(tactile.pads)[pad] as [number, number];
+              const want = listed[pad]!.force_n as number[];
+              const got = forceSum(field, length, width);
+              const off = Math.hypot(got[0] - want[0]!, got[1] - want[1]!, got[2] - want[2]!);
+              assert.ok(off <= 0.05 * Math.hypot(...want) + 1e-4, `${where} ${pad}: cells sum to ${JSON.stringify(got)} N, tactile.forces.${pad}.force_n is ${JSON.stringify(want)} N`);
             }
           }
         });
@@ -817,6 +878,11 @@ for (const dataset of all) {
               if (robot && opticalOfTopic(ref.topic) != undefined) {
                 // Only pads with an optical sensor have images (a config may have none).
                 skipped.push(`${ref.topic} (this shard's optical pads: ${optical.join(", ") || "none"})`);
+                continue;
+              }
+              if (robot && forcePadOfTopic(ref.topic) != undefined) {
+                // Force fields only with robot.tactile.force_field (the MuJoCo backend).
+                skipped.push(`${ref.topic} (this shard's force fields: ${forces.join(", ") || "none"})`);
                 continue;
               }
               if (ref.topic === SCENE_TOPIC && allowNoSceneModels) {

@@ -1,0 +1,136 @@
+// The contact force fields of one touch reading (FORMAT.md, `/tactile/<pad>/force` and "Force
+// fields"): per pad, an R x R grid of the pressure, shear and slip the object puts on the pad's
+// sensing area, read the way the Python (`tactile["forces"]`) and Rust (`TactileData::forces`)
+// readers read them.
+import type { Sample } from "./checks.js";
+import { FORCE_STRIDE, forcePadOfTopic, padForceTopic } from "./format.js";
+
+/**
+ * One pad's force field: `resolution`² cells, row-major (cell `(u, v)`, column u along the pad's
+ * x, row v along its y, at index `v · R + u`), in the pad frame.
+ */
+export type ForceField = {
+  resolution: number;
+  /** The cells' centres (x, y; m): `2 · R²` values. */
+  position: Float32Array;
+  /** The normal pressure the object puts on each cell (Pa, >= 0): `R²` values. */
+  pressure: Float32Array;
+  /** The shear traction on each cell along the pad's x and y (Pa): `2 · R²` values. */
+  shear: Float32Array;
+  /** 1 where the cell's traction is at its friction limit, else 0: `R²` values. */
+  slip: Uint8Array;
+};
+
+/**
+ * A decoded `foxglove.PointCloud` of `/tactile/<pad>/force` as a {@link ForceField}. The cloud must
+ * be a square grid of at least one 28-byte cell (`point_stride` 28); an Error names `where`
+ * otherwise.
+ */
+export function decodeForceField(value: Record<string, unknown>, where: string): ForceField {
+  const { point_stride: stride, data } = value as { point_stride: number; data: Uint8Array };
+  if (stride !== FORCE_STRIDE || data.byteLength % FORCE_STRIDE !== 0) {
+    throw new Error(`${where}: expected ${FORCE_STRIDE}-byte force cells, got point stride ${stride} and ${data.byteLength} bytes of data`);
+  }
+  const n = data.byteLength / FORCE_STRIDE;
+  const r = Math.round(Math.sqrt(n));
+  if (n === 0 || r * r !== n) {
+    throw new Error(`${where}: ${n} force cells, not a square R x R grid (R >= 1)`);
+  }
+  const view = new DataView(data.buffer, data.byteOffset, data.byteLength);
+  const field: ForceField = {
+    resolution: r,
+    position: new Float32Array(2 * n),
+    pressure: new Float32Array(n),
+    shear: new Float32Array(2 * n),
+    slip: new Uint8Array(n),
+  };
+  for (let k = 0; k < n; k++) {
+    const at = k * FORCE_STRIDE;
+    field.position[2 * k] = view.getFloat32(at, true);
+    field.position[2 * k + 1] = view.getFloat32(at + 4, true);
+    field.pressure[k] = view.getFloat32(at + 12, true);
+    field.shear[2 * k] = view.getFloat32(at + 16, true);
+    field.shear[2 * k + 1] = view.getFloat32(at + 20, true);
+    field.slip[k] = view.getUint32(at + 24, true) !== 0 ? 1 : 0;
+  }
+  return field;
+}
+
+/**
+ * The force fields of one touch reading (a sample, or an episode's touch messages of one instant):
+ * the pads are its `/tactile/<pad>/force` topics in the order of their channels (the writer adds
+ * them in the robot's pad order). When `pads` (the reading's pads, from its `/tactile/<pad>/depth`
+ * channels) is given, each must be one of them; when `/sample/info` has `tactile.forces`, it must
+ * list exactly these pads; every field has the same resolution. Throws an Error naming `where`
+ * and the topic otherwise. Empty without force topics.
+ */
+export function readForceFields(sample: Sample, where: string, pads?: readonly string[]): Map<string, ForceField> {
+  const found: { pad: string; channelId: number }[] = [];
+  for (const [topic, list] of sample) {
+    const pad = forcePadOfTopic(topic);
+    if (pad != undefined) {
+      found.push({ pad, channelId: list[0]?.channelId ?? 0 });
+    }
+  }
+  found.sort((a, b) => a.channelId - b.channelId);
+  const names = found.map((f) => f.pad);
+  const info = sample.get("/sample/info")?.[0]?.value;
+  const listed = (info?.tactile as Record<string, unknown> | undefined)?.forces as Record<string, unknown> | undefined;
+  if (listed != undefined) {
+    const want = Object.keys(listed).sort();
+    const have = [...names].sort();
+    if (want.join("\n") !== have.join("\n")) {
+      throw new Error(
+        `${where}: /sample/info tactile.forces lists the pads [${want.join(", ")}], ` +
+          `the sample has force fields of [${have.join(", ")}] (/tactile/<pad>/force)`,
+      );
+    }
+  }
+  if (pads != undefined) {
+    const unknown = names.filter((pad) => !pads.includes(pad));
+    if (unknown.length > 0) {
+      throw new Error(
+        `${where}: force fields of ${unknown.join(", ")}, which are not pads of the sample ` +
+          `(no /tactile/<pad>/depth; pads: ${pads.join(", ")})`,
+      );
+    }
+  }
+  const fields = new Map<string, ForceField>();
+  for (const pad of names) {
+    const topic = padForceTopic(pad);
+    const list = sample.get(topic)!;
+    if (list.length !== 1) {
+      throw new Error(`${where}: ${list.length} messages on ${topic}, expected one`);
+    }
+    fields.set(pad, decodeForceField(list[0]!.value, `${where} ${topic}`));
+  }
+  const sizes = new Set([...fields.values()].map((f) => f.resolution));
+  if (sizes.size > 1) {
+    const each = [...fields].map(([pad, f]) => `${pad} ${f.resolution}x${f.resolution}`);
+    throw new Error(`${where}: the pads' force fields differ in resolution: ${each.join(", ")}`);
+  }
+  return fields;
+}
+
+/**
+ * The force a field's cells add up to (N, pad frame; FORMAT.md, "Sums"): their (shear_x, shear_y,
+ * −pressure) times the cell area `length · width / R²` (the pad's sensing area, `/sample/info`
+ * `tactile.pads`). With the generator's fields this is `tactile.forces.<pad>.force_n`.
+ */
+export function forceSum(field: ForceField, length: number, width: number): [number, number, number] {
+  const area = (length * width) / (field.resolution * field.resolution);
+  let x = 0;
+  let y = 0;
+  let z = 0;
+  for (let k = 0; k < field.pressure.length; k++) {
+    x += field.shear[2 * k]!;
+    y += field.shear[2 * k + 1]!;
+    z -= field.pressure[k]!;
+  }
+  return [x * area, y * area, z * area];
+}
+
+/** FORMAT.md's centre of cell `(u, v)` of an R x R grid over a `length` x `width` pad (m). */
+export function cellCentre(u: number, v: number, r: number, length: number, width: number): [number, number] {
+  return [(((2 * u + 1) / r - 1) * length) / 2, (((2 * v + 1) / r - 1) * width) / 2];
+}
