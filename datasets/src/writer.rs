@@ -429,10 +429,8 @@ impl ShardWriter {
 /// A pad's force field as a Foxglove `PointCloud` in the pad frame, one point per cell at its
 /// centre on the pad plane, laid out as [`crate::force_cells::FIELDS`] says.
 fn force_cloud(t: u64, f: &crate::sample::PadForceField) -> Result<Vec<u8>> {
-    use foxglove::schemas::packed_element_field::NumericType;
     let r = f.resolution;
     anyhow::ensure!(f.cells.len() == (r * r) as usize, "pad {}: {} force cells, expected {r}x{r}", f.pad, f.cells.len());
-    let field = |name: &str, offset: u32, ty: NumericType| PackedElementField { name: name.into(), offset, r#type: ty as i32 };
     let mut data = Vec::with_capacity(f.cells.len() * crate::force_cells::STRIDE as usize);
     for c in &f.cells {
         for v in [c.position[0], c.position[1], 0.0, c.pressure, c.shear[0], c.shear[1]] {
@@ -440,25 +438,12 @@ fn force_cloud(t: u64, f: &crate::sample::PadForceField) -> Result<Vec<u8>> {
         }
         data.extend((c.slip as u32).to_le_bytes());
     }
-    Ok(PointCloud {
-        timestamp: ts(t),
-        frame_id: format!("{}_pad", f.pad),
-        pose: Some(fg_pose(&Pose::IDENTITY)),
-        point_stride: crate::force_cells::STRIDE,
-        fields: crate::force_cells::FIELDS
-            .iter()
-            .map(|&(name, offset, unsigned)| field(name, offset, if unsigned { NumericType::Uint32 } else { NumericType::Float32 }))
-            .collect(),
-        data: prost::bytes::Bytes::from(data),
-    }
-    .encode_to_vec())
+    Ok(packed_cloud(t, format!("{}_pad", f.pad), (&crate::force_cells::FIELDS, crate::force_cells::STRIDE), data))
 }
 
 /// The tactile points as a Foxglove `PointCloud` in the camera frame, laid out as
 /// [`crate::tactile_points::FIELDS`] says.
 fn tactile_cloud(t: u64, points: &[crate::sample::TactilePointRecord]) -> Vec<u8> {
-    use foxglove::schemas::packed_element_field::NumericType;
-    let field = |name: &str, offset: u32, ty: NumericType| PackedElementField { name: name.into(), offset, r#type: ty as i32 };
     let mut data = Vec::with_capacity(points.len() * crate::tactile_points::STRIDE as usize);
     for p in points {
         for v in p.position.iter().chain([&p.distance]) {
@@ -466,15 +451,24 @@ fn tactile_cloud(t: u64, points: &[crate::sample::TactilePointRecord]) -> Vec<u8
         }
         data.extend(p.phalanx.to_le_bytes());
     }
+    packed_cloud(t, frames::CAMERA.into(), (&crate::tactile_points::FIELDS, crate::tactile_points::STRIDE), data)
+}
+
+/// A `PointCloud` of packed points in `frame_id` (identity pose), with the `(name, offset,
+/// unsigned)` fields of a layout and its stride.
+fn packed_cloud(t: u64, frame_id: String, (fields, stride): (&[(&str, u32, bool)], u32), data: Vec<u8>) -> Vec<u8> {
+    use foxglove::schemas::packed_element_field::NumericType;
+    let field = |&(name, offset, unsigned): &(&str, u32, bool)| PackedElementField {
+        name: name.into(),
+        offset,
+        r#type: if unsigned { NumericType::Uint32 } else { NumericType::Float32 } as i32,
+    };
     PointCloud {
         timestamp: ts(t),
-        frame_id: frames::CAMERA.into(),
+        frame_id,
         pose: Some(fg_pose(&Pose::IDENTITY)),
-        point_stride: crate::tactile_points::STRIDE,
-        fields: crate::tactile_points::FIELDS
-            .iter()
-            .map(|&(name, offset, unsigned)| field(name, offset, if unsigned { NumericType::Uint32 } else { NumericType::Float32 }))
-            .collect(),
+        point_stride: stride,
+        fields: fields.iter().map(field).collect(),
         data: prost::bytes::Bytes::from(data),
     }
     .encode_to_vec()
