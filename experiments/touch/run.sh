@@ -3,6 +3,7 @@
 # interruption. Reports land in out/experiments/<name>/eval*/report.md with their pictures.
 #
 #   experiments/touch/run.sh cpu           --ycb-dir DIR   # Tactile-Channel vs vision only, 2 CPU cores (~1 h)
+#   experiments/touch/run.sh pairs         --ycb-dir DIR   # cpu on three object pairs, and the three pooled
 #   experiments/touch/run.sh orientation   --ycb-dir DIR   # + rot6d and a cosine schedule, + a rotation loss term
 #   experiments/touch/run.sh cross-gripper --ycb-dir DIR   # Allegro <-> Robotiq 2F-85, each network on both
 #   experiments/touch/run.sh paper         --ycb-dir DIR --device cuda --jobs 16   # the paper's size, for a GPU box
@@ -15,7 +16,7 @@
 # (cpu, orientation: other YCB objects, in out/experiments/touch-cpu-A+B), --jobs N (generator
 # workers, default: the number of cores), --device D (vtpose device, default cpu).
 set -euo pipefail
-usage() { sed -n '2,17p' "$0" | sed 's/^# \{0,1\}//'; exit 2; }
+usage() { sed -n '2,18p' "$0" | sed 's/^# \{0,1\}//'; exit 2; }
 [ $# -ge 1 ] || usage
 experiment=$1; shift
 ycb="${YCB_DIR:-}"
@@ -35,8 +36,8 @@ while [ $# -gt 0 ]; do
 done
 cd "$(dirname "$0")/../.."
 case "$experiment" in
-  cpu | orientation | cross-gripper | paper) ;;
-  *) echo "run.sh: the experiment must be cpu, orientation, cross-gripper or paper, got '$experiment'" >&2; usage ;;
+  cpu | pairs | orientation | cross-gripper | paper) ;;
+  *) echo "run.sh: the experiment must be cpu, pairs, orientation, cross-gripper or paper, got '$experiment'" >&2; usage ;;
 esac
 [ -n "$ycb" ] && [ -d "$ycb" ] || { echo "run.sh: the experiment needs the real YCB meshes: --ycb-dir DIR (or YCB_DIR)" >&2; exit 2; }
 
@@ -74,12 +75,16 @@ evaluate() {
 }
 
 cpu_train=experiments/touch/train-cpu.yaml
-cpu_out=out/experiments/touch-cpu
-object_set=()
-if [ -n "$objects" ]; then
-  cpu_out="$cpu_out-${objects//,/+}"
-  object_set=(--set "objects=[${objects//,/, }]")
-fi
+# use_objects A,B: the CPU experiment's folder and object override for that pair (none: cpu.yaml's).
+use_objects() {
+  cpu_out=out/experiments/touch-cpu
+  object_set=()
+  if [ -n "$1" ]; then
+    cpu_out="$cpu_out-${1//,/+}"
+    object_set=(--set "objects=[${1//,/, }]")
+  fi
+}
+use_objects "$objects"
 # The CPU-size Allegro dataset, its Tactile-Channel network and the vision-only baseline trained
 # on the same data: every CPU experiment starts here, so each has its trained baseline.
 cpu_base() {
@@ -94,6 +99,19 @@ case "$experiment" in
     evaluate "$cpu_out/eval" "$cpu_out/runs/tactile_channel" "$cpu_out/runs/vision_only"
     evaluate "$cpu_out/eval-train" "$cpu_out/runs/tactile_channel" "$cpu_out/runs/vision_only" -- --split train --max-samples 400 --no-sweep
     log "report: $cpu_out/eval/report.md (training split: $cpu_out/eval-train/report.md)"
+    ;;
+  pairs)
+    # Three pairs of different shapes (flat tools, a box and a can, a bottle and a tin), each with
+    # the cpu protocol, then their test grasps pooled (experiments/touch/README.md).
+    evals=()
+    for pair in 042_adjustable_wrench,037_scissors 004_sugar_box,005_tomato_soup_can 006_mustard_bottle,010_potted_meat_can; do
+      use_objects "$pair"
+      cpu_base
+      evaluate "$cpu_out/eval" "$cpu_out/runs/tactile_channel" "$cpu_out/runs/vision_only"
+      evals+=("$cpu_out/eval")
+    done
+    python3 experiments/touch/pooled.py "${evals[@]}" | tee out/experiments/touch-pairs-pooled.md
+    log "reports: each pair's eval/report.md; pooled: out/experiments/touch-pairs-pooled.md"
     ;;
   orientation)
     cpu_base
