@@ -94,9 +94,9 @@ pub trait HandPhysics {
     /// Every contact of a hand link with the object and the force on the link there (an empty list
     /// when nothing touches). At rest the forces on the links sum to the object's weight in the
     /// apparent gravity (the balance `tests/contact_forces.rs` checks). None: the backend cannot
-    /// give forces that balance. rapier cannot: the impulses its solver keeps per contact miss the
-    /// weight of a settled Allegro hold by 2 to 30 times (2 of 3 test holds), so force fields need
-    /// MuJoCo (docs/tactile.md).
+    /// give forces that balance. rapier cannot: the impulses its solver keeps per contact, summed
+    /// over a settled Allegro hold, miss the weight by 3.6 and 33 times its size on 2 of 3 test
+    /// holds, so force fields need MuJoCo (docs/tactile.md).
     fn hand_contacts(&self) -> Option<Vec<HandContact>>;
     /// Deepest penetration (m, >= 0) of any hand link into the object.
     fn max_penetration(&self) -> f64;
