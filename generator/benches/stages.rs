@@ -219,7 +219,7 @@ fn optical(c: &mut Criterion) {
             .collect();
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
         group.bench_function(format!("{preset:?} {w}x{h}, sphere pressed, markers, noise"), |b| {
-            b.iter(|| black_box(optical_image(&sensor, Some(&depth), Some(&mut rng))))
+            b.iter(|| black_box(optical_image(&sensor, Some(&depth), None, Some(&mut rng))))
         });
         group.bench_function(format!("{preset:?} {w}x{h}, reference"), |b| b.iter(|| black_box(reference_image(&sensor))));
     }

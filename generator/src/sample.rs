@@ -26,7 +26,7 @@ use crate::render::{Draw, DrawRole, Lighting, Material, MeshHandle, Renderer, Vi
 use crate::scene::environment::{Distractor, backdrop_mesh, floor_mesh, glb_of, place_distractors};
 use crate::scene::robot::{link_mesh, mask_id as robot_mask_id, pose_links};
 use crate::scene::{SampledScene, pose_of, sample_scene};
-use crate::sensors::force_field;
+use crate::sensors::force_field::{self, GelShear};
 use crate::sensors::optical::{optical_image, reference_image, varied};
 use crate::sensors::tactile::{FingerSurface, PadView, finger_surface, gap_above_surface, sense};
 
@@ -50,24 +50,23 @@ fn finger_surfaces(robot: &RobotScene, pads: &[(f64, f64)]) -> Result<Option<Fin
 }
 
 /// The optical pads' images: each from its depth view (none: the pad does not touch the
-/// object) with the sample's noise stream for that pad, beside its sensor's reference image
-/// (`references`: per pad, the last one made, reused while the sensor stays the same).
-#[allow(clippy::too_many_arguments)] // the pads' inputs, passed in (no hidden state)
+/// object) and its gel's shear displacement (with force fields), with the sample's noise stream
+/// for that pad, beside its sensor's reference image (`references`: per pad, the last one made,
+/// reused while the sensor stays the same).
 fn optical_images(
     references: &mut Vec<Option<(OpticalSensor, Vec<u8>)>>,
-    key: &SampleKey,
-    noise_tag: &str,
+    (key, noise_tag): (&SampleKey, &str),
     write_reference: bool,
     names: &[String],
     pads: &[PadView],
-    depth: &[Option<Vec<f32>>],
+    (depth, shears): (&[Option<Vec<f32>>], &[Option<GelShear>]),
 ) -> Vec<OpticalPadImage> {
     references.resize(pads.len(), None);
     let mut out = Vec::new();
     for (k, (pad, name)) in pads.iter().zip(names).enumerate() {
         let Some(sensor) = &pad.optical else { continue };
         let mut noise = SampleStream::sample(key, &format!("tactile_image/{name}{noise_tag}"));
-        let image = optical_image(sensor, depth[k].as_deref(), Some(&mut noise));
+        let image = optical_image(sensor, depth[k].as_deref(), shears[k].as_ref(), Some(&mut noise));
         let cached = &mut references[k];
         if cached.as_ref().is_none_or(|(s, _)| s != sensor) {
             *cached = Some((sensor.clone(), reference_image(sensor).rgb));
@@ -768,10 +767,33 @@ impl<'a> SampleFactory<'a> {
         self.times.tactile_render += reading.render_time;
         self.times.tactile_extract += clock.wall() - reading.render_time;
         let clock = StageClock::start();
+        let forces = match cfg.force_field {
+            Some(field) => Some(self.force_fields(field.resolution, &pads, &reading.depth, posed)?),
+            None => None,
+        };
+        self.times.tactile_forces += clock.wall();
+        self.times.force_fields += forces.as_ref().map_or(0, |f| f.fields.len() as u64);
+        // With force fields, the optical pads' markers move with their gel's shear displacement.
+        let shears: Vec<Option<GelShear>> = match (&forces, cfg.force_field) {
+            (Some(f), Some(field)) => f
+                .fields
+                .iter()
+                .zip(&pads)
+                .map(|(f, pad)| pad.optical.as_ref().map(|_| GelShear::new(f, pad.size, field.gel_shear_modulus_kpa * 1e3)))
+                .collect(),
+            _ => vec![None; pads.len()],
+        };
+        let clock = StageClock::start();
         // Episodes write the reference images once, with their first frame.
         let write_reference = self.config.sampling.record.is_none() || (key.instance == 0 && noise_tag.is_empty());
-        let optical =
-            optical_images(&mut self.held.optical_references, key, noise_tag, write_reference, &names, &pads, &reading.optical_depth);
+        let optical = optical_images(
+            &mut self.held.optical_references,
+            (key, noise_tag),
+            write_reference,
+            &names,
+            &pads,
+            (&reading.optical_depth, &shears),
+        );
         self.times.tactile_optical += clock.wall();
         self.times.tactile_optical_cpu += clock.cpu();
         self.times.optical_images += optical.len() as u64;
@@ -780,13 +802,6 @@ impl<'a> SampleFactory<'a> {
             .zip(&names)
             .filter_map(|(p, n)| p.optical.as_ref().map(|s| Ok((n.clone(), serde_json::to_value(s)?))))
             .collect::<Result<std::collections::BTreeMap<_, _>>>()?;
-        let clock = StageClock::start();
-        let forces = match cfg.force_field {
-            Some(field) => Some(self.force_fields(field.resolution, &pads, &reading.depth, posed)?),
-            None => None,
-        };
-        self.times.tactile_forces += clock.wall();
-        self.times.force_fields += forces.as_ref().map_or(0, |f| f.fields.len() as u64);
         posed.info.tactile = Some(TouchInfo {
             contact_threshold_mm: cfg.contact_threshold_mm,
             sensors: serde_json::to_value(cfg.sensors)?,

@@ -41,11 +41,14 @@ pub struct ForceFieldConfig {
     /// Cells per side of the pad's grid (at most the pad camera's `resolution`: a cell gathers
     /// its pixels).
     pub resolution: u32,
+    /// The optical pads' gel: its shear modulus (kPa), how far its surface and markers move under
+    /// the shear (an incompressible elastic half-space; silicone gels: tens of kPa).
+    pub gel_shear_modulus_kpa: f64,
 }
 
 impl Default for ForceFieldConfig {
     fn default() -> Self {
-        ForceFieldConfig { resolution: 16 }
+        ForceFieldConfig { resolution: 16, gel_shear_modulus_kpa: 50.0 }
     }
 }
 
@@ -102,7 +105,9 @@ impl Check for TactileConfig {
         c.positive(field!(self.perspective_standoff_mm), 100.0, "mm");
         c.section(field!(self.optical));
         if let Some(f) = &self.force_field {
-            c.key(key!(self.force_field)).range(field!(f.resolution), 1, self.resolution);
+            let mut field = c.key(key!(self.force_field));
+            field.range(field!(f.resolution), 1, self.resolution);
+            field.range(field!(f.gel_shear_modulus_kpa), 1.0, 100_000.0);
         }
     }
 }

@@ -163,6 +163,58 @@ pub fn shear_shares(caps: &[f64], t: f64) -> (Vec<f64>, Vec<bool>) {
     (shares, slip)
 }
 
+/// The tangential displacement of an elastic gel's surface under a pad's shear tractions: each
+/// cell's shear force acting at its centre on an incompressible (ν = 1/2) elastic half-space,
+/// superposed (Cerruti's solution, Johnson's *Contact Mechanics* eq. 2.19):
+/// `u(p) = (Q + (Q·ρ̂) ρ̂) / (4π G ρ)` for a force Q at distance ρ, with ρ softened by half a cell
+/// (`ρ² + a²/4`) so that a cell's own load stays finite. The surface moves along the traction the
+/// object puts on it; the normal load moves it only along the normal (ν = 1/2).
+#[derive(Debug, Clone, PartialEq)]
+pub struct GelShear {
+    /// Per loaded cell: its centre (pad frame, m) and its shear force (N).
+    loads: Vec<([f64; 2], [f64; 2])>,
+    shear_modulus: f64,
+    core: f64,
+}
+
+impl GelShear {
+    /// The displacement field of `field` (a pad whose sensing area is `size`) on a gel of shear
+    /// modulus `shear_modulus` (Pa).
+    pub fn new(field: &PadForceField, size: (f64, f64), shear_modulus: f64) -> Self {
+        let r = field.resolution as f64;
+        let (cell_x, cell_y) = (size.0 / r, size.1 / r);
+        let loads = field
+            .cells
+            .iter()
+            .filter(|c| c.shear != [0.0, 0.0])
+            .map(|c| {
+                ([c.position[0] as f64, c.position[1] as f64], [c.shear[0] as f64 * cell_x * cell_y, c.shear[1] as f64 * cell_x * cell_y])
+            })
+            .collect();
+        GelShear { loads, shear_modulus, core: 0.5 * cell_x.min(cell_y) }
+    }
+
+    /// Whether no cell carries shear (the surface does not move).
+    pub fn is_empty(&self) -> bool {
+        self.loads.is_empty()
+    }
+
+    /// The surface's displacement (m, pad frame x and y) at `p` (pad frame, m).
+    pub fn at(&self, p: [f64; 2]) -> [f64; 2] {
+        let mut u = [0.0; 2];
+        for &(c, q) in &self.loads {
+            let (dx, dy) = (p[0] - c[0], p[1] - c[1]);
+            let rho2 = dx * dx + dy * dy + self.core * self.core;
+            let rho = rho2.sqrt();
+            let along = (q[0] * dx + q[1] * dy) / rho2;
+            let k = 1.0 / (4.0 * std::f64::consts::PI * self.shear_modulus * rho);
+            u[0] += k * (q[0] + along * dx);
+            u[1] += k * (q[1] + along * dy);
+        }
+        u
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -269,5 +321,27 @@ mod tests {
         let (on, link) = pad_contacts(&contacts, 3, &pad, (0.02, 0.01));
         assert_eq!(on.len(), 2, "the centre and within the margin");
         assert_eq!(link, DVec3::new(0.0, 0.0, -4.0));
+    }
+    /// One loaded cell against Cerruti's closed form for a point force on an incompressible
+    /// half-space, far from the cell (where the softening is negligible).
+    #[test]
+    fn the_gel_shear_of_one_cell_is_cerrutis_point_load() {
+        let mut cells = vec![ForceCell::default(); 4];
+        cells[0] = ForceCell { position: [0.0, 0.0], pressure: 1.0, shear: [1000.0, 0.0], slip: false };
+        let field = PadForceField { pad: "pad".into(), resolution: 2, cells };
+        // 2 x 2 cells over 2 x 2 mm: 1 mm² each, so the cell's force is 1 mN along x.
+        let shear = GelShear::new(&field, (0.002, 0.002), 50e3);
+        let q = 1e-3;
+        let g = 50e3;
+        for p in [[0.02, 0.0], [0.0, 0.02], [0.014, 0.014]] {
+            let rho = (p[0] * p[0] + p[1] * p[1]).sqrt();
+            let ux = q / (2.0 * std::f64::consts::PI * g) * (0.5 / rho + 0.5 * p[0] * p[0] / rho.powi(3));
+            let uy = q / (2.0 * std::f64::consts::PI * g) * (0.5 * p[0] * p[1] / rho.powi(3));
+            let u = shear.at(p);
+            assert!((u[0] - ux).abs() < 2e-3 * ux && (u[1] - uy).abs() < 2e-3 * ux.max(1e-12), "{p:?}: {u:?} vs ({ux}, {uy})");
+        }
+        // Finite at its own centre, along the load.
+        let u = shear.at([0.0, 0.0]);
+        assert!(u[0].is_finite() && u[0] > 0.0 && u[1] == 0.0);
     }
 }

@@ -13,7 +13,8 @@
 //!    with `m` the inner surface normal and `l_i` the direction towards LED i. Without clipping
 //!    this is linear in `m`, which is what photometric stereo inverts ([`normals_from_image`]).
 //! 4. **Markers and noise:** printed dots displaced away from contacts by the gel's slope (at most
-//!    `shift` gel thicknesses), then
+//!    `shift` gel thicknesses) and, with force fields, along the gel's shear displacement
+//!    ([`GelShear`]), then
 //!    Gaussian pixel noise; 8 bits per channel, linear (no gamma).
 //!
 //! The reference image is the same model with no indentation and no noise. Conventions (pixel
@@ -23,6 +24,7 @@ use glam::{DMat3, DVec3};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
+use super::force_field::GelShear;
 use crate::config::{OpticalSensor, led_falloff, light_matrix};
 
 /// The image of one sensor: `width x height` RGB, row-major, 8 bits per channel.
@@ -159,8 +161,9 @@ fn shade(sensor: &OpticalSensor, slopes: Option<&[(f64, f64)]>) -> Vec<f64> {
 }
 
 /// Step 4a: paints the markers into the linear image, each displaced from its grid position by
-/// `-shift * thickness * slope` of the gel there (away from a contact; the slope capped at 1).
-fn paint_markers(sensor: &OpticalSensor, img: &mut [f64], slopes: Option<&[(f64, f64)]>) {
+/// `-shift * thickness * slope` of the gel there (away from a contact; the slope capped at 1),
+/// plus, with force fields, the gel surface's tangential displacement under the shear there.
+fn paint_markers(sensor: &OpticalSensor, img: &mut [f64], slopes: Option<&[(f64, f64)]>, shear: Option<&GelShear>) {
     let Some(m) = sensor.markers else { return };
     let [w, h] = sensor.image_size;
     let (px, py) = pitch(sensor);
@@ -176,7 +179,8 @@ fn paint_markers(sensor: &OpticalSensor, img: &mut [f64], slopes: Option<&[(f64,
         });
         // Capped at a slope of 1: a sharp edge's step is not a lateral push of the whole gel.
         let scale = m.shift * t / gx.hypot(gy).max(1.0);
-        let centre = (rx - scale * gx, ry - scale * gy);
+        let [sx, sy] = shear.map_or([0.0, 0.0], |s| s.at([rx, ry]));
+        let centre = (rx - scale * gx + sx, ry - scale * gy + sy);
         let (u0, u1) = (((centre.0 - r + ax / 2.0) / px).floor() as i64 - 1, ((centre.0 + r + ax / 2.0) / px).ceil() as i64 + 1);
         let (v0, v1) = (((centre.1 - r + ay / 2.0) / py).floor() as i64 - 1, ((centre.1 + r + ay / 2.0) / py).ceil() as i64 + 1);
         for v in v0.max(0)..v1.min(h as i64) {
@@ -230,18 +234,24 @@ fn quantize(sensor: &OpticalSensor, img: &[f64], rng: Option<&mut ChaCha8Rng>) -
 /// The sensor's image with nothing touching it, without noise.
 pub fn reference_image(sensor: &OpticalSensor) -> OpticalImage {
     let mut img = shade(sensor, None);
-    paint_markers(sensor, &mut img, None);
+    paint_markers(sensor, &mut img, None, None);
     let [width, height] = sensor.image_size;
     OpticalImage { width, height, rgb: quantize(sensor, &img, None) }
 }
 
 /// The sensor's image of an object at `depth` (z from the pad plane per image pixel, `+inf`
-/// where none; `None`: nothing touches the pad), with noise from `rng` (`None`: noise-free).
-pub fn optical_image(sensor: &OpticalSensor, depth: Option<&[f32]>, rng: Option<&mut ChaCha8Rng>) -> OpticalImage {
+/// where none; `None`: nothing touches the pad), its markers moved by the gel's shear
+/// displacement (`shear`, with force fields), with noise from `rng` (`None`: noise-free).
+pub fn optical_image(
+    sensor: &OpticalSensor,
+    depth: Option<&[f32]>,
+    shear: Option<&GelShear>,
+    rng: Option<&mut ChaCha8Rng>,
+) -> OpticalImage {
     let gel = depth.map(|d| gel_surface(sensor, &indentation(sensor, d)));
     let slopes = gel.filter(|g| g.iter().any(|&x| x > 0.0)).map(|g| slopes(sensor, &g));
     let mut img = shade(sensor, slopes.as_deref());
-    paint_markers(sensor, &mut img, slopes.as_deref());
+    paint_markers(sensor, &mut img, slopes.as_deref(), shear.filter(|s| !s.is_empty()));
     let [width, height] = sensor.image_size;
     OpticalImage { width, height, rgb: quantize(sensor, &img, rng) }
 }
