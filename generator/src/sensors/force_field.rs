@@ -333,7 +333,7 @@ mod tests {
         let shear = GelShear::new(&field, (0.002, 0.002), 50e3);
         let q = 1e-3;
         let g = 50e3;
-        for p in [[0.02, 0.0], [0.0, 0.02], [0.014, 0.014]] {
+        for p in [[0.02f64, 0.0], [0.0, 0.02], [0.014, 0.014]] {
             let rho = (p[0] * p[0] + p[1] * p[1]).sqrt();
             let ux = q / (2.0 * std::f64::consts::PI * g) * (0.5 / rho + 0.5 * p[0] * p[0] / rho.powi(3));
             let uy = q / (2.0 * std::f64::consts::PI * g) * (0.5 * p[0] * p[1] / rho.powi(3));
