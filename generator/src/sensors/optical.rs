@@ -169,18 +169,8 @@ fn paint_markers(sensor: &OpticalSensor, img: &mut [f64], slopes: Option<&[(f64,
     let (px, py) = pitch(sensor);
     let [ax, ay] = sensor.sensing_area_mm.map(|a| a * 1e-3);
     let r = m.radius_mm * 1e-3;
-    let t = sensor.gel_thickness_mm * 1e-3;
-    for [rx, ry] in marker_positions(sensor) {
-        // The slope at the marker's rest pixel.
-        let (gx, gy) = slopes.map_or((0.0, 0.0), |s| {
-            let u = ((rx + ax / 2.0) / px).floor().clamp(0.0, w as f64 - 1.0) as u32;
-            let v = ((ry + ay / 2.0) / py).floor().clamp(0.0, h as f64 - 1.0) as u32;
-            s[(v * w + u) as usize]
-        });
-        // Capped at a slope of 1: a sharp edge's step is not a lateral push of the whole gel.
-        let scale = m.shift * t / gx.hypot(gy).max(1.0);
-        let [sx, sy] = shear.map_or([0.0, 0.0], |s| s.at([rx, ry]));
-        let centre = (rx - scale * gx + sx, ry - scale * gy + sy);
+    for (_, [cx, cy]) in marker_flow(sensor, slopes, shear) {
+        let centre = (cx, cy);
         let (u0, u1) = (((centre.0 - r + ax / 2.0) / px).floor() as i64 - 1, ((centre.0 + r + ax / 2.0) / px).ceil() as i64 + 1);
         let (v0, v1) = (((centre.1 - r + ay / 2.0) / py).floor() as i64 - 1, ((centre.1 + r + ay / 2.0) / py).ceil() as i64 + 1);
         for v in v0.max(0)..v1.min(h as i64) {
@@ -198,6 +188,30 @@ fn paint_markers(sensor: &OpticalSensor, img: &mut [f64], slopes: Option<&[(f64,
             }
         }
     }
+}
+
+/// Each marker's rest position and where it is (m, pad frame): moved by `-shift * thickness *
+/// slope` of the gel at its rest pixel (away from a contact; the slope capped at 1: a sharp edge's
+/// step is not a lateral push of the whole gel) and by the gel's shear displacement there.
+pub fn marker_flow(sensor: &OpticalSensor, slopes: Option<&[(f64, f64)]>, shear: Option<&GelShear>) -> Vec<([f64; 2], [f64; 2])> {
+    let Some(m) = sensor.markers else { return Vec::new() };
+    let [w, h] = sensor.image_size;
+    let (px, py) = pitch(sensor);
+    let [ax, ay] = sensor.sensing_area_mm.map(|a| a * 1e-3);
+    let t = sensor.gel_thickness_mm * 1e-3;
+    marker_positions(sensor)
+        .into_iter()
+        .map(|[rx, ry]| {
+            let (gx, gy) = slopes.map_or((0.0, 0.0), |s| {
+                let u = ((rx + ax / 2.0) / px).floor().clamp(0.0, w as f64 - 1.0) as u32;
+                let v = ((ry + ay / 2.0) / py).floor().clamp(0.0, h as f64 - 1.0) as u32;
+                s[(v * w + u) as usize]
+            });
+            let scale = m.shift * t / gx.hypot(gy).max(1.0);
+            let [sx, sy] = shear.map_or([0.0, 0.0], |s| s.at([rx, ry]));
+            ([rx, ry], [rx - scale * gx + sx, ry - scale * gy + sy])
+        })
+        .collect()
 }
 
 /// The markers' rest positions (m, pad frame): a grid of the configured pitch centred on the pad,
@@ -229,6 +243,13 @@ fn quantize(sensor: &OpticalSensor, img: &[f64], rng: Option<&mut ChaCha8Rng>) -
         }
         _ => img.iter().map(|&x| level(x)).collect(),
     }
+}
+
+/// The slopes of the gel's surface over an object at `depth` (as [`optical_image`] takes it);
+/// None where the gel is not pushed in.
+pub fn gel_slopes(sensor: &OpticalSensor, depth: Option<&[f32]>) -> Option<Vec<(f64, f64)>> {
+    let gel = depth.map(|d| gel_surface(sensor, &indentation(sensor, d)));
+    gel.filter(|g| g.iter().any(|&x| x > 0.0)).map(|g| slopes(sensor, &g))
 }
 
 /// The sensor's image with nothing touching it, without noise.
