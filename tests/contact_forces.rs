@@ -169,6 +169,7 @@ fn force_fields_sum_to_the_pads_contact_forces_and_the_hand_holds_the_weight() {
             100.0 * on_pads / on_links.max(1e-9)
         );
         assert!(pads_loaded > samples, "{scene}: {pads_loaded} loaded pads in {samples} samples");
+        dump_writes_the_fields(d.path(), &ds);
         assert!(balanced * 5 >= samples * 4, "{scene}: the hand holds the weight within 1 % in only {balanced} of {samples} samples");
     }
 }
@@ -216,4 +217,25 @@ fn episode_touch_readings_carry_force_fields() {
         }
     }
     assert!(readings > 20 && pressed > readings, "{readings} touch readings, {pressed} pressed pads");
+}
+
+/// `vtgen dump` writes each pad's field of a sample as `tactile_<pad>_force.npy`, (R, R, 4)
+/// float32: pressure, shear x, shear y, slip, as the reader returns them.
+fn dump_writes_the_fields(dataset: &std::path::Path, ds: &vt_dataset::DatasetReader) {
+    use crate::common::*;
+    let out = tempdir();
+    let o = run(&["dump", dataset.to_str().unwrap(), "--split", "train", "--index", "0", "--out", out.path().to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let sample = ds.samples("train").unwrap().next().unwrap().unwrap();
+    for field in &sample.tactile.as_ref().unwrap().forces {
+        let bytes = std::fs::read(out.path().join(format!("tactile_{}_force.npy", field.pad))).unwrap();
+        // .npy 1.0: magic, version, a little-endian u16 header length, the header, then the data.
+        let header_len = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+        let header = std::str::from_utf8(&bytes[10..10 + header_len]).unwrap();
+        let r = field.resolution;
+        assert!(header.contains("'<f4'") && header.contains(&format!("({r}, {r}, 4)")), "{header}");
+        let values: Vec<f32> = bytes[10 + header_len..].chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+        let expected: Vec<f32> = field.cells.iter().flat_map(|c| [c.pressure, c.shear[0], c.shear[1], c.slip as u8 as f32]).collect();
+        assert_eq!(values, expected, "{}", field.pad);
+    }
 }
