@@ -426,6 +426,11 @@ fn pad_of_topic(topic: &str) -> Option<&str> {
     topic.strip_prefix("/tactile/").and_then(|t| t.strip_suffix("/depth"))
 }
 
+/// The little-endian `f32` at byte `o` of a packed point.
+fn f32_at(c: &[u8], o: usize) -> f32 {
+    f32::from_le_bytes([c[o], c[o + 1], c[o + 2], c[o + 3]])
+}
+
 /// The tactile topics of a sample, if it has them, with its `pads` in the order the sample's
 /// messages were written (the robot's pad order, which the points' pad indices refer to).
 fn read_tactile(by_topic: &BTreeMap<String, Vec<u8>>, pads: &[String]) -> Result<Option<crate::sample::TactileData>> {
@@ -435,7 +440,6 @@ fn read_tactile(by_topic: &BTreeMap<String, Vec<u8>>, pads: &[String]) -> Result
     if cloud.point_stride != crate::tactile_points::STRIDE {
         bail!("tactile points have stride {}, expected {}", cloud.point_stride, crate::tactile_points::STRIDE);
     }
-    let f32_at = |c: &[u8], o: usize| f32::from_le_bytes([c[o], c[o + 1], c[o + 2], c[o + 3]]);
     let points = cloud
         .data
         .chunks_exact(crate::tactile_points::STRIDE as usize)
@@ -512,7 +516,6 @@ fn read_force_field(pad: &str, cloud: &foxglove::schemas::PointCloud) -> Result<
             cloud.point_stride
         );
     }
-    let f32_at = |c: &[u8], o: usize| f32::from_le_bytes([c[o], c[o + 1], c[o + 2], c[o + 3]]);
     let cells = cloud
         .data
         .chunks_exact(stride)

@@ -37,7 +37,13 @@ pub fn grasp_context<'a>(
 ) -> GraspContext<'a> {
     let finger_gait = record.and_then(|r| r.finger_motion.as_ref()).map(|m| FingerGait::of(m, robot, rc.physics.timestep));
     let record_steps = record.is_some();
-    GraspContext { record_steps, finger_gait, ..GraspContext::new(robot, t_world_base, &rc.grasp, rc.physics.timestep, camera_position) }
+    let record_contact_forces = rc.tactile.force_field.is_some();
+    GraspContext {
+        record_steps,
+        finger_gait,
+        record_contact_forces,
+        ..GraspContext::new(robot, t_world_base, &rc.grasp, rc.physics.timestep, camera_position)
+    }
 }
 
 /// The robot half of a worker: model and physics. The trajectory being recorded is the sample

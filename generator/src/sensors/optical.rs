@@ -269,8 +269,7 @@ pub fn optical_image(
     shear: Option<&GelShear>,
     rng: Option<&mut ChaCha8Rng>,
 ) -> OpticalImage {
-    let gel = depth.map(|d| gel_surface(sensor, &indentation(sensor, d)));
-    let slopes = gel.filter(|g| g.iter().any(|&x| x > 0.0)).map(|g| slopes(sensor, &g));
+    let slopes = gel_slopes(sensor, depth);
     let mut img = shade(sensor, slopes.as_deref());
     paint_markers(sensor, &mut img, slopes.as_deref(), shear.filter(|s| !s.is_empty()));
     let [width, height] = sensor.image_size;

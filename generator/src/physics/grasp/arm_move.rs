@@ -75,7 +75,7 @@ fn instance_state(
         slip_translation: rel.translation.length(),
         slip_rotation: rot(&rel).angle_between(DQuat::IDENTITY),
         penetration,
-        hand_contacts: physics.hand_contacts(),
+        hand_contacts: if ctx.record_contact_forces { physics.hand_contacts() } else { None },
     }
 }
 

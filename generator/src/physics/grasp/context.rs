@@ -24,6 +24,9 @@ pub struct GraspContext<'a> {
     pub record_steps: bool,
     /// A scripted finger motion after each arm move's hold (episodes).
     pub finger_gait: Option<FingerGait>,
+    /// Record the hand's contact forces with every state (`InstanceState::hand_contacts`, for
+    /// the force fields).
+    pub record_contact_forces: bool,
 }
 
 /// `sampling.record.finger_motion` resolved to hand joints: after each arm move's hold, hand joint
@@ -67,7 +70,16 @@ impl FingerGait {
 impl<'a> GraspContext<'a> {
     /// The context of snapshot trajectories (no step recording, no finger motion).
     pub fn new(robot: &'a Robot, t_world_base: DAffine3, config: &'a GraspConfig, timestep: f64, camera_position: DVec3) -> Self {
-        GraspContext { robot, t_world_base, config, timestep, camera_position, record_steps: false, finger_gait: None }
+        GraspContext {
+            robot,
+            t_world_base,
+            config,
+            timestep,
+            camera_position,
+            record_steps: false,
+            finger_gait: None,
+            record_contact_forces: false,
+        }
     }
 
     /// The arm's home: elbow up, palm facing up over the workspace.

@@ -50,8 +50,8 @@ pub struct InstanceState {
     pub slip_translation: f64,
     pub slip_rotation: f64,
     pub penetration: f64,
-    /// The hand's contacts with the object and their forces (palm frame), where the backend gives
-    /// them (`HandPhysics::hand_contacts`).
+    /// With `GraspContext::record_contact_forces`: the hand's contacts with the object and their
+    /// forces (palm frame), where the backend gives them (`HandPhysics::hand_contacts`).
     pub hand_contacts: Option<Vec<crate::physics::HandContact>>,
 }
 
