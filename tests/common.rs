@@ -26,8 +26,31 @@ pub fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
+/// A fresh directory for one test, inside this process's run directory.
 pub fn tempdir() -> tempfile::TempDir {
-    tempfile::Builder::new().prefix("vtgen-test-").tempdir().expect("temp dir")
+    tempfile::Builder::new().prefix("vtgen-test-").tempdir_in(run_dir()).expect("temp dir")
+}
+
+/// The parent of every test directory of this process, removed when the process exits: the
+/// datasets the tests share live in statics, which Rust never drops, and would otherwise stay in
+/// the temp dir after every run.
+fn run_dir() -> &'static Path {
+    static DIR: OnceLock<PathBuf> = OnceLock::new();
+    unsafe extern "C" {
+        fn atexit(callback: extern "C" fn()) -> i32;
+    }
+    extern "C" fn remove_run_dir() {
+        if let Some(dir) = DIR.get() {
+            let _ = std::fs::remove_dir_all(dir);
+        }
+    }
+    DIR.get_or_init(|| {
+        let dir = std::env::temp_dir().join(format!("vtgen-test-run-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("test run dir");
+        // SAFETY: `remove_run_dir` only reads a set OnceLock and removes files; it runs once, at exit.
+        unsafe { atexit(remove_run_dir) };
+        dir
+    })
 }
 
 /// `vtgen generate CONFIG --out OUT --quiet EXTRA…`: the run's output, success or not.
