@@ -169,6 +169,7 @@ fn force_fields_sum_to_the_pads_contact_forces_and_the_hand_holds_the_weight() {
             100.0 * on_pads / on_links.max(1e-9)
         );
         assert!(pads_loaded > samples, "{scene}: {pads_loaded} loaded pads in {samples} samples");
+        markers_follow_the_gel(scene, &ds);
         dump_writes_the_fields(d.path(), &ds);
         assert!(balanced * 5 >= samples * 4, "{scene}: the hand holds the weight within 1 % in only {balanced} of {samples} samples");
     }
@@ -219,6 +220,48 @@ fn episode_touch_readings_carry_force_fields() {
     assert!(readings > 20 && pressed > readings, "{readings} touch readings, {pressed} pressed pads");
 }
 
+/// With force fields, each optical pad with markers carries its marker flow: every marker of the
+/// sample's sensor's rest grid, in its order; a pad nothing touches has its markers at rest; a
+/// loaded pad moves some, by less than the gel's thickness plus its elastic shear (a few mm).
+fn markers_follow_the_gel(scene: &str, ds: &vt_dataset::DatasetReader) {
+    let (mut pads, mut moved) = (0, 0);
+    for s in ds.samples("train").unwrap() {
+        let s = s.unwrap();
+        let tac = s.tactile.as_ref().unwrap();
+        let touch = s.info.robot.as_ref().and_then(|r| r.tactile.as_ref()).unwrap();
+        let sensors = touch.optical.clone().unwrap_or_default();
+        let with_markers: Vec<&String> = sensors.iter().filter(|(_, v)| !v["markers"].is_null()).map(|(p, _)| p).collect();
+        let flow_pads: Vec<&String> = tac.marker_flow.iter().map(|f| &f.pad).collect();
+        let mut expected = with_markers.clone();
+        expected.sort_by_key(|p| tac.phalanges.iter().position(|q| q == *p));
+        assert_eq!(flow_pads, expected, "{scene} sample {}: the optical pads with markers, in pad order", s.index);
+        for flow in &tac.marker_flow {
+            let sensor: vtgen::config::OpticalSensor = serde_json::from_value(sensors[&flow.pad].clone()).unwrap();
+            let rest = vtgen::sensors::optical::marker_positions(&sensor);
+            assert_eq!(flow.markers.len(), rest.len(), "{scene} {}", flow.pad);
+            for ((r, _), g) in flow.markers.iter().zip(&rest) {
+                assert!((r[0] as f64 - g[0]).abs() < 1e-7 && (r[1] as f64 - g[1]).abs() < 1e-7, "{}: rest {r:?} vs grid {g:?}", flow.pad);
+            }
+            let shift = |(r, m): &([f32; 2], [f32; 2])| ((m[0] - r[0]) as f64).hypot((m[1] - r[1]) as f64);
+            let largest = flow.markers.iter().map(shift).fold(0.0, f64::max);
+            let field = tac.forces.iter().find(|f| f.pad == flow.pad).unwrap();
+            let touched = field.cells.iter().any(|c| c.pressure > 0.0);
+            let depth = &tac.depth[tac.phalanges.iter().position(|p| *p == flow.pad).unwrap()];
+            let near = depth.iter().any(|&d| (d as f64) < sensor.gel_thickness_mm * 1e-3);
+            if !touched && !near {
+                assert_eq!(largest, 0.0, "{scene} sample {} {}: untouched, yet a marker moved", s.index, flow.pad);
+            }
+            assert!(largest < 5e-3, "{scene} sample {} {}: a marker moved {largest} m", s.index, flow.pad);
+            pads += 1;
+            moved += (largest > 1e-5) as usize;
+        }
+    }
+    if scene == "tiny-gripper.yaml" {
+        assert!(pads > 0 && moved > 0, "{scene}: {moved} of {pads} optical pads moved their markers");
+    }
+    eprintln!("{scene}: {moved} of {pads} optical pads with markers moved them");
+}
+
 /// `vtgen dump` writes each pad's field of a sample as `tactile_<pad>_force.npy`, (R, R, 4)
 /// float32: pressure, shear x, shear y, slip, as the reader returns them.
 fn dump_writes_the_fields(dataset: &std::path::Path, ds: &vt_dataset::DatasetReader) {
@@ -237,5 +280,14 @@ fn dump_writes_the_fields(dataset: &std::path::Path, ds: &vt_dataset::DatasetRea
         let values: Vec<f32> = bytes[10 + header_len..].chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
         let expected: Vec<f32> = field.cells.iter().flat_map(|c| [c.pressure, c.shear[0], c.shear[1], c.slip as u8 as f32]).collect();
         assert_eq!(values, expected, "{}", field.pad);
+    }
+    for flow in &sample.tactile.as_ref().unwrap().marker_flow {
+        let bytes = std::fs::read(out.path().join(format!("tactile_{}_markers.npy", flow.pad))).unwrap();
+        let header_len = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+        let header = std::str::from_utf8(&bytes[10..10 + header_len]).unwrap();
+        assert!(header.contains(&format!("({}, 4)", flow.markers.len())), "{header}");
+        let values: Vec<f32> = bytes[10 + header_len..].chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+        let expected: Vec<f32> = flow.markers.iter().flat_map(|(r, m)| [m[0], m[1], r[0], r[1]]).collect();
+        assert_eq!(values, expected, "{}", flow.pad);
     }
 }

@@ -14,7 +14,7 @@ use crate::writer::{SAMPLE_INFO_SCHEMA_NAME, STATE_RECORD_SCHEMA_NAME};
 use crate::{
     EPISODE_METADATA_KEY, EpisodeRecord, FORMAT_NAME, FORMAT_VERSION, GRASP_STATS_KEY, GraspStats, MANIFEST_FILE, MODELS_DIR,
     MODELS_INFO_FILE, Manifest, OCCLUSION_HISTOGRAM_KEY, OcclusionBin, OcclusionHistogram, PARTIAL_SUFFIX, ROBOT_DIR, SAMPLE_PERIOD_NS,
-    SHARD_METADATA, SOURCES_FILE, StateRecord, encodings, force_cells, frames, mask_ids, tactile_points, topics,
+    SHARD_METADATA, SOURCES_FILE, StateRecord, encodings, force_cells, frames, marker_points, mask_ids, tactile_points, topics,
 };
 
 /// When a topic is in a sample: `always`, with a robot, with a depth noise model, for pads with an
@@ -162,10 +162,12 @@ pub fn description() -> Value {
             image(&topics::tactile_image(pad), encodings::RGB8, Optical),
             image(&topics::tactile_reference(pad), encodings::RGB8, Optical),
             protobuf::<PointCloud>(&topics::tactile_force(pad), None, ForceField),
+            protobuf::<PointCloud>(&topics::tactile_markers(pad), None, ForceField),
         ],
         "image_encodings": encodings::ALL.iter().map(|&(name, channels, bytes)| (name.to_string(), json!({"channels": channels, "bytes_per_channel": bytes}))).collect::<serde_json::Map<_, _>>(),
         "tactile_points": packed(&tactile_points::FIELDS, tactile_points::STRIDE),
         "force_cells": packed(&force_cells::FIELDS, force_cells::STRIDE),
+        "marker_points": packed(&marker_points::FIELDS, marker_points::STRIDE),
         "frames": {"world": frames::WORLD, "camera": frames::CAMERA, "object": frames::OBJECT},
         "mask_ids": {
             "background": mask_ids::BACKGROUND,

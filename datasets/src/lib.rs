@@ -26,7 +26,9 @@ pub use manifest::{
 pub use occlusion::OcclusionBin;
 pub use ply::{LengthUnit, PlyMesh, read_ply, write_ply};
 pub use reader::{DatasetReader, ShardReader};
-pub use sample::{EpisodeData, ForceCell, OpticalPadImage, PadForceField, Pose, Sample, ShardMeta, TactileData, TactilePointRecord};
+pub use sample::{
+    EpisodeData, ForceCell, OpticalPadImage, PadForceField, PadMarkerFlow, Pose, Sample, ShardMeta, TactileData, TactilePointRecord,
+};
 pub use writer::{Compression, SceneModel, ShardReceipt, ShardWriter};
 
 /// `manifest.json`'s `format`: what makes a folder a vtgen dataset.
@@ -104,6 +106,10 @@ pub mod topics {
     pub fn tactile_force(pad: &str) -> String {
         format!("/tactile/{pad}/force")
     }
+    /// An optical pad's markers, at rest and moved (with force fields).
+    pub fn tactile_markers(pad: &str) -> String {
+        format!("/tactile/{pad}/markers")
+    }
     /// Every topic a complete sample has, in the order they are written.
     pub const ALL: [&str; 7] = [RGB, DEPTH, MASK, CALIBRATION, OBJECT_POSE, TF, SAMPLE_INFO];
 }
@@ -144,6 +150,16 @@ pub mod force_cells {
     ];
     /// Bytes per cell.
     pub const STRIDE: u32 = 28;
+}
+
+/// `/tactile/<pad>/markers` (FORMAT.md, "Force fields"): one packed point per marker, in the pad
+/// frame: where it is, then its rest position.
+pub mod marker_points {
+    /// A marker's fields: name, byte offset and whether it is an unsigned integer (else `f32`).
+    pub const FIELDS: [(&str, u32, bool); 5] =
+        [("x", 0, false), ("y", 4, false), ("z", 8, false), ("rest_x", 12, false), ("rest_y", 16, false)];
+    /// Bytes per marker.
+    pub const STRIDE: u32 = 20;
 }
 
 /// Frame ids (FORMAT.md, "Conventions").

@@ -500,7 +500,22 @@ fn read_tactile(by_topic: &BTreeMap<String, Vec<u8>>, pads: &[String]) -> Result
         let Some(raw) = by_topic.get(&crate::topics::tactile_force(name)) else { continue };
         forces.push(read_force_field(name, &PointCloud::decode(&raw[..])?)?);
     }
-    Ok(Some(crate::sample::TactileData { phalanges, resolution, depth, points, optical, forces }))
+    let mut marker_flow = Vec::new();
+    for name in pads {
+        let Some(raw) = by_topic.get(&crate::topics::tactile_markers(name)) else { continue };
+        let cloud = PointCloud::decode(&raw[..])?;
+        let stride = crate::marker_points::STRIDE as usize;
+        if cloud.point_stride as usize != stride || !cloud.data.len().is_multiple_of(stride) {
+            bail!(
+                "/tactile/{name}/markers: expected {stride}-byte markers, got {} bytes of stride {}",
+                cloud.data.len(),
+                cloud.point_stride
+            );
+        }
+        let markers = cloud.data.chunks_exact(stride).map(|c| ([f32_at(c, 12), f32_at(c, 16)], [f32_at(c, 0), f32_at(c, 4)])).collect();
+        marker_flow.push(crate::sample::PadMarkerFlow { pad: name.clone(), markers });
+    }
+    Ok(Some(crate::sample::TactileData { phalanges, resolution, depth, points, optical, forces, marker_flow }))
 }
 
 /// A pad's `/tactile/<pad>/force` cloud: a square grid of cells, laid out as

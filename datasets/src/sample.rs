@@ -99,6 +99,18 @@ pub struct TactileData {
     /// Every pad's force field, in pad order (FORMAT.md, `/tactile/<pad>/force`), when the config
     /// asks for them (`robot.tactile.force_field`); else empty.
     pub forces: Vec<PadForceField>,
+    /// With force fields, each optical pad with markers: where its markers are (FORMAT.md,
+    /// `/tactile/<pad>/markers`), in pad order; else empty.
+    pub marker_flow: Vec<PadMarkerFlow>,
+}
+
+/// One optical pad's markers: each one's rest position and where the gel has moved it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PadMarkerFlow {
+    /// The pad's name (one of `TactileData::phalanges`).
+    pub pad: String,
+    /// Per marker (the rest grid's order, row by row): (rest, moved) in the pad frame (x, y; m).
+    pub markers: Vec<([f32; 2], [f32; 2])>,
 }
 
 /// One pad's contact force field: a `resolution x resolution` grid over its sensing area, rows and

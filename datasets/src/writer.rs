@@ -116,6 +116,7 @@ struct TactileChannels {
     depth: Vec<u16>,
     optical: Vec<(String, u16, u16)>,
     forces: Vec<u16>,
+    markers: Vec<u16>,
 }
 
 impl ShardWriter {
@@ -299,14 +300,21 @@ impl ShardWriter {
                 .collect::<Result<_>>()?;
             let forces =
                 tac.forces.iter().map(|f| add::<PointCloud>(&mut self.mcap, &topics::tactile_force(&f.pad))).collect::<Result<_>>()?;
-            self.tactile_channels = Some(TactileChannels { points, depth, optical, forces });
+            let markers = tac
+                .marker_flow
+                .iter()
+                .map(|f| add::<PointCloud>(&mut self.mcap, &topics::tactile_markers(&f.pad)))
+                .collect::<Result<_>>()?;
+            self.tactile_channels = Some(TactileChannels { points, depth, optical, forces, markers });
         }
-        let TactileChannels { points: points_ch, depth: image_chs, optical, forces } = self.tactile_channels.clone().expect("set above");
+        let TactileChannels { points: points_ch, depth: image_chs, optical, forces, markers } =
+            self.tactile_channels.clone().expect("set above");
         anyhow::ensure!(
             optical.len() == tac.optical.len() && optical.iter().zip(&tac.optical).all(|(c, o)| c.0 == o.pad),
             "the optical pads changed within a shard"
         );
         anyhow::ensure!(forces.len() == tac.forces.len(), "the pads with force fields changed within a shard");
+        anyhow::ensure!(markers.len() == tac.marker_flow.len(), "the pads with marker flow changed within a shard");
         let cloud = tactile_cloud(t, &tac.points);
         self.put(points_ch, t, &cloud)?;
         let r = tac.resolution;
@@ -351,6 +359,16 @@ impl ShardWriter {
         for (ch, field) in forces.iter().zip(&tac.forces) {
             anyhow::ensure!(tac.phalanges.contains(&field.pad), "force field of an unknown pad {}", field.pad);
             self.put(*ch, t, &force_cloud(t, field)?)?;
+        }
+        for (ch, flow) in markers.iter().zip(&tac.marker_flow) {
+            let mut data = Vec::with_capacity(flow.markers.len() * crate::marker_points::STRIDE as usize);
+            for (rest, moved) in &flow.markers {
+                for v in [moved[0], moved[1], 0.0, rest[0], rest[1]] {
+                    data.extend(v.to_le_bytes());
+                }
+            }
+            let cloud = packed_cloud(t, format!("{}_pad", flow.pad), (&crate::marker_points::FIELDS, crate::marker_points::STRIDE), data);
+            self.put(*ch, t, &cloud)?;
         }
         Ok(())
     }

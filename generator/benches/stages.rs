@@ -193,6 +193,7 @@ fn rendering(c: &mut Criterion) {
             points: Vec::new(),
             optical: Vec::new(),
             forces: Vec::new(),
+            marker_flow: Vec::new(),
         }),
         episode: None,
     };

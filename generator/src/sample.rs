@@ -7,8 +7,9 @@ use std::time::Duration;
 use anyhow::{Context, Result};
 use glam::{DAffine3, DMat4};
 use vt_dataset::{
-    EpisodeData, EpisodeFrameInfo, GraspStats, OcclusionBin, OcclusionInfo, OpticalPadImage, PadForceField, PadForceInfo, PlacedDistractor,
-    Pose, RobotInfo, Sample, SampleInfo, SceneModel, Split, StateRecord, TactileData, TactilePointRecord, TouchInfo, frames, mask_ids,
+    EpisodeData, EpisodeFrameInfo, GraspStats, OcclusionBin, OcclusionInfo, OpticalPadImage, PadForceField, PadForceInfo, PadMarkerFlow,
+    PlacedDistractor, Pose, RobotInfo, Sample, SampleInfo, SceneModel, Split, StateRecord, TactileData, TactilePointRecord, TouchInfo,
+    frames, mask_ids,
 };
 use vt_objects::Texture;
 use vt_randomizers::{AppearanceContext, ImageLibrary, ProceduralTexture, SampleKey, SampleStream, sample_sensor_variation};
@@ -27,7 +28,7 @@ use crate::scene::environment::{Distractor, backdrop_mesh, floor_mesh, glb_of, p
 use crate::scene::robot::{link_mesh, mask_id as robot_mask_id, pose_links};
 use crate::scene::{SampledScene, pose_of, sample_scene};
 use crate::sensors::force_field::{self, GelShear};
-use crate::sensors::optical::{optical_image, reference_image, varied};
+use crate::sensors::optical::{gel_slopes, marker_flow, optical_image, reference_image, varied};
 use crate::sensors::tactile::{FingerSurface, PadView, finger_surface, gap_above_surface, sense};
 
 /// The real fingers' surface under the pads, when the robot has its real hand meshes.
@@ -794,6 +795,22 @@ impl<'a> SampleFactory<'a> {
             &pads,
             (&reading.optical_depth, &shears),
         );
+        // The markers' flow, written with force fields (their gel's shear is part of it).
+        let marker_flow: Vec<PadMarkerFlow> = match &forces {
+            Some(_) => pads
+                .iter()
+                .zip(&names)
+                .enumerate()
+                .filter_map(|(k, (pad, name))| {
+                    let sensor = pad.optical.as_ref().filter(|s| s.markers.is_some())?;
+                    let slopes = gel_slopes(sensor, reading.optical_depth[k].as_deref());
+                    let flow = marker_flow(sensor, slopes.as_deref(), shears[k].as_ref());
+                    let f32s = |p: [f64; 2]| p.map(|v| v as f32);
+                    Some(PadMarkerFlow { pad: name.clone(), markers: flow.into_iter().map(|(r, m)| (f32s(r), f32s(m))).collect() })
+                })
+                .collect(),
+            None => Vec::new(),
+        };
         self.times.tactile_optical += clock.wall();
         self.times.tactile_optical_cpu += clock.cpu();
         self.times.optical_images += optical.len() as u64;
@@ -824,6 +841,7 @@ impl<'a> SampleFactory<'a> {
                 .collect(),
             optical,
             forces: forces.map(|f| f.fields).unwrap_or_default(),
+            marker_flow,
         })
     }
 

@@ -107,6 +107,12 @@ pub fn dump(dataset: &Path, split: &str, index: u64, out: &Path, exr: bool) -> R
         let values: Vec<f32> = f.cells.iter().flat_map(|c| [c.pressure, c.shear[0], c.shear[1], c.slip as u8 as f32]).collect();
         write_npy(&out.join(format!("tactile_{}_force.npy", f.pad)), "<f4", &[r, r, 4], bytemuck::cast_slice(&values))?;
     }
+    // Marker flow: per optical pad with markers (N, 4) float32, x, y (where each marker is) and
+    // rest x, rest y (m, pad frame), in the rest grid's order.
+    for f in s.tactile.iter().flat_map(|t| &t.marker_flow) {
+        let values: Vec<f32> = f.markers.iter().flat_map(|(rest, moved)| [moved[0], moved[1], rest[0], rest[1]]).collect();
+        write_npy(&out.join(format!("tactile_{}_markers.npy", f.pad)), "<f4", &[f.markers.len(), 4], bytemuck::cast_slice(&values))?;
+    }
     std::fs::write(out.join("info.json"), serde_json::to_string_pretty(&s.info.to_value())? + "\n")?;
     Ok(())
 }
