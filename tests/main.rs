@@ -13,6 +13,7 @@ mod foxglove_scene;
 mod grasping;
 mod ground_truth;
 mod mesh_robot;
+mod optical_calibration;
 mod own_robot;
 mod panda;
 mod render_geometry;

@@ -106,6 +106,11 @@ enum Command {
         #[command(subcommand)]
         action: RobotAction,
     },
+    /// Optical tactile sensors: fit one to a real unit.
+    Tactile {
+        #[command(subcommand)]
+        action: TactileAction,
+    },
     /// A contact sheet (PNG) of a config's samples (generated in memory) or of a dataset's: RGB with
     /// mask, tactile points and pose axes, next to the depth.
     Preview {
@@ -162,6 +167,26 @@ enum Command {
         /// Also write the float depth as OpenEXR (depth.exr, channel Z, metres).
         #[arg(long)]
         exr: bool,
+    },
+}
+
+#[derive(Subcommand)]
+enum TactileAction {
+    /// Fits an optical sensor (pixel size, light model, background) to a folder of a real unit's
+    /// images: `background.png` (or `bg.png`, nothing touching the gel) and presses of a ball of
+    /// known radius at several places. Writes `calibration.yaml` (and the background PNG) for
+    /// `robot.tactile.optical.calibration`, and reports the fit's residual per image.
+    Calibrate {
+        dir: PathBuf,
+        /// The ball's radius (mm).
+        #[arg(long)]
+        ball_radius: f64,
+        /// The pixel size (mm) when it is known; fitted otherwise.
+        #[arg(long)]
+        pixel_size_mm: Option<f64>,
+        /// Where the calibration goes (default: DIR/calibration).
+        #[arg(long)]
+        out: Option<PathBuf>,
     },
 }
 
@@ -233,6 +258,10 @@ fn run(cli: Cli) -> Result<()> {
             let jobs = jobs.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
             let opts = commands::grasps::GraspCheckOptions { trajectories, instances, jobs, quiet };
             commands::grasps::run(&load(&config)?, ycb_dir.as_ref(), &opts, json, min_kept)
+        }
+        Command::Tactile { action: TactileAction::Calibrate { dir, ball_radius, pixel_size_mm, out } } => {
+            let out = out.unwrap_or_else(|| dir.join("calibration"));
+            commands::tactile::calibrate(&dir, ball_radius, pixel_size_mm, &out)
         }
         Command::Robot { action: RobotAction::Check { config, json } } => commands::robot_check::run(&load(&config)?, json),
         Command::Preview { source, n, out, width, columns, ycb_dir } => {

@@ -8,7 +8,8 @@ Foxglove protobuf classes of the ``foxglove-schemas-protobuf`` package. ``write_
 writes episode datasets (FORMAT.md, "Episodes": one shard per episode, one chunk per camera frame
 holding the frame and the later touch and state messages up to the next frame). With
 ``force_resolution`` every touch reading also carries each pad's ``/tactile/<pad>/force`` grid
-(FORMAT.md, "Force fields") and ``/sample/info`` its ``tactile.forces`` and ``hand_force_n``.
+(FORMAT.md, "Force fields") and ``/sample/info`` its ``tactile.forces`` and ``hand_force_n``; with
+``marker_count`` too, each optical pad's ``/tactile/<pad>/markers`` (its marker flow).
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ import json
 import struct
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Dict, List, Optional, Sequence, Tuple
+from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 from foxglove_schemas_protobuf.CameraCalibration_pb2 import CameraCalibration
@@ -47,6 +48,9 @@ from vtdata.format import (
     MANIFEST_FORMAT,
     MASK_BACKGROUND,
     MASK_TARGET_OBJECT,
+    MARKER_POINT_DTYPE,
+    MARKER_POINT_FIELDS,
+    MARKER_POINT_STRIDE,
     MESSAGE_ENCODING_PROTOBUF,
     MODELS_DIR,
     MODELS_INFO_FILE,
@@ -62,6 +66,7 @@ from vtdata.format import (
     TACTILE_FORCE_SUFFIX,
     TACTILE_IMAGE_ENCODING,
     TACTILE_IMAGE_SUFFIX,
+    TACTILE_MARKERS_SUFFIX,
     TACTILE_POINT_DTYPE,
     TACTILE_POINT_FIELDS,
     TACTILE_POINT_STRIDE,
@@ -82,6 +87,7 @@ from vtdata.format import (
     tactile_depth_topic,
     tactile_force_topic,
     tactile_image_topic,
+    tactile_markers_topic,
     tactile_reference_topic,
 )
 
@@ -121,6 +127,8 @@ ROBOTS: Dict[str, Dict[str, Any]] = {
 }
 
 Pose = Tuple[Tuple[float, float, float], Tuple[float, float, float, float]]
+#: Markers per optical pad: one count for every pad, or ``{pad: count}`` (each sensor its own grid).
+MarkerCount = Union[int, Mapping[str, int]]
 
 
 @dataclass
@@ -139,7 +147,8 @@ class SyntheticSample:
     #: float32, ``phalanx`` (N,) uint32, ``depth`` (P, R, R) float32; with optical pads also
     #: ``images`` and ``references``, ``{pad: (H, W, 3) uint8}`` in pad order; ``forces``, with
     #: force fields ``{pad: {"position", "pressure", "shear", "slip"}}`` in pad order (the arrays
-    #: vtdata returns), else empty.
+    #: vtdata returns), else empty; ``markers``, with marker flow ``{pad: {"position", "rest"}}``
+    #: for the optical pads in pad order, else empty.
     tactile: Optional[Dict[str, Any]] = None
     #: An episode frame's time since the episode's start (ns); a snapshot's log time is
     #: ``index * SAMPLE_PERIOD_NS``.
@@ -184,17 +193,35 @@ def force_info(field: Dict[str, np.ndarray], contacts: int) -> Dict[str, Any]:
     return entry
 
 
+def make_marker_flow(n: int, pressed: bool, rng: np.random.Generator) -> Dict[str, np.ndarray]:
+    """``n`` random markers of a :data:`PAD_SIZE` pad, as vtdata returns them: at rest on a grid
+    (rows along y, each row along x; the last row may be short), and on a ``pressed`` pad moved up
+    to 0.5 mm (at rest elsewhere and on a pad without contact)."""
+    length, width = PAD_SIZE
+    cols = max(1, int(np.ceil(np.sqrt(n))))
+    rows = max(1, -(-n // cols))
+    u, v = np.arange(n) % cols, np.arange(n) // cols
+    rest = np.stack([((u + 0.5) / cols - 0.5) * length, ((v + 0.5) / rows - 0.5) * width], axis=-1)
+    moved = rng.uniform(-5e-4, 5e-4, size=(n, 2)) if pressed else np.zeros((n, 2))
+    return {"position": (rest + moved).astype(np.float32), "rest": rest.astype(np.float32)}
+
+
 def make_tactile(
     pads: Sequence[str],
     rng: np.random.Generator,
     optical: Sequence[str] = (),
     force_resolution: Optional[int] = None,
+    marker_count: Optional[MarkerCount] = None,
 ) -> Dict[str, Any]:
     """Random tactile data of a robot with ``pads``: points on some pads, one depth image each, an
     RGB image and reference image for each pad of ``optical`` (kept in the pads' order) and, with
-    ``force_resolution``, every pad's force field (pressed on the touching pads)."""
+    ``force_resolution``, every pad's force field (pressed on the touching pads) and, with
+    ``marker_count`` too, each optical pad's marker flow of that many markers (moved on the
+    touching pads)."""
     unknown = [p for p in optical if p not in pads]
     assert not unknown, f"optical pads {unknown} are not pads of the robot {list(pads)}"
+    # As the generator: markers are written with force fields (their gel's shear moves them).
+    assert marker_count is None or force_resolution is not None, "marker flow needs force fields"
     n_pads = len(pads)
     touching = sorted(rng.choice(n_pads, size=min(2, n_pads), replace=False).tolist())
     counts = [int(rng.integers(1, 5)) if k in touching else 0 for k in range(n_pads)]
@@ -215,10 +242,16 @@ def make_tactile(
         "images": {p: rng.integers(0, 256, size=(h, w, 3), dtype=np.uint8) for p in optical_pads},
         "references": {p: rng.integers(0, 256, size=(h, w, 3), dtype=np.uint8) for p in optical_pads},
         "forces": {},
+        "markers": {},
     }
     if force_resolution is not None:
         tactile["forces"] = {
             p: make_force_field(force_resolution, k in touching, rng) for k, p in enumerate(pads)
+        }
+    if marker_count is not None:
+        per_pad = marker_count if isinstance(marker_count, Mapping) else {p: marker_count for p in optical_pads}
+        tactile["markers"] = {
+            p: make_marker_flow(per_pad[p], pads.index(p) in touching, rng) for p in optical_pads
         }
     return tactile
 
@@ -251,6 +284,7 @@ def make_sample(
     robot: Optional[str] = None,
     optical: Sequence[str] = (),
     force_resolution: Optional[int] = None,
+    marker_count: Optional[MarkerCount] = None,
 ) -> SyntheticSample:
     rgb = rng.integers(0, 256, size=(HEIGHT, WIDTH, 3), dtype=np.uint8)
     depth = rng.uniform(0.2, 1.5, size=(HEIGHT, WIDTH)).astype(np.float32)
@@ -280,7 +314,7 @@ def make_sample(
     tactile = None
     if robot is not None:
         spec = ROBOTS[robot]
-        tactile = make_tactile(spec["pads"], rng, optical, force_resolution)
+        tactile = make_tactile(spec["pads"], rng, optical, force_resolution, marker_count)
         info.update(
             {
                 "physics_backend": "rapier",
@@ -363,6 +397,17 @@ def _force_cells(field: Dict[str, np.ndarray]) -> bytes:
     return cells.tobytes()
 
 
+def _marker_points(flow: Dict[str, np.ndarray]) -> bytes:
+    """A ``/tactile/<pad>/markers`` cloud's data: one :data:`~vtdata.format.MARKER_POINT_DTYPE` per
+    marker (``z`` = 0), in the flow's order."""
+    position = np.asarray(flow["position"]).reshape(-1, 2)
+    rest = np.asarray(flow["rest"]).reshape(-1, 2)
+    markers = np.zeros(len(position), dtype=MARKER_POINT_DTYPE)
+    markers["x"], markers["y"] = position[:, 0], position[:, 1]
+    markers["rest_x"], markers["rest_y"] = rest[:, 0], rest[:, 1]
+    return markers.tobytes()
+
+
 def _tactile_messages(
     tac: Dict[str, Any],
     t: int,
@@ -397,6 +442,14 @@ def _tactile_messages(
         for name, offset, kind in FORCE_CELL_FIELDS:
             forces.fields.add(name=name, offset=offset, type=PackedElementField.NumericType.Value(kind))
         out.append((tactile_force_topic(pad), forces.SerializeToString()))
+    # Then each optical pad's marker flow, in pad order, in the pad frame.
+    for pad, flow in tac.get("markers", {}).items():
+        markers = PointCloud(frame_id=f"{pad}_pad", point_stride=MARKER_POINT_STRIDE, data=_marker_points(flow))
+        _stamp(markers, t)
+        markers.pose.orientation.w = 1.0
+        for name, offset, kind in MARKER_POINT_FIELDS:
+            markers.fields.add(name=name, offset=offset, type=PackedElementField.NumericType.Value(kind))
+        out.append((tactile_markers_topic(pad), markers.SerializeToString()))
     return out
 
 
@@ -459,8 +512,8 @@ def _register_channels(
 ) -> Dict[str, int]:
     """The channels of a shard, as the Rust writer adds them: the camera topics, ``/sample/info``,
     with a robot (``robot``: a sample's tactile dict) the points, one depth channel per pad in the
-    pads' index order, then each optical pad's image and reference, then each pad's force field;
-    in an episode ``/episode/state`` last. Topic -> channel id."""
+    pads' index order, then each optical pad's image and reference, then each pad's force field,
+    then each optical pad's markers; in an episode ``/episode/state`` last. Topic -> channel id."""
     schema_ids: Dict[str, int] = {}
     channels: Dict[str, int] = {}
 
@@ -493,6 +546,8 @@ def _register_channels(
             )
         for p in robot["forces"]:
             register(tactile_force_topic(p), PAD_TOPIC_SCHEMAS[TACTILE_FORCE_SUFFIX], PointCloud)
+        for p in robot.get("markers", {}):
+            register(tactile_markers_topic(p), PAD_TOPIC_SCHEMAS[TACTILE_MARKERS_SUFFIX], PointCloud)
     if episode:
         register(STATE_TOPIC, TOPIC_SCHEMAS[STATE_TOPIC])
     return channels
@@ -512,8 +567,9 @@ def write_shard(
     ``omit=(index, topic)`` leaves that message out (to test error reporting). With a robot the
     tactile channels are added as the Rust writer adds them: the points, then one depth channel per
     pad in the pads' index order, then for each optical pad (in that order) its image and its
-    reference channel, then each pad's force channel. ``reverse_messages`` writes each sample's
-    messages in reverse order (the reader must not depend on the order of messages in a chunk).
+    reference channel, then each pad's force channel, then each optical pad's markers channel.
+    ``reverse_messages`` writes each sample's messages in reverse order (the reader must not depend
+    on the order of messages in a chunk).
     ``optical_encoding`` is the encoding the optical images are written with (``rgb8``; another to
     test error reporting).
     """
@@ -668,6 +724,7 @@ def write_dataset(
     optical: Sequence[str] = (),
     optical_encoding: str = TACTILE_IMAGE_ENCODING,
     force_resolution: Optional[int] = None,
+    marker_count: Optional[MarkerCount] = None,
 ) -> Dict[str, List[SyntheticSample]]:
     """Write a complete dataset (manifest, models, shards) and return its samples per split.
 
@@ -676,7 +733,9 @@ def write_dataset(
     pads of the robot with an optical sensor: their ``/tactile/<pad>/image`` and ``reference``
     images (:data:`OPTICAL_SIZE`, written with ``optical_encoding``) and ``tactile.optical`` info.
     ``force_resolution`` gives every pad a force field of that many cells a side
-    (``/tactile/<pad>/force``) and the info its ``tactile.forces`` and ``hand_force_n``.
+    (``/tactile/<pad>/force``) and the info its ``tactile.forces`` and ``hand_force_n``;
+    ``marker_count`` (with ``force_resolution``) gives each optical pad that many markers (an int,
+    or ``{pad: count}``) on ``/tactile/<pad>/markers``.
     """
     if optical and robot is None:
         raise ValueError("optical pads need a robot")
@@ -685,7 +744,7 @@ def write_dataset(
     rng = np.random.default_rng(seed)
     root.mkdir(parents=True, exist_ok=True)
     samples = {
-        split: [make_sample(split, i, rng, robot, optical, force_resolution) for i in range(n)]
+        split: [make_sample(split, i, rng, robot, optical, force_resolution, marker_count) for i in range(n)]
         for split, n in counts.items()
     }
     splits: Dict[str, Any] = {}
@@ -748,6 +807,7 @@ def make_episode(
     robot: str = "ur5e_allegro",
     optical: Sequence[str] = (),
     force_resolution: Optional[int] = None,
+    marker_count: Optional[MarkerCount] = None,
     camera_period: int = 4,
     tactile_period: int = 2,
     state_period: int = 1,
@@ -763,7 +823,7 @@ def make_episode(
     steps = (frames - 1) * camera_period + tail_steps
     samples: List[SyntheticSample] = []
     for k in range(frames):
-        sample = make_sample(split, first + k, rng, robot, optical, force_resolution)
+        sample = make_sample(split, first + k, rng, robot, optical, force_resolution, marker_count)
         sample.time_ns = k * camera_period * timestep_ns
         sample.info.update(
             {
@@ -815,7 +875,7 @@ def make_episode(
         if frame is not None:
             touches.append((t, frame.tactile))
         elif step % tactile_period == 0:
-            touches.append((t, make_tactile(spec["pads"], rng, optical, force_resolution)))
+            touches.append((t, make_tactile(spec["pads"], rng, optical, force_resolution, marker_count)))
     physics_hz = 1e9 / timestep_ns
     record = {
         "object_id": OBJECT_ID,
@@ -905,13 +965,15 @@ def write_episode_dataset(
     robot: str = "ur5e_allegro",
     optical: Sequence[str] = (),
     force_resolution: Optional[int] = None,
+    marker_count: Optional[MarkerCount] = None,
     reverse_messages: bool = False,
     **timing: int,
 ) -> Dict[str, List[SyntheticEpisode]]:
     """Write a complete episode dataset: ``episodes[split]`` episodes of ``frames`` frames each,
     one shard per episode (``samples_per_shard`` = ``frames``); ``force_resolution`` gives every
-    touch reading force fields (:func:`write_dataset`). ``timing``: :func:`make_episode`'s
-    ``camera_period``, ``tactile_period``, ``state_period``, ``timestep_ns``, ``tail_steps``."""
+    touch reading force fields and ``marker_count`` the optical pads' markers
+    (:func:`write_dataset`). ``timing``: :func:`make_episode`'s ``camera_period``,
+    ``tactile_period``, ``state_period``, ``timestep_ns``, ``tail_steps``."""
     rng = np.random.default_rng(seed)
     root.mkdir(parents=True, exist_ok=True)
     out: Dict[str, List[SyntheticEpisode]] = {}
@@ -921,7 +983,15 @@ def write_episode_dataset(
         shards = []
         for j in range(n):
             episode = make_episode(
-                split, j, frames, rng, robot=robot, optical=optical, force_resolution=force_resolution, **timing
+                split,
+                j,
+                frames,
+                rng,
+                robot=robot,
+                optical=optical,
+                force_resolution=force_resolution,
+                marker_count=marker_count,
+                **timing,
             )
             rel = shard_file(split, j)
             write_episode_shard(root / rel, episode, reverse_messages=reverse_messages)

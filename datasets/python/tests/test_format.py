@@ -55,6 +55,7 @@ DESCRIBED = {
     "TACTILE_IMAGE_SUFFIX": "pad_topics[].topic",
     "TACTILE_REFERENCE_SUFFIX": "pad_topics[].topic",
     "TACTILE_FORCE_SUFFIX": "pad_topics[].topic",
+    "TACTILE_MARKERS_SUFFIX": "pad_topics[].topic",
     "PAD_TOPIC_SCHEMAS": "pad_topics[]",
     "TACTILE_DEPTH_ENCODING": "pad_topics[].image_encoding",
     "TACTILE_IMAGE_ENCODING": "pad_topics[].image_encoding",
@@ -62,10 +63,13 @@ DESCRIBED = {
     "TACTILE_POINT_FIELDS": "tactile_points.fields",
     "TACTILE_POINT_STRIDE": "tactile_points.point_stride",
     "TACTILE_POINT_DTYPE": "tactile_points",
-    "PACKED_ELEMENT_DTYPES": "tactile_points.fields[].type, force_cells.fields[].type",
+    "PACKED_ELEMENT_DTYPES": "tactile_points, force_cells, marker_points: fields[].type",
     "FORCE_CELL_FIELDS": "force_cells.fields",
     "FORCE_CELL_STRIDE": "force_cells.point_stride",
     "FORCE_CELL_DTYPE": "force_cells",
+    "MARKER_POINT_FIELDS": "marker_points.fields",
+    "MARKER_POINT_STRIDE": "marker_points.point_stride",
+    "MARKER_POINT_DTYPE": "marker_points",
     "FRAME_WORLD": "frames.world",
     "FRAME_CAMERA": "frames.camera",
     "FRAME_OBJECT": "frames.object",
@@ -165,6 +169,7 @@ def test_pad_topics(spec: Dict[str, Any]) -> None:
         fmt.TACTILE_IMAGE_SUFFIX,
         fmt.TACTILE_REFERENCE_SUFFIX,
         fmt.TACTILE_FORCE_SUFFIX,
+        fmt.TACTILE_MARKERS_SUFFIX,
     }
     assert fmt.PAD_TOPIC_SCHEMAS == {
         suffix: (e["schema"], e["message_encoding"], e.get("image_encoding"))
@@ -174,6 +179,10 @@ def test_pad_topics(spec: Dict[str, Any]) -> None:
     force = pads[fmt.TACTILE_FORCE_SUFFIX]
     assert (force["schema"], force["when"]) == (fmt.SCHEMA_POINT_CLOUD, "force_field")
     assert "image_encoding" not in force
+    # So is the marker flow, with the force fields (the gel's shear moves the markers).
+    markers = pads[fmt.TACTILE_MARKERS_SUFFIX]
+    assert (markers["schema"], markers["when"]) == (fmt.SCHEMA_POINT_CLOUD, "force_field")
+    assert "image_encoding" not in markers
     assert fmt.TACTILE_DEPTH_ENCODING == pads[fmt.TACTILE_DEPTH_SUFFIX]["image_encoding"]
     assert fmt.TACTILE_IMAGE_ENCODING == pads[fmt.TACTILE_IMAGE_SUFFIX]["image_encoding"]
     assert fmt.TACTILE_IMAGE_ENCODING == pads[fmt.TACTILE_REFERENCE_SUFFIX]["image_encoding"]
@@ -183,6 +192,7 @@ def test_pad_topics(spec: Dict[str, Any]) -> None:
         (fmt.tactile_image_topic, fmt.TACTILE_IMAGE_SUFFIX),
         (fmt.tactile_reference_topic, fmt.TACTILE_REFERENCE_SUFFIX),
         (fmt.tactile_force_topic, fmt.TACTILE_FORCE_SUFFIX),
+        (fmt.tactile_markers_topic, fmt.TACTILE_MARKERS_SUFFIX),
     ):
         assert build("{pad}") == pads[suffix]["topic"]
         topic = pads[suffix]["topic"].replace("{pad}", "th_distal")
@@ -191,6 +201,8 @@ def test_pad_topics(spec: Dict[str, Any]) -> None:
     assert fmt.optical_pad_of_topic(fmt.tactile_image_topic("left_pad")) == "left_pad"
     assert fmt.force_pad_of_topic(fmt.tactile_force_topic("left_pad")) == "left_pad"
     assert fmt.force_pad_of_topic(fmt.tactile_depth_topic("left_pad")) is None
+    assert fmt.markers_pad_of_topic(fmt.tactile_markers_topic("left_pad")) == "left_pad"
+    assert fmt.markers_pad_of_topic(fmt.tactile_force_topic("left_pad")) is None
 
 
 def test_schemas_and_message_encodings(spec: Dict[str, Any]) -> None:
@@ -233,7 +245,8 @@ def _check_packed_layout(layout: Dict[str, Any], fields: Any, stride: int, dtype
 def test_tactile_points(spec: Dict[str, Any]) -> None:
     points = spec["tactile_points"]
     _check_packed_layout(points, fmt.TACTILE_POINT_FIELDS, fmt.TACTILE_POINT_STRIDE, fmt.TACTILE_POINT_DTYPE)
-    kinds = {f["type"] for f in points["fields"]} | {f["type"] for f in spec["force_cells"]["fields"]}
+    layouts = ("tactile_points", "force_cells", "marker_points")
+    kinds = {f["type"] for layout in layouts for f in spec[layout]["fields"]}
     assert {k: np.dtype(v) for k, v in fmt.PACKED_ELEMENT_DTYPES.items()} == {
         kind: NUMPY_OF[kind] for kind in kinds
     }
@@ -245,6 +258,14 @@ def test_force_cells(spec: Dict[str, Any]) -> None:
     cells = spec["force_cells"]
     _check_packed_layout(cells, fmt.FORCE_CELL_FIELDS, fmt.FORCE_CELL_STRIDE, fmt.FORCE_CELL_DTYPE)
     assert fmt.FORCE_CELL_STRIDE == 28
+
+
+def test_marker_points(spec: Dict[str, Any]) -> None:
+    """``/tactile/<pad>/markers``' point layout: x, y, z (where the marker is) and rest_x, rest_y
+    (its rest position), float32, 20 bytes a marker."""
+    markers = spec["marker_points"]
+    _check_packed_layout(markers, fmt.MARKER_POINT_FIELDS, fmt.MARKER_POINT_STRIDE, fmt.MARKER_POINT_DTYPE)
+    assert fmt.MARKER_POINT_STRIDE == 20
 
 
 def test_frames(spec: Dict[str, Any]) -> None:

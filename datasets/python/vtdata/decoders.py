@@ -1,10 +1,10 @@
 """Decoding a sample's messages into numpy arrays (FORMAT.md, "MCAP shard").
 
 The decoders take the messages the MCAP readers decoded (Foxglove protobuf objects and JSON
-values, keyed by topic) and return arrays: images, the tactile point cloud, the pads' images and
-force fields, transforms and an episode frame's faster streams. Each checks what it reads and
-raises :class:`~vtdata.errors.DatasetError` naming ``where`` (the shard and sample) when the data
-does not follow the format.
+values, keyed by topic) and return arrays: images, the tactile point cloud, the pads' images,
+force fields and marker flow, transforms and an episode frame's faster streams. Each checks what
+it reads and raises :class:`~vtdata.errors.DatasetError` naming ``where`` (the shard and sample)
+when the data does not follow the format.
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ from .format import (
     FRAME_OBJECT,
     FRAME_WORLD,
     IMAGE_ENCODINGS,
+    MARKER_POINT_DTYPE,
     MESSAGE_ENCODING_JSON,
     TACTILE_DEPTH_ENCODING,
     TACTILE_DEPTH_PREFIX,
@@ -30,6 +31,7 @@ from .format import (
     TACTILE_FORCE_SUFFIX,
     TACTILE_IMAGE_ENCODING,
     TACTILE_IMAGE_SUFFIX,
+    TACTILE_MARKERS_SUFFIX,
     TACTILE_POINT_DTYPE,
     TACTILE_REFERENCE_SUFFIX,
     TOPIC_CALIBRATION,
@@ -46,6 +48,7 @@ from .format import (
     tactile_depth_topic,
     tactile_force_topic,
     tactile_image_topic,
+    tactile_markers_topic,
     tactile_reference_topic,
 )
 
@@ -241,12 +244,13 @@ def _tactile_points(cloud: Any, where: str) -> np.ndarray:
 
 def _tactile(decoded: Dict[str, Any], channel_ids: Mapping[str, int], where: str) -> Dict[str, Any]:
     """The tactile point cloud, the pad depth images and (with force topics) the pads' force fields
-    of a sample.
+    and the optical pads' marker flow of a sample.
 
     The pads are the sample's ``/tactile/<pad>/depth`` topics, whatever the robot: in the order of
     their channels (:func:`_pads_in_channel_order`), checked against ``/sample/info``
     ``tactile.pads`` when the info has it. ``forces`` is there only when the sample has
-    ``/tactile/<pad>/force`` topics (:func:`_forces`).
+    ``/tactile/<pad>/force`` topics (:func:`_forces`), ``markers`` only when it has
+    ``/tactile/<pad>/markers`` topics (:func:`_markers`).
     """
     pts = _tactile_points(decoded[TOPIC_TACTILE_POINTS], where)
     names = _pads_in_channel_order(decoded, channel_ids, TACTILE_DEPTH_SUFFIX)
@@ -280,6 +284,9 @@ def _tactile(decoded: Dict[str, Any], channel_ids: Mapping[str, int], where: str
     forces = _forces(decoded, channel_ids, where, names)
     if forces is not None:
         out["forces"] = forces
+    markers = _markers(decoded, channel_ids, where, names)
+    if markers is not None:
+        out["markers"] = markers
     return out
 
 
@@ -373,6 +380,100 @@ def force_array(forces: Mapping[str, Mapping[str, np.ndarray]]) -> np.ndarray:
             for f in forces.values()
         ]
     ).astype(np.float32, copy=False)
+
+
+# --- marker flow (FORMAT.md, ``/tactile/<pad>/markers``) ------------------------------------------
+
+#: The last axis of :func:`marker_arrays`: where a marker is in the pad plane, then its rest
+#: position (m, pad frame).
+MARKER_CHANNELS = ("x", "y", "rest_x", "rest_y")
+
+
+def _marker_flow(cloud: Any, where: str) -> Dict[str, np.ndarray]:
+    """One optical pad's ``/tactile/<pad>/markers`` PointCloud, one row per printed marker in the
+    rest grid's order (rows along the pad's y, each row along x): ``position`` ``(N, 2)`` float32
+    (where the marker is, pad frame, m) and ``rest`` ``(N, 2)`` float32 (its rest position). The
+    cloud must be packed :data:`~vtdata.format.MARKER_POINT_DTYPE` points; it may be empty (a sensor
+    whose marker pitch leaves no dot inside its sensing area)."""
+    stride = MARKER_POINT_DTYPE.itemsize
+    data = bytes(cloud.data)
+    if cloud.point_stride != stride or len(data) % stride != 0:
+        raise DatasetError(
+            f"{where}: expected {stride}-byte markers, got point stride {cloud.point_stride} "
+            f"and {len(data)} bytes of data"
+        )
+    markers = np.frombuffer(data, dtype=MARKER_POINT_DTYPE)
+    return {
+        "position": np.ascontiguousarray(np.stack([markers["x"], markers["y"]], axis=-1)),
+        "rest": np.ascontiguousarray(np.stack([markers["rest_x"], markers["rest_y"]], axis=-1)),
+    }
+
+
+def _markers(
+    decoded: Dict[str, Any],
+    channel_ids: Mapping[str, int],
+    where: str,
+    pads: Optional[Sequence[str]],
+) -> Optional[Dict[str, Dict[str, np.ndarray]]]:
+    """The optical pads' marker flow ``{pad: flow}`` (:func:`_marker_flow`), ``None`` when the
+    sample has no ``/tactile/<pad>/markers`` topic.
+
+    The pads are the sample's marker topics in the order of their channels (the writer adds them
+    in the robot's pad order); they must be pads of the tactile data (``pads``, as for
+    :func:`_forces`) with an optical image (only an optical sensor prints markers) and, when
+    ``/sample/info`` has ``tactile.optical``, not be listed there with ``markers`` null. The pads'
+    marker counts may differ: each pad's sensor has its own grid (``randomization.tactile_sensors``
+    varies its pitch per sample and pad).
+    """
+    names = _pads_in_channel_order(decoded, channel_ids, TACTILE_MARKERS_SUFFIX)
+    if not names:
+        return None
+    if pads is None:
+        raise DatasetError(
+            f"{where}: markers of {', '.join(names)} but no {TOPIC_TACTILE_POINTS} "
+            "(markers are of the robot's optical pads)"
+        )
+    unknown = [p for p in names if p not in pads]
+    if unknown:
+        raise DatasetError(
+            f"{where}: markers of {', '.join(unknown)}, which are not pads of the sample "
+            f"(no /tactile/<pad>/depth; pads: {', '.join(pads)})"
+        )
+    plain = [p for p in names if tactile_image_topic(p) not in decoded]
+    if plain:
+        raise DatasetError(
+            f"{where}: markers of {', '.join(plain)}, which are not optical pads of the sample "
+            "(no /tactile/<pad>/image)"
+        )
+    info = decoded.get(TOPIC_INFO)
+    touch = info.get("tactile") if isinstance(info, dict) else None
+    optical = touch.get("optical") if isinstance(touch, dict) else None
+    if isinstance(optical, dict):
+        sensors = {p: optical.get(p) for p in names}
+        unprinted = [
+            p for p, sensor in sensors.items()
+            if isinstance(sensor, dict) and "markers" in sensor and sensor["markers"] is None
+        ]
+        if unprinted:
+            raise DatasetError(
+                f"{where}: markers of {', '.join(unprinted)}, whose sensors have none "
+                f"(/sample/info tactile.optical.<pad>.markers is null)"
+            )
+    return {
+        pad: _marker_flow(decoded[topic], f"{where} {topic}")
+        for pad, topic in zip(names, map(tactile_markers_topic, names))
+    }
+
+
+def marker_arrays(markers: Mapping[str, Mapping[str, np.ndarray]]) -> Dict[str, np.ndarray]:
+    """The marker flow of a touch reading (a sample's ``tactile["markers"]``) as one ``(N, 4)``
+    float32 array per pad, in the dict's (pad) order: per marker :data:`MARKER_CHANNELS` (x, y,
+    rest_x, rest_y; m). One array per pad, not one ``(P, N, 4)`` stack: each pad's sensor has its
+    own marker grid, so the counts ``N`` may differ from pad to pad."""
+    return {
+        pad: np.concatenate([flow["position"], flow["rest"]], axis=-1).astype(np.float32, copy=False)
+        for pad, flow in markers.items()
+    }
 
 
 def _optical_pads(
@@ -476,8 +577,8 @@ def _touch_reading(
     group: Dict[str, Any], channel_ids: Mapping[str, int], where: str
 ) -> Dict[str, Any]:
     """One touch reading of an episode (its ``/tactile/*`` messages of one time) like a sample's
-    ``tactile`` (with force fields, their ``forces``), plus, with optical pads, ``images`` ``{pad:
-    (H, W, 3) uint8}``."""
+    ``tactile`` (with force fields, their ``forces`` and ``markers``), plus, with optical pads,
+    ``images`` ``{pad: (H, W, 3) uint8}``."""
     if TOPIC_TACTILE_POINTS not in group:
         raise DatasetError(f"{where}: /tactile/<pad> messages without {TOPIC_TACTILE_POINTS}")
     reading = _tactile(group, channel_ids, where)

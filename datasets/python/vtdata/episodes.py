@@ -13,7 +13,9 @@ its value at a frame's time is its latest message at or before that time (for th
 the message at that time itself). Every array has the same shape in every window of a dataset, so
 ``torch.utils.data.DataLoader``'s default collate batches the items (except for the opt-in
 ``tactile_points`` and ``info`` streams, which are lists: batch them with
-:func:`vtdata.torch.collate`). :class:`vtdata.torch.EpisodeTorchDataset` gives tensors.
+:func:`vtdata.torch.collate`; and for the touch streams' ``markers``, whose count per pad is an
+episode's own where ``randomization.tactile_sensors`` varies the marker pitch: that collate keeps
+those of different counts as lists). :class:`vtdata.torch.EpisodeTorchDataset` gives tensors.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ from typing import Any, Callable, Dict, Iterator, List, Optional, Sequence, Tupl
 
 import numpy as np
 
-from .decoders import force_array
+from .decoders import force_array, marker_arrays
 from .format import EPISODE_METADATA_KEY, SHARD_METADATA, TOPIC_EPISODE_STATE
 from .reader import (
     Dataset,
@@ -80,16 +82,19 @@ class EpisodeDataset:
       int64}``: the touch reading aligned to each frame (its pads' depth images and points per
       pad, pads in ``ds.pads`` order) and its time; with force fields also ``"forces": (K, P, F,
       F, 4) float32`` (each pad's ``F x F`` grid of pressure, shear_x, shear_y, slip:
-      :func:`vtdata.reader.force_array`).
+      :func:`vtdata.reader.force_array`) and, with marker flow, ``"markers": {pad: (K, N, 4)
+      float32}`` (each optical pad's markers: x, y, rest_x, rest_y; :func:`vtdata.marker_arrays`;
+      ``N`` is the pad's own, the same in every reading of an episode).
     - ``tactile_points``: a list of ``K`` dicts (``points`` ``(N, 3)``, ``distance``, ``phalanx``,
-      ``phalanges``, ``depth``, with force fields ``forces``: a sample's ``tactile``), the aligned
-      readings' point clouds.
+      ``phalanges``, ``depth``, with force fields ``forces`` and ``markers``: a sample's
+      ``tactile``), the aligned readings' point clouds.
     - ``tactile_images``: ``{pad: (K, H, W, 3) uint8}`` the optical pads' aligned images, and
       ``tactile_references`` ``{pad: (H, W, 3) uint8}`` (one per episode).
     - ``tactile_seq``: every touch reading from the first frame's time to the last one's
       (inclusive, ``M = (K - 1) * camera_period / tactile_period + 1`` of them): ``{"time_ns":
       (M,), "depth": (M, P, R, R), "counts": (M, P)}``, with force fields ``"forces": (M, P, F, F,
-      4)`` and, with optical pads, ``"images": {pad: (M, H, W, 3)}``.
+      4)``, with marker flow ``"markers": {pad: (M, N, 4)}`` and, with optical pads, ``"images":
+      {pad: (M, H, W, 3)}``.
     - ``state``: the ``/episode/state`` record aligned to each frame: ``{"time_ns": (K,),
       "T_world_object", "T_camera_object", "T_world_palm": (K, 4, 4) float64, "linear_velocity",
       "angular_velocity": (K, 3) float64, "joint_positions": (K, J) float64}`` (joints in
@@ -336,9 +341,11 @@ def _image(reading: Dict[str, Any], pad: str, t: int, where: str) -> np.ndarray:
     return images[pad]
 
 
-def _touch_arrays(readings: List[Tuple[int, Dict[str, Any]]], where: str) -> Dict[str, np.ndarray]:
+def _touch_arrays(readings: List[Tuple[int, Dict[str, Any]]], where: str) -> Dict[str, Any]:
     """``time_ns``, ``depth`` (pad depth images), ``counts`` (points per pad) and, when the readings
-    have force fields, ``forces`` (:func:`~vtdata.reader.force_array` of each) of touch readings."""
+    have force fields, ``forces`` (:func:`~vtdata.reader.force_array` of each) and, when they have
+    marker flow, ``markers`` (``{pad: (M, N, 4)}``, :func:`~vtdata.reader.marker_arrays` of each)
+    of touch readings."""
     if not readings:
         return {
             "time_ns": np.zeros(0, dtype=np.int64),
@@ -349,7 +356,7 @@ def _touch_arrays(readings: List[Tuple[int, Dict[str, Any]]], where: str) -> Dic
     for t, reading in readings:
         if reading["phalanges"] != pads:
             raise DatasetError(f"{where}: the touch reading at {t} ns has pads {reading['phalanges']}, not {pads}")
-    out = {
+    out: Dict[str, Any] = {
         "time_ns": np.array([t for t, _ in readings], dtype=np.int64),
         "depth": np.stack([reading["depth"] for _, reading in readings]),
         "counts": np.stack(
@@ -371,6 +378,25 @@ def _touch_arrays(readings: List[Tuple[int, Dict[str, Any]]], where: str) -> Dic
                 + ", ".join(f"{t} ns {f.shape[1]}x{f.shape[2]}" for (t, _), f in zip(readings, fields))
             )
         out["forces"] = np.stack(fields)
+    marker_pads = [list(reading.get("markers", {})) for _, reading in readings]
+    if any(marker_pads):
+        for (t, _), have in zip(readings, marker_pads):
+            if have != marker_pads[0]:
+                raise DatasetError(
+                    f"{where}: the touch reading at {t} ns has markers of {have}, the one at "
+                    f"{readings[0][0]} ns of {marker_pads[0]}"
+                )
+        flows = [marker_arrays(reading["markers"]) for _, reading in readings]
+        out["markers"] = {}
+        for pad in marker_pads[0]:
+            # A pad's sensor (its one reference image) and so its marker grid are the episode's.
+            counts = [len(flow[pad]) for flow in flows]
+            if len(set(counts)) != 1:
+                raise DatasetError(
+                    f"{where}: the touch readings' markers of {pad} differ in count: "
+                    + ", ".join(f"{t} ns {n}" for (t, _), n in zip(readings, counts))
+                )
+            out["markers"][pad] = np.stack([flow[pad] for flow in flows])
     return out
 
 

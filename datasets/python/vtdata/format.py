@@ -134,6 +134,11 @@ TACTILE_REFERENCE_SUFFIX = "/reference"
 #: ``foxglove.PointCloud`` of one :data:`FORCE_CELL_DTYPE` per cell of a square grid over the pad;
 #: every pad has it with ``robot.tactile.force_field``, after the optical images, in pad order.
 TACTILE_FORCE_SUFFIX = "/force"
+#: ``/tactile/<pad>/markers``: an optical pad's marker flow (FORMAT.md), a ``foxglove.PointCloud``
+#: of one :data:`MARKER_POINT_DTYPE` per printed marker, in the rest grid's order; each optical pad
+#: whose sensor has markers has it with ``robot.tactile.force_field``, after the force fields, in
+#: pad order.
+TACTILE_MARKERS_SUFFIX = "/markers"
 #: Suffix -> (schema name, message encoding, RawImage encoding or ``None`` for a point cloud) of the
 #: ``/tactile/<pad><suffix>`` topics.
 PAD_TOPIC_SCHEMAS: Dict[str, Tuple[str, str, Optional[str]]] = {
@@ -141,6 +146,7 @@ PAD_TOPIC_SCHEMAS: Dict[str, Tuple[str, str, Optional[str]]] = {
     TACTILE_IMAGE_SUFFIX: (SCHEMA_RAW_IMAGE, MESSAGE_ENCODING_PROTOBUF, "rgb8"),
     TACTILE_REFERENCE_SUFFIX: (SCHEMA_RAW_IMAGE, MESSAGE_ENCODING_PROTOBUF, "rgb8"),
     TACTILE_FORCE_SUFFIX: (SCHEMA_POINT_CLOUD, MESSAGE_ENCODING_PROTOBUF, None),
+    TACTILE_MARKERS_SUFFIX: (SCHEMA_POINT_CLOUD, MESSAGE_ENCODING_PROTOBUF, None),
 }
 #: The RawImage encoding of the pads' depth images.
 TACTILE_DEPTH_ENCODING = PAD_TOPIC_SCHEMAS[TACTILE_DEPTH_SUFFIX][2]
@@ -168,6 +174,11 @@ def tactile_force_topic(pad: str) -> str:
     return f"{TACTILE_DEPTH_PREFIX}{pad}{TACTILE_FORCE_SUFFIX}"
 
 
+def tactile_markers_topic(pad: str) -> str:
+    """``/tactile/<pad>/markers``."""
+    return f"{TACTILE_DEPTH_PREFIX}{pad}{TACTILE_MARKERS_SUFFIX}"
+
+
 def pad_of(topic: str, suffix: str) -> Optional[str]:
     """The pad name of a ``/tactile/<pad><suffix>`` topic, else ``None``."""
     if topic.startswith(TACTILE_DEPTH_PREFIX) and topic.endswith(suffix):
@@ -190,6 +201,12 @@ def optical_pad_of_topic(topic: str) -> Optional[str]:
 def force_pad_of_topic(topic: str) -> Optional[str]:
     """The pad name of a ``/tactile/<pad>/force`` topic (a pad's force field), else ``None``."""
     return pad_of(topic, TACTILE_FORCE_SUFFIX)
+
+
+def markers_pad_of_topic(topic: str) -> Optional[str]:
+    """The pad name of a ``/tactile/<pad>/markers`` topic (an optical pad's marker flow), else
+    ``None``."""
+    return pad_of(topic, TACTILE_MARKERS_SUFFIX)
 
 
 # --- images and points ------------------------------------------------------------------------
@@ -246,6 +263,28 @@ FORCE_CELL_DTYPE = np.dtype(
         "formats": [PACKED_ELEMENT_DTYPES[kind] for _, _, kind in FORCE_CELL_FIELDS],
         "offsets": [offset for _, offset, _ in FORCE_CELL_FIELDS],
         "itemsize": FORCE_CELL_STRIDE,
+    }
+)
+
+#: The ``/tactile/<pad>/markers`` PointCloud fields (FORMAT.md): where the marker is in the pad
+#: plane (m; ``z`` = 0), then its rest position (``rest_x``, ``rest_y``); ``x - rest_x``, ``y -
+#: rest_y`` is how far the gel moved it. (name, byte offset, ``PackedElementField`` type).
+MARKER_POINT_FIELDS: Tuple[Tuple[str, int, str], ...] = (
+    ("x", 0, "FLOAT32"),
+    ("y", 4, "FLOAT32"),
+    ("z", 8, "FLOAT32"),
+    ("rest_x", 12, "FLOAT32"),
+    ("rest_y", 16, "FLOAT32"),
+)
+#: Bytes per marker (the PointCloud's ``point_stride``).
+MARKER_POINT_STRIDE = 20
+#: One marker as stored.
+MARKER_POINT_DTYPE = np.dtype(
+    {
+        "names": [name for name, _, _ in MARKER_POINT_FIELDS],
+        "formats": [PACKED_ELEMENT_DTYPES[kind] for _, _, kind in MARKER_POINT_FIELDS],
+        "offsets": [offset for _, offset, _ in MARKER_POINT_FIELDS],
+        "itemsize": MARKER_POINT_STRIDE,
     }
 )
 

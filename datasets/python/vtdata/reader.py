@@ -45,10 +45,12 @@ from .decoders import (  # noqa: F401
     _forces,
     _frame_transforms,
     _intrinsics,
+    _markers,
     _optical,
     _tactile,
     decode_raw_image,
     force_array,
+    marker_arrays,
     pose_matrix,
     quaternion_matrix,
 )
@@ -133,6 +135,13 @@ class Sample(Dict[str, Any]):
       and its shear traction along the pad's x and y, Pa; whether the cell slips); absent without
       force topics. :func:`vtdata.reader.force_array` stacks them as ``(P, R, R, 4)``. The forces
       they were made from are ``info["tactile"]["forces"][pad]`` (``force_n``, pad frame, N).
+      With force fields each optical pad whose sensor has markers also has its **marker flow** in
+      ``markers``: ``{pad: {"position": (N, 2) float32, "rest": (N, 2) float32}}`` in pad order,
+      the pad's ``/tactile/<pad>/markers`` points (one per printed marker, in the rest grid's
+      order, rows along the pad's y: where the gel has moved it and its rest position, pad frame,
+      m; ``position - rest`` is its displacement); absent without marker topics. ``N`` is the
+      pad's own (each sensor has its grid); :func:`vtdata.reader.marker_arrays` gives ``{pad: (N,
+      4)}`` (x, y, rest_x, rest_y).
     - ``tactile_images`` and ``tactile_references`` (only when some pad has an optical
       GelSight/DIGIT-style sensor): ``{pad: (H, W, 3) uint8}`` in pad order, the sensor's RGB image
       (``/tactile/<pad>/image``, linear 8-bit levels) and its no-contact reference image without
@@ -145,8 +154,8 @@ class Sample(Dict[str, Any]):
       the episode's start (its log time), ``states`` the ``/episode/state`` records (dicts) from
       the frame's instant (included) up to the next frame, ``tactile`` the touch readings *after*
       the frame's own (which is ``tactile``) up to the next frame, each a dict like ``tactile``
-      plus, with optical pads, ``images`` ``{pad: (H, W, 3) uint8}`` (a reading's ``forces`` are
-      the force fields of its instant). Times ascend.
+      plus, with optical pads, ``images`` ``{pad: (H, W, 3) uint8}`` (a reading's ``forces`` and
+      ``markers`` are the force fields and marker flow of its instant). Times ascend.
       ``info["episode"]`` has the frame's ``frame``, ``time_s`` and ``arm_move``.
     """
 
@@ -487,7 +496,9 @@ class Dataset(Sequence[Sample]):
         if TOPIC_TACTILE_POINTS in decoded:
             sample["tactile"] = _tactile(decoded, channel_ids, where)
         else:
-            _forces(decoded, channel_ids, where, None)  # force fields without tactile data: an error
+            # Force fields or markers without tactile data: an error.
+            _forces(decoded, channel_ids, where, None)
+            _markers(decoded, channel_ids, where, None)
         frame = index - episode["first_sample"] if episode is not None else 0
         if frame > 0:
             self._add_first_frame_references(shard, decoded, channel_ids, where)

@@ -9,6 +9,7 @@
 >>> batch["info"][0]["object_id"]
 >>> batch["tactile_images"]["left"].shape   # (8, H, W, 3) uint8, with optical tactile sensors
 >>> batch["forces"].shape       # (8, P, R, R, 4) float32, with force fields (pressure, shear, slip)
+>>> batch["markers"]["left"].shape  # (8, N, 4) float32, with marker flow (x, y, rest_x, rest_y)
 
 ``TorchDataset`` is safe with ``num_workers > 0`` under both ``fork`` and ``spawn``: the wrapped
 :class:`vtdata.Dataset` pickles without file handles and opens shard files lazily in each worker.
@@ -41,7 +42,7 @@ import torch
 from torch.utils.data import Dataset as _TorchDataset
 
 from .densefusion import DenseFusionView
-from .decoders import FORCE_CHANNELS, force_array
+from .decoders import FORCE_CHANNELS, MARKER_CHANNELS, force_array, marker_arrays
 from .episodes import DEFAULT_STREAMS, EpisodeDataset
 from .reader import Dataset
 
@@ -49,6 +50,7 @@ __all__ = [
     "DenseFusionDataset",
     "EpisodeTorchDataset",
     "FORCE_CHANNELS",
+    "MARKER_CHANNELS",
     "PAD_IMAGE_KEYS",
     "TorchDataset",
     "collate",
@@ -72,8 +74,12 @@ def to_tensors(sample: Mapping[str, Any]) -> TensorSample:
     ``tactile`` dict with ``forces``) the sample gains ``forces``: ``(P, R, R, 4)`` float32, each
     pad's grid (pads in ``tactile["forces"]`` order, the pad order: every pad of
     ``tactile["phalanges"]`` as vtgen writes them) with :data:`FORCE_CHANNELS` per cell (pressure,
-    shear_x, shear_y in Pa; slip 1.0 or 0.0). Other values (``info``, ``index``, ``split``, the
-    ``tactile`` dict) pass through unchanged.
+    shear_x, shear_y in Pa; slip 1.0 or 0.0). With marker flow (a ``tactile`` dict with
+    ``markers``) it gains ``markers``: ``{pad: (N, 4) float32}`` in pad order, each optical pad's
+    markers with :data:`MARKER_CHANNELS` (x, y, rest_x, rest_y; m, pad frame): a dict, not one
+    ``(P, N, 4)`` tensor, as each pad's sensor has its own marker grid (``N`` may differ from pad
+    to pad, and from sample to sample with randomized sensors). Other values (``info``, ``index``,
+    ``split``, the ``tactile`` dict) pass through unchanged.
     """
     out: TensorSample = {}
     for key, value in sample.items():
@@ -89,6 +95,8 @@ def to_tensors(sample: Mapping[str, Any]) -> TensorSample:
     tactile = sample.get("tactile")
     if isinstance(tactile, Mapping) and tactile.get("forces"):
         out["forces"] = torch.from_numpy(force_array(tactile["forces"]))
+    if isinstance(tactile, Mapping) and tactile.get("markers"):
+        out["markers"] = {pad: torch.from_numpy(a) for pad, a in marker_arrays(tactile["markers"]).items()}
     return out
 
 
@@ -96,7 +104,8 @@ class TorchDataset(_TorchDataset):
     """A ``torch.utils.data.Dataset`` over one split of a vtgen dataset.
 
     ``ds[i]`` is a dict with the keys of :class:`vtdata.Sample`, arrays converted to tensors by
-    :func:`to_tensors` (with force fields, plus ``forces`` ``(P, R, R, 4)``); ``transform``, if
+    :func:`to_tensors` (with force fields, plus ``forces`` ``(P, R, R, 4)`` and, with marker
+    flow, ``markers`` ``{pad: (N, 4)}``); ``transform``, if
     given, is applied to that dict and its result returned.
     Batch with :func:`collate` (``DataLoader(..., collate_fn=vtdata.torch.collate)``): the default
     collate cannot batch ``info``, whose nested dicts hold strings and may differ between samples.
@@ -177,7 +186,9 @@ class EpisodeTorchDataset(_TorchDataset):
     ``tactile_images``, ...), converted to a tensor of the same dtype and shape, then passed
     through ``transform`` if given. The default streams have the same shapes in every window, so
     the default collate batches them, and so does :func:`collate` (``tactile_points`` and
-    ``info``, lists of ``K`` per window, need :func:`collate`, which keeps them as lists).
+    ``info``, lists of ``K`` per window, need :func:`collate`, which keeps them as lists; so do the
+    ``tactile`` stream's ``markers`` of a dataset whose randomized sensors give each episode its
+    own marker count).
     """
 
     def __init__(
@@ -211,10 +222,12 @@ def collate(batch: Sequence[Mapping[str, Any]]) -> Dict[str, Any]:
 
     Tensors are stacked along a new first dimension (they must have equal shapes), integers
     (``index``) become an int64 tensor, dicts of tensors with the same keys in every sample
-    (``tactile_images``, ``tactile_references``; an episode window's ``state``, ``tactile``, ...,
-    whose values may be such dicts again) become a dict of stacked tensors (``{pad: (B, H, W,
-    3)}``), and everything else (``info``, ``split``, ``tactile``, ...) is kept as a list with one
-    entry per sample.
+    (``tactile_images``, ``tactile_references``, ``markers``; an episode window's ``state``,
+    ``tactile``, ..., whose values may be such dicts again) become a dict of stacked tensors
+    (``{pad: (B, H, W, 3)}``), and everything else (``info``, ``split``, ``tactile``, ...) is kept
+    as a list with one entry per sample. Inside such a dict, an entry whose tensors differ in shape
+    is kept as a list of the samples' tensors: a pad's markers, whose count varies with randomized
+    sensors.
     """
     if len(batch) == 0:
         raise ValueError("cannot collate an empty batch")
@@ -263,7 +276,15 @@ def _same_structure(values: Sequence[Mapping[str, Any]]) -> bool:
 
 
 def _stack_dicts(values: Sequence[Mapping[str, Any]]) -> Dict[str, Any]:
-    return {
-        name: _stack_dicts([v[name] for v in values]) if isinstance(item, Mapping) else torch.stack([v[name] for v in values])
-        for name, item in values[0].items()
-    }
+    """Tensor dicts of one structure as one dict, each entry's tensors stacked; those of different
+    shapes (a pad's markers, with randomized sensors) as a list."""
+    out: Dict[str, Any] = {}
+    for name, item in values[0].items():
+        parts = [v[name] for v in values]
+        if isinstance(item, Mapping):
+            out[name] = _stack_dicts(parts)
+        elif all(part.shape == item.shape for part in parts):
+            out[name] = torch.stack(parts)
+        else:
+            out[name] = parts
+    return out

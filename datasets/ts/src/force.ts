@@ -1,9 +1,11 @@
 // The contact force fields of one touch reading (FORMAT.md, `/tactile/<pad>/force` and "Force
 // fields"): per pad, an R x R grid of the pressure, shear and slip the object puts on the pad's
 // sensing area, read the way the Python (`tactile["forces"]`) and Rust (`TactileData::forces`)
-// readers read them.
+// readers read them. With them, the optical pads' marker flow (`/tactile/<pad>/markers`): where
+// the gel has moved each printed marker, and its rest position (Python `tactile["markers"]`, Rust
+// `TactileData::marker_flow`).
 import type { Sample } from "./checks.js";
-import { FORCE_STRIDE, forcePadOfTopic, padForceTopic } from "./format.js";
+import { FORCE_STRIDE, MARKER_STRIDE, forcePadOfTopic, markersPadOfTopic, padForceTopic, padImageTopic, padMarkersTopic } from "./format.js";
 
 /**
  * One pad's force field: `resolution`² cells, row-major (cell `(u, v)`, column u along the pad's
@@ -110,6 +112,99 @@ export function readForceFields(sample: Sample, where: string, pads?: readonly s
     throw new Error(`${where}: the pads' force fields differ in resolution: ${each.join(", ")}`);
   }
   return fields;
+}
+
+/**
+ * One optical pad's markers, in the rest grid's order (rows along the pad's y, each row along x),
+ * in the pad frame: marker k's values at `2k` (x) and `2k + 1` (y).
+ */
+export type MarkerFlow = {
+  count: number;
+  /** Where each marker is (m): `2 · count` values. */
+  position: Float32Array;
+  /** Each marker's rest position (m): `2 · count` values; `position − rest` is its displacement. */
+  rest: Float32Array;
+};
+
+/**
+ * A decoded `foxglove.PointCloud` of `/tactile/<pad>/markers` as a {@link MarkerFlow}. The cloud
+ * must be whole 20-byte markers (`point_stride` 20; none is a sensor whose pitch leaves no dot
+ * inside its sensing area); an Error names `where` otherwise.
+ */
+export function decodeMarkerFlow(value: Record<string, unknown>, where: string): MarkerFlow {
+  const { point_stride: stride, data } = value as { point_stride: number; data: Uint8Array };
+  if (stride !== MARKER_STRIDE || data.byteLength % MARKER_STRIDE !== 0) {
+    throw new Error(`${where}: expected ${MARKER_STRIDE}-byte markers, got point stride ${stride} and ${data.byteLength} bytes of data`);
+  }
+  const n = data.byteLength / MARKER_STRIDE;
+  const view = new DataView(data.buffer, data.byteOffset, data.byteLength);
+  const flow: MarkerFlow = { count: n, position: new Float32Array(2 * n), rest: new Float32Array(2 * n) };
+  for (let k = 0; k < n; k++) {
+    const at = k * MARKER_STRIDE;
+    flow.position[2 * k] = view.getFloat32(at, true);
+    flow.position[2 * k + 1] = view.getFloat32(at + 4, true);
+    flow.rest[2 * k] = view.getFloat32(at + 12, true);
+    flow.rest[2 * k + 1] = view.getFloat32(at + 16, true);
+  }
+  return flow;
+}
+
+/**
+ * The marker flow of one touch reading (a sample, or an episode's touch messages of one instant):
+ * the pads are its `/tactile/<pad>/markers` topics in the order of their channels (the writer adds
+ * them in the robot's pad order). Each must be an optical pad of the reading (its
+ * `/tactile/<pad>/image` is there: only an optical sensor prints markers) and, when `pads` (the
+ * reading's pads, from its `/tactile/<pad>/depth` channels) is given, one of them; when
+ * `/sample/info` has `tactile.optical`, it must not give the pad's sensor `markers: null`. The
+ * counts may differ from pad to pad (each sensor has its own grid). Throws an Error naming `where`
+ * and the topic otherwise. Empty without marker topics.
+ */
+export function readMarkerFlow(sample: Sample, where: string, pads?: readonly string[]): Map<string, MarkerFlow> {
+  const found: { pad: string; channelId: number }[] = [];
+  for (const [topic, list] of sample) {
+    const pad = markersPadOfTopic(topic);
+    if (pad != undefined) {
+      found.push({ pad, channelId: list[0]?.channelId ?? 0 });
+    }
+  }
+  found.sort((a, b) => a.channelId - b.channelId);
+  const names = found.map((f) => f.pad);
+  if (pads != undefined) {
+    const unknown = names.filter((pad) => !pads.includes(pad));
+    if (unknown.length > 0) {
+      throw new Error(
+        `${where}: markers of ${unknown.join(", ")}, which are not pads of the sample ` +
+          `(no /tactile/<pad>/depth; pads: ${pads.join(", ")})`,
+      );
+    }
+  }
+  const plain = names.filter((pad) => !sample.has(padImageTopic(pad)));
+  if (plain.length > 0) {
+    throw new Error(`${where}: markers of ${plain.join(", ")}, which are not optical pads of the sample (no /tactile/<pad>/image)`);
+  }
+  const info = sample.get("/sample/info")?.[0]?.value;
+  const optical = (info?.tactile as Record<string, unknown> | undefined)?.optical as Record<string, unknown> | undefined;
+  if (optical != undefined) {
+    const unprinted = names.filter((pad) => {
+      const sensor = optical[pad] as Record<string, unknown> | undefined;
+      return sensor != undefined && "markers" in sensor && sensor.markers === null;
+    });
+    if (unprinted.length > 0) {
+      throw new Error(
+        `${where}: markers of ${unprinted.join(", ")}, whose sensors have none (/sample/info tactile.optical.<pad>.markers is null)`,
+      );
+    }
+  }
+  const flows = new Map<string, MarkerFlow>();
+  for (const pad of names) {
+    const topic = padMarkersTopic(pad);
+    const list = sample.get(topic)!;
+    if (list.length !== 1) {
+      throw new Error(`${where}: ${list.length} messages on ${topic}, expected one`);
+    }
+    flows.set(pad, decodeMarkerFlow(list[0]!.value, `${where} ${topic}`));
+  }
+  return flows;
 }
 
 /**

@@ -67,6 +67,28 @@ export function forcePadsOf(channels: Iterable<{ id: number; topic: string }>): 
     .map((c) => forcePadOfTopic(c.topic)!);
 }
 
+// With force fields each optical pad whose sensor has markers also adds its marker flow (FORMAT.md,
+// `/tactile/<pad>/markers`) after the force fields, in pad order: a foxglove.PointCloud in the pad
+// frame, one 20-byte point (MARKER_FIELDS) per printed marker in the rest grid's order (rows along
+// the pad's y): where the gel has moved it (z = 0), then its rest position.
+
+/** The marker flow topic of pad `pad`. */
+export const padMarkersTopic = (pad: string): string => `/tactile/${pad}/markers`;
+
+/** The pad of a `/tactile/<pad>/markers` topic, or undefined. */
+export function markersPadOfTopic(topic: string): string | undefined {
+  const m = /^\/tactile\/([^/]+)\/markers$/.exec(topic);
+  return m?.[1];
+}
+
+/** The pads with marker flow in a shard: its `/tactile/<pad>/markers` channels, by channel id (pad order). */
+export function markersPadsOf(channels: Iterable<{ id: number; topic: string }>): string[] {
+  return [...channels]
+    .filter((c) => markersPadOfTopic(c.topic) != undefined)
+    .sort((a, b) => a.id - b.id)
+    .map((c) => markersPadOfTopic(c.topic)!);
+}
+
 /** The pads of a shard: its `/tactile/<pad>/depth` channels, by channel id (the `phalanx` order). */
 export function padsOf(channels: Iterable<{ id: number; topic: string }>): string[] {
   return [...channels]
@@ -93,12 +115,14 @@ export const BASE_TOPICS: Record<string, string> = {
 };
 
 /** Topics every sample of a dataset with a robot adds, with one `/tactile/<pad>/depth` per pad,
- * an image and a reference image per pad of `optical` (the pads with an optical sensor) and a
- * force field per pad of `forces` (every pad, with `robot.tactile.force_field`). */
+ * an image and a reference image per pad of `optical` (the pads with an optical sensor), a force
+ * field per pad of `forces` (every pad, with `robot.tactile.force_field`) and the marker flow of
+ * each pad of `markers` (with force fields, the optical pads whose sensor has markers). */
 export function robotTopics(
   pads: readonly string[],
   optical: readonly string[] = [],
   forces: readonly string[] = [],
+  markers: readonly string[] = [],
 ): Record<string, string> {
   return {
     "/tactile/points": "foxglove.PointCloud",
@@ -107,6 +131,7 @@ export function robotTopics(
       optical.flatMap((pad) => [padImageTopic(pad), padReferenceTopic(pad)].map((topic) => [topic, "foxglove.RawImage"])),
     ),
     ...Object.fromEntries(forces.map((pad) => [padForceTopic(pad), "foxglove.PointCloud"])),
+    ...Object.fromEntries(markers.map((pad) => [padMarkersTopic(pad), "foxglove.PointCloud"])),
   };
 }
 
@@ -235,6 +260,17 @@ export const FORCE_FIELDS: [string, number, string][] = [
 ];
 export const FORCE_STRIDE = 28;
 
+/** Marker flow points (`/tactile/<pad>/markers`): name, offset, Foxglove NumericType name. Where
+ * the marker is in the pad plane (m, z = 0), then its rest position. */
+export const MARKER_FIELDS: [string, number, string][] = [
+  ["x", 0, "FLOAT32"],
+  ["y", 4, "FLOAT32"],
+  ["z", 8, "FLOAT32"],
+  ["rest_x", 12, "FLOAT32"],
+  ["rest_y", 16, "FLOAT32"],
+];
+export const MARKER_STRIDE = 20;
+
 // Episodes (FORMAT.md, "Episodes"): with `sampling.record`, each trajectory is one shard; each
 // chunk is one camera frame: the frame's messages at its instant (every topic above, the optical
 // references only in frame 0, and the state of that instant), then the touch readings and states
@@ -282,14 +318,16 @@ export const STATE_RECORD_KEYS = [
 export const SAMPLE_INFO_EPISODE_KEYS = ["frame", "time_s", "arm_move"];
 
 /** Whether `topic` may follow a frame's instant in its chunk: a touch topic (the points, a pad's
- * depth image, an optical pad's image, not its reference; a pad's force field) or the state. */
+ * depth image, an optical pad's image, not its reference; a pad's force field and marker flow) or
+ * the state. */
 export function isEpisodeStreamTopic(topic: string): boolean {
   return (
     topic === EPISODE_STATE_TOPIC ||
     topic === "/tactile/points" ||
     padOfTopic(topic) != undefined ||
     opticalOfTopic(topic)?.kind === "image" ||
-    forcePadOfTopic(topic) != undefined
+    forcePadOfTopic(topic) != undefined ||
+    markersPadOfTopic(topic) != undefined
   );
 }
 

@@ -1,7 +1,8 @@
-// The force field reader (src/force.ts): hand-made samples (decoded messages as shard.ts groups
-// them) for the layout, the pad order and each way of getting a field wrong; then shards the Rust
-// generator wrote with force fields (the MuJoCo backend), read with @mcap/core, every pad's cells
-// held to the force /sample/info gives it.
+// The force field and marker flow reader (src/force.ts): hand-made samples (decoded messages as
+// shard.ts groups them) for the layout, the pad order and each way of getting a field or a marker
+// cloud wrong; then shards the Rust generator wrote with force fields (the MuJoCo backend), read
+// with @mcap/core, every pad's cells held to the force /sample/info gives it, every optical pad's
+// markers to their rest grid.
 //
 // Generated data: VTGEN_FORCE_DATASETS=<dataset dir>[:<another>...] reads datasets generated with
 // robot.tactile.force_field; else VTGEN_MUJOCO_BIN=<vtgen built with --features mujoco> (run with the
@@ -17,15 +18,30 @@ import { after, describe, it } from "node:test";
 import { fileURLToPath } from "node:url";
 
 import type { Sample } from "../src/checks.js";
-import { cellCentre, decodeForceField, forceSum, readForceFields, type ForceField } from "../src/force.js";
+import {
+  cellCentre,
+  decodeForceField,
+  decodeMarkerFlow,
+  forceSum,
+  readForceFields,
+  readMarkerFlow,
+  type ForceField,
+  type MarkerFlow,
+} from "../src/force.js";
 import {
   FORCE_STRIDE,
+  MARKER_STRIDE,
   PAD_FORCE_INFO_KEYS,
   TACTILE_FORCE_INFO_KEYS,
   forcePadOfTopic,
   forcePadsOf,
   isEpisodeStreamTopic,
+  markersPadOfTopic,
+  markersPadsOf,
+  opticalPadsOf,
   padForceTopic,
+  padImageTopic,
+  padMarkersTopic,
   padsOf,
   robotTopics,
 } from "../src/format.js";
@@ -165,6 +181,124 @@ describe("decodeForceField and readForceFields", () => {
   });
 });
 
+// ---- marker flow -------------------------------------------------------------------------------
+
+type Marker = { x: number; y: number; rest: [number, number] };
+
+/** A decoded foxglove.PointCloud of markers, packed as FORMAT.md lays them out (z = 0). */
+function markerCloud(markers: readonly Marker[]): Record<string, unknown> {
+  const data = new Uint8Array(markers.length * MARKER_STRIDE);
+  const view = new DataView(data.buffer);
+  markers.forEach((m, k) => {
+    [m.x, m.y, 0, m.rest[0], m.rest[1]].forEach((v, j) => view.setFloat32(k * MARKER_STRIDE + 4 * j, v, true));
+  });
+  return { frame_id: "x_pad", point_stride: MARKER_STRIDE, data };
+}
+
+/** `n` markers at rest 1 mm apart along x (rows of 4 along y), marker k moved by (k, -k) · 0.1 mm
+ * plus `seed` · 1 mm, so two pads differ. */
+function markerRow(n: number, seed = 0): Marker[] {
+  return Array.from({ length: n }, (_, k) => {
+    const rest: [number, number] = [(k % 4) * 1e-3, Math.floor(k / 4) * 1e-3];
+    return { x: rest[0] + k * 1e-4 + seed * 1e-3, y: rest[1] - k * 1e-4, rest };
+  });
+}
+
+/** A sample of a robot with `pads` (depth channels 10, 11, ...), optical pads `optical` (an image
+ * each) of which `printed` have markers, `{pad: count}` (channels after the images, in the order
+ * given), messages in reverse; `info`: its /sample/info `tactile` keys (default: `optical` listing
+ * the optical pads, each sensor with markers). */
+function markerSample(pads: string[], optical: string[], printed: Record<string, number>, info?: Record<string, unknown>): Sample {
+  const entries: [string, Decoded[]][] = [];
+  let channel = 10;
+  for (const pad of pads) {
+    entries.push([`/tactile/${pad}/depth`, [decoded(`/tactile/${pad}/depth`, channel++, { encoding: "32FC1" })]]);
+  }
+  for (const pad of optical) {
+    entries.push([padImageTopic(pad), [decoded(padImageTopic(pad), channel++, { encoding: "rgb8" })]]);
+  }
+  Object.entries(printed).forEach(([pad, n], k) => {
+    entries.push([padMarkersTopic(pad), [decoded(padMarkersTopic(pad), channel++, markerCloud(markerRow(n, k)))]]);
+  });
+  const sensors = Object.fromEntries(optical.map((pad) => [pad, { markers: { pitch_mm: 1.0 } }]));
+  entries.push(["/sample/info", [decoded("/sample/info", 7, { tactile: { pads: {}, ...(info ?? { optical: sensors }) } })]]);
+  return new Map(entries.reverse());
+}
+
+describe("marker flow topics (format.ts)", () => {
+  it("names a pad's markers topic, parses it back and lists the pads by channel", () => {
+    assert.equal(padMarkersTopic("left"), "/tactile/left/markers");
+    assert.equal(markersPadOfTopic("/tactile/ff_distal/markers"), "ff_distal");
+    assert.equal(markersPadOfTopic("/tactile/ff_distal/force"), undefined);
+    assert.equal(markersPadOfTopic("/tactile/a/b/markers"), undefined);
+    const channels = [
+      { id: 19, topic: "/tactile/left/markers" },
+      { id: 18, topic: "/tactile/right/markers" },
+      { id: 17, topic: "/tactile/left/force" },
+    ];
+    assert.deepEqual(markersPadsOf(channels), ["right", "left"]);
+    assert.deepEqual(Object.keys(robotTopics(["right", "left"], ["right", "left"], ["right", "left"], ["right", "left"])).slice(-4), [
+      "/tactile/right/force",
+      "/tactile/left/force",
+      "/tactile/right/markers",
+      "/tactile/left/markers",
+    ]);
+    assert.equal(robotTopics(["left"], ["left"], ["left"], ["left"])["/tactile/left/markers"], "foxglove.PointCloud");
+    assert.ok(isEpisodeStreamTopic("/tactile/left/markers"), "a touch reading between frames carries its marker flow");
+  });
+});
+
+describe("decodeMarkerFlow and readMarkerFlow", () => {
+  it("reads every marker: where it is and its rest position, in the cloud's order", () => {
+    const markers = markerRow(6);
+    const flow = decodeMarkerFlow(markerCloud(markers), "here");
+    assert.equal(flow.count, 6);
+    markers.forEach((m, k) => {
+      assert.deepEqual([flow.position[2 * k], flow.position[2 * k + 1]], [Math.fround(m.x), Math.fround(m.y)]);
+      assert.deepEqual([flow.rest[2 * k], flow.rest[2 * k + 1]], m.rest.map(Math.fround));
+    });
+    assert.ok(flow.position[10] !== flow.rest[10], "marker 5 is moved");
+    const none = decodeMarkerFlow(markerCloud([]), "here");
+    assert.deepEqual([none.count, none.position.length, none.rest.length], [0, 0, 0]);
+  });
+
+  it("rejects a wrong stride and a ragged cloud, naming the topic", () => {
+    assert.throws(
+      () => decodeMarkerFlow({ point_stride: 28, data: new Uint8Array(84) }, "sample 2 /tactile/left/markers"),
+      /^Error: sample 2 \/tactile\/left\/markers: expected 20-byte markers, got point stride 28 and 84 bytes of data$/,
+    );
+    const short = markerCloud(markerRow(3));
+    short.data = (short.data as Uint8Array).subarray(2);
+    assert.throws(() => decodeMarkerFlow(short, "t"), /^Error: t: expected 20-byte markers, got point stride 20 and 58 bytes of data$/);
+  });
+
+  it("reads every optical pad's markers in channel order (not name order), each with its count, only with marker topics", () => {
+    const flows = readMarkerFlow(markerSample(["right", "left"], ["right", "left"], { right: 5, left: 8 }), "here", ["right", "left"]);
+    assert.deepEqual([...flows].map(([pad, f]) => [pad, f.count]), [["right", 5], ["left", 8]]);
+    assert.equal(flows.get("left")!.position[0], Math.fround(1e-3)); // the second pad's: seed 1
+    assert.equal(readMarkerFlow(markerSample(["left"], ["left"], {}), "here").size, 0);
+  });
+
+  it("holds the markers against the sample's pads, its optical pads and /sample/info tactile.optical", () => {
+    assert.throws(
+      () => readMarkerFlow(markerSample(["left"], ["left"], { left: 4 }), "here", ["right"]),
+      /^Error: here: markers of left, which are not pads of the sample \(no \/tactile\/<pad>\/depth; pads: right\)$/,
+    );
+    assert.throws(
+      () => readMarkerFlow(markerSample(["right", "left"], ["left"], { right: 4, left: 4 }), "here", ["right", "left"]),
+      /^Error: here: markers of right, which are not optical pads of the sample \(no \/tactile\/<pad>\/image\)$/,
+    );
+    const unprinted = { optical: { left: { markers: null } } };
+    assert.throws(
+      () => readMarkerFlow(markerSample(["left"], ["left"], { left: 4 }, unprinted), "here"),
+      /^Error: here: markers of left, whose sensors have none \(\/sample\/info tactile\.optical\.<pad>\.markers is null\)$/,
+    );
+    const bad = markerSample(["left"], ["left"], { left: 4 });
+    bad.set(padMarkersTopic("left"), [decoded(padMarkersTopic("left"), 12, { point_stride: 20, data: new Uint8Array(30) })]);
+    assert.throws(() => readMarkerFlow(bad, "sample 4"), /^Error: sample 4 \/tactile\/left\/markers: expected 20-byte markers, got point stride 20 and 30 bytes/);
+  });
+});
+
 // ---- shards the generator wrote ---------------------------------------------------------------
 
 // dist/test/force.test.js -> datasets/ts -> datasets -> repository root
@@ -227,15 +361,52 @@ function checkFrameField(field: ForceField, r: number, pad: string, tactile: Obj
   return Math.hypot(...want) > 1e-3;
 }
 
+/** The rest positions of an optical sensor's markers (m, pad frame; x, y interleaved) from its
+ * /sample/info `tactile.optical.<pad>` entry: a square grid of its pitch centred on the pad, as
+ * many dots along each axis as fit whole in its sensing area, rows along y (written independently
+ * of the generator). */
+function markerGrid(sensor: Obj): number[] {
+  const markers = sensor.markers as { pitch_mm: number; radius_mm: number };
+  const [p, r] = [markers.pitch_mm * 1e-3, markers.radius_mm * 1e-3];
+  const [nx, ny] = (sensor.sensing_area_mm as number[]).map((a) => Math.max(Math.floor((a * 1e-3 - 2 * r) / p), -1) + 1) as [number, number];
+  const out: number[] = [];
+  for (let j = 0; j < ny; j++) {
+    for (let i = 0; i < nx; i++) {
+      out.push((i - (nx - 1) / 2) * p, (j - (ny - 1) / 2) * p);
+    }
+  }
+  return out;
+}
+
+/** The checks of one optical pad's markers against its sensor's grid; how many of them moved. */
+function checkMarkers(flow: MarkerFlow, sensor: Obj, where: string): number {
+  const grid = markerGrid(sensor);
+  assert.equal(2 * flow.count, grid.length, `${where}: ${flow.count} markers, the sensor's grid has ${grid.length / 2}`);
+  const rests = new Set<string>();
+  let moved = 0;
+  for (let k = 0; k < flow.count; k++) {
+    const [rx, ry] = [flow.rest[2 * k]!, flow.rest[2 * k + 1]!];
+    rests.add(`${rx},${ry}`);
+    assert.ok(Math.abs(rx - grid[2 * k]!) <= 1e-6 && Math.abs(ry - grid[2 * k + 1]!) <= 1e-6, `${where}: marker ${k} rests at (${rx}, ${ry}), not on the grid`);
+    const shift = Math.hypot(flow.position[2 * k]! - rx, flow.position[2 * k + 1]! - ry);
+    assert.ok(Number.isFinite(shift) && shift < 5e-3, `${where}: marker ${k} moved ${shift} m`);
+    moved += shift > 0 ? 1 : 0;
+  }
+  assert.equal(rests.size, flow.count, `${where}: two markers rest at one place`);
+  return moved;
+}
+
 describe("force fields of generated shards", () => {
   it(
-    "every pad's field, in every sample and touch reading: square, at the cell centres, summing to tactile.forces.<pad>.force_n",
+    "every pad's field, in every sample and touch reading: square, at the cell centres, summing to tactile.forces.<pad>.force_n; every optical pad's markers on their grid",
     "skip" in sources ? { skip: sources.skip } : {},
     async () => {
       assert.ok("roots" in sources);
       let checked = 0;
       let pressing = 0;
       let between = 0;
+      let markers = 0;
+      let moved = 0;
       for (const root of sources.roots) {
         assert.ok(existsSync(join(root, "manifest.json")), `${root}: no manifest.json`);
         const config = JSON.parse(readFileSync(join(root, "config.json"), "utf8")) as { robot: { tactile: { force_field: { resolution: number } } } };
@@ -246,6 +417,7 @@ describe("force fields of generated shards", () => {
             const shard = await readShard(join(root, entry.file));
             const channels = [...shard.channels.values()].map((c) => c.channel);
             const pads = padsOf(channels);
+            const optical = opticalPadsOf(channels);
             assert.deepEqual(forcePadsOf(channels), pads, `${entry.file}: the force channels are not every pad's, in pad order`);
             for (const [t, group] of shard.samples) {
               const where = `${entry.file} @ ${t}`;
@@ -256,6 +428,7 @@ describe("force fields of generated shards", () => {
                   const fields = readForceFields(group, where, pads);
                   assert.deepEqual([...fields.keys()], pads, `${where}: force fields`);
                   assert.ok([...fields.values()].every((f) => f.resolution === r), `${where}: resolution`);
+                  assert.deepEqual([...readMarkerFlow(group, where, pads).keys()], markersPadsOf(channels), `${where}: markers`);
                   between++;
                 }
                 continue;
@@ -270,13 +443,27 @@ describe("force fields of generated shards", () => {
                 pressing += checkFrameField(field, r, pad, tactile, where) ? 1 : 0;
                 checked++;
               }
+              // Every optical pad whose sensor has markers has its marker flow, in pad order.
+              const sensors = (tactile.optical ?? {}) as Record<string, Obj>;
+              const printed = optical.filter((pad) => sensors[pad]!.markers !== null);
+              const flows = readMarkerFlow(frame, where, pads);
+              assert.deepEqual([...flows.keys()], printed, `${where}: markers`);
+              for (const [pad, flow] of flows) {
+                moved += checkMarkers(flow, sensors[pad]!, `${where} ${pad}`);
+                markers++;
+              }
             }
           }
         }
       }
       assert.ok(checked > 0, `no pad to check in ${sources.roots.join(", ")}`);
       assert.ok(pressing > 0, "no pad with a contact force: the sums would compare zeros with zeros");
-      console.log(`force fields: ${checked} pads checked (${pressing} pressed), ${between} touch readings between frames`);
+      assert.ok(markers > 0, "no optical pad with markers: scenes/tiny-gripper.yaml prints them");
+      assert.ok(moved > 0, "no marker moved: the flow would be the rest grid");
+      console.log(
+        `force fields: ${checked} pads checked (${pressing} pressed), ${markers} optical pads' markers (${moved} moved), ` +
+          `${between} touch readings between frames`,
+      );
     },
   );
 });

@@ -17,6 +17,7 @@ type FormatJson = {
   image_encodings: Record<string, { channels: number; bytes_per_channel: number }>;
   tactile_points: { fields: { name: string; offset: number; type: string }[]; point_stride: number };
   force_cells: { fields: { name: string; offset: number; type: string }[]; point_stride: number };
+  marker_points: { fields: { name: string; offset: number; type: string }[]; point_stride: number };
   records: Record<string, string[]>;
 };
 
@@ -87,7 +88,7 @@ describe("src/format.ts agrees with datasets/format.json", () => {
     assert.equal(force.when, "force_field");
     assert.equal(force.image_encoding, undefined);
     // Every pad topic of format.json is one the reader names.
-    const patterns = [F.padDepthTopic, F.padImageTopic, F.padReferenceTopic, F.padForceTopic].map((f) => f("{pad}"));
+    const patterns = [F.padDepthTopic, F.padImageTopic, F.padReferenceTopic, F.padForceTopic, F.padMarkersTopic].map((f) => f("{pad}"));
     assert.deepEqual(sorted(format.pad_topics.map((t) => t.topic)), sorted(patterns));
     assert.deepEqual(F.robotTopics(["p"], [], ["p"]), {
       "/tactile/points": topic("/tactile/points").schema,
@@ -100,6 +101,21 @@ describe("src/format.ts agrees with datasets/format.json", () => {
       format.force_cells.fields.map((f) => [f.name, f.offset, f.type]),
     );
     assert.equal(F.FORCE_STRIDE, format.force_cells.point_stride);
+  });
+
+  it("each optical pad's marker flow: a point cloud with robot.tactile.force_field, points as marker_points lays them out", () => {
+    const markers = padTopic(F.padMarkersTopic("{pad}"));
+    assert.equal(markers.schema, "foxglove.PointCloud");
+    assert.equal(markers.message_encoding, "protobuf");
+    assert.equal(markers.when, "force_field");
+    assert.equal(markers.image_encoding, undefined);
+    assert.equal(F.robotTopics(["p"], ["p"], [], ["p"])[F.padMarkersTopic("p")], markers.schema);
+    assert.equal(F.markersPadOfTopic(markers.topic.replace("{pad}", "th_distal")), "th_distal");
+    assert.deepEqual(
+      F.MARKER_FIELDS,
+      format.marker_points.fields.map((f) => [f.name, f.offset, f.type]),
+    );
+    assert.equal(F.MARKER_STRIDE, format.marker_points.point_stride);
   });
 
   it("image encodings and their bytes per pixel", () => {

@@ -36,6 +36,8 @@ import {
   EPISODE_TOPICS,
   FORCE_FIELDS,
   FORCE_STRIDE,
+  MARKER_FIELDS,
+  MARKER_STRIDE,
   SAMPLE_INFO_EPISODE_KEYS,
   STATE_RECORD_KEYS,
   episodeTiming,
@@ -57,6 +59,8 @@ import {
   forcePadsOf,
   imageSpec,
   isAllegro,
+  markersPadOfTopic,
+  markersPadsOf,
   opticalOfTopic,
   opticalPadsOf,
   padOfTopic,
@@ -64,7 +68,7 @@ import {
   robotTopics,
 } from "../src/format.js";
 import { checkSceneModels, obj, only, tfTree, unitQuaternion, type ModelInfo, type Obj, type Sample } from "../src/checks.js";
-import { forceSum, readForceFields } from "../src/force.js";
+import { forceSum, readForceFields, readMarkerFlow } from "../src/force.js";
 import { frameReferences, loadLayout, plotSeries, topicReferences, valueAtPath, type LayoutFile } from "../src/layout.js";
 import { readOpticalImages } from "../src/optical.js";
 import { frameTimeOf, readShard, type Decoded, type ShardData } from "../src/shard.js";
@@ -153,8 +157,10 @@ function isRobot(dataset: Dataset, shard: ShardData): boolean {
 
 /** The topics of every sample: with a robot, `/tactile/points`, the depth image of each of its
  * pads (`pads`, read from the shard: the robot's, not a fixed list), the image and reference
- * image of each pad with an optical sensor (`optical`, read from the shard too) and the force
- * field of each pad of `forces` (with `robot.tactile.force_field`, read from the shard). */
+ * image of each pad with an optical sensor (`optical`, read from the shard too), the force
+ * field of each pad of `forces` (with `robot.tactile.force_field`, read from the shard) and the
+ * marker flow of each pad of `markers` (with force fields, the optical pads whose sensor has
+ * markers, read from the shard). */
 function expectedTopics(
   robot: boolean,
   pads: readonly string[],
@@ -162,10 +168,11 @@ function expectedTopics(
   optical: readonly string[] = [],
   episode = false,
   forces: readonly string[] = [],
+  markers: readonly string[] = [],
 ): Record<string, string> {
   return {
     ...BASE_TOPICS,
-    ...(robot ? robotTopics(pads, optical, forces) : {}),
+    ...(robot ? robotTopics(pads, optical, forces, markers) : {}),
     ...(noisy ? NOISE_TOPICS : {}),
     ...(episode ? EPISODE_TOPICS : {}),
   };
@@ -326,6 +333,8 @@ for (const dataset of all) {
         let optical: string[] = [];
         /** The pads with a force field, from the shard's /tactile/<pad>/force channels (pad order). */
         let forces: string[] = [];
+        /** The optical pads with marker flow, from the shard's /tactile/<pad>/markers channels (pad order). */
+        let markers: string[] = [];
         let allegro = false;
         /** An episode shard's timing (FORMAT.md, "Episodes"); undefined for a snapshot shard. */
         let episode: EpisodeTiming | undefined;
@@ -337,6 +346,7 @@ for (const dataset of all) {
           pads = padsOf([...shard.channels.values()].map((c) => c.channel));
           optical = opticalPadsOf([...shard.channels.values()].map((c) => c.channel));
           forces = forcePadsOf([...shard.channels.values()].map((c) => c.channel));
+          markers = markersPadsOf([...shard.channels.values()].map((c) => c.channel));
           allegro = isAllegro(pads);
           episode = shard.episode == undefined ? undefined : episodeTiming(shard.episode);
           frame0 = shard.frames.values().next().value ?? new Map();
@@ -410,7 +420,7 @@ for (const dataset of all) {
           }
           assert.deepEqual(problems, []);
           const expected: Record<string, string> = {
-            ...expectedTopics(robot, pads, shard.topics.has("/camera/depth_noisy"), optical, episode != undefined, forces),
+            ...expectedTopics(robot, pads, shard.topics.has("/camera/depth_noisy"), optical, episode != undefined, forces, markers),
             [SCENE_TOPIC]: SCENE_SCHEMA,
           };
           if (episode != undefined) {
@@ -452,7 +462,9 @@ for (const dataset of all) {
           if (episode == undefined) {
             assert.equal(shard.samples.size, count, "samples (distinct log times) != sample_count");
           }
-          const topics = Object.keys(expectedTopics(robot, pads, shard.topics.has("/camera/depth_noisy"), optical, episode != undefined, forces));
+          const topics = Object.keys(
+            expectedTopics(robot, pads, shard.topics.has("/camera/depth_noisy"), optical, episode != undefined, forces, markers),
+          );
           // An episode writes its optical references once, with frame 0.
           const later = topics.filter((topic) => opticalOfTopic(topic)?.kind !== "reference");
           let move = 0;
@@ -582,8 +594,9 @@ for (const dataset of all) {
           }
         });
 
-        it("force fields (robot.tactile.force_field): every pad's, in every touch reading, summing to /sample/info tactile.forces", () => {
+        it("force fields (robot.tactile.force_field): every pad's, in every touch reading, summing to /sample/info tactile.forces; the optical pads' markers", () => {
           if (forces.length === 0) {
+            assert.deepEqual(markers, [], "FORMAT.md: marker flow comes with the force fields");
             for (const [t, sample] of shard.frames) {
               const tactile = obj(only(sample, "/sample/info").tactile ?? {});
               for (const key of TACTILE_FORCE_INFO_KEYS) {
@@ -604,6 +617,16 @@ for (const dataset of all) {
             assert.deepEqual((m.value.fields as Obj[]).map((f) => [f.name, f.offset, f.type]), fields, `${where}: cell fields`);
             assert.deepEqual(obj(obj(m.value.pose).orientation), { x: 0, y: 0, z: 0, w: 1 }, `${where}: pose`);
           }
+          // The marker flow: of optical pads, in pad order, 20-byte points (x, y, z, rest_x, rest_y).
+          assert.deepEqual(markers, optical.filter((pad) => markers.includes(pad)), "FORMAT.md: markers are of optical pads, channels in pad order");
+          const markerFields = MARKER_FIELDS.map(([name, offset, numeric]) => [name, offset, enumValue(fieldType, "NumericType", numeric)]);
+          for (const m of shard.messages.filter((x) => markersPadOfTopic(x.topic) != undefined)) {
+            const where = `${m.topic} @ ${m.logTime}`;
+            assert.equal(m.value.frame_id, `${markersPadOfTopic(m.topic)!}_pad`, `${where}: frame_id`);
+            assert.equal(m.value.point_stride, MARKER_STRIDE, `${where}: point_stride`);
+            assert.deepEqual((m.value.fields as Obj[]).map((f) => [f.name, f.offset, f.type]), markerFields, `${where}: marker fields`);
+            assert.deepEqual(obj(obj(m.value.pose).orientation), { x: 0, y: 0, z: 0, w: 1 }, `${where}: pose`);
+          }
           // Every touch reading (a sample; an episode's readings between frames too) has every pad's field.
           let resolution: number | undefined;
           for (const [t, group] of shard.samples) {
@@ -613,6 +636,7 @@ for (const dataset of all) {
             const where = `touch @ ${t}`;
             const read = readForceFields(group, where, pads);
             assert.deepEqual([...read.keys()], pads, `${where}: force fields`);
+            assert.deepEqual([...readMarkerFlow(group, where, pads).keys()], markers, `${where}: markers`);
             for (const [pad, field] of read) {
               resolution ??= field.resolution;
               assert.equal(field.resolution, resolution, `${where} ${pad}: resolution differs from the shard's first`);
@@ -621,6 +645,8 @@ for (const dataset of all) {
               continue;
             }
             const tactile = obj(only(group, "/sample/info").tactile);
+            const sensors = obj(tactile.optical ?? {}) as Record<string, Obj>;
+            assert.deepEqual(markers, optical.filter((pad) => sensors[pad]?.markers != null), `${where}: markers of the optical pads whose sensors have them`);
             const listed = obj(tactile.forces) as Record<string, Obj>;
             for (const [pad, field] of read) {
               const [length, width] = obj(tactile.pads)[pad] as [number, number];

@@ -12,6 +12,7 @@ pub mod plan;
 pub mod preview;
 pub mod robot_check;
 pub mod stats;
+pub mod tactile;
 pub mod validate;
 
 use anyhow::Result;

@@ -6,6 +6,7 @@ mod grasp;
 mod noise;
 mod objects;
 mod optical;
+pub mod optical_calibration;
 mod output;
 mod overrides;
 mod physics;
@@ -22,7 +23,7 @@ pub use camera::*;
 pub use grasp::*;
 pub use noise::{CameraNoiseConfig, ColorNoise, DepthNoise};
 pub use objects::*;
-pub use optical::{Led, MarkerConfig, Markers, OpticalConfig, OpticalPreset, OpticalSensor, led_falloff, light_matrix};
+pub use optical::{Led, MarkerConfig, Markers, OpticalConfig, OpticalPreset, OpticalSensor, SensorCalibration, led_falloff, light_matrix};
 pub use output::*;
 pub use overrides::Override;
 pub use physics::*;
@@ -209,6 +210,7 @@ impl LoadedConfig {
             Some(dir) => Some(dir.to_path_buf()),
             None => loaded.config.robot.as_ref().and_then(|r| r.assets.as_ref()).map(|p| loaded.resolve(p)),
         };
+        loaded.load_optical_calibration()?;
         if let Some(rc) = loaded.config.robot.clone() {
             let robot = loaded.load_robot(&rc)?;
             let grasp = rc.grasp.with_robot_defaults(&robot);
@@ -227,6 +229,25 @@ impl LoadedConfig {
             loaded.robot = Some(robot);
         }
         Ok(loaded)
+    }
+
+    /// Loads `robot.tactile.optical.calibration` into the config, checked against the sensor's
+    /// configured image size. Errors: (field path, message).
+    fn load_optical_calibration(&mut self) -> Result<(), RobotProblem> {
+        let Some(optical) = self.config.robot.as_ref().and_then(|r| r.tactile.optical.as_ref()) else { return Ok(()) };
+        let Some(file) = &optical.calibration else { return Ok(()) };
+        let field = vec!["robot", "tactile", "optical", "calibration"];
+        let cal = optical_calibration::load_calibration(&self.resolve(file)).map_err(|e| (field.clone(), e))?;
+        if let Some(size) = optical.image_size.filter(|s| cal.background.is_some() && *s != cal.image_size) {
+            let message = format!(
+                "the calibration's images are {:?}, robot.tactile.optical.image_size {size:?}: leave image_size out",
+                cal.image_size
+            );
+            return Err((field, message));
+        }
+        let optical = self.config.robot.as_mut().and_then(|r| r.tactile.optical.as_mut()).expect("checked above");
+        optical.loaded_calibration = Some(std::sync::Arc::new(cal));
+        Ok(())
     }
 
     /// The robot a config's `robot` section names. Errors: (field path, message).

@@ -2,8 +2,12 @@
 //! preset gives every value; any field given in the config replaces the preset's. The image model
 //! itself is `sensors::optical`; its conventions are in FORMAT.md (`/tactile/<pad>/image`).
 
+use std::path::PathBuf;
+use std::sync::Arc;
+
 use serde::{Deserialize, Serialize};
 
+use super::optical_calibration::{LightModel, LoadedCalibration};
 use vt_check::{Check, Checks, field, key};
 
 /// A published sensor the parameters start from.
@@ -86,6 +90,34 @@ pub struct OpticalConfig {
     /// Gaussian pixel noise, σ in 8-bit levels.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub noise_std: Option<f64>,
+    /// A light model measured on a real unit (`vtgen tactile calibrate`'s `calibration.yaml`, or
+    /// Taxim's `polycalib.npz` with its `bg.png`/`bg.jpg`), relative to the config file: it gives
+    /// the image size, the pixel size and the shading in place of the preset's LED model.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub calibration: Option<PathBuf>,
+    /// The calibration, loaded with the config (`LoadedConfig`).
+    #[serde(skip)]
+    pub loaded_calibration: Option<Arc<LoadedCalibration>>,
+}
+
+/// A sensor's measured light model: its file (written into `/sample/info`) and, in the generator,
+/// the model itself.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SensorCalibration {
+    /// The calibration file as the config names it.
+    pub file: String,
+    /// `polynomial`, `leds` or `taxim_table`.
+    pub model: String,
+    #[serde(skip)]
+    pub light: Option<Arc<LoadedCalibration>>,
+}
+
+impl SensorCalibration {
+    /// The measured shading and background, when the calibration replaces the LED model's.
+    pub fn shading(&self) -> Option<(&LightModel, &[f64])> {
+        let c = self.light.as_deref()?;
+        Some((c.light.as_ref()?, c.background.as_deref()?))
+    }
 }
 
 /// The resolved marker grid.
@@ -111,6 +143,9 @@ pub struct OpticalSensor {
     pub vignetting: f64,
     pub markers: Option<Markers>,
     pub noise_std: f64,
+    /// A measured light model in place of the LED model (`robot.tactile.optical.calibration`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub calibration: Option<SensorCalibration>,
 }
 
 /// An LED `elevation_deg` above the gel plane at `azimuth_deg` about the pad's z.
@@ -140,6 +175,7 @@ impl OpticalPreset {
                 vignetting: 0.25,
                 markers: None,
                 noise_std: 1.0,
+                calibration: None,
             },
             OpticalPreset::Digit => OpticalSensor {
                 image_size: [320, 240],
@@ -156,6 +192,7 @@ impl OpticalPreset {
                 vignetting: 0.35,
                 markers: None,
                 noise_std: 1.5,
+                calibration: None,
             },
         }
     }
@@ -174,6 +211,25 @@ impl OpticalConfig {
     pub fn resolve(&self) -> OpticalSensor {
         let mut s = self.preset.sensor();
         let or = |v: &Option<f64>, d: f64| v.unwrap_or(d);
+        // A calibration's values come between the preset's and the config's own.
+        if let (Some(file), Some(cal)) = (&self.calibration, &self.loaded_calibration) {
+            s.image_size = cal.image_size;
+            if let Some(pixel) = cal.pixel_size_mm {
+                s.sensing_area_mm = cal.image_size.map(|n| n as f64 * pixel);
+            }
+            if let Some(leds) = &cal.leds {
+                s.lights = leds.lights.clone().unwrap_or(s.lights);
+                s.ambient = leds.ambient.unwrap_or(s.ambient);
+                s.background = leds.background.unwrap_or(s.background);
+                s.vignetting = leds.vignetting.unwrap_or(s.vignetting);
+            }
+            let model = match (&cal.light, &cal.leds) {
+                (Some(LightModel::Table { .. }), _) => "taxim_table",
+                (Some(LightModel::Polynomial { .. }), _) => "polynomial",
+                _ => "leds",
+            };
+            s.calibration = Some(SensorCalibration { file: file.display().to_string(), model: model.into(), light: Some(cal.clone()) });
+        }
         s.image_size = self.image_size.unwrap_or(s.image_size);
         s.sensing_area_mm = self.sensing_area_mm.unwrap_or(s.sensing_area_mm);
         s.gel_thickness_mm = or(&self.gel_thickness_mm, s.gel_thickness_mm);
@@ -247,6 +303,15 @@ impl Check for OpticalConfig {
                      independent light directions",
                 );
             }
+        }
+        if let (Some(cal), Some(size)) = (&self.loaded_calibration, self.image_size)
+            && cal.background.is_some()
+            && size != cal.image_size
+        {
+            c.key(key!(self.image_size)).fail(format!(
+                "{size:?}: the calibration's images are {:?} (its background and shading are per pixel): leave image_size out",
+                cal.image_size
+            ));
         }
         if let Some(m) = s.markers {
             let mut at = c.key(key!(self.markers));

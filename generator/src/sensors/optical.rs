@@ -17,6 +17,10 @@
 //!    ([`GelShear`]), then
 //!    Gaussian pixel noise; 8 bits per channel, linear (no gamma).
 //!
+//! A sensor calibrated on a real unit (`robot.tactile.optical.calibration`) replaces step 3's LED
+//! model by its measured one: its background image plus the light its model adds for the gel's
+//! normal at each pixel ([`crate::config::optical_calibration`]).
+//!
 //! The reference image is the same model with no indentation and no noise. Conventions (pixel
 //! centres, frames) are in FORMAT.md, `/tactile/<pad>/image`.
 
@@ -140,6 +144,18 @@ fn gel_color(sensor: &OpticalSensor, at: [f64; 2]) -> [f64; 3] {
 /// Step 3: the noise-free linear intensity (0..=1 before clipping) of every pixel, 3 per pixel.
 fn shade(sensor: &OpticalSensor, slopes: Option<&[(f64, f64)]>) -> Vec<f64> {
     let [w, h] = sensor.image_size;
+    if let Some((model, background)) = sensor.calibration.as_ref().and_then(|c| c.shading()) {
+        // A measured unit: its background plus what its light model adds for the gel's normal.
+        let mut out = background.to_vec();
+        for (k, &g) in slopes.into_iter().flatten().enumerate().filter(|(_, g)| **g != (0.0, 0.0)) {
+            let (u, v) = (k as u32 % w, k as u32 / w);
+            let (at, _) = pixel_position(sensor, u, v);
+            for (o, d) in out[3 * k..3 * k + 3].iter_mut().zip(model.delta((u, v), at, g)) {
+                *o += d;
+            }
+        }
+        return out;
+    }
     let lights: Vec<(DVec3, [f64; 3])> = sensor.lights.iter().map(|l| (DVec3::from_array(l.direction).normalize(), l.color)).collect();
     let mut out = Vec::with_capacity((w * h * 3) as usize);
     for v in 0..h {
