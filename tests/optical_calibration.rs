@@ -144,6 +144,32 @@ fn calibrate_gives_back_the_sensor_that_made_the_images() {
             );
         }
     }
+
+    // Data made with the calibrated sensor: its images are the calibration's size, its references
+    // are the calibration's background (the model without noise), and /sample/info names the
+    // calibration.
+    let calibration = dir.path().join("calibration-given/calibration.yaml");
+    let data = dir.path().join("data");
+    let set = format!("robot.tactile.optical={{calibration: {}, markers: {{}}}}", calibration.display());
+    let sets = ["--set", set.as_str(), "--set", "sampling.trajectories_per_object=1", "--set", "sampling.instances_per_trajectory=2"];
+    generate(&root().join("scenes/tiny-gripper.yaml"), &data, &sets);
+    let background = image::open(dir.path().join("calibration-given/background.png")).unwrap().to_rgb8().into_raw();
+    let ds = vt_dataset::DatasetReader::open(&data).unwrap();
+    let mut seen = 0;
+    for s in ds.samples("train").unwrap() {
+        let s = s.unwrap();
+        let touch = s.info.robot.as_ref().and_then(|r| r.tactile.as_ref()).unwrap();
+        for o in &s.tactile.as_ref().unwrap().optical {
+            assert_eq!((o.width, o.height), (160, 120));
+            let sensor = &touch.optical.as_ref().unwrap()[&o.pad];
+            assert_eq!(sensor["calibration"]["model"], "polynomial", "{sensor}");
+            // Markers darken their dots; elsewhere the reference is the unit's background.
+            let off = o.reference.iter().zip(&background).filter(|(r, b)| r.abs_diff(**b) > 1).count();
+            assert!(off < o.reference.len() / 5, "{}: {off} reference values off the background", o.pad);
+            seen += 1;
+        }
+    }
+    assert!(seen > 0, "no optical images");
 }
 
 /// Bad input is named: a folder without a background image, a calibration file that is not there.
