@@ -14,6 +14,7 @@ mod grasping;
 mod ground_truth;
 mod mesh_robot;
 mod optical_calibration;
+mod optical_shading;
 mod own_robot;
 mod panda;
 mod render_geometry;

@@ -1,7 +1,8 @@
 //! Criterion micro-benchmarks of the sample path's hot stages, each alone: one physics step of the
 //! grasped hand, a grasp trajectory, the main 640x480 render (PBR, shadow map, depth, mask,
 //! silhouette), the 12 phalanx depth views, the occlusion level, writing one sample to a zstd
-//! shard, and one optical tactile image per preset. `cargo bench -p vtgen --bench stages` (rendering runs on whatever adapter wgpu picks:
+//! shard, one optical tactile image per preset on the CPU, its marker field, and the optical
+//! shading on the GPU. `cargo bench -p vtgen --bench stages` (rendering runs on whatever adapter wgpu picks:
 //! lavapipe on a machine without a GPU). `vtgen bench` measures the stages inside a real run.
 
 use std::hint::black_box;
@@ -134,6 +135,46 @@ fn rendering(c: &mut Criterion) {
     group.bench_function("12 phalanx depth views 32x32 (one pass)", |b| {
         b.iter(|| black_box(s.renderer.render_depth_views(&views, &[can]).expect("render")))
     });
+    // Two GelSight Minis pressed 0.5 mm into the can's side: their depth views alone, then with the
+    // optical shading on the GPU in the same submission (`robot.tactile.optical_shading: gpu`).
+    let sensor = vtgen::config::OpticalConfig { markers: Some(Default::default()), ..Default::default() }.resolve();
+    let optical_views: Vec<DepthView> = [0.0f64, std::f64::consts::PI]
+        .iter()
+        .map(|a| {
+            let out = DVec3::new(a.cos(), a.sin(), 0.0);
+            let centre = DAffine3::from_mat4(can.t_world_model).transform_point3(out * (radius + 0.001));
+            DepthView {
+                width: sensor.image_size[0],
+                height: sensor.image_size[1],
+                half_x: sensor.sensing_area_mm[0] * 0.5e-3,
+                half_y: sensor.sensing_area_mm[1] * 0.5e-3,
+                near: -0.005,
+                far: (sensor.gel_thickness_mm + 0.1) * 1e-3,
+                t_world_camera: look_at(centre, centre - out).matrix(),
+                perspective_standoff: None,
+            }
+        })
+        .collect();
+    let shading: Vec<_> = (0..2).map(|k| vtgen::sensors::optical::gel_shading(&sensor, k).expect("the LED model")).collect();
+    group.bench_function("2 optical depth views 320x240 (one pass)", |b| {
+        b.iter(|| black_box(s.renderer.render_depth_views(&optical_views, &[can]).expect("render")))
+    });
+    group.bench_function("2 optical depth views 320x240 + their GPU shading (one pass)", |b| {
+        b.iter(|| black_box(s.renderer.render_depth_views_shaded(&optical_views, &shading, &[can]).expect("render")))
+    });
+    group.finish();
+    // What the CPU still does per image after the GPU's shading (markers, noise, 8 bits), against
+    // the whole CPU model from the same depth.
+    let (depth, shaded) = s.renderer.render_depth_views_shaded(&optical_views, &shading, &[can]).expect("render");
+    let shaded = shaded.expect("the wgpu renderer shades");
+    let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(1);
+    let mut group = c.benchmark_group("optical tactile image");
+    group.bench_function("GelsightMini 320x240 on the CPU from the GPU's shading (markers, noise)", |b| {
+        b.iter(|| black_box(vtgen::sensors::optical::optical_image_shaded(&sensor, &shaded[0], None, Some(&mut rng))))
+    });
+    group.bench_function("GelsightMini 320x240 on the CPU from the same depth (shading, markers, noise)", |b| {
+        b.iter(|| black_box(vtgen::sensors::optical::optical_image(&sensor, Some(&depth[0]), None, Some(&mut rng))))
+    });
     group.finish();
 
     let img = s.renderer.render(&s.view, &s.lighting, &s.draws).expect("render");
@@ -223,6 +264,27 @@ fn optical(c: &mut Criterion) {
             b.iter(|| black_box(optical_image(&sensor, Some(&depth), None, Some(&mut rng))))
         });
         group.bench_function(format!("{preset:?} {w}x{h}, reference"), |b| b.iter(|| black_box(reference_image(&sensor))));
+        // The marker displacement field alone (FOTS's "marker field"): the gel's slopes under the
+        // sphere and every marker's move, with a shear of 1 N along x over the pad.
+        let field = vt_dataset::PadForceField {
+            pad: "bench".into(),
+            resolution: 16,
+            cells: (0..256)
+                .map(|i| vt_dataset::ForceCell {
+                    position: [((i % 16) as f32 - 7.5) * 1e-3, ((i / 16) as f32 - 7.5) * 1e-3],
+                    pressure: 2000.0,
+                    shear: [1.0 / (0.0186 * 0.0143), 0.0],
+                    slip: false,
+                })
+                .collect(),
+        };
+        let shear = vtgen::sensors::force_field::GelShear::new(&field, (0.0186, 0.0143), 50e3);
+        group.bench_function(format!("{preset:?} {w}x{h}, marker field (slopes and every marker's move, with shear)"), |b| {
+            b.iter(|| {
+                let slopes = vtgen::sensors::optical::gel_slopes(&sensor, Some(&depth));
+                black_box(vtgen::sensors::optical::marker_flow(&sensor, slopes.as_deref(), Some(&shear)))
+            })
+        });
     }
     group.finish();
 }

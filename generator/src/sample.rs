@@ -28,8 +28,8 @@ use crate::scene::environment::{Distractor, backdrop_mesh, floor_mesh, glb_of, p
 use crate::scene::robot::{link_mesh, mask_id as robot_mask_id, pose_links};
 use crate::scene::{SampledScene, pose_of, sample_scene};
 use crate::sensors::force_field::{self, GelShear};
-use crate::sensors::optical::{gel_slopes, marker_flow, optical_image, reference_image, varied};
-use crate::sensors::tactile::{FingerSurface, PadView, finger_surface, gap_above_surface, sense};
+use crate::sensors::optical::{gel_slopes, marker_flow, optical_image, optical_image_shaded, reference_image, shaded_slopes, varied};
+use crate::sensors::tactile::{FingerSurface, PadView, TactileReading, finger_surface, gap_above_surface, sense};
 
 /// The real fingers' surface under the pads, when the robot has its real hand meshes.
 fn finger_surfaces(robot: &RobotScene, pads: &[(f64, f64)]) -> Result<Option<FingerSurface>> {
@@ -60,14 +60,17 @@ fn optical_images(
     write_reference: bool,
     names: &[String],
     pads: &[PadView],
-    (depth, shears): (&[Option<Vec<f32>>], &[Option<GelShear>]),
+    (reading, shears): (&TactileReading, &[Option<GelShear>]),
 ) -> Vec<OpticalPadImage> {
     references.resize(pads.len(), None);
     let mut out = Vec::new();
     for (k, (pad, name)) in pads.iter().zip(names).enumerate() {
         let Some(sensor) = &pad.optical else { continue };
         let mut noise = SampleStream::sample(key, &format!("tactile_image/{name}{noise_tag}"));
-        let image = optical_image(sensor, depth[k].as_deref(), shears[k].as_ref(), Some(&mut noise));
+        let image = match &reading.optical_shaded[k] {
+            Some(gpu) => optical_image_shaded(sensor, gpu, shears[k].as_ref(), Some(&mut noise)),
+            None => optical_image(sensor, reading.optical_depth[k].as_deref(), shears[k].as_ref(), Some(&mut noise)),
+        };
         let cached = &mut references[k];
         if cached.as_ref().is_none_or(|(s, _)| s != sensor) {
             *cached = Some((sensor.clone(), reference_image(sensor).rgb));
@@ -787,14 +790,8 @@ impl<'a> SampleFactory<'a> {
         let clock = StageClock::start();
         // Episodes write the reference images once, with their first frame.
         let write_reference = self.config.sampling.record.is_none() || (key.instance == 0 && noise_tag.is_empty());
-        let optical = optical_images(
-            &mut self.held.optical_references,
-            (key, noise_tag),
-            write_reference,
-            &names,
-            &pads,
-            (&reading.optical_depth, &shears),
-        );
+        let optical =
+            optical_images(&mut self.held.optical_references, (key, noise_tag), write_reference, &names, &pads, (&reading, &shears));
         // The markers' flow, written with force fields (their gel's shear is part of it).
         let marker_flow: Vec<PadMarkerFlow> = match &forces {
             Some(_) => pads
@@ -803,7 +800,10 @@ impl<'a> SampleFactory<'a> {
                 .enumerate()
                 .filter_map(|(k, (pad, name))| {
                     let sensor = pad.optical.as_ref().filter(|s| s.markers.is_some())?;
-                    let slopes = gel_slopes(sensor, reading.optical_depth[k].as_deref());
+                    let slopes = match &reading.optical_shaded[k] {
+                        Some(gpu) => shaded_slopes(sensor, gpu),
+                        None => gel_slopes(sensor, reading.optical_depth[k].as_deref()),
+                    };
                     let flow = marker_flow(sensor, slopes.as_deref(), shears[k].as_ref());
                     let f32s = |p: [f64; 2]| p.map(|v| v as f32);
                     Some(PadMarkerFlow { pad: name.clone(), markers: flow.into_iter().map(|(r, m)| (f32s(r), f32s(m))).collect() })

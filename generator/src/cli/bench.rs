@@ -41,6 +41,9 @@ pub struct BenchReport {
     pub optical_images: u64,
     pub optical: f64,
     pub optical_cpu: f64,
+    /// Where the optical images were shaded (`robot.tactile.optical_shading`): `cpu`, or `gpu`, in
+    /// the tactile render's submission (its time is then in `tactile_render`).
+    pub optical_shading: String,
     /// The pads' force fields (`robot.tactile.force_field`): how many, their wall seconds.
     pub force_fields: u64,
     pub force_field_seconds: f64,
@@ -113,11 +116,16 @@ impl std::fmt::Display for BenchReport {
             let each = r.optical_cpu / r.optical_images as f64;
             writeln!(
                 f,
-                "  optical images   {:7.2} ms  ({:.1} per sample; CPU {:.2} ms each: {:.0} images/s per core)",
+                "  optical images   {:7.2} ms  ({:.1} per sample; CPU {:.2} ms each: {:.0} images/s per core; {})",
                 per(r.optical),
                 r.optical_images as f64 / r.samples as f64,
                 1e3 * each,
-                1.0 / each.max(1e-12)
+                1.0 / each.max(1e-12),
+                if r.optical_shading == "gpu" {
+                    "shaded on the GPU in the tactile render, markers and noise on the CPU"
+                } else {
+                    "shaded on the CPU"
+                }
             )?;
         }
         if r.force_fields > 0 {
@@ -330,7 +338,12 @@ pub fn bench(
     let (done, workers) = pooled.into_result()?;
     let runs: Vec<TrajectoryRun> = done.into_iter().map(|(_, t)| t).collect();
     let episode_camera_hz = crate::plan::EpisodeTimeline::of(&cfg.config).map(|t| 1.0 / (t.periods.camera as f64 * t.timestep));
-    report(runs, workers, Measured { jobs, seconds, process_cpu, predict_cores, episode_camera_hz })
+    let optical_shading = match cfg.config.robot.as_ref().map(|r| r.tactile.optical_shading) {
+        Some(crate::config::OpticalShading::Gpu) => "gpu",
+        _ => "cpu",
+    };
+    let optical_shading = optical_shading.to_string();
+    report(runs, workers, Measured { jobs, seconds, process_cpu, predict_cores, episode_camera_hz, optical_shading })
 }
 
 /// What `bench` measured around the workers.
@@ -340,11 +353,12 @@ struct Measured {
     process_cpu: f64,
     predict_cores: Option<usize>,
     episode_camera_hz: Option<f64>,
+    optical_shading: String,
 }
 
 /// The report of the benchmark's trajectories and of its workers' stage times.
 fn report(runs: Vec<TrajectoryRun>, workers: Vec<(StageTimes, WriterTimes, Duration, String)>, m: Measured) -> Result<BenchReport> {
-    let Measured { jobs, seconds, process_cpu, predict_cores, episode_camera_hz } = m;
+    let Measured { jobs, seconds, process_cpu, predict_cores, episode_camera_hz, optical_shading } = m;
     let mut n = 0;
     let mut skipped = Vec::new();
     let mut occlusion_bins: BTreeMap<String, [u64; 3]> = BTreeMap::new();
@@ -394,6 +408,7 @@ fn report(runs: Vec<TrajectoryRun>, workers: Vec<(StageTimes, WriterTimes, Durat
         optical_images: t.optical_images,
         optical: t.tactile_optical.as_secs_f64(),
         optical_cpu: t.tactile_optical_cpu.as_secs_f64(),
+        optical_shading,
         force_fields: t.force_fields,
         force_field_seconds: t.tactile_forces.as_secs_f64(),
         occlusion: t.occlusion.as_secs_f64(),

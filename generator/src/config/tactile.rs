@@ -32,6 +32,26 @@ pub struct TactileConfig {
     /// forces (`robot.physics.backend: mujoco`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub force_field: Option<ForceFieldConfig>,
+    /// Where the optical images are shaded: `cpu` (default, the reference model) or `gpu` (in
+    /// WGSL, in the submission that renders their depth views; within one 8-bit level of the CPU).
+    /// Left out of the config when `cpu`, so other datasets keep their hash.
+    #[serde(skip_serializing_if = "OpticalShading::is_cpu")]
+    pub optical_shading: OpticalShading,
+}
+
+/// `robot.tactile.optical_shading`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum OpticalShading {
+    #[default]
+    Cpu,
+    Gpu,
+}
+
+impl OpticalShading {
+    fn is_cpu(&self) -> bool {
+        *self == OpticalShading::Cpu
+    }
 }
 
 /// `robot.tactile.force_field:` the grid each pad's contact force is spread over.
@@ -72,6 +92,7 @@ impl Default for TactileConfig {
             perspective_standoff_mm: 10.0,
             optical: None,
             force_field: None,
+            optical_shading: OpticalShading::Cpu,
         }
     }
 }

@@ -143,6 +143,42 @@ pub struct DepthView {
     pub perspective_standoff: Option<f64>,
 }
 
+/// An optical tactile sensor's image model for one depth view, shaded on the GPU
+/// (`robot.tactile.optical_shading: gpu`); `sensors::optical` is its reference and builds it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GelShading {
+    /// The depth view (an index into the views of the call) the gel lies over.
+    pub view: usize,
+    /// How far the gel's free surface lies in front of the pad plane (m).
+    pub gel_thickness: f64,
+    /// Pixel pitch along x and y (m).
+    pub pitch: [f64; 2],
+    /// The gel's elastic spread, σ in pixels along x and y (0: none).
+    pub spread_sigma_px: [f64; 2],
+    pub lights: Vec<GelLight>,
+    pub ambient: f64,
+    /// The gel's tint (linear RGB).
+    pub tint: [f64; 3],
+    pub vignetting: f64,
+}
+
+/// One LED of a [`GelShading`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GelLight {
+    /// Towards the LED, normalised (pad frame).
+    pub direction: [f64; 3],
+    pub color: [f64; 3],
+    pub falloff: f64,
+    /// The LED's azimuth in the pad plane, normalised (zero when straight behind).
+    pub azimuth: [f64; 2],
+}
+
+/// One float image per view (depth views, optical shadings), row-major.
+pub type Images = Vec<Vec<f32>>;
+
+/// The most LEDs a [`GelShading`] holds.
+pub const MAX_GEL_LIGHTS: usize = 8;
+
 pub trait Renderer {
     /// Adapter and backend in words, e.g. "llvmpipe (LLVM 15.0.6, 256 bits) [Vulkan, Cpu]".
     fn describe(&self) -> String;
@@ -162,6 +198,18 @@ pub trait Renderer {
     /// Renders several depth views of the same draws in one submission; z-depth per view, row-major,
     /// `+inf` where no surface is within range.
     fn render_depth_views(&mut self, views: &[DepthView], draws: &[Draw]) -> anyhow::Result<Vec<Vec<f32>>>;
+    /// `render_depth_views`, and the optical shading of some of those views in the same
+    /// submission: per shading, `width * height * 4` f32 (linear R, G, B before clipping, and the
+    /// gel's surface indentation in m). None: this renderer does not shade (the CPU does).
+    fn render_depth_views_shaded(
+        &mut self,
+        views: &[DepthView],
+        shading: &[GelShading],
+        draws: &[Draw],
+    ) -> anyhow::Result<(Images, Option<Images>)> {
+        let _ = shading;
+        Ok((self.render_depth_views(views, draws)?, None))
+    }
     /// Time spent copying images out of mapped readback buffers since the renderer was made
     /// (part of every render call's time), for `vtgen bench`.
     fn readback_time(&self) -> std::time::Duration {

@@ -30,6 +30,7 @@ use rand_chacha::ChaCha8Rng;
 
 use super::force_field::GelShear;
 use crate::config::{OpticalSensor, led_falloff, light_matrix};
+use crate::render::{GelLight, GelShading, MAX_GEL_LIGHTS};
 
 /// The image of one sensor: `width x height` RGB, row-major, 8 bits per channel.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -287,6 +288,58 @@ pub fn optical_image(
 ) -> OpticalImage {
     let slopes = gel_slopes(sensor, depth);
     let mut img = shade(sensor, slopes.as_deref());
+    paint_markers(sensor, &mut img, slopes.as_deref(), shear.filter(|s| !s.is_empty()));
+    let [width, height] = sensor.image_size;
+    OpticalImage { width, height, rgb: quantize(sensor, &img, rng) }
+}
+
+/// The sensor's image model for the GPU (`robot.tactile.optical_shading: gpu`), over depth view
+/// `view`; None for a calibrated light model, which the CPU shades.
+pub fn gel_shading(sensor: &OpticalSensor, view: usize) -> Option<GelShading> {
+    if sensor.calibration.as_ref().is_some_and(|c| c.shading().is_some()) || sensor.lights.len() > MAX_GEL_LIGHTS {
+        return None;
+    }
+    let (px, py) = pitch(sensor);
+    let sigma = sensor.elastic_spread_mm * 1e-3;
+    let lights = sensor
+        .lights
+        .iter()
+        .map(|l| {
+            let d = DVec3::from_array(l.direction).normalize();
+            let azimuth = glam::DVec2::new(l.direction[0], l.direction[1]).normalize_or_zero();
+            GelLight { direction: d.to_array(), color: l.color, falloff: l.falloff, azimuth: azimuth.to_array() }
+        })
+        .collect();
+    Some(GelShading {
+        view,
+        gel_thickness: sensor.gel_thickness_mm * 1e-3,
+        pitch: [px, py],
+        spread_sigma_px: if sigma > 0.0 { [sigma / px, sigma / py] } else { [0.0, 0.0] },
+        lights,
+        ambient: sensor.ambient,
+        tint: sensor.background,
+        vignetting: sensor.vignetting,
+    })
+}
+
+/// The gel's slopes from the GPU's shading (its surface is each pixel's fourth value), as
+/// [`gel_slopes`] gives them from the depth; None where the gel is not pushed in.
+pub fn shaded_slopes(sensor: &OpticalSensor, shaded: &[f32]) -> Option<Vec<(f64, f64)>> {
+    let gel: Vec<f64> = shaded.chunks_exact(4).map(|p| p[3] as f64).collect();
+    gel.iter().any(|&g| g > 0.0).then(|| slopes(sensor, &gel))
+}
+
+/// The sensor's image from the GPU's shading of it (`Renderer::render_depth_views_shaded`: linear
+/// R, G, B and the gel's surface per pixel): the markers (moved by the gel's slope and `shear`),
+/// noise and quantization as [`optical_image`] makes them.
+pub fn optical_image_shaded(
+    sensor: &OpticalSensor,
+    shaded: &[f32],
+    shear: Option<&GelShear>,
+    rng: Option<&mut ChaCha8Rng>,
+) -> OpticalImage {
+    let mut img: Vec<f64> = shaded.chunks_exact(4).flat_map(|p| [p[0] as f64, p[1] as f64, p[2] as f64]).collect();
+    let slopes = sensor.markers.and_then(|_| shaded_slopes(sensor, shaded));
     paint_markers(sensor, &mut img, slopes.as_deref(), shear.filter(|s| !s.is_empty()));
     let [width, height] = sensor.image_size;
     OpticalImage { width, height, rgb: quantize(sensor, &img, rng) }

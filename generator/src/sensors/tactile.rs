@@ -6,8 +6,9 @@
 use anyhow::Result;
 use glam::{DAffine3, DMat4, DVec3};
 
-use crate::config::{OpticalSensor, PadProjection, SensorModel, TactileConfig};
-use crate::render::{DepthView, Draw, Renderer};
+use super::optical::gel_shading;
+use crate::config::{OpticalSensor, OpticalShading, PadProjection, SensorModel, TactileConfig};
+use crate::render::{DepthView, Draw, GelShading, Renderer};
 
 /// One tactile point in the main camera frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -40,6 +41,9 @@ pub struct TactileReading {
     /// Per pad: the object's depth over an optical sensor's image (its sensing area at its image
     /// size, `+inf` where nothing is in range), for the optical pads that touch the object.
     pub optical_depth: Vec<Option<Vec<f32>>>,
+    /// Per pad, with `optical_shading: gpu`: its optical image as the GPU shaded it (linear R, G,
+    /// B and the gel's surface per pixel; `sensors::optical::optical_image_shaded`).
+    pub optical_shaded: Vec<Option<Vec<f32>>>,
     /// Time the depth views took to render (the rest of `sense` is point extraction).
     pub render_time: std::time::Duration,
 }
@@ -121,12 +125,29 @@ pub fn sense(
             perspective_standoff: None,
         });
     }
+    // With GPU shading, each optical view's image model runs after the views, in their submission.
+    let shading: Vec<GelShading> = match cfg.optical_shading {
+        OpticalShading::Gpu => optical
+            .iter()
+            .enumerate()
+            .filter_map(|(i, &k)| gel_shading(pads[k].optical.as_ref().expect("optical pads"), pads.len() + i))
+            .collect(),
+        OpticalShading::Cpu => Vec::new(),
+    };
     let t0 = std::time::Instant::now();
-    let mut depth = renderer.render_depth_views(&views, &[object])?;
+    let (mut depth, shaded) = if shading.is_empty() {
+        (renderer.render_depth_views(&views, &[object])?, None)
+    } else {
+        renderer.render_depth_views_shaded(&views, &shading, &[object])?
+    };
     let render_time = t0.elapsed();
     let mut optical_depth = vec![None; pads.len()];
     for (&k, d) in optical.iter().zip(depth.drain(pads.len()..)) {
         optical_depth[k] = Some(d);
+    }
+    let mut optical_shaded = vec![None; pads.len()];
+    for (s, image) in shading.iter().zip(shaded.into_iter().flatten()) {
+        optical_shaded[optical[s.view - pads.len()]] = Some(image);
     }
     let mut points = Vec::new();
     let mut counts = vec![0u32; pads.len()];
@@ -145,7 +166,7 @@ pub fn sense(
             counts[k] += 1;
         }
     }
-    Ok(TactileReading { depth, points, counts, optical_depth, render_time })
+    Ok(TactileReading { depth, points, counts, optical_depth, optical_shaded, render_time })
 }
 
 /// The object's distance above the pad's surface per pixel of its depth view: above the finger's

@@ -14,7 +14,9 @@ use vt_dataset::srgb_to_linear;
 use vt_objects::TexturedMesh;
 use wgpu::util::DeviceExt;
 
-use super::{DepthView, Draw, DrawRole, Lighting, Material, MeshHandle, RenderOutput, Renderer, View, orthographic, projection};
+use super::{
+    DepthView, Draw, DrawRole, GelShading, Images, Lighting, Material, MeshHandle, RenderOutput, Renderer, View, orthographic, projection,
+};
 use crate::config::{Backend, Intrinsics, RendererConfig, ToneMapping};
 
 const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
@@ -35,6 +37,7 @@ const MAX_VIEWS: usize = 16;
 mod device;
 mod geometry;
 mod materials;
+mod optical;
 mod passes;
 mod pipelines;
 mod targets;
@@ -65,6 +68,8 @@ pub struct WgpuRenderer {
     targets: [Option<Targets>; 2],
     /// Time spent copying out of mapped readback buffers (`Renderer::readback_time`).
     readback: std::time::Duration,
+    /// The optical shading's compute pipelines, made on first use.
+    optical: Option<optical::OpticalPipelines>,
 }
 
 impl WgpuRenderer {
@@ -102,6 +107,7 @@ impl WgpuRenderer {
             meshes: Vec::new(),
             targets: [None, None],
             readback: std::time::Duration::ZERO,
+            optical: None,
         })
     }
 }
@@ -195,7 +201,7 @@ impl Renderer for WgpuRenderer {
     fn render(&mut self, view: &View, lighting: &Lighting, draws: &[Draw]) -> Result<RenderOutput> {
         let (w, h) = (view.width, view.height);
         let views = [ViewSpec { t_world_camera: view.t_world_camera, proj: projection(view), viewport: [0, 0, w, h] }];
-        let sub = Submission { slot: Slot::Main, size: (w, h), views: &views, readback: Readback::All, cull: None };
+        let sub = Submission { slot: Slot::Main, size: (w, h), views: &views, readback: Readback::All, cull: None, optical: &[] };
         let images = self.draw_views(&sub, lighting, draws)?;
         let rgb = images.rgba.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect();
         let silhouette_pixels = images.silhouette.iter().filter(|&&s| s != 0).count();
@@ -206,13 +212,30 @@ impl Renderer for WgpuRenderer {
     fn render_mask(&mut self, view: &View, draws: &[Draw]) -> Result<Vec<u8>> {
         let (w, h) = (view.width, view.height);
         let views = [ViewSpec { t_world_camera: view.t_world_camera, proj: projection(view), viewport: [0, 0, w, h] }];
-        let sub = Submission { slot: Slot::Main, size: (w, h), views: &views, readback: Readback::Mask, cull: None };
+        let sub = Submission { slot: Slot::Main, size: (w, h), views: &views, readback: Readback::Mask, cull: None, optical: &[] };
         Ok(self.draw_views(&sub, &Lighting::unlit(), draws)?.mask)
     }
 
     fn render_depth_views(&mut self, views: &[DepthView], draws: &[Draw]) -> Result<Vec<Vec<f32>>> {
+        Ok(self.depth_views(views, &[], draws)?.0)
+    }
+
+    fn render_depth_views_shaded(
+        &mut self,
+        views: &[DepthView],
+        shading: &[GelShading],
+        draws: &[Draw],
+    ) -> Result<(Images, Option<Images>)> {
+        let (depth, shaded) = self.depth_views(views, shading, draws)?;
+        Ok((depth, Some(shaded)))
+    }
+}
+
+impl WgpuRenderer {
+    /// The depth views in one submission, and the optical shading of some of them after them.
+    fn depth_views(&mut self, views: &[DepthView], shading: &[GelShading], draws: &[Draw]) -> Result<(Images, Images)> {
         if views.is_empty() {
-            return Ok(Vec::new());
+            return Ok((Vec::new(), Vec::new()));
         }
         let (atlas_size, viewports) = atlas_layout(views);
         let specs: Vec<ViewSpec> = views
@@ -253,10 +276,18 @@ impl Renderer for WgpuRenderer {
                 }
             })
             .collect();
-        let sub = Submission { slot: Slot::TactileAtlas, size: atlas_size, views: &specs, readback: Readback::Depth, cull: Some(&cull) };
-        let atlas: Vec<f32> = bytemuck::pod_collect_to_vec(&self.draw_views(&sub, &lighting, draws)?.depth);
+        let sub = Submission {
+            slot: Slot::TactileAtlas,
+            size: atlas_size,
+            views: &specs,
+            readback: Readback::Depth,
+            cull: Some(&cull),
+            optical: shading,
+        };
+        let images = self.draw_views(&sub, &lighting, draws)?;
+        let atlas: Vec<f32> = bytemuck::pod_collect_to_vec(&images.depth);
         let aw = atlas_size.0 as usize;
-        Ok(specs
+        let depth = specs
             .iter()
             .zip(views)
             .map(|(spec, v)| {
@@ -271,7 +302,8 @@ impl Renderer for WgpuRenderer {
                     })
                     .collect()
             })
-            .collect())
+            .collect();
+        Ok((depth, images.optical))
     }
 }
 

@@ -23,6 +23,8 @@ pub(super) struct Submission<'a> {
     /// Per view, a box in its camera frame (half x, half y, near, far): only the mesh clusters
     /// that overlap it are drawn (the small phalanx views see a few of them).
     pub(super) cull: Option<&'a [[f64; 4]]>,
+    /// Optical tactile images shaded from the depth views, after them (`optical.rs`).
+    pub(super) optical: &'a [crate::render::GelShading],
 }
 
 impl WgpuRenderer {
@@ -107,6 +109,9 @@ impl WgpuRenderer {
             }
         }
         self.write_uniforms(sub, shadow, lighting, draws);
+        if !sub.optical.is_empty() && self.optical.is_none() {
+            self.optical = Some(super::optical::OpticalPipelines::new(&self.device));
+        }
         let (w, h) = sub.size;
         self.ensure_targets(sub.slot, w, h);
         let t = self.targets[sub.slot as usize].as_ref().expect("created above");
@@ -120,9 +125,17 @@ impl WgpuRenderer {
         if let (Readback::All, Some(pipeline), Some(ms)) = (sub.readback, &self.pipelines.msaa, &t.msaa) {
             self.encode_msaa_pass(&mut enc, t, ms, pipeline, sub.views, draws, background);
         }
+        let shading = match sub.optical {
+            [] => None,
+            jobs => {
+                let viewports: Vec<[u32; 4]> = sub.views.iter().map(|v| v.viewport).collect();
+                Some(self.encode_optical(&mut enc, &t.depth, &viewports, jobs)?)
+            }
+        };
         let copies = copy_targets(&mut enc, t, sub.readback, w, h);
         self.queue.submit([enc.finish()]);
-        for (_, b, _) in &copies {
+        let buffers = copies.iter().map(|(_, b, _)| *b).chain(shading.as_ref().map(|s| &s.readback));
+        for b in buffers {
             b.slice(..).map_async(wgpu::MapMode::Read, |r| {
                 if let Err(e) = r {
                     eprintln!("vtgen: readback mapping failed: {e}");
@@ -146,6 +159,13 @@ impl WgpuRenderer {
         }
         for (_, b, _) in &copies {
             b.unmap();
+        }
+        if let Some(shading) = &shading {
+            let data = shading.readback.slice(..).get_mapped_range().map_err(|e| anyhow!("optical readback failed: {e:?}"))?;
+            let values: &[f32] = bytemuck::cast_slice(&data);
+            out.optical = shading.ranges.iter().map(|&(start, pixels)| values[start * 4..(start + pixels) * 4].to_vec()).collect();
+            drop(data);
+            shading.readback.unmap();
         }
         self.readback += t_read.elapsed();
         Ok(out)

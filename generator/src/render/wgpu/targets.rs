@@ -48,7 +48,8 @@ impl WgpuRenderer {
                     sample_count: 1,
                     dimension: wgpu::TextureDimension::D2,
                     format,
-                    usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+                    // Texture binding: the optical shading reads the atlas' depth (`optical.rs`).
+                    usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC | wgpu::TextureUsages::TEXTURE_BINDING,
                     view_formats: &[],
                 })
             };
@@ -118,6 +119,8 @@ pub(super) struct TargetImages {
     pub(super) mask: Vec<u8>,
     /// Non-zero where the target draw covers the pixel with nothing in front.
     pub(super) silhouette: Vec<u8>,
+    /// Per optical shading of the submission: linear R, G, B and the gel's surface per pixel.
+    pub(super) optical: Vec<Vec<f32>>,
 }
 
 /// Which targets a pass reads back.
