@@ -65,6 +65,12 @@ fn every_stream_of_an_episode_is_at_its_rate_and_its_ground_truth_holds_on_every
                         between += 1;
                     }
                 }
+                // Episodes store the depth on the 2^-14 m grid (`output.depth_grid: auto`): the
+                // ground-truth checks below hold on it.
+                assert!(
+                    s.depth.iter().filter(|d| d.is_finite() && **d > 0.0).all(|d| (d * 16384.0).fract() == 0.0),
+                    "{split} frame {k}: a depth off the 2^-14 m grid"
+                );
                 // Four optical fingertips, one sensor unit (and reference) for the whole episode.
                 let tac_data = s.tactile.as_ref().expect("touch");
                 let refs: Vec<Vec<u8>> = tac_data.optical.iter().map(|o| o.reference.clone()).collect();
@@ -153,4 +159,19 @@ fn a_finger_motion_moves_the_fingers_and_keeps_the_ground_truth() {
         !o.status.success() && e.contains("sampling.record.finger_motion.joints") && e.contains("'elbow_joint' is not a hand joint"),
         "{e}"
     );
+}
+
+/// `output.depth_grid`: `exact` keeps the rasterizer's floats in an episode; bits out of range are
+/// refused with the field.
+#[test]
+fn the_depth_grid_is_the_configs() {
+    let d = tempdir();
+    let args = ["--set", "output.depth_grid=exact", "--set", "sampling.trajectories_per_object=1", "--set", "sampling.record.camera_hz=30"];
+    generate(&root().join("scenes/tiny-episode.yaml"), d.path(), &args);
+    let ds = DatasetReader::open(d.path()).unwrap();
+    let s = ds.samples("train").unwrap().next().unwrap().unwrap();
+    let off_grid = s.depth.iter().filter(|d| d.is_finite() && **d > 0.0 && (**d * 16384.0).fract() != 0.0).count();
+    assert!(off_grid > 1000, "exact depth: only {off_grid} values off the grid");
+    let o = run_generate(&root().join("scenes/tiny-episode.yaml"), &d.path().join("bad"), &["--set", "output.depth_grid=30"]);
+    assert!(!o.status.success() && stderr(&o).contains("output.depth_grid") && stderr(&o).contains("30"), "{}", stderr(&o));
 }

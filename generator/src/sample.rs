@@ -17,7 +17,7 @@ use vt_randomizers::{AppearanceContext, ImageLibrary, ProceduralTexture, SampleK
 use crate::annotate::occlusion::{model_points, occlusion_level};
 use crate::assets::LoadedObject;
 use crate::assets::robot::{load_drawn_meshes, robot_assets_dir};
-use crate::config::{Config, LoadedConfig};
+use crate::config::{Config, LoadedConfig, snap_depth_to_grid};
 use crate::config::{OpticalSensor, SensorModel};
 use crate::cpu_clock::StageClock;
 use crate::physics::grasp::Trajectory;
@@ -465,7 +465,7 @@ impl<'a> SampleFactory<'a> {
         }
         let distractors = place_distractors(self.objects, &scene, r.object_index as usize);
         let object_draw = self.add_object_draws(&scene, r.object_index as usize, &distractors, &mut draws);
-        let (img, depth_noisy) = self.render_main(&scene, &key, &draws)?;
+        let (mut img, depth_noisy) = self.render_main(&scene, &key, &draws)?;
         let tactile = match posed.as_mut() {
             Some(p) => Some(self.sense_touch(&scene, (&scene_key, &key), "", object_draw, p)?),
             None => None,
@@ -473,6 +473,11 @@ impl<'a> SampleFactory<'a> {
         let t_camera_object = scene.t_world_camera.inverse().compose(&scene.t_world_object);
         let visible_pixels = img.mask.iter().filter(|&&m| m == mask_ids::TARGET_OBJECT).count();
         let occlusion = self.annotate_occlusion(r.object_index as usize, &t_camera_object, &img, visible_pixels);
+        // The stored depth on its grid (`output.depth_grid`), after the annotations read the exact one.
+        // The noisy reading keeps its own sensor's quantization (a grid would only add entropy).
+        if let Some(bits) = self.config.output.depth_grid.bits(self.config.sampling.record.is_some()) {
+            snap_depth_to_grid(&mut img.depth, bits);
+        }
         let k = self.config.camera.k();
         let (robot_info, extra_transforms) = posed.map_or((None, Vec::new()), |p| (Some(p.info), p.transforms));
         let info = SampleInfo {
