@@ -911,6 +911,11 @@ for (const dataset of all) {
                 skipped.push(`${ref.topic} (this shard's force fields: ${forces.join(", ") || "none"})`);
                 continue;
               }
+              if (robot && markersPadOfTopic(ref.topic) != undefined) {
+                // Marker flow only with force fields, on optical pads with markers.
+                skipped.push(`${ref.topic} (marker flow: with force fields on optical pads with markers)`);
+                continue;
+              }
               if (ref.topic === SCENE_TOPIC && allowNoSceneModels) {
                 skipped.push(ref.topic);
                 continue;
