@@ -8,7 +8,7 @@ use std::path::Path;
 
 use rand::SeedableRng;
 use vtgen::config::{Led, LoadedConfig, OpticalPreset, OpticalSensor};
-use vtgen::sensors::optical::{optical_image, pixel_position, reference_image};
+use vtgen::sensors::optical::{ball_press_depth, optical_image, reference_image};
 
 /// An LED `elevation` degrees above the gel at `azimuth` degrees.
 fn led(azimuth: f64, elevation: f64, color: [f64; 3], falloff: f64) -> Led {
@@ -32,21 +32,6 @@ fn true_sensor() -> OpticalSensor {
     s.vignetting = 0.3;
     s.noise_std = 1.0;
     s
-}
-
-/// The z-depth over each pixel of a ball of radius `r` (m) pressed `pressed` (m) into the gel at
-/// `centre` (pad frame, m).
-fn ball_depth(s: &OpticalSensor, r: f64, pressed: f64, centre: [f64; 2]) -> Vec<f32> {
-    let lowest = s.gel_thickness_mm * 1e-3 - pressed;
-    let [w, h] = s.image_size;
-    (0..h)
-        .flat_map(|v| (0..w).map(move |u| (u, v)))
-        .map(|(u, v)| {
-            let (_, [x, y]) = pixel_position(s, u, v);
-            let q = (x - centre[0]).powi(2) + (y - centre[1]).powi(2);
-            if q < r * r { (lowest + r - (r * r - q).sqrt()) as f32 } else { f32::INFINITY }
-        })
-        .collect()
 }
 
 fn save(s: &OpticalSensor, rgb: Vec<u8>, path: &Path) {
@@ -80,7 +65,7 @@ fn calibrate_gives_back_the_sensor_that_made_the_images() {
         ([1.5e-3, 0.5e-3], 0.4e-3),
     ];
     for (k, (centre, depth)) in presses.iter().enumerate() {
-        let img = optical_image(&truth, Some(&ball_depth(&truth, radius, *depth, *centre)), None, Some(&mut rng));
+        let img = optical_image(&truth, Some(&ball_press_depth(&truth, radius, *depth, *centre)), None, Some(&mut rng));
         save(&truth, img.rgb, &images.join(format!("press_{k:02}.png")));
     }
     // Fitted pixel size, then the pixel size given as a lab measures it.
@@ -123,8 +108,8 @@ fn calibrate_gives_back_the_sensor_that_made_the_images() {
         // Presses it never saw (other places, other depths), noise-free.
         let held_out = [([-1.5e-3, -1.0e-3], 0.5e-3), ([2.2e-3, 1.2e-3], 0.35e-3), ([-2.5e-3, 0.8e-3], 0.45e-3)];
         for (centre, depth) in held_out {
-            let want = optical_image(&clean, Some(&ball_depth(&clean, radius, depth, centre)), None, None);
-            let got = optical_image(&fitted, Some(&ball_depth(&fitted, radius, depth, centre)), None, None);
+            let want = optical_image(&clean, Some(&ball_press_depth(&clean, radius, depth, centre)), None, None);
+            let got = optical_image(&fitted, Some(&ball_press_depth(&fitted, radius, depth, centre)), None, None);
             let image = rms(&want.rgb, &got.rgb);
             // The contact: where the true image differs from its reference by more than noise.
             let touched: Vec<usize> = (0..want.rgb.len()).filter(|&i| want.rgb[i].abs_diff(reference.rgb[i]) > 3).collect();

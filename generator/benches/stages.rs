@@ -246,19 +246,12 @@ fn rendering(c: &mut Criterion) {
 fn optical(c: &mut Criterion) {
     use rand::SeedableRng;
     use vtgen::config::{OpticalConfig, OpticalPreset};
-    use vtgen::sensors::optical::{optical_image, pixel_position, reference_image};
+    use vtgen::sensors::optical::{ball_press_depth, optical_image, reference_image};
     let mut group = c.benchmark_group("optical tactile image");
     for preset in [OpticalPreset::GelsightMini, OpticalPreset::Digit] {
         let sensor = OpticalConfig { preset, markers: Some(Default::default()), ..Default::default() }.resolve();
         let [w, h] = sensor.image_size;
-        let (r, lowest) = (0.006, (sensor.gel_thickness_mm - 0.8) * 1e-3);
-        let depth: Vec<f32> = (0..w * h)
-            .map(|i| {
-                let (_, [x, y]) = pixel_position(&sensor, i % w, i / w);
-                let q = x * x + y * y;
-                if q < r * r { (lowest + r - (r * r - q).sqrt()) as f32 } else { f32::INFINITY }
-            })
-            .collect();
+        let depth = ball_press_depth(&sensor, 0.006, 0.8e-3, [0.0, 0.0]);
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
         group.bench_function(format!("{preset:?} {w}x{h}, sphere pressed, markers, noise"), |b| {
             b.iter(|| black_box(optical_image(&sensor, Some(&depth), None, Some(&mut rng))))

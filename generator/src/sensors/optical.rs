@@ -55,6 +55,22 @@ fn pitch(sensor: &OpticalSensor) -> (f64, f64) {
     (sensor.sensing_area_mm[0] * 1e-3 / w as f64, sensor.sensing_area_mm[1] * 1e-3 / h as f64)
 }
 
+/// The depth (z from the pad plane, per image pixel; `+inf` off the ball) of a ball of radius `r`
+/// (m) pressed `pressed` (m) into the gel at `centre` (pad frame, m): the press of a calibration
+/// (`vtgen tactile calibrate`) and of the model's geometric checks.
+pub fn ball_press_depth(sensor: &OpticalSensor, r: f64, pressed: f64, centre: [f64; 2]) -> Vec<f32> {
+    let lowest = sensor.gel_thickness_mm * 1e-3 - pressed;
+    let [w, h] = sensor.image_size;
+    (0..h)
+        .flat_map(|v| (0..w).map(move |u| (u, v)))
+        .map(|(u, v)| {
+            let (_, [x, y]) = pixel_position(sensor, u, v);
+            let q = (x - centre[0]).powi(2) + (y - centre[1]).powi(2);
+            if q < r * r { (lowest + r - (r * r - q).sqrt()) as f32 } else { f32::INFINITY }
+        })
+        .collect()
+}
+
 /// Step 1: how far the object pushes the gel in (m, `0 ..= thickness`) per pixel, from its z-depth
 /// in front of the pad plane (`+inf`: no object).
 pub fn indentation(sensor: &OpticalSensor, depth: &[f32]) -> Vec<f64> {

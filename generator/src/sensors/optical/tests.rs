@@ -9,21 +9,6 @@ fn sensor(preset: OpticalPreset) -> OpticalSensor {
     OpticalConfig { preset, ..Default::default() }.resolve()
 }
 
-/// The depth (from the pad plane) of a sphere of radius `r` whose lowest point is `pressed` into
-/// the gel's free surface, centred over the image position `centre` (m).
-fn sphere_depth(s: &OpticalSensor, r: f64, pressed: f64, centre: [f64; 2]) -> Vec<f32> {
-    let lowest = s.gel_thickness_mm * 1e-3 - pressed;
-    let [w, h] = s.image_size;
-    (0..h)
-        .flat_map(|v| (0..w).map(move |u| (u, v)))
-        .map(|(u, v)| {
-            let (_, [x, y]) = pixel_position(s, u, v);
-            let q = (x - centre[0]).powi(2) + (y - centre[1]).powi(2);
-            if q < r * r { (lowest + r - (r * r - q).sqrt()) as f32 } else { f32::INFINITY }
-        })
-        .collect()
-}
-
 /// The radius (m) of a disc with the area of the pixels where two images differ.
 fn changed_radius(s: &OpticalSensor, a: &OpticalImage, b: &OpticalImage) -> f64 {
     let changed = a.rgb.chunks(3).zip(b.rgb.chunks(3)).filter(|(p, q)| p != q).count();
@@ -41,7 +26,7 @@ fn a_pressed_sphere_makes_a_contact_disc_of_the_geometric_radius() {
         let reference = reference_image(&s);
         let (px, _) = pitch(&s);
         for (r, d) in [(0.004, 0.0003), (0.006, 0.0008), (0.010, 0.0005), (0.003, 0.001)] {
-            let img = optical_image(&s, Some(&sphere_depth(&s, r, d, [0.0, 0.0])), None, None);
+            let img = optical_image(&s, Some(&ball_press_depth(&s, r, d, [0.0, 0.0])), None, None);
             let expected = (2.0 * r * d - d * d).sqrt();
             let got = changed_radius(&s, &img, &reference);
             eprintln!(
@@ -88,7 +73,7 @@ fn photometric_stereo_on_the_image_gives_back_the_gels_height_map() {
     for preset in [OpticalPreset::GelsightMini, OpticalPreset::Digit] {
         let mut s = sensor(preset);
         s.noise_std = 0.0;
-        let depth = sphere_depth(&s, 0.008, 0.0006, [0.001, -0.0005]);
+        let depth = ball_press_depth(&s, 0.008, 0.0006, [0.001, -0.0005]);
         let gel = gel_surface(&s, &indentation(&s, &depth));
         let img = optical_image(&s, Some(&depth), None, None);
         let height = integrate(&s, &slopes_from_image(&s, &img));
@@ -127,7 +112,7 @@ fn no_contact_gives_the_reference_image_exactly_and_noise_is_the_configured_nois
 fn images_are_deterministic_per_noise_stream() {
     let mut s = sensor(OpticalPreset::Digit);
     s.markers = Some(OpticalPreset::Digit.markers());
-    let depth = sphere_depth(&s, 0.006, 0.0005, [0.0, 0.0]);
+    let depth = ball_press_depth(&s, 0.006, 0.0005, [0.0, 0.0]);
     let a = optical_image(&s, Some(&depth), None, Some(&mut ChaCha8Rng::seed_from_u64(5)));
     assert_eq!(a, optical_image(&s, Some(&depth), None, Some(&mut ChaCha8Rng::seed_from_u64(5))));
     assert_ne!(a, optical_image(&s, Some(&depth), None, Some(&mut ChaCha8Rng::seed_from_u64(6))));
@@ -166,7 +151,7 @@ fn markers_move_away_from_a_contact() {
     // A sphere centred on a marker near the middle; the next marker to its right sits on the
     // dent's slope (the contact disc's radius is 3.5 mm, the pitch 2 mm).
     let centre = marker_positions(&marked).into_iter().min_by(|a, b| a[0].hypot(a[1]).total_cmp(&b[0].hypot(b[1]))).unwrap();
-    let depth = sphere_depth(&s, 0.008, 0.0008, centre);
+    let depth = ball_press_depth(&s, 0.008, 0.0008, centre);
     let plain = optical_image(&s, Some(&depth), None, None);
     let pressed = optical_image(&marked, Some(&depth), None, None);
     let rest = optical_image(&marked, None, None, None);
