@@ -175,3 +175,41 @@ fn the_depth_grid_is_the_configs() {
     let o = run_generate(&root().join("scenes/tiny-episode.yaml"), &d.path().join("bad"), &["--set", "output.depth_grid=30"]);
     assert!(!o.status.success() && stderr(&o).contains("output.depth_grid") && stderr(&o).contains("30"), "{}", stderr(&o));
 }
+
+/// `vtgen inspect` gives each episode's in-hand rotation: the object's turn in the palm's frame
+/// from its first camera frame, at its last and at its largest, recomputed here from the frames.
+#[test]
+fn inspect_reports_each_episodes_in_hand_rotation() {
+    let dir = episode_dataset();
+    let o = run(&["inspect", dir.to_str().unwrap(), "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let reported = report["in_hand_rotation_deg"].as_array().expect("episodes report their rotation");
+    assert_eq!(reported.len(), 4);
+    let ds = DatasetReader::open(dir).unwrap();
+    for split in ["train", "test"] {
+        for shard in ds.shards(split).unwrap() {
+            let in_palm: Vec<glam::DQuat> = shard
+                .indices()
+                .map(|i| {
+                    let info = shard.read_sample_info(i).unwrap();
+                    let palm = info.robot.as_ref().unwrap().t_world_palm.rotation();
+                    palm.inverse() * info.t_world_camera.rotation() * info.t_camera_object.rotation()
+                })
+                .collect();
+            let turned: Vec<f64> =
+                in_palm.iter().map(|q| (*q * in_palm[0].inverse()).angle_between(glam::DQuat::IDENTITY).to_degrees()).collect();
+            let info = shard.read_sample_info(shard.indices().next().unwrap()).unwrap();
+            let entry = reported
+                .iter()
+                .find(|e| e["split"] == split && e["object_id"] == info.object_id.as_str() && e["trajectory"] == info.trajectory)
+                .expect("the episode is reported");
+            let (last, largest) = (turned[turned.len() - 1], turned.iter().cloned().fold(0.0, f64::max));
+            assert!((entry["last_deg"].as_f64().unwrap() - last).abs() < 1e-6, "{entry} vs {last}");
+            assert!((entry["largest_deg"].as_f64().unwrap() - largest).abs() < 1e-6, "{entry} vs {largest}");
+        }
+    }
+    assert!(
+        String::from_utf8_lossy(&run(&["inspect", dir.to_str().unwrap()]).stdout).contains("in-hand     the object's rotation in the palm")
+    );
+}

@@ -29,6 +29,21 @@ pub struct Inspection {
     /// Episode datasets: the complete episodes' shard metadata (`episode`), in shard order.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub episodes: Vec<vt_dataset::EpisodeRecord>,
+    /// Episode datasets: per episode (split, object, trajectory), the object's rotation in the
+    /// palm's frame from its first frame (degrees): at its last frame and the largest.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub in_hand_rotation_deg: Vec<InHandRotation>,
+}
+
+/// How far an episode's object turned in the hand, from the palm's and the object's poses of its
+/// camera frames (`/sample/info` `robot.T_world_palm`, `T_world_camera · T_camera_object`).
+#[derive(Debug, Clone, Serialize)]
+pub struct InHandRotation {
+    pub split: String,
+    pub object_id: String,
+    pub trajectory: u64,
+    pub last_deg: f64,
+    pub largest_deg: f64,
 }
 
 fn median(mut v: Vec<u64>) -> Option<[u64; 3]> {
@@ -51,7 +66,17 @@ pub fn inspect(root: &Path) -> Result<Inspection> {
     for split in manifest.splits.keys() {
         occlusion.insert(split.clone(), OcclusionBin::ALL.iter().map(|b| (b.key().to_string(), 0)).collect());
     }
+    // Per episode: the object's orientation in the palm at its first frame, and the rotations since.
+    let mut rotation: BTreeMap<(String, String, u64), (glam::DQuat, f64, f64)> = BTreeMap::new();
     super::for_each_info(&ds, |split, info| {
+        if let (Some(_), Some(robot)) = (info.episode, &info.robot) {
+            let object = info.t_world_camera.rotation() * info.t_camera_object.rotation();
+            let in_palm = robot.t_world_palm.rotation().inverse() * object;
+            let entry = rotation.entry((split.to_string(), info.object_id.clone(), info.trajectory as u64)).or_insert((in_palm, 0.0, 0.0));
+            let turned = (in_palm * entry.0.inverse()).normalize().angle_between(glam::DQuat::IDENTITY).to_degrees();
+            entry.1 = turned;
+            entry.2 = entry.2.max(turned);
+        }
         n += 1;
         *samples.entry(split.to_string()).or_default().entry(info.object_id.clone()).or_default() += 1;
         randomized += info.randomized as u64;
@@ -74,8 +99,19 @@ pub fn inspect(root: &Path) -> Result<Inspection> {
             }
         }
     }
+    let in_hand_rotation_deg = rotation
+        .into_iter()
+        .map(|((split, object_id, trajectory), (_, last_deg, largest_deg))| InHandRotation {
+            split,
+            object_id,
+            trajectory,
+            last_deg,
+            largest_deg,
+        })
+        .collect();
     Ok(Inspection {
         episodes,
+        in_hand_rotation_deg,
         complete: manifest.complete,
         shards: entries.len(),
         shards_complete: entries.iter().filter(|e| e.sha256.is_some()).count(),
@@ -120,6 +156,19 @@ impl Inspection {
                 e.camera_hz,
                 e.tactile_hz,
                 e.state_hz
+            ));
+        }
+        if !r.in_hand_rotation_deg.is_empty() {
+            let mut last: Vec<f64> = r.in_hand_rotation_deg.iter().map(|e| e.last_deg).collect();
+            let mut largest: Vec<f64> = r.in_hand_rotation_deg.iter().map(|e| e.largest_deg).collect();
+            last.sort_by(f64::total_cmp);
+            largest.sort_by(f64::total_cmp);
+            out.push(format!(
+                "in-hand     the object's rotation in the palm per episode, first to last frame: median {:.2}°, max {:.2}°; largest on the way: median {:.2}°, max {:.2}°",
+                last[last.len() / 2],
+                last[last.len() - 1],
+                largest[largest.len() / 2],
+                largest[largest.len() - 1]
             ));
         }
         out.push(format!("randomized  {:.1}%", 100.0 * r.randomized_share));
