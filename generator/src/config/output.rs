@@ -25,7 +25,7 @@ pub struct OutputConfig {
 }
 
 /// `output.depth_grid`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(untagged)]
 pub enum DepthGrid {
     Named(DepthGridName),
@@ -39,6 +39,32 @@ pub enum DepthGridName {
     #[default]
     Auto,
     Exact,
+}
+
+impl<'de> Deserialize<'de> for DepthGrid {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct Grid;
+        impl serde::de::Visitor<'_> for Grid {
+            type Value = DepthGrid;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("auto, exact or a number of bits (8 ..= 20: a grid of 2^-bits m)")
+            }
+            fn visit_str<E: serde::de::Error>(self, v: &str) -> Result<DepthGrid, E> {
+                match v {
+                    "auto" => Ok(DepthGrid::Named(DepthGridName::Auto)),
+                    "exact" => Ok(DepthGrid::Named(DepthGridName::Exact)),
+                    _ => Err(E::invalid_value(serde::de::Unexpected::Str(v), &self)),
+                }
+            }
+            fn visit_u64<E: serde::de::Error>(self, v: u64) -> Result<DepthGrid, E> {
+                u32::try_from(v).map(DepthGrid::Bits).map_err(|_| E::invalid_value(serde::de::Unexpected::Unsigned(v), &self))
+            }
+            fn visit_i64<E: serde::de::Error>(self, v: i64) -> Result<DepthGrid, E> {
+                u32::try_from(v).map(DepthGrid::Bits).map_err(|_| E::invalid_value(serde::de::Unexpected::Signed(v), &self))
+            }
+        }
+        d.deserialize_any(Grid)
+    }
 }
 
 impl Default for DepthGrid {
