@@ -170,7 +170,7 @@ fn rendering(c: &mut Criterion) {
     let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(1);
     let mut group = c.benchmark_group("optical tactile image");
     group.bench_function("GelsightMini 320x240 on the CPU from the GPU's shading (markers, noise)", |b| {
-        b.iter(|| black_box(vtgen::sensors::optical::optical_image_shaded(&sensor, &shaded[0], None, Some(&mut rng))))
+        b.iter(|| black_box(vtgen::sensors::optical::optical_image_shaded(&sensor, &shaded[0], None, Some(&mut rng)).0))
     });
     group.bench_function("GelsightMini 320x240 on the CPU from the same depth (shading, markers, noise)", |b| {
         b.iter(|| black_box(vtgen::sensors::optical::optical_image(&sensor, Some(&depth[0]), None, Some(&mut rng))))

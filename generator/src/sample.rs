@@ -28,7 +28,7 @@ use crate::scene::environment::{Distractor, backdrop_mesh, floor_mesh, glb_of, p
 use crate::scene::robot::{link_mesh, mask_id as robot_mask_id, pose_links};
 use crate::scene::{SampledScene, pose_of, sample_scene};
 use crate::sensors::force_field::{self, GelShear};
-use crate::sensors::optical::{gel_slopes, marker_flow, optical_image, optical_image_shaded, reference_image, shaded_slopes, varied};
+use crate::sensors::optical::{optical_image_shaded, optical_image_with_flow, reference_image, varied};
 use crate::sensors::tactile::{FingerSurface, PadView, TactileReading, finger_surface, gap_above_surface, sense};
 
 /// The real fingers' surface under the pads, when the robot has its real hand meshes.
@@ -53,24 +53,30 @@ fn finger_surfaces(robot: &RobotScene, pads: &[(f64, f64)]) -> Result<Option<Fin
 /// The optical pads' images: each from its depth view (none: the pad does not touch the
 /// object) and its gel's shear displacement (with force fields), with the sample's noise stream
 /// for that pad, beside its sensor's reference image (`references`: per pad, the last one made,
-/// reused while the sensor stays the same).
+/// reused while the sensor stays the same). With force fields, also each marked pad's marker
+/// flow, the one its image shows.
 fn optical_images(
     references: &mut Vec<Option<(OpticalSensor, Vec<u8>)>>,
     (key, noise_tag): (&SampleKey, &str),
     write_reference: bool,
     names: &[String],
     pads: &[PadView],
-    (reading, shears): (&TactileReading, &[Option<GelShear>]),
-) -> Vec<OpticalPadImage> {
+    (reading, shears): (&TactileReading, Option<&[Option<GelShear>]>),
+) -> (Vec<OpticalPadImage>, Vec<PadMarkerFlow>) {
     references.resize(pads.len(), None);
-    let mut out = Vec::new();
+    let (mut out, mut flows) = (Vec::new(), Vec::new());
     for (k, (pad, name)) in pads.iter().zip(names).enumerate() {
         let Some(sensor) = &pad.optical else { continue };
         let mut noise = SampleStream::sample(key, &format!("tactile_image/{name}{noise_tag}"));
-        let image = match &reading.optical_shaded[k] {
-            Some(gpu) => optical_image_shaded(sensor, gpu, shears[k].as_ref(), Some(&mut noise)),
-            None => optical_image(sensor, reading.optical_depth[k].as_deref(), shears[k].as_ref(), Some(&mut noise)),
+        let shear = shears.and_then(|s| s[k].as_ref());
+        let (image, flow) = match &reading.optical_shaded[k] {
+            Some(gpu) => optical_image_shaded(sensor, gpu, shear, Some(&mut noise)),
+            None => optical_image_with_flow(sensor, reading.optical_depth[k].as_deref(), shear, Some(&mut noise)),
         };
+        if shears.is_some() && sensor.markers.is_some() {
+            let f32s = |p: [f64; 2]| p.map(|v| v as f32);
+            flows.push(PadMarkerFlow { pad: name.clone(), markers: flow.into_iter().map(|(r, m)| (f32s(r), f32s(m))).collect() });
+        }
         let cached = &mut references[k];
         if cached.as_ref().is_none_or(|(s, _)| s != sensor) {
             *cached = Some((sensor.clone(), reference_image(sensor).rgb));
@@ -80,7 +86,7 @@ fn optical_images(
         let reference = if write_reference { cached.as_ref().expect("set above").1.clone() } else { Vec::new() };
         out.push(OpticalPadImage { pad: name.clone(), width: image.width, height: image.height, image: image.rgb, reference });
     }
-    out
+    (out, flows)
 }
 
 /// `texture` with each sRGB channel times its factor (alpha kept).
@@ -783,39 +789,27 @@ impl<'a> SampleFactory<'a> {
         self.times.tactile_forces += clock.wall();
         self.times.force_fields += forces.as_ref().map_or(0, |f| f.fields.len() as u64);
         // With force fields, the optical pads' markers move with their gel's shear displacement.
-        let shears: Vec<Option<GelShear>> = match (&forces, cfg.force_field) {
-            (Some(f), Some(field)) => f
-                .fields
-                .iter()
-                .zip(&pads)
-                .map(|(f, pad)| pad.optical.as_ref().map(|_| GelShear::new(f, pad.size, field.gel_shear_modulus_kpa * 1e3)))
-                .collect(),
-            _ => vec![None; pads.len()],
+        let shears: Option<Vec<Option<GelShear>>> = match (&forces, cfg.force_field) {
+            (Some(f), Some(field)) => Some(
+                f.fields
+                    .iter()
+                    .zip(&pads)
+                    .map(|(f, pad)| pad.optical.as_ref().map(|_| GelShear::new(f, pad.size, field.gel_shear_modulus_kpa * 1e3)))
+                    .collect(),
+            ),
+            _ => None,
         };
         let clock = StageClock::start();
         // Episodes write the reference images once, with their first frame.
         let write_reference = self.config.sampling.record.is_none() || (key.instance == 0 && noise_tag.is_empty());
-        let optical =
-            optical_images(&mut self.held.optical_references, (key, noise_tag), write_reference, &names, &pads, (&reading, &shears));
-        // The markers' flow, written with force fields (their gel's shear is part of it).
-        let marker_flow: Vec<PadMarkerFlow> = match &forces {
-            Some(_) => pads
-                .iter()
-                .zip(&names)
-                .enumerate()
-                .filter_map(|(k, (pad, name))| {
-                    let sensor = pad.optical.as_ref().filter(|s| s.markers.is_some())?;
-                    let slopes = match &reading.optical_shaded[k] {
-                        Some(gpu) => shaded_slopes(sensor, gpu),
-                        None => gel_slopes(sensor, reading.optical_depth[k].as_deref()),
-                    };
-                    let flow = marker_flow(sensor, slopes.as_deref(), shears[k].as_ref());
-                    let f32s = |p: [f64; 2]| p.map(|v| v as f32);
-                    Some(PadMarkerFlow { pad: name.clone(), markers: flow.into_iter().map(|(r, m)| (f32s(r), f32s(m))).collect() })
-                })
-                .collect(),
-            None => Vec::new(),
-        };
+        let (optical, marker_flow) = optical_images(
+            &mut self.held.optical_references,
+            (key, noise_tag),
+            write_reference,
+            &names,
+            &pads,
+            (&reading, shears.as_deref()),
+        );
         self.times.tactile_optical += clock.wall();
         self.times.tactile_optical_cpu += clock.cpu();
         self.times.optical_images += optical.len() as u64;

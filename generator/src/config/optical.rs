@@ -304,15 +304,6 @@ impl Check for OpticalConfig {
                 );
             }
         }
-        if let (Some(cal), Some(size)) = (&self.loaded_calibration, self.image_size)
-            && cal.background.is_some()
-            && size != cal.image_size
-        {
-            c.key(key!(self.image_size)).fail(format!(
-                "{size:?}: the calibration's images are {:?} (its background and shading are per pixel): leave image_size out",
-                cal.image_size
-            ));
-        }
         if let Some(m) = s.markers {
             let mut at = c.key(key!(self.markers));
             at.positive(field!(m.pitch_mm), 50.0, "mm");

@@ -36,6 +36,21 @@ pub fn position_terms([x, y]: [f64; 2]) -> [f64; 10] {
     [1.0, x, y, x * x, x * y, y * y, x * x * x, x * x * y, x * y * y, y * y * y]
 }
 
+/// The polynomial model's light at image position `at` for the gel's slopes, per channel:
+/// `sum_jk coefficients[c][j * 10 + k] * normal_j * position_k`.
+pub fn polynomial_delta(coefficients: &[Vec<f64>; 3], at: [f64; 2], slopes: (f64, f64)) -> [f64; 3] {
+    let (n, p) = (normal_terms(slopes), position_terms(at));
+    let np = POSITION_TERMS.len();
+    std::array::from_fn(|c| {
+        let k = &coefficients[c];
+        let mut sum = 0.0;
+        for (j, nj) in n.iter().enumerate().filter(|(_, nj)| **nj != 0.0) {
+            sum += nj * p.iter().zip(&k[j * np..j * np + np]).map(|(a, b)| a * b).sum::<f64>();
+        }
+        sum
+    })
+}
+
 /// vtgen's calibration file (`calibration.yaml`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -96,19 +111,7 @@ impl LightModel {
     /// gel's slopes, per channel (0..=1 per level 0..=255).
     pub fn delta(&self, (u, v): (u32, u32), at: [f64; 2], slopes: (f64, f64)) -> [f64; 3] {
         match self {
-            LightModel::Polynomial { coefficients } => {
-                let (n, p) = (normal_terms(slopes), position_terms(at));
-                std::array::from_fn(|c| {
-                    let k = &coefficients[c];
-                    let mut sum = 0.0;
-                    for (j, nj) in n.iter().enumerate() {
-                        if *nj != 0.0 {
-                            sum += nj * p.iter().zip(&k[j * 10..j * 10 + 10]).map(|(a, b)| a * b).sum::<f64>();
-                        }
-                    }
-                    sum
-                })
-            }
+            LightModel::Polynomial { coefficients } => polynomial_delta(coefficients, at, slopes),
             LightModel::Table { bins, tables } => {
                 let (gx, gy) = slopes;
                 let binm = (*bins - 1) as f64;

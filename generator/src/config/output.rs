@@ -24,21 +24,24 @@ pub struct OutputConfig {
     pub depth_grid: DepthGrid,
 }
 
-/// `output.depth_grid`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(untagged)]
+/// `output.depth_grid`: `auto`, `exact`, or a number of bits.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum DepthGrid {
-    Named(DepthGridName),
+    #[default]
+    Auto,
+    Exact,
     /// Depth rounded to multiples of 2^-bits m (8 ..= 20).
     Bits(u32),
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum DepthGridName {
-    #[default]
-    Auto,
-    Exact,
+impl Serialize for DepthGrid {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        match self {
+            DepthGrid::Auto => s.serialize_str("auto"),
+            DepthGrid::Exact => s.serialize_str("exact"),
+            DepthGrid::Bits(b) => s.serialize_u32(*b),
+        }
+    }
 }
 
 impl<'de> Deserialize<'de> for DepthGrid {
@@ -51,8 +54,8 @@ impl<'de> Deserialize<'de> for DepthGrid {
             }
             fn visit_str<E: serde::de::Error>(self, v: &str) -> Result<DepthGrid, E> {
                 match v {
-                    "auto" => Ok(DepthGrid::Named(DepthGridName::Auto)),
-                    "exact" => Ok(DepthGrid::Named(DepthGridName::Exact)),
+                    "auto" => Ok(DepthGrid::Auto),
+                    "exact" => Ok(DepthGrid::Exact),
                     _ => Err(E::invalid_value(serde::de::Unexpected::Str(v), &self)),
                 }
             }
@@ -67,26 +70,20 @@ impl<'de> Deserialize<'de> for DepthGrid {
     }
 }
 
-impl Default for DepthGrid {
-    fn default() -> Self {
-        DepthGrid::Named(DepthGridName::Auto)
-    }
-}
-
 /// The grid episodes store their depth on unless the config says otherwise: chosen by measurement
 /// (docs/episodes.md, "Bytes").
 pub const EPISODE_DEPTH_GRID_BITS: u32 = 14;
 
 impl DepthGrid {
     fn is_auto(&self) -> bool {
-        *self == DepthGrid::Named(DepthGridName::Auto)
+        *self == DepthGrid::Auto
     }
 
     /// The grid's bits for a run that records episodes (`episodes`) or snapshots; None: exact.
     pub fn bits(&self, episodes: bool) -> Option<u32> {
         match self {
-            DepthGrid::Named(DepthGridName::Auto) => episodes.then_some(EPISODE_DEPTH_GRID_BITS),
-            DepthGrid::Named(DepthGridName::Exact) => None,
+            DepthGrid::Auto => episodes.then_some(EPISODE_DEPTH_GRID_BITS),
+            DepthGrid::Exact => None,
             DepthGrid::Bits(b) => Some(*b),
         }
     }

@@ -193,16 +193,14 @@ fn shade(sensor: &OpticalSensor, slopes: Option<&[(f64, f64)]>) -> Vec<f64> {
     out
 }
 
-/// Step 4a: paints the markers into the linear image, each displaced from its grid position by
-/// `-shift * thickness * slope` of the gel there (away from a contact; the slope capped at 1),
-/// plus, with force fields, the gel surface's tangential displacement under the shear there.
-fn paint_markers(sensor: &OpticalSensor, img: &mut [f64], slopes: Option<&[(f64, f64)]>, shear: Option<&GelShear>) {
+/// Step 4a: paints the markers into the linear image, each where [`marker_flow`] moved it.
+fn paint_markers(sensor: &OpticalSensor, img: &mut [f64], flow: &[MarkerMove]) {
     let Some(m) = sensor.markers else { return };
     let [w, h] = sensor.image_size;
     let (px, py) = pitch(sensor);
     let [ax, ay] = sensor.sensing_area_mm.map(|a| a * 1e-3);
     let r = m.radius_mm * 1e-3;
-    for (_, [cx, cy]) in marker_flow(sensor, slopes, shear) {
+    for &(_, [cx, cy]) in flow {
         let centre = (cx, cy);
         let (u0, u1) = (((centre.0 - r + ax / 2.0) / px).floor() as i64 - 1, ((centre.0 + r + ax / 2.0) / px).ceil() as i64 + 1);
         let (v0, v1) = (((centre.1 - r + ay / 2.0) / py).floor() as i64 - 1, ((centre.1 + r + ay / 2.0) / py).ceil() as i64 + 1);
@@ -223,10 +221,13 @@ fn paint_markers(sensor: &OpticalSensor, img: &mut [f64], slopes: Option<&[(f64,
     }
 }
 
+/// A marker's rest position and where it is (m, pad frame).
+pub type MarkerMove = ([f64; 2], [f64; 2]);
+
 /// Each marker's rest position and where it is (m, pad frame): moved by `-shift * thickness *
 /// slope` of the gel at its rest pixel (away from a contact; the slope capped at 1: a sharp edge's
 /// step is not a lateral push of the whole gel) and by the gel's shear displacement there.
-pub fn marker_flow(sensor: &OpticalSensor, slopes: Option<&[(f64, f64)]>, shear: Option<&GelShear>) -> Vec<([f64; 2], [f64; 2])> {
+pub fn marker_flow(sensor: &OpticalSensor, slopes: Option<&[(f64, f64)]>, shear: Option<&GelShear>) -> Vec<MarkerMove> {
     let Some(m) = sensor.markers else { return Vec::new() };
     let [w, h] = sensor.image_size;
     let (px, py) = pitch(sensor);
@@ -288,7 +289,7 @@ pub fn gel_slopes(sensor: &OpticalSensor, depth: Option<&[f32]>) -> Option<Vec<(
 /// The sensor's image with nothing touching it, without noise.
 pub fn reference_image(sensor: &OpticalSensor) -> OpticalImage {
     let mut img = shade(sensor, None);
-    paint_markers(sensor, &mut img, None, None);
+    paint_markers(sensor, &mut img, &marker_flow(sensor, None, None));
     let [width, height] = sensor.image_size;
     OpticalImage { width, height, rgb: quantize(sensor, &img, None) }
 }
@@ -302,11 +303,34 @@ pub fn optical_image(
     shear: Option<&GelShear>,
     rng: Option<&mut ChaCha8Rng>,
 ) -> OpticalImage {
+    optical_image_with_flow(sensor, depth, shear, rng).0
+}
+
+/// [`optical_image`], and the marker flow it painted ([`marker_flow`]).
+pub fn optical_image_with_flow(
+    sensor: &OpticalSensor,
+    depth: Option<&[f32]>,
+    shear: Option<&GelShear>,
+    rng: Option<&mut ChaCha8Rng>,
+) -> (OpticalImage, Vec<MarkerMove>) {
     let slopes = gel_slopes(sensor, depth);
-    let mut img = shade(sensor, slopes.as_deref());
-    paint_markers(sensor, &mut img, slopes.as_deref(), shear.filter(|s| !s.is_empty()));
+    let img = shade(sensor, slopes.as_deref());
+    finish(sensor, img, slopes.as_deref(), shear, rng)
+}
+
+/// Step 4 on a shaded image: the markers where the gel's slopes and shear move them, the noise,
+/// 8 bits; with the marker flow painted.
+fn finish(
+    sensor: &OpticalSensor,
+    mut img: Vec<f64>,
+    slopes: Option<&[(f64, f64)]>,
+    shear: Option<&GelShear>,
+    rng: Option<&mut ChaCha8Rng>,
+) -> (OpticalImage, Vec<MarkerMove>) {
+    let flow = marker_flow(sensor, slopes, shear.filter(|s| !s.is_empty()));
+    paint_markers(sensor, &mut img, &flow);
     let [width, height] = sensor.image_size;
-    OpticalImage { width, height, rgb: quantize(sensor, &img, rng) }
+    (OpticalImage { width, height, rgb: quantize(sensor, &img, rng) }, flow)
 }
 
 /// The sensor's image model for the GPU (`robot.tactile.optical_shading: gpu`), over depth view
@@ -347,18 +371,16 @@ pub fn shaded_slopes(sensor: &OpticalSensor, shaded: &[f32]) -> Option<Vec<(f64,
 
 /// The sensor's image from the GPU's shading of it (`Renderer::render_depth_views_shaded`: linear
 /// R, G, B and the gel's surface per pixel): the markers (moved by the gel's slope and `shear`),
-/// noise and quantization as [`optical_image`] makes them.
+/// noise and quantization as [`optical_image`] makes them; with the marker flow painted.
 pub fn optical_image_shaded(
     sensor: &OpticalSensor,
     shaded: &[f32],
     shear: Option<&GelShear>,
     rng: Option<&mut ChaCha8Rng>,
-) -> OpticalImage {
-    let mut img: Vec<f64> = shaded.chunks_exact(4).flat_map(|p| [p[0] as f64, p[1] as f64, p[2] as f64]).collect();
+) -> (OpticalImage, Vec<MarkerMove>) {
+    let img: Vec<f64> = shaded.chunks_exact(4).flat_map(|p| [p[0] as f64, p[1] as f64, p[2] as f64]).collect();
     let slopes = sensor.markers.and_then(|_| shaded_slopes(sensor, shaded));
-    paint_markers(sensor, &mut img, slopes.as_deref(), shear.filter(|s| !s.is_empty()));
-    let [width, height] = sensor.image_size;
-    OpticalImage { width, height, rgb: quantize(sensor, &img, rng) }
+    finish(sensor, img, slopes.as_deref(), shear, rng)
 }
 
 /// The sensor unit `variation` makes of the configured `sensor` (`randomization.tactile_sensors`).

@@ -18,7 +18,7 @@ use std::time::Instant;
 
 use nalgebra::{DMatrix, DVector};
 
-use crate::config::optical_calibration::{CalibrationFile, NORMAL_TERMS, POSITION_TERMS, normal_terms, position_terms};
+use crate::config::optical_calibration::{CalibrationFile, NORMAL_TERMS, POSITION_TERMS, normal_terms, polynomial_delta, position_terms};
 use crate::config::{Led, OpticalSensor, led_falloff};
 
 /// One image, `w x h` RGB as 0..=1 levels.
@@ -115,8 +115,8 @@ pub fn fit(input: &CalibrationInput) -> anyhow::Result<CalibrationFit> {
             let mut pitch = 0.0;
             for _round in 0..2 {
                 let grid: Vec<f64> = (0..41).map(|k| 2e-6 * (300.0f64).powf(k as f64 / 40.0)).collect();
-                let best =
-                    grid.iter().copied().min_by(|a, b| residual_at(*a, &centres).total_cmp(&residual_at(*b, &centres))).expect("a grid");
+                let residuals: Vec<(f64, f64)> = grid.iter().map(|&p| (residual_at(p, &centres), p)).collect();
+                let (_, best) = residuals.into_iter().min_by(|a, b| a.0.total_cmp(&b.0)).expect("a grid");
                 pitch = golden(|p| residual_at(p, &centres), best / 1.16, best * 1.16, 30);
                 centres = refine_centres(&samples, &centres, pitch, r_ball, [w, h]);
             }
@@ -441,10 +441,6 @@ fn golden(f: impl Fn(f64) -> f64, mut a: f64, mut b: f64, iterations: usize) -> 
         }
     }
     (a + b) / 2.0
-}
-
-fn polynomial_delta(coefficients: &[Vec<f64>; 3], at: [f64; 2], g: (f64, f64)) -> [f64; 3] {
-    crate::config::optical_calibration::LightModel::Polynomial { coefficients: coefficients.clone() }.delta((0, 0), at, g)
 }
 
 /// The sensor of an LED fit (image size and pixel size given), for its shading.

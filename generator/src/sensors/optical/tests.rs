@@ -201,7 +201,7 @@ fn markers_follow_the_gels_shear_displacement_until_the_contact_slips() {
     let base = shade(&s, None);
     let painted = |shear: Option<&GelShear>| {
         let mut img = base.clone();
-        paint_markers(&s, &mut img, None, shear);
+        paint_markers(&s, &mut img, &marker_flow(&s, None, shear));
         img
     };
     let at_rest = painted(None);
