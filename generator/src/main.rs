@@ -222,6 +222,31 @@ enum ExportFormat {
         #[arg(long, default_value_t = 0.0)]
         targets_min_visib: f64,
     },
+    /// A LeRobotDataset v3.0 (parquet frames, the camera and optical tactile images as videos),
+    /// written by LeRobot's own writer through `python3 -m vtdata.lerobot`; episodes at one rate
+    /// (each stream's latest reading at or before each frame), snapshots as one-frame episodes.
+    Lerobot {
+        dataset: PathBuf,
+        /// A new (or empty) directory.
+        #[arg(long)]
+        out: PathBuf,
+        /// LeRobot's repo id, <owner>/<name> (default: vtgen/<dataset folder name>).
+        #[arg(long)]
+        repo_id: Option<String>,
+        /// Frames per second, a whole number of physics steps (default: the camera's rate; 10 for
+        /// snapshots).
+        #[arg(long)]
+        fps: Option<u32>,
+        /// LeRobot's video codec (libsvtav1, h264, hevc).
+        #[arg(long, default_value = "libsvtav1")]
+        vcodec: String,
+        /// The Python interpreter with vtdata and lerobot (default: $VTGEN_PYTHON, else python3).
+        #[arg(long)]
+        python: Option<PathBuf>,
+        /// No progress lines.
+        #[arg(long)]
+        quiet: bool,
+    },
 }
 
 // A table: one match arm per subcommand, from parsed flags to its `vtgen::cli::<command>::run`.
@@ -272,6 +297,10 @@ fn run(cli: Cli) -> Result<()> {
         Command::Stats { dataset, out } => commands::stats::run(&dataset, &out),
         Command::Export { format: ExportFormat::Bop { dataset, out, quiet, exr, targets_min_visib } } => {
             commands::export::run_bop(&dataset, &out, quiet, commands::export::BopOptions { exr, targets_min_visib })
+        }
+        Command::Export { format: ExportFormat::Lerobot { dataset, out, repo_id, fps, vcodec, python, quiet } } => {
+            let opts = commands::export::LerobotOptions { repo_id, fps, vcodec, python, quiet };
+            commands::export::run_lerobot(&dataset, &out, &opts)
         }
         Command::Dump { dataset, split, index, out, exr } => commands::dump::dump(&dataset, &split, index, &out, exr),
     }
