@@ -34,8 +34,7 @@ impl EpisodeTimeline {
         let (record, robot) = (config.sampling.record.as_ref()?, config.robot.as_ref()?);
         let timestep = robot.physics.timestep;
         let periods = record.periods(timestep);
-        let gait = record.finger_motion.as_ref().map_or(0, |m| m.steps(timestep));
-        let per_move = crate::physics::grasp::move_steps(&robot.grasp, timestep) + gait;
+        let per_move = crate::physics::grasp::move_steps(&robot.grasp, timestep) + record.in_hand_steps(timestep);
         let steps = config.sampling.instances_per_trajectory as u64 * per_move as u64;
         Some(EpisodeTimeline { periods, steps, frames: steps / periods.camera + 1, timestep })
     }

@@ -60,6 +60,31 @@ pub struct ObjectGraspReport {
     pub seconds: f64,
     /// The trajectories that were not kept, with the reason (`trajectory: error`).
     pub lost: Vec<String>,
+    /// Episodes (`sampling.record`): per kept trajectory, the object's rotation in the palm since
+    /// the settled grasp, at the episode's end and the largest on the way (degrees, physics-step
+    /// states: `vtgen inspect` gives the same figures at the camera frames).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub in_hand_rotation_deg: Vec<EpisodeRotation>,
+}
+
+/// One episode's in-hand rotation (degrees).
+#[derive(Debug, Clone, Copy, Default, Serialize)]
+pub struct EpisodeRotation {
+    pub trajectory: u32,
+    pub last_deg: f64,
+    pub largest_deg: f64,
+}
+
+impl ObjectGraspReport {
+    /// The median of the episodes' largest in-hand rotations, and the share of episodes whose
+    /// largest reaches `deg`.
+    pub fn rotation_figures(&self, deg: f64) -> (f64, f64) {
+        let mut largest: Vec<f64> = self.in_hand_rotation_deg.iter().map(|e| e.largest_deg).collect();
+        largest.sort_by(f64::total_cmp);
+        let n = largest.len().max(1) as f64;
+        let median = largest.get(largest.len() / 2).copied().unwrap_or(0.0);
+        (median, largest.iter().filter(|&&d| d >= deg).count() as f64 / n)
+    }
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -104,6 +129,24 @@ impl GraspCheckReport {
                 o.min_floor_clearance_mm,
             ));
         }
+        if self.objects.iter().any(|o| !o.in_hand_rotation_deg.is_empty()) {
+            s.push_str("\n\nIn-hand rotation per episode (the object's turn in the palm since the settled grasp):\n\n");
+            s.push_str("| object | episodes | largest: median (°) | largest: max (°) | at the end: median (°) | episodes >= 45° |\n");
+            s.push_str("|---|---|---|---|---|---|\n");
+            for o in &self.objects {
+                let (median, share) = o.rotation_figures(45.0);
+                let mut last: Vec<f64> = o.in_hand_rotation_deg.iter().map(|e| e.last_deg).collect();
+                last.sort_by(f64::total_cmp);
+                let max = o.in_hand_rotation_deg.iter().map(|e| e.largest_deg).fold(0.0, f64::max);
+                s.push_str(&format!(
+                    "| {} | {} | {median:.1} | {max:.1} | {:.1} | {:.0}% |\n",
+                    o.object_id,
+                    o.in_hand_rotation_deg.len(),
+                    last.get(last.len() / 2).copied().unwrap_or(0.0),
+                    100.0 * share
+                ));
+            }
+        }
         for o in &self.objects {
             for l in &o.lost {
                 s.push_str(&format!("\nlost: {} trajectory {l}", o.object_id));
@@ -129,6 +172,7 @@ struct TrajectoryResult {
     slips_mm: Vec<f64>,
     min_clearance_mm: f64,
     seconds: f64,
+    rotation: Option<EpisodeRotation>,
 }
 
 /// Simulates one trajectory as `generate` would and measures its recorded instances. A lost
@@ -150,6 +194,7 @@ fn check_trajectory(robot: &mut RobotScene, seed: u64, obj: &LoadedObject, o: us
         slips_mm: Vec::new(),
         min_clearance_mm: f64::MAX,
         seconds: 0.0,
+        rotation: None,
     };
     for s in outcome.iter().flat_map(|traj| &traj.instances) {
         r.instances += 1;
@@ -160,6 +205,13 @@ fn check_trajectory(robot: &mut RobotScene, seed: u64, obj: &LoadedObject, o: us
         r.slips_mm.push(s.slip_translation * 1e3);
         let lowest = floor_clearance(&obj.mesh.positions, &(robot.t_world_base * s.t_base_palm * s.t_palm_object));
         r.min_clearance_mm = r.min_clearance_mm.min(lowest * 1e3);
+    }
+    if let Some(first) = outcome.as_ref().ok().and_then(|traj| traj.steps.first()) {
+        let orientation = |s: &crate::physics::grasp::InstanceState| glam::DQuat::from_mat3(&s.t_palm_object.matrix3).normalize();
+        let turn = |s: &crate::physics::grasp::InstanceState| orientation(first).angle_between(orientation(s)).to_degrees();
+        let steps = &outcome.as_ref().expect("a first step").steps;
+        let largest = steps.iter().map(turn).fold(0.0, f64::max);
+        r.rotation = Some(EpisodeRotation { trajectory: t, last_deg: steps.last().map_or(0.0, turn), largest_deg: largest });
     }
     r.seconds = t0.elapsed().as_secs_f64();
     r
@@ -239,6 +291,7 @@ fn per_object_figures(objects: &[LoadedObject], mut results: Vec<TrajectoryResul
         o.mean_slip_mm += r.sum_slip_mm;
         o.min_floor_clearance_mm = o.min_floor_clearance_mm.min(r.min_clearance_mm);
         o.seconds += r.seconds;
+        o.in_hand_rotation_deg.extend(r.rotation);
     }
     for (o, slips) in per_object.iter_mut().zip(&mut slips) {
         slips.sort_by(f64::total_cmp);

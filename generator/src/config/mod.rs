@@ -225,6 +225,14 @@ impl LoadedConfig {
                     return Err((vec!["sampling", "record", "finger_motion", "joints"], message));
                 }
             }
+            let pivots = loaded.config.sampling.record.as_ref().is_some_and(|r| r.pivot.is_some());
+            if pivots && robot.kind != vt_robot::GraspKind::ParallelJaw {
+                let message = format!(
+                    "gravity pivoting turns an object between two jaws: robot '{}' is not a parallel-jaw gripper (its grasp kind is {:?})",
+                    robot.name, robot.kind
+                );
+                return Err((vec!["sampling", "record", "pivot"], message));
+            }
             loaded.config.robot.as_mut().expect("cloned above").grasp = grasp;
             loaded.robot = Some(robot);
         }

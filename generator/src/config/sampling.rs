@@ -2,7 +2,7 @@
 //! episode streams' rates and finger motion.
 
 use serde::{Deserialize, Serialize};
-use vt_check::{Check, Checks, field, key};
+use vt_check::{Check, Checks, excl, field, incl, key};
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -35,11 +35,59 @@ pub struct RecordConfig {
     /// Scripted finger motion after each arm move (off unless given).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub finger_motion: Option<FingerMotionConfig>,
+    /// Gravity pivoting after each arm move, for parallel-jaw grippers (off unless given).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pivot: Option<PivotConfig>,
 }
 
 impl Default for RecordConfig {
     fn default() -> Self {
-        RecordConfig { camera_hz: 30.0, tactile_hz: 60.0, state_hz: None, finger_motion: None }
+        RecordConfig { camera_hz: 30.0, tactile_hz: 60.0, state_hz: None, finger_motion: None, pivot: None }
+    }
+}
+
+/// `sampling.record.pivot`: gravity pivoting with a parallel-jaw gripper. After each arm move's
+/// hold (and finger motion), the arm stands still for `seconds` while a closed loop on the
+/// simulated rotation turns the object about the line between the pads: the grip eases until the
+/// object turns under its own weight, and tightens when the turn reaches a target drawn from
+/// `step_deg`; then it eases again towards the next target, until the window's last `hold_seconds`,
+/// when the grip is full again. Each arm move then takes `seconds` longer.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PivotConfig {
+    /// The window per arm move (s).
+    pub seconds: f64,
+    /// Each pivot's target turn (degrees), drawn uniformly from [min, max].
+    pub step_deg: (f64, f64),
+    /// The time the grip takes to ease from full to a hundredth of it (s).
+    pub ease_seconds: f64,
+    /// The grip is full for the window's last `hold_seconds`, and between two pivots (s).
+    pub hold_seconds: f64,
+}
+
+impl Default for PivotConfig {
+    fn default() -> Self {
+        PivotConfig { seconds: 2.0, step_deg: (20.0, 60.0), ease_seconds: 0.6, hold_seconds: 0.25 }
+    }
+}
+
+impl Check for PivotConfig {
+    fn check(&self, c: &mut Checks) {
+        c.positive(field!(self.seconds), 60.0, "s");
+        c.positive(field!(self.ease_seconds), 60.0, "s");
+        c.positive(field!(self.hold_seconds), 60.0, "s");
+        let (lo, hi) = self.step_deg;
+        c.key(key!(self.step_deg)).bounded_range([lo, hi], excl(0.0), incl(180.0), "degrees");
+        if self.hold_seconds >= self.seconds {
+            c.key(key!(self.hold_seconds)).fail(format!("{} s must be shorter than the window ({} s)", self.hold_seconds, self.seconds));
+        }
+    }
+}
+
+impl PivotConfig {
+    /// Physics steps of the window at `timestep`.
+    pub fn steps(&self, timestep: f64) -> usize {
+        (self.seconds / timestep).round() as usize
     }
 }
 
@@ -98,6 +146,14 @@ impl FingerMotionConfig {
     /// Physics steps of the motion at `timestep`.
     pub fn steps(&self, timestep: f64) -> usize {
         (self.cycles as f64 * self.period_s / timestep).round() as usize
+    }
+}
+
+impl RecordConfig {
+    /// Physics steps each arm move of an episode adds for in-hand motion (the finger motion and
+    /// the pivoting window) at `timestep`.
+    pub fn in_hand_steps(&self, timestep: f64) -> usize {
+        self.finger_motion.as_ref().map_or(0, |m| m.steps(timestep)) + self.pivot.as_ref().map_or(0, |p| p.steps(timestep))
     }
 }
 

@@ -67,6 +67,7 @@ impl Config {
             Some(robot) => record.check_rates(robot.physics.timestep, &mut at),
         }
         at.section(field!(record.finger_motion));
+        at.section(field!(record.pivot));
     }
 
     /// Object ids known or well-formed, custom masses in range, no object twice.

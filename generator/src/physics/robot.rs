@@ -11,7 +11,7 @@ use vt_robot::Robot;
 use crate::assets::robot::{collides_as_real_meshes, load_hand_meshes, robot_assets_dir, with_real_hand};
 use crate::config::{LoadedConfig, RobotConfig};
 use crate::physics::grasp::{
-    FingerGait, GraspContext, GraspEvent, MIN_REACHABLE_SHARE, REACH_SAMPLES, Trajectory, TrajectoryKey, reachable_share,
+    FingerGait, GraspContext, GraspEvent, MIN_REACHABLE_SHARE, PivotControl, REACH_SAMPLES, Trajectory, TrajectoryKey, reachable_share,
     simulate_trajectory,
 };
 use crate::physics::{HandPhysics, PhysicsObject, PhysicsSettings, RapierHand};
@@ -36,11 +36,13 @@ pub fn grasp_context<'a>(
     record: Option<&crate::config::RecordConfig>,
 ) -> GraspContext<'a> {
     let finger_gait = record.and_then(|r| r.finger_motion.as_ref()).map(|m| FingerGait::of(m, robot, rc.physics.timestep));
+    let pivot = record.and_then(|r| r.pivot.as_ref()).map(|p| PivotControl::of(p, rc.physics.timestep));
     let record_steps = record.is_some();
     let record_contact_forces = rc.tactile.force_field.is_some();
     GraspContext {
         record_steps,
         finger_gait,
+        pivot,
         record_contact_forces,
         ..GraspContext::new(robot, t_world_base, &rc.grasp, rc.physics.timestep, camera_position)
     }

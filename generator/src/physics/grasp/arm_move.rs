@@ -40,14 +40,14 @@ enum MoveOutcome {
 }
 
 /// The states of the recorded arm moves, one per physics step (episodes).
-struct StepLog<'a> {
+pub(super) struct StepLog<'a> {
     steps: &'a mut Vec<InstanceState>,
     grasped: DAffine3,
 }
 
 impl StepLog<'_> {
     /// The state now, with the arm at `q`.
-    fn push(&mut self, ctx: &GraspContext, physics: &dyn HandPhysics, q: &[f64]) {
+    pub(super) fn push(&mut self, ctx: &GraspContext, physics: &dyn HandPhysics, q: &[f64]) {
         let state =
             instance_state(ctx, physics, q, physics.object_pose(), self.grasped, physics.touch_contacts(), physics.max_penetration());
         self.steps.push(state);
@@ -144,10 +144,13 @@ impl Attempt<'_> {
         grasp_targets: &[f64],
         mut log: Option<&mut StepLog>,
     ) -> Result<MoveOutcome> {
-        let Some(q_target) = self.draw_move_target(q, arm_rng) else {
+        let Some(mut q_target) = self.draw_move_target(q, arm_rng) else {
             return Ok(MoveOutcome::Failed(Failure::Unreachable));
         };
-        if !self.follow_path(q, &q_target, log.as_deref_mut()) || !self.swing_fingers(&q_target, grasp_targets, log.as_deref_mut()) {
+        if !self.follow_path(q, &q_target, log.as_deref_mut())
+            || !self.swing_fingers(&q_target, grasp_targets, log.as_deref_mut())
+            || !self.pivot(&mut q_target, grasp_targets, arm_rng, log.as_deref_mut())
+        {
             return Ok(MoveOutcome::Failed(Failure::LostDuringMotion));
         }
         *q = q_target;
@@ -179,7 +182,7 @@ impl Attempt<'_> {
 
     /// The move along the smooth joint-space path from `q_from` to `q_target`, then the hold: the
     /// palm's acceleration enters as apparent gravity. False when the object falls out of the hand.
-    fn follow_path(&mut self, q_from: &[f64], q_target: &[f64], mut log: Option<&mut StepLog>) -> bool {
+    pub(super) fn follow_path(&mut self, q_from: &[f64], q_target: &[f64], mut log: Option<&mut StepLog>) -> bool {
         let (ctx, physics) = (self.ctx, &mut *self.physics);
         let n = ctx.steps(ctx.config.move_seconds);
         let palm_at = |s: f64| -> DAffine3 { ctx.t_world_base * ctx.robot.grasp_frame_pose(&along_path(q_from, q_target, s)) };

@@ -8,6 +8,7 @@ use vt_robot::{IkOptions, Robot};
 
 use super::arm_move::{PENETRATION_WAIT_SECONDS, PENETRATION_WAITS};
 use super::palm_up;
+use super::pivot::PivotControl;
 use crate::config::GraspConfig;
 
 /// Everything the loop needs besides the physics.
@@ -24,6 +25,8 @@ pub struct GraspContext<'a> {
     pub record_steps: bool,
     /// A scripted finger motion after each arm move's hold (episodes).
     pub finger_gait: Option<FingerGait>,
+    /// Gravity pivoting after each arm move's hold and finger motion (episodes, parallel jaws).
+    pub pivot: Option<PivotControl>,
     /// Record the hand's contact forces with every state (`InstanceState::hand_contacts`, for
     /// the force fields).
     pub record_contact_forces: bool,
@@ -78,6 +81,7 @@ impl<'a> GraspContext<'a> {
             camera_position,
             record_steps: false,
             finger_gait: None,
+            pivot: None,
             record_contact_forces: false,
         }
     }
@@ -141,7 +145,9 @@ impl<'a> GraspContext<'a> {
     /// Physics steps of one recorded arm move: the move, the hold, and (when recording steps) the
     /// whole settle window of `PENETRATION_WAITS` waits.
     pub fn move_steps(&self) -> usize {
-        move_steps(self.config, self.timestep) + self.finger_gait.as_ref().map_or(0, |g| g.steps)
+        move_steps(self.config, self.timestep)
+            + self.finger_gait.as_ref().map_or(0, |g| g.steps)
+            + self.pivot.as_ref().map_or(0, |p| p.steps)
     }
 
     /// IK for a world palm pose, from `q`.

@@ -17,6 +17,7 @@ mod context;
 mod floor;
 mod outcome;
 mod phases;
+mod pivot;
 mod placement;
 #[cfg(test)]
 mod tests;
@@ -31,6 +32,7 @@ pub use context::{
 };
 pub use floor::{floor_clearance, robot_floor_clearance};
 pub use outcome::{Failure, GraspEvent, Redo};
+pub use pivot::PivotControl;
 
 use crate::physics::{HandPhysics, PhysicsObject};
 use placement::Placement;
