@@ -42,14 +42,10 @@ from .format import MANIFEST_FILE
 from .reader import Dataset, PathLike, Sample
 
 #: The pip lines that make LeRobot importable next to a newer torch (LeRobot 0.4.4 pins
-#: torch < 2.11; its dataset code runs on newer ones). Video decoding needs FFmpeg's shared
-#: libraries (Debian: libavcodec59 libavformat59 libavutil57 libswscale6 libswresample4
-#: libavfilter8 libavdevice59) for torchcodec.
-LEROBOT_PIP = (
-    'pip install --no-deps "lerobot==0.4.4" && pip install "datasets>=4,<5" "huggingface-hub>=0.34.2,<0.36" '
-    '"av>=15,<16" "jsonlines>=4" "draccus==0.10.0" "accelerate>=1.10,<2" "termcolor>=2.4" "packaging>=24.2,<26" '
-    "torchvision torchcodec"
-)
+#: torch < 2.11; its dataset code runs on newer ones): vtdata's ``lerobot`` extra, then LeRobot
+#: without its pins. Decoding the videos needs FFmpeg's shared libraries for torchcodec
+#: (``scripts/system-deps --lerobot``).
+LEROBOT_PIP = 'pip install -e "datasets/python[lerobot]" && pip install --no-deps "lerobot==0.4.4"'
 #: The LeRobot version the export was written and tested with.
 LEROBOT_VERSION = "0.4.4"
 #: The nominal rate of a snapshot dataset's one-frame episodes: FORMAT.md's sample timeline
