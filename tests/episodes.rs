@@ -213,3 +213,57 @@ fn inspect_reports_each_episodes_in_hand_rotation() {
         String::from_utf8_lossy(&run(&["inspect", dir.to_str().unwrap()]).stdout).contains("in-hand     the object's rotation in the palm")
     );
 }
+
+/// Gravity pivoting (`sampling.record.pivot`, `scenes/tiny-pivot.yaml`): the gripper turns the
+/// object between its jaws far more than arm moves alone do (the physics-only `vtgen grasps`
+/// figures over six episodes per object, with and without), a generated pivoting episode keeps
+/// its ground truth on every frame and every touch point on the object, and the pivot is refused
+/// with its field for a hand that holds objects on its palm.
+#[test]
+fn gravity_pivoting_turns_the_object_between_the_jaws_and_keeps_the_ground_truth() {
+    let cfg = root().join("scenes/tiny-pivot.yaml");
+    let median_largest = |extra: &[&str]| -> Vec<f64> {
+        let mut args = vec!["grasps", cfg.to_str().unwrap(), "--trajectories", "6", "--json", "--quiet"];
+        args.extend_from_slice(extra);
+        let o = run(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        let objects = report["objects"].as_array().unwrap().clone();
+        objects
+            .iter()
+            .map(|o| {
+                let mut largest: Vec<f64> =
+                    o["in_hand_rotation_deg"].as_array().unwrap().iter().map(|e| e["largest_deg"].as_f64().unwrap()).collect();
+                assert_eq!(largest.len(), 6, "{o}");
+                largest.sort_by(f64::total_cmp);
+                largest[3]
+            })
+            .collect()
+    };
+    let pivoting = median_largest(&[]);
+    let still = median_largest(&["--set", "sampling.record.pivot=null"]);
+    for (p, s) in pivoting.iter().zip(&still) {
+        assert!(*p >= 30.0 && *p >= 3.0 * s, "median largest in-hand rotation {p:.1}° pivoting against {s:.1}° without");
+    }
+
+    let d = tempdir();
+    generate(&cfg, d.path(), &["--set", "objects=[005_tomato_soup_can]", "--set", "sampling.trajectories_per_object=1"]);
+    let ds = DatasetReader::open(d.path()).unwrap();
+    let shard = &ds.shards("train").unwrap()[0];
+    let e = episode_of(shard.meta());
+    // One arm move of 0.95 s (move, hold, settle window) and its 3 s pivoting window.
+    assert!((e.duration_s - 3.95).abs() < 0.01, "{e:?}");
+    crate::ground_truth::check_dataset(d.path(), e.frames as usize);
+    tactile_points_lie_on_the_object_within_their_pad(d.path());
+    let o = run(&["inspect", d.path().to_str().unwrap(), "--json"]);
+    let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let largest = report["in_hand_rotation_deg"][0]["largest_deg"].as_f64().unwrap();
+    assert!(largest >= 20.0, "the pivoting episode turned the can {largest:.1}° in the palm");
+
+    let o = run(&["plan", root().join("scenes/tiny-episode.yaml").to_str().unwrap(), "--set", "sampling.record.pivot={}"]);
+    let e = stderr(&o);
+    assert!(!o.status.success() && e.contains("sampling.record.pivot") && e.contains("not a parallel-jaw gripper"), "{e}");
+    let o = run(&["plan", cfg.to_str().unwrap(), "--set", "sampling.record.pivot.step_deg=[0, 10]"]);
+    let e = stderr(&o);
+    assert!(!o.status.success() && e.contains("sampling.record.pivot.step_deg"), "{e}");
+}
