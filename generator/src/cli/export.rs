@@ -344,21 +344,21 @@ pub fn run_lerobot(dataset: &Path, out: &Path, opts: &LerobotOptions) -> Result<
         .clone()
         .or_else(|| std::env::var_os("VTGEN_PYTHON").filter(|v| !v.is_empty()).map(PathBuf::from))
         .unwrap_or_else(|| PathBuf::from("python3"));
-    let probe =
-        Command::new(&python).args(["-c", "import importlib.util, sys; sys.exit(0 if importlib.util.find_spec('vtdata') else 3)"]).output();
+    let probe = Command::new(&python).args(["-c", "import vtdata"]).output();
     match probe {
         Err(e) => anyhow::bail!(
             "cannot run the Python interpreter {} ({e}): give one with --python or VTGEN_PYTHON (a venv with vtdata and lerobot)",
             python.display()
         ),
-        Ok(o) if o.status.code() == Some(3) => anyhow::bail!(
-            "{} cannot import vtdata: install it with `{} -m pip install -e datasets/python` (from the vtgen checkout), or name \
-             the venv that has it with --python or VTGEN_PYTHON",
-            python.display(),
-            python.display()
-        ),
         Ok(o) if !o.status.success() => {
-            anyhow::bail!("{} does not run: {}", python.display(), String::from_utf8_lossy(&o.stderr).trim())
+            let stderr = String::from_utf8_lossy(&o.stderr);
+            let why = stderr.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("no output").trim().to_string();
+            anyhow::bail!(
+                "{} cannot import vtdata ({why}): install it with `{} -m pip install -e \"datasets/python[lerobot]\"` (from the vtgen \
+                 checkout), or name the venv that has it with --python or VTGEN_PYTHON",
+                python.display(),
+                python.display()
+            )
         }
         Ok(_) => {}
     }
