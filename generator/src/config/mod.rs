@@ -217,12 +217,15 @@ impl LoadedConfig {
             if let Some((key, message)) = grasp.mismatch(&robot) {
                 return Err((vec!["robot", "grasp", key], message));
             }
-            let motion = loaded.config.sampling.record.as_ref().and_then(|r| r.finger_motion.as_ref());
-            for j in motion.iter().flat_map(|m| &m.joints) {
-                if !robot.hand.iter().any(|h| h.name == j.joint) {
+            let record = loaded.config.sampling.record.as_ref();
+            let motion =
+                record.and_then(|r| r.finger_motion.as_ref()).into_iter().flat_map(|m| &m.joints).map(|j| ("finger_motion", &j.joint));
+            let roll = record.and_then(|r| r.finger_roll.as_ref()).into_iter().flat_map(|m| &m.joints).map(|j| ("finger_roll", &j.joint));
+            for (section, joint) in motion.chain(roll) {
+                if !robot.hand.iter().any(|h| &h.name == joint) {
                     let hand: Vec<&str> = robot.hand.iter().map(|h| h.name.as_str()).collect();
-                    let message = format!("'{}' is not a hand joint of robot '{}' ({})", j.joint, robot.name, hand.join(", "));
-                    return Err((vec!["sampling", "record", "finger_motion", "joints"], message));
+                    let message = format!("'{joint}' is not a hand joint of robot '{}' ({})", robot.name, hand.join(", "));
+                    return Err((vec!["sampling", "record", section, "joints"], message));
                 }
             }
             let pivots = loaded.config.sampling.record.as_ref().is_some_and(|r| r.pivot.is_some());

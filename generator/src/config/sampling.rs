@@ -38,11 +38,14 @@ pub struct RecordConfig {
     /// Gravity pivoting after each arm move, for parallel-jaw grippers (off unless given).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub pivot: Option<PivotConfig>,
+    /// A closed-loop finger roll after each arm move, for hands (off unless given).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub finger_roll: Option<FingerRollConfig>,
 }
 
 impl Default for RecordConfig {
     fn default() -> Self {
-        RecordConfig { camera_hz: 30.0, tactile_hz: 60.0, state_hz: None, finger_motion: None, pivot: None }
+        RecordConfig { camera_hz: 30.0, tactile_hz: 60.0, state_hz: None, finger_motion: None, pivot: None, finger_roll: None }
     }
 }
 
@@ -149,11 +152,104 @@ impl FingerMotionConfig {
     }
 }
 
+/// `sampling.record.finger_roll`: a closed-loop finger roll. After each arm move's hold, the arm
+/// stands still for `seconds` while the listed hand joints move from their grasp targets at
+/// `speed_deg_s`, each in its `direction` (+1 or -1), until the object has turned by a target
+/// drawn from `step_deg` about `axis` (palm frame); the joints then hold for `hold_seconds` and
+/// the next step begins, in the same sense, until a joint has moved `max_deg` or the window's last
+/// `hold_seconds`. An object that turns the other way reverses every joint's direction once. The
+/// joints then return to their grasp targets with the window. Each arm move takes `seconds` longer.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FingerRollConfig {
+    #[serde(default = "default_roll_seconds")]
+    pub seconds: f64,
+    /// The turn's axis, palm frame (normalized).
+    #[serde(default = "default_roll_axis")]
+    pub axis: [f64; 3],
+    #[serde(default = "default_roll_step")]
+    pub step_deg: (f64, f64),
+    #[serde(default = "default_roll_speed")]
+    pub speed_deg_s: f64,
+    #[serde(default = "default_roll_max")]
+    pub max_deg: f64,
+    #[serde(default = "default_roll_hold")]
+    pub hold_seconds: f64,
+    pub joints: Vec<FingerRollJoint>,
+}
+
+fn default_roll_seconds() -> f64 {
+    2.0
+}
+fn default_roll_axis() -> [f64; 3] {
+    [1.0, 0.0, 0.0]
+}
+fn default_roll_step() -> (f64, f64) {
+    (5.0, 15.0)
+}
+fn default_roll_speed() -> f64 {
+    30.0
+}
+fn default_roll_max() -> f64 {
+    30.0
+}
+fn default_roll_hold() -> f64 {
+    0.2
+}
+
+/// One hand joint of a finger roll and the way it moves.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FingerRollJoint {
+    pub joint: String,
+    #[serde(default = "default_roll_direction")]
+    pub direction: f64,
+}
+
+fn default_roll_direction() -> f64 {
+    1.0
+}
+
+impl Check for FingerRollConfig {
+    fn check(&self, c: &mut Checks) {
+        c.positive(field!(self.seconds), 60.0, "s");
+        c.positive(field!(self.hold_seconds), 60.0, "s");
+        c.positive(field!(self.speed_deg_s), 1000.0, "degrees/s");
+        c.positive(field!(self.max_deg), 180.0, "degrees");
+        let (lo, hi) = self.step_deg;
+        c.key(key!(self.step_deg)).bounded_range([lo, hi], excl(0.0), incl(180.0), "degrees");
+        let [x, y, z] = self.axis;
+        if !(x * x + y * y + z * z > 1e-12) {
+            c.key(key!(self.axis)).fail(format!("[{x}, {y}, {z}] is not a direction"));
+        }
+        if self.hold_seconds >= self.seconds {
+            c.key(key!(self.hold_seconds)).fail(format!("{} s must be shorter than the window ({} s)", self.hold_seconds, self.seconds));
+        }
+        let joints_key = key!(self.joints);
+        if self.joints.is_empty() {
+            c.key(joints_key).fail("list at least one hand joint");
+        }
+        for (i, j) in self.joints.iter().enumerate() {
+            let mut joints = c.key(joints_key);
+            joints.index(i).range(field!(j.direction), -1.0, 1.0);
+        }
+    }
+}
+
+impl FingerRollConfig {
+    /// Physics steps of the window at `timestep`.
+    pub fn steps(&self, timestep: f64) -> usize {
+        (self.seconds / timestep).round() as usize
+    }
+}
+
 impl RecordConfig {
-    /// Physics steps each arm move of an episode adds for in-hand motion (the finger motion and
-    /// the pivoting window) at `timestep`.
+    /// Physics steps each arm move of an episode adds for in-hand motion (the finger motion, the
+    /// pivoting and the finger roll windows) at `timestep`.
     pub fn in_hand_steps(&self, timestep: f64) -> usize {
-        self.finger_motion.as_ref().map_or(0, |m| m.steps(timestep)) + self.pivot.as_ref().map_or(0, |p| p.steps(timestep))
+        self.finger_motion.as_ref().map_or(0, |m| m.steps(timestep))
+            + self.pivot.as_ref().map_or(0, |p| p.steps(timestep))
+            + self.finger_roll.as_ref().map_or(0, |r| r.steps(timestep))
     }
 }
 

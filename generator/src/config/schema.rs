@@ -68,6 +68,7 @@ impl Config {
         }
         at.section(field!(record.finger_motion));
         at.section(field!(record.pivot));
+        at.section(field!(record.finger_roll));
     }
 
     /// Object ids known or well-formed, custom masses in range, no object twice.

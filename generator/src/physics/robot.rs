@@ -11,8 +11,8 @@ use vt_robot::Robot;
 use crate::assets::robot::{collides_as_real_meshes, load_hand_meshes, robot_assets_dir, with_real_hand};
 use crate::config::{LoadedConfig, RobotConfig};
 use crate::physics::grasp::{
-    FingerGait, GraspContext, GraspEvent, MIN_REACHABLE_SHARE, PivotControl, REACH_SAMPLES, Trajectory, TrajectoryKey, reachable_share,
-    simulate_trajectory,
+    FingerGait, GraspContext, GraspEvent, MIN_REACHABLE_SHARE, PivotControl, REACH_SAMPLES, RollControl, Trajectory, TrajectoryKey,
+    reachable_share, simulate_trajectory,
 };
 use crate::physics::{HandPhysics, PhysicsObject, PhysicsSettings, RapierHand};
 
@@ -37,12 +37,14 @@ pub fn grasp_context<'a>(
 ) -> GraspContext<'a> {
     let finger_gait = record.and_then(|r| r.finger_motion.as_ref()).map(|m| FingerGait::of(m, robot, rc.physics.timestep));
     let pivot = record.and_then(|r| r.pivot.as_ref()).map(|p| PivotControl::of(p, rc.physics.timestep));
+    let finger_roll = record.and_then(|r| r.finger_roll.as_ref()).map(|r| RollControl::of(r, robot, rc.physics.timestep));
     let record_steps = record.is_some();
     let record_contact_forces = rc.tactile.force_field.is_some();
     GraspContext {
         record_steps,
         finger_gait,
         pivot,
+        finger_roll,
         record_contact_forces,
         ..GraspContext::new(robot, t_world_base, &rc.grasp, rc.physics.timestep, camera_position)
     }

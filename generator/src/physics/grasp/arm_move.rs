@@ -149,6 +149,7 @@ impl Attempt<'_> {
         };
         if !self.follow_path(q, &q_target, log.as_deref_mut())
             || !self.swing_fingers(&q_target, grasp_targets, log.as_deref_mut())
+            || !self.roll_fingers(&q_target, grasp_targets, arm_rng, log.as_deref_mut())
             || !self.pivot(&mut q_target, grasp_targets, arm_rng, log.as_deref_mut())
         {
             return Ok(MoveOutcome::Failed(Failure::LostDuringMotion));

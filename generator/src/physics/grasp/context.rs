@@ -7,6 +7,7 @@ use rand_chacha::ChaCha8Rng;
 use vt_robot::{IkOptions, Robot};
 
 use super::arm_move::{PENETRATION_WAIT_SECONDS, PENETRATION_WAITS};
+use super::finger_roll::RollControl;
 use super::palm_up;
 use super::pivot::PivotControl;
 use crate::config::GraspConfig;
@@ -27,6 +28,8 @@ pub struct GraspContext<'a> {
     pub finger_gait: Option<FingerGait>,
     /// Gravity pivoting after each arm move's hold and finger motion (episodes, parallel jaws).
     pub pivot: Option<PivotControl>,
+    /// A closed-loop finger roll after each arm move's hold and finger motion (episodes, hands).
+    pub finger_roll: Option<RollControl>,
     /// Record the hand's contact forces with every state (`InstanceState::hand_contacts`, for
     /// the force fields).
     pub record_contact_forces: bool,
@@ -82,6 +85,7 @@ impl<'a> GraspContext<'a> {
             record_steps: false,
             finger_gait: None,
             pivot: None,
+            finger_roll: None,
             record_contact_forces: false,
         }
     }
@@ -148,6 +152,7 @@ impl<'a> GraspContext<'a> {
         move_steps(self.config, self.timestep)
             + self.finger_gait.as_ref().map_or(0, |g| g.steps)
             + self.pivot.as_ref().map_or(0, |p| p.steps)
+            + self.finger_roll.as_ref().map_or(0, |r| r.steps)
     }
 
     /// IK for a world palm pose, from `q`.

@@ -14,6 +14,7 @@
 
 mod arm_move;
 mod context;
+mod finger_roll;
 mod floor;
 mod outcome;
 mod phases;
@@ -30,6 +31,7 @@ use vt_randomizers::SampleStream;
 pub use context::{
     FingerGait, GraspContext, MIN_REACHABLE_SHARE, REACH_SAMPLES, TrajectoryKey, move_steps, reach_samples, reachable_share,
 };
+pub use finger_roll::RollControl;
 pub use floor::{floor_clearance, robot_floor_clearance};
 pub use outcome::{Failure, GraspEvent, Redo};
 pub use pivot::PivotControl;
