@@ -11,10 +11,12 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
-from typing import Any, Dict, List, Tuple
+from typing import Any, Dict, Iterator, List, Tuple
 
 import numpy as np
 import pyarrow.parquet as pq
@@ -25,10 +27,19 @@ from vtdata import Dataset, EpisodeDataset
 
 from vtgen_cli import REPO_ROOT, SCENES, run
 
-lerobot_dataset = pytest.importorskip(
-    "lerobot.datasets.lerobot_dataset",
-    reason="LeRobot is not importable: scripts/test installs it (pip install --no-deps lerobot==0.4.4, see vtdata.lerobot.LEROBOT_PIP)",
-)
+# LeRobotDataset loads its parquet through `datasets.load_dataset`, which keeps an Arrow copy in
+# the Hugging Face cache (~/.cache/huggingface/datasets by default): this module's copies go to a
+# folder of its own, removed after its tests (set before `datasets` is imported).
+_HF_CACHE = tempfile.mkdtemp(prefix="vtgen-lerobot-hf-")
+os.environ["HF_DATASETS_CACHE"] = _HF_CACHE
+try:
+    from lerobot.datasets import lerobot_dataset
+except ImportError as _e:
+    shutil.rmtree(_HF_CACHE, ignore_errors=True)
+    pytest.skip(
+        f"LeRobot is not importable ({_e}): scripts/test installs it (vtdata.lerobot.LEROBOT_PIP)",
+        allow_module_level=True,
+    )
 
 #: One arm move per episode, a 160 x 120 camera: 29 frames per episode.
 SMALL = (
@@ -43,6 +54,29 @@ SMALL = (
 MIN_RGB_PSNR_DB = 27.0
 #: The optical images (smooth shading and markers): measured 35.8 dB at worst, 42.7 dB on average.
 MIN_TACTILE_PSNR_DB = 33.0
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _hf_cache() -> Iterator[None]:
+    yield
+    shutil.rmtree(_HF_CACHE, ignore_errors=True)
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _video_decoder() -> None:
+    """torchcodec, LeRobot's video decoder, loads FFmpeg's shared libraries from the system."""
+    try:
+        from torchcodec._internally_replaced_utils import load_core_libraries
+    except ImportError:
+        return  # another torchcodec layout: the tests' own decoding says what fails
+    try:
+        load_core_libraries()
+    except Exception as e:  # torchcodec raises RuntimeError or OSError, naming each FFmpeg it tried
+        pytest.fail(
+            f"torchcodec cannot load FFmpeg ({str(e).splitlines()[0]}): install FFmpeg's libraries with "
+            "scripts/system-deps --lerobot",
+            pytrace=False,
+        )
 
 
 def _env() -> Dict[str, str]:

@@ -31,6 +31,7 @@ import contextlib
 import json
 import logging
 import math
+import shutil
 import sys
 from pathlib import Path
 from typing import Any, Callable, Dict, Iterator, List, Optional, Sequence, Tuple
@@ -137,6 +138,20 @@ def _pixel_array_stats(module: Any) -> Iterator[None]:
         yield
     finally:
         module.compute_episode_stats = original
+
+
+def _quiet_encoders() -> None:
+    """SVT-AV1's and FFmpeg's info lines (a banner per video, "moving the moov atom") say
+    nothing about the export: errors only. The encoder workers inherit the environment."""
+    import os
+
+    os.environ.setdefault("SVT_LOG", "1")
+    try:
+        import av.logging
+
+        av.logging.set_level(av.logging.ERROR)
+    except (ImportError, AttributeError):
+        pass
 
 
 # --- the source dataset ----------------------------------------------------------------------
@@ -474,6 +489,7 @@ def export_lerobot(
 
     if out.exists():
         out.rmdir()  # LeRobot creates the folder itself
+    _quiet_encoders()
     features = layout.features()
     writer = LeRobotDataset.create(
         repo_id=repo_id,
@@ -544,6 +560,10 @@ def export_lerobot(
                 if progress:
                     progress(f"episode {index} ({split} {extra['shard']}): {len(frames)} frames")
     writer.finalize()
+    # LeRobot leaves the empty folders of the frames it encoded.
+    images = out / "images"
+    if images.is_dir() and not any(p.is_file() for p in images.rglob("*")):
+        shutil.rmtree(images)
     _write_meta(out, source, layout, fps, period, splits, episodes_meta, vcodec)
     return {"episodes": len(episodes_meta), "frames": frames_total, "fps": fps, "splits": splits}
 
@@ -681,14 +701,19 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     args = parser.parse_args(argv)
     if args.quiet:
         logging.disable(logging.WARNING)
+        try:
+            import datasets
+
+            datasets.disable_progress_bars()
+        except ImportError:
+            pass
     progress = None if args.quiet else (lambda line: print(line, file=sys.stderr))
     try:
         summary = export_lerobot(
             args.dataset, args.out, repo_id=args.repo_id, fps=args.fps, vcodec=args.vcodec, progress=progress
         )
-    except (ExportError, DatasetError, KeyError) as e:
-        message = e.args[0] if isinstance(e, KeyError) and e.args else e
-        print(f"error: {message}", file=sys.stderr)
+    except (ExportError, DatasetError) as e:
+        print(f"error: {e}", file=sys.stderr)
         return 2
     splits = ", ".join(f"{s} {len(ids)}" for s, ids in summary["splits"].items())
     print(
