@@ -231,8 +231,8 @@ impl LoadedConfig {
             let pivots = loaded.config.sampling.record.as_ref().is_some_and(|r| r.pivot.is_some());
             if pivots && robot.kind != vt_robot::GraspKind::ParallelJaw {
                 let message = format!(
-                    "gravity pivoting turns an object between two jaws: robot '{}' is not a parallel-jaw gripper (its grasp kind is {:?})",
-                    robot.name, robot.kind
+                    "gravity pivoting turns an object between two jaws: robot '{}' is not a parallel-jaw gripper (it holds objects on its palm; its hand's in-hand motion is sampling.record.finger_roll)",
+                    robot.name
                 );
                 return Err((vec!["sampling", "record", "pivot"], message));
             }

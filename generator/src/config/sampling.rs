@@ -219,7 +219,8 @@ impl Check for FingerRollConfig {
         let (lo, hi) = self.step_deg;
         c.key(key!(self.step_deg)).bounded_range([lo, hi], excl(0.0), incl(180.0), "degrees");
         let [x, y, z] = self.axis;
-        if !(x * x + y * y + z * z > 1e-12) {
+        let length = (x * x + y * y + z * z).sqrt();
+        if length.is_nan() || length <= 1e-6 {
             c.key(key!(self.axis)).fail(format!("[{x}, {y}, {z}] is not a direction"));
         }
         if self.hold_seconds >= self.seconds {
