@@ -1,4 +1,4 @@
-"""Export a vtgen dataset as a LeRobotDataset v3.0 (``vtgen export lerobot``; docs/export.md).
+"""Export a vtgen dataset as a LeRobotDataset v3.0 (``vtgen export lerobot``; docs/data.md, "LeRobot export").
 
 >>> from vtdata.lerobot import export_lerobot
 >>> export_lerobot("out/tiny-episode", "out/tiny-episode-lerobot", repo_id="vtgen/tiny-episode")
