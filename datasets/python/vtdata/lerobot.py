@@ -685,7 +685,7 @@ def _write_meta(
 def main(argv: Optional[Sequence[str]] = None) -> int:
     parser = argparse.ArgumentParser(
         prog="python -m vtdata.lerobot",
-        description="Export a vtgen dataset as a LeRobotDataset v3.0 (docs/export.md).",
+        description="Export a vtgen dataset as a LeRobotDataset v3.0 (docs/data.md, \"LeRobot export\").",
     )
     parser.add_argument("dataset", help="the vtgen dataset folder (with manifest.json)")
     parser.add_argument("--out", required=True, help="a new (or empty) folder for the LeRobot dataset")
