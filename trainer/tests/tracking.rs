@@ -234,11 +234,11 @@ fn bad_input_gets_an_error_naming_it() {
     let mut o = vec!["sampling.trajectories_per_object=2", "sampling.instances_per_trajectory=1", "sampling.split={train: 1, test: 1}"];
     o.extend(SMALL_CAMERA);
     let snapshots = generate("tracking-snapshots", &o);
-    let e = message(&[tactile.clone()], &TrackOptions { dataset: Some(snapshots.clone()), ..options() });
+    let e = message(std::slice::from_ref(&tactile), &TrackOptions { dataset: Some(snapshots.clone()), ..options() });
     assert!(e.contains("snapshot shard") && e.contains("sampling.record") && e.contains(&snapshots.display().to_string()), "{e}");
 
     // A split the dataset does not have, and filter parameters out of range.
-    let e = message(&[tactile.clone()], &TrackOptions { split: "validation".into(), ..options() });
+    let e = message(std::slice::from_ref(&tactile), &TrackOptions { split: "validation".into(), ..options() });
     assert!(e.contains("validation"), "{e}");
     let e = message(&[tactile], &TrackOptions { filter: FilterConfig { alpha: 1.5, ..FilterConfig::default() }, ..options() });
     assert!(e.contains("alpha"), "{e}");
