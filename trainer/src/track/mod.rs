@@ -139,7 +139,7 @@ impl EpisodeScore {
     }
 }
 
-/// One method's result on one episode; `scores` empty and `score` None when the method does not
+/// One method's result on one episode; `frames` empty and `score` None when the method does not
 /// apply to it (the touch control of an episode without a donor).
 #[derive(Debug, Clone, Serialize)]
 pub struct EpisodeResult {
@@ -260,8 +260,8 @@ enum PassTouch<'a> {
     Donor(&'a TouchBank),
 }
 
-/// The most confident estimate of every visible frame of `order`, by split index, with whether
-/// the frame had touch; frames that got no input (a donor-less episode's in the touch control)
+/// The most confident estimate of every visible frame of `order`, by split index; frames that
+/// got no input (a donor-less episode's in the touch control)
 /// have none.
 fn estimate_frames(
     model: &PoseNet,
@@ -377,8 +377,8 @@ fn score(episodes: &[EpisodeTruth], models: &[crate::data::ObjectModel], poses: 
         .collect()
 }
 
-/// The per-frame and filtered methods of one pass's estimates. `applies[i]`: whether episode `i`
-/// is scored (the touch control needs a donor).
+/// The per-frame and filtered methods of one pass's estimates. The touch control scores only the
+/// episodes with a donor.
 fn methods_of(
     run: &str,
     variant: Variant,
