@@ -25,6 +25,9 @@
 //!   directory; it scores the network on held-out samples with [`eval::evaluate`] every
 //!   `train.eval_every` epochs.
 //! - [`report`]: `report.md`, `results.json`, per-sample CSV and SVG charts of those results.
+//! - [`track`]: the tracking benchmark, per-frame networks over the test episodes of an episode
+//!   dataset, scored as sequences, with a constant-velocity filter and the touch control; its
+//!   report (charts through [`report::plots`]).
 //! - [`bench`](mod@bench) (inference and training-step timing) and [`sweep`] (train and evaluate one network
 //!   per tactile point count): the commands on top.
 //!
@@ -68,6 +71,8 @@ pub mod eval;
 pub mod train;
 
 pub mod report;
+
+pub mod track;
 
 pub mod bench;
 pub mod sweep;

@@ -278,6 +278,7 @@ mod tests {
                 occlusion: 0.5,
                 trajectory: 0,
                 instance: 0,
+                time_s: f64::NAN,
                 cloud: vec![],
                 choose: vec![],
                 img: vec![],

@@ -9,10 +9,13 @@ use clap::{Args, Parser, Subcommand};
 use vt_trainer::bench::{bench_model, bench_training, table, training_table};
 use vt_trainer::config::TrainConfig;
 use vt_trainer::device;
-use vt_trainer::eval::{EvalCommand, evaluate_runs};
+use vt_trainer::eval::{EvalCommand, evaluate_runs, run_names};
 use vt_trainer::model::Variant;
 use vt_trainer::report::write_report;
 use vt_trainer::sweep::{SweepOptions, sweep};
+use vt_trainer::track::filter::FilterConfig;
+use vt_trainer::track::report::write_tracking_report;
+use vt_trainer::track::{TrackOptions, track_runs};
 use vt_trainer::train::{RunDir, TrainOptions, step_threads, train};
 
 #[derive(Parser)]
@@ -38,6 +41,10 @@ enum Command {
     /// Time inference (network alone, batch 1) per model, or with --train training steps
     /// (steps/s, CPU share, time per stage).
     Bench(BenchArgs),
+    /// The tracking benchmark: trained runs over every frame of the test episodes of an episode
+    /// dataset, scored as sequences (ADD-S AUC per episode, drift, error and occlusion against
+    /// time), per frame, with a constant-velocity filter, and with another episode's touch.
+    Track(TrackArgs),
 }
 
 #[derive(Args)]
@@ -129,6 +136,47 @@ struct EvalArgs {
 }
 
 #[derive(Args)]
+struct TrackArgs {
+    /// Run directories (from `vtpose train`).
+    #[arg(required = true)]
+    runs: Vec<PathBuf>,
+    /// Track on this episode dataset instead of each run's own.
+    #[arg(long)]
+    dataset: Option<PathBuf>,
+    #[arg(long, default_value = "test")]
+    split: String,
+    /// Where tracking.md, tracking.json, episodes.csv, frames.csv and the charts go.
+    #[arg(long, default_value = "out/track")]
+    out: PathBuf,
+    /// At most this many episodes, evenly spread over the split (0: all).
+    #[arg(long, default_value_t = 0)]
+    max_episodes: usize,
+    /// Skip the touch control: tactile networks fed the touch of another episode of the same
+    /// object (one more pass).
+    #[arg(long)]
+    no_touch_control: bool,
+    /// The filter's pose gain α (0 < α <= 1).
+    #[arg(long, default_value_t = FilterConfig::default().alpha)]
+    alpha: f64,
+    /// The filter's velocity gain β (0 <= β < 2; default: Benedict-Bordner's α²/(2 − α)).
+    #[arg(long, default_value_t = FilterConfig::default().beta)]
+    beta: f64,
+    /// The filter rejects estimates farther than this from its prediction (cm).
+    #[arg(long, default_value_t = FilterConfig::default().gate_cm)]
+    gate_cm: f64,
+    /// The filter rejects estimates turned more than this from its prediction (degrees).
+    #[arg(long, default_value_t = FilterConfig::default().gate_deg)]
+    gate_deg: f64,
+    /// The filter starts a new track after this many rejections in a row.
+    #[arg(long, default_value_t = FilterConfig::default().reinit_after)]
+    reinit_after: usize,
+    #[arg(long, default_value = "cpu", help = device::DEVICE_HELP)]
+    device: String,
+    #[arg(long)]
+    quiet: bool,
+}
+
+#[derive(Args)]
 struct BenchArgs {
     /// Run directories or config files; none: every variant with the default config.
     inputs: Vec<PathBuf>,
@@ -168,6 +216,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::Sweep(args) => sweep_command(args),
         Command::Eval(args) => eval_command(args),
         Command::Bench(args) => bench_command(args),
+        Command::Track(args) => track_command(args),
     }
 }
 
@@ -240,6 +289,40 @@ fn eval_command(args: EvalArgs) -> Result<()> {
     };
     let evals = evaluate_runs(&runs, &cmd)?;
     let report = write_report(&evals, &split, &dev, &out)?;
+    if !quiet {
+        eprintln!("vtpose: wrote {}", report.display());
+    }
+    print!("{}", std::fs::read_to_string(&report)?);
+    Ok(())
+}
+
+fn track_command(args: TrackArgs) -> Result<()> {
+    let TrackArgs {
+        runs,
+        dataset,
+        split,
+        out,
+        max_episodes,
+        no_touch_control,
+        alpha,
+        beta,
+        gate_cm,
+        gate_deg,
+        reinit_after,
+        device: dev,
+        quiet,
+    } = args;
+    let opts = TrackOptions {
+        dataset,
+        split,
+        max_episodes,
+        filter: FilterConfig { alpha, beta, gate_cm, gate_deg, reinit_after },
+        touch_control: !no_touch_control,
+        device: device::parse(&dev)?,
+        quiet,
+    };
+    let tracking = track_runs(&runs, &run_names(&runs), &opts)?;
+    let report = write_tracking_report(&tracking, &dev, &out)?;
     if !quiet {
         eprintln!("vtpose: wrote {}", report.display());
     }

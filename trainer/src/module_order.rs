@@ -8,7 +8,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
 /// The top-level modules, each importing only modules before it.
-const ORDER: [&str; 15] = [
+const ORDER: [&str; 16] = [
     "device",
     "geometry",
     "host",
@@ -22,6 +22,7 @@ const ORDER: [&str; 15] = [
     "eval",
     "train",
     "report",
+    "track",
     "bench",
     "sweep",
 ];

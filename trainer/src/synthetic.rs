@@ -53,6 +53,7 @@ pub fn batch(data: &DataConfig, batch_size: usize, m: usize) -> Batch {
             occlusion: 0.5,
             trajectory: b as u32,
             instance: 0,
+            time_s: f64::NAN,
             cloud: points(n, 10 + b, 0.7),
             choose: (0..n).map(|i| (((i + b) * 7919) % (s * s)) as i64).collect(),
             img: (0..3 * s * s).map(|i| 2.0 * wave(i, 100 + b)).collect(),

@@ -24,8 +24,18 @@ impl SplitSource {
         let wanted: Vec<bool> = models.iter().map(|m| objects.contains(&m.id)).collect();
         let mut entries = Vec::new();
         for (k, sh) in shards.iter().enumerate() {
+            // An episode shard names its object; a snapshot's object follows from its index.
+            let episode_object = match episode_record(sh)? {
+                Some(record) => Some(models.iter().position(|m| m.id == record.object_id).ok_or_else(|| {
+                    anyhow!("shard {}: episode of object '{}', which models/ does not have", sh.path().display(), record.object_id)
+                })?),
+                None => None,
+            };
             for i in sh.indices() {
-                let o = object_of(i)?;
+                let o = match episode_object {
+                    Some(o) => o,
+                    None => object_of(i)?,
+                };
                 if wanted[o] {
                     entries.push((k, i, o));
                 }
@@ -64,6 +74,31 @@ impl SplitSource {
         }
     }
 
+    /// The episodes of the split (FORMAT.md, "Episodes"), each with its selected frames in time
+    /// order; an error naming the shard when the split holds a snapshot shard (not an episode
+    /// dataset).
+    pub fn episodes(&self) -> Result<Vec<Episode>> {
+        let mut episodes: Vec<Episode> = Vec::new();
+        for (i, &(shard, _, object)) in self.entries.iter().enumerate() {
+            let sh = &self.shards[shard];
+            let record = episode_record(sh)?.ok_or_else(|| {
+                anyhow!(
+                    "{} split of {}: shard {} is a snapshot shard, not an episode (its vtgen.shard metadata has no `{}` entry; \
+                     record episodes with sampling.record)",
+                    self.split,
+                    self.root.display(),
+                    sh.path().display(),
+                    vt_dataset::EPISODE_METADATA_KEY
+                )
+            })?;
+            match episodes.last_mut() {
+                Some(e) if e.shard == shard => e.frames.push(i),
+                _ => episodes.push(Episode { shard, object, path: sh.path().to_path_buf(), record, frames: vec![i] }),
+            }
+        }
+        Ok(episodes)
+    }
+
     /// The decoded view of selected sample `i` (0-based among the selected).
     pub fn view(&mut self, i: usize) -> Result<Arc<ObjectView>> {
         if let Some(v) = self.cache.as_ref().and_then(|c| c.get(&i)) {
@@ -81,6 +116,27 @@ impl SplitSource {
         }
         Ok(view)
     }
+}
+
+/// One episode of a split: its shard and record, and its selected frames (positions among the
+/// [`SplitSource`]'s selected samples, ascending: the frames in time order).
+#[derive(Debug, Clone)]
+pub struct Episode {
+    /// The shard's position in the split.
+    pub shard: usize,
+    /// The dataset's `object_index` of its object.
+    pub object: usize,
+    pub path: PathBuf,
+    pub record: vt_dataset::EpisodeRecord,
+    pub frames: Vec<usize>,
+}
+
+/// The `episode` record of an episode shard's `vtgen.shard` metadata; None for a snapshot shard.
+fn episode_record(shard: &ShardReader) -> Result<Option<vt_dataset::EpisodeRecord>> {
+    let Some(json) = shard.meta().extra.get(vt_dataset::EPISODE_METADATA_KEY) else { return Ok(None) };
+    serde_json::from_str(json).map(Some).with_context(|| {
+        format!("shard {}: its `{}` metadata is not an episode record", shard.path().display(), vt_dataset::EPISODE_METADATA_KEY)
+    })
 }
 
 /// The object of every split index, from the dataset's `config.json` (FORMAT.md: objects in

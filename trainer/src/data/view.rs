@@ -28,6 +28,8 @@ pub struct ObjectView {
     /// (`u32::MAX` when absent): samples of one trajectory share a grasp.
     pub trajectory: u32,
     pub instance: u32,
+    /// An episode frame's time since the episode's start (s); NaN for a snapshot.
+    pub time_s: f64,
 }
 
 impl ObjectView {
@@ -81,6 +83,7 @@ impl ObjectView {
             occlusion,
             trajectory: s.info.trajectory,
             instance: s.info.instance,
+            time_s: s.episode.as_ref().map_or(f64::NAN, |e| e.time_ns as f64 * 1e-9),
         })
     }
 
@@ -101,6 +104,8 @@ pub struct Prepared {
     pub occlusion: f32,
     pub trajectory: u32,
     pub instance: u32,
+    /// An episode frame's time (s, [`ObjectView::time_s`]); NaN for a snapshot.
+    pub time_s: f64,
     /// `(n, 3)` camera-frame points; zeros when `cloud_count == 0`.
     pub cloud: Vec<f32>,
     /// `(n,)` pixel of each point in the flattened `S × S` crop.
@@ -201,6 +206,7 @@ pub fn prepare(view: &ObjectView, model: &ObjectModel, opts: &PrepareOptions, ep
         occlusion: view.occlusion,
         trajectory: view.trajectory,
         instance: view.instance,
+        time_s: view.time_s,
         cloud,
         choose,
         img,

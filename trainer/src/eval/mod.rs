@@ -106,7 +106,7 @@ impl SampleResult {
 
 /// The most confident estimate of every sample of `batch`, the batch split over `opts.threads`
 /// threads (each a forward pass of its share; burn's CPU kernels parallelise only large tensors).
-fn best_estimates(model: &PoseNet, batch: &Batch, opts: &EvalOptions) -> Vec<crate::model::Estimate> {
+pub fn best_estimates(model: &PoseNet, batch: &Batch, opts: &EvalOptions) -> Vec<crate::model::Estimate> {
     let parts = batch.split(opts.threads);
     if parts.len() == 1 {
         return model.forward(&batch.inputs(&opts.device)).best();
@@ -287,7 +287,7 @@ pub struct EvalCommand {
 /// Each run's name in the report and in its file names (`samples-NAME.csv`): its directory's
 /// name, or its parent's and its own (`a-run`, `b-run`) where two runs share one, numbered when
 /// they share that too, so that no run's rows or files stand for another's.
-fn run_names(runs: &[PathBuf]) -> Vec<String> {
+pub fn run_names(runs: &[PathBuf]) -> Vec<String> {
     let name = |p: &std::path::Path| p.file_name().map_or_else(|| p.display().to_string(), |n| n.to_string_lossy().into_owned());
     let own: Vec<String> = runs.iter().map(|r| name(r)).collect();
     let mut names: Vec<String> = runs
