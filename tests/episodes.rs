@@ -214,6 +214,27 @@ fn inspect_reports_each_episodes_in_hand_rotation() {
     );
 }
 
+/// Per object, the median over its episodes of the largest in-hand rotation (degrees) that
+/// `vtgen grasps CONFIG ARGS` reports.
+fn median_in_hand_rotation(config: &Path, args: &[&str]) -> Vec<f64> {
+    let mut all = vec!["grasps", config.to_str().unwrap(), "--json", "--quiet"];
+    all.extend_from_slice(args);
+    let o = run(&all);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let objects = report["objects"].as_array().unwrap();
+    objects
+        .iter()
+        .map(|o| {
+            let mut largest: Vec<f64> =
+                o["in_hand_rotation_deg"].as_array().unwrap().iter().map(|e| e["largest_deg"].as_f64().unwrap()).collect();
+            assert!(!largest.is_empty(), "{o}");
+            largest.sort_by(f64::total_cmp);
+            largest[largest.len() / 2]
+        })
+        .collect()
+}
+
 /// Gravity pivoting (`sampling.record.pivot`, `scenes/tiny-pivot.yaml`): the gripper turns the
 /// object between its jaws far more than arm moves alone do (the physics-only `vtgen grasps`
 /// figures over six episodes per object, with and without), a generated pivoting episode keeps
@@ -222,26 +243,8 @@ fn inspect_reports_each_episodes_in_hand_rotation() {
 #[test]
 fn gravity_pivoting_turns_the_object_between_the_jaws_and_keeps_the_ground_truth() {
     let cfg = root().join("scenes/tiny-pivot.yaml");
-    let median_largest = |extra: &[&str]| -> Vec<f64> {
-        let mut args = vec!["grasps", cfg.to_str().unwrap(), "--trajectories", "6", "--json", "--quiet"];
-        args.extend_from_slice(extra);
-        let o = run(&args);
-        assert!(o.status.success(), "{}", stderr(&o));
-        let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-        let objects = report["objects"].as_array().unwrap().clone();
-        objects
-            .iter()
-            .map(|o| {
-                let mut largest: Vec<f64> =
-                    o["in_hand_rotation_deg"].as_array().unwrap().iter().map(|e| e["largest_deg"].as_f64().unwrap()).collect();
-                assert_eq!(largest.len(), 6, "{o}");
-                largest.sort_by(f64::total_cmp);
-                largest[3]
-            })
-            .collect()
-    };
-    let pivoting = median_largest(&[]);
-    let still = median_largest(&["--set", "sampling.record.pivot=null"]);
+    let pivoting = median_in_hand_rotation(&cfg, &["--trajectories", "6"]);
+    let still = median_in_hand_rotation(&cfg, &["--trajectories", "6", "--set", "sampling.record.pivot=null"]);
     for (p, s) in pivoting.iter().zip(&still) {
         assert!(*p >= 30.0 && *p >= 3.0 * s, "median largest in-hand rotation {p:.1}° pivoting against {s:.1}° without");
     }
@@ -278,23 +281,9 @@ fn a_finger_roll_turns_the_object_in_the_hand_and_keeps_the_ground_truth() {
     let cfg = root().join("scenes/tiny-episode.yaml");
     let roll = "sampling.record={camera_hz: 30, tactile_hz: 60, finger_roll: {seconds: 3, axis: [0, 0, 1], \
                 joints: [{joint: th_joint_1}, {joint: ff_joint_0}, {joint: mf_joint_0}, {joint: rf_joint_0}]}}";
-    let median_largest = |record: &str| -> Vec<f64> {
-        let o = run(&["grasps", cfg.to_str().unwrap(), "--trajectories", "6", "--instances", "1", "--json", "--quiet", "--set", record]);
-        assert!(o.status.success(), "{}", stderr(&o));
-        let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-        let objects = report["objects"].as_array().unwrap().clone();
-        objects
-            .iter()
-            .map(|o| {
-                let mut largest: Vec<f64> =
-                    o["in_hand_rotation_deg"].as_array().unwrap().iter().map(|e| e["largest_deg"].as_f64().unwrap()).collect();
-                largest.sort_by(f64::total_cmp);
-                largest[largest.len() / 2]
-            })
-            .collect()
-    };
-    let rolling = median_largest(roll);
-    let still = median_largest("sampling.record={camera_hz: 30, tactile_hz: 60}");
+    let episodes = ["--trajectories", "6", "--instances", "1", "--set"];
+    let rolling = median_in_hand_rotation(&cfg, &[&episodes[..], &[roll]].concat());
+    let still = median_in_hand_rotation(&cfg, &[&episodes[..], &["sampling.record={camera_hz: 30, tactile_hz: 60}"]].concat());
     for (r, s) in rolling.iter().zip(&still) {
         assert!(*r >= 3.0 && *r >= 3.0 * s, "median largest in-hand rotation {r:.1}° rolling against {s:.1}° without");
     }

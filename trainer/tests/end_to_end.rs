@@ -3,11 +3,14 @@
 //!
 //! One test binary keeps link time low; the dataset is shared through a `OnceLock`.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use burn::module::Module;
-use vt_trainer::config::{AugmentConfig, DataConfig, ModelConfig, OptimConfig, TrainConfig};
+use common::generate;
+use vt_trainer::config::{AugmentConfig, DataConfig, TrainConfig};
 use vt_trainer::data::{Loaded, Loader, ObjectModel, Pass, PrepareOptions, SplitSource, load_models, prepare, select_objects};
 use vt_trainer::device::cpu;
 use vt_trainer::eval::{EvalCommand, EvalOptions, Summary, evaluate, evaluate_runs};
@@ -15,69 +18,17 @@ use vt_trainer::model::Variant;
 use vt_trainer::report::report_markdown;
 use vt_trainer::train::{RunDir, TrainOptions, slot_table, train};
 
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("workspace root").to_path_buf()
-}
-
 /// The tiny-hand dataset, generated on first use (~10 s) into `target/tmp/vtpose-tiny-hand-<pid>`.
 /// Each run removes the datasets of earlier test processes that are gone, so one copy (~70 MB)
 /// stays behind at most.
 fn dataset() -> &'static Path {
     static DIR: OnceLock<PathBuf> = OnceLock::new();
-    DIR.get_or_init(|| {
-        // Mesa's drivers want a runtime directory on headless machines.
-        if std::env::var_os("XDG_RUNTIME_DIR").is_none() {
-            let xdg = std::env::temp_dir().join("vtgen-xdg-runtime");
-            std::fs::create_dir_all(&xdg).unwrap();
-            #[cfg(unix)]
-            {
-                use std::os::unix::fs::PermissionsExt;
-                let _ = std::fs::set_permissions(&xdg, std::fs::Permissions::from_mode(0o700));
-            }
-            // SAFETY: the variable is set once, before the renderer (the only reader) starts.
-            unsafe { std::env::set_var("XDG_RUNTIME_DIR", &xdg) };
-        }
-        let base = Path::new(env!("CARGO_TARGET_TMPDIR"));
-        for entry in std::fs::read_dir(base).into_iter().flatten().flatten() {
-            let name = entry.file_name().to_string_lossy().into_owned();
-            if let Some(pid) = name.strip_prefix("vtpose-tiny-hand-")
-                && !Path::new("/proc").join(pid).exists()
-            {
-                let _ = std::fs::remove_dir_all(entry.path());
-            }
-        }
-        let out = base.join(format!("vtpose-tiny-hand-{}", std::process::id()));
-        let cfg = vtgen::config::LoadedConfig::load(&root().join("scenes/tiny-hand.yaml")).unwrap_or_else(|e| panic!("{e}"));
-        let opts = vtgen::output::generate::GenerateOptions {
-            out: out.clone(),
-            shard: vtgen::plan::ShardSelector::ALL,
-            resume: false,
-            overwrite: true,
-            jobs: 1,
-            quiet: true,
-            ycb_dir: None,
-        };
-        vtgen::output::generate::generate(&cfg, &opts).unwrap_or_else(|e| panic!("generating tiny-hand: {e:#}"));
-        out
-    })
+    DIR.get_or_init(|| generate("tiny-hand", &[]))
 }
 
 /// A config small enough to train in seconds on a CPU.
 fn small_config(variant: Variant) -> TrainConfig {
-    let mut c = TrainConfig::new(dataset());
-    c.model = ModelConfig {
-        variant,
-        cnn_channels: [8, 16],
-        color_dim: 16,
-        point_dims: [16, 32],
-        global_dims: vec![64, 128],
-        head_dims: vec![64],
-        ..ModelConfig::default()
-    };
-    c.data = DataConfig { n_points: 64, n_tactile: 32, n_model_points: 64, crop_size: 32, ..DataConfig::default() };
-    c.augment = AugmentConfig::NONE;
-    c.train = OptimConfig { epochs: 2, batch_size: 8, lr: 1e-3, eval_every: 0, max_train_samples: 8, ..OptimConfig::default() };
-    c
+    common::small_config(dataset(), variant, 2)
 }
 
 /// A fresh run directory, deleted when the returned guard drops.
