@@ -221,17 +221,29 @@ impl Attempt<'_> {
         let Some(gait) = &ctx.finger_gait else { return true };
         let start = physics.joint_positions();
         for k in 1..=gait.steps {
-            physics.set_targets(&gait.targets(grasp_targets, &start, k as f64 * ctx.timestep));
-            physics.step();
-            if let Some(log) = log.as_deref_mut() {
-                log.push(ctx, &*physics, q);
-            }
-            if lost(&*physics) {
-                physics.set_targets(grasp_targets);
+            let targets = gait.targets(grasp_targets, &start, k as f64 * ctx.timestep);
+            if !self.step_hand(&targets, grasp_targets, q, log.as_deref_mut()) {
                 return false;
             }
         }
-        physics.set_targets(grasp_targets);
+        self.physics.set_targets(grasp_targets);
+        true
+    }
+
+    /// One physics step of the in-hand motions (episodes), the arm still at `q` and the hand's
+    /// joints at `targets`, logged. False when the object falls out of the hand: the hand's
+    /// targets are then the grasp's again.
+    pub(super) fn step_hand(&mut self, targets: &[f64], grasp_targets: &[f64], q: &[f64], log: Option<&mut StepLog>) -> bool {
+        let physics = &mut *self.physics;
+        physics.set_targets(targets);
+        physics.step();
+        if let Some(log) = log {
+            log.push(self.ctx, &*physics, q);
+        }
+        if lost(&*physics) {
+            physics.set_targets(grasp_targets);
+            return false;
+        }
         true
     }
 

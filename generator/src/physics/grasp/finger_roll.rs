@@ -9,7 +9,7 @@ use rand_chacha::ChaCha8Rng;
 
 use super::arm_move::StepLog;
 use super::pivot::twist_angle;
-use super::{Attempt, lost, rot};
+use super::{Attempt, rot};
 
 /// A step stops this long (s) before its target at the current turning speed: the fingers' drives
 /// take about as long to stop the object.
@@ -51,12 +51,12 @@ impl RollControl {
 impl Attempt<'_> {
     /// The finger roll's window, the arm still at `q`. False when the object falls out of the hand.
     pub(super) fn roll_fingers(&mut self, q: &[f64], grasp_targets: &[f64], rng: &mut ChaCha8Rng, mut log: Option<&mut StepLog>) -> bool {
-        let (ctx, physics) = (self.ctx, &mut *self.physics);
+        let ctx = self.ctx;
         let Some(control) = &ctx.finger_roll else { return true };
         let draw = |rng: &mut ChaCha8Rng| rng.random_range(control.step.0..=control.step.1);
         let per_step = control.speed * ctx.timestep;
         let (mut moved, mut sense, mut reversed) = (0.0f64, 1.0, false);
-        let mut step_start = rot(&physics.object_pose());
+        let mut step_start = rot(&self.physics.object_pose());
         let (mut target, mut turned, mut hold_until) = (draw(rng), 0.0f64, None::<usize>);
         let mut done = false;
         for k in 0..control.steps {
@@ -65,7 +65,7 @@ impl Attempt<'_> {
             if rolling && hold_until.is_some() {
                 // The next step, from here.
                 (hold_until, target, turned) = (None, draw(rng), 0.0);
-                step_start = rot(&physics.object_pose());
+                step_start = rot(&self.physics.object_pose());
             }
             if rolling {
                 moved += per_step;
@@ -79,32 +79,26 @@ impl Attempt<'_> {
                     targets[j] += sense * direction * moved;
                 }
             }
-            physics.set_targets(&targets);
-            physics.step();
-            if let Some(log) = log.as_deref_mut() {
-                log.push(ctx, &*physics, q);
-            }
-            if lost(&*physics) {
-                physics.set_targets(grasp_targets);
+            if !self.step_hand(&targets, grasp_targets, q, log.as_deref_mut()) {
                 return false;
             }
             if !rolling {
                 continue;
             }
-            let now = twist_angle(rot(&physics.object_pose()) * step_start.inverse(), control.axis);
+            let now = twist_angle(rot(&self.physics.object_pose()) * step_start.inverse(), control.axis);
             let speed = (now - turned).abs() / ctx.timestep;
             turned = now;
             if !reversed && now < -WRONG_WAY {
                 // The joints turn the object the other way: every direction reverses, from the
                 // grasp targets again.
                 (sense, reversed, moved) = (-sense, true, 0.0);
-                step_start = rot(&physics.object_pose());
+                step_start = rot(&self.physics.object_pose());
                 turned = 0.0;
             } else if now.abs() + speed * STOP_LEAD_SECONDS >= target {
                 hold_until = Some(k + control.hold_steps);
             }
         }
-        physics.set_targets(grasp_targets);
+        self.physics.set_targets(grasp_targets);
         true
     }
 }

@@ -9,7 +9,7 @@ use rand_chacha::ChaCha8Rng;
 
 use super::arm_move::StepLog;
 use super::floor::robot_floor_clearance;
-use super::{Attempt, lost, rot};
+use super::{Attempt, rot};
 use crate::physics::antipodal::Jaws;
 
 /// A pivot tightens this long (s) before its target at the current turning speed: the grip takes
@@ -126,29 +126,19 @@ impl Attempt<'_> {
             }
             // Full grip between pivots.
             for _ in 0..control.hold_steps.min(control.steps - k) {
-                if !self.step_held(q, grasp_targets, log.as_deref_mut()) {
+                if !self.step_hand(grasp_targets, grasp_targets, q, log.as_deref_mut()) {
                     return false;
                 }
                 k += 1;
             }
         }
         while k < control.steps {
-            if !self.step_held(q, grasp_targets, log.as_deref_mut()) {
+            if !self.step_hand(grasp_targets, grasp_targets, q, log.as_deref_mut()) {
                 return false;
             }
             k += 1;
         }
         true
-    }
-
-    /// One physics step with the grip full, the arm still at `q`. False when the object is lost.
-    fn step_held(&mut self, q: &[f64], grasp_targets: &[f64], log: Option<&mut StepLog>) -> bool {
-        self.physics.set_targets(grasp_targets);
-        self.physics.step();
-        if let Some(log) = log {
-            log.push(self.ctx, &*self.physics, q);
-        }
-        !lost(&*self.physics)
     }
 
     /// The arm's joints from `q` for a wrist turn that puts gravity (palm frame) across the pads'
@@ -197,25 +187,19 @@ impl Attempt<'_> {
         slid: &mut f64,
         mut log: Option<&mut StepLog>,
     ) -> Option<Turned> {
-        let (ctx, physics) = (self.ctx, &mut *self.physics);
+        let ctx = self.ctx;
         let control = ctx.pivot.as_ref().expect("pivoting");
         let ease = (1.0 - EASED_GRIP) / control.ease_steps as f64;
-        let start = physics.object_pose();
+        let start = self.physics.object_pose();
         let held_point = start.inverse().transform_point3(jaws.centre);
         let (mut grip, mut angle, mut point) = (1.0, 0.0, jaws.centre);
         let mut floor_since = None;
         for k in 0..budget {
             let targets: Vec<f64> = start_q.iter().zip(grasp_targets).map(|(s, g)| s + grip * (g - s)).collect();
-            physics.set_targets(&targets);
-            physics.step();
-            if let Some(log) = log.as_deref_mut() {
-                log.push(ctx, &*physics, q);
-            }
-            if lost(&*physics) {
-                physics.set_targets(grasp_targets);
+            if !self.step_hand(&targets, grasp_targets, q, log.as_deref_mut()) {
                 return None;
             }
-            let pose = physics.object_pose();
+            let pose = self.physics.object_pose();
             // Unwrapped: the turn may pass half a turn.
             let now = twist_angle(rot(&pose) * rot(&start).inverse(), jaws.axis);
             let step = twist_angle(DQuat::from_axis_angle(jaws.axis, now - angle), jaws.axis);
