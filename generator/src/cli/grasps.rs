@@ -206,12 +206,13 @@ fn check_trajectory(robot: &mut RobotScene, seed: u64, obj: &LoadedObject, o: us
         let lowest = floor_clearance(&obj.mesh.positions, &(robot.t_world_base * s.t_base_palm * s.t_palm_object));
         r.min_clearance_mm = r.min_clearance_mm.min(lowest * 1e3);
     }
-    if let Some(first) = outcome.as_ref().ok().and_then(|traj| traj.steps.first()) {
+    if let Ok(traj) = &outcome
+        && let (Some(first), Some(last)) = (traj.steps.first(), traj.steps.last())
+    {
         let orientation = |s: &crate::physics::grasp::InstanceState| glam::DQuat::from_mat3(&s.t_palm_object.matrix3).normalize();
         let turn = |s: &crate::physics::grasp::InstanceState| orientation(first).angle_between(orientation(s)).to_degrees();
-        let steps = &outcome.as_ref().expect("a first step").steps;
-        let largest = steps.iter().map(turn).fold(0.0, f64::max);
-        r.rotation = Some(EpisodeRotation { trajectory: t, last_deg: steps.last().map_or(0.0, turn), largest_deg: largest });
+        let largest = traj.steps.iter().map(turn).fold(0.0, f64::max);
+        r.rotation = Some(EpisodeRotation { trajectory: t, last_deg: turn(last), largest_deg: largest });
     }
     r.seconds = t0.elapsed().as_secs_f64();
     r
