@@ -179,3 +179,66 @@ pub fn training_table(rows: &[TrainBenchRow], device: &str) -> String {
     }
     s
 }
+
+/// The refiner's time on real samples (`vtpose bench --refine DATASET`): per estimator, the time
+/// per sample on one core, and the samples per second with one thread and with every core.
+#[derive(Debug, Clone, Serialize)]
+pub struct RefineBenchRow {
+    pub estimator: String,
+    pub samples: usize,
+    /// One refinement on one core, mean over the samples (ms).
+    pub ms_per_sample_one_core: f64,
+    /// Wall time per sample of every estimator together, with one thread and with `threads`.
+    pub wall_ms_per_sample_one_thread: f64,
+    pub wall_ms_per_sample_all: f64,
+    pub threads: usize,
+}
+
+/// Times the refiner on `samples` evenly spread test samples of `dataset`, with one thread and
+/// with every core ([`crate::eval::refined::evaluate_refined`], without the touch control).
+pub fn bench_refiner(
+    dataset: &std::path::Path,
+    samples: usize,
+    config: crate::refine::RefineConfig,
+) -> anyhow::Result<Vec<RefineBenchRow>> {
+    use crate::eval::refined::{RefineCommand, evaluate_refined};
+    let cmd = RefineCommand {
+        dataset: dataset.to_path_buf(),
+        split: "test".into(),
+        max_samples: samples,
+        runs: Vec::new(),
+        config,
+        touch_control: false,
+        device: crate::device::cpu(),
+        quiet: true,
+    };
+    let one = rayon::ThreadPoolBuilder::new().num_threads(1).build()?.install(|| evaluate_refined(&cmd))?;
+    let all = evaluate_refined(&cmd)?;
+    let per = |e: &crate::eval::refined::RefineEval| 1000.0 * e.wall_s / e.samples.max(1) as f64;
+    Ok(one
+        .estimators
+        .iter()
+        .map(|e| RefineBenchRow {
+            estimator: e.label.clone(),
+            samples: e.results.len(),
+            ms_per_sample_one_core: e.ms_per_sample,
+            wall_ms_per_sample_one_thread: per(&one),
+            wall_ms_per_sample_all: per(&all),
+            threads: all.threads,
+        })
+        .collect())
+}
+
+/// The Markdown table of [`bench_refiner`].
+pub fn refine_table(rows: &[RefineBenchRow]) -> String {
+    let mut s = String::from(
+        "| estimator | samples | ms per sample, one core | all estimators: wall ms per sample, 1 thread | all estimators: wall ms per sample, all threads |\n|---|---|---|---|---|\n",
+    );
+    for r in rows {
+        s += &format!(
+            "| {} | {} | {:.1} | {:.1} | {:.1} ({} threads) |\n",
+            r.estimator, r.samples, r.ms_per_sample_one_core, r.wall_ms_per_sample_one_thread, r.wall_ms_per_sample_all, r.threads
+        );
+    }
+    s
+}

@@ -14,6 +14,8 @@
 //! - [`data`]: batches prepared from the shards on a background thread, as [`model::PoseInput`];
 //!   it owns the `objects:`, `data:` and `augment:` sections.
 //! - [`synthetic`]: deterministic inputs with a config's shapes, for `vtpose bench` and the tests.
+//! - [`refine`]: the geometric pose refiner: the object's mesh registered to the depth points,
+//!   the tactile points and the depth image's free space (global search, then Gauss-Newton).
 //! - [`loss`]: DenseFusion's confidence-weighted model-point loss.
 //! - [`optim`]: the `train:` section (learning rate and schedule, the loss's weights, epochs).
 //! - [`config`]: the YAML of a run, the sections above composed into [`config::TrainConfig`],
@@ -57,6 +59,8 @@ pub mod model;
 pub mod data;
 
 pub mod synthetic;
+
+pub mod refine;
 
 pub mod loss;
 

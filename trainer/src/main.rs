@@ -9,8 +9,11 @@ use clap::{Args, Parser, Subcommand};
 use vt_trainer::bench::{bench_model, bench_training, table, training_table};
 use vt_trainer::config::TrainConfig;
 use vt_trainer::device;
+use vt_trainer::eval::refined::{RefineCommand, evaluate_refined};
 use vt_trainer::eval::{EvalCommand, evaluate_runs, run_names};
 use vt_trainer::model::Variant;
+use vt_trainer::report::refine::{pool_reports, write_refine_report};
+use vt_trainer::report::sheet::write_sheet;
 use vt_trainer::report::write_report;
 use vt_trainer::sweep::{SweepOptions, sweep};
 use vt_trainer::track::filter::FilterConfig;
@@ -45,6 +48,48 @@ enum Command {
     /// dataset, scored as sequences (ADD-S AUC per episode, drift, error and occlusion against
     /// time), per frame, with a constant-velocity filter, and with another episode's touch.
     Track(TrackArgs),
+    /// The geometric pose refiner on a split: from no initial pose and from each run's estimate,
+    /// with the depth alone, with touch, and with another grasp's touch (the touch control);
+    /// paired per grasp, by occlusion level and object, timed.
+    Refine(RefineArgs),
+}
+
+#[derive(Args)]
+struct RefineArgs {
+    /// Trained runs (from `vtpose train`) whose estimates the refiner also starts from; none: the
+    /// refiner alone.
+    runs: Vec<PathBuf>,
+    /// The dataset (default: the first run's).
+    #[arg(long)]
+    dataset: Option<PathBuf>,
+    #[arg(long, default_value = "test")]
+    split: String,
+    /// Where refine.md, refine.json, samples-refine.csv and sheet.png go.
+    #[arg(long, default_value = "out/refine")]
+    out: PathBuf,
+    /// At most this many samples, evenly spread over the split (0: all).
+    #[arg(long, default_value_t = 0)]
+    max_samples: usize,
+    /// The refiner's settings (YAML, the fields of `refine:` in docs/refine.md); default: built in.
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Skip the touch control (every touch estimator again with another grasp's touch).
+    #[arg(long)]
+    no_touch_control: bool,
+    /// Draw up to this many samples where depth alone fails and touch recovers the pose (sheet.png).
+    #[arg(long, default_value_t = 8)]
+    sheet: usize,
+    /// Threads (0: every core).
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
+    /// Instead of refining: pool the reports of earlier `vtpose refine` runs (their output
+    /// folders, e.g. one per object pair) into one report in --out.
+    #[arg(long, num_args = 1.., conflicts_with_all = ["runs", "dataset"])]
+    pool: Vec<PathBuf>,
+    #[arg(long, default_value = "cpu", help = device::DEVICE_HELP)]
+    device: String,
+    #[arg(long)]
+    quiet: bool,
 }
 
 #[derive(Args)]
@@ -137,9 +182,16 @@ struct EvalArgs {
 
 #[derive(Args)]
 struct TrackArgs {
-    /// Run directories (from `vtpose train`).
-    #[arg(required = true)]
+    /// Run directories (from `vtpose train`); none with --refine and --dataset: the refiner alone.
+    #[arg(required_unless_present = "refine")]
     runs: Vec<PathBuf>,
+    /// Track with the geometric refiner too: alone and from each run's estimates, warm-started
+    /// from frame to frame, with depth, with touch and with another episode's touch.
+    #[arg(long)]
+    refine: bool,
+    /// The refiner's settings (YAML; see docs/refine.md); default: built in.
+    #[arg(long, requires = "refine")]
+    refine_config: Option<PathBuf>,
     /// Track on this episode dataset instead of each run's own.
     #[arg(long)]
     dataset: Option<PathBuf>,
@@ -197,6 +249,10 @@ struct BenchArgs {
     /// threads (train.step_threads; 0: every core on a CPU).
     #[arg(long)]
     train: bool,
+    /// Time the geometric refiner instead, on --iters test samples of this dataset (one core and
+    /// every core).
+    #[arg(long, conflicts_with = "train")]
+    refine: Option<PathBuf>,
 }
 
 fn main() -> ExitCode {
@@ -217,6 +273,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::Eval(args) => eval_command(args),
         Command::Bench(args) => bench_command(args),
         Command::Track(args) => track_command(args),
+        Command::Refine(args) => refine_command(args),
     }
 }
 
@@ -299,6 +356,8 @@ fn eval_command(args: EvalArgs) -> Result<()> {
 fn track_command(args: TrackArgs) -> Result<()> {
     let TrackArgs {
         runs,
+        refine,
+        refine_config,
         dataset,
         split,
         out,
@@ -318,11 +377,55 @@ fn track_command(args: TrackArgs) -> Result<()> {
         max_episodes,
         filter: FilterConfig { alpha, beta, gate_cm, gate_deg, reinit_after },
         touch_control: !no_touch_control,
+        refine: match (refine, refine_config) {
+            (false, _) => None,
+            (true, None) => Some(vt_trainer::refine::RefineConfig::default()),
+            (true, Some(path)) => Some(vt_trainer::refine::RefineConfig::load(&path)?),
+        },
         device: device::parse(&dev)?,
         quiet,
     };
     let tracking = track_runs(&runs, &run_names(&runs), &opts)?;
     let report = write_tracking_report(&tracking, &dev, &out)?;
+    if !quiet {
+        eprintln!("vtpose: wrote {}", report.display());
+    }
+    print!("{}", std::fs::read_to_string(&report)?);
+    Ok(())
+}
+
+fn refine_command(args: RefineArgs) -> Result<()> {
+    let RefineArgs { runs, dataset, split, out, max_samples, config, no_touch_control, sheet, threads, pool, device: dev, quiet } = args;
+    if !pool.is_empty() {
+        let eval = pool_reports(&pool)?;
+        let report = write_refine_report(&eval, &out)?;
+        if !quiet {
+            eprintln!("vtpose: wrote {}", report.display());
+        }
+        print!("{}", std::fs::read_to_string(&report)?);
+        return Ok(());
+    }
+    let dataset = match (dataset, runs.first()) {
+        (Some(d), _) => d,
+        (None, Some(run)) => TrainConfig::load(&RunDir(run.clone()).config()).with_context(|| format!("run {}", run.display()))?.dataset,
+        (None, None) => bail!("vtpose refine needs --dataset or a run"),
+    };
+    let config = match config {
+        Some(path) => vt_trainer::refine::RefineConfig::load(&path)?,
+        None => vt_trainer::refine::RefineConfig::default(),
+    };
+    if threads > 0 {
+        rayon::ThreadPoolBuilder::new().num_threads(threads).build_global().context("cannot start the refiner's threads")?;
+    }
+    let cmd =
+        RefineCommand { dataset, split, max_samples, runs, config, touch_control: !no_touch_control, device: device::parse(&dev)?, quiet };
+    let eval = evaluate_refined(&cmd)?;
+    let report = write_refine_report(&eval, &out)?;
+    if let Some(sheet) = write_sheet(&eval, sheet, &out)? {
+        if !quiet {
+            eprintln!("vtpose: wrote {}", sheet.display());
+        }
+    }
     if !quiet {
         eprintln!("vtpose: wrote {}", report.display());
     }
@@ -342,7 +445,7 @@ fn chosen_variants(variants: &[String], default: Variant) -> Result<Vec<Variant>
 /// `vtpose bench --train`: per config (a run's own for a run directory, the default without
 /// input) and variant, a one-thread step and, where the step uses more, a threaded one.
 fn bench_training_command(args: BenchArgs) -> Result<()> {
-    let BenchArgs { inputs, variants, iters, warmup, device: dev, json, train: _ } = args;
+    let BenchArgs { inputs, variants, iters, warmup, device: dev, json, train: _, refine: _ } = args;
     let device = device::parse(&dev)?;
     let mut configs: Vec<(String, TrainConfig)> = Vec::new();
     if inputs.is_empty() {
@@ -381,7 +484,16 @@ fn bench_command(args: BenchArgs) -> Result<()> {
     if args.train {
         return bench_training_command(args);
     }
-    let BenchArgs { inputs, variants, iters, warmup, device: dev, json, train: _ } = args;
+    if let Some(dataset) = &args.refine {
+        let rows = vt_trainer::bench::bench_refiner(dataset, args.iters, vt_trainer::refine::RefineConfig::default())?;
+        if args.json {
+            println!("{}", serde_json::to_string_pretty(&rows)?);
+        } else {
+            print!("{}", vt_trainer::bench::refine_table(&rows));
+        }
+        return Ok(());
+    }
+    let BenchArgs { inputs, variants, iters, warmup, device: dev, json, train: _, refine: _ } = args;
     let device = device::parse(&dev)?;
     let mut rows = Vec::new();
     let mut configs: Vec<(String, TrainConfig)> = Vec::new();

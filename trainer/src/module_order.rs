@@ -8,13 +8,14 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
 /// The top-level modules, each importing only modules before it.
-const ORDER: [&str; 16] = [
+const ORDER: [&str; 17] = [
     "device",
     "geometry",
     "host",
     "model",
     "data",
     "synthetic",
+    "refine",
     "loss",
     "optim",
     "config",

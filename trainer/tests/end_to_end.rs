@@ -436,3 +436,125 @@ fn the_cli_trains_evaluates_and_benchmarks() {
     let o = std::process::Command::new(env!("CARGO_BIN_EXE_vtpose")).args(["train", c, "--out", r, "--quiet"]).output().unwrap();
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--resume"));
 }
+
+/// The geometric refiner on tiny-hand's test split, from no initial pose: the estimate puts the
+/// sample's own depth and tactile points on the posed mesh (a check that needs no ground truth),
+/// lands near the truth, and gets worse with another grasp's touch (it uses touch); the same
+/// inputs give the same poses. From a trained network's estimates, each refined estimator is
+/// there and scored on the same samples.
+#[test]
+fn the_refiner_puts_the_model_on_what_the_sample_shows() {
+    use vt_trainer::eval::refined::{RefineCommand, comparisons, evaluate_refined};
+    use vt_trainer::refine::{ObjectShape, RefineConfig, Refiner};
+    let ds = dataset();
+    let cmd = RefineCommand {
+        dataset: ds.to_path_buf(),
+        split: "test".into(),
+        max_samples: 0,
+        runs: Vec::new(),
+        config: RefineConfig::default(),
+        touch_control: true,
+        device: cpu(),
+        quiet: true,
+    };
+    let eval = evaluate_refined(&cmd).unwrap();
+    let labels: Vec<&str> = eval.estimators.iter().map(|e| e.label.as_str()).collect();
+    assert_eq!(labels, ["refine: depth", "refine: depth + touch", "refine: depth + other grasp's touch"]);
+    assert!(eval.samples >= 24, "tiny-hand's test split has 32 samples, {} with the object visible", eval.samples);
+    for e in &eval.estimators[..2] {
+        assert_eq!(e.results.len(), eval.samples, "{}: every visible sample gets a pose", e.label);
+        assert!(e.ms_per_sample > 0.0);
+    }
+    // No ground truth needed: at the estimated pose, the sample's depth and tactile points lie on
+    // the model's surface (distance field of the mesh, exact to the grid's interpolation).
+    let models = load_models(ds).unwrap();
+    let shapes: Vec<ObjectShape> = models.iter().map(|m| ObjectShape::of(m).unwrap()).collect();
+    let refiner = Refiner::new(RefineConfig::default()).unwrap();
+    let mut source = SplitSource::open(
+        ds,
+        "test",
+        &models.iter().map(|m| m.id.clone()).collect::<Vec<_>>(),
+        vt_trainer::config::DepthSource::Exact,
+        false,
+    )
+    .unwrap();
+    let with_touch = &eval.estimators[1];
+    let mut on_surface = Vec::new();
+    for i in 0..source.len() {
+        let (s, object) = source.sample(i).unwrap();
+        let Some(r) = with_touch.results.iter().find(|r| r.index == s.index) else { continue };
+        let obs = refiner.observe(&s);
+        let (q, t) = r.estimate;
+        let d: Vec<f64> =
+            obs.depth.iter().chain(&obs.touch).map(|p| shapes[object].field.sample((q.inverse() * (*p - t)).as_vec3()).0 as f64).collect();
+        on_surface.push(vt_trainer::eval::median(d));
+    }
+    let median_mm = 1000.0 * vt_trainer::eval::median(on_surface.clone());
+    assert!(median_mm < 2.5, "the observed points lie {median_mm:.2} mm (median) from the posed mesh: {on_surface:?}");
+    // Against the truth: most poses are found; another grasp's touch makes them worse.
+    let mean = |k: usize| eval.estimators[k].results.iter().map(|r| r.position_cm).sum::<f64>() / eval.estimators[k].results.len() as f64;
+    let median_cm = vt_trainer::eval::median(with_touch.results.iter().map(|r| r.position_cm).collect());
+    assert!(median_cm < 1.0, "median position error with touch {median_cm:.2} cm");
+    assert!(mean(2) > mean(1), "another grasp's touch ({:.2} cm) is no worse than the sample's own ({:.2} cm)", mean(2), mean(1));
+    let pairs = comparisons(&eval);
+    assert!(
+        pairs.iter().any(|p| p.first == "refine: depth + touch" && p.second == "refine: depth" && p.subset == "all" && p.paired.is_some())
+    );
+    // Deterministic, whatever the threads do.
+    let again = evaluate_refined(&cmd).unwrap();
+    for (a, b) in eval.estimators.iter().zip(&again.estimators) {
+        let poses = |e: &vt_trainer::eval::refined::EstimatorResult| e.results.iter().map(|r| (r.index, r.estimate)).collect::<Vec<_>>();
+        assert_eq!(poses(a), poses(b), "{}: not deterministic", a.label);
+    }
+
+    // From a (barely) trained network's estimates: the network alone, and refined.
+    let (_guard, run) = run_dir("refine");
+    let cfg = common::small_config(ds, Variant::TactileChannel, 1);
+    train(&cfg, &quiet(run.clone())).unwrap();
+    let eval = evaluate_refined(&RefineCommand { runs: vec![run], max_samples: 8, touch_control: false, ..cmd }).unwrap();
+    let labels: Vec<&str> = eval.estimators.iter().map(|e| e.label.as_str()).collect();
+    assert_eq!(labels, ["run", "refine: depth", "refine: depth + touch", "run + refine: depth", "run + refine: depth + touch"]);
+    let n = eval.estimators[0].results.len();
+    assert!(n > 0 && eval.estimators.iter().all(|e| e.results.len() == n), "every estimator on the network's samples");
+}
+
+/// `vtpose refine`'s files and pooling, `vtpose bench --refine`, and a bad refiner config named
+/// by file, line and field.
+#[test]
+fn the_cli_refines_pools_and_benchmarks() {
+    let dir = tempfile::Builder::new().prefix("vtpose-refine-cli-").tempdir().unwrap();
+    let vtpose = |args: &[&str]| std::process::Command::new(env!("CARGO_BIN_EXE_vtpose")).args(args).output().unwrap();
+    let ok = |args: &[&str]| {
+        let o = vtpose(args);
+        assert!(o.status.success(), "vtpose {args:?}: {}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    };
+    let ds = dataset().to_str().unwrap();
+    let out = dir.path().join("refine");
+    let md = ok(&["refine", "--dataset", ds, "--out", out.to_str().unwrap(), "--max-samples", "8", "--quiet"]);
+    for section in ["## Overall", "## Per occlusion level", "## Per object", "## Paired per grasp", "## Time"] {
+        assert!(md.contains(section), "refine.md lacks {section}:\n{md}");
+    }
+    for file in ["refine.md", "refine.json", "samples-refine.csv"] {
+        assert!(out.join(file).is_file(), "{file} was not written");
+    }
+    // Pooling one report gives its own overall rows back.
+    let pooled = dir.path().join("pooled");
+    let pool_md = ok(&["refine", "--pool", out.to_str().unwrap(), "--out", pooled.to_str().unwrap(), "--quiet"]);
+    let overall = |md: &str| {
+        md.lines()
+            .skip_while(|l| !l.starts_with("## Overall"))
+            .take_while(|l| !l.starts_with("## Per occlusion"))
+            .map(str::to_string)
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(overall(&md), overall(&pool_md));
+    let bench = ok(&["bench", "--refine", ds, "--iters", "4"]);
+    assert!(bench.contains("| refine: depth + touch |") && bench.contains("ms per sample, one core"), "{bench}");
+    // A misspelt field: the file, its line and the field.
+    let bad = dir.path().join("bad.yaml");
+    std::fs::write(&bad, "rotations: 512\ncandidatez: 3\n").unwrap();
+    let o = vtpose(&["refine", "--dataset", ds, "--config", bad.to_str().unwrap(), "--out", out.to_str().unwrap(), "--quiet"]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && e.contains("bad.yaml") && e.contains("line 2") && e.contains("candidatez"), "{e}");
+}

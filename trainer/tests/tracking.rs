@@ -62,6 +62,7 @@ fn options() -> TrackOptions {
         max_episodes: 0,
         filter: FilterConfig::default(),
         touch_control: true,
+        refine: None,
         device: cpu(),
         quiet: true,
     }
@@ -186,4 +187,43 @@ fn bad_input_gets_an_error_naming_it() {
     assert!(e.contains("validation"), "{e}");
     let e = message(&[tactile], &TrackOptions { filter: FilterConfig { alpha: 1.5, ..FilterConfig::default() }, ..options() });
     assert!(e.contains("alpha"), "{e}");
+}
+
+/// Tracking with the refiner: alone (no run, the dataset named) and from a network's estimates,
+/// each with depth, touch and another episode's touch, on every test frame; the refiner alone
+/// tracks most frames to within 2 cm on this exact synthetic depth.
+#[test]
+fn the_refiner_tracks_alone_and_from_a_network() {
+    use vt_trainer::refine::RefineConfig;
+    let opts = TrackOptions { dataset: Some(episodes().to_path_buf()), refine: Some(RefineConfig::default()), ..options() };
+    let t = track_runs(&[], &[], &opts).unwrap();
+    let labels: Vec<&str> = t.methods.iter().map(|m| m.label.as_str()).collect();
+    assert_eq!(labels, ["refine (depth)", "refine (depth + touch)", "refine (depth + other episode's touch)"]);
+    assert!(t.methods.iter().all(|m| m.refined && m.variant.is_none()));
+    let frames: usize = t.episodes.iter().map(|e| e.frames.len()).sum();
+    let s = t.methods[1].summary();
+    assert_eq!((s.episodes, s.frames), (4, frames));
+    assert!(s.adds_below_2cm > 50.0, "the refiner with touch tracks {:.0} % of the frames within 2 cm ADD-S", s.adds_below_2cm);
+    let out = tempfile::tempdir().unwrap();
+    let report = write_tracking_report(&t, "cpu", out.path()).unwrap();
+    let md = std::fs::read_to_string(report).unwrap();
+    assert!(md.contains("| refine (depth + touch) |"), "{md}");
+
+    // From a network: its per-frame methods, then its refined ones, then the refiner alone.
+    let runs = [trained(Variant::TactileChannel).to_path_buf()];
+    let t = track_runs(&runs, &["tactile".to_string()], &TrackOptions { touch_control: false, ..opts }).unwrap();
+    let labels: Vec<&str> = t.methods.iter().map(|m| m.label.as_str()).collect();
+    assert_eq!(
+        labels,
+        [
+            "tactile per frame",
+            "tactile + filter",
+            "tactile + refine (depth)",
+            "tactile + refine (depth + touch)",
+            "tactile + refine (depth + other episode's touch)",
+            "refine (depth)",
+            "refine (depth + touch)",
+            "refine (depth + other episode's touch)"
+        ]
+    );
 }

@@ -18,6 +18,8 @@ pub struct ObjectModel {
     /// Largest vertex distance, metres.
     pub diameter: f64,
     vertices: Vec<DVec3>,
+    /// The mesh's index triples (into `vertices`).
+    triangles: Vec<[u32; 3]>,
     /// The triangles and their running areas (no area: sample vertices instead).
     surface: SurfaceSampler,
     /// `EVAL_MODEL_POINTS` surface points (object frame) the metrics use.
@@ -42,12 +44,23 @@ impl ObjectModel {
             symmetries: crate::geometry::Symmetries::of_kind(symmetry),
             diameter,
             vertices,
+            triangles: triangles.to_vec(),
             surface,
             eval_points: Vec::new(),
         };
         let mut rng = ChaCha8Rng::seed_from_u64(0x5eed_0000 + dataset_index as u64);
         m.eval_points = m.sample_surface(EVAL_MODEL_POINTS, &mut rng);
         m
+    }
+
+    /// The mesh's vertices (object frame) and index triples, as `models/<id>.ply` has them.
+    pub fn mesh(&self) -> (&[DVec3], &[[u32; 3]]) {
+        (&self.vertices, &self.triangles)
+    }
+
+    /// The area-weighted surface sampler of the mesh.
+    pub fn surface(&self) -> &SurfaceSampler {
+        &self.surface
     }
 
     /// Symmetric objects use the closest-point loss and ADD-S.

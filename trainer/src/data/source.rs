@@ -99,17 +99,24 @@ impl SplitSource {
         Ok(episodes)
     }
 
-    /// The decoded view of selected sample `i` (0-based among the selected).
-    pub fn view(&mut self, i: usize) -> Result<Arc<ObjectView>> {
-        if let Some(v) = self.cache.as_ref().and_then(|c| c.get(&i)) {
-            return Ok(v.clone());
-        }
+    /// Selected sample `i` (0-based among the selected) decoded whole, with its object's index
+    /// (never cached: a full image is megabytes).
+    pub fn sample(&mut self, i: usize) -> Result<(vt_dataset::Sample, usize)> {
         let (shard, index, object) = self.entries[i];
         let sample = self.shards[shard].read(index)?;
         let id = &sample.info.object_id;
         if *id != self.models[object].id {
             bail!("{} sample {index}: object '{id}', expected '{}' from the dataset's config.json", self.split, self.models[object].id);
         }
+        Ok((sample, object))
+    }
+
+    /// The decoded view of selected sample `i` (0-based among the selected).
+    pub fn view(&mut self, i: usize) -> Result<Arc<ObjectView>> {
+        if let Some(v) = self.cache.as_ref().and_then(|c| c.get(&i)) {
+            return Ok(v.clone());
+        }
+        let (sample, object) = self.sample(i)?;
         let view = Arc::new(ObjectView::from_sample(&sample, object, self.depth)?);
         if let Some(c) = self.cache.as_mut() {
             c.insert(i, view.clone());

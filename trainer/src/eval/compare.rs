@@ -200,6 +200,7 @@ mod tests {
             adds_m: 0.01,
             confidence: 0.5,
             tactile_estimate,
+            estimate: Default::default(),
         }
     }
 

@@ -14,26 +14,47 @@ use crate::data::Prepared;
 /// A sample's prepared tactile input: its `(n_t, 3)` points and how many are real.
 type Touch = (Vec<f32>, usize);
 
-/// The tactile inputs of one evaluation pass, by (dataset object, trajectory, instance).
-#[derive(Debug, Clone, Default)]
-pub struct TouchBank(BTreeMap<(usize, u32, u32), Touch>);
+/// Something recorded per sample of one evaluation pass, by (dataset object, trajectory,
+/// instance), lent to the samples of another grasp of the same object.
+#[derive(Debug, Clone)]
+pub struct GraspBank<T>(BTreeMap<(usize, u32, u32), T>);
+
+impl<T> Default for GraspBank<T> {
+    fn default() -> Self {
+        GraspBank(BTreeMap::new())
+    }
+}
+
+impl<T> GraspBank<T> {
+    pub fn insert(&mut self, object: usize, trajectory: u32, instance: u32, value: T) {
+        self.0.insert((object, trajectory, instance), value);
+    }
+
+    /// The value of another grasp of `object`: the next of the object's trajectories after
+    /// `trajectory` (in order, wrapping around), at `instance` or else that trajectory's first
+    /// recorded one. None when the object has no other trajectory here.
+    pub fn other_grasp(&self, object: usize, trajectory: u32, instance: u32) -> Option<&T> {
+        let of_object = |t: u32| self.0.range((object, t, 0)..=(object, t, u32::MAX));
+        let later = self.0.range((object, trajectory.saturating_add(1), 0)..=(object, u32::MAX, u32::MAX)).next();
+        let donor = later.or_else(|| self.0.range((object, 0, 0)..(object, trajectory, 0)).next())?.0.1;
+        if donor == trajectory {
+            return None;
+        }
+        self.0.get(&(object, donor, instance)).or_else(|| of_object(donor).next().map(|(_, v)| v))
+    }
+}
+
+/// The tactile inputs of one evaluation pass.
+pub type TouchBank = GraspBank<Touch>;
 
 impl TouchBank {
     pub fn record(&mut self, p: &Prepared) {
-        self.0.insert((p.object, p.trajectory, p.instance), (p.tactile.clone(), p.tactile_count));
+        self.insert(p.object, p.trajectory, p.instance, (p.tactile.clone(), p.tactile_count));
     }
 
-    /// The touch of another grasp of `p`'s object: the next of the object's trajectories (in
-    /// order, wrapping around), at `p`'s instance or else that trajectory's first recorded one.
-    /// None when the object has no other trajectory here.
-    pub fn other_grasp(&self, p: &Prepared) -> Option<&Touch> {
-        let of_object = |t: u32| self.0.range((p.object, t, 0)..=(p.object, t, u32::MAX));
-        let later = self.0.range((p.object, p.trajectory.saturating_add(1), 0)..=(p.object, u32::MAX, u32::MAX)).next();
-        let donor = later.or_else(|| self.0.range((p.object, 0, 0)..(p.object, p.trajectory, 0)).next())?.0.1;
-        if donor == p.trajectory {
-            return None;
-        }
-        self.0.get(&(p.object, donor, p.instance)).or_else(|| of_object(donor).next().map(|(_, v)| v))
+    /// The touch of another grasp of `p`'s object ([`GraspBank::other_grasp`]).
+    pub fn other_grasp_of(&self, p: &Prepared) -> Option<&Touch> {
+        self.other_grasp(p.object, p.trajectory, p.instance)
     }
 }
 
@@ -59,7 +80,7 @@ impl TouchInput<'_> {
                 bank.record(p);
                 true
             }
-            TouchInput::OtherGrasp(bank) => match bank.other_grasp(p) {
+            TouchInput::OtherGrasp(bank) => match bank.other_grasp_of(p) {
                 Some((points, count)) => {
                     (p.tactile, p.tactile_count) = (points.clone(), *count);
                     true
@@ -116,7 +137,7 @@ mod tests {
         for (o, t, i) in [(0, 0, 0), (0, 0, 1), (0, 3, 0), (0, 3, 1), (0, 5, 1), (1, 2, 0)] {
             bank.record(&prepared(o, t, i, (100 * o + 10 * t as usize + i as usize) as f32));
         }
-        let donor = |o, t, i| bank.other_grasp(&prepared(o, t, i, -1.0)).map(|(p, _)| p[0]);
+        let donor = |o, t, i| bank.other_grasp_of(&prepared(o, t, i, -1.0)).map(|(p, _)| p[0]);
         // The next trajectory of the object, same instance; wrapping around to the first.
         assert_eq!(donor(0, 0, 1), Some(31.0));
         assert_eq!(donor(0, 3, 1), Some(51.0));

@@ -12,12 +12,13 @@
 pub mod compare;
 pub mod control;
 pub mod metrics;
+pub mod refined;
 
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use burn::prelude::*;
-use glam::DVec3;
+use glam::{DQuat, DVec3};
 use serde::Serialize;
 
 use crate::config::TrainConfig;
@@ -95,6 +96,9 @@ pub struct SampleResult {
     pub confidence: f32,
     /// Whether the chosen estimate came from the tactile channel.
     pub tactile_estimate: bool,
+    /// The estimate `T_camera_object` (rotation, translation in m), for a refiner to start from.
+    #[serde(skip)]
+    pub estimate: (DQuat, DVec3),
 }
 
 impl SampleResult {
@@ -181,6 +185,7 @@ pub fn evaluate_with(
                         adds_m: add_s(&m.eval_points, q_hat, t_hat, p.rotation, p.translation),
                         confidence: est.confidence,
                         tactile_estimate: variant == Variant::TactileOnly || (variant.uses_tactile() && est.index >= n_points),
+                        estimate: (q_hat, t_hat),
                     });
                 }
             }

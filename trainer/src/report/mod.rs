@@ -4,6 +4,8 @@
 
 pub mod markdown;
 pub mod plots;
+pub mod refine;
+pub mod sheet;
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;

@@ -20,6 +20,7 @@
 
 pub mod filter;
 pub mod metrics;
+pub mod refined;
 pub mod report;
 
 use std::collections::{BTreeMap, HashMap};
@@ -35,9 +36,11 @@ use crate::eval::metrics::{MeanSe, add_s, angle_error_up_to_deg, position_error_
 use crate::eval::{AUC_MAX_M, EvalOptions, best_estimates};
 use crate::geometry::wxyz_to_quat;
 use crate::model::{PoseNet, Variant};
+use crate::refine::{RefineConfig, Refiner};
 use crate::run::{RunDir, slot_table};
 use filter::{FilterConfig, Pose, filter_sequence};
 use metrics::{end_minus_start, jitter, sequence_auc, slope};
+use refined::{RefineContext, refine_methods};
 
 /// What `vtpose track` does besides the runs.
 #[derive(Debug, Clone)]
@@ -50,6 +53,10 @@ pub struct TrackOptions {
     pub filter: FilterConfig,
     /// The touch control for tactile networks (one more pass).
     pub touch_control: bool,
+    /// Track with the geometric refiner too ([`crate::refine`]): alone and from each run's
+    /// estimates, warm-started from the previous frame, with depth, with touch, and with another
+    /// episode's touch.
+    pub refine: Option<RefineConfig>,
     pub device: Device,
     pub quiet: bool,
 }
@@ -58,6 +65,8 @@ pub struct TrackOptions {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum TouchSource {
+    /// No touch (the refiner with the depth alone).
+    None,
     /// The frame's own touch (the vision-only network reads none).
     Own,
     /// The same frame of another episode of the same object ([`donors`]).
@@ -92,6 +101,9 @@ pub struct EpisodeTruth {
     pub donor: Option<usize>,
     #[serde(skip)]
     object_index: usize,
+    /// The frames' positions among the split's selected samples.
+    #[serde(skip)]
+    positions: Vec<usize>,
 }
 
 /// A frame's scores under one method (None: no pose for the frame).
@@ -150,12 +162,17 @@ pub struct EpisodeResult {
 /// One tracked method: a run's network, its touch, with or without the filter.
 #[derive(Debug, Clone, Serialize)]
 pub struct MethodResult {
-    /// `<run> per frame`, `<run> + filter`, `<run> (other episode's touch) per frame`, … .
+    /// `<run> per frame`, `<run> + filter`, `<run> (other episode's touch) per frame`,
+    /// `<run> + refine (depth + touch)`, `refine (depth)`, … .
     pub label: String,
+    /// The run's name; `refiner` for the refiner alone.
     pub run: String,
-    pub variant: Variant,
+    /// The run's network (None: the refiner alone).
+    pub variant: Option<Variant>,
     pub touch: TouchSource,
     pub filtered: bool,
+    /// Whether the geometric refiner made the poses (warm-started from the previous frame).
+    pub refined: bool,
     /// Per-frame estimates the filter's gate rejected (filtered methods).
     pub rejected: usize,
     /// Per episode, in the order of [`Tracking::episodes`].
@@ -235,14 +252,23 @@ pub fn donors(episodes: &[(usize, u32)]) -> Vec<Option<usize>> {
 /// A prepared frame's tactile input: its `(n_t, 3)` points and how many are real.
 type Touch = (Vec<f32>, usize);
 
-/// The touch of every frame of a pass, by (episode, frame), for the touch control.
-#[derive(Debug, Default)]
-struct TouchBank(BTreeMap<(usize, u32), Touch>);
+/// Something recorded per frame of a pass, by (episode, frame), for the touch control.
+#[derive(Debug)]
+struct FrameBank<T>(BTreeMap<(usize, u32), T>);
 
-impl TouchBank {
-    /// The touch of frame `frame` of `episode`, or of its nearest recorded frame (the earlier of
+impl<T> Default for FrameBank<T> {
+    fn default() -> Self {
+        FrameBank(BTreeMap::new())
+    }
+}
+
+/// The touch of every frame of a pass.
+type TouchBank = FrameBank<Touch>;
+
+impl<T> FrameBank<T> {
+    /// The value of frame `frame` of `episode`, or of its nearest recorded frame (the earlier of
     /// two as near): a frame without a visible object was never prepared.
-    fn at(&self, episode: usize, frame: u32) -> Option<&Touch> {
+    fn at(&self, episode: usize, frame: u32) -> Option<&T> {
         let after = self.0.range((episode, frame)..=(episode, u32::MAX)).next();
         let before = self.0.range((episode, 0)..(episode, frame)).next_back();
         match (before, after) {
@@ -337,7 +363,14 @@ fn episode_truths(source: &mut SplitSource, max: usize) -> Result<(Vec<EpisodeTr
         }
         order.extend(&e.frames);
         let object = source.models[e.object].id.clone();
-        episodes.push(EpisodeTruth { object, trajectory: e.record.trajectory, frames, donor: None, object_index: e.object });
+        episodes.push(EpisodeTruth {
+            object,
+            trajectory: e.record.trajectory,
+            frames,
+            donor: None,
+            object_index: e.object,
+            positions: e.frames.clone(),
+        });
     }
     let keys: Vec<(usize, u32)> = episodes.iter().map(|e| (e.object_index, e.trajectory)).collect();
     for (e, d) in episodes.iter_mut().zip(donors(&keys)) {
@@ -403,7 +436,7 @@ fn methods_of(
         })
         .collect();
     let base = match touch {
-        TouchSource::Own => run.to_string(),
+        TouchSource::None | TouchSource::Own => run.to_string(),
         TouchSource::OtherEpisode => format!("{run} (other episode's touch)"),
     };
     let make = |poses: &[Vec<Option<Pose>>], filtered: bool, rejected: usize| {
@@ -416,9 +449,10 @@ fn methods_of(
         MethodResult {
             label: format!("{base}{}", if filtered { " + filter" } else { " per frame" }),
             run: run.to_string(),
-            variant,
+            variant: Some(variant),
             touch,
             filtered,
+            refined: false,
             rejected,
             episodes: results,
         }
@@ -426,11 +460,14 @@ fn methods_of(
     [make(&raw, false, 0), make(&filtered, true, rejected)]
 }
 
-/// Tracks every run over the test episodes (see the module docs). The runs must see the same
-/// episodes (the same dataset and objects).
+/// Tracks every run over the test episodes (see the module docs), and with the refiner when
+/// `opts.refine` asks (from each run's estimates and alone; with no run, the refiner alone on
+/// `opts.dataset`). The runs must see the same episodes (the same dataset and objects).
 pub fn track_runs(runs: &[PathBuf], names: &[String], opts: &TrackOptions) -> Result<Tracking> {
     opts.filter.validate()?;
+    let refiner = opts.refine.clone().map(Refiner::new).transpose()?;
     let mut tracking: Option<Tracking> = None;
+    let mut context: Option<(RefineContext, Vec<crate::data::ObjectModel>)> = None;
     for (run, name) in runs.iter().zip(names) {
         let dir = RunDir(run.clone());
         if !dir.model().is_file() {
@@ -467,8 +504,14 @@ pub fn track_runs(runs: &[PathBuf], names: &[String], opts: &TrackOptions) -> Re
         let episode_of: HashMap<(usize, u32), usize> =
             episodes.iter().enumerate().map(|(i, e)| ((e.object_index, e.trajectory), i)).collect();
         let mut bank = TouchBank::default();
-        let (own, source) = estimate_frames(&model, source, order.clone(), &eval, &episode_of, &episodes, &mut PassTouch::Own(&mut bank))?;
+        let (own, mut source) =
+            estimate_frames(&model, source, order.clone(), &eval, &episode_of, &episodes, &mut PassTouch::Own(&mut bank))?;
         let mut methods = methods_of(name, state.variant, TouchSource::Own, &episodes, &models, &own, &opts.filter).to_vec();
+        if let Some(refiner) = &refiner {
+            if context.is_none() {
+                context = Some((RefineContext::new(refiner.clone(), &mut source, &episodes, &models)?, models.clone()));
+            }
+        }
         if opts.touch_control && state.variant.uses_tactile() {
             let (other, _) = estimate_frames(&model, source, order, &eval, &episode_of, &episodes, &mut PassTouch::Donor(&bank))?;
             methods.extend(methods_of(name, state.variant, TouchSource::OtherEpisode, &episodes, &models, &other, &opts.filter));
@@ -489,7 +532,34 @@ pub fn track_runs(runs: &[PathBuf], names: &[String], opts: &TrackOptions) -> Re
                 t.methods.extend(methods);
             }
         }
+        if let (Some((ctx, models)), Some(t)) = (&context, tracking.as_mut()) {
+            if !opts.quiet {
+                eprintln!("vtpose: refining {name}'s estimates, warm-started from frame to frame");
+            }
+            let refined = refine_methods(ctx, name, Some(state.variant), Some(&own), &t.episodes, models);
+            t.methods.extend(refined);
+        }
     }
+    let Some(refiner) = refiner else { return tracking.context("no run to track") };
+    if tracking.is_none() {
+        let dataset = opts.dataset.clone().context("tracking with the refiner alone needs --dataset (no run names one)")?;
+        let models = load_models(&dataset)?;
+        let ids: Vec<String> = models.iter().map(|m| m.id.clone()).collect();
+        let mut source = SplitSource::open(&dataset, &opts.split, &ids, crate::data::DepthSource::Exact, true)
+            .with_context(|| format!("dataset {}", dataset.display()))?;
+        let (episodes, _) = episode_truths(&mut source, opts.max_episodes)?;
+        if episodes.is_empty() {
+            bail!("dataset {}: the {} split has no episodes: nothing to track", dataset.display(), opts.split);
+        }
+        context = Some((RefineContext::new(refiner, &mut source, &episodes, &models)?, models));
+        tracking = Some(Tracking { dataset, split: opts.split.clone(), filter: opts.filter, episodes, methods: Vec::new() });
+    }
+    let (Some((ctx, models)), Some(t)) = (&context, tracking.as_mut()) else { unreachable!("set above") };
+    if !opts.quiet {
+        eprintln!("vtpose: tracking with the refiner alone over {} episodes", t.episodes.len());
+    }
+    let alone = refine_methods(ctx, "refiner", None, None, &t.episodes, models);
+    t.methods.extend(alone);
     tracking.context("no run to track")
 }
 

@@ -68,9 +68,13 @@ pub fn paired_auc(m: &MethodResult, base: &MethodResult) -> (usize, usize, f64) 
     (better, worse, sign_test_p(better, worse))
 }
 
-/// The per-frame method with the frame's own touch of `m`'s run: what each method is compared with.
+/// What each method is compared with: a network's method with the same network per frame with
+/// its own touch; a refined method with the same refiner's depth-only method.
 fn baseline_of<'a>(t: &'a Tracking, m: &MethodResult) -> Option<&'a MethodResult> {
-    t.methods.iter().find(|b| b.run == m.run && b.touch == TouchSource::Own && !b.filtered)
+    if m.refined {
+        return t.methods.iter().find(|b| b.run == m.run && b.refined && b.touch == TouchSource::None);
+    }
+    t.methods.iter().find(|b| b.run == m.run && !b.refined && b.touch == TouchSource::Own && !b.filtered)
 }
 
 fn f(v: f64, p: usize) -> String {
@@ -108,7 +112,10 @@ pub fn markdown(t: &Tracking, device: &str) -> String {
          is a failure), mean ± standard error over episodes. Drift: least-squares slope of ADD-S against time (cm/s), and the mean \
          ADD-S of the last fifth of an episode's frames minus the first fifth (cm). Jitter: mean frame-to-frame change of the \
          translation error (mm). vs per frame: episodes on which the method's AUC is higher / lower than the same network's per-frame \
-         AUC, with the sign test's p.\n"
+         AUC (for a refined method: than the same refiner's with the depth alone), with the sign test's p. The refined methods \
+         (`refine …`) fit the object's mesh to each frame's depth points, free space and, with touch, tactile points, warm-started \
+         from the previous frame's pose (and the network's estimate of the frame where a run is named), searched from nothing at \
+         the first frame and when the warm start fits poorly.\n"
     );
     let _ = writeln!(s, "## Overall\n");
     let _ = writeln!(
@@ -243,7 +250,8 @@ pub fn write_tracking_report(t: &Tracking, device: &str, out: &Path) -> Result<P
             "object": e.object, "trajectory": e.trajectory, "frames": e.frames.len(), "donor": e.donor,
         })).collect::<Vec<_>>(),
         "methods": t.methods.iter().map(|m| serde_json::json!({
-            "label": m.label, "run": m.run, "variant": m.variant, "touch": m.touch, "filtered": m.filtered, "rejected": m.rejected,
+            "label": m.label, "run": m.run, "variant": m.variant, "touch": m.touch, "filtered": m.filtered, "refined": m.refined,
+            "rejected": m.rejected,
             "summary": m.summary(),
             "vs_per_frame": baseline_of(t, m).filter(|b| !std::ptr::eq(*b, m)).map(|b| {
                 let (better, worse, p) = paired_auc(m, b);
@@ -283,15 +291,16 @@ pub fn write_tracking_report(t: &Tracking, device: &str, out: &Path) -> Result<P
     Ok(report)
 }
 
-/// One colour per run and touch source: a method and its filtered twin share it (the twin dashed).
+/// One colour per run, refinement and touch source: a method and its filtered twin share it (the
+/// twin dashed).
 fn color_of(t: &Tracking, m: &MethodResult) -> usize {
-    let mut keys: Vec<(&str, TouchSource)> = Vec::new();
+    let mut keys: Vec<(&str, bool, TouchSource)> = Vec::new();
     for n in &t.methods {
-        if !keys.contains(&(n.run.as_str(), n.touch)) {
-            keys.push((n.run.as_str(), n.touch));
+        if !keys.contains(&(n.run.as_str(), n.refined, n.touch)) {
+            keys.push((n.run.as_str(), n.refined, n.touch));
         }
     }
-    keys.iter().position(|k| *k == (m.run.as_str(), m.touch)).unwrap_or(0)
+    keys.iter().position(|k| *k == (m.run.as_str(), m.refined, m.touch)).unwrap_or(0)
 }
 
 fn cell(v: Option<f64>) -> String {
