@@ -93,6 +93,9 @@ pub struct RefineEval {
     pub max_samples: usize,
 }
 
+/// Samples decoded at a time: their observations (a depth image and mask each) are dropped after.
+const DECODE_CHUNK: usize = 64;
+
 /// A sample as the estimators see it.
 struct Item {
     index: u64,
@@ -101,7 +104,8 @@ struct Item {
     instance: u32,
     occlusion: f32,
     truth: Pose,
-    obs: Observation,
+    /// Its tactile points (the observation's subset), lent to another grasp by the control.
+    touch: Vec<DVec3>,
 }
 
 /// One estimator to run per sample.
@@ -175,30 +179,6 @@ pub fn evaluate_refined(cmd: &RefineCommand) -> Result<RefineEval> {
             models.len()
         );
     }
-    let progress = progress_bar(source.len() as u64, cmd.quiet, "decode");
-    let mut items = Vec::with_capacity(source.len());
-    let mut positions = BTreeMap::new();
-    for i in 0..source.len() {
-        let (s, object) = source.sample(i)?;
-        if s.mask.iter().zip(&s.depth).any(|(&m, &z)| m == s.info.mask_id && z > 0.0) {
-            positions.insert(s.index, i);
-            items.push(Item {
-                index: s.index,
-                object,
-                trajectory: s.info.trajectory,
-                instance: s.info.instance,
-                occlusion: s.info.occlusion.map_or(f32::NAN, |o| o.level as f32),
-                truth: (s.t_camera_object.rotation(), s.t_camera_object.translation()),
-                obs: refiner.observe(&s),
-            });
-        }
-        progress.inc(1);
-    }
-    progress.finish_and_clear();
-    let mut bank: GraspBank<usize> = GraspBank::default();
-    for (k, it) in items.iter().enumerate() {
-        bank.insert(it.object, it.trajectory, it.instance, k);
-    }
     let mut plans = vec![
         Plan { label: "refine: depth".into(), run: None, touch: TouchUse::None },
         Plan { label: "refine: depth + touch".into(), run: None, touch: TouchUse::Own },
@@ -213,38 +193,95 @@ pub fn evaluate_refined(cmd: &RefineCommand) -> Result<RefineEval> {
             plans.push(Plan { label: format!("{name} + refine: depth + other grasp's touch"), run: Some(r), touch: TouchUse::OtherGrasp });
         }
     }
-    let progress = progress_bar(items.len() as u64, cmd.quiet, "refine");
-    let started = Instant::now();
-    // Per item, per plan: the pose (None: not scored) and the time it took (s).
-    let per_item: Vec<Vec<Option<(Pose, usize, f64)>>> = items
-        .par_iter()
-        .map(|it| {
-            let shape = &shapes[it.object];
-            let row = plans
-                .iter()
-                .map(|plan| {
-                    let touch = match plan.touch {
-                        TouchUse::None => Vec::new(),
-                        TouchUse::Own => it.obs.touch.clone(),
-                        TouchUse::OtherGrasp => items[*bank.other_grasp(it.object, it.trajectory, it.instance)?].obs.touch.clone(),
-                    };
-                    let start = match plan.run {
-                        None => Start::Search,
-                        Some(r) => Start::From(vec![network[r].get(&(models[it.object].id.clone(), it.index))?.estimate]),
-                    };
-                    let n_touch = touch.len();
-                    let obs = it.obs.with_touch(touch);
-                    let clock = Instant::now();
-                    let refined = refiner.refine(shape, &obs, &start)?;
-                    Some((refined.pose, n_touch, clock.elapsed().as_secs_f64()))
+    // One plan on one sample: the pose, the tactile points it used, the time (s); None when the
+    // plan has nothing to start from (no network estimate, no other grasp).
+    let run_plan = |plan: &Plan, it: &Item, obs: &Observation, touch: Vec<DVec3>| -> Option<(Pose, usize, f64)> {
+        let start = match plan.run {
+            None => Start::Search,
+            Some(r) => Start::From(vec![network[r].get(&(models[it.object].id.clone(), it.index))?.estimate]),
+        };
+        let n_touch = touch.len();
+        let obs = obs.with_touch(touch);
+        let clock = Instant::now();
+        let refined = refiner.refine(&shapes[it.object], &obs, &start)?;
+        Some((refined.pose, n_touch, clock.elapsed().as_secs_f64()))
+    };
+    // The samples are decoded a chunk at a time (a full image is megabytes), in a first pass for
+    // every plan but the touch control, then again for the control, which needs every sample's
+    // touch to lend it to another grasp.
+    let controls = plans.iter().any(|p| p.touch == TouchUse::OtherGrasp);
+    let progress = progress_bar(source.len() as u64 * (1 + controls as u64), cmd.quiet, "refine");
+    let mut items: Vec<Item> = Vec::with_capacity(source.len());
+    let mut rows: Vec<Vec<Option<(Pose, usize, f64)>>> = Vec::with_capacity(source.len());
+    let mut positions = BTreeMap::new();
+    let mut wall_s = 0.0;
+    for pass in 0..1 + controls as usize {
+        let bank: GraspBank<usize> = {
+            let mut b = GraspBank::default();
+            for (k, it) in items.iter().enumerate() {
+                b.insert(it.object, it.trajectory, it.instance, k);
+            }
+            b
+        };
+        let mut k = 0;
+        for first in (0..source.len()).step_by(DECODE_CHUNK) {
+            let mut chunk: Vec<(Item, Observation)> = Vec::with_capacity(DECODE_CHUNK);
+            for i in first..(first + DECODE_CHUNK).min(source.len()) {
+                let (s, object) = source.sample(i)?;
+                progress.inc(1);
+                if !s.mask.iter().zip(&s.depth).any(|(&m, &z)| m == s.info.mask_id && z > 0.0) {
+                    continue;
+                }
+                positions.insert(s.index, i);
+                let obs = refiner.observe(&s);
+                let item = Item {
+                    index: s.index,
+                    object,
+                    trajectory: s.info.trajectory,
+                    instance: s.info.instance,
+                    occlusion: s.info.occlusion.map_or(f32::NAN, |o| o.level as f32),
+                    truth: (s.t_camera_object.rotation(), s.t_camera_object.translation()),
+                    touch: obs.touch.clone(),
+                };
+                chunk.push((item, obs));
+            }
+            let started = Instant::now();
+            let chunk_rows: Vec<Vec<Option<(Pose, usize, f64)>>> = chunk
+                .par_iter()
+                .map(|(it, obs)| {
+                    plans
+                        .iter()
+                        .map(|plan| match (pass, plan.touch) {
+                            (0, TouchUse::None) => run_plan(plan, it, obs, Vec::new()),
+                            (0, TouchUse::Own) => run_plan(plan, it, obs, obs.touch.clone()),
+                            (1, TouchUse::OtherGrasp) => {
+                                let donor = &items[*bank.other_grasp(it.object, it.trajectory, it.instance)?];
+                                run_plan(plan, it, obs, donor.touch.clone())
+                            }
+                            _ => None,
+                        })
+                        .collect()
                 })
                 .collect();
-            progress.inc(1);
-            row
-        })
-        .collect();
-    let wall_s = started.elapsed().as_secs_f64();
+            wall_s += started.elapsed().as_secs_f64();
+            for ((it, _), row) in chunk.into_iter().zip(chunk_rows) {
+                if pass == 0 {
+                    items.push(it);
+                    rows.push(row);
+                } else {
+                    debug_assert_eq!(items[k].index, it.index, "both passes see the samples in one order");
+                    for (cell, new) in rows[k].iter_mut().zip(row) {
+                        if new.is_some() {
+                            *cell = new;
+                        }
+                    }
+                    k += 1;
+                }
+            }
+        }
+    }
     progress.finish_and_clear();
+    let per_item = rows;
     let mut estimators = Vec::new();
     for (r, name) in names.iter().enumerate() {
         // The network alone, on the samples the refiner saw.
