@@ -421,10 +421,10 @@ fn refine_command(args: RefineArgs) -> Result<()> {
         RefineCommand { dataset, split, max_samples, runs, config, touch_control: !no_touch_control, device: device::parse(&dev)?, quiet };
     let eval = evaluate_refined(&cmd)?;
     let report = write_refine_report(&eval, &out)?;
-    if let Some(sheet) = write_sheet(&eval, sheet, &out)? {
-        if !quiet {
-            eprintln!("vtpose: wrote {}", sheet.display());
-        }
+    if let Some(sheet) = write_sheet(&eval, sheet, &out)?
+        && !quiet
+    {
+        eprintln!("vtpose: wrote {}", sheet.display());
     }
     if !quiet {
         eprintln!("vtpose: wrote {}", report.display());

@@ -114,7 +114,8 @@ impl ObjectShape {
     /// the mesh has no triangle.
     pub fn of(model: &ObjectModel) -> anyhow::Result<Self> {
         let (vertices, triangles) = model.mesh();
-        if triangles.is_empty() || model.surface().total_area().is_nan_or_zero() {
+        let area = model.surface().total_area();
+        if triangles.is_empty() || area.is_nan() || area <= 0.0 {
             anyhow::bail!("object '{}': its mesh has no triangle with an area; the refiner needs a surface", model.id);
         }
         let mesh = TriMesh::new(vertices.iter().map(|v| v.as_vec3()).collect(), triangles.to_vec())
@@ -143,7 +144,7 @@ impl ObjectShape {
         let centroid = points.iter().sum::<DVec3>() / points.len() as f64;
         let radius = vertices.iter().map(|v| v.distance(centroid)).fold(0.0, f64::max);
         let facing_centroid = (0..VIEW_GRID * VIEW_GRID)
-            .map(|cell| octahedral_direction(cell))
+            .map(octahedral_direction)
             .map(|d| {
                 let (sum, n) = points
                     .iter()
@@ -189,16 +190,6 @@ fn octahedral_direction(cell: usize) -> DVec3 {
     let z = 1.0 - x.abs() - y.abs();
     let (x, y) = if z < 0.0 { ((1.0 - y.abs()) * x.signum(), (1.0 - x.abs()) * y.signum()) } else { (x, y) };
     DVec3::new(x, y, z).normalize()
-}
-
-trait NanOrZero {
-    fn is_nan_or_zero(self) -> bool;
-}
-
-impl NanOrZero for f64 {
-    fn is_nan_or_zero(self) -> bool {
-        self.is_nan() || self <= 0.0
-    }
 }
 
 /// Meshes for the refiner's tests.

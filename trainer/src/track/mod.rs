@@ -507,10 +507,10 @@ pub fn track_runs(runs: &[PathBuf], names: &[String], opts: &TrackOptions) -> Re
         let (own, mut source) =
             estimate_frames(&model, source, order.clone(), &eval, &episode_of, &episodes, &mut PassTouch::Own(&mut bank))?;
         let mut methods = methods_of(name, state.variant, TouchSource::Own, &episodes, &models, &own, &opts.filter).to_vec();
-        if let Some(refiner) = &refiner {
-            if context.is_none() {
-                context = Some((RefineContext::new(refiner.clone(), &mut source, &episodes, &models)?, models.clone()));
-            }
+        if let Some(refiner) = &refiner
+            && context.is_none()
+        {
+            context = Some((RefineContext::new(refiner.clone(), &mut source, &episodes, &models)?, models.clone()));
         }
         if opts.touch_control && state.variant.uses_tactile() {
             let (other, _) = estimate_frames(&model, source, order, &eval, &episode_of, &episodes, &mut PassTouch::Donor(&bank))?;
