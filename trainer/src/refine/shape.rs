@@ -105,8 +105,6 @@ pub struct ObjectShape {
     facing_centroid: Vec<DVec3>,
     /// Indices into `points` checked against free space.
     pub free_space: Vec<usize>,
-    /// The mesh's bounding sphere radius about its centroid (m).
-    pub radius: f64,
 }
 
 impl ObjectShape {
@@ -142,7 +140,6 @@ impl ObjectShape {
         }
         let tree = ImmutableKdTree::new_from_slice(&points.iter().map(|p| p.to_array()).collect::<Vec<_>>());
         let centroid = points.iter().sum::<DVec3>() / points.len() as f64;
-        let radius = vertices.iter().map(|v| v.distance(centroid)).fold(0.0, f64::max);
         let facing_centroid = (0..VIEW_GRID * VIEW_GRID)
             .map(octahedral_direction)
             .map(|d| {
@@ -156,7 +153,7 @@ impl ObjectShape {
             .collect();
         let stride = (SURFACE_POINTS / FREE_SPACE_POINTS).max(1);
         let free_space = (0..SURFACE_POINTS).step_by(stride).collect();
-        Ok(ObjectShape { field, points, normals, tree, facing_centroid, free_space, radius })
+        Ok(ObjectShape { field, points, normals, tree, facing_centroid, free_space })
     }
 
     /// The nearest surface point to `p` (object frame): its index.
