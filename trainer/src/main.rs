@@ -9,7 +9,7 @@ use clap::{Args, Parser, Subcommand};
 use vt_trainer::bench::{bench_model, bench_training, table, training_table};
 use vt_trainer::config::TrainConfig;
 use vt_trainer::device;
-use vt_trainer::eval::refined::{RefineCommand, evaluate_refined};
+use vt_trainer::eval::refined::{RefineCommand, evaluate_refined, refined_evals};
 use vt_trainer::eval::{EvalCommand, evaluate_runs, run_names};
 use vt_trainer::model::Variant;
 use vt_trainer::report::refine::{pool_reports, write_refine_report};
@@ -174,6 +174,10 @@ struct EvalArgs {
     /// of the same object and with no touch (two more passes).
     #[arg(long)]
     no_touch_control: bool,
+    /// Also each network's estimates refined by the geometric refiner, with the depth alone and
+    /// with touch (two more rows per run; `vtpose refine` has the whole comparison).
+    #[arg(long)]
+    refine: bool,
     #[arg(long, default_value = "cpu", help = device::DEVICE_HELP)]
     device: String,
     #[arg(long)]
@@ -333,7 +337,7 @@ fn sweep_command(args: SweepArgs) -> Result<()> {
 }
 
 fn eval_command(args: EvalArgs) -> Result<()> {
-    let EvalArgs { runs, dataset, split, out, max_samples, no_sweep, no_touch_control, device: dev, quiet } = args;
+    let EvalArgs { runs, dataset, split, out, max_samples, no_sweep, no_touch_control, refine, device: dev, quiet } = args;
     let device = device::parse(&dev)?;
     let cmd = EvalCommand {
         dataset,
@@ -344,7 +348,11 @@ fn eval_command(args: EvalArgs) -> Result<()> {
         device: device.clone(),
         quiet,
     };
-    let evals = evaluate_runs(&runs, &cmd)?;
+    let mut evals = evaluate_runs(&runs, &cmd)?;
+    if refine {
+        let refined = refined_evals(&evals, &cmd, &vt_trainer::refine::RefineConfig::default())?;
+        evals.extend(refined);
+    }
     let report = write_report(&evals, &split, &dev, &out)?;
     if !quiet {
         eprintln!("vtpose: wrote {}", report.display());

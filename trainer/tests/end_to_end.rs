@@ -424,6 +424,11 @@ fn the_cli_trains_evaluates_and_benchmarks() {
             && eval_dir.join("results.json").is_file()
             && eval_dir.join("samples-run.csv").is_file()
     );
+    // With --refine, each network's estimates refined too: two more rows.
+    let refined_dir = dir.path().join("eval-refined");
+    let md_refined =
+        vtpose(&["eval", r, "--out", refined_dir.to_str().unwrap(), "--max-samples", "3", "--no-sweep", "--refine", "--quiet"]);
+    assert!(md_refined.contains("| run + refine: depth |") && md_refined.contains("| run + refine: depth + touch |"), "{md_refined}");
     // The three evaluated epochs are the run's learning curve; the angle errors' spread.
     assert!(md.contains("## Learning curves") && md.contains("| run | 3 | 3 |") && md.contains("## Angle errors"), "{md}");
     assert!(eval_dir.join("learning-position.svg").is_file() && eval_dir.join("learning-angle.svg").is_file());

@@ -392,3 +392,38 @@ pub fn comparisons(eval: &RefineEval) -> Vec<EstimatorPair> {
 pub fn estimates_of(eval: &RefineEval, label: &str) -> BTreeMap<u64, (DQuat, DVec3)> {
     eval.estimators.iter().find(|e| e.label == label).map(|e| e.results.iter().map(|r| (r.index, r.estimate)).collect()).unwrap_or_default()
 }
+
+/// `vtpose eval --refine`: per evaluated network, its estimates refined with the depth alone and
+/// with touch (the local stage from each estimate), as two more rows of the evaluation, named
+/// `<run> + refine: depth` and `<run> + refine: depth + touch`.
+pub fn refined_evals(evals: &[super::ModelEval], cmd: &EvalCommand, config: &RefineConfig) -> Result<Vec<super::ModelEval>> {
+    let mut out = Vec::new();
+    for e in evals {
+        let refined = evaluate_refined(&RefineCommand {
+            dataset: e.dataset.clone(),
+            split: cmd.split.clone(),
+            max_samples: cmd.max_samples,
+            runs: vec![e.run.clone()],
+            config: config.clone(),
+            touch_control: false,
+            device: cmd.device.clone(),
+            quiet: cmd.quiet,
+        })?;
+        for est in refined.estimators.into_iter().filter(|est| est.run.is_some() && est.refined) {
+            let what = if est.touch == TouchUse::Own { "depth + touch" } else { "depth" };
+            out.push(super::ModelEval {
+                name: format!("{} + refine: {what}", e.name),
+                run: e.run.clone(),
+                variant: e.variant,
+                dataset: e.dataset.clone(),
+                n_tactile: e.n_tactile,
+                results: est.results,
+                skipped: e.skipped,
+                sweep: Vec::new(),
+                curve: Vec::new(),
+                touch_control: None,
+            });
+        }
+    }
+    Ok(out)
+}
