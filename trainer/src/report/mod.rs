@@ -105,7 +105,8 @@ fn write_samples_csv(e: &ModelEval, out: &Path) -> Result<()> {
     Ok(())
 }
 
-fn group<K: Ord>(results: &[SampleResult], key: impl Fn(&SampleResult) -> Option<K>) -> BTreeMap<K, Vec<&SampleResult>> {
+/// `results` grouped by `key` (None: left out), keys in order.
+pub(super) fn group<K: Ord>(results: &[SampleResult], key: impl Fn(&SampleResult) -> Option<K>) -> BTreeMap<K, Vec<&SampleResult>> {
     let mut m: BTreeMap<K, Vec<&SampleResult>> = BTreeMap::new();
     for r in results {
         if let Some(k) = key(r) {

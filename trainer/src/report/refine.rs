@@ -9,6 +9,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use vt_dataset::OcclusionBin;
 
+use super::group;
 use crate::eval::metrics::MeanSe;
 use crate::eval::refined::{EstimatorPair, RefineEval, comparisons};
 use crate::eval::{SampleResult, Summary, median};
@@ -25,8 +26,8 @@ pub fn write_refine_report(eval: &RefineEval, out: &Path) -> Result<PathBuf> {
         "estimators": eval.estimators.iter().map(|e| serde_json::json!({
             "label": e.label, "run": e.run, "refined": e.refined, "touch": e.touch, "ms_per_sample": e.ms_per_sample,
             "overall": Summary::of(&e.results),
-            "per_occlusion": by(&e.results, |r| OcclusionBin::of_f32(r.occlusion).map(|b| b.label().to_string())).into_iter().map(|(k, v)| (k, Summary::of(v))).collect::<BTreeMap<_, _>>(),
-            "per_object": by(&e.results, |r| Some(r.object.clone())).into_iter().map(|(k, v)| (k, Summary::of(v))).collect::<BTreeMap<_, _>>(),
+            "per_occlusion": group(&e.results, |r| OcclusionBin::of_f32(r.occlusion).map(|b| b.label().to_string())).into_iter().map(|(k, v)| (k, Summary::of(v))).collect::<BTreeMap<_, _>>(),
+            "per_object": group(&e.results, |r| Some(r.object.clone())).into_iter().map(|(k, v)| (k, Summary::of(v))).collect::<BTreeMap<_, _>>(),
         })).collect::<Vec<_>>(),
         "paired": pairs,
     });
@@ -171,16 +172,6 @@ pub fn pool_reports(dirs: &[PathBuf]) -> Result<RefineEval> {
     })
 }
 
-fn by<K: Ord>(results: &[SampleResult], key: impl Fn(&SampleResult) -> Option<K>) -> BTreeMap<K, Vec<&SampleResult>> {
-    let mut m: BTreeMap<K, Vec<&SampleResult>> = BTreeMap::new();
-    for r in results {
-        if let Some(k) = key(r) {
-            m.entry(k).or_default().push(r);
-        }
-    }
-    m
-}
-
 fn num(v: f64, digits: usize) -> String {
     if v.is_finite() { format!("{v:.digits$}") } else { "–".into() }
 }
@@ -237,7 +228,7 @@ fn markdown(eval: &RefineEval, pairs: &[EstimatorPair]) -> String {
     }
     let _ = writeln!(s, "## Per object\n");
     let objects: Vec<String> =
-        by(&eval.estimators.first().map(|e| e.results.clone()).unwrap_or_default(), |r| Some(r.object.clone())).into_keys().collect();
+        eval.estimators.first().map(|e| group(&e.results, |r| Some(r.object.clone())).into_keys().collect()).unwrap_or_default();
     for o in &objects {
         let _ = writeln!(s, "### {o}\n\n{HEADER}");
         for e in &eval.estimators {
