@@ -181,12 +181,46 @@ enum TactileAction {
         /// The ball's radius (mm).
         #[arg(long)]
         ball_radius: f64,
-        /// The pixel size (mm) when it is known; fitted otherwise.
+        /// The pixel size (mm) on the gel, measured on the unit; without it, identified from the
+        /// presses when their shape fixes it, refused otherwise.
         #[arg(long)]
         pixel_size_mm: Option<f64>,
+        /// Keep K presses (spread over the sorted names) out of the fit, render them through it
+        /// and report their residual over the whole contact disc against "no change".
+        #[arg(long, default_value_t = 0)]
+        holdout: usize,
         /// Where the calibration goes (default: DIR/calibration).
         #[arg(long)]
         out: Option<PathBuf>,
+    },
+    /// Renders a ball press (or a height map of the gel) through a calibration, vtgen's
+    /// `calibration.yaml` or Taxim's `polycalib.npz`, into a PNG: noise-free, no markers, to set
+    /// beside a real frame of the same press.
+    RenderPress {
+        calibration: PathBuf,
+        /// The ball's radius (mm).
+        #[arg(long, required_unless_present = "height_map")]
+        ball_radius: Option<f64>,
+        /// How deep the ball presses into the gel (mm).
+        #[arg(long, required_unless_present = "height_map")]
+        depth_mm: Option<f64>,
+        /// The ball's centre in the image, `COLUMN,ROW` in pixels from the image's corner
+        /// (default: the image's centre).
+        #[arg(long, value_delimiter = ',', num_args = 2)]
+        at: Option<Vec<f64>>,
+        /// The pixel size (mm): needed for Taxim's files, which do not give it.
+        #[arg(long)]
+        pixel_size_mm: Option<f64>,
+        /// A height map of the gel's indentation (`.npy`, rows x columns of the calibration's
+        /// image) in place of the ball: larger values pushed further in.
+        #[arg(long, conflicts_with_all = ["ball_radius", "depth_mm", "at"])]
+        height_map: Option<PathBuf>,
+        /// The height map's unit: `mm`, or `pixels` (of --pixel-size-mm; Taxim's height maps).
+        #[arg(long, default_value = "mm")]
+        height_unit: String,
+        /// The PNG to write.
+        #[arg(long, short)]
+        out: PathBuf,
     },
 }
 
@@ -284,9 +318,24 @@ fn run(cli: Cli) -> Result<()> {
             let opts = commands::grasps::GraspCheckOptions { trajectories, instances, jobs, quiet };
             commands::grasps::run(&load(&config)?, ycb_dir.as_ref(), &opts, json, min_kept)
         }
-        Command::Tactile { action: TactileAction::Calibrate { dir, ball_radius, pixel_size_mm, out } } => {
+        Command::Tactile { action: TactileAction::Calibrate { dir, ball_radius, pixel_size_mm, holdout, out } } => {
             let out = out.unwrap_or_else(|| dir.join("calibration"));
-            commands::tactile::calibrate(&dir, ball_radius, pixel_size_mm, &out)
+            commands::tactile::calibrate(&dir, ball_radius, pixel_size_mm, holdout, &out)
+        }
+        Command::Tactile {
+            action:
+                TactileAction::RenderPress { calibration, ball_radius, depth_mm, at, pixel_size_mm, height_map, height_unit, out },
+        } => {
+            use commands::tactile::{PressShape, read_height_map, render_press_image};
+            let shape = match height_map {
+                Some(path) => PressShape::HeightMap(read_height_map(&path, &height_unit, pixel_size_mm)?),
+                None => PressShape::Ball {
+                    radius_mm: ball_radius.expect("clap requires it"),
+                    depth_mm: depth_mm.expect("clap requires it"),
+                    centre_px: at.map(|a| [a[0], a[1]]),
+                },
+            };
+            render_press_image(&calibration, pixel_size_mm, shape, &out)
         }
         Command::Robot { action: RobotAction::Check { config, json } } => commands::robot_check::run(&load(&config)?, json),
         Command::Preview { source, n, out, width, columns, ycb_dir } => {

@@ -217,6 +217,7 @@ impl OpticalConfig {
             if let Some(pixel) = cal.pixel_size_mm {
                 s.sensing_area_mm = cal.image_size.map(|n| n as f64 * pixel);
             }
+            s.elastic_spread_mm = cal.elastic_spread_mm.unwrap_or(s.elastic_spread_mm);
             if let Some(leds) = &cal.leds {
                 s.lights = leds.lights.clone().unwrap_or(s.lights);
                 s.ambient = leds.ambient.unwrap_or(s.ambient);

@@ -59,8 +59,12 @@ pub struct CalibrationFile {
     pub model: String,
     /// The unit's image width and height (pixels).
     pub image_size: [u32; 2],
-    /// The size of one pixel on the gel (mm), fitted from the presses.
+    /// The size of one pixel on the gel (mm), given to or identified by the fit.
     pub pixel_size_mm: f64,
+    /// The gel's elastic spread (mm) the presses showed (`robot.tactile.optical.elastic_spread_mm`
+    /// unless the config gives it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub elastic_spread_mm: Option<f64>,
     /// `polynomial`: the no-contact image (a PNG beside this file), linear 8-bit levels.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub background_image: Option<PathBuf>,
@@ -87,7 +91,8 @@ pub enum LightModel {
     Polynomial { coefficients: [Vec<f64>; 3] },
     /// Taxim's table: `bins x bins` cells over the slope angle (`atan |grad|`, 0..=pi/2) and its
     /// direction (`atan2(gy, gx)`, -pi..=pi), each with per-channel coefficients of
-    /// `[u^2, v^2, u v, u, v, 1]` in pixel coordinates (column u, row v), in 8-bit levels.
+    /// `[u^2, v^2, u v, u, v, 1]` in pixel coordinates (column u, row v), in 8-bit levels; channels
+    /// in vtgen's order (R, G, B), i.e. the file's `grad_b`, `grad_g`, `grad_r`.
     Table { bins: usize, tables: [Vec<f64>; 3] },
 }
 
@@ -98,6 +103,8 @@ pub struct LoadedCalibration {
     /// The pixel size (mm) the file gives (Taxim's does not: the sensor's `sensing_area_mm` over
     /// its `image_size` then).
     pub pixel_size_mm: Option<f64>,
+    /// The gel's elastic spread (mm) the file gives.
+    pub elastic_spread_mm: Option<f64>,
     /// The no-contact image, 0..=1 per channel, `w * h * 3` (None: the LED model's background).
     pub background: Option<Vec<f64>>,
     /// None: the file holds LED parameters, applied to the sensor when it is resolved.
@@ -113,21 +120,38 @@ impl LightModel {
         match self {
             LightModel::Polynomial { coefficients } => polynomial_delta(coefficients, at, slopes),
             LightModel::Table { bins, tables } => {
-                let (gx, gy) = slopes;
-                let binm = (*bins - 1) as f64;
-                let angle = gx.hypot(gy).atan();
-                let direction = gy.atan2(gx);
-                let i = ((angle / (0.5 * std::f64::consts::PI / binm)).floor() as usize).min(bins - 1);
-                let j = (((direction + std::f64::consts::PI) / (2.0 * std::f64::consts::PI / binm)).floor() as usize).min(bins - 1);
-                let (x, y) = (u as f64, v as f64);
-                let a = [x * x, y * y, x * y, x, y, 1.0];
-                std::array::from_fn(|c| {
-                    let k = &tables[c][(i * bins + j) * 6..(i * bins + j) * 6 + 6];
-                    a.iter().zip(k).map(|(a, b)| a * b).sum::<f64>() / 255.0
-                })
+                // Taxim shades every pixel with its cell, a flat one with the flat cell: the
+                // background this model is loaded with has the flat cell in it already.
+                let cell = table_cell(*bins, slopes);
+                let flat = table_cell(*bins, (0.0, 0.0));
+                if cell == flat {
+                    return [0.0; 3];
+                }
+                std::array::from_fn(|c| table_value(&tables[c], *bins, cell, (u, v)) - table_value(&tables[c], *bins, flat, (u, v)))
             }
         }
     }
+}
+
+/// The cell of Taxim's table for the gel's slopes, as Taxim's simulator indexes it: the slope
+/// angle's bin (`atan |grad|` over `pi/2` in `bins - 1` steps) and the direction's
+/// (`atan2(gy, gx) + pi` over `2 pi` in `bins - 1` steps; a flat gel has direction 0).
+fn table_cell(bins: usize, (gx, gy): (f64, f64)) -> (usize, usize) {
+    let binm = (bins - 1) as f64;
+    let magnitude = gx.hypot(gy);
+    let angle = magnitude.atan();
+    let direction = if magnitude > 0.0 { gy.atan2(gx) } else { 0.0 };
+    let i = ((angle / (0.5 * std::f64::consts::PI / binm)).floor() as usize).min(bins - 1);
+    let j = (((direction + std::f64::consts::PI) / (2.0 * std::f64::consts::PI / binm)).floor() as usize).min(bins - 1);
+    (i, j)
+}
+
+/// One channel of a table cell's quadratic at pixel (u, v), 0..=1 per level 0..=255.
+fn table_value(table: &[f64], bins: usize, (i, j): (usize, usize), (u, v): (u32, u32)) -> f64 {
+    let (x, y) = (u as f64, v as f64);
+    let a = [x * x, y * y, x * y, x, y, 1.0];
+    let k = &table[(i * bins + j) * 6..(i * bins + j) * 6 + 6];
+    a.iter().zip(k).map(|(a, b)| a * b).sum::<f64>() / 255.0
 }
 
 /// Loads a calibration: vtgen's YAML, or Taxim's `polycalib.npz` (its background `bg.png` or
@@ -147,6 +171,9 @@ fn load_vtgen(path: &Path) -> Result<LoadedCalibration, String> {
     if !(file.pixel_size_mm > 0.0 && file.pixel_size_mm < 10.0) {
         return Err(format!("{}: pixel_size_mm {}: allowed 0 < size < 10 mm", path.display(), file.pixel_size_mm));
     }
+    if let Some(spread) = file.elastic_spread_mm.filter(|s| !(*s >= 0.0 && *s < 10.0)) {
+        return Err(format!("{}: elastic_spread_mm {spread}: allowed 0 <= spread < 10 mm", path.display()));
+    }
     match file.model.as_str() {
         "polynomial" => {
             let coefficients =
@@ -162,6 +189,7 @@ fn load_vtgen(path: &Path) -> Result<LoadedCalibration, String> {
             Ok(LoadedCalibration {
                 image_size: file.image_size,
                 pixel_size_mm: Some(file.pixel_size_mm),
+                elastic_spread_mm: file.elastic_spread_mm,
                 background: Some(background),
                 light: Some(LightModel::Polynomial { coefficients }),
                 leds: None,
@@ -174,6 +202,7 @@ fn load_vtgen(path: &Path) -> Result<LoadedCalibration, String> {
             Ok(LoadedCalibration {
                 image_size: file.image_size,
                 pixel_size_mm: Some(file.pixel_size_mm),
+                elastic_spread_mm: file.elastic_spread_mm,
                 background: None,
                 light: None,
                 leds: Some(file),
@@ -198,9 +227,10 @@ fn read_background(path: &Path, [w, h]: [u32; 2]) -> Result<Vec<f64>, String> {
 }
 
 /// Taxim's `polycalib.npz`: `bins` and `grad_r`, `grad_g`, `grad_b`, each `bins x bins x 6`
-/// float64/float32. Taxim reads its images with OpenCV, in BGR order: `grad_r` is the file's name
-/// for the image's channel 0 as OpenCV stores it, so channel 0 (`grad_r`) is blue here, and the
-/// background (`bg.png`/`bg.jpg`, read as RGB) is used as it is.
+/// float64/float32. Taxim handles its images as OpenCV does, in BGR order: its `grad_r` is fitted
+/// to, and renders, the image's channel 0, which is **blue**; so `grad_r` is vtgen's blue channel
+/// and `grad_b` its red. The background (`bg.png`/`bg.jpg`, read as RGB) gets the table's flat
+/// cell added, as Taxim adds it to every pixel of a flat gel.
 fn load_taxim(path: &Path) -> Result<LoadedCalibration, String> {
     let file = std::fs::File::open(path).map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
     let mut zip = zip::ZipArchive::new(file).map_err(|e| format!("{}: not an .npz (zip) file: {e}", path.display()))?;
@@ -216,7 +246,8 @@ fn load_taxim(path: &Path) -> Result<LoadedCalibration, String> {
         return Err(format!("{}: bins {bins}: allowed 2 ..= 1000", path.display()));
     }
     let mut tables: [Vec<f64>; 3] = Default::default();
-    for (c, name) in ["grad_r", "grad_g", "grad_b"].into_iter().enumerate() {
+    // vtgen's R, G, B are the file's grad_b, grad_g, grad_r (BGR).
+    for (c, name) in ["grad_b", "grad_g", "grad_r"].into_iter().enumerate() {
         let (shape, values) = array(name)?;
         if shape != [bins, bins, 6] {
             return Err(format!("{}: {name} has shape {shape:?}, expected [{bins}, {bins}, 6]", path.display()));
@@ -231,10 +262,18 @@ fn load_taxim(path: &Path) -> Result<LoadedCalibration, String> {
         .ok_or_else(|| format!("{}: a Taxim calibration needs its background image, bg.png or bg.jpg, beside it", path.display()))?;
     let img = image::open(&bg).map_err(|e| format!("{}: cannot read: {e}", bg.display()))?.to_rgb8();
     let image_size = [img.width(), img.height()];
-    let background = read_background(&bg, image_size)?;
+    let mut background = read_background(&bg, image_size)?;
+    let flat = table_cell(bins, (0.0, 0.0));
+    for (k, pixel) in background.chunks_exact_mut(3).enumerate() {
+        let at = ((k % image_size[0] as usize) as u32, (k / image_size[0] as usize) as u32);
+        for (c, value) in pixel.iter_mut().enumerate() {
+            *value += table_value(&tables[c], bins, flat, at);
+        }
+    }
     Ok(LoadedCalibration {
         image_size,
         pixel_size_mm: None,
+        elastic_spread_mm: None,
         background: Some(background),
         light: Some(LightModel::Table { bins, tables }),
         leds: None,
@@ -242,7 +281,7 @@ fn load_taxim(path: &Path) -> Result<LoadedCalibration, String> {
 }
 
 /// A `.npy` array of little-endian float64, float32 or int64 in C order: (shape, values).
-fn parse_npy(bytes: &[u8]) -> Result<(Vec<usize>, Vec<f64>), String> {
+pub fn parse_npy(bytes: &[u8]) -> Result<(Vec<usize>, Vec<f64>), String> {
     if bytes.len() < 10 || &bytes[..6] != b"\x93NUMPY" {
         return Err("not a .npy array".into());
     }
@@ -282,9 +321,10 @@ mod tests {
     use super::*;
 
     /// A Taxim table read from an .npz (written here by hand, stored entries as `np.savez` makes
-    /// them) gives the background plus the cell's quadratic at a pixel.
+    /// them): the file's channels are BGR (`grad_r` is blue), the background gets the flat cell,
+    /// and a slope adds its cell's quadratic less the flat cell's.
     #[test]
-    fn a_taxim_table_is_read_and_evaluated() {
+    fn a_taxim_table_is_read_in_its_bgr_order_and_evaluated() {
         let dir = tempfile::tempdir().unwrap();
         let npy = |descr: &str, shape: &str, data: Vec<u8>| {
             let mut header = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': ({shape}), }}");
@@ -304,10 +344,12 @@ mod tests {
         let stored = zip::write::FileOptions::default().compression_method(zip::CompressionMethod::Stored);
         zip.start_file("bins.npy", stored).unwrap();
         std::io::Write::write_all(&mut zip, &npy("<i8", "", 4i64.to_le_bytes().to_vec())).unwrap();
-        for (c, name) in ["grad_r", "grad_g", "grad_b"].iter().enumerate() {
-            // Cell (i, j) channel c: constant term 10 i + j + 100 c levels, and 1 level per column u.
+        for (k_file, name) in ["grad_r", "grad_g", "grad_b"].iter().enumerate() {
+            // Cell (i, j) of the file's channel k: constant term (10 i + j) (k + 1) levels, and 1
+            // level per column u.
+            let scale = (k_file + 1) as f64;
             let values: Vec<f64> =
-                (0..bins * bins).flat_map(|k| [0.0, 0.0, 0.0, 1.0, 0.0, (10 * (k / bins) + k % bins + 100 * c) as f64]).collect();
+                (0..bins * bins).flat_map(|k| [0.0, 0.0, 0.0, 1.0, 0.0, (10 * (k / bins) + k % bins) as f64 * scale]).collect();
             zip.start_file(format!("{name}.npy"), stored).unwrap();
             let data = values.iter().flat_map(|v| v.to_le_bytes()).collect();
             std::io::Write::write_all(&mut zip, &npy("<f8", "4, 4, 6", data)).unwrap();
@@ -316,14 +358,24 @@ mod tests {
         image::RgbImage::from_pixel(8, 6, image::Rgb([20, 40, 60])).save(dir.path().join("bg.png")).unwrap();
         let cal = load_calibration(&dir.path().join("polycalib.npz")).unwrap();
         assert_eq!((cal.image_size, cal.pixel_size_mm), ([8, 6], None));
-        assert_eq!(cal.background.as_ref().unwrap()[..3], [20.0 / 255.0, 40.0 / 255.0, 60.0 / 255.0]);
-        let light = cal.light.unwrap();
-        // Slope angle atan(1) = pi/4 (bin 1 of 3 per pi/2), direction 0 (bin 1 of 3 per 2 pi, from -pi).
-        let d = light.delta((3, 2), [0.0, 0.0], (1.0, 0.0));
-        for (c, v) in d.iter().enumerate() {
-            let expected = (10.0 * 1.0 + 1.0 + 100.0 * c as f64 + 3.0) / 255.0;
-            assert!((v - expected).abs() < 1e-12, "channel {c}: {v} vs {expected}");
+        // The flat cell is (0, 1): direction 0 is bin floor(pi / (2 pi / 3)) = 1. At pixel (0, 0)
+        // it adds 1 (k + 1) levels: 3 to red (grad_b), 2 to green, 1 to blue (grad_r).
+        let background = cal.background.as_ref().unwrap();
+        for (c, expected) in [23.0, 42.0, 61.0].iter().enumerate() {
+            assert!((background[c] * 255.0 - expected).abs() < 1e-9, "channel {c}: {}", background[c] * 255.0);
         }
+        let light = cal.light.unwrap();
+        // Slope angle atan(1) = pi/4 (bin 1 of 3 per pi/2), direction 0 (bin 1): cell (1, 1), ten
+        // levels (k + 1) above the flat cell; the column term cancels.
+        let d = light.delta((3, 2), [0.0, 0.0], (1.0, 0.0));
+        for (c, expected) in [30.0, 20.0, 10.0].iter().enumerate() {
+            assert!((d[c] * 255.0 - expected).abs() < 1e-9, "channel {c}: {} vs {expected}", d[c] * 255.0);
+        }
+        // Direction: slopes (0, 1) point along +v, atan2 = pi/2: bin floor(1.5 pi / (2 pi / 3)) = 2.
+        let d = light.delta((3, 2), [0.0, 0.0], (0.0, 1.0));
+        assert!((d[2] * 255.0 - 11.0).abs() < 1e-9, "{}", d[2] * 255.0);
+        // A flat gel adds nothing to the background (it has the flat cell already).
+        assert_eq!(light.delta((3, 2), [0.0, 0.0], (0.0, 0.0)), [0.0; 3]);
         // A missing background is named.
         std::fs::remove_file(dir.path().join("bg.png")).unwrap();
         let e = load_calibration(&dir.path().join("polycalib.npz")).unwrap_err();

@@ -306,6 +306,14 @@ pub fn optical_image(
     optical_image_with_flow(sensor, depth, shear, rng).0
 }
 
+/// The sensor's image of a gel whose surface is given (its indentation per pixel, m), as a
+/// height map from another simulator gives it: shaded without the elastic spread, noise-free.
+pub fn optical_image_of_surface(sensor: &OpticalSensor, gel: &[f64]) -> OpticalImage {
+    let slopes = slopes(sensor, gel);
+    let img = shade(sensor, Some(&slopes));
+    finish(sensor, img, Some(&slopes), None, None).0
+}
+
 /// [`optical_image`], and the marker flow it painted ([`marker_flow`]).
 pub fn optical_image_with_flow(
     sensor: &OpticalSensor,
