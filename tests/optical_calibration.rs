@@ -76,6 +76,12 @@ fn calibrate_gives_back_the_sensor_that_made_the_images() {
         let mut args = vec!["tactile", "calibrate", images.to_str().unwrap(), "--ball-radius", "2", "--out", out.to_str().unwrap()];
         args.extend(given.iter().flat_map(|g| ["--pixel-size-mm", *g]));
         let o = run(&args);
+        // Without a measured size the fit identifies it only when the presses' shape fixes it;
+        // else it asks for it rather than guess.
+        if given.is_none() && !o.status.success() {
+            assert!(stderr(&o).contains("do not fix the pixel size") && stderr(&o).contains("--pixel-size-mm"), "{}", stderr(&o));
+            continue;
+        }
         assert!(o.status.success(), "{}", stderr(&o));
         eprintln!("pixel size {run_name}:\n{}", String::from_utf8_lossy(&o.stdout));
         let text = std::fs::read_to_string(out.join("calibration.yaml")).unwrap();
@@ -187,4 +193,183 @@ fn calibrate_and_the_config_name_what_is_wrong() {
         !o.status.success() && e.contains("robot.tactile.optical.calibration") && e.contains("nowhere/calibration.yaml: cannot read"),
         "{e}"
     );
+}
+
+/// A `.npy` of little-endian float64 (C order) as numpy writes it.
+fn npy_f64(shape: &str, values: &[f64]) -> Vec<u8> {
+    npy("<f8", shape, values.iter().flat_map(|v| v.to_le_bytes()).collect())
+}
+
+/// A `.npy` of `descr` data (C order) as numpy writes it.
+fn npy(descr: &str, shape: &str, data: Vec<u8>) -> Vec<u8> {
+    let mut header = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': ({shape}), }}");
+    while (10 + header.len() + 1) % 64 != 0 {
+        header.push(' ');
+    }
+    header.push('\n');
+    let mut out = b"\x93NUMPY\x01\x00".to_vec();
+    out.extend((header.len() as u16).to_le_bytes());
+    out.extend(header.as_bytes());
+    out.extend(data);
+    out
+}
+
+/// A unit outside vtgen's own model family, as Taxim describes one: a per-pixel lookup table
+/// (stored BGR, as Taxim's `polycalib.npz`) of a non-Lambertian gel lit by three LEDs whose
+/// colours leak into each other's channels, with a brightness that changes over the image.
+fn write_taxim_unit(dir: &Path, bins: usize, [w, h]: [u32; 2]) {
+    let file = std::fs::File::create(dir.join("polycalib.npz")).unwrap();
+    let mut zip = zip::ZipWriter::new(file);
+    let stored = zip::write::FileOptions::default().compression_method(zip::CompressionMethod::Stored);
+    zip.start_file("bins.npy", stored).unwrap();
+    // `bins` as int64, as Taxim saves it.
+    std::io::Write::write_all(&mut zip, &npy("<i8", "", (bins as i64).to_le_bytes().to_vec())).unwrap();
+    // LED azimuths (rad) and their light in (R, G, B), with cross-talk.
+    let leds = [(0.3, [60.0, 12.0, 6.0]), (2.4, [8.0, 55.0, 14.0]), (4.4, [10.0, 9.0, 65.0])];
+    let binm = (bins - 1) as f64;
+    let mut rgb: [Vec<f64>; 3] = Default::default();
+    for i in 0..bins {
+        for j in 0..bins {
+            let angle = (i as f64 + 0.5) * 0.5 * std::f64::consts::PI / binm;
+            let direction = (j as f64 + 0.5) * std::f64::consts::TAU / binm - std::f64::consts::PI;
+            for (c, table) in rgb.iter_mut().enumerate() {
+                // A gel that brightens towards a light as its slope turns to it, saturating,
+                // and darkens everywhere at steep slopes (the rim's shadowing).
+                let lit: f64 =
+                    leds.iter().map(|(azimuth, colour)| colour[c] * angle.sin().powf(0.8) * (direction - azimuth).cos()).sum::<f64>();
+                let shadow = -25.0 * (1.0 - angle.cos()).powi(2);
+                let value = lit + shadow;
+                // The cell's quadratic over the image: 15 % brighter at the left edge.
+                table.extend([0.0, 0.0, 0.0, -0.15 * value / w as f64, 0.0, value * 1.075]);
+            }
+        }
+    }
+    // Stored BGR: the file's grad_r is the image's blue channel.
+    for (name, c) in [("grad_r", 2), ("grad_g", 1), ("grad_b", 0)] {
+        zip.start_file(format!("{name}.npy"), stored).unwrap();
+        std::io::Write::write_all(&mut zip, &npy_f64(&format!("{bins}, {bins}, 6"), &rgb[c])).unwrap();
+    }
+    zip.finish().unwrap();
+    let bg = image::RgbImage::from_fn(w, h, |u, v| image::Rgb([(150 + u / 8) as u8, (140 + v / 6) as u8, 130]));
+    bg.save(dir.join("bg.png")).unwrap();
+}
+
+/// The fit held to a unit it cannot model exactly: Taxim's table (stored BGR) with LED
+/// cross-talk, rim slopes to 80°, lighting that drifts between the frames, and one press whose
+/// contact is misdetectable (two balls). The bad press is left out and named; presses held out of
+/// the fit render far closer to their frames than no change does; without a pixel size the fit
+/// either identifies it within 5 % or asks for it, and a diameter given as the radius is refused.
+#[test]
+fn calibrate_fits_a_unit_outside_its_own_model_family() {
+    use crate::common::*;
+    let dir = tempdir();
+    let unit = dir.path().join("unit");
+    std::fs::create_dir_all(&unit).unwrap();
+    let size = [160u32, 120];
+    write_taxim_unit(&unit, 40, size);
+    let loaded = vtgen::config::optical_calibration::load_calibration(&unit.join("polycalib.npz")).unwrap();
+    let truth = vtgen::config::OpticalConfig {
+        calibration: Some(unit.join("polycalib.npz")),
+        loaded_calibration: Some(std::sync::Arc::new(loaded)),
+        sensing_area_mm: Some([12.0, 9.0]),
+        gel_thickness_mm: Some(3.0),
+        noise_std: Some(1.0),
+        ..Default::default()
+    }
+    .resolve();
+    let images = dir.path().join("presses");
+    std::fs::create_dir_all(&images).unwrap();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+    let radius = 2e-3;
+    save(&truth, optical_image(&truth, None, None, Some(&mut rng)).rgb, &images.join("background.png"));
+    // Depths to 1.65 mm: the contact's rim at 80° (a = R sin 80°).
+    let presses = [
+        ([0.0, 0.0], 0.5e-3),
+        ([-3.4e-3, -1.9e-3], 1.65e-3),
+        ([3.4e-3, -2.0e-3], 0.8e-3),
+        ([-3.2e-3, 2.0e-3], 1.2e-3),
+        ([3.1e-3, 2.0e-3], 0.6e-3),
+        ([0.5e-3, -2.4e-3], 1.4e-3),
+        ([-1.0e-3, 2.4e-3], 0.9e-3),
+        ([1.5e-3, 0.5e-3], 1.65e-3),
+        ([-2.0e-3, 0.0], 0.7e-3),
+        ([2.2e-3, -0.3e-3], 1.1e-3),
+        ([-0.6e-3, -1.2e-3], 1.3e-3),
+        ([0.8e-3, 1.9e-3], 1.0e-3),
+    ];
+    for (k, (centre, depth)) in presses.iter().enumerate() {
+        let img = optical_image(&truth, Some(&ball_press_depth(&truth, radius, *depth, *centre)), None, Some(&mut rng));
+        // The lighting drifts: a gain across the image and an offset, different per frame.
+        let (gain, offset) = (0.03 * (k as f64 - 6.0) / 6.0, (k % 4) as f64 * 2.0);
+        let drifted: Vec<u8> = img
+            .rgb
+            .iter()
+            .enumerate()
+            .map(|(i, &b)| {
+                let u = (i / 3) as u32 % size[0];
+                (b as f64 * (1.0 + gain * (u as f64 / size[0] as f64 - 0.5)) + offset).round().clamp(0.0, 255.0) as u8
+            })
+            .collect();
+        save(&truth, drifted, &images.join(format!("press_{k:02}.png")));
+    }
+    // Two balls at once: one contact's outline is no circle.
+    let two = ball_press_depth(&truth, radius, 0.9e-3, [-1.8e-3, 0.2e-3])
+        .into_iter()
+        .zip(ball_press_depth(&truth, radius, 0.9e-3, [0.9e-3, 0.2e-3]))
+        .map(|(a, b)| a.min(b))
+        .collect::<Vec<f32>>();
+    save(&truth, optical_image(&truth, Some(&two), None, Some(&mut rng)).rgb, &images.join("press_99_two_balls.png"));
+
+    let out = dir.path().join("calibration");
+    let dir_arg = images.to_str().unwrap();
+    let o = run(&[
+        "tactile",
+        "calibrate",
+        dir_arg,
+        "--ball-radius",
+        "2",
+        "--pixel-size-mm",
+        "0.075",
+        "--holdout",
+        "2",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let report = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(o.status.success(), "{}\n{report}", stderr(&o));
+    eprintln!("{report}");
+    assert!(
+        report.contains("left out of the fit") && report.contains("press_99_two_balls.png:"),
+        "the two-ball press is not named:\n{report}"
+    );
+    let line = report.lines().find(|l| l.starts_with("held-out RMS over the whole contact discs")).expect("a held-out summary");
+    let numbers: Vec<f64> = line.split_whitespace().filter_map(|t| t.trim_end_matches(',').parse().ok()).collect();
+    let (rendered, no_change) = (numbers[0], numbers[1]);
+    assert!(rendered < 0.5 * no_change, "held out: {rendered} levels rendered vs {no_change} no change");
+
+    // No pixel size: identified within 5 %, or asked for.
+    for (ball, what) in [("2", "radius"), ("4", "diameter")] {
+        let o = run(&[
+            "tactile",
+            "calibrate",
+            dir_arg,
+            "--ball-radius",
+            ball,
+            "--out",
+            dir.path().join(format!("fit-{what}")).to_str().unwrap(),
+        ]);
+        let (out, err) = (String::from_utf8_lossy(&o.stdout).into_owned(), stderr(&o));
+        if o.status.success() {
+            let size: f64 = out
+                .lines()
+                .find_map(|l| l.strip_prefix("pixel size: "))
+                .and_then(|l| l.split_whitespace().next())
+                .unwrap()
+                .parse()
+                .unwrap();
+            assert!(what == "radius" && (size - 0.075).abs() < 0.05 * 0.075, "{what}: identified {size} mm per pixel, true 0.075\n{out}");
+        } else {
+            assert!(err.contains("--pixel-size-mm") || err.contains("diameter"), "{what}: {err}");
+        }
+    }
 }

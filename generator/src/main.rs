@@ -206,7 +206,7 @@ enum TactileAction {
         depth_mm: Option<f64>,
         /// The ball's centre in the image, `COLUMN,ROW` in pixels from the image's corner
         /// (default: the image's centre).
-        #[arg(long, value_delimiter = ',', num_args = 2)]
+        #[arg(long, value_delimiter = ',')]
         at: Option<Vec<f64>>,
         /// The pixel size (mm): needed for Taxim's files, which do not give it.
         #[arg(long)]
@@ -323,10 +323,12 @@ fn run(cli: Cli) -> Result<()> {
             commands::tactile::calibrate(&dir, ball_radius, pixel_size_mm, holdout, &out)
         }
         Command::Tactile {
-            action:
-                TactileAction::RenderPress { calibration, ball_radius, depth_mm, at, pixel_size_mm, height_map, height_unit, out },
+            action: TactileAction::RenderPress { calibration, ball_radius, depth_mm, at, pixel_size_mm, height_map, height_unit, out },
         } => {
             use commands::tactile::{PressShape, read_height_map, render_press_image};
+            if let Some(a) = at.as_ref().filter(|a| a.len() != 2) {
+                anyhow::bail!("--at {}: give the centre as COLUMN,ROW (two numbers, pixels)", a.len());
+            }
             let shape = match height_map {
                 Some(path) => PressShape::HeightMap(read_height_map(&path, &height_unit, pixel_size_mm)?),
                 None => PressShape::Ball {

@@ -134,10 +134,7 @@ pub fn calibrate(dir: &Path, ball_radius_mm: f64, pixel_size_mm: Option<f64>, ho
     );
     std::fs::write(&yaml, header + &serde_yaml::to_string(&file)?).with_context(|| format!("cannot write {}", yaml.display()))?;
     println!("pixel size: {:.4} mm ({})", fitted.pixel_size_mm, fitted.pixel_size_source);
-    println!(
-        "gel: contact radius {:.2} of the visible one, elastic spread {:.2} mm",
-        fitted.contact_ratio, fitted.elastic_spread_mm
-    );
+    println!("gel: contact radius {:.2} of the visible one, elastic spread {:.2} mm", fitted.contact_ratio, fitted.elastic_spread_mm);
     println!(
         "light model: {} (RMS over the contact discs: polynomial {:.2} levels, leds {:.2} levels; the polynomial's image-position \
          terms: {} of 10, {:.2} levels RMS on each press left out of it in turn)",
@@ -177,14 +174,7 @@ pub fn calibrate(dir: &Path, ball_radius_mm: f64, pixel_size_mm: Option<f64>, ho
                     let c = compare_press(&prepared, &sensor, img, &contact, ball_radius_mm, fitted.contact_ratio);
                     println!(
                         "{:<28} {:>9.2} {:>9.2} {:>8.1} {:>8.3} {:>8} {:>10.2} {:>10.2}",
-                        img.name,
-                        c.centre_px[0],
-                        c.centre_px[1],
-                        contact.radius_px,
-                        c.depth_mm,
-                        c.pixels,
-                        c.rms_rendered,
-                        c.rms_no_change
+                        img.name, c.centre_px[0], c.centre_px[1], contact.radius_px, c.depth_mm, c.pixels, c.rms_rendered, c.rms_no_change
                     );
                     sq_r += c.rms_rendered.powi(2) * c.pixels as f64;
                     sq_b += c.rms_no_change.powi(2) * c.pixels as f64;
@@ -207,7 +197,11 @@ pub fn calibrate(dir: &Path, ball_radius_mm: f64, pixel_size_mm: Option<f64>, ho
 
 /// What `render-press` renders: a ball press, or a height map of the gel's surface.
 pub enum PressShape {
-    Ball { radius_mm: f64, depth_mm: f64, centre_px: Option<[f64; 2]> },
+    Ball {
+        radius_mm: f64,
+        depth_mm: f64,
+        centre_px: Option<[f64; 2]>,
+    },
     /// The gel's indentation per pixel (`h x w`, row-major), in metres.
     HeightMap(Vec<f64>),
 }
@@ -220,10 +214,9 @@ pub fn render_press_image(calibration: &Path, pixel_size_mm: Option<f64>, shape:
         (_, Some(p)) if !(p > 0.0 && p < 10.0) => bail!("--pixel-size-mm {p}: allowed 0 < size < 10 mm"),
         (_, Some(p)) => p,
         (Some(p), None) => p,
-        (None, None) => bail!(
-            "{}: the file does not give the pixel size (Taxim's does not): give it with --pixel-size-mm",
-            calibration.display()
-        ),
+        (None, None) => {
+            bail!("{}: the file does not give the pixel size (Taxim's does not): give it with --pixel-size-mm", calibration.display())
+        }
     };
     let config = OpticalConfig {
         calibration: Some(calibration.to_path_buf()),

@@ -249,6 +249,14 @@ impl LoadedConfig {
         let Some(file) = &optical.calibration else { return Ok(()) };
         let field = vec!["robot", "tactile", "optical", "calibration"];
         let cal = optical_calibration::load_calibration(&self.resolve(file)).map_err(|e| (field.clone(), e))?;
+        if cal.pixel_size_mm.is_none() && optical.sensing_area_mm.is_none() {
+            let message = format!(
+                "the calibration does not give the pixel size (Taxim's files do not): set robot.tactile.optical.sensing_area_mm \
+                 to the image's {} x {} pixels times the unit's pixel size (mm)",
+                cal.image_size[0], cal.image_size[1]
+            );
+            return Err((vec!["robot", "tactile", "optical", "sensing_area_mm"], message));
+        }
         if let Some(size) = optical.image_size.filter(|s| cal.background.is_some() && *s != cal.image_size) {
             let message = format!(
                 "the calibration's images are {:?}, robot.tactile.optical.image_size {size:?}: leave image_size out",

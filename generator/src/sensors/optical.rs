@@ -394,11 +394,15 @@ pub fn optical_image_shaded(
 /// The sensor unit `variation` makes of the configured `sensor` (`randomization.tactile_sensors`).
 pub fn varied(sensor: &OpticalSensor, variation: &vt_randomizers::SensorVariation) -> OpticalSensor {
     let mut s = sensor.clone();
-    for (led, factors) in s.lights.iter_mut().zip(&variation.led_color) {
-        led.color = std::array::from_fn(|c| led.color[c] * factors[c]);
+    // A measured light model (its background and shading) stays the unit's: only the LED model's
+    // settings vary, so a calibrated pad's `/sample/info` keeps the values it renders with.
+    if s.calibration.as_ref().and_then(|c| c.shading()).is_none() {
+        for (led, factors) in s.lights.iter_mut().zip(&variation.led_color) {
+            led.color = std::array::from_fn(|c| led.color[c] * factors[c]);
+        }
+        s.background = std::array::from_fn(|c| (s.background[c] * variation.background[c]).clamp(0.0, 1.0));
+        s.vignetting = (s.vignetting + variation.vignetting).clamp(0.0, 0.95);
     }
-    s.background = std::array::from_fn(|c| (s.background[c] * variation.background[c]).clamp(0.0, 1.0));
-    s.vignetting = (s.vignetting + variation.vignetting).clamp(0.0, 0.95);
     s.gel_thickness_mm *= variation.gel_thickness;
     s.elastic_spread_mm *= variation.elastic_spread;
     if let Some(m) = s.markers.as_mut() {

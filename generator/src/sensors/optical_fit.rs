@@ -311,7 +311,8 @@ pub fn fit(input: &CalibrationInput) -> anyhow::Result<CalibrationFit> {
         .zip(input.presses)
         .map(|(p, img)| p.contact.as_ref().filter(|_| p.rejected.is_none()).map_or_else(Vec::new, |c| prepared.disc_samples(img, c)))
         .collect();
-    let widest = presses.iter().filter(|p| p.rejected.is_none()).filter_map(|p| p.contact.as_ref()).map(|c| c.radius_px).fold(0.0, f64::max);
+    let widest =
+        presses.iter().filter(|p| p.rejected.is_none()).filter_map(|p| p.contact.as_ref()).map(|c| c.radius_px).fold(0.0, f64::max);
 
     // The pixel size: given, or identified from the presses' shape.
     let profile = |ball_px: f64| -> f64 {
@@ -319,10 +320,11 @@ pub fn fit(input: &CalibrationInput) -> anyhow::Result<CalibrationFit> {
         let mut normal = Normal::new(3);
         for (p, s) in presses.iter().zip(&samples) {
             let Some(c) = p.contact.as_ref().filter(|_| p.rejected.is_none()) else { continue };
-            // Inside half the visible radius the gel has the ball's shape whatever its spread.
+            // Inside 0.6 of the visible radius the gel has the ball's shape (for a spread narrower
+            // than the contact).
             let inner: Vec<Sample> = s
                 .iter()
-                .filter(|q| (q.u as f64 + 0.5 - c.centre_px[0]).hypot(q.v as f64 + 0.5 - c.centre_px[1]) < 0.5 * c.radius_px)
+                .filter(|q| (q.u as f64 + 0.5 - c.centre_px[0]).hypot(q.v as f64 + 0.5 - c.centre_px[1]) < 0.6 * c.radius_px)
                 .map(|q| Sample { slope: sphere_slope(q, c.centre_px, geometry), ..q.clone() })
                 .collect();
             normal.add(&inner, input.image_size);
@@ -330,8 +332,9 @@ pub fn fit(input: &CalibrationInput) -> anyhow::Result<CalibrationFit> {
         normal.solve().map_or(f64::INFINITY, |(_, sq)| sq)
     };
     let identify = || -> Result<f64, String> {
-        // Ball radii in pixels from just over the smallest contact the widest can hide to 40 times it.
-        let first = 1.05 * CONTACT_RATIOS[0] * widest;
+        // Ball radii in pixels from 0.7 of the widest visible contact (its spread makes it wider
+        // than the ball's contact) to 40 times it.
+        let first = 0.7 * widest;
         let grid: Vec<f64> = (0..41).map(|k| first * (40.0 * widest / first).powf(k as f64 / 40.0)).collect();
         let values: Vec<f64> = grid.iter().map(|&b| profile(b)).collect();
         let best = (0..grid.len()).min_by(|a, b| values[*a].total_cmp(&values[*b])).expect("a grid");
@@ -412,7 +415,20 @@ pub fn fit(input: &CalibrationInput) -> anyhow::Result<CalibrationFit> {
             }
         }
     }
-    let (_, geometry) = best.ok_or_else(|| anyhow::anyhow!("too few contact pixels to fit the light model: press deeper, or more presses"))?;
+    let (_, mut geometry) =
+        best.ok_or_else(|| anyhow::anyhow!("too few contact pixels to fit the light model: press deeper, or more presses"))?;
+    // Then each refined between its grid neighbours by golden sections.
+    let mut cost = |g: Geometry| solve_at(g, &presses, &mut samples).map_or(f64::INFINITY, |s| s.cross_validated);
+    let spread =
+        golden(|s| cost(Geometry { spread: s.max(0.0), ..geometry }), (geometry.spread - 0.25e-3).max(0.0), geometry.spread + 0.25e-3, 8);
+    geometry.spread = spread.max(0.0);
+    let ratio = golden(
+        |k| cost(Geometry { contact_ratio: k, ..geometry }),
+        geometry.contact_ratio - 0.1,
+        (geometry.contact_ratio + 0.1).min(1.0),
+        8,
+    );
+    geometry.contact_ratio = ratio;
     anyhow::ensure!(
         samples.iter().map(Vec::len).sum::<usize>() >= 200,
         "only {} contact pixels over the presses: press deeper, or more presses",
@@ -429,8 +445,11 @@ pub fn fit(input: &CalibrationInput) -> anyhow::Result<CalibrationFit> {
         }
         solved = solve_at(geometry, &presses, &mut samples).expect("solved above");
         coefficients = solved.coefficients.clone();
-        let rms: Vec<f64> =
-            presses.iter().zip(&samples).map(|(p, s)| if p.rejected.is_none() { rms_of(s, &coefficients, input.image_size) } else { 0.0 }).collect();
+        let rms: Vec<f64> = presses
+            .iter()
+            .zip(&samples)
+            .map(|(p, s)| if p.rejected.is_none() { rms_of(s, &coefficients, input.image_size) } else { 0.0 })
+            .collect();
         let mut kept: Vec<f64> = presses.iter().zip(&rms).filter(|(p, _)| p.rejected.is_none()).map(|(_, r)| *r).collect();
         kept.sort_by(f64::total_cmp);
         let median = kept[kept.len() / 2];
@@ -438,7 +457,8 @@ pub fn fit(input: &CalibrationInput) -> anyhow::Result<CalibrationFit> {
         if round == 0 && kept.len() > 3 {
             for (p, r) in presses.iter_mut().zip(&rms) {
                 if p.rejected.is_none() && *r > (2.0 * median).max(median + 4.0) {
-                    p.rejected = Some(format!("does not fit the others ({r:.1} levels RMS, their median {median:.1}): a misdetected contact?"));
+                    p.rejected =
+                        Some(format!("does not fit the others ({r:.1} levels RMS, their median {median:.1}): a misdetected contact?"));
                     rejected_any = true;
                 }
             }
@@ -449,8 +469,13 @@ pub fn fit(input: &CalibrationInput) -> anyhow::Result<CalibrationFit> {
         }
     }
     let coefficients: [Vec<f64>; 3] = std::array::from_fn(|c| coefficients[c].clone());
-    let fitted: Vec<(&Sample, usize)> =
-        presses.iter().zip(&samples).enumerate().filter(|(_, (p, _))| p.rejected.is_none()).flat_map(|(k, (_, s))| s.iter().map(move |q| (q, k))).collect();
+    let fitted: Vec<(&Sample, usize)> = presses
+        .iter()
+        .zip(&samples)
+        .enumerate()
+        .filter(|(_, (p, _))| p.rejected.is_none())
+        .flat_map(|(k, (_, s))| s.iter().map(move |q| (q, k)))
+        .collect();
     let leds = fit_leds(input, &fitted, pitch, &coefficients);
 
     // Residuals per press and model.
@@ -603,7 +628,13 @@ pub fn compare_press(
         pixels_compared += 1;
     }
     let n = (3 * pixels_compared).max(1) as f64;
-    PressComparison { centre_px: contact.centre_px, depth_mm: depth * 1e3, pixels: pixels_compared, rms_rendered: (sq_r / n).sqrt(), rms_no_change: (sq_b / n).sqrt() }
+    PressComparison {
+        centre_px: contact.centre_px,
+        depth_mm: depth * 1e3,
+        pixels: pixels_compared,
+        rms_rendered: (sq_r / n).sqrt(),
+        rms_no_change: (sq_b / n).sqrt(),
+    }
 }
 
 /// The image of a ball of `ball_radius_mm` pressed `depth_mm` into the gel with its centre over
@@ -670,7 +701,8 @@ fn fit_drift(input: &CalibrationInput, press: &CalibrationImage, mask: &[bool]) 
             }
             let Some(x) = ata.clone().cholesky().map(|ch| ch.solve(&atb)) else { break };
             d.copy_from_slice(x.as_slice());
-            let residual: Vec<f64> = points.iter().map(|(t, y)| (y[c] - t.iter().zip(d.iter()).map(|(a, b)| a * b).sum::<f64>()).abs()).collect();
+            let residual: Vec<f64> =
+                points.iter().map(|(t, y)| (y[c] - t.iter().zip(d.iter()).map(|(a, b)| a * b).sum::<f64>()).abs()).collect();
             let mut sorted = residual.clone();
             let mid = sorted.len() / 2;
             sorted.select_nth_unstable_by(mid, f64::total_cmp);
@@ -920,7 +952,9 @@ fn solve_cross_validated(normals: &[Normal]) -> Option<Solved> {
         total.merge(n, 1.0);
     }
     let np = POSITION_TERMS.len();
-    let keep = |position_terms: usize| -> Vec<usize> { (0..NORMAL_TERMS.len()).flat_map(|j| (0..position_terms).map(move |i| j * np + i)).collect() };
+    let keep = |position_terms: usize| -> Vec<usize> {
+        (0..NORMAL_TERMS.len()).flat_map(|j| (0..position_terms).map(move |i| j * np + i)).collect()
+    };
     let mut best: Option<(f64, usize)> = None;
     for position_terms in [1, 3, 6, 10] {
         let idx = keep(position_terms);
@@ -929,7 +963,10 @@ fn solve_cross_validated(normals: &[Normal]) -> Option<Solved> {
             for n in normals {
                 let mut rest = total.clone_full();
                 rest.merge(n, -1.0);
-                let Some(x) = rest.solve_subset(&idx) else { sq = f64::INFINITY; break };
+                let Some(x) = rest.solve_subset(&idx) else {
+                    sq = f64::INFINITY;
+                    break;
+                };
                 sq += n.residual_subset(&idx, &x);
                 count += 3 * n.count;
             }
@@ -996,7 +1033,7 @@ fn refine_centre(geometry: Geometry, contact: &Contact, samples: &mut [Sample], 
 }
 
 /// The minimum of a unimodal `f` on `[a, b]` by golden sections.
-fn golden(f: impl Fn(f64) -> f64, mut a: f64, mut b: f64, iterations: usize) -> f64 {
+fn golden(mut f: impl FnMut(f64) -> f64, mut a: f64, mut b: f64, iterations: usize) -> f64 {
     let phi = (5f64.sqrt() - 1.0) / 2.0;
     let (mut c, mut d) = (b - phi * (b - a), a + phi * (b - a));
     let (mut fc, mut fd) = (f(c), f(d));
