@@ -229,7 +229,7 @@ pub fn render_press_image(calibration: &Path, pixel_size_mm: Option<f64>, shape:
     let [w, h] = sensor.image_size;
     let image = match shape {
         PressShape::Ball { radius_mm, depth_mm, centre_px } => {
-            if !(radius_mm > 0.0 && radius_mm < 100.0) || !(depth_mm > 0.0 && depth_mm < radius_mm) {
+            if !(radius_mm > 0.0 && radius_mm < 100.0 && depth_mm > 0.0 && depth_mm < radius_mm) {
                 bail!("--ball-radius {radius_mm}, --depth-mm {depth_mm}: 0 < depth < radius < 100 mm");
             }
             render_press(&sensor, radius_mm, depth_mm, centre_px.unwrap_or([w as f64 / 2.0, h as f64 / 2.0]))

@@ -846,8 +846,8 @@ impl Normal {
                 if ra == 0.0 {
                     continue;
                 }
-                for b in a..k {
-                    self.ata[(a, b)] += ra * row[b];
+                for (b, rb) in row.iter().enumerate().skip(a) {
+                    self.ata[(a, b)] += ra * rb;
                 }
                 for c in 0..3 {
                     self.atb[c][a] += ra * s.delta[c];
