@@ -37,12 +37,21 @@ enum Command {
         /// Generate only shards j with j mod N = i (distributed runs), e.g. 0/4.
         #[arg(long, value_name = "i/N")]
         shard: Option<ShardSelector>,
-        /// Continue an interrupted run: keep complete shards, redo the rest.
+        /// Continue an interrupted run: keep the shards that check out (complete, intact, this
+        /// config's and generator's), redo the rest and say which and why.
         #[arg(long)]
         resume: bool,
         /// Replace a dataset that is already in the output directory.
         #[arg(long, conflicts_with = "resume")]
         overwrite: bool,
+        /// Continue a dataset that another vtgen build started (refused otherwise: its shards
+        /// would differ in how they were made).
+        #[arg(long)]
+        mix_generators: bool,
+        /// Generate nothing: rebuild the manifest from the shards on disk, and fail naming the
+        /// missing ones (a cluster's merge step).
+        #[arg(long, conflicts_with = "overwrite")]
+        manifest_only: bool,
         /// Parallel shard workers, each with its own renderer.
         #[arg(long, default_value_t = 1)]
         jobs: usize,
@@ -299,10 +308,20 @@ fn run(cli: Cli) -> Result<()> {
     anyhow::ensure!(reads_config || cli.overrides.is_empty(), "--set overrides a config's keys, and this command reads a dataset");
     use vtgen::cli as commands;
     match cli.command {
-        Command::Generate { config, out, shard, resume, overwrite, jobs, ycb_dir, quiet } => {
+        Command::Generate { config, out, shard, resume, overwrite, mix_generators, manifest_only, jobs, ycb_dir, quiet } => {
             let cfg = load(&config)?;
             let out = out.unwrap_or_else(|| cfg.config.output.dir.clone());
-            let opts = GenerateOptions { out, shard: shard.unwrap_or(ShardSelector::ALL), resume, overwrite, jobs, quiet, ycb_dir };
+            let opts = GenerateOptions {
+                out,
+                shard: shard.unwrap_or(ShardSelector::ALL),
+                resume: resume || manifest_only,
+                overwrite,
+                jobs,
+                quiet,
+                ycb_dir,
+                mix_generators,
+                manifest_only,
+            };
             commands::generate::run(&cfg, &opts)
         }
         Command::Plan { config } => {

@@ -311,6 +311,8 @@ fn small_dataset(dir: &Path) -> PathBuf {
         jobs: 1,
         quiet: true,
         ycb_dir: None,
+        mix_generators: false,
+        manifest_only: false,
     };
     vtgen::output::generate::generate(&cfg, &opts).unwrap_or_else(|e| panic!("{e:#}"));
     out

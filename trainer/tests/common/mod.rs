@@ -49,6 +49,8 @@ pub fn generate(name: &str, overrides: &[&str]) -> PathBuf {
         jobs: 1,
         quiet: true,
         ycb_dir: None,
+        mix_generators: false,
+        manifest_only: false,
     };
     vtgen::output::generate::generate(&cfg, &opts).unwrap_or_else(|e| panic!("generating {name}: {e:#}"));
     out
