@@ -340,38 +340,31 @@ fn known_checksums(out: &Path, config_sha: &str) -> BTreeMap<String, (u64, Strin
 
 /// A shard's writer lock (`<split>/.shard-NNNNN.mcap.lock`), exclusive, held from the moment a
 /// run decides to write the shard until it ends; the OS releases it if the process dies. A second
-/// process that selects the shard meanwhile is refused with the holder named.
+/// process that selects the shard meanwhile is refused, the lock named.
 fn lock_shard(out: &Path, shard: &ShardPlan) -> Result<std::fs::File> {
-    use std::io::Write;
     let path = out.join(shard.file());
     let dir = path.parent().expect("a shard lies in its split's folder");
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let name = path.file_name().expect("a shard file name").to_string_lossy();
+    // The file stays (empty: a dataset's bytes do not depend on who wrote it); removing it would
+    // let a third process lock a new file while a second still holds the old one.
     let lock_path = dir.join(format!(".{name}.lock"));
-    let mut lock = std::fs::OpenOptions::new()
+    let lock = std::fs::OpenOptions::new()
         .create(true)
         .truncate(false)
-        .read(true)
         .write(true)
         .open(&lock_path)
         .with_context(|| format!("cannot open {}", lock_path.display()))?;
     match lock.try_lock() {
-        Ok(()) => {}
-        Err(std::fs::TryLockError::WouldBlock) => {
-            let holder = std::fs::read_to_string(&lock_path).unwrap_or_default();
-            bail!(
-                "{} is being written by another vtgen ({}): one shard has one writer, so this run leaves it; when that one \
-                 ends, rerun with --resume (its shard is kept if complete, redone otherwise)",
-                shard.file(),
-                if holder.trim().is_empty() { "holder unknown".to_string() } else { holder.trim().to_string() }
-            );
-        }
-        Err(std::fs::TryLockError::Error(e)) => return Err(e).with_context(|| format!("cannot lock {}", lock_path.display())),
+        Ok(()) => Ok(lock),
+        Err(std::fs::TryLockError::WouldBlock) => bail!(
+            "{} is being written by another vtgen process (it holds {}): one shard has one writer, so this run leaves it; \
+             when that one ends, rerun with --resume (its shard is kept if complete, redone otherwise)",
+            shard.file(),
+            lock_path.display()
+        ),
+        Err(std::fs::TryLockError::Error(e)) => Err(e).with_context(|| format!("cannot lock {}", lock_path.display())),
     }
-    let host = std::fs::read_to_string("/proc/sys/kernel/hostname").map(|h| h.trim().to_string()).unwrap_or_else(|_| "this host".into());
-    lock.set_len(0)?;
-    write!(lock, "process {} on {host}", std::process::id())?;
-    Ok(lock)
 }
 
 /// Whether a shard on disk can be kept: the manifest's size and SHA-256 when it lists it (else
