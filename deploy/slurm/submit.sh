@@ -7,9 +7,9 @@
 #   deploy/slurm/submit.sh --partition gpu --account lab --throttle 8 --set seed=7 32
 #
 # Options: --only I,J,...  --partition P  --account A  --throttle K (at most K tasks at once)
-#          --set KEY=VALUE (repeatable, passed to vtgen)  --time HH:MM:SS (per task)
+#          --set KEY=VALUE (repeatable, passed to vtgen)  --time HH:MM:SS  --cpus C (per task)
 set -euo pipefail
-usage() { echo "usage: $0 [--only I,J] [--partition P] [--account A] [--throttle K] [--time T] [--set KEY=VALUE]... TASKS" >&2; exit 2; }
+usage() { echo "usage: $0 [--only I,J] [--partition P] [--account A] [--throttle K] [--time T] [--cpus C] [--set KEY=VALUE]... TASKS" >&2; exit 2; }
 only="" throttle="" sets=() sbatch_args=()
 while [ $# -gt 0 ]; do
   case "$1" in
@@ -17,6 +17,7 @@ while [ $# -gt 0 ]; do
     --partition) sbatch_args+=(--partition "${2:?}"); shift 2 ;;
     --account) sbatch_args+=(--account "${2:?}"); shift 2 ;;
     --time) sbatch_args+=(--time "${2:?}"); shift 2 ;;
+    --cpus) sbatch_args+=(--cpus-per-task "${2:?}"); shift 2 ;;
     --throttle) throttle="${2:?}"; shift 2 ;;
     --set) sets+=("${2:?--set needs KEY=VALUE}"); shift 2 ;;
     -h|--help) usage ;;
