@@ -314,3 +314,25 @@ fn shards_of_other_mesh_sources_never_mix_into_a_dataset() {
     let o = run(&["validate", out.to_str().unwrap()]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stdout) + stderr(&o).as_str());
 }
+
+/// An object the parallel-jaw gripper can never hold (a 10 cm cube; the 2F-85 opens 85 mm) is
+/// refused before anything is written, named with why and what to do.
+#[test]
+fn an_object_the_gripper_cannot_hold_is_refused_before_the_run() {
+    let d = tempdir();
+    let corners: Vec<(f64, f64, f64)> = (0..8)
+        .map(|i| (if i & 4 == 0 { -0.05 } else { 0.05 }, if i & 2 == 0 { -0.05 } else { 0.05 }, if i & 1 == 0 { -0.05 } else { 0.05 }))
+        .collect();
+    let faces = [(1, 2, 4, 3), (5, 7, 8, 6), (1, 5, 6, 2), (3, 4, 8, 7), (1, 3, 7, 5), (2, 6, 8, 4)];
+    let mut obj: String = corners.iter().map(|(x, y, z)| format!("v {x} {y} {z}\n")).collect();
+    obj += &faces.iter().map(|(a, b, c, e)| format!("f {a} {b} {c}\nf {a} {c} {e}\n")).collect::<String>();
+    let mesh = d.path().join("cube.obj");
+    std::fs::write(&mesh, obj).unwrap();
+    let out = d.path().join("out");
+    let set = format!("objects=[009_gelatin_box, {{id: big_cube, mesh: {}, mass: 0.3}}]", mesh.display());
+    let o = run_generate(&root().join("scenes/tiny-gripper.yaml"), &out, &["--set", &set]);
+    let e = stderr(&o);
+    assert!(!o.status.success(), "a run with an unholdable object started");
+    assert!(e.contains("big_cube is at least 100.0 mm wide in every direction") && e.contains("Leave it out of `objects`"), "{e}");
+    assert!(!out.join("config.json").exists(), "something was written before the refusal");
+}

@@ -549,6 +549,11 @@ pub fn generate(cfg: &LoadedConfig, opts: &GenerateOptions) -> Result<GenerateSu
     // Meshes first: a bad mesh is reported before anything is written.
     let objects = load_objects(cfg, opts.ycb_dir.as_ref())?;
     let sources = MeshSources::of(cfg, &objects)?;
+    // An object the gripper can never hold is refused now, not hours into the run.
+    let unholdable = unholdable_objects(cfg, &objects);
+    if !unholdable.is_empty() {
+        bail!("{} of the config's objects cannot be grasped:\n  {}", unholdable.len(), unholdable.join("\n  "));
+    }
     prepare_output(out, &config_json, &sources, &plan, opts)?;
     if let Some(robot) = &cfg.robot {
         write_robot(out, robot)?;
@@ -639,6 +644,19 @@ pub fn generate(cfg: &LoadedConfig, opts: &GenerateOptions) -> Result<GenerateSu
         adapter,
         complete: manifest.complete,
     })
+}
+
+/// The objects the config's robot can never hold, each with why and what to do (a parallel-jaw
+/// gripper whose jaws are narrower than the object in every direction).
+pub fn unholdable_objects(cfg: &LoadedConfig, objects: &[LoadedObject]) -> Vec<String> {
+    let (Some(robot), Some(rc)) = (&cfg.robot, &cfg.config.robot) else { return Vec::new() };
+    if robot.kind != vt_robot::GraspKind::ParallelJaw {
+        return Vec::new();
+    }
+    objects
+        .iter()
+        .filter_map(|o| crate::physics::antipodal::cannot_fit_between_jaws(robot, &rc.grasp.preshape, &o.id, &o.mesh.positions))
+        .collect()
 }
 
 /// An episode shard's `vtgen.shard` entry (FORMAT.md, "Episodes"): the episode's object and

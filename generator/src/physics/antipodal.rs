@@ -75,6 +75,35 @@ impl Hull {
     }
 }
 
+/// The hull's narrowest width (m): the least extent of `points` along any of its face normals
+/// (where a convex body's width is least). None when the points span no volume.
+pub fn narrowest_width(points: &[[f32; 3]]) -> Option<f64> {
+    let hull = Hull::of(points)?;
+    let pts: Vec<DVec3> = points.iter().map(|p| DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)).collect();
+    hull.planes.iter().map(|&(n, d)| d - pts.iter().map(|p| n.dot(*p)).fold(f64::MAX, f64::min)).min_by(f64::total_cmp)
+}
+
+/// Why a parallel-jaw gripper can never hold an object, found before any physics: no antipodal
+/// pair fits its jaws when the object is wider, along every direction, than the jaws open (less
+/// their clearance) at the widest preshape. None when it may fit.
+pub fn cannot_fit_between_jaws(robot: &Robot, preshape: &[(f64, f64)], object_id: &str, points: &[[f32; 3]]) -> Option<String> {
+    // The jaws' opening at each end of every joint's preshape range (the widest of them).
+    let corners: Vec<Vec<f64>> = [0.0, 0.5, 1.0].iter().map(|t| preshape.iter().map(|(lo, hi)| lo + t * (hi - lo)).collect()).collect();
+    let opening = corners.iter().map(|pre| Jaws::of(robot, pre).opening).fold(0.0, f64::max);
+    let room = opening - 2.0 * CLEARANCE;
+    let width = narrowest_width(points)?;
+    (width > room).then(|| {
+        format!(
+            "{object_id} is at least {:.1} mm wide in every direction, and the jaws of {} open {:.1} mm at most (less {:.0} mm clearance \
+             on each side): no grasp can hold it. Leave it out of `objects`, scale it down, or use a gripper that opens wider",
+            1e3 * width,
+            robot.name,
+            1e3 * opening,
+            1e3 * CLEARANCE
+        )
+    })
+}
+
 /// Antipodal pairs drawn before an attempt is given up.
 const DRAWS: u32 = 64;
 /// The pair's normals may be this far (rad) from opposite: inside a friction cone of μ ≈ 0.36.

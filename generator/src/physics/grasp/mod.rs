@@ -161,7 +161,14 @@ pub fn simulate_trajectory(
         Some(f) => GraspEvent::Failed(f).name().to_string(),
         None => "no attempt".to_string(),
     };
-    bail!("{} trajectory {}: no grasp held in {} attempts ({why})", key.object_id, key.trajectory, cfg.max_attempts)
+    bail!(
+        "{} trajectory {}: no grasp held in {} attempts ({why}). `vtgen grasps CONFIG` shows per object how often grasps hold; \
+         leave the object out of `objects`, widen robot.grasp (preshape, workspace) or raise robot.grasp.max_attempts, then rerun \
+         with --resume: the complete shards are kept",
+        key.object_id,
+        key.trajectory,
+        cfg.max_attempts
+    )
 }
 
 impl Attempt<'_> {
