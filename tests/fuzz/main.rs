@@ -3,7 +3,8 @@
 //! a damaged field.
 //!
 //! Targets: the YAML config loader and `--set` overrides, OBJ and MTL (object meshes and the UR5e
-//! arm), GLB, STL (the Allegro hand), PLY, URDF, the MCAP shard reader and `vtgen validate --full`.
+//! arm), GLB, STL (the Allegro hand), PLY, DAE (robot meshes), URDF, robot descriptions, optical
+//! calibration files (vtgen's YAML, Taxim's `.npz`), the MCAP shard reader and `vtgen validate --full`.
 //! Seeds: `scenes/*.yaml`, `robots/allegro/robot.urdf`, `tests/fuzz/corpus/` (OBJ, MTL,
 //! ASCII STL), and binary seeds made here from the procedural meshes (GLB, binary STL, PLY) and a
 //! 48x32 dataset generated at start (its shard).
@@ -318,6 +319,54 @@ fn small_dataset(dir: &Path) -> PathBuf {
     out
 }
 
+/// A folder with a 16 x 12 background and vtgen's calibration file for it (the seed).
+fn calibration_seed(work: &Path) -> (PathBuf, Vec<u8>) {
+    let dir = work.join("calibration");
+    std::fs::create_dir_all(&dir).unwrap();
+    image::RgbImage::from_pixel(16, 12, image::Rgb([120, 130, 140])).save(dir.join("background.png")).unwrap();
+    let coefficients: Vec<String> = (0..3)
+        .map(|c| format!("[{}]", (0..60).map(|k| format!("{}", (k * 7 + c) % 11) as String).collect::<Vec<_>>().join(", ")))
+        .collect();
+    let yaml = format!(
+        "model: polynomial\nimage_size: [16, 12]\npixel_size_mm: 0.1\nelastic_spread_mm: 0.3\nbackground_image: background.png\n\
+         coefficients: [{}]\n",
+        coefficients.join(", ")
+    );
+    (dir, yaml.into_bytes())
+}
+
+/// A folder with a 16 x 12 `bg.png` and a Taxim `polycalib.npz` for it (4 bins), the seed.
+fn taxim_seed(work: &Path) -> (PathBuf, Vec<u8>) {
+    let dir = work.join("taxim");
+    std::fs::create_dir_all(&dir).unwrap();
+    image::RgbImage::from_pixel(16, 12, image::Rgb([120, 130, 140])).save(dir.join("bg.png")).unwrap();
+    let npy = |descr: &str, shape: &str, data: Vec<u8>| {
+        let mut header = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': ({shape}), }}");
+        while (10 + header.len() + 1) % 64 != 0 {
+            header.push(' ');
+        }
+        header.push('\n');
+        let mut out = b"\x93NUMPY\x01\x00".to_vec();
+        out.extend((header.len() as u16).to_le_bytes());
+        out.extend(header.as_bytes());
+        out.extend(data);
+        out
+    };
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    let mut zip = zip::ZipWriter::new(&mut bytes);
+    let stored = zip::write::FileOptions::default().compression_method(zip::CompressionMethod::Stored);
+    zip.start_file("bins.npy", stored).unwrap();
+    std::io::Write::write_all(&mut zip, &npy("<i8", "", 4i64.to_le_bytes().to_vec())).unwrap();
+    for name in ["grad_r", "grad_g", "grad_b"] {
+        zip.start_file(format!("{name}.npy"), stored).unwrap();
+        let data = (0..96).flat_map(|k| ((k % 7) as f64).to_le_bytes()).collect();
+        std::io::Write::write_all(&mut zip, &npy("<f8", "4, 4, 6", data)).unwrap();
+    }
+    zip.finish().unwrap();
+    drop(zip);
+    (dir, bytes.into_inner())
+}
+
 // Long on purpose: one entry per target (its seeds and how an input is tried), in one table.
 fn targets(work: &Path) -> Vec<Target> {
     use vtgen::assets::robot::{read_obj, read_stl};
@@ -356,6 +405,9 @@ fn targets(work: &Path) -> Vec<Target> {
     let validate_root = dataset.clone();
     let validate_shard = dataset.join("test/shard-00000.mcap");
     let validate_seed = read(&validate_shard);
+    let allegro_urdf = String::from_utf8_lossy(&read(&root().join("robots/allegro/robot.urdf"))).into_owned();
+    let (calibration_dir, calibration_seed) = calibration_seed(work);
+    let (taxim_dir, taxim_seed) = taxim_seed(work);
     vec![
         Target {
             name: "config",
@@ -432,6 +484,42 @@ fn targets(work: &Path) -> Vec<Target> {
             tokens: TEXT_TOKENS,
             share: 0.3,
             run: Box::new(|input| drop(vt_robot::RobotModel::from_urdf_str(&String::from_utf8_lossy(input), "fuzz.urdf"))),
+        },
+        Target {
+            name: "dae",
+            seeds: vec![read(&corpus.join("dae/tri.dae"))],
+            tokens: TEXT_TOKENS,
+            share: 1.0,
+            run: Box::new(in_file("mesh.dae", |p| drop(vt_robot::mesh::read_mesh(p, glam::DVec3::ONE)))),
+        },
+        Target {
+            name: "description",
+            seeds: ["allegro", "robotiq_2f85", "panda"].iter().map(|r| read(&root().join("robots").join(r).join("robot.yaml"))).collect(),
+            tokens: TEXT_TOKENS,
+            share: 0.3,
+            run: Box::new(move |input| {
+                drop(vt_robot::Robot::from_texts(&allegro_urdf, "robot.urdf", &String::from_utf8_lossy(input), "robot.yaml"))
+            }),
+        },
+        Target {
+            name: "calibration",
+            seeds: vec![calibration_seed],
+            tokens: TEXT_TOKENS,
+            share: 1.0,
+            run: Box::new(move |input| {
+                std::fs::write(calibration_dir.join("calibration.yaml"), input).unwrap();
+                let _ = vtgen::config::optical_calibration::load_calibration(&calibration_dir.join("calibration.yaml"));
+            }),
+        },
+        Target {
+            name: "taxim",
+            seeds: vec![taxim_seed],
+            tokens: &[],
+            share: 1.0,
+            run: Box::new(move |input| {
+                std::fs::write(taxim_dir.join("polycalib.npz"), input).unwrap();
+                let _ = vtgen::config::optical_calibration::load_calibration(&taxim_dir.join("polycalib.npz"));
+            }),
         },
         Target {
             name: "shard",

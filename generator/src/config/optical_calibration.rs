@@ -235,9 +235,17 @@ fn load_taxim(path: &Path) -> Result<LoadedCalibration, String> {
     let file = std::fs::File::open(path).map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
     let mut zip = zip::ZipArchive::new(file).map_err(|e| format!("{}: not an .npz (zip) file: {e}", path.display()))?;
     let mut array = |name: &str| -> Result<(Vec<usize>, Vec<f64>), String> {
-        let mut entry = zip.by_name(&format!("{name}.npy")).map_err(|_| format!("{}: has no array `{name}`", path.display()))?;
+        let entry = zip.by_name(&format!("{name}.npy")).map_err(|_| format!("{}: has no array `{name}`", path.display()))?;
+        // A table of 1000 x 1000 bins is 48 MB: more is not a calibration (nor read into memory).
+        const LIMIT: u64 = 64 << 20;
+        if entry.size() > LIMIT {
+            return Err(format!("{}: {name} is {} bytes unpacked: more than a calibration holds", path.display(), entry.size()));
+        }
         let mut bytes = Vec::new();
-        entry.read_to_end(&mut bytes).map_err(|e| format!("{}: {name}: {e}", path.display()))?;
+        entry.take(LIMIT + 1).read_to_end(&mut bytes).map_err(|e| format!("{}: {name}: {e}", path.display()))?;
+        if bytes.len() as u64 > LIMIT {
+            return Err(format!("{}: {name} unpacks to more than a calibration holds", path.display()));
+        }
         parse_npy(&bytes).map_err(|e| format!("{}: {name}: {e}", path.display()))
     };
     let (_, bins) = array("bins")?;

@@ -147,13 +147,17 @@ type Triangles = (Vec<DVec3>, Vec<[u32; 3]>, Vec<Option<[f64; 3]>>);
 fn read_with_mesh_loader(path: &Path, ext: &str) -> Result<Triangles, String> {
     let bytes = std::fs::read(path).map_err(|e| format!("cannot read: {e}"))?;
     let loader = mesh_loader::Loader::default();
-    let scene = match ext {
+    // mesh-loader's COLLADA reader panics on some damaged files (an index it trusts, found by
+    // tests/fuzz): a damaged file is an error here, not a crash.
+    let load = std::panic::AssertUnwindSafe(|| match ext {
         "stl" => loader.load_stl_from_slice(&bytes, path),
         // The MTL it names is read from beside `path`.
         "obj" => loader.load_obj_from_slice(&bytes, path),
         _ => loader.load_collada_from_slice(&bytes, path),
-    }
-    .map_err(|e| format!("not a readable {} file: {e}", ext.to_ascii_uppercase()))?;
+    });
+    let scene = std::panic::catch_unwind(load)
+        .map_err(|_| format!("not a readable {} file: its reader failed on it (damaged?)", ext.to_ascii_uppercase()))?
+        .map_err(|e| format!("not a readable {} file: {e}", ext.to_ascii_uppercase()))?;
     // COLLADA's up axis (mesh-loader applies the unit): ROS draws Y_UP and X_UP files turned to Z up.
     let up = if ext == "dae" { collada_up_axis(&bytes) } else { UpAxis::Z };
     let (mut positions, mut triangles, mut colours) = (Vec::new(), Vec::new(), Vec::new());
