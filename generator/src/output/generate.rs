@@ -456,29 +456,33 @@ fn write_shard(
     Ok(Some(writer.finish()?.0))
 }
 
-/// The selected shards still to write, each locked for this run (a complete one is kept when it
-/// checks out, [`verify_shard`], and redone otherwise; a `.partial` leftover of an interrupted
-/// run is removed and its shard redone: with the lock held, no other process owns it), the locks,
-/// how many were kept, and the shards redone with why.
-fn shards_to_write<'p>(
-    out: &Path,
-    plan: &'p Plan,
-    opts: &GenerateOptions,
-    config_sha: &str,
-) -> Result<(Vec<&'p ShardPlan>, Vec<std::fs::File>, usize, Vec<String>)> {
+/// What a run will write: the selected shards still to write, each locked for this run, how many
+/// were kept, and the shards redone with why.
+struct ShardsToWrite<'p> {
+    todo: Vec<&'p ShardPlan>,
+    /// Held until the run ends ([`lock_shard`]).
+    _locks: Vec<std::fs::File>,
+    kept: usize,
+    redone: Vec<String>,
+}
+
+/// The selected shards still to write, each locked for this run: a complete one is kept when it
+/// checks out ([`verify_shard`]) and redone otherwise; a `.partial` leftover of an interrupted run
+/// is removed and its shard redone (with the lock held, no other process owns it).
+fn shards_to_write<'p>(out: &Path, plan: &'p Plan, opts: &GenerateOptions, config_sha: &str) -> Result<ShardsToWrite<'p>> {
     let known = known_checksums(out, config_sha);
-    let (mut todo, mut locks, mut skipped, mut redone) = (Vec::new(), Vec::new(), 0, Vec::new());
+    let mut run = ShardsToWrite { todo: Vec::new(), _locks: Vec::new(), kept: 0, redone: Vec::new() };
     for s in plan.shards.iter().filter(|s| opts.shard.selects(s)) {
         let lock = lock_shard(out, s)?;
         let path = out.join(s.file());
         if path.is_file() {
             match verify_shard(out, s, &known, config_sha) {
                 Ok(()) => {
-                    skipped += 1;
+                    run.kept += 1;
                     continue;
                 }
                 Err(why) => {
-                    redone.push(format!("{}: {why}", s.file()));
+                    run.redone.push(format!("{}: {why}", s.file()));
                     std::fs::remove_file(&path).with_context(|| format!("cannot remove {}", path.display()))?;
                 }
             }
@@ -488,10 +492,10 @@ fn shards_to_write<'p>(
         if partial.exists() {
             std::fs::remove_file(&partial).with_context(|| format!("cannot remove {}", partial.display()))?;
         }
-        todo.push(s);
-        locks.push(lock);
+        run.todo.push(s);
+        run._locks.push(lock);
     }
-    Ok((todo, locks, skipped, redone))
+    Ok(run)
 }
 
 /// A warning up front when the disk holding `out` may be too small for `samples` samples.
@@ -586,10 +590,11 @@ pub fn generate(cfg: &LoadedConfig, opts: &GenerateOptions) -> Result<GenerateSu
             complete: manifest.complete,
         });
     }
-    let (todo, _shard_locks, skipped, redone) = shards_to_write(out, &plan, opts, &config_sha)?;
-    for line in &redone {
+    let run = shards_to_write(out, &plan, opts, &config_sha)?;
+    for line in &run.redone {
         eprintln!("redoing {line}");
     }
+    let (todo, skipped) = (&run.todo, run.kept);
     let total: u64 = todo.iter().map(|s| s.samples.len() as u64).sum();
     warn_if_short_of_space(out, config, total, opts.quiet);
     let progress = progress_bar(total, opts.quiet);
@@ -598,7 +603,7 @@ pub fn generate(cfg: &LoadedConfig, opts: &GenerateOptions) -> Result<GenerateSu
     let adapter = Mutex::new(None);
     let pooled = run_pool(
         opts.jobs,
-        &todo,
+        todo,
         &abort,
         || {
             let renderer = WgpuRenderer::new(&config.renderer)?;
