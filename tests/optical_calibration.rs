@@ -373,3 +373,48 @@ fn calibrate_fits_a_unit_outside_its_own_model_family() {
         }
     }
 }
+
+/// The printed markers as the known-size target: a unit with a 1.2 mm marker grid, and
+/// `--marker-pitch-mm 1.2` gives the pixel size within 3 %.
+#[test]
+fn the_markers_pitch_gives_the_pixel_size() {
+    use crate::common::*;
+    let mut truth = true_sensor();
+    truth.markers = Some(vtgen::config::Markers { pitch_mm: 1.2, radius_mm: 0.2, shift: 0.5, opacity: 0.85 });
+    let dir = tempdir();
+    let images = dir.path().join("presses");
+    std::fs::create_dir_all(&images).unwrap();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+    save(&truth, optical_image(&truth, None, None, Some(&mut rng)).rgb, &images.join("background.png"));
+    for (k, (centre, depth)) in [([-2.0e-3, -1.0e-3], 0.5e-3), ([2.0e-3, 1.0e-3], 0.4e-3), ([0.5e-3, 2.0e-3], 0.45e-3)].iter().enumerate() {
+        let img = optical_image(&truth, Some(&ball_press_depth(&truth, 2e-3, *depth, *centre)), None, Some(&mut rng));
+        save(&truth, img.rgb, &images.join(format!("press_{k}.png")));
+    }
+    let out = dir.path().join("calibration");
+    let o = run(&[
+        "tactile",
+        "calibrate",
+        images.to_str().unwrap(),
+        "--ball-radius",
+        "2",
+        "--marker-pitch-mm",
+        "1.2",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let report = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(o.status.success(), "{}\n{report}", stderr(&o));
+    let line = report.lines().find(|l| l.starts_with("pixel size from the markers")).expect("the markers' line");
+    let size: f64 = line.rsplit(' ').nth(1).unwrap().parse().unwrap();
+    assert!((size - 0.075).abs() < 0.03 * 0.075, "{line}: true 0.075 mm");
+    // A background without markers: the flag is refused, named.
+    let plain = dir.path().join("plain");
+    std::fs::create_dir_all(&plain).unwrap();
+    let clean = true_sensor();
+    save(&clean, reference_image(&clean).rgb, &plain.join("background.png"));
+    for k in 0..2 {
+        std::fs::copy(images.join(format!("press_{k}.png")), plain.join(format!("press_{k}.png"))).unwrap();
+    }
+    let o = run(&["tactile", "calibrate", plain.to_str().unwrap(), "--ball-radius", "2", "--marker-pitch-mm", "1.2"]);
+    assert!(!o.status.success() && stderr(&o).contains("no printed markers"), "{}", stderr(&o));
+}

@@ -194,6 +194,10 @@ enum TactileAction {
         /// presses when their shape fixes it, refused otherwise.
         #[arg(long)]
         pixel_size_mm: Option<f64>,
+        /// The printed markers' pitch (mm; the gel's datasheet, or a caliper across ten of them):
+        /// the pixel size is that over the markers' period in the background image.
+        #[arg(long, conflicts_with = "pixel_size_mm")]
+        marker_pitch_mm: Option<f64>,
         /// Keep K presses (spread over the sorted names) out of the fit, render them through it
         /// and report their residual over the whole contact disc against "no change".
         #[arg(long, default_value_t = 0)]
@@ -337,9 +341,9 @@ fn run(cli: Cli) -> Result<()> {
             let opts = commands::grasps::GraspCheckOptions { trajectories, instances, jobs, quiet };
             commands::grasps::run(&load(&config)?, ycb_dir.as_ref(), &opts, json, min_kept)
         }
-        Command::Tactile { action: TactileAction::Calibrate { dir, ball_radius, pixel_size_mm, holdout, out } } => {
+        Command::Tactile { action: TactileAction::Calibrate { dir, ball_radius, pixel_size_mm, marker_pitch_mm, holdout, out } } => {
             let out = out.unwrap_or_else(|| dir.join("calibration"));
-            commands::tactile::calibrate(&dir, ball_radius, pixel_size_mm, holdout, &out)
+            commands::tactile::calibrate(&dir, ball_radius, pixel_size_mm, marker_pitch_mm, holdout, &out)
         }
         Command::Tactile {
             action: TactileAction::RenderPress { calibration, ball_radius, depth_mm, at, pixel_size_mm, height_map, height_unit, out },

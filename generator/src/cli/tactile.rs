@@ -9,7 +9,7 @@ use anyhow::{Context, Result, bail};
 use crate::config::OpticalConfig;
 use crate::config::optical_calibration::{load_calibration, parse_npy};
 use crate::sensors::optical::optical_image_of_surface;
-use crate::sensors::optical_fit::{CalibrationImage, CalibrationInput, Prepared, compare_press, fit, render_press};
+use crate::sensors::optical_fit::{CalibrationImage, CalibrationInput, Prepared, compare_press, fit, marker_period_px, render_press};
 
 /// The image files of a calibration folder, by name: the background, then the presses.
 fn calibration_images(dir: &Path) -> Result<(PathBuf, Vec<PathBuf>)> {
@@ -79,7 +79,14 @@ fn held_out_indices(presses: usize, k: usize) -> Vec<usize> {
 /// Fits, writes `OUT/calibration.yaml` (+ `OUT/background.png` for the polynomial model) and prints
 /// the report; with `holdout` presses kept out of the fit, rendered through it and compared with
 /// their real frames.
-pub fn calibrate(dir: &Path, ball_radius_mm: f64, pixel_size_mm: Option<f64>, holdout: usize, out: &Path) -> Result<()> {
+pub fn calibrate(
+    dir: &Path,
+    ball_radius_mm: f64,
+    pixel_size_mm: Option<f64>,
+    marker_pitch_mm: Option<f64>,
+    holdout: usize,
+    out: &Path,
+) -> Result<()> {
     if !(ball_radius_mm > 0.0 && ball_radius_mm < 100.0) {
         bail!("--ball-radius {ball_radius_mm}: the ball's radius in mm, 0 < r < 100");
     }
@@ -93,6 +100,25 @@ pub fn calibrate(dir: &Path, ball_radius_mm: f64, pixel_size_mm: Option<f64>, ho
     let background = read_image(&background_path, None)?;
     let dims = image::image_dimensions(&background_path)?;
     let size = [dims.0, dims.1];
+    // The printed markers as the known-size target: their pitch in mm over their period in pixels.
+    let pixel_size_mm = match marker_pitch_mm {
+        None => pixel_size_mm,
+        Some(p) if !(p > 0.0 && p < 100.0) => bail!("--marker-pitch-mm {p}: allowed 0 < pitch < 100 mm"),
+        Some(pitch) => {
+            let [px, py] = marker_period_px(&background, size)
+                .map_err(|e| anyhow::anyhow!("{}: --marker-pitch-mm: {e}", background_path.display()))?;
+            if (px - py).abs() > 0.05 * px.max(py) {
+                bail!(
+                    "{}: the markers repeat every {px:.2} pixels across and {py:.2} down: pixels this far from square (or a grid \
+                     this far from square) cannot give one pixel size; give --pixel-size-mm",
+                    background_path.display()
+                );
+            }
+            let size_mm = pitch / (0.5 * (px + py));
+            println!("pixel size from the markers: {pitch} mm every {px:.2} x {py:.2} pixels = {size_mm:.5} mm");
+            Some(size_mm)
+        }
+    };
     let all = press_paths.iter().map(|p| read_image(p, Some(size))).collect::<Result<Vec<_>>>()?;
     let held = if holdout > 0 { held_out_indices(all.len(), holdout) } else { Vec::new() };
     let (held_images, presses): (Vec<_>, Vec<_>) = all.into_iter().enumerate().partition(|(k, _)| held.contains(k));

@@ -175,7 +175,12 @@ impl<'a> Prepared<'a> {
             let d = drift_at(&drift, at);
             *m = 255.0 * (0..3).map(|c| (press.rgb[3 * k + c] - input.background.rgb[3 * k + c] - d[c]).abs()).sum::<f64>();
         }
-        // Markers' holes take their neighbours' value, then a 1-pixel box blur against the noise.
+        // Markers' holes take their neighbours' mean (a normalized box filter over the unmasked
+        // pixels), so a marker on the rim does not notch the outline; then a 1-pixel box blur
+        // against the noise.
+        let weight: Vec<f64> = mask.iter().map(|&m| if m { 0.0 } else { 1.0 }).collect();
+        let (sum, count) = (box_blur(&magnitude, w, h, 5), box_blur(&weight, w, h, 5));
+        let magnitude: Vec<f64> = (0..w * h).map(|k| if mask[k] && count[k] > 0.0 { sum[k] / count[k] } else { magnitude[k] }).collect();
         let magnitude = box_blur(&magnitude, w, h, 1);
         let mut sorted: Vec<f64> = magnitude.iter().zip(&mask).filter(|(_, m)| !**m).map(|(v, _)| *v).collect();
         if sorted.is_empty() {
@@ -185,6 +190,9 @@ impl<'a> Prepared<'a> {
         sorted.select_nth_unstable_by(mid, f64::total_cmp);
         let threshold = (5.0 * sorted[mid]).max(6.0);
         let on: Vec<bool> = magnitude.iter().map(|&m| m > threshold).collect();
+        // An opening (erode, then grow back) drops the thin rims moved markers leave, which would
+        // otherwise join the contact and ragged its outline; the contact's disc survives it.
+        let on = open_mask(&on, w, h, 2);
         let (pixels, size) = largest_component(&on, w, h);
         if size < 30 {
             return Err(format!("no contact found (at most {size} pixels differ from the background by more than {threshold:.0} levels)"));
@@ -204,9 +212,9 @@ impl<'a> Prepared<'a> {
         }
         let outline: Vec<[f64; 2]> = by_angle.iter().filter(|(d, _)| *d > 0.0).map(|(_, p)| *p).collect();
         let (centre, radius, roundness) = robust_circle(&outline).ok_or("the contact's outline is degenerate")?;
-        if roundness > 0.2 {
+        if roundness > 0.15 {
             return Err(format!(
-                "its contact is not round (the outline is {:.0} % of its radius off a circle: a crescent, or two contacts)",
+                "its contact is not round (half its outline is more than {:.0} % of its radius off a circle: a crescent, or two contacts)",
                 100.0 * roundness
             ));
         }
@@ -236,6 +244,55 @@ impl<'a> Prepared<'a> {
         }
         out
     }
+}
+
+/// The printed marker grid's period (pixels) along the image's columns and rows: the first strong
+/// peak of the autocorrelation of the markers' column and row profiles in the background (their
+/// dark spots), refined at the farthest multiple that still peaks. Errors: no regular grid.
+pub fn marker_period_px(background: &CalibrationImage, [w, h]: [u32; 2]) -> Result<[f64; 2], String> {
+    let (w, h) = (w as usize, h as usize);
+    let grey: Vec<f64> = background.rgb.chunks_exact(3).map(|p| 255.0 * (p[0] + p[1] + p[2]) / 3.0).collect();
+    let local = box_blur(&grey, w, h, 6);
+    let dark: Vec<f64> = grey.iter().zip(&local).map(|(g, l)| if l - g > 12.0 { 1.0 } else { 0.0 }).collect();
+    let spots = dark.iter().sum::<f64>();
+    if spots < 20.0 {
+        return Err("the background shows no printed markers (dark spots)".into());
+    }
+    let period = |profile: Vec<f64>, axis: &str| -> Result<f64, String> {
+        let n = profile.len();
+        let mean = profile.iter().sum::<f64>() / n as f64;
+        let x: Vec<f64> = profile.iter().map(|v| v - mean).collect();
+        let auto = |lag: usize| x.iter().zip(&x[lag..]).map(|(a, b)| a * b).sum::<f64>() / (n - lag) as f64;
+        let max_lag = n / 3;
+        let r: Vec<f64> = (0..=max_lag).map(auto).collect();
+        // The first local maximum after the autocorrelation first turns negative.
+        let start = r.iter().position(|&v| v < 0.0).ok_or_else(|| format!("no periodic markers along the {axis}"))?;
+        let peak = (start + 1..max_lag).find(|&k| r[k] > r[k - 1] && r[k] >= r[k + 1] && r[k] > 0.3 * r[0]);
+        let peak = peak.ok_or_else(|| format!("the markers along the {axis} are not a regular grid"))?;
+        let refine = |k: usize| {
+            let (a, b, c) = (r[k - 1], r[k], r[k + 1]);
+            let d = a - 2.0 * b + c;
+            k as f64 + if d.abs() > 1e-12 { 0.5 * (a - c) / d } else { 0.0 }
+        };
+        let first = refine(peak);
+        // The farthest multiple that still peaks pins the period best.
+        let mut best = first;
+        for m in 2.. {
+            let centre = (m as f64 * first).round() as usize;
+            if centre + 2 > max_lag {
+                break;
+            }
+            let k = (centre - 2..=centre + 2).max_by(|a, b| r[*a].total_cmp(&r[*b])).expect("a window");
+            if r[k] < 0.3 * r[0] || k == centre - 2 || k == centre + 2 {
+                break;
+            }
+            best = refine(k) / m as f64;
+        }
+        Ok(best)
+    };
+    let columns: Vec<f64> = (0..w).map(|u| (0..h).map(|v| dark[v * w + u]).sum()).collect();
+    let rows: Vec<f64> = (0..h).map(|v| dark[v * w..(v + 1) * w].iter().sum()).collect();
+    Ok([period(columns, "image's width")?, period(rows, "image's height")?])
 }
 
 /// The geometry of the fit: pixel size (m), ball radius (m), contact ratio, spread (m).
@@ -743,6 +800,13 @@ fn box_blur(img: &[f64], w: usize, h: usize, r: usize) -> Vec<f64> {
     transpose(&pass(&transpose(&rows, w, h), h, w), h, w)
 }
 
+/// A mask's opening: eroded by `r` pixels, then grown back by `r` (square neighbourhoods).
+fn open_mask(mask: &[bool], w: usize, h: usize, r: usize) -> Vec<bool> {
+    let as_f: Vec<f64> = mask.iter().map(|&m| if m { 1.0 } else { 0.0 }).collect();
+    let eroded: Vec<bool> = box_blur(&as_f, w, h, r).into_iter().map(|v| v > 1.0 - 1e-9).collect();
+    dilate(&eroded, w, h, r)
+}
+
 /// A mask grown by `r` pixels (square neighbourhood).
 fn dilate(mask: &[bool], w: usize, h: usize, r: usize) -> Vec<bool> {
     let as_f: Vec<f64> = mask.iter().map(|&m| if m { 1.0 } else { 0.0 }).collect();
@@ -782,7 +846,7 @@ fn largest_component(on: &[bool], w: usize, h: usize) -> (Vec<usize>, usize) {
 }
 
 /// A circle through outline points (Kåsa's fit), refitted twice without the points farther than
-/// 2.5 robust deviations from it: (centre, radius, RMS distance of the kept points / radius).
+/// 2.5 robust deviations from it: (centre, radius, the points' median distance from it / radius).
 fn robust_circle(points: &[[f64; 2]]) -> Option<([f64; 2], f64, f64)> {
     let mut keep: Vec<[f64; 2]> = points.to_vec();
     let mut circle = None;
@@ -806,8 +870,10 @@ fn robust_circle(points: &[[f64; 2]]) -> Option<([f64; 2], f64, f64)> {
         sorted.sort_by(f64::total_cmp);
         let limit = (2.5 * 1.4826 * sorted[sorted.len() / 2]).max(1.0);
         let kept: Vec<[f64; 2]> = points.iter().zip(&off).filter(|(_, o)| **o <= limit).map(|(p, _)| *p).collect();
-        let rms = (off.iter().map(|o| o * o).sum::<f64>() / off.len() as f64).sqrt();
-        circle = Some((centre, radius, rms / radius.max(1e-9)));
+        // Robust: a few stray points (moved markers along the rim) do not make an outline not
+        // round; a crescent's or two contacts' half of the points do.
+        let median = sorted[sorted.len() / 2];
+        circle = Some((centre, radius, median / radius.max(1e-9)));
         keep = kept;
     }
     circle
