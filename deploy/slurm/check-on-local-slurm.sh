@@ -76,3 +76,5 @@ OUT="$work/c" VTGEN_SETS="output.samples_per_shard=4" bash deploy/slurm/merge.sb
 grep -h "valid" "$work/c-merge.log" | head -1 | sed 's/^/  /'
 same_as_local "$work/c"
 echo "== Slurm checks passed"
+cleanup
+rm -rf "$work"
