@@ -601,6 +601,7 @@ pub fn generate(cfg: &LoadedConfig, opts: &GenerateOptions) -> Result<GenerateSu
     let compression = config.output.shard_compression();
     let abort = AtomicBool::new(false);
     let adapter = Mutex::new(None);
+    let unmade: Mutex<Vec<String>> = Mutex::new(Vec::new());
     let pooled = run_pool(
         opts.jobs,
         todo,
@@ -622,9 +623,16 @@ pub fn generate(cfg: &LoadedConfig, opts: &GenerateOptions) -> Result<GenerateSu
                 sample_count: s.samples.len() as u64,
                 extra: episode_metadata(config, s).into_iter().collect(),
             };
-            write_shard(factory, out, s, &meta, compression, &progress, &abort)
-                .map(|r| r.map(|r| (s.file(), r)))
-                .map_err(|e| shard_failed(e, out, config, s, total))
+            match write_shard(factory, out, s, &meta, compression, &progress, &abort) {
+                Ok(r) => Ok(r.map(|r| (s.file(), r))),
+                // An object no grasp holds fails its shard, not the run: the other shards go on.
+                Err(e) if e.chain().any(|c| c.is::<crate::physics::grasp::NoGraspHeld>()) => {
+                    let e = shard_failed(e, out, config, s, total);
+                    unmade.lock().expect("not poisoned").push(format!("{}: {e:#}", s.file()));
+                    Ok(None)
+                }
+                Err(e) => Err(shard_failed(e, out, config, s, total)),
+            }
         },
         |_| Ok(()),
     );
@@ -640,6 +648,15 @@ pub fn generate(cfg: &LoadedConfig, opts: &GenerateOptions) -> Result<GenerateSu
         return Err(e);
     }
     let manifest = manifest?;
+    let unmade = unmade.into_inner().expect("not poisoned");
+    if !unmade.is_empty() {
+        bail!(
+            "{} shard(s) could not be made; the other {} of this run are complete and kept:\n  {}",
+            unmade.len(),
+            receipts.len(),
+            unmade.join("\n  ")
+        );
+    }
     Ok(GenerateSummary {
         samples: total,
         shards_written: receipts.len(),

@@ -23,7 +23,7 @@ mod placement;
 #[cfg(test)]
 mod tests;
 
-use anyhow::{Result, bail};
+use anyhow::Result;
 use glam::{DAffine3, DMat3, DQuat, DVec3};
 use rand::Rng;
 use vt_randomizers::SampleStream;
@@ -125,6 +125,19 @@ struct Attempt<'a> {
     number: u32,
 }
 
+/// A trajectory whose grasp never held: the object's fault, not the run's, so `generate` finishes
+/// the other shards before it reports it.
+#[derive(Debug)]
+pub struct NoGraspHeld(pub String);
+
+impl std::fmt::Display for NoGraspHeld {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for NoGraspHeld {}
+
 /// Simulates a trajectory and returns its recorded instances: attempts with fresh randomness
 /// until one grasp holds through every instance, or `max_attempts` is spent.
 pub fn simulate_trajectory(
@@ -161,14 +174,13 @@ pub fn simulate_trajectory(
         Some(f) => GraspEvent::Failed(f).name().to_string(),
         None => "no attempt".to_string(),
     };
-    bail!(
+    Err(NoGraspHeld(format!(
         "{} trajectory {}: no grasp held in {} attempts ({why}). `vtgen grasps CONFIG` shows per object how often grasps hold; \
          leave the object out of `objects`, widen robot.grasp (preshape, workspace) or raise robot.grasp.max_attempts, then rerun \
          with --resume: the complete shards are kept",
-        key.object_id,
-        key.trajectory,
-        cfg.max_attempts
-    )
+        key.object_id, key.trajectory, cfg.max_attempts
+    ))
+    .into())
 }
 
 impl Attempt<'_> {
