@@ -159,7 +159,11 @@ fn check_glb_header(path: &Path) -> Result<(), MeshError> {
 
 fn load_gltf(path: &Path) -> Result<TexturedMesh, MeshError> {
     check_glb_header(path)?;
-    let (doc, buffers, images) = gltf::import(path).map_err(|e| err(path, format!("not a valid glTF file: {e}")))?;
+    // gltf-json's validation panics on some damaged files (an index it trusts, found by
+    // tests/fuzz): a damaged file is an error here, not a crash.
+    let (doc, buffers, images) = std::panic::catch_unwind(|| gltf::import(path))
+        .map_err(|_| err(path, "not a valid glTF file: its reader failed on it (damaged?)"))?
+        .map_err(|e| err(path, format!("not a valid glTF file: {e}")))?;
     let mut mesh = TexturedMesh::empty(Texture::solid(UNTEXTURED_GREY));
     let mut texture_set = false;
     let mut all_have_normals = true;

@@ -209,7 +209,10 @@ fn collada_up_axis(bytes: &[u8]) -> UpAxis {
 /// A glTF or GLB file's triangles in its scene's frame (every node's transform applied) with each
 /// primitive's base colour.
 fn read_gltf(path: &Path) -> Result<Triangles, String> {
-    let (doc, buffers, _) = gltf::import(path).map_err(|e| format!("not a readable glTF file: {e}"))?;
+    // gltf-json's validation panics on some damaged files (found by tests/fuzz): an error here.
+    let (doc, buffers, _) = std::panic::catch_unwind(|| gltf::import(path))
+        .map_err(|_| "not a readable glTF file: its reader failed on it (damaged?)".to_string())?
+        .map_err(|e| format!("not a readable glTF file: {e}"))?;
     let (mut positions, mut triangles, mut colours) = (Vec::new(), Vec::new(), Vec::new());
     let scene = doc.default_scene().or_else(|| doc.scenes().next()).ok_or("has no scene")?;
     let mut stack: Vec<(gltf::Node, DMat4)> = scene.nodes().map(|n| (n, DMat4::IDENTITY)).collect();
