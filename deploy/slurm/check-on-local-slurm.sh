@@ -13,6 +13,8 @@ cleanup() { deploy/slurm/local-cluster.sh stop "$cluster" >/dev/null 2>&1 || tru
 trap cleanup EXIT
 eval "$(deploy/slurm/local-cluster.sh start "$cluster")"
 export VTGEN="$vtgen" CONFIG="$PWD/scenes/tiny.yaml"
+# The procedural meshes, for the local run and the tasks alike (CI exports a YCB download).
+unset YCB_DIR ROBOT_ASSETS VTGEN_SETS
 mkdir -p "$work/submit-from"
 chmod 555 "$work/submit-from"   # a read-only submit directory: logs must not go there
 
