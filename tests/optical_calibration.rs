@@ -200,18 +200,8 @@ fn npy_f64(shape: &str, values: &[f64]) -> Vec<u8> {
     npy("<f8", shape, values.iter().flat_map(|v| v.to_le_bytes()).collect())
 }
 
-/// A `.npy` of `descr` data (C order) as numpy writes it.
 fn npy(descr: &str, shape: &str, data: Vec<u8>) -> Vec<u8> {
-    let mut header = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': ({shape}), }}");
-    while (10 + header.len() + 1) % 64 != 0 {
-        header.push(' ');
-    }
-    header.push('\n');
-    let mut out = b"\x93NUMPY\x01\x00".to_vec();
-    out.extend((header.len() as u16).to_le_bytes());
-    out.extend(header.as_bytes());
-    out.extend(data);
-    out
+    vtgen::config::optical_calibration::npy_bytes(descr, shape, &data)
 }
 
 /// A unit outside vtgen's own model family, as Taxim describes one: a per-pixel lookup table

@@ -340,18 +340,7 @@ fn taxim_seed(work: &Path) -> (PathBuf, Vec<u8>) {
     let dir = work.join("taxim");
     std::fs::create_dir_all(&dir).unwrap();
     image::RgbImage::from_pixel(16, 12, image::Rgb([120, 130, 140])).save(dir.join("bg.png")).unwrap();
-    let npy = |descr: &str, shape: &str, data: Vec<u8>| {
-        let mut header = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': ({shape}), }}");
-        while (10 + header.len() + 1) % 64 != 0 {
-            header.push(' ');
-        }
-        header.push('\n');
-        let mut out = b"\x93NUMPY\x01\x00".to_vec();
-        out.extend((header.len() as u16).to_le_bytes());
-        out.extend(header.as_bytes());
-        out.extend(data);
-        out
-    };
+    let npy = |descr: &str, shape: &str, data: Vec<u8>| vtgen::config::optical_calibration::npy_bytes(descr, shape, &data);
     let mut bytes = std::io::Cursor::new(Vec::new());
     let mut zip = zip::ZipWriter::new(&mut bytes);
     let stored = zip::write::FileOptions::default().compression_method(zip::CompressionMethod::Stored);

@@ -288,6 +288,23 @@ fn load_taxim(path: &Path) -> Result<LoadedCalibration, String> {
     })
 }
 
+/// A `.npy` file's bytes as numpy writes them (format 1.0, C order): `descr` (e.g. `<f8`), the
+/// shape as numpy prints it inside its parentheses (`"4, 4, 6"`, `""` for a scalar) and the raw
+/// little-endian data. [`parse_npy`] reads it back; tests and fixtures write Taxim-style files.
+pub fn npy_bytes(descr: &str, shape: &str, data: &[u8]) -> Vec<u8> {
+    let mut header = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': ({shape}), }}");
+    // numpy pads the header with spaces so that the data starts on a 64-byte boundary.
+    while (10 + header.len() + 1) % 64 != 0 {
+        header.push(' ');
+    }
+    header.push('\n');
+    let mut out = b"\x93NUMPY\x01\x00".to_vec();
+    out.extend((header.len() as u16).to_le_bytes());
+    out.extend(header.as_bytes());
+    out.extend(data);
+    out
+}
+
 /// A `.npy` array of little-endian float64, float32 or int64 in C order: (shape, values).
 pub fn parse_npy(bytes: &[u8]) -> Result<(Vec<usize>, Vec<f64>), String> {
     if bytes.len() < 10 || &bytes[..6] != b"\x93NUMPY" {
@@ -334,18 +351,7 @@ mod tests {
     #[test]
     fn a_taxim_table_is_read_in_its_bgr_order_and_evaluated() {
         let dir = tempfile::tempdir().unwrap();
-        let npy = |descr: &str, shape: &str, data: Vec<u8>| {
-            let mut header = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': ({shape}), }}");
-            while (10 + header.len() + 1) % 64 != 0 {
-                header.push(' ');
-            }
-            header.push('\n');
-            let mut out = b"\x93NUMPY\x01\x00".to_vec();
-            out.extend((header.len() as u16).to_le_bytes());
-            out.extend(header.as_bytes());
-            out.extend(data);
-            out
-        };
+        let npy = |descr: &str, shape: &str, data: Vec<u8>| npy_bytes(descr, shape, &data);
         let bins = 4usize;
         let file = std::fs::File::create(dir.path().join("polycalib.npz")).unwrap();
         let mut zip = zip::ZipWriter::new(file);
