@@ -263,14 +263,20 @@ fn load_taxim(path: &Path) -> Result<LoadedCalibration, String> {
         tables[c] = values;
     }
     let dir = path.parent().unwrap_or(Path::new("."));
-    let bg = ["bg.png", "bg.jpg"]
-        .iter()
-        .map(|n| dir.join(n))
-        .find(|p| p.exists())
-        .ok_or_else(|| format!("{}: a Taxim calibration needs its background image, bg.png or bg.jpg, beside it", path.display()))?;
-    let img = image::open(&bg).map_err(|e| format!("{}: cannot read: {e}", bg.display()))?.to_rgb8();
-    let image_size = [img.width(), img.height()];
-    let mut background = read_background(&bg, image_size)?;
+    let (image_size, mut background) = match ["bg.png", "bg.jpg"].iter().map(|n| dir.join(n)).find(|p| p.exists()) {
+        Some(bg) => {
+            let img = image::open(&bg).map_err(|e| format!("{}: cannot read: {e}", bg.display()))?.to_rgb8();
+            let image_size = [img.width(), img.height()];
+            (image_size, read_background(&bg, image_size)?)
+        }
+        None if dir.join("real_bg.npy").exists() => read_npy_background(&dir.join("real_bg.npy"))?,
+        None => {
+            return Err(format!(
+                "{}: a Taxim calibration needs its background image beside it: bg.png, bg.jpg or Taxim's real_bg.npy",
+                path.display()
+            ));
+        }
+    };
     let flat = table_cell(bins, (0.0, 0.0));
     for (k, pixel) in background.chunks_exact_mut(3).enumerate() {
         let at = ((k % image_size[0] as usize) as u32, (k / image_size[0] as usize) as u32);
@@ -286,6 +292,21 @@ fn load_taxim(path: &Path) -> Result<LoadedCalibration, String> {
         light: Some(LightModel::Table { bins, tables }),
         leds: None,
     })
+}
+
+/// Taxim's `real_bg.npy`: the no-contact frame as OpenCV held it (rows x columns x 3, BGR, 0..=255
+/// as uint8 or float): (image size, RGB 0..=1 levels).
+fn read_npy_background(path: &Path) -> Result<([u32; 2], Vec<f64>), String> {
+    let bytes = std::fs::read(path).map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
+    let (shape, values) = parse_npy(&bytes).map_err(|e| format!("{}: {e}", path.display()))?;
+    let [h, w, 3] = shape[..] else {
+        return Err(format!("{}: shape {shape:?}: a background is rows x columns x 3 (BGR)", path.display()));
+    };
+    if w == 0 || h == 0 || w > 2048 || h > 2048 {
+        return Err(format!("{}: {w} x {h} pixels: allowed 1 ..= 2048 each", path.display()));
+    }
+    let rgb = values.chunks_exact(3).flat_map(|bgr| [bgr[2], bgr[1], bgr[0]]).map(|v| (v / 255.0).clamp(0.0, 1.0)).collect();
+    Ok(([w as u32, h as u32], rgb))
 }
 
 /// A `.npy` file's bytes as numpy writes them (format 1.0, C order): `descr` (e.g. `<f8`), the
@@ -305,7 +326,7 @@ pub fn npy_bytes(descr: &str, shape: &str, data: &[u8]) -> Vec<u8> {
     out
 }
 
-/// A `.npy` array of little-endian float64, float32 or int64 in C order: (shape, values).
+/// A `.npy` array of little-endian float64, float32, int64 or uint8 in C order: (shape, values).
 pub fn parse_npy(bytes: &[u8]) -> Result<(Vec<usize>, Vec<f64>), String> {
     if bytes.len() < 10 || &bytes[..6] != b"\x93NUMPY" {
         return Err("not a .npy array".into());
@@ -333,7 +354,8 @@ pub fn parse_npy(bytes: &[u8]) -> Result<(Vec<usize>, Vec<f64>), String> {
         "<f8" => data.chunks_exact(8).map(|c| f64::from_le_bytes(c.try_into().expect("8 bytes"))).collect(),
         "<f4" => data.chunks_exact(4).map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes")) as f64).collect(),
         "<i8" => data.chunks_exact(8).map(|c| i64::from_le_bytes(c.try_into().expect("8 bytes")) as f64).collect(),
-        other => return Err(format!("dtype {other}: float64, float32 or int64 arrays only")),
+        "|u1" => data.iter().map(|&b| b as f64).collect(),
+        other => return Err(format!("dtype {other}: float64, float32, int64 or uint8 arrays only")),
     };
     if values.len() != shape.iter().product::<usize>() {
         return Err(format!("{} values for shape {shape:?}", values.len()));
@@ -393,7 +415,15 @@ mod tests {
         // A missing background is named.
         std::fs::remove_file(dir.path().join("bg.png")).unwrap();
         let e = load_calibration(&dir.path().join("polycalib.npz")).unwrap_err();
-        assert!(e.contains("bg.png or bg.jpg"), "{e}");
+        assert!(e.contains("bg.png, bg.jpg or Taxim's real_bg.npy"), "{e}");
+        // Taxim's own real_bg.npy (uint8, BGR) in its place: read as RGB.
+        let bgr: Vec<u8> = (0..8 * 6).flat_map(|_| [60u8, 40, 20]).collect();
+        std::fs::write(dir.path().join("real_bg.npy"), npy_bytes("|u1", "6, 8, 3", &bgr)).unwrap();
+        let cal = load_calibration(&dir.path().join("polycalib.npz")).unwrap();
+        assert_eq!(cal.image_size, [8, 6]);
+        for (c, expected) in [23.0, 42.0, 61.0].iter().enumerate() {
+            assert!((cal.background.as_ref().unwrap()[c] * 255.0 - expected).abs() < 1e-9, "channel {c}");
+        }
     }
 
     /// The polynomial model's normal terms vanish on a flat gel (the image is the background) and
