@@ -203,33 +203,38 @@ pub fn generator_identity() -> GeneratorIdentity {
 
 /// The generator a dataset records, when it does.
 fn read_generator(out: &Path) -> Result<Option<GeneratorIdentity>> {
-    let path = out.join(GENERATOR_FILE);
-    match std::fs::read_to_string(&path) {
-        Ok(text) => serde_json::from_str(&text).map(Some).with_context(|| format!("{} is not a valid generator record", path.display())),
+    read_record(&out.join(GENERATOR_FILE), "generator record")
+}
+
+/// The dataset's mesh sources, when it has recorded them.
+fn read_sources(path: &Path) -> Result<Option<MeshSources>> {
+    read_record(path, "sources file")
+}
+
+/// A JSON record of the dataset's identity (`what` names it in errors); None when it is absent.
+fn read_record<T: serde::de::DeserializeOwned>(path: &Path, what: &str) -> Result<Option<T>> {
+    match std::fs::read_to_string(path) {
+        Ok(text) => serde_json::from_str(&text).map(Some).with_context(|| format!("{} is not a valid {what}", path.display())),
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
         Err(e) => Err(e).with_context(|| format!("cannot read {}", path.display())),
     }
 }
 
-/// The dataset's mesh sources, when it has recorded them.
-fn read_sources(path: &Path) -> Result<Option<MeshSources>> {
-    match std::fs::read_to_string(path) {
-        Ok(text) => serde_json::from_str(&text).map(Some).with_context(|| format!("{} is not a valid sources file", path.display())),
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
-        Err(e) => Err(e).with_context(|| format!("cannot read {}", path.display())),
-    }
+/// Opens (creating, never truncating) a lock file of the dataset.
+fn open_lock_file(lock_path: &Path) -> Result<std::fs::File> {
+    std::fs::OpenOptions::new()
+        .create(true)
+        .truncate(false)
+        .write(true)
+        .open(lock_path)
+        .with_context(|| format!("cannot open {}", lock_path.display()))
 }
 
 /// Takes the dataset directory's lock (an advisory lock, released when the file closes), so that
 /// processes of one dataset take turns at claiming the directory and rewriting the manifest.
 fn lock_dataset(out: &Path) -> Result<std::fs::File> {
     let lock_path = out.join(".manifest.lock");
-    let lock = std::fs::OpenOptions::new()
-        .create(true)
-        .truncate(false)
-        .write(true)
-        .open(&lock_path)
-        .with_context(|| format!("cannot open {}", lock_path.display()))?;
+    let lock = open_lock_file(&lock_path)?;
     lock.lock().with_context(|| format!("cannot lock {}", lock_path.display()))?;
     Ok(lock)
 }
@@ -349,12 +354,7 @@ fn lock_shard(out: &Path, shard: &ShardPlan) -> Result<std::fs::File> {
     // The file stays (empty: a dataset's bytes do not depend on who wrote it); removing it would
     // let a third process lock a new file while a second still holds the old one.
     let lock_path = dir.join(format!(".{name}.lock"));
-    let lock = std::fs::OpenOptions::new()
-        .create(true)
-        .truncate(false)
-        .write(true)
-        .open(&lock_path)
-        .with_context(|| format!("cannot open {}", lock_path.display()))?;
+    let lock = open_lock_file(&lock_path)?;
     match lock.try_lock() {
         Ok(()) => Ok(lock),
         Err(std::fs::TryLockError::WouldBlock) => bail!(
