@@ -128,7 +128,7 @@ fn force_fields_sum_to_the_pads_contact_forces_and_the_hand_holds_the_weight() {
                 let tac = s.tactile.as_ref().expect("robot samples carry touch");
                 let touch = s.info.robot.as_ref().and_then(|r| r.tactile.as_ref()).expect("touch info");
                 let forces = touch.forces.as_ref().expect("force info");
-                assert_eq!(tac.forces.len(), tac.phalanges.len(), "{scene}: a field per pad");
+                assert_eq!(tac.forces.len(), tac.pads.len(), "{scene}: a field per pad");
                 for field in &tac.forces {
                     assert_eq!((field.resolution, field.cells.len()), (8, 64));
                     let [len, wid] = touch.pads[&field.pad];
@@ -204,7 +204,7 @@ fn episode_touch_readings_carry_force_fields() {
             assert!((grid - pad).length() <= 0.05 * pad.length() + 1e-4, "frame {}: {} grid {grid} vs {pad}", s.index, field.pad);
         }
         for (_, tac) in std::iter::once(&(0, frame.clone())).chain(&episode.tactile) {
-            assert_eq!(tac.forces.len(), tac.phalanges.len(), "a field per pad in every touch reading");
+            assert_eq!(tac.forces.len(), tac.pads.len(), "a field per pad in every touch reading");
             for field in &tac.forces {
                 assert_eq!(field.cells.len(), 16);
                 assert!(
@@ -233,7 +233,7 @@ fn markers_follow_the_gel(scene: &str, ds: &vt_dataset::DatasetReader) {
         let with_markers: Vec<&String> = sensors.iter().filter(|(_, v)| !v["markers"].is_null()).map(|(p, _)| p).collect();
         let flow_pads: Vec<&String> = tac.marker_flow.iter().map(|f| &f.pad).collect();
         let mut expected = with_markers.clone();
-        expected.sort_by_key(|p| tac.phalanges.iter().position(|q| q == *p));
+        expected.sort_by_key(|p| tac.pads.iter().position(|q| q == *p));
         assert_eq!(flow_pads, expected, "{scene} sample {}: the optical pads with markers, in pad order", s.index);
         for flow in &tac.marker_flow {
             let sensor: vtgen::config::OpticalSensor = serde_json::from_value(sensors[&flow.pad].clone()).unwrap();
@@ -246,7 +246,7 @@ fn markers_follow_the_gel(scene: &str, ds: &vt_dataset::DatasetReader) {
             let largest = flow.markers.iter().map(shift).fold(0.0, f64::max);
             let field = tac.forces.iter().find(|f| f.pad == flow.pad).unwrap();
             let touched = field.cells.iter().any(|c| c.pressure > 0.0);
-            let depth = &tac.depth[tac.phalanges.iter().position(|p| *p == flow.pad).unwrap()];
+            let depth = &tac.depth[tac.pads.iter().position(|p| *p == flow.pad).unwrap()];
             let near = depth.iter().any(|&d| (d as f64) < sensor.gel_thickness_mm * 1e-3);
             if !touched && !near {
                 assert_eq!(largest, 0.0, "{scene} sample {} {}: untouched, yet a marker moved", s.index, flow.pad);

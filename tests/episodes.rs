@@ -52,7 +52,7 @@ fn every_stream_of_an_episode_is_at_its_rate_and_its_ground_truth_holds_on_every
                 let (t0, first) = &ep.states[0];
                 assert_eq!(*t0, ep.time_ns);
                 assert!((first.t_camera_object.translation() - s.t_camera_object.translation()).length() < 1e-9);
-                assert_eq!(first.phalanges_in_contact, s.info.phalanges_in_contact());
+                assert_eq!(first.links_in_contact, s.info.links_in_contact());
                 state_times.extend(ep.states.iter().map(|(t, _)| *t));
                 // The touch between frames, on the object where the state then puts it.
                 for (t, touch) in &ep.tactile {

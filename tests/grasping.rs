@@ -56,7 +56,7 @@ fn every_recorded_instance_is_a_plausible_grasp() {
             let s = s.unwrap();
             let i = s.info.robot.as_ref().expect("a robot's info");
             assert_eq!(i.physics_backend, backend().as_str());
-            let contacts = &i.phalanges_in_contact;
+            let contacts = &i.links_in_contact;
             assert!(contacts.len() >= 2, "{split} {}: {} phalanges in contact", s.index, contacts.len());
             assert!(i.penetration_mm <= 1.0, "{split} {}: penetration", s.index);
             assert_eq!(i.joint_positions.len(), 22);
@@ -127,7 +127,7 @@ fn every_tactile_point_lies_on_the_object_surface_within_its_pad() {
     for split in ["train", "test"] {
         for s in ds.samples(split).unwrap() {
             let tac = s.unwrap().tactile.expect("robot samples carry tactile data");
-            assert_eq!(tac.phalanges.len(), 12);
+            assert_eq!(tac.pads.len(), 12);
             assert!(tac.depth.iter().all(|d| d.len() == 32 * 32));
             samples_with_touch += (!tac.points.is_empty()) as usize;
         }
@@ -229,7 +229,7 @@ fn the_grasp_check_reports_the_same_trajectories_as_generation() {
         assert_eq!(ob["kept"], 5, "{ob}");
         assert_eq!(ob["instances"], 20);
         assert!(ob["max_penetration_mm"].as_f64().unwrap() <= 1.0);
-        assert!(ob["min_phalanges_in_contact"].as_u64().unwrap() >= 2);
+        assert!(ob["min_links_in_contact"].as_u64().unwrap() >= 2);
         assert!(ob["min_floor_clearance_mm"].as_f64().unwrap() > 5.0);
         attempts += ob["attempts"].as_u64().unwrap();
     }
@@ -353,7 +353,7 @@ fn robot_material_randomization_changes_only_the_robots_pixels() {
 /// in `phalanges_in_contact`, the per-phalanx counts of `/sample/info` are those of the cloud, and
 /// a listed phalanx without points touches outside its pad's sensing area (counted, not an error).
 #[test]
-fn tactile_points_come_only_from_phalanges_in_contact() {
+fn tactile_points_come_only_from_links_in_contact() {
     let ds = DatasetReader::open(hand_dataset()).unwrap();
     let (mut listed, mut listed_without_points, mut with_points) = (0, 0, 0);
     for split in ["train", "test"] {
@@ -362,10 +362,10 @@ fn tactile_points_come_only_from_phalanges_in_contact() {
             let robot = s.info.robot.as_ref().expect("a robot's info");
             let touch = robot.tactile.as_ref().expect("touch info");
             let tac = s.tactile.as_ref().expect("tactile data");
-            for (k, name) in tac.phalanges.iter().enumerate() {
-                let in_cloud = tac.points.iter().filter(|p| p.phalanx as usize == k).count() as u64;
+            for (k, name) in tac.pads.iter().enumerate() {
+                let in_cloud = tac.points.iter().filter(|p| p.pad as usize == k).count() as u64;
                 assert_eq!(touch.points[name], in_cloud, "{split} {}: {name}'s count in /sample/info", s.index);
-                let in_contact = robot.phalanges_in_contact.contains(name);
+                let in_contact = robot.links_in_contact.contains(name);
                 assert!(in_cloud == 0 || in_contact, "{split} {}: {name} has {in_cloud} tactile points and no contact", s.index);
                 listed += in_contact as usize;
                 with_points += (in_cloud > 0) as usize;

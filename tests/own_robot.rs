@@ -189,13 +189,9 @@ fn a_three_finger_gripper_generates_a_valid_dataset() {
             // 6 arm joints and the 3 hand joints that move on their own (the mimics follow).
             assert_eq!(r.joint_positions.len(), 9, "{:?}", r.joint_positions);
             assert!(r.joint_positions.contains_key("thumb_proximal_joint"));
-            assert!(
-                r.phalanges_in_contact.len() >= 2 && r.phalanges_in_contact.iter().all(|p| pads.contains(p)),
-                "{:?}",
-                r.phalanges_in_contact
-            );
+            assert!(r.links_in_contact.len() >= 2 && r.links_in_contact.iter().all(|p| pads.contains(p)), "{:?}", r.links_in_contact);
             let tac = s.tactile.as_ref().expect("tactile data");
-            assert_eq!(tac.phalanges, pads);
+            assert_eq!(tac.pads, pads);
             assert_eq!(tac.depth.len(), 6);
             let frames: Vec<&str> = s.extra_transforms.iter().map(|t| t.1.as_str()).collect();
             assert!(frames.contains(&"palm") && frames.iter().filter(|f| f.ends_with("_pad")).count() == 6, "{frames:?}");
@@ -295,7 +291,7 @@ pub fn tactile_points_lie_on_the_object_within_their_pad(dir: &Path) {
                 let pc = glam::Vec3::from(p.position).as_dvec3();
                 let d = mesh.distance_to_local_point(s.t_camera_object.inverse().transform_point(pc).as_vec3(), false);
                 assert!(d <= 1e-3, "{split} {}: tactile point {:.2} mm off the surface", s.index, d * 1e3);
-                let name = &tac.phalanges[p.phalanx as usize];
+                let name = &tac.pads[p.pad as usize];
                 let local = to_camera.compose(&frames[format!("{name}_pad").as_str()]).inverse().transform_point(pc);
                 let [len, wid] = touch.pads[name];
                 assert!(local.x.abs() <= len / 2.0 + 1e-6 && local.y.abs() <= wid / 2.0 + 1e-6 && local.z <= 0.002 + 1e-6, "{local}");
@@ -332,7 +328,7 @@ pub fn optical_images_change_only_where_the_object_is_in_the_gel(dir: &Path) {
                 assert_eq!([o.width, o.height], sensor.image_size);
                 assert!(o.reference == reference_image(&sensor).rgb, "{split} {} {}: the reference is not the sensor's", s.index, o.pad);
                 // The pad view's pixels where the object is within the gel (pad frame, m).
-                let k = tac.phalanges.iter().position(|p| *p == o.pad).unwrap();
+                let k = tac.pads.iter().position(|p| *p == o.pad).unwrap();
                 let (n, [len, wid]) = (tac.resolution, touch.pads[&o.pad]);
                 let gel = sensor.gel_thickness_mm * 1e-3;
                 let inside: Vec<(f64, f64)> = (0..n * n)
@@ -391,9 +387,9 @@ fn the_parallel_gripper_holds_objects_between_its_two_pads_and_its_ground_truth_
             let r = s.info.robot.as_ref().expect("a robot's info");
             // 6 arm joints and finger_joint (its five mimics follow it); both jaws touch.
             assert_eq!(r.joint_positions.len(), 7, "{:?}", r.joint_positions);
-            assert_eq!(r.phalanges_in_contact, ["left_inner_finger_pad", "right_inner_finger_pad"]);
+            assert_eq!(r.links_in_contact, ["left_inner_finger_pad", "right_inner_finger_pad"]);
             assert!(r.penetration_mm <= 1.0);
-            assert_eq!(s.tactile.as_ref().expect("tactile data").phalanges, ["left", "right"]);
+            assert_eq!(s.tactile.as_ref().expect("tactile data").pads, ["left", "right"]);
             let frames: Vec<&str> = s.extra_transforms.iter().map(|t| t.1.as_str()).collect();
             assert!(frames.contains(&"grasp_frame") && frames.contains(&"left_pad") && frames.contains(&"right_pad"), "{frames:?}");
             n += 1;

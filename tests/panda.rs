@@ -67,7 +67,7 @@ fn the_panda_holds_objects_between_its_pads() {
     for obj in r["objects"].as_array().unwrap() {
         assert_eq!(obj["kept"], 3, "{obj}");
         assert!(obj["max_penetration_mm"].as_f64().unwrap() <= 1.0, "{obj}");
-        assert_eq!(obj["min_phalanges_in_contact"], 2, "{obj}");
+        assert_eq!(obj["min_links_in_contact"], 2, "{obj}");
     }
 }
 

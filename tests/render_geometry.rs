@@ -154,7 +154,7 @@ fn the_principal_point_is_at_the_pixel_centre_convention() {
 
 #[test]
 fn a_pad_pressed_on_a_box_sees_its_whole_footprint_and_a_free_pad_sees_nothing() {
-    use vtgen::config::TactileConfig;
+    use vtgen::config::{SensorModel, TactileConfig};
     use vtgen::sensors::tactile::sense;
     let mut r = WgpuRenderer::new(&RendererConfig::default()).unwrap();
     let entry = Catalog::builtin().get("009_gelatin_box").unwrap().clone();
@@ -166,7 +166,7 @@ fn a_pad_pressed_on_a_box_sees_its_whole_footprint_and_a_free_pad_sees_nothing()
     let pads: [glam::DAffine3; 12] = std::array::from_fn(|k| glam::DAffine3::from_mat4(if k == 0 { pad0 } else { far }));
     let cfg = TactileConfig::default();
     let object = Draw { mesh: boxm, t_world_model: DMat4::IDENTITY, mask_id: 1, role: DrawRole::Target };
-    let reading = sense(&mut r, &cfg, &pad_views(&cfg, &pads), None, object, &glam::DAffine3::IDENTITY).unwrap();
+    let reading = sense(&mut r, &cfg, &pad_views(SensorModel::DepthCamera, &pads), None, object, &glam::DAffine3::IDENTITY).unwrap();
     assert_eq!(reading.counts[0], 32 * 32, "the whole pad footprint is in contact");
     assert!(reading.depth[0].iter().all(|d| (d - 0.0005).abs() < 1e-5), "flat face at 0.5 mm");
     assert!(reading.counts[1..].iter().all(|&c| c == 0), "pads away from the object report nothing");
@@ -177,15 +177,14 @@ fn a_pad_pressed_on_a_box_sees_its_whole_footprint_and_a_free_pad_sees_nothing()
     );
 }
 
-/// 3 x 2 cm pads at `pads`, all touching, each with the config's distal sensor model.
-fn pad_views(cfg: &vtgen::config::TactileConfig, pads: &[glam::DAffine3]) -> Vec<vtgen::sensors::tactile::PadView> {
+/// 3 x 2 cm pads at `pads`, all touching, each with sensor `model`.
+fn pad_views(model: vtgen::config::SensorModel, pads: &[glam::DAffine3]) -> Vec<vtgen::sensors::tactile::PadView> {
     pads.iter()
         .map(|&t_world_pad| vtgen::sensors::tactile::PadView {
             size: (0.03, 0.02),
-            model: cfg.sensors.distal,
+            sensor: vtgen::config::PadSensor { model, optical: None },
             t_world_pad,
             touching: true,
-            optical: None,
         })
         .collect()
 }
@@ -208,14 +207,13 @@ fn tilted_face() -> (WgpuRenderer, Draw, [glam::DAffine3; 12], DVec3, DVec3) {
 
 #[test]
 fn the_three_sensor_models_report_the_same_surface_patch() {
-    use vtgen::config::{SensorModel, TactileConfig, TactileSensorsConfig};
+    use vtgen::config::{SensorModel, TactileConfig};
     use vtgen::sensors::tactile::sense;
     let (mut r, object, pads, normal, on_face) = tilted_face();
     let mut cloud = |model: SensorModel| {
-        let cfg =
-            TactileConfig { sensors: TactileSensorsConfig { proximal: model, medial: model, distal: model }, ..TactileConfig::default() };
-        let reading = sense(&mut r, &cfg, &pad_views(&cfg, &pads), None, object, &glam::DAffine3::IDENTITY).unwrap();
-        reading.points.iter().filter(|p| p.phalanx == 0).map(|p| p.position).collect::<Vec<_>>()
+        let cfg = TactileConfig::default();
+        let reading = sense(&mut r, &cfg, &pad_views(model, &pads), None, object, &glam::DAffine3::IDENTITY).unwrap();
+        reading.points.iter().filter(|p| p.pad == 0).map(|p| p.position).collect::<Vec<_>>()
     };
     let camera = cloud(SensorModel::DepthCamera);
     let gel = cloud(SensorModel::Gelsight { gel_thickness_mm: 1.0 });
@@ -235,15 +233,15 @@ fn the_three_sensor_models_report_the_same_surface_patch() {
 
 #[test]
 fn perspective_pads_see_the_same_surface_as_orthographic_ones() {
-    use vtgen::config::{PadProjection, TactileConfig};
+    use vtgen::config::{PadProjection, SensorModel, TactileConfig};
     use vtgen::sensors::tactile::sense;
     let (mut r, object, pads, normal, on_face) = tilted_face();
     let cfg = TactileConfig { projection: PadProjection::Perspective, ..TactileConfig::default() };
-    let persp = sense(&mut r, &cfg, &pad_views(&cfg, &pads), None, object, &glam::DAffine3::IDENTITY).unwrap();
+    let persp = sense(&mut r, &cfg, &pad_views(SensorModel::DepthCamera, &pads), None, object, &glam::DAffine3::IDENTITY).unwrap();
     let plain = TactileConfig::default();
-    let ortho = sense(&mut r, &plain, &pad_views(&plain, &pads), None, object, &glam::DAffine3::IDENTITY).unwrap();
+    let ortho = sense(&mut r, &plain, &pad_views(SensorModel::DepthCamera, &pads), None, object, &glam::DAffine3::IDENTITY).unwrap();
     assert!(persp.counts[0] > 100 && persp.counts[0] < 1024);
-    for p in persp.points.iter().filter(|p| p.phalanx == 0) {
+    for p in persp.points.iter().filter(|p| p.pad == 0) {
         assert!(normal.dot(p.position - on_face).abs() < 2e-5, "perspective point {} off the face", p.position);
     }
     // The same contact patch, up to a few rows of pixels (the pinhole's rays spread with depth).

@@ -204,7 +204,7 @@ fn tactile_points_lie_on_the_object_and_at_the_real_finger_surface() {
                 let on_object =
                     object.distance_to_local_point(to_object.transform_point(glam::Vec3::from(p.position).as_dvec3()).as_vec3(), false);
                 assert!(on_object <= 1e-3, "{split} {}: tactile point {:.2} mm off the object", s.index, on_object * 1e3);
-                let name = &tac.phalanges[p.phalanx as usize];
+                let name = &tac.pads[p.pad as usize];
                 // Camera frame -> world -> the phalanx's link frame.
                 let world = s.t_world_camera.transform_point(glam::Vec3::from(p.position).as_dvec3());
                 let local = frames[name.as_str()].inverse().transform_point(world);

@@ -112,7 +112,7 @@ pub fn description() -> Value {
         t_world_palm: pose,
         linear_velocity: [0.0; 3],
         angular_velocity: [0.0; 3],
-        phalanges_in_contact: Vec::new(),
+        links_in_contact: Vec::new(),
     };
     let image = |topic: &str, encoding: &str, when: When| protobuf::<RawImage>(topic, Some(encoding), when);
     let mut sample_topics = vec![

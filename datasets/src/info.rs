@@ -139,8 +139,9 @@ pub struct StateRecord {
     /// the previous physics step (zero at the episode's start).
     pub linear_velocity: [f64; 3],
     pub angular_velocity: [f64; 3],
-    /// Touch links in contact with the object.
-    pub phalanges_in_contact: Vec<String>,
+    /// Touch links in contact with the object (wire name `phalanges_in_contact`, format version 1).
+    #[serde(rename = "phalanges_in_contact")]
+    pub links_in_contact: Vec<String>,
 }
 
 /// A distractor object standing on the floor.
@@ -169,8 +170,10 @@ pub struct OcclusionInfo {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RobotInfo {
     pub physics_backend: String,
-    /// The robot's touch links touching the object (`Robot::touch_links`: the Allegro's phalanges).
-    pub phalanges_in_contact: Vec<String>,
+    /// The robot's touch links touching the object (`Robot::touch_links`); wire name
+    /// `phalanges_in_contact` (format version 1).
+    #[serde(rename = "phalanges_in_contact")]
+    pub links_in_contact: Vec<String>,
     /// Object motion in the hand since the grasp settled.
     pub slip_mm: f64,
     pub slip_deg: f64,
@@ -186,17 +189,19 @@ pub struct RobotInfo {
     pub tactile: Option<TouchInfo>,
 }
 
-/// How the tactile point cloud of the sample was made, and its size per phalanx.
+/// How the tactile point cloud of the sample was made, and its size per pad.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct TouchInfo {
     pub contact_threshold_mm: f64,
-    /// The sensor model of the proximal, medial and distal pads (the config's `robot.tactile.sensors`).
-    pub sensors: serde_json::Value,
+    /// Each pad's sensor model (the config's `robot.tactile.sensors` rules, then the robot's).
+    /// Datasets from before sensors were assigned per pad have one entry per pad group
+    /// (`proximal`, `medial`, `distal`) instead.
+    pub sensors: BTreeMap<String, SensorModel>,
     pub near_mm: f64,
     pub far_mm: f64,
     /// Sensing area of each pad: (length along the finger, width), metres.
     pub pads: BTreeMap<String, [f64; 2]>,
-    /// Tactile points per phalanx.
+    /// Tactile points per pad.
     pub points: BTreeMap<String, u64>,
     /// Per pad with an optical sensor: the sensor's parameters in this sample (the configured
     /// sensor, varied per sample when `randomization.tactile_sensors` is on).
@@ -209,6 +214,24 @@ pub struct TouchInfo {
     /// side, summed (N, world frame): in a still hold, the object's weight.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub hand_force_n: Option<[f64; 3]>,
+}
+
+/// A pad's tactile sensor model. Every model gives object-surface points (the paper's
+/// sensor-invariant representation); they differ in where they sample the contact.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", tag = "model", deny_unknown_fields)]
+pub enum SensorModel {
+    /// Every depth-camera pixel within the contact threshold is a point (the paper's sensor).
+    DepthCamera,
+    /// A grid of taxels: a taxel fires when any surface under it is within the threshold and
+    /// reports the surface point at its closest pixel.
+    TaxelArray { rows: u32, cols: u32 },
+    /// An optical gel pad: the surface indents a gel of this thickness; every indented pixel is a
+    /// point (a height map of the indentation).
+    Gelsight { gel_thickness_mm: f64 },
+    /// An optical gel sensor with its camera: the `gelsight` rule with the sensor's gel thickness
+    /// for the points, and the RGB image its camera sees (`/tactile/<pad>/image`).
+    Optical,
 }
 
 /// The physics' contact forces on one pad (FORMAT.md, "Force fields"), in the pad frame.
@@ -230,14 +253,14 @@ impl SampleInfo {
         serde_json::to_value(self).expect("plain data serializes")
     }
 
-    /// Tactile points of the sample, all phalanges together (`None` without touch).
+    /// Tactile points of the sample, all pads together (`None` without touch).
     pub fn tactile_points(&self) -> Option<u64> {
         self.robot.as_ref().and_then(|r| r.tactile.as_ref()).map(|t| t.points.values().sum())
     }
 
-    /// Phalanges touching the object (empty without a robot).
-    pub fn phalanges_in_contact(&self) -> &[String] {
-        self.robot.as_ref().map_or(&[], |r| &r.phalanges_in_contact)
+    /// Touch links touching the object (empty without a robot).
+    pub fn links_in_contact(&self) -> &[String] {
+        self.robot.as_ref().map_or(&[], |r| &r.links_in_contact)
     }
 }
 
@@ -269,7 +292,7 @@ pub(crate) fn example_info(robot: bool) -> SampleInfo {
         t_camera_object: pose.inverse(),
         robot: robot.then(|| RobotInfo {
             physics_backend: "rapier".into(),
-            phalanges_in_contact: vec!["ff_distal".into(), "th_distal".into()],
+            links_in_contact: vec!["ff_distal".into(), "th_distal".into()],
             slip_mm: 1.5,
             slip_deg: 2.0,
             penetration_mm: 0.4,
@@ -278,7 +301,7 @@ pub(crate) fn example_info(robot: bool) -> SampleInfo {
             t_world_palm: pose,
             tactile: Some(TouchInfo {
                 contact_threshold_mm: 2.0,
-                sensors: serde_json::json!({"proximal": {"model": "depth_camera"}}),
+                sensors: [("ff_distal".to_string(), SensorModel::DepthCamera)].into(),
                 near_mm: -5.0,
                 far_mm: 30.0,
                 pads: [("ff_distal".to_string(), [0.02, 0.015])].into(),

@@ -17,7 +17,8 @@ mod writer;
 pub use format::description as format_description;
 pub use glb::{ColoredMesh, encode_glb, srgb_to_linear};
 pub use info::{
-    EpisodeFrameInfo, EpisodeRecord, OcclusionInfo, PadForceInfo, PlacedDistractor, RobotInfo, SampleInfo, Split, StateRecord, TouchInfo,
+    EpisodeFrameInfo, EpisodeRecord, OcclusionInfo, PadForceInfo, PlacedDistractor, RobotInfo, SampleInfo, SensorModel, Split, StateRecord,
+    TouchInfo,
 };
 pub use manifest::{
     ContinuousSymmetry, GraspStats, Manifest, ModelInfo, ModelsInfo, OcclusionHistogram, ShardEntry, SplitManifest, sha256_file,
@@ -90,9 +91,9 @@ pub mod topics {
     /// `foxglove.SceneUpdate`: the meshes for the 3D view, with the first sample of a shard and
     /// whenever the target object changes.
     pub const SCENE_MODELS: &str = "/scene/models";
-    /// The depth image topic of a phalanx camera.
-    pub fn tactile_depth(phalanx: &str) -> String {
-        format!("/tactile/{phalanx}/depth")
+    /// The depth image topic of a pad camera.
+    pub fn tactile_depth(pad: &str) -> String {
+        format!("/tactile/{pad}/depth")
     }
     /// The optical image topic of a pad with an optical sensor.
     pub fn tactile_image(pad: &str) -> String {

@@ -440,9 +440,9 @@ fn f32_at(c: &[u8], o: usize) -> f32 {
     f32::from_le_bytes([c[o], c[o + 1], c[o + 2], c[o + 3]])
 }
 
-/// The tactile topics of a sample, if it has them, with its `pads` in the order the sample's
+/// The tactile topics of a sample, if it has them, with its `pad_names` in the order the sample's
 /// messages were written (the robot's pad order, which the points' pad indices refer to).
-fn read_tactile(by_topic: &BTreeMap<String, Vec<u8>>, pads: &[String]) -> Result<Option<crate::sample::TactileData>> {
+fn read_tactile(by_topic: &BTreeMap<String, Vec<u8>>, pad_names: &[String]) -> Result<Option<crate::sample::TactileData>> {
     use foxglove::schemas::PointCloud;
     let Some(raw) = by_topic.get(topics::TACTILE_POINTS) else { return Ok(None) };
     let cloud = PointCloud::decode(&raw[..])?;
@@ -455,21 +455,21 @@ fn read_tactile(by_topic: &BTreeMap<String, Vec<u8>>, pads: &[String]) -> Result
         .map(|c| crate::sample::TactilePointRecord {
             position: [f32_at(c, 0), f32_at(c, 4), f32_at(c, 8)],
             distance: f32_at(c, 12),
-            phalanx: u32::from_le_bytes([c[16], c[17], c[18], c[19]]),
+            pad: u32::from_le_bytes([c[16], c[17], c[18], c[19]]),
         })
         .collect();
-    let mut phalanges = Vec::new();
+    let mut pads = Vec::new();
     let mut depth = Vec::new();
     let mut resolution = 0;
-    for name in pads {
+    for name in pad_names {
         let raw = &by_topic[&crate::topics::tactile_depth(name)];
         let img = RawImage::decode(&raw[..])?;
         resolution = img.width;
-        phalanges.push(name.clone());
+        pads.push(name.clone());
         depth.push(img.data.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect());
     }
     let mut optical = Vec::new();
-    for name in pads {
+    for name in pad_names {
         let Some(raw) = by_topic.get(&crate::topics::tactile_image(name)) else { continue };
         let rgb = |raw: &[u8], what: &str| -> Result<RawImage> {
             let img = RawImage::decode(raw)?;
@@ -505,12 +505,12 @@ fn read_tactile(by_topic: &BTreeMap<String, Vec<u8>>, pads: &[String]) -> Result
         });
     }
     let mut forces = Vec::new();
-    for name in pads {
+    for name in pad_names {
         let Some(raw) = by_topic.get(&crate::topics::tactile_force(name)) else { continue };
         forces.push(read_force_field(name, &PointCloud::decode(&raw[..])?)?);
     }
     let mut marker_flow = Vec::new();
-    for name in pads {
+    for name in pad_names {
         let Some(raw) = by_topic.get(&crate::topics::tactile_markers(name)) else { continue };
         let cloud = PointCloud::decode(&raw[..])?;
         let stride = crate::marker_points::STRIDE as usize;
@@ -524,7 +524,7 @@ fn read_tactile(by_topic: &BTreeMap<String, Vec<u8>>, pads: &[String]) -> Result
         let markers = cloud.data.chunks_exact(stride).map(|c| ([f32_at(c, 12), f32_at(c, 16)], [f32_at(c, 0), f32_at(c, 4)])).collect();
         marker_flow.push(crate::sample::PadMarkerFlow { pad: name.clone(), markers });
     }
-    Ok(Some(crate::sample::TactileData { phalanges, resolution, depth, points, optical, forces, marker_flow }))
+    Ok(Some(crate::sample::TactileData { pads, resolution, depth, points, optical, forces, marker_flow }))
 }
 
 /// A pad's `/tactile/<pad>/force` cloud: a square grid of cells, laid out as

@@ -52,12 +52,12 @@ pub struct Sample {
     pub t_camera_object: Pose,
     pub t_world_camera: Pose,
     pub t_world_object: Pose,
-    /// Further frames for `/tf` (parent, child, `T_parent_child`): the palm and the 12 phalanx
-    /// sensor pads when a robot is in the scene.
+    /// Further frames for `/tf` (parent, child, `T_parent_child`): the grasp frame, the drawn
+    /// links and the pads when a robot is in the scene.
     pub extra_transforms: Vec<(String, String, Pose)>,
     /// `/sample/info`.
     pub info: crate::SampleInfo,
-    /// The phalanx cameras and the tactile point cloud, when a robot is in the scene.
+    /// The pad cameras and the tactile point cloud, when a robot is in the scene.
     pub tactile: Option<TactileData>,
     /// In an episode dataset: the frame's time and the faster streams up to the next frame.
     pub episode: Option<EpisodeData>,
@@ -76,21 +76,21 @@ pub struct EpisodeData {
 }
 
 /// One tactile point (FORMAT.md `/tactile/points`): camera-frame position, depth from the pad,
-/// phalanx index.
+/// pad index (the wire field `phalanx` of format version 1).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TactilePointRecord {
     pub position: [f32; 3],
     pub distance: f32,
-    pub phalanx: u32,
+    pub pad: u32,
 }
 
 #[derive(Debug, Clone, PartialEq)]
 pub struct TactileData {
-    /// Pad names in the robot's pad order (what `TactilePointRecord::phalanx` indexes).
-    pub phalanges: Vec<String>,
-    /// Pixels per side of each phalanx camera.
+    /// Pad names in the robot's pad order (what `TactilePointRecord::pad` indexes).
+    pub pads: Vec<String>,
+    /// Pixels per side of each pad camera.
     pub resolution: u32,
-    /// Per phalanx: row-major z-depths from the pad plane, `+inf` = no surface.
+    /// Per pad: row-major z-depths from the pad plane, `+inf` = no surface.
     pub depth: Vec<Vec<f32>>,
     pub points: Vec<TactilePointRecord>,
     /// The optical images of the pads with an optical sensor, in pad order (FORMAT.md,
@@ -107,7 +107,7 @@ pub struct TactileData {
 /// One optical pad's markers: each one's rest position and where the gel has moved it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PadMarkerFlow {
-    /// The pad's name (one of `TactileData::phalanges`).
+    /// The pad's name (one of `TactileData::pads`).
     pub pad: String,
     /// Per marker (the rest grid's order, row by row): (rest, moved) in the pad frame (x, y; m).
     pub markers: Vec<([f32; 2], [f32; 2])>,
@@ -117,7 +117,7 @@ pub struct PadMarkerFlow {
 /// columns as its depth image's (FORMAT.md, `/tactile/<pad>/force`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct PadForceField {
-    /// The pad's name (one of `TactileData::phalanges`).
+    /// The pad's name (one of `TactileData::pads`).
     pub pad: String,
     pub resolution: u32,
     /// `resolution²` cells, row-major.
@@ -140,7 +140,7 @@ pub struct ForceCell {
 /// One pad's optical tactile image and its sensor's no-contact reference image.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct OpticalPadImage {
-    /// The pad's name (one of `TactileData::phalanges`).
+    /// The pad's name (one of `TactileData::pads`).
     pub pad: String,
     pub width: u32,
     pub height: u32,

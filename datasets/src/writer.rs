@@ -289,7 +289,7 @@ impl ShardWriter {
     fn write_tactile(&mut self, t: u64, tac: &crate::sample::TactileData) -> Result<()> {
         if self.tactile_channels.is_none() {
             let points = add::<PointCloud>(&mut self.mcap, topics::TACTILE_POINTS)?;
-            let depth = tac.phalanges.iter().map(|p| add::<RawImage>(&mut self.mcap, &topics::tactile_depth(p))).collect::<Result<_>>()?;
+            let depth = tac.pads.iter().map(|p| add::<RawImage>(&mut self.mcap, &topics::tactile_depth(p))).collect::<Result<_>>()?;
             let optical = tac
                 .optical
                 .iter()
@@ -322,7 +322,7 @@ impl ShardWriter {
             let bytes: Vec<u8> = tac.depth[k].iter().flat_map(|d| d.to_le_bytes()).collect();
             let img = RawImage {
                 timestamp: ts(t),
-                frame_id: format!("{}_pad", tac.phalanges[k]),
+                frame_id: format!("{}_pad", tac.pads[k]),
                 width: r,
                 height: r,
                 encoding: encodings::DEPTH_32FC1.into(),
@@ -357,7 +357,7 @@ impl ShardWriter {
             }
         }
         for (ch, field) in forces.iter().zip(&tac.forces) {
-            anyhow::ensure!(tac.phalanges.contains(&field.pad), "force field of an unknown pad {}", field.pad);
+            anyhow::ensure!(tac.pads.contains(&field.pad), "force field of an unknown pad {}", field.pad);
             self.put(*ch, t, &force_cloud(t, field)?)?;
         }
         for (ch, flow) in markers.iter().zip(&tac.marker_flow) {
@@ -467,7 +467,7 @@ fn tactile_cloud(t: u64, points: &[crate::sample::TactilePointRecord]) -> Vec<u8
         for v in p.position.iter().chain([&p.distance]) {
             data.extend(v.to_le_bytes());
         }
-        data.extend(p.phalanx.to_le_bytes());
+        data.extend(p.pad.to_le_bytes());
     }
     packed_cloud(t, frames::CAMERA.into(), (&crate::tactile_points::FIELDS, crate::tactile_points::STRIDE), data)
 }

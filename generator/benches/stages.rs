@@ -1,6 +1,6 @@
 //! Criterion micro-benchmarks of the sample path's hot stages, each alone: one physics step of the
 //! grasped hand, a grasp trajectory, the main 640x480 render (PBR, shadow map, depth, mask,
-//! silhouette), the 12 phalanx depth views, the occlusion level, writing one sample to a zstd
+//! silhouette), the 12 pad depth views, the occlusion level, writing one sample to a zstd
 //! shard, one optical tactile image per preset on the CPU, its marker field, and the optical
 //! shading on the GPU. `cargo bench -p vtgen --bench stages` (rendering runs on whatever adapter wgpu picks:
 //! lavapipe on a machine without a GPU). `vtgen bench` measures the stages inside a real run.
@@ -132,7 +132,7 @@ fn rendering(c: &mut Criterion) {
             }
         })
         .collect();
-    group.bench_function("12 phalanx depth views 32x32 (one pass)", |b| {
+    group.bench_function("12 pad depth views 32x32 (one pass)", |b| {
         b.iter(|| black_box(s.renderer.render_depth_views(&views, &[can]).expect("render")))
     });
     // Two GelSight Minis pressed 0.5 mm into the can's side: their depth views alone, then with the
@@ -228,7 +228,7 @@ fn rendering(c: &mut Criterion) {
             episode: None,
         },
         tactile: Some(TactileData {
-            phalanges: Robot::allegro().pad_names(),
+            pads: Robot::allegro().pad_names(),
             resolution: 32,
             depth: vec![vec![f32::INFINITY; 32 * 32]; 12],
             points: Vec::new(),

@@ -100,7 +100,7 @@ fn samples(
         }
         .context("the config has no optical pad")?;
         let image = RgbImage::from_raw(o.width, o.height, o.image.clone()).context("image size")?;
-        let k = tac.phalanges.iter().position(|p| *p == o.pad).context("pad")?;
+        let k = tac.pads.iter().position(|p| *p == o.pad).context("pad")?;
         let touch = s.info.robot.as_ref().and_then(|r| r.tactile.as_ref()).context("touch info")?;
         let sensor: OpticalSensor = serde_json::from_value(touch.optical.as_ref().context("optical info")?[&o.pad].clone())?;
         out.push((o.pad.clone(), depth_view(&tac.depth[k], tac.resolution, touch.pads[&o.pad], &sensor), image));

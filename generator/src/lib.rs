@@ -3,7 +3,7 @@
 //! Data flows one way, and the modules follow it (ARCHITECTURE.md has the page-long tour):
 //!
 //! config -> plan -> assets -> scene (camera, appearance) -> physics (grasp loop, arm moves)
-//! -> render (main camera, 12 phalanx views) -> sensors (tactile cloud, RGB-D noise)
+//! -> render (main camera, the pad views) -> sensors (tactile cloud, RGB-D noise)
 //! -> annotate (occlusion) -> sample (assembles one sample) -> output (shards, manifest).
 //!
 //! `cli` holds the subcommands that read, check or convert datasets. Each stage is a module that

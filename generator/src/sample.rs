@@ -1,24 +1,21 @@
 //! One sample: scene sampling, the robot's recorded grasp state, rendering, and the ground truth
 //! and metadata that go with it. A factory lives in one worker thread with its own renderer.
 
-use std::collections::BTreeMap;
 use std::time::Duration;
 
 use anyhow::{Context, Result};
 use glam::{DAffine3, DMat4};
 use vt_dataset::{
-    EpisodeData, EpisodeFrameInfo, GraspStats, OcclusionBin, OcclusionInfo, OpticalPadImage, PadForceField, PadForceInfo, PadMarkerFlow,
-    PlacedDistractor, Pose, RobotInfo, Sample, SampleInfo, SceneModel, Split, StateRecord, TactileData, TactilePointRecord, TouchInfo,
-    frames, mask_ids,
+    EpisodeData, EpisodeFrameInfo, GraspStats, OcclusionBin, OcclusionInfo, PlacedDistractor, Pose, RobotInfo, Sample, SampleInfo,
+    SceneModel, Split, StateRecord, TactileData, frames, mask_ids,
 };
 use vt_objects::Texture;
-use vt_randomizers::{AppearanceContext, ImageLibrary, ProceduralTexture, SampleKey, SampleStream, sample_sensor_variation};
+use vt_randomizers::{AppearanceContext, ImageLibrary, ProceduralTexture, SampleKey, SampleStream};
 
 use crate::annotate::occlusion::{model_points, occlusion_level};
 use crate::assets::LoadedObject;
 use crate::assets::robot::{load_drawn_meshes, robot_assets_dir};
 use crate::config::{Config, LoadedConfig, snap_depth_to_grid};
-use crate::config::{OpticalSensor, SensorModel};
 use crate::cpu_clock::StageClock;
 use crate::physics::grasp::Trajectory;
 use crate::physics::robot::RobotScene;
@@ -27,67 +24,7 @@ use crate::render::{Draw, DrawRole, Lighting, Material, MeshHandle, Renderer, Vi
 use crate::scene::environment::{Distractor, backdrop_mesh, floor_mesh, glb_of, place_distractors};
 use crate::scene::robot::{link_mesh, mask_id as robot_mask_id, pose_links};
 use crate::scene::{SampledScene, pose_of, sample_scene};
-use crate::sensors::force_field::{self, GelShear};
-use crate::sensors::optical::{optical_image_shaded, optical_image_with_flow, reference_image, varied};
-use crate::sensors::tactile::{FingerSurface, PadView, TactileReading, finger_surface, gap_above_surface, sense};
-
-/// The real fingers' surface under the pads, when the robot has its real hand meshes.
-fn finger_surfaces(robot: &RobotScene, pads: &[(f64, f64)]) -> Result<Option<FingerSurface>> {
-    let Some(hand) = robot.hand_meshes.as_ref() else { return Ok(None) };
-    let m = &robot.robot.model;
-    let n = robot.config.tactile.resolution;
-    let surfaces = robot
-        .robot
-        .pads
-        .iter()
-        .zip(pads)
-        .map(|(pad, &size)| {
-            let t_link_pad = m.joints[m.links[pad.frame].parent_joint.expect("a pad frame is fixed to its link")].origin;
-            let mesh = hand.get(&pad.link).with_context(|| format!("pad {}: no real mesh of its link", pad.name))?;
-            finger_surface(mesh, &t_link_pad, size, n).with_context(|| pad.name.clone())
-        })
-        .collect::<Result<Vec<_>>>()?;
-    Ok(Some(surfaces))
-}
-
-/// The optical pads' images: each from its depth view (none: the pad does not touch the
-/// object) and its gel's shear displacement (with force fields), with the sample's noise stream
-/// for that pad, beside its sensor's reference image (`references`: per pad, the last one made,
-/// reused while the sensor stays the same). With force fields, also each marked pad's marker
-/// flow, the one its image shows.
-fn optical_images(
-    references: &mut Vec<Option<(OpticalSensor, Vec<u8>)>>,
-    (key, noise_tag): (&SampleKey, &str),
-    write_reference: bool,
-    names: &[String],
-    pads: &[PadView],
-    (reading, shears): (&TactileReading, Option<&[Option<GelShear>]>),
-) -> (Vec<OpticalPadImage>, Vec<PadMarkerFlow>) {
-    references.resize(pads.len(), None);
-    let (mut out, mut flows) = (Vec::new(), Vec::new());
-    for (k, (pad, name)) in pads.iter().zip(names).enumerate() {
-        let Some(sensor) = &pad.optical else { continue };
-        let mut noise = SampleStream::sample(key, &format!("tactile_image/{name}{noise_tag}"));
-        let shear = shears.and_then(|s| s[k].as_ref());
-        let (image, flow) = match &reading.optical_shaded[k] {
-            Some(gpu) => optical_image_shaded(sensor, gpu, shear, Some(&mut noise)),
-            None => optical_image_with_flow(sensor, reading.optical_depth[k].as_deref(), shear, Some(&mut noise)),
-        };
-        if shears.is_some() && sensor.markers.is_some() {
-            let f32s = |p: [f64; 2]| p.map(|v| v as f32);
-            flows.push(PadMarkerFlow { pad: name.clone(), markers: flow.into_iter().map(|(r, m)| (f32s(r), f32s(m))).collect() });
-        }
-        let cached = &mut references[k];
-        if cached.as_ref().is_none_or(|(s, _)| s != sensor) {
-            *cached = Some((sensor.clone(), reference_image(sensor).rgb));
-        }
-        // An episode's reference goes with its first frame only: the sensor unit is the same for
-        // the whole episode.
-        let reference = if write_reference { cached.as_ref().expect("set above").1.clone() } else { Vec::new() };
-        out.push(OpticalPadImage { pad: name.clone(), width: image.width, height: image.height, image: image.rgb, reference });
-    }
-    (out, flows)
-}
+use crate::sensors::touch::{TouchInput, TouchStep};
 
 /// `texture` with each sRGB channel times its factor (alpha kept).
 fn tinted(texture: &vt_objects::Texture, factors: [f32; 3]) -> vt_objects::Texture {
@@ -200,10 +137,6 @@ struct Uploaded {
     /// The meshes shards carry for Foxglove's 3D view: per object, and the drawn robot links.
     object_glbs: Vec<std::sync::Arc<Vec<u8>>>,
     robot_glbs: Vec<SceneModel>,
-    /// Sensing area of the robot's pads.
-    pad_sizes: Vec<(f64, f64)>,
-    /// The real fingers' surface under the pads (with robot meshes).
-    finger_surface: Option<FingerSurface>,
     /// Per object: the model points the occlusion level is measured with.
     model_points: Vec<Vec<glam::DVec3>>,
 }
@@ -217,14 +150,13 @@ struct HeldLooks {
     /// The robot look the renderer holds now (None: not set yet), so an unchanged one (a run of
     /// canonical samples) is not uploaded again.
     robot_look: Option<Option<vt_randomizers::RobotLook>>,
-    /// Per pad: the last optical sensor's reference image, reused while the sensor stays the same.
-    optical_references: Vec<Option<(OpticalSensor, Vec<u8>)>>,
 }
 
 /// The robot and its last simulated trajectory: simulated when its first sample is made, then
 /// read by the samples that follow.
 struct TrajectoryCache {
     robot: RobotScene,
+    touch: TouchStep,
     recording: Option<Recording>,
 }
 
@@ -328,14 +260,6 @@ struct PosedRobot {
     hand_contacts: Option<Vec<crate::physics::HandContact>>,
 }
 
-/// The pads' force fields of one reading, the forces each was made from, and the whole hand's
-/// force (world, N).
-struct ForceReadings {
-    fields: Vec<PadForceField>,
-    info: BTreeMap<String, PadForceInfo>,
-    hand_force_n: [f64; 3],
-}
-
 /// Which recorded state of the trajectory a sample shows: an instance (snapshots) or a physics
 /// step of the episode (`Trajectory::steps`).
 #[derive(Debug, Clone, Copy)]
@@ -373,9 +297,10 @@ impl<'a> SampleFactory<'a> {
         };
         let DrawnRobot { meshes: robot_meshes, materials: robot_materials, glbs: robot_glbs } = drawn;
         let object_glbs = objects.iter().map(|o| glb_of(&o.mesh)).collect();
-        let pad_sizes = robot.as_ref().map(|r| r.robot.pad_sizes()).unwrap_or_default();
-        let finger_surface = match &robot {
-            Some(r) => finger_surfaces(r, &pad_sizes)?,
+        let touch = match &robot {
+            Some(r) => {
+                Some(TouchStep::new(&r.robot, &r.config.tactile, r.config.physics.friction, &cfg.pad_sensors, r.hand_meshes.as_ref())?)
+            }
             None => None,
         };
         let model_points = objects.iter().map(|o| model_points(&o.mesh, config.scene.occlusion_points as usize)).collect();
@@ -392,12 +317,10 @@ impl<'a> SampleFactory<'a> {
                 robot_materials,
                 object_glbs,
                 robot_glbs,
-                pad_sizes,
-                finger_surface,
                 model_points,
             },
             held: HeldLooks::default(),
-            trajectories: robot.map(|robot| TrajectoryCache { robot, recording: None }),
+            trajectories: robot.zip(touch).map(|(robot, touch)| TrajectoryCache { robot, touch, recording: None }),
             times: StageTimes::default(),
         })
     }
@@ -593,7 +516,7 @@ impl<'a> SampleFactory<'a> {
     /// The physics stage: the grasp loop's recorded instance (the trajectory is simulated when its
     /// first sample is made) poses the object and the robot; the robot's links join the draw list.
     fn pose_robot(&mut self, r: &SampleRef, object_id: &str, at: StateAt, draws: &mut Vec<Draw>) -> Result<PosedRobot> {
-        let TrajectoryCache { robot, recording } = self.trajectories.as_mut().expect("called with a robot");
+        let TrajectoryCache { robot, recording, .. } = self.trajectories.as_mut().expect("called with a robot");
         let instances = self.config.sampling.instances_per_trajectory;
         let key = (r.object_index, r.trajectory);
         if recording.as_ref().map(|rec| rec.key) != Some(key) {
@@ -620,7 +543,7 @@ impl<'a> SampleFactory<'a> {
             robot.robot.touch_links.iter().zip(&st.contacts).filter(|(_, c)| c.is_some()).map(|(&link, _)| link).collect();
         let info = RobotInfo {
             physics_backend: robot.backend_name().into(),
-            phalanges_in_contact: links_in_contact.iter().map(|&l| model.links[l].name.clone()).collect(),
+            links_in_contact: links_in_contact.iter().map(|&l| model.links[l].name.clone()).collect(),
             slip_mm: st.slip_translation * 1e3,
             slip_deg: st.slip_rotation.to_degrees(),
             penetration_mm: st.penetration * 1e3,
@@ -673,7 +596,7 @@ impl<'a> SampleFactory<'a> {
     /// The episode's state at physics step `step`: joints, the object's pose and its twist since
     /// the step before.
     fn state_record(&self, step: u64, scene: &crate::scene::SampledScene, timeline: &EpisodeTimeline) -> StateRecord {
-        let TrajectoryCache { robot, recording } = self.trajectories.as_ref().expect("episodes have a robot");
+        let TrajectoryCache { robot, recording, .. } = self.trajectories.as_ref().expect("episodes have a robot");
         let steps = &recording.as_ref().expect("simulated by the frame").trajectory.steps;
         let st = &steps[step as usize];
         let world = |s: &crate::physics::grasp::InstanceState| robot.t_world_base * s.t_base_palm * s.t_palm_object;
@@ -697,7 +620,7 @@ impl<'a> SampleFactory<'a> {
             t_world_palm: pose_of(&(robot.t_world_base * st.t_base_palm)),
             linear_velocity: linear.to_array(),
             angular_velocity: angular.to_array(),
-            phalanges_in_contact: touch_names.iter().zip(&st.contacts).filter(|(_, c)| c.is_some()).map(|(n, _)| n.clone()).collect(),
+            links_in_contact: touch_names.iter().zip(&st.contacts).filter(|(_, c)| c.is_some()).map(|(n, _)| n.clone()).collect(),
         }
     }
 
@@ -736,8 +659,8 @@ impl<'a> SampleFactory<'a> {
         Ok((img, depth_noisy))
     }
 
-    /// The touch stage: the pad views of the object alone and the tactile point cloud (in
-    /// the main camera frame); its settings and counts go into the robot's info.
+    /// The touch stage (`sensors::touch`): the posed pads and the physics' contacts in, the
+    /// touch out; what it says of itself goes into the robot's info.
     /// `keys`: the sample's scene key (its sensor units) and its own key (its sensor noise, with
     /// `noise_tag` appended to the streams' names: the episode's touch between frames).
     fn sense_touch(
@@ -748,137 +671,35 @@ impl<'a> SampleFactory<'a> {
         object: Draw,
         posed: &mut PosedRobot,
     ) -> Result<TactileData> {
-        let robot = &self.trajectories.as_ref().expect("called with a robot").robot;
-        let cfg = &robot.config.tactile;
-        let optical_sensor = cfg.has_optical().then(|| cfg.optical_sensor());
-        // Sensor-to-sensor variation: per pad, in the randomized samples only.
-        let variation = self.config.randomization.tactile_sensors.filter(|_| scene.appearance.randomized);
-        let t_camera_world = scene.t_world_camera.inverse().matrix();
-        let clock = StageClock::start();
-        let surface = self.uploaded.finger_surface.as_ref();
-        let names = robot.robot.pad_names();
-        // A pad feels the object when its link touches it (FORMAT.md, "Touch and contact").
-        let pads: Vec<PadView> = robot
-            .robot
-            .pads
-            .iter()
-            .zip(&self.uploaded.pad_sizes)
-            .zip(&posed.pads)
-            .map(|((pad, &size), &t_world_pad)| PadView {
-                size,
-                model: cfg.sensors.of(pad.group),
-                t_world_pad,
-                touching: posed.links_in_contact.contains(&pad.link),
-                optical: optical_sensor.as_ref().filter(|_| cfg.sensors.of(pad.group) == SensorModel::Optical).map(|s| match &variation {
-                    Some(v) => varied(s, &sample_sensor_variation(v, unit_key, &pad.name, s.lights.len())),
-                    None => s.clone(),
-                }),
-            })
-            .collect();
-        let t_camera_world = DAffine3::from_mat4(t_camera_world);
-        let reading = sense(self.renderer.as_mut(), cfg, &pads, surface, object, &t_camera_world)?;
-        // The extraction (hundredths of a millisecond) is counted with the renderer's call.
-        self.times.render_call_cpu += clock.cpu();
-        self.times.tactile_render += reading.render_time;
-        self.times.tactile_extract += clock.wall() - reading.render_time;
-        let clock = StageClock::start();
-        let forces = match cfg.force_field {
-            Some(field) => Some(self.force_fields(field.resolution, &pads, &reading.depth, posed)?),
-            None => None,
+        let touch = &mut self.trajectories.as_mut().expect("called with a robot").touch;
+        let input = TouchInput {
+            t_world_pads: &posed.pads,
+            links_in_contact: &posed.links_in_contact,
+            t_world_palm: posed.t_world_palm,
+            hand_contacts: posed.hand_contacts.as_deref(),
+            object,
+            t_camera_world: DAffine3::from_mat4(scene.t_world_camera.inverse().matrix()),
+            unit_key,
+            key,
+            noise_tag,
+            // Sensor-to-sensor variation: per pad, in the randomized samples only.
+            variation: self.config.randomization.tactile_sensors.as_ref().filter(|_| scene.appearance.randomized),
+            // Episodes write the reference images once, with their first frame.
+            write_reference: self.config.sampling.record.is_none() || (key.instance == 0 && noise_tag.is_empty()),
         };
-        self.times.tactile_forces += clock.wall();
-        self.times.force_fields += forces.as_ref().map_or(0, |f| f.fields.len() as u64);
-        // With force fields, the optical pads' markers move with their gel's shear displacement.
-        let shears: Option<Vec<Option<GelShear>>> = match (&forces, cfg.force_field) {
-            (Some(f), Some(field)) => Some(
-                f.fields
-                    .iter()
-                    .zip(&pads)
-                    .map(|(f, pad)| pad.optical.as_ref().map(|_| GelShear::new(f, pad.size, field.gel_shear_modulus_kpa * 1e3)))
-                    .collect(),
-            ),
-            _ => None,
-        };
-        let clock = StageClock::start();
-        // Episodes write the reference images once, with their first frame.
-        let write_reference = self.config.sampling.record.is_none() || (key.instance == 0 && noise_tag.is_empty());
-        let (optical, marker_flow) = optical_images(
-            &mut self.held.optical_references,
-            (key, noise_tag),
-            write_reference,
-            &names,
-            &pads,
-            (&reading, shears.as_deref()),
-        );
-        self.times.tactile_optical += clock.wall();
-        self.times.tactile_optical_cpu += clock.cpu();
-        self.times.optical_images += optical.len() as u64;
-        let optical_info = pads
-            .iter()
-            .zip(&names)
-            .filter_map(|(p, n)| p.optical.as_ref().map(|s| Ok((n.clone(), serde_json::to_value(s)?))))
-            .collect::<Result<std::collections::BTreeMap<_, _>>>()?;
-        posed.info.tactile = Some(TouchInfo {
-            contact_threshold_mm: cfg.contact_threshold_mm,
-            sensors: serde_json::to_value(cfg.sensors)?,
-            near_mm: cfg.near_mm,
-            far_mm: cfg.far_mm,
-            pads: names.iter().zip(&self.uploaded.pad_sizes).map(|(n, (l, w))| (n.clone(), [*l, *w])).collect(),
-            points: names.iter().zip(reading.counts).map(|(n, c)| (n.clone(), c as u64)).collect(),
-            optical: (!optical_info.is_empty()).then_some(optical_info),
-            forces: forces.as_ref().map(|f| f.info.clone()),
-            hand_force_n: forces.as_ref().map(|f| f.hand_force_n),
-        });
-        Ok(TactileData {
-            phalanges: names,
-            resolution: cfg.resolution,
-            depth: reading.depth,
-            points: reading
-                .points
-                .iter()
-                .map(|p| TactilePointRecord { position: p.position.as_vec3().to_array(), distance: p.distance as f32, phalanx: p.phalanx })
-                .collect(),
-            optical,
-            forces: forces.map(|f| f.fields).unwrap_or_default(),
-            marker_flow,
-        })
-    }
-
-    /// Every pad's force field from the physics' contacts of the posed state (its depth view
-    /// spreads them), the forces each was made from, and the whole hand's force (world).
-    fn force_fields(&self, resolution: u32, pads: &[PadView], depth: &[Vec<f32>], posed: &PosedRobot) -> Result<ForceReadings> {
-        let robot = &self.trajectories.as_ref().expect("called with a robot").robot;
-        let cfg = &robot.config;
-        // The config's check requires a backend that gives its contact forces.
-        let contacts = posed.hand_contacts.as_deref().context("the physics backend gives no contact forces for the force fields")?;
-        let surface = self.uploaded.finger_surface.as_ref();
-        let mut fields = Vec::new();
-        let mut info = BTreeMap::new();
-        for (k, (pad, view)) in robot.robot.pads.iter().zip(pads).enumerate() {
-            let t_palm_pad = posed.t_world_palm.inverse() * view.t_world_pad;
-            let (on_area, link_force) = force_field::pad_contacts(contacts, pad.link, &t_palm_pad, view.size);
-            let gap = gap_above_surface(&depth[k], surface.map(|s| &s[k][..]));
-            let touch = force_field::PadTouch {
-                pad: &pad.name,
-                contacts: &on_area,
-                gap: &gap,
-                n: cfg.tactile.resolution,
-                threshold: cfg.tactile.contact_threshold_mm * 1e-3,
-                size: view.size,
-                friction: cfg.physics.friction,
-            };
-            fields.push(force_field::force_field(&touch, resolution));
-            let force: glam::DVec3 = on_area.iter().map(|c| c.force).sum();
-            let pad_info = PadForceInfo {
-                force_n: force.to_array(),
-                link_force_n: link_force.to_array(),
-                contacts: on_area.len() as u32,
-                friction: cfg.physics.friction,
-            };
-            info.insert(pad.name.clone(), pad_info);
-        }
-        let hand_force = posed.t_world_palm.transform_vector3(contacts.iter().map(|c| c.force).sum());
-        Ok(ForceReadings { fields, info, hand_force_n: hand_force.to_array() })
+        let reading = touch.sense(self.renderer.as_mut(), &input)?;
+        let t = reading.times;
+        let times = &mut self.times;
+        times.render_call_cpu += t.render_call_cpu;
+        times.tactile_render += t.render;
+        times.tactile_extract += t.extract;
+        times.tactile_forces += t.forces;
+        times.force_fields += t.force_fields;
+        times.tactile_optical += t.optical;
+        times.tactile_optical_cpu += t.optical_cpu;
+        times.optical_images += t.optical_images;
+        posed.info.tactile = Some(reading.info);
+        Ok(reading.data)
     }
 
     /// The annotate stage: the paper's occlusion level (model points vs the depth cloud) and the

@@ -63,20 +63,27 @@ struct Node {
 
 /// The line and column (0-based) of key `k` among the children of `node`: a block mapping's key
 /// (`after_item`: the first key of a mapping that is a sequence item, at the item's column; `top`:
-/// a key of the document at column 0), or a key of a one-line flow mapping.
+/// a key of the document at column 0), the shallowest one where a deeper mapping in the node has
+/// the same key (`optical:` of a section and of its sensor rules); else a key of a one-line flow
+/// mapping.
 fn find_key(ls: &[Line], node: &Node, k: &str, after_item: bool, top: bool) -> Option<(usize, usize)> {
-    (node.from..node.to).find_map(|i| {
-        let l = ls[i].text;
-        let s = node_start(l);
-        let deeper = s as isize > node.col || (after_item && s as isize == node.col) || (top && s == 0);
-        if deeper && l[s..].starts_with(&format!("{k}:")) {
-            return Some((i, s));
-        }
-        // A one-line flow mapping: `parent: {a: 1, k: 2}`.
-        let open = l.find('{')?;
-        [format!("{{{k}:"), format!(" {k}:"), format!(",{k}:")]
-            .iter()
-            .find_map(|p| l[open..].find(p.as_str()).map(|q| (i, open + q + p.len() - k.len() - 1)))
+    let block = (node.from..node.to)
+        .filter_map(|i| {
+            let l = ls[i].text;
+            let s = node_start(l);
+            let deeper = s as isize > node.col || (after_item && s as isize == node.col) || (top && s == 0);
+            (deeper && l[s..].starts_with(&format!("{k}:"))).then_some((i, s))
+        })
+        .min_by_key(|&(i, s)| (s, i));
+    block.or_else(|| {
+        (node.from..node.to).find_map(|i| {
+            // A one-line flow mapping: `parent: {a: 1, k: 2}`.
+            let l = ls[i].text;
+            let open = l.find('{')?;
+            [format!("{{{k}:"), format!(" {k}:"), format!(",{k}:")]
+                .iter()
+                .find_map(|p| l[open..].find(p.as_str()).map(|q| (i, open + q + p.len() - k.len() - 1)))
+        })
     })
 }
 
@@ -127,6 +134,9 @@ mod tests {
         assert_eq!(locate(YAML, &[Seg::key("objects"), Seg::Index(1), Seg::key("mesh")]), Some((5, 5)));
         assert_eq!(locate(YAML, &[Seg::key("scene"), Seg::key("workspace"), Seg::key("min")]), Some((12, 5)));
         assert_eq!(locate(YAML, &[Seg::key("camera"), Seg::key("far")]), None);
+        // A key of a section found at the section's own level, not in a deeper mapping before it.
+        let nested = "robot:\n  tactile:\n    sensors:\n      - pads: a\n        optical:\n          noise_std: 1\n    optical:\n      noise_std: 2\n";
+        assert_eq!(locate(nested, &[Seg::key("robot"), Seg::key("tactile"), Seg::key("optical"), Seg::key("noise_std")]), Some((8, 7)));
         assert_eq!(display_path(&[Seg::key("objects"), Seg::Index(1), Seg::key("mesh")]), "objects[1].mesh");
     }
 }

@@ -301,8 +301,8 @@ fn write_image(scene: &mut Scene, dir: &Path, s: &Sample, obj_id: usize, amodal:
             json!({
                 "points_mm": points,
                 "distance_mm": tac.points.iter().map(|p| p.distance as f64 * 1000.0).collect::<Vec<_>>(),
-                "phalanx": tac.points.iter().map(|p| p.phalanx).collect::<Vec<_>>(),
-                "phalanx_names": tac.phalanges,
+                "pad": tac.points.iter().map(|p| p.pad).collect::<Vec<_>>(),
+                "pad_names": tac.pads,
             }),
         );
     }

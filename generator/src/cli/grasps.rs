@@ -44,10 +44,10 @@ pub struct ObjectGraspReport {
     pub failures: BTreeMap<String, u64>,
     pub instances: u64,
     /// Worst recorded instance: deepest penetration of a hand link into the object (mm), fewest
-    /// phalanges in contact, largest slip since the grasp (mm), lowest object point above the
+    /// touch links in contact, largest slip since the grasp (mm), lowest object point above the
     /// floor (mm).
     pub max_penetration_mm: f64,
-    pub min_phalanges_in_contact: usize,
+    pub min_links_in_contact: usize,
     pub max_slip_mm: f64,
     pub mean_slip_mm: f64,
     /// The slip distribution over the recorded instances (mm since the grasp settled): median and
@@ -120,7 +120,7 @@ impl GraspCheckReport {
                 o.attempts,
                 if failures.is_empty() { "none".into() } else { failures.join(", ") },
                 o.max_penetration_mm,
-                o.min_phalanges_in_contact,
+                o.min_links_in_contact,
                 o.median_slip_mm,
                 o.p90_slip_mm,
                 o.max_slip_mm,
@@ -266,7 +266,7 @@ fn per_object_figures(objects: &[LoadedObject], mut results: Vec<TrajectoryResul
         .iter()
         .map(|o| ObjectGraspReport {
             object_id: o.id.clone(),
-            min_phalanges_in_contact: usize::MAX,
+            min_links_in_contact: usize::MAX,
             min_floor_clearance_mm: f64::MAX,
             ..Default::default()
         })
@@ -287,7 +287,7 @@ fn per_object_figures(objects: &[LoadedObject], mut results: Vec<TrajectoryResul
         }
         o.instances += r.instances;
         o.max_penetration_mm = o.max_penetration_mm.max(r.max_penetration_mm);
-        o.min_phalanges_in_contact = o.min_phalanges_in_contact.min(r.min_contacts);
+        o.min_links_in_contact = o.min_links_in_contact.min(r.min_contacts);
         o.max_slip_mm = o.max_slip_mm.max(r.max_slip_mm);
         o.mean_slip_mm += r.sum_slip_mm;
         o.min_floor_clearance_mm = o.min_floor_clearance_mm.min(r.min_clearance_mm);
@@ -302,7 +302,7 @@ fn per_object_figures(objects: &[LoadedObject], mut results: Vec<TrajectoryResul
         o.kept_fraction = o.kept as f64 / o.trajectories.max(1) as f64;
         o.mean_slip_mm /= o.instances.max(1) as f64;
         if o.instances == 0 {
-            o.min_phalanges_in_contact = 0;
+            o.min_links_in_contact = 0;
             o.min_floor_clearance_mm = 0.0;
         }
     }

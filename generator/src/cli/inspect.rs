@@ -1,6 +1,6 @@
 //! `vtgen inspect`: what a dataset holds, from its manifest and the samples' `/sample/info`
 //! (no image is decoded): counts per split and object, shards and bytes, the occlusion
-//! histogram, tactile points per sample, contacts per phalanx, grasp figures, randomized share.
+//! histogram, tactile points per sample, contacts per touch link, grasp figures, randomized share.
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -23,7 +23,7 @@ pub struct Inspection {
     pub randomized_share: f64,
     /// Tactile points per sample (robot datasets): min, median, max.
     pub tactile_points: Option<[u64; 3]>,
-    /// Share of samples in which each phalanx touches the object.
+    /// Share of samples in which each touch link touches the object.
     pub contact_share: BTreeMap<String, f64>,
     pub grasp: Option<vt_dataset::GraspStats>,
     /// Episode datasets: the complete episodes' shard metadata (`episode`), in shard order.
@@ -84,7 +84,7 @@ pub fn inspect(root: &Path) -> Result<Inspection> {
             *occlusion.entry(split.to_string()).or_default().entry(bin.key().to_string()).or_default() += 1;
         }
         tactile.extend(info.tactile_points());
-        for p in info.phalanges_in_contact() {
+        for p in info.links_in_contact() {
             *contacts.entry(p.clone()).or_default() += 1;
         }
         Ok(())

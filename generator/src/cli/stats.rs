@@ -1,6 +1,6 @@
 //! `vtgen stats DATASET --out DIR`: what a dataset covers, as SVG plots and a Markdown page that
 //! ties them together: object positions in the camera frame, rotation coverage, occlusion levels
-//! (with the paper's bins), tactile points per sample and contacts per phalanx.
+//! (with the paper's bins), tactile points per sample and contacts per touch link.
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -22,7 +22,7 @@ struct Collected {
     x_axes: Vec<DVec3>,
     occlusion: Vec<f64>,
     tactile_points: Vec<u64>,
-    /// Per touch link (the phalanges of a hand), by name: samples in contact.
+    /// Per touch link (e.g. the links of a hand), by name: samples in contact.
     contacts: Vec<(String, u64)>,
 }
 
@@ -40,7 +40,7 @@ fn collect(root: &Path) -> Result<Collected> {
             c.occlusion.push(o.level);
         }
         c.tactile_points.extend(info.tactile_points());
-        for p in info.phalanges_in_contact() {
+        for p in info.links_in_contact() {
             *contacts.entry(p.clone()).or_default() += 1;
         }
         Ok(())
@@ -156,14 +156,14 @@ fn plot_histogram(values: &[f64], style: &HistogramStyle, path: &Path) -> Result
     root.present().map_err(plot_err)
 }
 
-/// Share of samples in which each phalanx touches the object.
+/// Share of samples in which each touch link touches the object.
 fn plot_contacts(c: &Collected, samples: usize, path: &Path) -> Result<()> {
     let root = SVGBackend::new(path, (840, 400)).into_drawing_area();
     root.fill(&WHITE).map_err(plot_err)?;
     let n = c.contacts.len();
     let names: Vec<String> = c.contacts.iter().map(|(k, _)| k.clone()).collect();
     let mut chart = ChartBuilder::on(&root)
-        .caption("phalanges in contact with the object (share of samples)", ("sans-serif", 16))
+        .caption("touch links in contact with the object (share of samples)", ("sans-serif", 16))
         .margin(12)
         .x_label_area_size(48)
         .y_label_area_size(48)

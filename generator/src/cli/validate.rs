@@ -252,7 +252,7 @@ pub fn check_ground_truth(s: &Sample, models: &[Model]) -> Option<String> {
         }
         // The optical images are those of the sensors `/sample/info` lists, at their size.
         let sensors = info.robot.as_ref().and_then(|r| r.tactile.as_ref()).and_then(|t| t.optical.as_ref());
-        let listed: Vec<&String> = sensors.map(|m| t.phalanges.iter().filter(|p| m.contains_key(*p)).collect()).unwrap_or_default();
+        let listed: Vec<&String> = sensors.map(|m| t.pads.iter().filter(|p| m.contains_key(*p)).collect()).unwrap_or_default();
         if t.optical.iter().map(|o| &o.pad).ne(listed.iter().copied()) {
             return Some(format!(
                 "the optical images ({:?}) are not those of the sensors /sample/info lists ({listed:?})",

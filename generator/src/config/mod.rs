@@ -106,6 +106,9 @@ pub struct LoadedConfig {
     /// The robot (`robot.model`, or `robot.description` and `robot.urdf`), checked against its
     /// description; its joint arrays fill in the grasp config's left-out ones.
     pub robot: Option<vt_robot::Robot>,
+    /// Each pad's sensor (`robot.pads` order), from `robot.tactile.sensors` and the robot's own
+    /// rules ([`TactileConfig::pad_sensors`]); empty without a robot.
+    pub pad_sensors: Vec<PadSensor>,
 }
 
 impl LoadedConfig {
@@ -205,7 +208,8 @@ impl LoadedConfig {
             config.output.dir = PathBuf::from("out").join(stem);
         }
         let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-        let mut loaded = LoadedConfig { config, path: path.to_path_buf(), base_dir, robot_assets: None, robot: None };
+        let mut loaded =
+            LoadedConfig { config, path: path.to_path_buf(), base_dir, robot_assets: None, robot: None, pad_sensors: Vec::new() };
         loaded.robot_assets = match robot_assets {
             Some(dir) => Some(dir.to_path_buf()),
             None => loaded.config.robot.as_ref().and_then(|r| r.assets.as_ref()).map(|p| loaded.resolve(p)),
@@ -237,35 +241,44 @@ impl LoadedConfig {
                 return Err((vec!["sampling", "record", "pivot"], message));
             }
             loaded.config.robot.as_mut().expect("cloned above").grasp = grasp;
+            loaded.pad_sensors = rc.tactile.pad_sensors(&robot)?;
             loaded.robot = Some(robot);
         }
         Ok(loaded)
     }
 
-    /// Loads `robot.tactile.optical.calibration` into the config, checked against the sensor's
-    /// configured image size. Errors: (field path, message).
+    /// Loads the calibration of every optical sensor the config gives (`robot.tactile.optical`,
+    /// `robot.tactile.sensors[i].optical`), each checked against its sensor's configured image
+    /// size. Errors: (field path, message).
     fn load_optical_calibration(&mut self) -> Result<(), RobotProblem> {
-        let Some(optical) = self.config.robot.as_ref().and_then(|r| r.tactile.optical.as_ref()) else { return Ok(()) };
-        let Some(file) = &optical.calibration else { return Ok(()) };
-        let field = vec!["robot", "tactile", "optical", "calibration"];
-        let cal = optical_calibration::load_calibration(&self.resolve(file)).map_err(|e| (field.clone(), e))?;
-        if cal.pixel_size_mm.is_none() && optical.sensing_area_mm.is_none() {
-            let message = format!(
-                "the calibration does not give the pixel size (Taxim's files do not): set robot.tactile.optical.sensing_area_mm \
-                 to the image's {} x {} pixels times the unit's pixel size (mm)",
-                cal.image_size[0], cal.image_size[1]
-            );
-            return Err((vec!["robot", "tactile", "optical", "sensing_area_mm"], message));
+        let base_dir = self.base_dir.clone();
+        let Some(robot) = self.config.robot.as_mut() else { return Ok(()) };
+        for (at, optical) in robot.tactile.optical_configs_mut() {
+            let Some(file) = &optical.calibration else { continue };
+            let keys = if at.contains("sensors") { vec!["robot", "tactile", "sensors"] } else { vec!["robot", "tactile", "optical"] };
+            let file = if file.is_absolute() { file.clone() } else { base_dir.join(file) };
+            let top = !at.contains("sensors");
+            let cal = match optical_calibration::load_calibration(&file) {
+                Ok(cal) => cal,
+                Err(e) if top => return Err((vec!["robot", "tactile", "optical", "calibration"], e)),
+                Err(e) => return Err((keys, format!("{at}.calibration: {e}"))),
+            };
+            if cal.pixel_size_mm.is_none() && optical.sensing_area_mm.is_none() {
+                let keys = if top { vec!["robot", "tactile", "optical", "sensing_area_mm"] } else { keys };
+                let message = format!(
+                    "the calibration does not give the pixel size (Taxim's files do not): set {at}.sensing_area_mm \
+                     to the image's {} x {} pixels times the unit's pixel size (mm)",
+                    cal.image_size[0], cal.image_size[1]
+                );
+                return Err((keys, message));
+            }
+            if let Some(size) = optical.image_size.filter(|s| cal.background.is_some() && *s != cal.image_size) {
+                let keys = if top { vec!["robot", "tactile", "optical", "calibration"] } else { keys };
+                let message = format!("the calibration's images are {:?}, {at}.image_size {size:?}: leave image_size out", cal.image_size);
+                return Err((keys, message));
+            }
+            optical.loaded_calibration = Some(std::sync::Arc::new(cal));
         }
-        if let Some(size) = optical.image_size.filter(|s| cal.background.is_some() && *s != cal.image_size) {
-            let message = format!(
-                "the calibration's images are {:?}, robot.tactile.optical.image_size {size:?}: leave image_size out",
-                cal.image_size
-            );
-            return Err((field, message));
-        }
-        let optical = self.config.robot.as_mut().and_then(|r| r.tactile.optical.as_mut()).expect("checked above");
-        optical.loaded_calibration = Some(std::sync::Arc::new(cal));
         Ok(())
     }
 

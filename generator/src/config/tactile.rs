@@ -1,14 +1,18 @@
-//! `robot.tactile:` the pads' sensors: the phalanx depth cameras, taxel arrays and optical
-//! sensors, and how contact points are read from them.
+//! `robot.tactile:` the pads' sensors (depth cameras, taxel arrays, gel pads, optical sensors),
+//! assigned per pad by rules, and how contact points are read from them.
 
 use serde::{Deserialize, Serialize};
 use vt_check::{Check, Checks, field, key};
 
-/// The phalanx depth cameras (FORMAT.md, `/tactile/*`).
+pub use vt_dataset::SensorModel;
+
+use super::optical::{OpticalConfig, OpticalSensor};
+
+/// The pad cameras and the pads' sensors (FORMAT.md, `/tactile/*`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct TactileConfig {
-    /// Pixels per side of each phalanx camera (the paper: 32).
+    /// Pixels per side of each pad camera (the paper: 32).
     pub resolution: u32,
     /// A pixel is in contact when the object surface is at most this far from the pad (mm).
     pub contact_threshold_mm: f64,
@@ -16,15 +20,18 @@ pub struct TactileConfig {
     /// the pad.
     pub near_mm: f64,
     pub far_mm: f64,
-    /// The sensor model of each phalanx group. All give object-surface points (the paper's
+    /// Which sensor each pad has: rules in order, the first whose `pads` selects a pad gives its
+    /// sensor; a pad no rule selects takes the robot description's rules (`sensors:` in its
+    /// `robot.yaml`), else a depth camera. All give object-surface points (the paper's
     /// sensor-invariant representation); they differ in where they sample the contact.
-    pub sensors: TactileSensorsConfig,
+    #[serde(deserialize_with = "sensor_rules")]
+    pub sensors: Vec<SensorRule>,
     /// `orthographic` (default: each pixel looks straight out of the pad) or `perspective` (a
     /// pinhole `perspective_standoff_mm` behind the pad whose view covers the pad).
     pub projection: PadProjection,
     pub perspective_standoff_mm: f64,
-    /// The optical sensor of the pads whose model is `optical` (default: the `gelsight_mini`
-    /// preset). Left out of the config when not given, so other datasets keep their hash.
+    /// The optical sensor of the pads whose model is `optical` and whose rule names none of its
+    /// own (default: the `gelsight_mini` preset). Left out of the config when not given.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub optical: Option<super::optical::OpticalConfig>,
     /// Each pad's contact force field from the physics (FORMAT.md, `/tactile/<pad>/force`); none
@@ -87,7 +94,7 @@ impl Default for TactileConfig {
             contact_threshold_mm: 2.0,
             near_mm: -5.0,
             far_mm: 30.0,
-            sensors: TactileSensorsConfig::default(),
+            sensors: Vec::new(),
             projection: PadProjection::Orthographic,
             perspective_standoff_mm: 10.0,
             optical: None,
@@ -106,20 +113,8 @@ impl Check for TactileConfig {
         if !(self.near_mm < self.far_mm) {
             c.key(key!(self.far_mm)).fail(format!("{} must be above near_mm ({})", self.far_mm, self.near_mm));
         }
-        let groups = &self.sensors;
-        let mut sensors = c.key(key!(self.sensors));
-        for (group, m) in [field!(groups.proximal), field!(groups.medial), field!(groups.distal)] {
-            match *m {
-                SensorModel::TaxelArray { rows, cols } if rows == 0 || cols == 0 || rows > self.resolution || cols > self.resolution => {
-                    sensors
-                        .key(group)
-                        .fail(format!("taxel grid {rows}x{cols} is out of range: 1 ..= resolution ({}) per side", self.resolution))
-                }
-                SensorModel::Gelsight { gel_thickness_mm } if !(gel_thickness_mm > 0.0 && gel_thickness_mm <= 20.0) => {
-                    sensors.key(group).fail(format!("gel_thickness_mm {gel_thickness_mm} is out of range: 0 < t <= 20"))
-                }
-                _ => {}
-            }
+        for (i, rule) in self.sensors.iter().enumerate() {
+            rule.check(&mut c.key(key!(self.sensors)).index(i), self.resolution);
         }
         c.range(field!(self.near_mm), -100.0, 100.0);
         c.range(field!(self.far_mm), -100.0, 1000.0);
@@ -134,56 +129,196 @@ impl Check for TactileConfig {
 }
 
 impl TactileConfig {
-    /// Whether any pad group has the `optical` model.
-    pub fn has_optical(&self) -> bool {
-        let s = &self.sensors;
-        [s.proximal, s.medial, s.distal].contains(&SensorModel::Optical)
+    /// Each pad's sensor (`robot.pads` order): the config's rules, then the description's, then
+    /// a depth camera. A rule that selects no pad of the robot is an error (a misspelt name or
+    /// label would otherwise leave pads with another sensor, silently). Errors: (field path,
+    /// message).
+    pub fn pad_sensors(&self, robot: &vt_robot::Robot) -> Result<Vec<PadSensor>, (Vec<&'static str>, String)> {
+        let robot_rules: Vec<SensorRule> = match &robot.sensors {
+            Some(v) => serde_yaml::from_value::<Vec<SensorRule>>(v.clone())
+                .map_err(|e| (vec!["robot"], format!("robot '{}': its description's sensors: {e}", robot.name)))?,
+            None => Vec::new(),
+        };
+        let names = || robot.pads.iter().map(|p| p.name.as_str()).collect::<Vec<_>>().join(", ");
+        for (from, rules) in [("robot.tactile.sensors", &self.sensors), ("the description's sensors", &robot_rules)] {
+            for (i, rule) in rules.iter().enumerate() {
+                if !robot.pads.iter().any(|p| p.matches(&rule.pads)) {
+                    let path = if from == "robot.tactile.sensors" { vec!["robot", "tactile", "sensors"] } else { vec!["robot"] };
+                    let message = format!(
+                        "{from}[{i}].pads: '{}' selects no pad of robot '{}' (pads: {}; a rule selects by name, with * and ?, or by a label the description gives)",
+                        rule.pads,
+                        robot.name,
+                        names()
+                    );
+                    return Err((path, message));
+                }
+            }
+        }
+        Ok(robot
+            .pads
+            .iter()
+            .map(|pad| {
+                let rule = self.sensors.iter().chain(&robot_rules).find(|r| pad.matches(&r.pads));
+                let model = rule.map_or(SensorModel::DepthCamera, |r| r.model);
+                let optical = (model == SensorModel::Optical)
+                    .then(|| rule.and_then(|r| r.optical.clone()).map_or_else(|| self.optical_sensor(), |o| o.resolve()));
+                PadSensor { model, optical }
+            })
+            .collect())
     }
 
-    /// The optical sensor's resolved parameters (the `gelsight_mini` preset unless configured).
-    pub fn optical_sensor(&self) -> super::optical::OpticalSensor {
+    /// The optical sensor of the pads whose rule names none of its own: `optical`, resolved
+    /// (the `gelsight_mini` preset unless configured).
+    pub fn optical_sensor(&self) -> OpticalSensor {
         self.optical.clone().unwrap_or_default().resolve()
     }
+
+    /// Every optical config the tactile section and its rules give, with the field it is at (for
+    /// loading calibrations).
+    pub fn optical_configs_mut(&mut self) -> impl Iterator<Item = (String, &mut OpticalConfig)> {
+        let top = self.optical.as_mut().map(|o| ("robot.tactile.optical".to_string(), o));
+        let rules = self
+            .sensors
+            .iter_mut()
+            .enumerate()
+            .filter_map(|(i, r)| r.optical.as_mut().map(|o| (format!("robot.tactile.sensors[{i}].optical"), o)));
+        top.into_iter().chain(rules)
+    }
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct TactileSensorsConfig {
-    pub proximal: SensorModel,
-    pub medial: SensorModel,
-    pub distal: SensorModel,
+/// One pad's sensor, resolved: its model and, for `optical`, its sensor's parameters.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PadSensor {
+    pub model: SensorModel,
+    pub optical: Option<OpticalSensor>,
 }
 
-impl TactileSensorsConfig {
-    /// The model of a pad in `group` (the robot description's `pads[*].group`).
-    pub fn of(&self, group: vt_robot::PadGroup) -> SensorModel {
-        match group {
-            vt_robot::PadGroup::Proximal => self.proximal,
-            vt_robot::PadGroup::Medial => self.medial,
-            vt_robot::PadGroup::Distal => self.distal,
+/// `robot.tactile.sensors[i]`: the pads a rule selects and the sensor they get, e.g.
+/// `{pads: "*_distal", model: optical, optical: {preset: digit}}` or
+/// `{pads: medial, model: taxel_array, rows: 4, cols: 4}`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "SensorRuleFields", into = "SensorRuleFields")]
+pub struct SensorRule {
+    /// A glob over pad names (`*`, `?`) or a label of the description's pads.
+    pub pads: String,
+    pub model: SensorModel,
+    /// The optical sensor of the pads this rule gives the `optical` model (default: the tactile
+    /// section's `optical`, else the `gelsight_mini` preset).
+    pub optical: Option<OpticalConfig>,
+}
+
+/// A sensor rule as written: the model's own fields beside `pads` and `optical`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SensorRuleFields {
+    pads: String,
+    model: ModelName,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    rows: Option<u32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    cols: Option<u32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    gel_thickness_mm: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    optical: Option<OpticalConfig>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+enum ModelName {
+    DepthCamera,
+    TaxelArray,
+    Gelsight,
+    Optical,
+}
+
+impl TryFrom<SensorRuleFields> for SensorRule {
+    type Error = String;
+    fn try_from(f: SensorRuleFields) -> Result<Self, String> {
+        let extra = |what: &str| format!("'{what}' belongs to another model than {:?}", f.model);
+        let model = match f.model {
+            ModelName::TaxelArray => match (f.rows, f.cols) {
+                (Some(rows), Some(cols)) => SensorModel::TaxelArray { rows, cols },
+                _ => return Err("a taxel_array needs rows and cols".into()),
+            },
+            ModelName::Gelsight => {
+                SensorModel::Gelsight { gel_thickness_mm: f.gel_thickness_mm.ok_or("a gelsight pad needs gel_thickness_mm")? }
+            }
+            ModelName::DepthCamera => SensorModel::DepthCamera,
+            ModelName::Optical => SensorModel::Optical,
+        };
+        if !matches!(model, SensorModel::TaxelArray { .. }) && (f.rows.is_some() || f.cols.is_some()) {
+            return Err(extra("rows/cols"));
+        }
+        if !matches!(model, SensorModel::Gelsight { .. }) && f.gel_thickness_mm.is_some() {
+            return Err(extra("gel_thickness_mm"));
+        }
+        if model != SensorModel::Optical && f.optical.is_some() {
+            return Err(extra("optical"));
+        }
+        Ok(SensorRule { pads: f.pads, model, optical: f.optical })
+    }
+}
+
+impl From<SensorRule> for SensorRuleFields {
+    fn from(r: SensorRule) -> Self {
+        let (model, rows, cols, gel_thickness_mm) = match r.model {
+            SensorModel::DepthCamera => (ModelName::DepthCamera, None, None, None),
+            SensorModel::TaxelArray { rows, cols } => (ModelName::TaxelArray, Some(rows), Some(cols), None),
+            SensorModel::Gelsight { gel_thickness_mm } => (ModelName::Gelsight, None, None, Some(gel_thickness_mm)),
+            SensorModel::Optical => (ModelName::Optical, None, None, None),
+        };
+        SensorRuleFields { pads: r.pads, model, rows, cols, gel_thickness_mm, optical: r.optical }
+    }
+}
+
+impl SensorRule {
+    // `!(a <= b)` on purpose: a NaN in the YAML must fail the checks too.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
+    fn check(&self, c: &mut Checks, resolution: u32) {
+        match self.model {
+            SensorModel::TaxelArray { rows, cols } => {
+                for (k, n) in [("rows", rows), ("cols", cols)] {
+                    if n == 0 || n > resolution {
+                        c.key(k).fail(format!("taxel grid {rows}x{cols} is out of range: 1 ..= resolution ({resolution}) per side"));
+                    }
+                }
+            }
+            SensorModel::Gelsight { gel_thickness_mm } if !(gel_thickness_mm > 0.0 && gel_thickness_mm <= 20.0) => {
+                c.key("gel_thickness_mm").fail(format!("{gel_thickness_mm} is out of range: 0 < t <= 20"))
+            }
+            _ => {}
+        }
+        c.section(field!(self.optical));
+    }
+}
+
+/// `robot.tactile.sensors`: a list of rules. The map by pad group older configs wrote
+/// (`{proximal: ..., medial: ..., distal: ...}`) is refused with the list it now reads as.
+fn sensor_rules<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Vec<SensorRule>, D::Error> {
+    struct Rules;
+    impl<'de> serde::de::Visitor<'de> for Rules {
+        type Value = Vec<SensorRule>;
+        fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+            f.write_str("a list of sensor rules, e.g. [{pads: \"*_distal\", model: optical}, {pads: \"*\", model: depth_camera}]")
+        }
+        fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> Result<Self::Value, A::Error> {
+            let mut out = Vec::new();
+            while let Some(rule) = seq.next_element()? {
+                out.push(rule);
+            }
+            Ok(out)
+        }
+        fn visit_map<A: serde::de::MapAccess<'de>>(self, mut map: A) -> Result<Self::Value, A::Error> {
+            let mut keys = Vec::new();
+            while let Some((k, _)) = map.next_entry::<String, serde::de::IgnoredAny>()? {
+                keys.push(k);
+            }
+            let example = keys.iter().map(|k| format!("{{pads: {k}, model: ...}}")).collect::<Vec<_>>().join(", ");
+            Err(serde::de::Error::custom(format!(
+                "sensors are a list of rules now, one per set of pads (a pad name with * and ?, or a label such as proximal): write [{example}]"
+            )))
         }
     }
-}
-
-impl Default for TactileSensorsConfig {
-    fn default() -> Self {
-        TactileSensorsConfig { proximal: SensorModel::DepthCamera, medial: SensorModel::DepthCamera, distal: SensorModel::DepthCamera }
-    }
-}
-
-/// A tactile sensor model on a phalanx pad.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case", tag = "model", deny_unknown_fields)]
-pub enum SensorModel {
-    /// Every depth-camera pixel within the contact threshold is a point (the paper's sensor).
-    DepthCamera,
-    /// A grid of taxels (e.g. 224 over the hand): a taxel fires when any surface under it is within
-    /// the threshold and reports the surface point at its closest pixel.
-    TaxelArray { rows: u32, cols: u32 },
-    /// An optical gel pad: the surface indents a gel of this thickness; every indented pixel is a
-    /// point (a height map of the indentation).
-    Gelsight { gel_thickness_mm: f64 },
-    /// An optical gel sensor (`robot.tactile.optical`): the `gelsight` rule with the sensor's gel
-    /// thickness for the points, and the RGB image its camera sees (`/tactile/<pad>/image`).
-    Optical,
+    d.deserialize_any(Rules)
 }

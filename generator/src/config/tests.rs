@@ -333,7 +333,7 @@ fn names_knob(field: &str, leaf: &str) -> bool {
 /// in the file and naming that knob; only the seed takes any integer.
 #[test]
 fn every_numeric_knob_is_checked() {
-    let sections = "robot:\n  grasp: {back_to_camera_share: 0.5, back_to_camera_tilt_deg: [70, 110]}\n  tactile:\n    projection: perspective\n    sensors: {proximal: {model: optical}, medial: {model: taxel_array, rows: 4, cols: 4}, distal: {model: gelsight, gel_thickness_mm: 1.5}}\n    optical: {preset: digit, image_size: [320, 240], sensing_area_mm: [19, 16], gel_thickness_mm: 1, elastic_spread_mm: 0.3, ambient: 0.2, background: [0.7, 0.7, 0.7], vignetting: 0.3, noise_std: 1, markers: {pitch_mm: 1.6, radius_mm: 0.2, shift: 0.5, opacity: 0.8}, lights: [{direction: [1, 0, -0.5], color: [0.9, 0.1, 0.1], falloff: 0.4}, {direction: [-0.5, 0.87, -0.5], color: [0.1, 0.9, 0.1]}, {direction: [-0.5, -0.87, -0.5], color: [0.1, 0.1, 0.9]}]}\n";
+    let sections = "robot:\n  grasp: {back_to_camera_share: 0.5, back_to_camera_tilt_deg: [70, 110]}\n  tactile:\n    projection: perspective\n    sensors: [{pads: proximal, model: optical, optical: {preset: gelsight_mini, markers: {}}}, {pads: medial, model: taxel_array, rows: 4, cols: 4}, {pads: distal, model: gelsight, gel_thickness_mm: 1.5}]\n    optical: {preset: digit, image_size: [320, 240], sensing_area_mm: [19, 16], gel_thickness_mm: 1, elastic_spread_mm: 0.3, ambient: 0.2, background: [0.7, 0.7, 0.7], vignetting: 0.3, noise_std: 1, markers: {pitch_mm: 1.6, radius_mm: 0.2, shift: 0.5, opacity: 0.8}, lights: [{direction: [1, 0, -0.5], color: [0.9, 0.1, 0.1], falloff: 0.4}, {direction: [-0.5, 0.87, -0.5], color: [0.1, 0.9, 0.1]}, {direction: [-0.5, -0.87, -0.5], color: [0.1, 0.1, 0.9]}]}\n";
     let objects = "objects: [005_tomato_soup_can, {id: mine, mesh: m.obj, mass: 0.3}]\nrandomization: {enabled: true, robot_materials: {}, tactile_sensors: {}}\n";
     let cameras = [
         "camera:\n  intrinsics: {fx: 615.0, fy: 615.0, cx: 319.5, cy: 239.5}\n  noise: {depth: {}, color: {}}\n",
@@ -393,7 +393,7 @@ fn optical_sensor_errors_name_the_field() {
     ];
     for (optical, field, message) in cases {
         let text =
-            format!("objects: [005_tomato_soup_can]\nrobot:\n  tactile:\n    sensors: {{distal: {{model: optical}}}}\n    {optical}\n");
+            format!("objects: [005_tomato_soup_can]\nrobot:\n  tactile:\n    sensors: [{{pads: distal, model: optical}}]\n    {optical}\n");
         let e = LoadedConfig::parse(&text, Path::new("x.yaml")).expect_err(optical);
         assert_eq!(e.field, field, "{optical}: {e}");
         assert!(e.message.contains(message) && e.line == Some(5), "{optical}: {e}");
@@ -401,4 +401,53 @@ fn optical_sensor_errors_name_the_field() {
     let bad = "objects: [005_tomato_soup_can]\nrandomization:\n  tactile_sensors: {led_color: 1.5}\n";
     let e = LoadedConfig::parse(bad, Path::new("x.yaml")).expect_err("led_color");
     assert_eq!(e.field, "randomization.tactile_sensors.led_color", "{e}");
+}
+
+/// Sensors go to pads by rules: the first rule that selects a pad (a glob over its name or one of
+/// its labels) gives its sensor, then the description's rules, then a depth camera; any number
+/// of kinds and optical configs on one hand; a rule that selects nothing and the older map by pad
+/// group are refused, located.
+#[test]
+fn sensor_rules_assign_a_sensor_to_each_pad() {
+    let config = |sensors: &str| format!("objects: [005_tomato_soup_can]\nrobot:\n  tactile:\n    sensors: {sensors}\n");
+    let text = config(
+        "[{pads: \"th_*\", model: optical, optical: {preset: digit}}, {pads: \"?f_distal\", model: optical}, \
+         {pads: medial, model: taxel_array, rows: 4, cols: 4}]",
+    );
+    let loaded = LoadedConfig::parse(&text, Path::new("x.yaml")).unwrap();
+    let robot = loaded.robot.as_ref().unwrap();
+    let by_name: std::collections::BTreeMap<&str, &PadSensor> =
+        robot.pads.iter().map(|p| p.name.as_str()).zip(&loaded.pad_sensors).collect();
+    assert_eq!(by_name.len(), 12);
+    let digit = OpticalConfig { preset: OpticalPreset::Digit, ..Default::default() }.resolve();
+    let mini = OpticalConfig::default().resolve();
+    assert_ne!(digit, mini);
+    for name in ["th_proximal", "th_medial", "th_distal"] {
+        assert_eq!(by_name[name].model, SensorModel::Optical, "{name}: the first rule wins over the label rule");
+        assert_eq!(by_name[name].optical.as_ref(), Some(&digit), "{name}");
+    }
+    for name in ["ff_distal", "mf_distal", "rf_distal"] {
+        assert_eq!(by_name[name].optical.as_ref(), Some(&mini), "{name}: the tactile section's sensor, its default preset");
+    }
+    for name in ["ff_medial", "mf_medial", "rf_medial"] {
+        assert_eq!(by_name[name].model, SensorModel::TaxelArray { rows: 4, cols: 4 }, "{name}");
+    }
+    // Not selected by the config: the Allegro description's own rule (a depth camera everywhere).
+    for name in ["ff_proximal", "mf_proximal", "rf_proximal"] {
+        assert_eq!(*by_name[name], PadSensor { model: SensorModel::DepthCamera, optical: None }, "{name}");
+    }
+    // The rules round-trip through the config's serialization (config.json).
+    let again = serde_yaml::from_value::<TactileConfig>(serde_yaml::to_value(&loaded.config.robot.as_ref().unwrap().tactile).unwrap());
+    assert_eq!(again.unwrap().sensors, loaded.config.robot.as_ref().unwrap().tactile.sensors);
+
+    let e = LoadedConfig::parse(&config("[{pads: \"lf_*\", model: depth_camera}]"), Path::new("x.yaml")).unwrap_err();
+    assert!(e.field == "robot.tactile.sensors" && e.line == Some(4) && e.message.contains("'lf_*' selects no pad"), "{e}");
+    let e = LoadedConfig::parse(&config("{proximal: {model: depth_camera}}"), Path::new("x.yaml")).unwrap_err();
+    assert!(e.field == "robot.tactile.sensors" && e.message.contains("[{pads: proximal, model: ...}]"), "{e}");
+    let e = LoadedConfig::parse(&config("[{pads: \"*\", model: taxel_array, rows: 4}]"), Path::new("x.yaml")).unwrap_err();
+    assert!(e.message.contains("needs rows and cols"), "{e}");
+    let e = LoadedConfig::parse(&config("[{pads: \"*\", model: depth_camera, optical: {}}]"), Path::new("x.yaml")).unwrap_err();
+    assert!(e.message.contains("'optical' belongs to another model"), "{e}");
+    let e = LoadedConfig::parse(&config("[{pads: \"*\", model: taxel_array, rows: 4, cols: 40}]"), Path::new("x.yaml")).unwrap_err();
+    assert_eq!(e.field, "robot.tactile.sensors[0].cols", "{e}");
 }

@@ -125,7 +125,7 @@ pub struct RenderOutput {
     pub silhouette_pixels: usize,
 }
 
-/// An orthographic depth view (a phalanx camera): looks along +z of `t_world_camera`, covering
+/// An orthographic depth view (a pad camera): looks along +z of `t_world_camera`, covering
 /// `[-half_x, half_x] x [-half_y, half_y]` metres over `width x height` pixels, depth in
 /// `[near, far]` (near may be negative: surfaces pressed behind the camera plane).
 #[derive(Debug, Clone, Copy)]

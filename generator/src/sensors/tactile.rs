@@ -7,8 +7,108 @@ use anyhow::Result;
 use glam::{DAffine3, DMat4, DVec3};
 
 use super::optical::gel_shading;
-use crate::config::{OpticalSensor, OpticalShading, PadProjection, SensorModel, TactileConfig};
+use crate::config::{OpticalSensor, OpticalShading, PadProjection, PadSensor, SensorModel, TactileConfig};
 use crate::render::{DepthView, Draw, GelShading, Renderer};
+
+/// One kind of pad sensor: the view it needs besides the pad camera and the pixels of the pad
+/// camera it reports as contacts. Every pad writes `/tactile/<pad>/depth` and its points; a kind
+/// with a view of its own (the optical sensor) also makes an image of it (`/tactile/<pad>/image`,
+/// `/reference`, with force fields `/markers`; FORMAT.md). A new kind is a `SensorModel`
+/// variant (the format's) and an implementation here, chosen in [`sensor_kind`].
+pub trait SensorKind {
+    /// The pixels (u, v) of the `n x n` pad image `gap` (the object's distance above the pad's
+    /// surface, m) that the sensor reports; every kind reports actual surface points, so their
+    /// clouds lie on the same surface.
+    fn contact_pixels(&self, gap: &[f32], n: u32, threshold: f64) -> Vec<(u32, u32)>;
+    /// The depth view of the object it needs besides the pad camera, from the pad frame
+    /// `t_world_pad`, from `near` (m) on (None: the pad camera suffices).
+    fn own_view(&self, _t_world_pad: &DAffine3, _near: f64) -> Option<DepthView> {
+        None
+    }
+}
+
+/// The paper's sensor: every pixel within the contact threshold.
+struct DepthCamera;
+/// A grid of taxels, each firing at its closest pixel within the threshold.
+struct TaxelArray {
+    rows: u32,
+    cols: u32,
+}
+/// A gel of this thickness: every pixel that indents it.
+struct GelPad {
+    gel_thickness_mm: f64,
+}
+/// A gel sensor with its camera: the gel rule with its gel's thickness, and its image.
+struct OpticalPad<'a>(&'a OpticalSensor);
+
+/// Pixels of an `n x n` image within `limit`.
+fn within(gap: &[f32], n: u32, limit: f64) -> Vec<(u32, u32)> {
+    (0..n).flat_map(move |v| (0..n).map(move |u| (u, v))).filter(|&(u, v)| gap[(v * n + u) as usize] as f64 <= limit).collect()
+}
+
+impl SensorKind for DepthCamera {
+    fn contact_pixels(&self, gap: &[f32], n: u32, threshold: f64) -> Vec<(u32, u32)> {
+        within(gap, n, threshold)
+    }
+}
+
+impl SensorKind for GelPad {
+    fn contact_pixels(&self, gap: &[f32], n: u32, _threshold: f64) -> Vec<(u32, u32)> {
+        within(gap, n, self.gel_thickness_mm * 1e-3)
+    }
+}
+
+impl SensorKind for OpticalPad<'_> {
+    fn contact_pixels(&self, gap: &[f32], n: u32, _threshold: f64) -> Vec<(u32, u32)> {
+        within(gap, n, self.0.gel_thickness_mm * 1e-3)
+    }
+    /// Orthographic over the sensing area at the image's size, out to the gel's free surface.
+    fn own_view(&self, t_world_pad: &DAffine3, near: f64) -> Option<DepthView> {
+        let sensor = self.0;
+        Some(DepthView {
+            width: sensor.image_size[0],
+            height: sensor.image_size[1],
+            half_x: sensor.sensing_area_mm[0] * 0.5e-3,
+            half_y: sensor.sensing_area_mm[1] * 0.5e-3,
+            near,
+            far: (sensor.gel_thickness_mm + 0.1) * 1e-3,
+            t_world_camera: DMat4::from(*t_world_pad),
+            perspective_standoff: None,
+        })
+    }
+}
+
+impl SensorKind for TaxelArray {
+    fn contact_pixels(&self, gap: &[f32], n: u32, threshold: f64) -> Vec<(u32, u32)> {
+        let at = |u: u32, v: u32| gap[(v * n + u) as usize] as f64;
+        let (rows, cols) = (self.rows, self.cols);
+        let mut out = Vec::new();
+        for r in 0..rows {
+            for c in 0..cols {
+                // The taxel's block of pixels, and its closest surface pixel.
+                let (u0, u1) = (c * n / cols, ((c + 1) * n / cols).max(c * n / cols + 1));
+                let (v0, v1) = (r * n / rows, ((r + 1) * n / rows).max(r * n / rows + 1));
+                let best = (v0..v1).flat_map(|v| (u0..u1).map(move |u| (u, v))).min_by(|a, b| at(a.0, a.1).total_cmp(&at(b.0, b.1)));
+                if let Some((u, v)) = best.filter(|&(u, v)| at(u, v) <= threshold) {
+                    out.push((u, v));
+                }
+            }
+        }
+        out
+    }
+}
+
+/// The kind of a pad's resolved sensor.
+pub fn sensor_kind(sensor: &PadSensor) -> Box<dyn SensorKind + '_> {
+    match (sensor.model, &sensor.optical) {
+        (SensorModel::DepthCamera, _) => Box::new(DepthCamera),
+        (SensorModel::TaxelArray { rows, cols }, _) => Box::new(TaxelArray { rows, cols }),
+        (SensorModel::Gelsight { gel_thickness_mm }, _) => Box::new(GelPad { gel_thickness_mm }),
+        (SensorModel::Optical, Some(o)) => Box::new(OpticalPad(o)),
+        // Resolution gives every optical pad its sensor (`TactileConfig::pad_sensors`).
+        (SensorModel::Optical, None) => Box::new(DepthCamera),
+    }
+}
 
 /// One tactile point in the main camera frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -17,18 +117,25 @@ pub struct TactilePoint {
     /// Depth from the pad plane (m): the pressure proxy; negative when pressed into the pad.
     pub distance: f64,
     /// Pad index (`Robot::pads` order).
-    pub phalanx: u32,
+    pub pad: u32,
 }
 
-/// One pad as a sample sees it: its sensing area (length, width; m), sensor model, pose (world)
-/// and whether its link touches the object; with the `optical` model, its sensor in this sample.
+/// One pad as a sample sees it: its sensing area (length, width; m), its sensor in this sample
+/// (an optical one varied per sensor unit), its pose (world) and whether its link touches the
+/// object.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PadView {
     pub size: (f64, f64),
-    pub model: SensorModel,
+    pub sensor: PadSensor,
     pub t_world_pad: DAffine3,
     pub touching: bool,
-    pub optical: Option<OpticalSensor>,
+}
+
+impl PadView {
+    /// The pad's optical sensor, when it has one.
+    pub fn optical(&self) -> Option<&OpticalSensor> {
+        self.sensor.optical.as_ref().filter(|_| self.sensor.model == SensorModel::Optical)
+    }
 }
 
 /// What the pad cameras saw in one sample.
@@ -59,7 +166,7 @@ fn pad_pixel(u: u32, v: u32, n: u32, (len, wid): (f64, f64)) -> (f64, f64) {
     ((u as f64 + 0.5 - n as f64 / 2.0) * len / n as f64, (v as f64 + 0.5 - n as f64 / 2.0) * wid / n as f64)
 }
 
-/// The finger surface under each pad pixel of `mesh` (the phalanx's real mesh, link frame), seen
+/// The finger surface under each pad pixel of `mesh` (the pad link's real mesh, link frame), seen
 /// along the pad's -z from the pad frame `t_link_pad`, over the pad's `size` at `n x n` pixels.
 pub fn finger_surface(mesh: &vt_objects::TexturedMesh, t_link_pad: &DAffine3, size: (f64, f64), n: u32) -> Result<Vec<f32>> {
     use rapier3d::parry::query::{Ray, RayCast};
@@ -83,7 +190,7 @@ pub fn finger_surface(mesh: &vt_objects::TexturedMesh, t_link_pad: &DAffine3, si
 /// Renders the pad views of the object (drawn alone: the hand does not occlude its own pads), and
 /// the image-sized views of the touching optical pads in the same submission, and extracts the
 /// tactile points, in the frame `t_camera_world` maps to. Only the pads of the
-/// phalanges `touching` the object (the physics' contacts) report points: a sensor answers to
+/// links `touching` the object (the physics' contacts) report points: a sensor answers to
 /// contact, and an object hovering within the threshold of an untouched pad is not felt. With
 /// `surface`, a pixel's contact rule applies to the object's distance from the finger's real
 /// surface under it (not from the pad plane): the points are where the finger touches the object.
@@ -110,28 +217,19 @@ pub fn sense(
             perspective_standoff: standoff,
         })
         .collect();
-    // The optical pads' views: orthographic over the sensing area, out to the gel's free surface.
-    let optical: Vec<usize> = (0..pads.len()).filter(|&k| pads[k].touching && pads[k].optical.is_some()).collect();
-    for &k in &optical {
-        let sensor = pads[k].optical.as_ref().expect("filtered above");
-        views.push(DepthView {
-            width: sensor.image_size[0],
-            height: sensor.image_size[1],
-            half_x: sensor.sensing_area_mm[0] * 0.5e-3,
-            half_y: sensor.sensing_area_mm[1] * 0.5e-3,
-            near: cfg.near_mm * 1e-3,
-            far: (sensor.gel_thickness_mm + 0.1) * 1e-3,
-            t_world_camera: DMat4::from(pads[k].t_world_pad),
-            perspective_standoff: None,
-        });
+    // The views the touching pads' sensors need of their own (the optical pads' images).
+    let mut optical = Vec::new();
+    for (k, pad) in pads.iter().enumerate().filter(|(_, p)| p.touching) {
+        if let Some(view) = sensor_kind(&pad.sensor).own_view(&pad.t_world_pad, cfg.near_mm * 1e-3) {
+            views.push(view);
+            optical.push(k);
+        }
     }
     // With GPU shading, each optical view's image model runs after the views, in their submission.
     let shading: Vec<GelShading> = match cfg.optical_shading {
-        OpticalShading::Gpu => optical
-            .iter()
-            .enumerate()
-            .filter_map(|(i, &k)| gel_shading(pads[k].optical.as_ref().expect("optical pads"), pads.len() + i))
-            .collect(),
+        OpticalShading::Gpu => {
+            optical.iter().enumerate().filter_map(|(i, &k)| gel_shading(pads[k].optical().expect("optical pads"), pads.len() + i)).collect()
+        }
         OpticalShading::Cpu => Vec::new(),
     };
     let t0 = std::time::Instant::now();
@@ -153,16 +251,14 @@ pub fn sense(
     let mut counts = vec![0u32; pads.len()];
     for (k, pad) in pads.iter().enumerate().filter(|(_, p)| p.touching) {
         let to_camera = *t_camera_world * pad.t_world_pad;
-        // An optical pad's points: the `gelsight` rule with its sensor's gel.
-        let model = pad.optical.as_ref().map_or(pad.model, |o| SensorModel::Gelsight { gel_thickness_mm: o.gel_thickness_mm });
         let gap = gap_above_surface(&depth[k], surface.map(|s| &s[k][..]));
-        for (u, v) in contact_pixels(&gap, n, model, cfg.contact_threshold_mm * 1e-3) {
+        for (u, v) in sensor_kind(&pad.sensor).contact_pixels(&gap, n, cfg.contact_threshold_mm * 1e-3) {
             let d = depth[k][(v * n + u) as usize] as f64;
             // The pixel's ray meets the pad plane at (x, y); a pinhole's ray spreads with depth.
             let spread = standoff.map_or(1.0, |s| (s + d) / s);
             let (x, y) = pad_pixel(u, v, n, pad.size);
             let (x, y) = (x * spread, y * spread);
-            points.push(TactilePoint { position: to_camera.transform_point3(DVec3::new(x, y, d)), distance: d, phalanx: k as u32 });
+            points.push(TactilePoint { position: to_camera.transform_point3(DVec3::new(x, y, d)), distance: d, pad: k as u32 });
             counts[k] += 1;
         }
     }
@@ -175,35 +271,6 @@ pub fn gap_above_surface<'a>(depth: &'a [f32], surface: Option<&[f32]>) -> std::
     match surface {
         Some(s) => depth.iter().zip(s).map(|(d, h)| d - h).collect::<Vec<_>>().into(),
         None => depth.into(),
-    }
-}
-
-/// The pixels (u, v) of an `n x n` pad depth image that a sensor model reports as contacts. Every
-/// model reports actual surface points (a pixel's depth), so their clouds lie on the same surface.
-pub fn contact_pixels(depth: &[f32], n: u32, model: SensorModel, threshold: f64) -> Vec<(u32, u32)> {
-    let at = |u: u32, v: u32| depth[(v * n + u) as usize] as f64;
-    let all =
-        |limit: f64| (0..n).flat_map(move |v| (0..n).map(move |u| (u, v))).filter(move |&(u, v)| at(u, v) <= limit).collect::<Vec<_>>();
-    match model {
-        SensorModel::DepthCamera => all(threshold),
-        SensorModel::Gelsight { gel_thickness_mm } => all(gel_thickness_mm * 1e-3),
-        // `sense` gives an optical pad the `gelsight` rule with its sensor's gel.
-        SensorModel::Optical => all(threshold),
-        SensorModel::TaxelArray { rows, cols } => {
-            let mut out = Vec::new();
-            for r in 0..rows {
-                for c in 0..cols {
-                    // The taxel's block of pixels, and its closest surface pixel.
-                    let (u0, u1) = (c * n / cols, ((c + 1) * n / cols).max(c * n / cols + 1));
-                    let (v0, v1) = (r * n / rows, ((r + 1) * n / rows).max(r * n / rows + 1));
-                    let best = (v0..v1).flat_map(|v| (u0..u1).map(move |u| (u, v))).min_by(|a, b| at(a.0, a.1).total_cmp(&at(b.0, b.1)));
-                    if let Some((u, v)) = best.filter(|&(u, v)| at(u, v) <= threshold) {
-                        out.push((u, v));
-                    }
-                }
-            }
-            out
-        }
     }
 }
 
@@ -225,19 +292,22 @@ mod tests {
         })
     }
 
-    /// The 12 pads 2 x 1 cm, touching, their models the config's by phalanx (proximal, medial,
-    /// distal per finger).
-    fn views(cfg: &TactileConfig, t_world_pads: &[DAffine3; 12]) -> Vec<PadView> {
-        let groups = [vt_robot::PadGroup::Proximal, vt_robot::PadGroup::Medial, vt_robot::PadGroup::Distal];
+    /// The 12 pads 2 x 1 cm, touching; every third pad (0, 3, 6, 9) has `first`, the others
+    /// depth cameras.
+    fn views(first: SensorModel, t_world_pads: &[DAffine3; 12]) -> Vec<PadView> {
         (0..12)
             .map(|k| PadView {
                 size: (0.02, 0.01),
-                model: cfg.sensors.of(groups[k % 3]),
+                sensor: PadSensor { model: if k % 3 == 0 { first } else { SensorModel::DepthCamera }, optical: None },
                 t_world_pad: t_world_pads[k],
                 touching: true,
-                optical: None,
             })
             .collect()
+    }
+
+    /// `kind`'s contact pixels of a pad image.
+    fn contact_pixels(gap: &[f32], n: u32, model: SensorModel, threshold: f64) -> Vec<(u32, u32)> {
+        sensor_kind(&PadSensor { model, optical: None }).contact_pixels(gap, n, threshold)
     }
 
     #[test]
@@ -250,7 +320,8 @@ mod tests {
         let object = Draw { mesh: MeshHandle(0), t_world_model: DMat4::IDENTITY, mask_id: 1, role: DrawRole::Target };
         // Points come out in the frame `t_camera_world` maps to: a camera 1 m above, looking down.
         let t_world_camera = DAffine3::from_rotation_translation(DQuat::from_rotation_x(std::f64::consts::PI), DVec3::new(0.0, 0.0, 1.0));
-        let r = sense(&mut renderer, &cfg, &views(&cfg, &t_world_pads), None, object, &t_world_camera.inverse()).unwrap();
+        let r =
+            sense(&mut renderer, &cfg, &views(SensorModel::DepthCamera, &t_world_pads), None, object, &t_world_camera.inverse()).unwrap();
         for k in 0..12 {
             assert_eq!(r.counts[k], if k % 2 == 0 { 256 } else { 0 }, "pad {k}");
             assert_eq!(r.depth[k].len(), 256);
@@ -258,19 +329,16 @@ mod tests {
         assert_eq!(r.points.len(), 6 * 256);
         for p in &r.points {
             let world = t_world_camera.transform_point3(p.position);
-            let pad = t_world_pads[p.phalanx as usize].translation;
+            let pad = t_world_pads[p.pad as usize].translation;
             // On the surface, under its pad, at the depth it reports.
             assert!((world.z - 0.099).abs() < 1e-6, "{world}");
             assert!((world.x - pad.x).abs() <= 0.01 + 1e-9 && (world.y - pad.y).abs() <= 0.005 + 1e-9, "{world} off pad {pad}");
             assert!((p.distance - 0.001).abs() < 1e-6);
         }
         // A taxel array reports one point per fired taxel, on the same surface.
-        let taxels = TactileConfig {
-            sensors: crate::config::TactileSensorsConfig { proximal: SensorModel::TaxelArray { rows: 4, cols: 2 }, ..cfg.sensors },
-            ..cfg.clone()
-        };
-        let r = sense(&mut renderer, &taxels, &views(&taxels, &t_world_pads), None, object, &t_world_camera.inverse()).unwrap();
-        // Proximal pads are 0, 3, 6, 9: in contact are 0 and 6.
+        let taxels = views(SensorModel::TaxelArray { rows: 4, cols: 2 }, &t_world_pads);
+        let r = sense(&mut renderer, &cfg, &taxels, None, object, &t_world_camera.inverse()).unwrap();
+        // The taxel pads are 0, 3, 6, 9: in contact are 0 and 6.
         assert_eq!([r.counts[0], r.counts[3], r.counts[6], r.counts[9]], [8, 0, 8, 0]);
         assert!(r.points.iter().all(|p| (t_world_camera.transform_point3(p.position).z - 0.099).abs() < 1e-6));
     }

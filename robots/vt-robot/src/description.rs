@@ -23,15 +23,6 @@ pub enum GraspKind {
     ParallelJaw,
 }
 
-/// Which of the tactile config's sensor groups (`robot.tactile.sensors`) a pad's model comes from.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum PadGroup {
-    Proximal,
-    Medial,
-    Distal,
-}
-
 /// The description file as written (see `robots/allegro/robot.yaml`).
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -65,6 +56,10 @@ pub struct Description {
     /// Collision meshes that collide as several convex parts instead of one hull.
     #[serde(default)]
     pub convex_decomposition: Option<DecompositionSpec>,
+    /// The pads' sensors when a config names none for them: rules as `robot.tactile.sensors`
+    /// takes them (docs/tactile.md), read by the generator (this crate knows no sensor).
+    #[serde(default)]
+    pub sensors: Option<serde_yaml::Value>,
 }
 
 /// Which links' collision meshes are decomposed into convex parts (V-HACD) and how finely.
@@ -178,13 +173,12 @@ pub struct PadSpec {
     /// collision geometry.
     #[serde(default)]
     pub size: Option<[f64; 2]>,
-    /// The sensor group whose model the pad uses (default: distal).
-    #[serde(default = "default_group")]
-    pub group: PadGroup,
-}
-
-fn default_group() -> PadGroup {
-    PadGroup::Distal
+    /// Names a sensor rule may select the pad by besides its own (e.g. `proximal`, `tip`).
+    #[serde(default)]
+    pub labels: Vec<String>,
+    /// One label (the key older descriptions used for it).
+    #[serde(default)]
+    pub group: Option<String>,
 }
 
 #[derive(Debug, Clone, Copy, Deserialize)]
@@ -222,7 +216,27 @@ pub struct Pad {
     pub link: usize,
     pub frame: usize,
     pub size: Option<(f64, f64)>,
-    pub group: PadGroup,
+    /// The description's labels of the pad (sensor rules select pads by name or label).
+    pub labels: Vec<String>,
+}
+
+impl Pad {
+    /// Whether a sensor rule's `pattern` selects this pad: a glob (`*` any run of characters, `?`
+    /// one) over its name, or one of its labels exactly.
+    pub fn matches(&self, pattern: &str) -> bool {
+        self.labels.iter().any(|l| l == pattern) || glob_match(pattern.as_bytes(), self.name.as_bytes())
+    }
+}
+
+/// `*` and `?` glob matching (no classes, no escapes: pad names are plain words).
+fn glob_match(pattern: &[u8], name: &[u8]) -> bool {
+    match (pattern.first(), name.first()) {
+        (None, None) => true,
+        (Some(b'*'), _) => glob_match(&pattern[1..], name) || (!name.is_empty() && glob_match(pattern, &name[1..])),
+        (Some(b'?'), Some(_)) => glob_match(&pattern[1..], &name[1..]),
+        (Some(p), Some(n)) if p == n => glob_match(&pattern[1..], &name[1..]),
+        _ => false,
+    }
 }
 
 /// A URDF model with its description, every name resolved.
@@ -253,6 +267,8 @@ pub struct Robot {
     pub touch_links: Vec<usize>,
     /// The links whose collision meshes collide as convex parts (None: each mesh as its hull).
     pub decomposition: Option<Decomposition>,
+    /// The description's default sensor rules (`sensors:`), as written.
+    pub sensors: Option<serde_yaml::Value>,
 }
 
 // The robots vtgen carries, chosen by name (`robot.model`): one folder each under `robots/`

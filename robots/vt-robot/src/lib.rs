@@ -15,7 +15,7 @@ mod resolve;
 
 pub use description::{
     BUILTIN_ROBOTS, Decomposition, DecompositionSpec, Description, GraspKind, HandJoint, PRISMATIC_DAMPING_TIME,
-    PRISMATIC_FULL_FORCE_ERROR, Pad, PadGroup, Robot, builtin_description,
+    PRISMATIC_FULL_FORCE_ERROR, Pad, Robot, builtin_description,
 };
 pub use ik::IkOptions;
 pub use mesh::{MeshPaths, TriangleMesh};

@@ -308,7 +308,7 @@ impl RobotModel {
         out
     }
 
-    /// Pose of `link` relative to `ancestor` (e.g. a phalanx in the palm frame).
+    /// Pose of `link` relative to `ancestor` (e.g. a finger link in the palm frame).
     pub fn relative_pose(&self, q: &[f64], ancestor: usize, link: usize) -> DAffine3 {
         let mut t = DAffine3::IDENTITY;
         let mut l = link;

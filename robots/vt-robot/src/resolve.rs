@@ -210,7 +210,8 @@ fn pad(model: &mut RobotModel, i: usize, p: &PadSpec, hand_root: usize, listed: 
         Some(s) => return Err(at(here(key!(p.size)), format!("{s:?}: length and width must be positive (m)"))),
         None => None,
     };
-    Ok(Pad { name: p.name.clone(), link: on, frame, size, group: p.group })
+    let labels = p.labels.iter().chain(&p.group).cloned().collect();
+    Ok(Pad { name: p.name.clone(), link: on, frame, size, labels })
 }
 
 /// The links whose contact counts as touching: the description's, or the pads' links.
@@ -323,6 +324,7 @@ impl Robot {
             pads,
             touch_links,
             decomposition,
+            sensors: desc.sensors,
         };
         robot.azimuth_offset = match desc.arm.azimuth_offset {
             Some(a) => a,

@@ -135,7 +135,7 @@ fn description_error(from: &str, to: &str) -> String {
 #[test]
 fn broken_descriptions_name_the_file_and_the_field() {
     let cases = [
-        ("link: ff_distal,", "link: ff_distl,", "line 39: pads[2].link: no link 'ff_distl' in the URDF"),
+        ("link: ff_distal,", "link: ff_distl,", "line 40: pads[2].link: no link 'ff_distl' in the URDF"),
         ("base: base_link", "base: palm", "arm: 'flange' is not below 'palm': the arm is not one serial chain"),
         ("frame: palm", "frame: base_link", "grasp.frame: 'base_link' is not fixed below the flange 'flange'"),
         ("frame: palm", "frame: ff_distal", "grasp.frame: 'ff_distal' moves against the flange"),
@@ -408,7 +408,7 @@ fn a_pads_default_size_runs_along_its_own_axes() {
         .add_fixed_link(finger, "tip_pad", xyz_rpy([0.0, 0.01, 0.0], [0.0, -std::f64::consts::FRAC_PI_2, std::f64::consts::FRAC_PI_2]))
         .unwrap();
     robot.model = model;
-    robot.pads = vec![Pad { name: "tip".into(), link: finger, frame, size: None, group: PadGroup::Distal }];
+    robot.pads = vec![Pad { name: "tip".into(), link: finger, frame, size: None, labels: Vec::new() }];
     let (len, wid) = robot.pad_sizes()[0];
     assert!((len - 0.03).abs() < 1e-12 && (wid - 0.01).abs() < 1e-12, "{len} {wid}");
     // The Allegro's pads keep their sizes: box z by box y, plus the tip sphere on the distal ones.
@@ -424,4 +424,16 @@ fn a_pads_default_size_runs_along_its_own_axes() {
         assert_eq!(*wid, last.y, "{}", pad.name);
         assert!(*len == last.z || *len > last.z + 0.005, "{}: the box's length, exactly, or with the tip sphere", pad.name);
     }
+}
+
+#[test]
+fn a_sensor_rule_selects_pads_by_glob_or_label() {
+    let robot = Robot::allegro();
+    let selected = |pattern: &str| robot.pads.iter().filter(|p| p.matches(pattern)).map(|p| p.name.clone()).collect::<Vec<_>>();
+    assert_eq!(selected("*").len(), 12);
+    assert_eq!(selected("th_*"), ["th_proximal", "th_medial", "th_distal"]);
+    assert_eq!(selected("?f_medial"), ["ff_medial", "mf_medial", "rf_medial"]);
+    assert_eq!(selected("distal"), ["ff_distal", "mf_distal", "rf_distal", "th_distal"], "a label");
+    assert_eq!(selected("*_tip").len(), 0);
+    assert_eq!(selected("ff_distal*"), ["ff_distal"]);
 }

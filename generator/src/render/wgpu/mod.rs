@@ -31,7 +31,7 @@ const UNIFORM_STRIDE: u64 = 256;
 const FRAME_STRIDE: u64 = 512;
 /// Draw records (view x draw) per render call.
 const MAX_DRAWS: usize = 1024;
-/// Views per render call (the main camera, or the 12 phalanx cameras).
+/// Views per render call (the main camera, or the pad cameras).
 const MAX_VIEWS: usize = 16;
 
 mod device;

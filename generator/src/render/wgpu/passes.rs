@@ -21,7 +21,7 @@ pub(super) struct Submission<'a> {
     pub(super) views: &'a [ViewSpec],
     pub(super) readback: Readback,
     /// Per view, a box in its camera frame (half x, half y, near, far): only the mesh clusters
-    /// that overlap it are drawn (the small phalanx views see a few of them).
+    /// that overlap it are drawn (the small pad views see a few of them).
     pub(super) cull: Option<&'a [[f64; 4]]>,
     /// Optical tactile images shaded from the depth views, after them (`optical.rs`).
     pub(super) optical: &'a [crate::render::GelShading],

@@ -33,7 +33,7 @@ pub(super) struct Readbacks {
 pub(super) enum Slot {
     /// The main camera (anti-aliased when msaa > 1).
     Main = 0,
-    /// The atlas of phalanx depth views.
+    /// The atlas of pad depth views.
     TactileAtlas = 1,
 }
 
@@ -58,7 +58,7 @@ impl WgpuRenderer {
             let mask_tex = make("mask", MASK_FORMAT);
             let silhouette_tex = make("silhouette", SILHOUETTE_FORMAT);
             let zbuf_tex = make("z-buffer", ZBUF_FORMAT);
-            // Only the main view is anti-aliased; the phalanx depth views are not.
+            // Only the main view is anti-aliased; the pad depth views are not.
             let msaa = (slot == Slot::Main && self.msaa > 1).then(|| {
                 let make_ms = |label, format| {
                     self.device
