@@ -33,7 +33,6 @@ from mcap.writer import Writer as McapWriter
 from mcap_protobuf.schema import build_file_descriptor_set
 
 from vtdata.format import (
-    ALLEGRO_PHALANGES,
     EPISODE_FRAME_KEYS,
     EPISODE_METADATA_KEY,
     EPISODE_RECORD_KEYS,
@@ -69,6 +68,7 @@ from vtdata.format import (
     TACTILE_MARKERS_SUFFIX,
     TACTILE_POINT_DTYPE,
     TACTILE_POINT_FIELDS,
+    TACTILE_POINT_PAD_FIELD,
     TACTILE_POINT_STRIDE,
     TACTILE_REFERENCE_SUFFIX,
     TOPIC_CALIBRATION,
@@ -106,16 +106,18 @@ OPTICAL_SIZE = (5, 3)
 #: Every synthetic pad's sensing area (length along its x, width along its y; m): ``/sample/info``
 #: ``tactile.pads``, and the extent of its force grid.
 PAD_SIZE = (0.02, 0.015)
+#: The UR5e + Allegro's 12 pads in pad index order, the names its datasets hold (the reader
+#: knows no robot's pads: it reads them from the shard).
+ALLEGRO_PADS = tuple(f"{f}_{p}" for f in ("ff", "mf", "rf", "th") for p in ("proximal", "medial", "distal"))
 #: The robots the synthetic writer can put in a sample: their pads in index order (the order of
-#: the ``phalanx`` index and of the ``/tactile/<pad>/depth`` channels) and their joints.
-ALLEGRO_PADS = ALLEGRO_PHALANGES
+#: the points' pad index and of the ``/tactile/<pad>/depth`` channels) and their joints.
 ROBOTS: Dict[str, Dict[str, Any]] = {
     "ur5e_allegro": {
         "pads": ALLEGRO_PADS,
         "joints": [f"{j}_joint" for j in ("shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2", "wrist_3")]
         + [f"{f}_joint_{k}" for f in ("ff", "mf", "rf", "th") for k in range(4)],
     },
-    # Not in name order, so a reader that sorts the names gets the phalanx index wrong.
+    # Not in name order, so a reader that sorts the names gets the pad index wrong.
     "robotiq_2f85": {
         "pads": ("right_pad", "left_pad"),
         "joints": [f"joint_{k}" for k in range(1, 8)] + ["finger_joint", "right_outer_knuckle_joint"],
@@ -144,7 +146,7 @@ class SyntheticSample:
     world_object: Pose
     info: Dict[str, Any] = field(default_factory=dict)
     #: With a robot: ``pads`` (names in index order), ``points`` (N, 3) float32, ``distance`` (N,)
-    #: float32, ``phalanx`` (N,) uint32, ``depth`` (P, R, R) float32; with optical pads also
+    #: float32, ``pad`` (N,) uint32 pad index, ``depth`` (P, R, R) float32; with optical pads also
     #: ``images`` and ``references``, ``{pad: (H, W, 3) uint8}`` in pad order; ``forces``, with
     #: force fields ``{pad: {"position", "pressure", "shear", "slip"}}`` in pad order (the arrays
     #: vtdata returns), else empty; ``markers``, with marker flow ``{pad: {"position", "rest"}}``
@@ -225,8 +227,8 @@ def make_tactile(
     n_pads = len(pads)
     touching = sorted(rng.choice(n_pads, size=min(2, n_pads), replace=False).tolist())
     counts = [int(rng.integers(1, 5)) if k in touching else 0 for k in range(n_pads)]
-    phalanx = np.repeat(np.arange(n_pads, dtype=np.uint32), counts)
-    n = len(phalanx)
+    pad = np.repeat(np.arange(n_pads, dtype=np.uint32), counts)
+    n = len(pad)
     depth = rng.uniform(0.0, 0.01, size=(n_pads, TACTILE_RESOLUTION, TACTILE_RESOLUTION))
     depth[:, 0, 0] = np.inf
     w, h = OPTICAL_SIZE
@@ -235,7 +237,7 @@ def make_tactile(
         "pads": list(pads),
         "points": rng.uniform(-0.5, 0.5, size=(n, 3)).astype(np.float32),
         "distance": rng.uniform(-0.001, 0.002, size=n).astype(np.float32),
-        "phalanx": phalanx,
+        "pad": pad,
         "depth": depth.astype(np.float32),
         "counts": counts,
         "touching": [pads[k] for k in touching],
@@ -254,6 +256,22 @@ def make_tactile(
             p: make_marker_flow(per_pad[p], pads.index(p) in touching, rng) for p in optical_pads
         }
     return tactile
+
+
+def sensors_info(pads: Sequence[str], optical: Sequence[str] = ()) -> Dict[str, Any]:
+    """``/sample/info`` ``tactile.sensors``: one entry per pad, its sensor model (the per-pad shape;
+    datasets of earlier generators have one entry per finger segment instead). The optical pads'
+    are ``optical``, the others' ``depth_camera``, but for a ``taxel_array`` on a pad of a robot
+    with more than two, so every model's entry shape is written."""
+    out: Dict[str, Any] = {}
+    for k, pad in enumerate(pads):
+        if pad in optical:
+            out[pad] = {"model": "optical"}
+        elif k == 0 and len(pads) > 2:
+            out[pad] = {"model": "taxel_array", "rows": 4, "cols": 4}
+        else:
+            out[pad] = {"model": "depth_camera"}
+    return out
 
 
 def optical_info(rng: np.random.Generator) -> Dict[str, Any]:
@@ -329,7 +347,7 @@ def make_sample(
                     "contact_threshold_mm": 2.0,
                     "near_mm": 0.0,
                     "far_mm": 20.0,
-                    "sensors": {},
+                    "sensors": sensors_info(spec["pads"], optical),
                     "pads": {p: list(PAD_SIZE) for p in spec["pads"]},
                     "points": dict(zip(spec["pads"], tactile["counts"])),
                 },
@@ -376,10 +394,10 @@ def _set_pose(position: Any, orientation: Any, pose: Pose) -> None:
 
 def _tactile_points(tac: Dict[str, Any]) -> bytes:
     """The ``/tactile/points`` data: one :data:`~vtdata.format.TACTILE_POINT_DTYPE` per point."""
-    points = np.zeros(len(tac["phalanx"]), dtype=TACTILE_POINT_DTYPE)
+    points = np.zeros(len(tac["pad"]), dtype=TACTILE_POINT_DTYPE)
     for axis, name in enumerate("xyz"):
         points[name] = tac["points"][:, axis]
-    points["distance"], points["phalanx"] = tac["distance"], tac["phalanx"]
+    points["distance"], points[TACTILE_POINT_PAD_FIELD] = tac["distance"], tac["pad"]
     return points.tobytes()
 
 
@@ -561,10 +579,12 @@ def write_shard(
     omit: Optional[Tuple[int, str]] = None,
     reverse_messages: bool = False,
     optical_encoding: str = TACTILE_IMAGE_ENCODING,
+    repeat: Optional[Tuple[int, str]] = None,
 ) -> None:
     """Write one shard: zstd, one chunk per sample, the ``vtgen.shard`` metadata record.
 
-    ``omit=(index, topic)`` leaves that message out (to test error reporting). With a robot the
+    ``omit=(index, topic)`` leaves that message out, ``repeat=(index, topic)`` writes it twice (to
+    test error reporting). With a robot the
     tactile channels are added as the Rust writer adds them: the points, then one depth channel per
     pad in the pads' index order, then for each optical pad (in that order) its image and its
     reference channel, then each pad's force channel, then each optical pad's markers channel.
@@ -586,12 +606,13 @@ def write_shard(
             for topic, payload in messages:
                 if omit == (s.index, topic):
                     continue
-                writer.add_message(
-                    channel_id=channels[topic],
-                    log_time=s.log_time,
-                    publish_time=s.log_time,
-                    data=payload,
-                )
+                for _ in range(2 if repeat == (s.index, topic) else 1):
+                    writer.add_message(
+                        channel_id=channels[topic],
+                        log_time=s.log_time,
+                        publish_time=s.log_time,
+                        data=payload,
+                    )
             writer.flush()  # close the chunk: exactly one chunk per sample
         writer.add_metadata(
             SHARD_METADATA,

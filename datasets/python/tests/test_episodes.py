@@ -51,10 +51,10 @@ def same_bytes(a: np.ndarray, b: np.ndarray) -> bool:
 
 
 def check_touch(reading: Dict[str, Any], expected: Dict[str, Any], images: bool) -> None:
-    assert reading["phalanges"] == list(expected["pads"])
+    assert reading["pads"] == list(expected["pads"])
     assert same_bytes(reading["points"], expected["points"])
     assert same_bytes(reading["distance"], expected["distance"])
-    assert same_bytes(reading["phalanx"], expected["phalanx"])
+    assert same_bytes(reading["pad"], expected["pad"])
     assert same_bytes(reading["depth"], expected["depth"])
     if images:
         assert list(reading["images"]) == list(expected["images"])
@@ -352,7 +352,7 @@ def test_rust_episode_frames(rust_episode_dataset: Path, rust_episodes: Dict[str
                 assert len(later) == (c // tp - 1 if k + 1 < frames else 0), f"{where}: touch at {later}"
                 assert all(abs(lt - (t + (j + 1) * tp * step_ns)) <= 1 for j, lt in enumerate(later))
                 for _, reading in streams["tactile"]:
-                    assert reading["phalanges"] == s["tactile"]["phalanges"]
+                    assert reading["pads"] == s["tactile"]["pads"]
                     assert list(reading.get("images", {})) == list(s.get("tactile_images", {}))
                 # Optical references: frame 0's, in every frame.
                 if "tactile_references" in s:

@@ -81,7 +81,7 @@ def test_force_fields_round_trip(tmp_path: Path, robot: str, optical: tuple, rev
     for i, expected in enumerate(samples["train"]):
         sample = ds[i]
         forces = sample["tactile"]["forces"]
-        assert list(forces) == sample["tactile"]["phalanges"] == pads
+        assert list(forces) == sample["tactile"]["pads"] == pads
         assert list(sample.get("tactile_images", {})) == list(optical)
         info = sample["info"]["tactile"]
         assert sorted(info["forces"]) == sorted(pads) and len(info["hand_force_n"]) == 3
@@ -298,7 +298,7 @@ def test_real_force_fields_balance(rust_force_datasets: List[Path]) -> None:
                 sample = ds[i]
                 where = f"{root.name} {split}[{i}]"
                 tactile, info = sample["tactile"], sample["info"]["tactile"]
-                pads = tactile["phalanges"]
+                pads = tactile["pads"]
                 assert list(tactile["forces"]) == pads, where
                 assert sorted(info["forces"]) == sorted(pads), where
                 assert len(info["hand_force_n"]) == 3, where

@@ -61,6 +61,7 @@ DESCRIBED = {
     "TACTILE_IMAGE_ENCODING": "pad_topics[].image_encoding",
     "IMAGE_ENCODINGS": "image_encodings",
     "TACTILE_POINT_FIELDS": "tactile_points.fields",
+    "TACTILE_POINT_PAD_FIELD": "tactile_points.fields",
     "TACTILE_POINT_STRIDE": "tactile_points.point_stride",
     "TACTILE_POINT_DTYPE": "tactile_points",
     "PACKED_ELEMENT_DTYPES": "tactile_points, force_cells, marker_points: fields[].type",
@@ -88,11 +89,9 @@ DESCRIBED = {
     "TOUCH_FORCE_KEYS": "records.touch_info",
     "PAD_FORCE_KEYS": "records.pad_force",
 }
-#: Constants of vtdata.format that format.json does not describe.
-NOT_DESCRIBED = {
-    "ALLEGRO_PHALANGES": "one robot's pad names: the robot is data, not format",
-    "PHALANGES": "alias of ALLEGRO_PHALANGES",
-}
+#: Constants of vtdata.format that format.json does not describe (none: a robot's pad names are
+#: data, read from the shard, not format).
+NOT_DESCRIBED: Dict[str, str] = {}
 
 
 @pytest.fixture(scope="module")
@@ -245,6 +244,10 @@ def _check_packed_layout(layout: Dict[str, Any], fields: Any, stride: int, dtype
 def test_tactile_points(spec: Dict[str, Any]) -> None:
     points = spec["tactile_points"]
     _check_packed_layout(points, fmt.TACTILE_POINT_FIELDS, fmt.TACTILE_POINT_STRIDE, fmt.TACTILE_POINT_DTYPE)
+    # The pad index: the last field, a uint32 (its wire name is the format's; the reader hands it
+    # out as tactile["pad"]).
+    last = points["fields"][-1]
+    assert last["name"] == fmt.TACTILE_POINT_PAD_FIELD and last["type"] == "UINT32"
     layouts = ("tactile_points", "force_cells", "marker_points")
     kinds = {f["type"] for layout in layouts for f in spec[layout]["fields"]}
     assert {k: np.dtype(v) for k, v in fmt.PACKED_ELEMENT_DTYPES.items()} == {
@@ -319,8 +322,6 @@ def test_reader_re_exports_the_format_constants() -> None:
         "FORMAT_VERSION",
         "REQUIRED_TOPICS",
         "EPISODE_METADATA_KEY",
-        "ALLEGRO_PHALANGES",
-        "PHALANGES",
         "TACTILE_DEPTH_PREFIX",
         "TACTILE_DEPTH_SUFFIX",
         "TACTILE_IMAGE_SUFFIX",

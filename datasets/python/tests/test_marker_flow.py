@@ -199,7 +199,7 @@ def test_markers_without_tactile_data_are_an_error(tmp_path: Path) -> None:
         Dataset(tmp_path / "ds", "train")[0]
     assert str(err.value) == (
         f"{_shard(tmp_path)}: sample 0 of split 'train': markers of right_pad, left_pad but no /tactile/points "
-        "(markers are of the robot's optical pads)"
+        "(every /tactile/<pad>/... stream is of a pad of the robot's tactile data)"
     )
 
 
@@ -311,7 +311,7 @@ def test_episode_touch_streams_check_the_markers_of_each_reading() -> None:
 
     def reading(**counts: int) -> Dict[str, Any]:
         markers = {pad: make_marker_flow(n, True, rng) for pad, n in counts.items()}
-        return {"phalanges": ["a", "b"], "depth": np.zeros((2, 1, 1), np.float32), "phalanx": np.zeros(0, np.uint32), "markers": markers}
+        return {"pads": ["a", "b"], "depth": np.zeros((2, 1, 1), np.float32), "pad": np.zeros(0, np.uint32), "markers": markers}
 
     out = _touch_arrays([(0, reading(a=3, b=4)), (5, reading(a=3, b=4))], "here")
     assert {pad: m.shape for pad, m in out["markers"].items()} == {"a": (2, 3, 4), "b": (2, 4, 4)}

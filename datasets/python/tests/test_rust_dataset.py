@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 
 import vtdata
+from synthetic import ALLEGRO_PADS
 from vtgen_cli import SCENES, run
 
 if os.environ.get("VTDATA_SKIP_RUST") == "1":
@@ -176,24 +177,22 @@ def test_torch_dataloader_over_train(rust_dataset: Path, splits: Dict[str, vtdat
 def test_tactile_data_of_a_robot_dataset(rust_hand_dataset: Path) -> None:
     """The grasp scene carries the tactile point cloud and one image per pad of the robot: the
     pads come from the data (the scene's robot is the UR5e + Allegro: its 12 pads, in order)."""
-    from vtdata import reader as r
-
     ds = vtdata.Dataset(rust_hand_dataset, "train")
     total = 0
     for i in range(len(ds)):
         s = ds[i]
         t = s["tactile"]
-        pads = t["phalanges"]
-        assert pads == list(r.ALLEGRO_PHALANGES), "tiny-hand.yaml's robot is the Allegro"
+        pads = t["pads"]
+        assert pads == list(ALLEGRO_PADS), "tiny-hand.yaml's robot is the Allegro"
         assert sorted(pads) == sorted(s["info"]["tactile"]["pads"])
         assert t["depth"].shape == (len(pads), 32, 32) and t["depth"].dtype == np.float32
         n = len(t["points"])
-        assert t["points"].shape == (n, 3) and t["distance"].shape == (n,) and t["phalanx"].shape == (n,)
-        assert (t["phalanx"] < len(pads)).all()
+        assert t["points"].shape == (n, 3) and t["distance"].shape == (n,) and t["pad"].shape == (n,)
+        assert t["pad"].dtype == np.uint32 and (t["pad"] < len(pads)).all()
         counts = s["info"]["tactile"]["points"]
         assert sum(counts.values()) == n
         for k, name in enumerate(pads):
-            assert int((t["phalanx"] == k).sum()) == counts[name]
+            assert int((t["pad"] == k).sum()) == counts[name]
         total += n
     assert total > 0
 
@@ -212,7 +211,7 @@ def test_optical_images_match_rust_dump(vtgen_bin: str, rust_gripper_dataset: Pa
             _dump(vtgen_bin, root, split, index, out)
             sample = ds[index]
             optical = sample["info"]["tactile"]["optical"]
-            pads = [p for p in sample["tactile"]["phalanges"] if p in optical]
+            pads = [p for p in sample["tactile"]["pads"] if p in optical]
             assert pads, f"{root}: {split}[{index}] lists no optical pad in /sample/info"
             assert list(sample["tactile_images"]) == list(sample["tactile_references"]) == pads
             for pad in pads:
@@ -240,7 +239,7 @@ def _shard_summary(root: Path) -> Tuple[Dict[str, str], Dict[str, bytes]]:
 
 
 def test_reader_constants_match_what_the_rust_writer_writes(rust_dataset: Path, rust_hand_dataset: Path) -> None:
-    """The Python reader's constants (topics, manifest format, phalanx order, the info fields it
+    """The Python reader's constants (topics, manifest format, pad order, the info fields it
     reads) checked against shards and the `/sample/info` JSON schema the Rust writer produced."""
     from vtdata import reader as r
 
@@ -254,7 +253,7 @@ def test_reader_constants_match_what_the_rust_writer_writes(rust_dataset: Path, 
     assert r.TOPIC_TACTILE_POINTS in hand_topics
     # tiny-hand.yaml's robot is the Allegro: its 12 pads, each a /tactile/<pad>/depth topic.
     pad_topics = {t for t in hand_topics if r.pad_of_topic(t) is not None}
-    assert pad_topics == {f"/tactile/{p}/depth" for p in r.ALLEGRO_PHALANGES}
+    assert pad_topics == {f"/tactile/{p}/depth" for p in ALLEGRO_PADS}
     known = {v for k, v in vars(r).items() if k.startswith("TOPIC_")}
     unknown = {t for t in hand_topics if t not in known and not t.startswith("/tactile/")} - {r.TOPIC_SCENE_MODELS}
     assert not unknown, f"topics the writer writes and the reader names no constant for: {unknown}"
@@ -268,17 +267,17 @@ def test_reader_constants_match_what_the_rust_writer_writes(rust_dataset: Path, 
     assert schemas[topics[r.TOPIC_INFO]] == hand_schemas[hand_topics[r.TOPIC_INFO]], "one /sample/info schema"
 
     # The pad order the reader reads from the shard (its channels) is the writer's: the Allegro's
-    # order, the one of phalanges_in_contact (the Allegro's touch links are its pads' links, named
-    # as the pads).
+    # order, the one of the info's touch links in contact (the Allegro's touch links are its pads'
+    # links, named as the pads).
     ds = vtdata.Dataset(rust_hand_dataset, "train")
     sample = ds[0]
-    pads = sample["tactile"]["phalanges"]
-    assert pads == list(r.ALLEGRO_PHALANGES)
-    contact = sample["info"]["phalanges_in_contact"]
+    pads = sample["tactile"]["pads"]
+    assert pads == list(ALLEGRO_PADS)
+    contact = sample["info"]["phalanges_in_contact"]  # the wire name of format version 1
     assert set(contact) <= set(pads)
-    assert sorted(contact, key=pads.index) == contact, "phalanges_in_contact in the writer's order"
-    idx = set(np.unique(sample["tactile"]["phalanx"]).tolist())
-    assert {pads[i] for i in idx} <= set(contact), "tactile points only on phalanges in contact"
+    assert sorted(contact, key=pads.index) == contact, "the links in contact in the writer's order"
+    idx = set(np.unique(sample["tactile"]["pad"]).tolist())
+    assert {pads[i] for i in idx} <= set(contact), "tactile points only on pads whose links touch"
 
 
 def sample_level_keys_are_written(root: Path) -> bool:

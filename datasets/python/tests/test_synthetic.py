@@ -21,6 +21,7 @@ import vtdata
 from vtdata import Dataset, DatasetError, PlyError, load_ply
 
 from synthetic import (
+    ALLEGRO_PADS,
     OBJECT_ID,
     OPTICAL_SIZE,
     ROBOTS,
@@ -417,29 +418,30 @@ def test_quaternion_matrix():
 def test_tactile_of_any_robot(tmp_path, robot, reverse):
     """The Allegro's 12 pads, a parallel gripper's 2 (not in name order), a 3-finger gripper's 6:
     the pads are the shard's ``/tactile/<pad>/depth`` topics in their channels' order (the order of
-    the ``phalanx`` index), whatever order the messages of a chunk come in."""
+    the points' pad index), whatever order the messages of a chunk come in."""
     root = tmp_path / "ds"
     samples = write_dataset(root, {"train": 3}, 2, robot=robot, reverse_messages=reverse)
     pads = list(ROBOTS[robot]["pads"])
     if robot == "ur5e_allegro":
-        assert pads == list(vtdata.reader.PHALANGES) == list(vtdata.reader.ALLEGRO_PHALANGES)
+        assert pads == list(ALLEGRO_PADS) and len(pads) == 12
     ds = Dataset(root, "train")
     for i, expected in enumerate(samples["train"]):
         sample = ds[i]
         check_sample(sample, expected)
         t, want = sample["tactile"], expected.tactile
-        assert t["phalanges"] == pads
+        assert t["pads"] == pads
+        assert "phalanx" not in t and "phalanges" not in t, "the reader says pad, not the wire name"
         r = TACTILE_RESOLUTION
         assert t["depth"].shape == (len(pads), r, r)
         assert_bit_exact(t["depth"], want["depth"], "tactile depth")
         assert_bit_exact(t["points"], want["points"], "tactile points")
         assert_bit_exact(t["distance"], want["distance"], "tactile distance")
-        assert_bit_exact(t["phalanx"], want["phalanx"], "tactile phalanx")
+        assert_bit_exact(t["pad"], want["pad"], "tactile pad index")
         counts = sample["info"]["tactile"]["points"]
         assert sum(counts.values()) == len(t["points"]) > 0
-        for k, name in enumerate(t["phalanges"]):
-            assert int((t["phalanx"] == k).sum()) == counts[name], name
-        touched = {t["phalanges"][k] for k in np.unique(t["phalanx"]).tolist()}
+        for k, name in enumerate(t["pads"]):
+            assert int((t["pad"] == k).sum()) == counts[name], name
+        touched = {t["pads"][k] for k in np.unique(t["pad"]).tolist()}
         assert touched <= set(sample["info"]["phalanges_in_contact"])
         assert len(sample["info"]["joint_positions"]) == len(ROBOTS[robot]["joints"])
 
@@ -449,12 +451,12 @@ def test_tactile_pads_must_match_the_info(tmp_path):
     root = tmp_path / "ds"
     write_dataset(root, {"train": 2}, 2, robot="robotiq_2f85", omit=("train", 1, "/tactile/left_pad/depth"))
     ds = Dataset(root, "train")
-    assert ds[0]["tactile"]["phalanges"] == ["right_pad", "left_pad"]
+    assert ds[0]["tactile"]["pads"] == ["right_pad", "left_pad"]
     with pytest.raises(DatasetError, match=r"sample 1 .*tactile\.pads lists the pads \['left_pad', 'right_pad'\]"):
         ds[1]
 
 
-def test_tactile_phalanx_index_beyond_the_pads():
+def test_tactile_pad_index_beyond_the_pads():
     from foxglove_schemas_protobuf.PointCloud_pb2 import PointCloud
 
     from vtdata.reader import _tactile
@@ -463,10 +465,10 @@ def test_tactile_phalanx_index_beyond_the_pads():
     cloud = PointCloud(point_stride=20, data=struct.pack("<4fI", 0, 0, 0, 0, 2))
     decoded = {"/tactile/points": cloud, "/tactile/a/depth": image, "/tactile/b/depth": image}
     ids = {"/tactile/points": 9, "/tactile/b/depth": 10, "/tactile/a/depth": 11}
-    with pytest.raises(DatasetError, match="phalanx index 2 but the sample has 2 pads"):
+    with pytest.raises(DatasetError, match="pad index 2 but the sample has 2 pads"):
         _tactile(decoded, ids, "here")
     cloud.data = struct.pack("<4fI", 0, 0, 0, 0, 1)
-    assert _tactile(decoded, ids, "here")["phalanges"] == ["b", "a"]
+    assert _tactile(decoded, ids, "here")["pads"] == ["b", "a"]
     with pytest.raises(DatasetError, match="no /tactile/<pad>/depth"):
         _tactile({"/tactile/points": cloud}, ids, "here")
 
@@ -486,7 +488,7 @@ def test_densefusion_and_torch_of_a_gripper(tmp_path):
     from vtdata.torch import TorchDataset, collate
 
     batch = collate([TorchDataset(root, "train")[i] for i in range(2)])
-    assert [t["phalanges"] for t in batch["tactile"]] == [["right_pad", "left_pad"]] * 2
+    assert [t["pads"] for t in batch["tactile"]] == [["right_pad", "left_pad"]] * 2
 
 
 # --- optical tactile sensors: /tactile/<pad>/image and /tactile/<pad>/reference -------------------
@@ -514,7 +516,7 @@ def test_optical_images_of_some_pads(tmp_path, robot, optical, order, reverse):
     for i, expected in enumerate(samples["train"]):
         sample = ds[i]
         check_sample(sample, expected)
-        assert sample["tactile"]["phalanges"] == list(ROBOTS[robot]["pads"])
+        assert sample["tactile"]["pads"] == list(ROBOTS[robot]["pads"])
         images, references = sample["tactile_images"], sample["tactile_references"]
         assert list(images) == list(references) == order
         assert sample.tactile_images is images  # attribute access
@@ -553,7 +555,7 @@ def test_optical_image_errors(tmp_path):
 
     root = tmp_path / "no-image"
     write_dataset(root, {"train": 1}, 1, omit=("train", 0, "/tactile/left_pad/image"), **kw)
-    with pytest.raises(DatasetError, match=r"/tactile/left_pad/reference without its /tactile/<pad>/image"):
+    with pytest.raises(DatasetError, match=r"sample 0 .*: /sample/info tactile\.optical lists the optical pads \['left_pad'\], the sample has optical images of \[\]"):
         Dataset(root, "train")[0]
 
     # /sample/info lists an optical pad whose images are missing, or another image size.
@@ -563,7 +565,7 @@ def test_optical_image_errors(tmp_path):
     samples[1].info["tactile"]["optical"]["left_pad"]["image_size"] = [4, 3]
     write_shard(root / "train" / "shard-00000.mcap", "train", 0, samples)
     ds = Dataset(root, "train")
-    with pytest.raises(DatasetError, match=r"tactile\.optical lists the optical pads \['left_pad', 'right_pad'\], the sample has images of \['left_pad'\]"):
+    with pytest.raises(DatasetError, match=r"tactile\.optical lists the optical pads \['left_pad', 'right_pad'\], the sample has optical images of \['left_pad'\]"):
         ds[0]
     with pytest.raises(DatasetError, match=r"sample 1 .*/tactile/left_pad/image is 5x3, but /sample/info tactile\.optical\.left_pad\.image_size is \[4, 3\]"):
         ds[1]
@@ -575,16 +577,61 @@ def test_optical_images_must_be_of_tactile_pads():
     rgb = RawImage(width=2, height=1, encoding="rgb8", step=6, data=bytes(range(6)))
     small = RawImage(width=1, height=1, encoding="rgb8", step=3, data=bytes(3))
     decoded = {"/tactile/a/image": rgb, "/tactile/a/reference": rgb}
-    tactile = {"phalanges": ["b", "a"]}
-    images, references = _optical(decoded, {}, "here", tactile)
+    pads = ["b", "a"]
+    images, references = _optical(decoded, {}, "here", pads)
     assert images["a"].tolist() == [[[0, 1, 2], [3, 4, 5]]] and references["a"].shape == (1, 2, 3)
-    assert _optical({}, {}, "here", tactile) is None
+    assert _optical({}, {}, "here", pads) is None
     with pytest.raises(DatasetError, match="optical images of a but no /tactile/points"):
         _optical(decoded, {}, "here", None)
     with pytest.raises(DatasetError, match="optical images of a, which are not pads of the sample"):
-        _optical(decoded, {}, "here", {"phalanges": ["b"]})
+        _optical(decoded, {}, "here", ["b"])
+    with pytest.raises(DatasetError, match=r"^here: reference images of a, which are not optical pads of the sample \(no /tactile/<pad>/image\)$"):
+        _optical({"/tactile/a/reference": rgb}, {}, "here", pads)
     with pytest.raises(DatasetError, match="/tactile/a/reference is 1x1, its image 2x1"):
-        _optical({**decoded, "/tactile/a/reference": small}, {}, "here", tactile)
+        _optical({**decoded, "/tactile/a/reference": small}, {}, "here", pads)
+
+
+def test_every_pad_stream_is_read_by_the_shared_reader():
+    """Every ``/tactile/<pad>/...`` stream of the format is one ``_PadStream`` read by
+    ``_pad_stream``: the same errors, whatever the stream, for a pad the sample does not have and
+    for a pad stream without tactile data."""
+    from vtdata import decoders as d
+
+    streams = [d.PAD_DEPTH, d.PAD_IMAGE, d.PAD_REFERENCE, d.PAD_FORCE, d.PAD_MARKERS]
+    assert {s.suffix for s in streams} == set(vtdata.format.PAD_TOPIC_SCHEMAS)
+    for stream in streams:
+        decoded = {f"/tactile/a{stream.suffix}": None}  # refused before it is decoded
+        with pytest.raises(DatasetError, match=rf"^here: {stream.what} of a, which are not pads of the sample \(no /tactile/<pad>/depth; pads: b\)$"):
+            d._pad_stream(decoded, {}, "here", stream, ["b"])
+        with pytest.raises(DatasetError, match=rf"^here: {stream.what} of a but no /tactile/points "):
+            d._pad_stream(decoded, {}, "here", stream, None)
+        assert d._pad_stream({}, {}, "here", stream, None) == ({}, None)
+
+
+@pytest.mark.parametrize(
+    "topic",
+    [
+        "/tactile/points",
+        "/tactile/left_pad/depth",
+        "/tactile/left_pad/image",
+        "/tactile/left_pad/reference",
+        "/tactile/left_pad/force",
+        "/tactile/left_pad/markers",
+        "/camera/rgb",
+    ],
+)
+def test_a_topic_twice_in_a_sample_is_refused(tmp_path, topic):
+    """Two messages of one sample on a topic the reader decodes (any pad stream among them): a
+    ``DatasetError`` naming the shard, the sample and the topic, not the last one silently."""
+    root = tmp_path / "ds"
+    kw = dict(robot="robotiq_2f85", optical=("left_pad",), force_resolution=2, marker_count=4)
+    samples = write_dataset(root, {"train": 2}, 2, **kw)["train"]
+    shard = root / "train" / "shard-00000.mcap"
+    write_shard(shard, "train", 0, samples, repeat=(1, topic))
+    ds = Dataset(root, "train")
+    assert list(ds[0]["tactile"]["forces"]) == ["right_pad", "left_pad"]
+    with pytest.raises(DatasetError, match=rf"^{shard}: sample 1 of split 'train': more than one {topic} message$"):
+        ds[1]
 
 
 def test_torch_passes_optical_images_through(tmp_path):

@@ -10,7 +10,7 @@ when the data does not follow the format.
 from __future__ import annotations
 
 import json
-from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple
+from typing import Any, Callable, Dict, List, Mapping, NamedTuple, Optional, Sequence, Tuple
 
 import numpy as np
 from mcap.decoder import DecoderFactory as _McapDecoderFactory
@@ -25,6 +25,7 @@ from .format import (
     IMAGE_ENCODINGS,
     MARKER_POINT_DTYPE,
     MESSAGE_ENCODING_JSON,
+    PAD_TOPIC_SCHEMAS,
     TACTILE_DEPTH_ENCODING,
     TACTILE_DEPTH_PREFIX,
     TACTILE_DEPTH_SUFFIX,
@@ -33,6 +34,7 @@ from .format import (
     TACTILE_IMAGE_SUFFIX,
     TACTILE_MARKERS_SUFFIX,
     TACTILE_POINT_DTYPE,
+    TACTILE_POINT_PAD_FIELD,
     TACTILE_REFERENCE_SUFFIX,
     TOPIC_CALIBRATION,
     TOPIC_DEPTH,
@@ -42,14 +44,14 @@ from .format import (
     TOPIC_MASK,
     TOPIC_POSE,
     TOPIC_RGB,
+    TOPIC_SCENE_MODELS,
+    TOPIC_SCHEMAS,
     TOPIC_TACTILE_POINTS,
     TOPIC_TF,
     pad_of,
-    tactile_depth_topic,
-    tactile_force_topic,
     tactile_image_topic,
-    tactile_markers_topic,
     tactile_reference_topic,
+    tactile_topic,
 )
 
 # --- JSON messages ----------------------------------------------------------------------------
@@ -186,15 +188,30 @@ def _camera_fields(decoded: Mapping[str, Any], where: str) -> Dict[str, Any]:
     }
 
 
-# --- pads -------------------------------------------------------------------------------------
+# --- pads: one reader for every /tactile/<pad>/... stream -------------------------------------
 
-#: The ``/tactile/<pad><suffix>`` topics whose pads ``/sample/info`` lists: suffix -> (the
-#: ``tactile`` key listing them, what the pads are, what the sample has of them).
-_LISTED_PADS: Dict[str, Tuple[str, str, str]] = {
-    TACTILE_DEPTH_SUFFIX: ("pads", "pads", "depth images"),
-    TACTILE_IMAGE_SUFFIX: ("optical", "optical pads", "images"),
-    TACTILE_FORCE_SUFFIX: ("forces", "pads", "force fields"),
-}
+
+class _PadStream(NamedTuple):
+    """One kind of per-pad stream, ``/tactile/<pad><suffix>``: what :func:`_pad_stream` needs to
+    read it. Everything else (the pads in channel order, the ``/sample/info`` list, the pads being
+    the sample's, decoding with errors that name the topic, one size for all) is the same for every
+    kind and done there once."""
+
+    #: The topic's end (``/depth``, ``/image``, ``/reference``, ``/force``, ``/markers``).
+    suffix: str
+    #: What the messages are, in errors ("force fields of a, b ...").
+    what: str
+    #: One pad's message -> its value; ``where`` names the shard, the sample and the topic.
+    decode: Callable[[Any, str], Any]
+    #: The ``/sample/info`` ``tactile`` key that lists exactly the pads with this stream (``{pad:
+    #: ...}``, checked when the info has it) and what those pads are called in errors; ``None``.
+    listed: Optional[Tuple[str, str]] = None
+    #: Another stream every pad of this one must have (markers and references: the pad's optical
+    #: image) and what such pads are called in errors; ``None`` for none besides the depth image.
+    needs: Optional[Tuple[str, str]] = None
+    #: What must be the same for every pad's value ("size", "resolution") and how a value's is
+    #: written ("4x4"); ``None`` when each pad may have its own.
+    same: Optional[Tuple[str, Callable[[Any], str]]] = None
 
 
 def _pads_in_channel_order(
@@ -202,7 +219,7 @@ def _pads_in_channel_order(
 ) -> List[str]:
     """The pads of the ``/tactile/<pad><suffix>`` topics in ``decoded``, in the order of their
     channels: the writer adds a robot's pad channels in its pads' order, the order of the points'
-    ``phalanx`` index (names would sort otherwise, e.g. ``right`` before ``left``)."""
+    pad index (names would sort otherwise, e.g. ``right`` before ``left``)."""
     return [
         name
         for _, name in sorted(
@@ -211,14 +228,15 @@ def _pads_in_channel_order(
     ]
 
 
-def _check_listed_pads(
-    decoded: Mapping[str, Any], pads: Sequence[str], suffix: str, where: str
+def _listed_pads(
+    decoded: Mapping[str, Any], pads: Sequence[str], stream: _PadStream, where: str
 ) -> Optional[Dict[str, Any]]:
-    """Check the sample's pads with a ``/tactile/<pad><suffix>`` topic against the ones its
-    ``/sample/info`` lists (``tactile.pads`` for the depth images, ``tactile.optical`` for the
-    optical images, ``tactile.forces`` for the force fields), when the info has that list; return
-    the list (``{pad: ...}``) or ``None``."""
-    key, pads_are, images_are = _LISTED_PADS[suffix]
+    """The ``/sample/info`` list of the pads with ``stream`` (``tactile.pads`` for the depth
+    images, ``tactile.optical`` for the optical images, ``tactile.forces`` for the force fields),
+    checked against ``pads``, the sample's; ``None`` when the info has no such list."""
+    if stream.listed is None:
+        return None
+    key, pads_are = stream.listed
     info = decoded.get(TOPIC_INFO)
     touch = info.get("tactile") if isinstance(info, dict) else None
     listed = touch.get(key) if isinstance(touch, dict) else None
@@ -227,9 +245,106 @@ def _check_listed_pads(
     if set(listed) != set(pads):
         raise DatasetError(
             f"{where}: /sample/info tactile.{key} lists the {pads_are} {sorted(listed)}, the "
-            f"sample has {images_are} of {sorted(pads)} ({TACTILE_DEPTH_PREFIX}<pad>{suffix})"
+            f"sample has {stream.what} of {sorted(pads)} ({TACTILE_DEPTH_PREFIX}<pad>{stream.suffix})"
         )
     return listed
+
+
+def _pad_stream(
+    decoded: Mapping[str, Any],
+    channel_ids: Mapping[str, int],
+    where: str,
+    stream: _PadStream,
+    pads: Optional[Sequence[str]],
+) -> Tuple[Dict[str, Any], Optional[Dict[str, Any]]]:
+    """Read one kind of per-pad stream of a sample (or of an episode's touch reading): ``({pad:
+    value}, listed)`` with the pads in the order of their channels (the writer adds them in the
+    robot's pad order), empty without such topics, and the ``/sample/info`` list of those pads
+    (``None`` without one).
+
+    Checked, with a :class:`DatasetError` naming ``where`` (the shard and sample) and the topic:
+    the pads are the ones ``/sample/info`` lists for the stream (when it lists them); they are
+    pads of the sample (``pads``: its ``/tactile/<pad>/depth`` pads; ``None`` when it has no
+    tactile data, which no per-pad stream may come without); each has the stream ``needs``; each
+    message decodes; the values agree in ``same``. A topic with more than one message at one
+    instant never gets here: :func:`_add_message` refuses it.
+    """
+    names = _pads_in_channel_order(decoded, channel_ids, stream.suffix)
+    listed = _listed_pads(decoded, names, stream, where)
+    if not names:
+        return {}, listed
+    if pads is None:
+        raise DatasetError(
+            f"{where}: {stream.what} of {', '.join(names)} but no {TOPIC_TACTILE_POINTS} "
+            f"(every {TACTILE_DEPTH_PREFIX}<pad>/... stream is of a pad of the robot's tactile data)"
+        )
+    unknown = [p for p in names if p not in pads]
+    if unknown:
+        raise DatasetError(
+            f"{where}: {stream.what} of {', '.join(unknown)}, which are not pads of the sample "
+            f"(no {TACTILE_DEPTH_PREFIX}<pad>{TACTILE_DEPTH_SUFFIX}; pads: {', '.join(pads)})"
+        )
+    if stream.needs is not None:
+        suffix, pads_are = stream.needs
+        without = [p for p in names if tactile_topic(p, suffix) not in decoded]
+        if without:
+            raise DatasetError(
+                f"{where}: {stream.what} of {', '.join(without)}, which are not {pads_are} of the "
+                f"sample (no {TACTILE_DEPTH_PREFIX}<pad>{suffix})"
+            )
+    values: Dict[str, Any] = {}
+    for pad in names:
+        topic = tactile_topic(pad, stream.suffix)
+        values[pad] = stream.decode(decoded[topic], f"{where} {topic}")
+    if stream.same is not None:
+        aspect, describe = stream.same
+        if len({describe(v) for v in values.values()}) > 1:
+            raise DatasetError(
+                f"{where}: the pads' {stream.what} differ in {aspect}: "
+                + ", ".join(f"{p} {describe(v)}" for p, v in values.items())
+            )
+    return values, listed
+
+
+def _read_once(topic: str) -> bool:
+    """Whether the reader decodes ``topic``, so that a sample (or a touch reading) must have at
+    most one message on it: the fixed topics and every ``/tactile/<pad>/...`` stream it knows.
+    Other topics (later format versions, ``/scene/models``) are not its business."""
+    if topic in TOPIC_SCHEMAS:
+        return topic != TOPIC_SCENE_MODELS
+    return any(pad_of(topic, suffix) for suffix in PAD_TOPIC_SCHEMAS)
+
+
+def _add_message(group: Dict[str, Any], topic: str, value: Any, where: str) -> None:
+    """Put a message of one instant into ``group`` (topic -> message), refusing a second one on a
+    topic the reader decodes (:func:`_read_once`); ``where`` names the shard, sample and instant."""
+    if topic in group and _read_once(topic):
+        raise DatasetError(f"{where}: more than one {topic} message")
+    group[topic] = value
+
+
+def _image_decoder(encoding: str) -> Callable[[Any, str], np.ndarray]:
+    def decode(message: Any, where: str) -> np.ndarray:
+        return decode_raw_image(message, expect=encoding, where=where)
+
+    return decode
+
+
+def _image_size(image: np.ndarray) -> str:
+    return f"{image.shape[1]}x{image.shape[0]}"
+
+
+# --- tactile points and the pads' depth images ------------------------------------------------
+
+#: ``/tactile/<pad>/depth``: every pad has one, all the same size; ``/sample/info``
+#: ``tactile.pads`` lists the pads. The sample's pads are the pads of these topics.
+PAD_DEPTH = _PadStream(
+    TACTILE_DEPTH_SUFFIX,
+    "depth images",
+    _image_decoder(TACTILE_DEPTH_ENCODING),
+    listed=("pads", "pads"),
+    same=("size", _image_size),
+)
 
 
 def _tactile_points(cloud: Any, where: str) -> np.ndarray:
@@ -253,38 +368,29 @@ def _tactile(decoded: Dict[str, Any], channel_ids: Mapping[str, int], where: str
     ``/tactile/<pad>/markers`` topics (:func:`_markers`).
     """
     pts = _tactile_points(decoded[TOPIC_TACTILE_POINTS], where)
-    names = _pads_in_channel_order(decoded, channel_ids, TACTILE_DEPTH_SUFFIX)
-    _check_listed_pads(decoded, names, TACTILE_DEPTH_SUFFIX, where)
-    if not names:
+    pads = _pads_in_channel_order(decoded, channel_ids, TACTILE_DEPTH_SUFFIX)
+    depth, _ = _pad_stream(decoded, channel_ids, where, PAD_DEPTH, pads)
+    if not pads:
         raise DatasetError(
             f"{where}: {TOPIC_TACTILE_POINTS} but no /tactile/<pad>/depth message (no pad)"
         )
-    depth = [
-        decode_raw_image(decoded[t], expect=TACTILE_DEPTH_ENCODING, where=f"{where} {t}")
-        for t in map(tactile_depth_topic, names)
-    ]
-    shapes = {d.shape for d in depth}
-    if len(shapes) != 1:
+    index = pts[TACTILE_POINT_PAD_FIELD]
+    if len(pts) and int(index.max()) >= len(pads):
         raise DatasetError(
-            f"{where}: the pad depth images differ in size: "
-            + ", ".join(f"{n} {d.shape[1]}x{d.shape[0]}" for n, d in zip(names, depth))
-        )
-    if len(pts) and int(pts["phalanx"].max()) >= len(names):
-        raise DatasetError(
-            f"{where} {TOPIC_TACTILE_POINTS}: phalanx index {int(pts['phalanx'].max())} but the "
-            f"sample has {len(names)} pads ({', '.join(names)})"
+            f"{where} {TOPIC_TACTILE_POINTS}: pad index {int(index.max())} but the "
+            f"sample has {len(pads)} pads ({', '.join(pads)})"
         )
     out = {
         "points": np.ascontiguousarray(np.stack([pts["x"], pts["y"], pts["z"]], axis=1)),
         "distance": pts["distance"].copy(),
-        "phalanx": pts["phalanx"].copy(),
-        "phalanges": names,
-        "depth": np.stack(depth),
+        "pad": index.copy(),
+        "pads": pads,
+        "depth": np.stack(list(depth.values())),
     }
-    forces = _forces(decoded, channel_ids, where, names)
+    forces = _forces(decoded, channel_ids, where, pads)
     if forces is not None:
         out["forces"] = forces
-    markers = _markers(decoded, channel_ids, where, names)
+    markers = _markers(decoded, channel_ids, where, pads)
     if markers is not None:
         out["markers"] = markers
     return out
@@ -324,47 +430,28 @@ def _force_field(cloud: Any, where: str) -> Dict[str, np.ndarray]:
     }
 
 
+#: ``/tactile/<pad>/force``: a square grid per pad, every pad's the same resolution;
+#: ``/sample/info`` ``tactile.forces`` lists the pads.
+PAD_FORCE = _PadStream(
+    TACTILE_FORCE_SUFFIX,
+    "force fields",
+    _force_field,
+    listed=("forces", "pads"),
+    same=("resolution", lambda f: "{}x{}".format(*f["pressure"].shape)),
+)
+
+
 def _forces(
     decoded: Dict[str, Any],
     channel_ids: Mapping[str, int],
     where: str,
     pads: Optional[Sequence[str]],
 ) -> Optional[Dict[str, Dict[str, np.ndarray]]]:
-    """The pads' force fields ``{pad: field}`` (:func:`_force_field`), ``None`` when the sample has
-    no ``/tactile/<pad>/force`` topic.
-
-    The pads are the sample's force topics in the order of their channels (the writer adds them
-    in the robot's pad order); they must be pads of the tactile data (``pads``: the sample's
-    ``/tactile/<pad>/depth`` pads; ``None`` when it has no tactile data, which no force field may
-    come without) and, when ``/sample/info`` has ``tactile.forces``, the pads it lists. Every
-    field has the same resolution.
-    """
-    names = _pads_in_channel_order(decoded, channel_ids, TACTILE_FORCE_SUFFIX)
-    _check_listed_pads(decoded, names, TACTILE_FORCE_SUFFIX, where)
-    if not names:
-        return None
-    if pads is None:
-        raise DatasetError(
-            f"{where}: force fields of {', '.join(names)} but no {TOPIC_TACTILE_POINTS} "
-            "(force fields are of the pads of the robot's tactile data)"
-        )
-    unknown = [p for p in names if p not in pads]
-    if unknown:
-        raise DatasetError(
-            f"{where}: force fields of {', '.join(unknown)}, which are not pads of the sample "
-            f"(no /tactile/<pad>/depth; pads: {', '.join(pads)})"
-        )
-    fields = {
-        pad: _force_field(decoded[topic], f"{where} {topic}")
-        for pad, topic in zip(names, map(tactile_force_topic, names))
-    }
-    sizes = {f["pressure"].shape for f in fields.values()}
-    if len(sizes) != 1:
-        raise DatasetError(
-            f"{where}: the pads' force fields differ in resolution: "
-            + ", ".join(f"{p} {f['pressure'].shape[0]}x{f['pressure'].shape[1]}" for p, f in fields.items())
-        )
-    return fields
+    """The pads' force fields ``{pad: field}`` (:func:`_force_field`, read by :func:`_pad_stream`),
+    ``None`` when the sample has no ``/tactile/<pad>/force`` topic. ``pads``: the sample's pads,
+    ``None`` when it has no tactile data (then a force field is an error)."""
+    fields, _ = _pad_stream(decoded, channel_ids, where, PAD_FORCE, pads)
+    return fields or None
 
 
 def force_array(forces: Mapping[str, Mapping[str, np.ndarray]]) -> np.ndarray:
@@ -409,60 +496,42 @@ def _marker_flow(cloud: Any, where: str) -> Dict[str, np.ndarray]:
     }
 
 
+#: ``/tactile/<pad>/markers``: only an optical pad has them (only an optical sensor prints
+#: markers); the counts may differ from pad to pad (each pad's sensor has its own grid, and
+#: ``randomization.tactile_sensors`` varies its pitch per sample and pad).
+PAD_MARKERS = _PadStream(
+    TACTILE_MARKERS_SUFFIX,
+    "markers",
+    _marker_flow,
+    needs=(TACTILE_IMAGE_SUFFIX, "optical pads"),
+)
+
+
 def _markers(
     decoded: Dict[str, Any],
     channel_ids: Mapping[str, int],
     where: str,
     pads: Optional[Sequence[str]],
 ) -> Optional[Dict[str, Dict[str, np.ndarray]]]:
-    """The optical pads' marker flow ``{pad: flow}`` (:func:`_marker_flow`), ``None`` when the
-    sample has no ``/tactile/<pad>/markers`` topic.
-
-    The pads are the sample's marker topics in the order of their channels (the writer adds them
-    in the robot's pad order); they must be pads of the tactile data (``pads``, as for
-    :func:`_forces`) with an optical image (only an optical sensor prints markers) and, when
-    ``/sample/info`` has ``tactile.optical``, not be listed there with ``markers`` null. The pads'
-    marker counts may differ: each pad's sensor has its own grid (``randomization.tactile_sensors``
-    varies its pitch per sample and pad).
-    """
-    names = _pads_in_channel_order(decoded, channel_ids, TACTILE_MARKERS_SUFFIX)
-    if not names:
-        return None
-    if pads is None:
-        raise DatasetError(
-            f"{where}: markers of {', '.join(names)} but no {TOPIC_TACTILE_POINTS} "
-            "(markers are of the robot's optical pads)"
-        )
-    unknown = [p for p in names if p not in pads]
-    if unknown:
-        raise DatasetError(
-            f"{where}: markers of {', '.join(unknown)}, which are not pads of the sample "
-            f"(no /tactile/<pad>/depth; pads: {', '.join(pads)})"
-        )
-    plain = [p for p in names if tactile_image_topic(p) not in decoded]
-    if plain:
-        raise DatasetError(
-            f"{where}: markers of {', '.join(plain)}, which are not optical pads of the sample "
-            "(no /tactile/<pad>/image)"
-        )
+    """The optical pads' marker flow ``{pad: flow}`` (:func:`_marker_flow`, read by
+    :func:`_pad_stream`), ``None`` when the sample has no ``/tactile/<pad>/markers`` topic.
+    ``pads`` as for :func:`_forces`. Besides, a pad that ``/sample/info`` ``tactile.optical``
+    lists with ``markers`` null has none."""
+    flows, _ = _pad_stream(decoded, channel_ids, where, PAD_MARKERS, pads)
     info = decoded.get(TOPIC_INFO)
     touch = info.get("tactile") if isinstance(info, dict) else None
     optical = touch.get("optical") if isinstance(touch, dict) else None
     if isinstance(optical, dict):
-        sensors = {p: optical.get(p) for p in names}
         unprinted = [
-            p for p, sensor in sensors.items()
-            if isinstance(sensor, dict) and "markers" in sensor and sensor["markers"] is None
+            p for p in flows
+            if isinstance(optical.get(p), dict) and "markers" in optical[p] and optical[p]["markers"] is None
         ]
         if unprinted:
             raise DatasetError(
                 f"{where}: markers of {', '.join(unprinted)}, whose sensors have none "
                 f"(/sample/info tactile.optical.<pad>.markers is null)"
             )
-    return {
-        pad: _marker_flow(decoded[topic], f"{where} {topic}")
-        for pad, topic in zip(names, map(tactile_markers_topic, names))
-    }
+    return flows or None
 
 
 def marker_arrays(markers: Mapping[str, Mapping[str, np.ndarray]]) -> Dict[str, np.ndarray]:
@@ -476,98 +545,62 @@ def marker_arrays(markers: Mapping[str, Mapping[str, np.ndarray]]) -> Dict[str, 
     }
 
 
-def _optical_pads(
-    decoded: Dict[str, Any],
-    channel_ids: Mapping[str, int],
-    where: str,
-    tactile: Optional[Dict[str, Any]],
-) -> Tuple[List[str], Optional[Dict[str, Any]]]:
-    """The optical pads of a sample (its ``/tactile/<pad>/image`` topics in channel order) and
-    their ``/sample/info`` ``tactile.optical`` entries (``None`` without them), checked: each
-    reference has its image, the info lists these pads, they are pads of the tactile data."""
-    pads = _pads_in_channel_order(decoded, channel_ids, TACTILE_IMAGE_SUFFIX)
-    orphans = sorted(
-        name
-        for t in decoded
-        for name in [pad_of(t, TACTILE_REFERENCE_SUFFIX)]
-        if name and name not in pads
-    )
-    if orphans:
-        raise DatasetError(
-            f"{where}: {', '.join(tactile_reference_topic(p) for p in orphans)} without its "
-            f"/tactile/<pad>/image"
-        )
-    listed = _check_listed_pads(decoded, pads, TACTILE_IMAGE_SUFFIX, where)
-    if not pads:
-        return pads, listed
-    if tactile is None:
-        raise DatasetError(
-            f"{where}: optical images of {', '.join(pads)} but no {TOPIC_TACTILE_POINTS} "
-            "(optical pads are pads of the robot's tactile data)"
-        )
-    unknown = [p for p in pads if p not in tactile["phalanges"]]
-    if unknown:
-        raise DatasetError(
-            f"{where}: optical images of {', '.join(unknown)}, which are not pads of the sample "
-            f"(no /tactile/<pad>/depth; pads: {', '.join(tactile['phalanges'])})"
-        )
-    return pads, listed
+# --- optical images (FORMAT.md, ``/tactile/<pad>/image`` and ``/tactile/<pad>/reference``) ----
 
 
-def _optical_pair(
-    decoded: Dict[str, Any], pad: str, listed: Optional[Dict[str, Any]], where: str
-) -> Tuple[np.ndarray, np.ndarray]:
-    """One optical pad's image and reference image, checked: same size, not empty, the size
-    ``/sample/info`` gives the sensor (``listed``: its ``tactile.optical``) when it gives one."""
-    image_topic = tactile_image_topic(pad)
-    reference_topic = tactile_reference_topic(pad)
-    if reference_topic not in decoded:
-        raise DatasetError(f"{where}: {image_topic} without its {reference_topic}")
-    image = decode_raw_image(
-        decoded[image_topic], expect=TACTILE_IMAGE_ENCODING, where=f"{where} {image_topic}"
-    )
-    reference = decode_raw_image(
-        decoded[reference_topic], expect=TACTILE_IMAGE_ENCODING, where=f"{where} {reference_topic}"
-    )
-    h, w = image.shape[:2]
-    if reference.shape != image.shape:
-        raise DatasetError(
-            f"{where}: {reference_topic} is {reference.shape[1]}x{reference.shape[0]}, its "
-            f"image {w}x{h}"
-        )
-    if h == 0 or w == 0:
-        raise DatasetError(f"{where} {image_topic}: empty {w}x{h} image")
-    sensor = listed.get(pad) if listed is not None else None
-    size = sensor.get("image_size") if isinstance(sensor, dict) else None
-    if size is not None and size != [w, h]:
-        raise DatasetError(
-            f"{where}: {image_topic} is {w}x{h}, but /sample/info "
-            f"tactile.optical.{pad}.image_size is {size} ([width, height])"
-        )
-    return image, reference
+def _optical_image(message: Any, where: str) -> np.ndarray:
+    image = decode_raw_image(message, expect=TACTILE_IMAGE_ENCODING, where=where)
+    if image.shape[0] == 0 or image.shape[1] == 0:
+        raise DatasetError(f"{where}: empty {_image_size(image)} image")
+    return image
+
+
+#: ``/tactile/<pad>/image``: an optical pad's RGB image (``rgb8``, not empty; each sensor its own
+#: size); ``/sample/info`` ``tactile.optical`` lists the optical pads.
+PAD_IMAGE = _PadStream(
+    TACTILE_IMAGE_SUFFIX, "optical images", _optical_image, listed=("optical", "optical pads")
+)
+#: ``/tactile/<pad>/reference``: an optical pad's no-contact image, beside its image.
+PAD_REFERENCE = _PadStream(
+    TACTILE_REFERENCE_SUFFIX,
+    "reference images",
+    _optical_image,
+    needs=(TACTILE_IMAGE_SUFFIX, "optical pads"),
+)
 
 
 def _optical(
     decoded: Dict[str, Any],
     channel_ids: Mapping[str, int],
     where: str,
-    tactile: Optional[Dict[str, Any]],
+    pads: Optional[Sequence[str]],
 ) -> Optional[Tuple[Dict[str, np.ndarray], Dict[str, np.ndarray]]]:
-    """The optical pads' images and reference images, ``None`` when the sample has none.
-
-    The pads are the sample's ``/tactile/<pad>/image`` topics in the order of their channels (the
-    writer adds them in the robot's pad order). Each needs its ``/tactile/<pad>/reference`` of the
-    same size, both ``rgb8``; the pads must be pads of the tactile data and, when ``/sample/info``
-    has ``tactile.optical``, the pads it lists, at its ``image_size``.
-    """
-    pads, listed = _optical_pads(decoded, channel_ids, where, tactile)
-    if not pads:
+    """The optical pads' images and reference images (both read by :func:`_pad_stream`), ``None``
+    when the sample has none. ``pads`` as for :func:`_forces`. Besides, each image needs its
+    reference, of its size, and is the ``image_size`` ``/sample/info`` ``tactile.optical`` gives
+    its sensor (when it gives one)."""
+    images, listed = _pad_stream(decoded, channel_ids, where, PAD_IMAGE, pads)
+    references, _ = _pad_stream(decoded, channel_ids, where, PAD_REFERENCE, pads)
+    if not images:
         return None
-    images: Dict[str, np.ndarray] = {}
-    references: Dict[str, np.ndarray] = {}
-    for pad in pads:
-        images[pad], references[pad] = _optical_pair(decoded, pad, listed, where)
-    return images, references
+    for pad, image in images.items():
+        image_topic, reference_topic = tactile_image_topic(pad), tactile_reference_topic(pad)
+        reference = references.get(pad)
+        if reference is None:
+            raise DatasetError(f"{where}: {image_topic} without its {reference_topic}")
+        if reference.shape != image.shape:
+            raise DatasetError(
+                f"{where}: {reference_topic} is {_image_size(reference)}, its image {_image_size(image)}"
+            )
+        sensor = listed.get(pad) if listed is not None else None
+        size = sensor.get("image_size") if isinstance(sensor, dict) else None
+        if size is not None and size != [image.shape[1], image.shape[0]]:
+            raise DatasetError(
+                f"{where}: {image_topic} is {_image_size(image)}, but /sample/info "
+                f"tactile.optical.{pad}.image_size is {size} ([width, height])"
+            )
+    # The references in the images' (pad) order.
+    return images, {pad: references[pad] for pad in images}
 
 
 # --- episodes ---------------------------------------------------------------------------------
@@ -582,14 +615,9 @@ def _touch_reading(
     if TOPIC_TACTILE_POINTS not in group:
         raise DatasetError(f"{where}: /tactile/<pad> messages without {TOPIC_TACTILE_POINTS}")
     reading = _tactile(group, channel_ids, where)
-    pads = _pads_in_channel_order(group, channel_ids, TACTILE_IMAGE_SUFFIX)
-    if pads:
-        reading["images"] = {
-            pad: decode_raw_image(
-                group[topic], expect=TACTILE_IMAGE_ENCODING, where=f"{where} {topic}"
-            )
-            for pad, topic in zip(pads, map(tactile_image_topic, pads))
-        }
+    images, _ = _pad_stream(group, channel_ids, where, PAD_IMAGE, reading["pads"])
+    if images:
+        reading["images"] = images
     return reading
 
 
@@ -610,13 +638,10 @@ def _episode_streams(
     for t, topic, channel_id, value in later:
         if topic == TOPIC_EPISODE_STATE:
             if any(s == t for s, _ in states):
-                raise DatasetError(f"{where}: two {TOPIC_EPISODE_STATE} messages at {t} ns")
+                raise DatasetError(f"{where}: more than one {TOPIC_EPISODE_STATE} message at {t} ns")
             states.append((t, value))
         elif topic.startswith(TACTILE_DEPTH_PREFIX) and not topic.endswith(TACTILE_REFERENCE_SUFFIX):
-            group = touch.setdefault(t, {})
-            if topic in group:
-                raise DatasetError(f"{where}: two {topic} messages at {t} ns")
-            group[topic] = value
+            _add_message(touch.setdefault(t, {}), topic, value, f"{where} (touch at {t} ns)")
             channel_ids.setdefault(topic, channel_id)
     tactile = [
         (t, _touch_reading(touch[t], channel_ids, f"{where} (touch at {t} ns)"))

@@ -85,8 +85,8 @@ class EpisodeDataset:
       :func:`vtdata.reader.force_array`) and, with marker flow, ``"markers": {pad: (K, N, 4)
       float32}`` (each optical pad's markers: x, y, rest_x, rest_y; :func:`vtdata.marker_arrays`;
       ``N`` is the pad's own, the same in every reading of an episode).
-    - ``tactile_points``: a list of ``K`` dicts (``points`` ``(N, 3)``, ``distance``, ``phalanx``,
-      ``phalanges``, ``depth``, with force fields ``forces`` and ``markers``: a sample's
+    - ``tactile_points``: a list of ``K`` dicts (``points`` ``(N, 3)``, ``distance``, ``pad``,
+      ``pads``, ``depth``, with force fields ``forces`` and ``markers``: a sample's
       ``tactile``), the aligned readings' point clouds.
     - ``tactile_images``: ``{pad: (K, H, W, 3) uint8}`` the optical pads' aligned images, and
       ``tactile_references`` ``{pad: (H, W, 3) uint8}`` (one per episode).
@@ -103,7 +103,7 @@ class EpisodeDataset:
       one's (inclusive; at the state rate, e.g. every physics step): ``(M, ...)`` arrays.
     - ``info``: a list of the ``K`` frames' ``/sample/info`` dicts.
 
-    The raw records (``phalanges_in_contact`` of every state, ...) are in the frames' samples:
+    The raw records (each state's touch links in contact, ...) are in the frames' samples:
     ``ds.dataset[i]["episode"]``. Like :class:`vtdata.Dataset`, an ``EpisodeDataset`` pickles
     without file handles, so ``DataLoader`` workers may share it.
     """
@@ -189,7 +189,7 @@ class EpisodeDataset:
             first = self.dataset[self.dataset.episodes[0]["first_sample"]]
             if "tactile" not in first:
                 raise DatasetError(f"{self.dataset.root}: the episodes have no touch (no robot)")
-            self._pads = list(first["tactile"]["phalanges"])
+            self._pads = list(first["tactile"]["pads"])
         return self._pads
 
     def _first_state(self) -> Dict[str, Any]:
@@ -352,15 +352,15 @@ def _touch_arrays(readings: List[Tuple[int, Dict[str, Any]]], where: str) -> Dic
             "depth": np.zeros((0, 0, 0, 0), dtype=np.float32),
             "counts": np.zeros((0, 0), dtype=np.int64),
         }
-    pads = readings[0][1]["phalanges"]
+    pads = readings[0][1]["pads"]
     for t, reading in readings:
-        if reading["phalanges"] != pads:
-            raise DatasetError(f"{where}: the touch reading at {t} ns has pads {reading['phalanges']}, not {pads}")
+        if reading["pads"] != pads:
+            raise DatasetError(f"{where}: the touch reading at {t} ns has pads {reading['pads']}, not {pads}")
     out: Dict[str, Any] = {
         "time_ns": np.array([t for t, _ in readings], dtype=np.int64),
         "depth": np.stack([reading["depth"] for _, reading in readings]),
         "counts": np.stack(
-            [np.bincount(reading["phalanx"], minlength=len(pads)).astype(np.int64) for _, reading in readings]
+            [np.bincount(reading["pad"], minlength=len(pads)).astype(np.int64) for _, reading in readings]
         ),
     }
     force_pads = [list(reading.get("forces", {})) for _, reading in readings]

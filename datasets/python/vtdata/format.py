@@ -154,29 +154,34 @@ TACTILE_DEPTH_ENCODING = PAD_TOPIC_SCHEMAS[TACTILE_DEPTH_SUFFIX][2]
 TACTILE_IMAGE_ENCODING = PAD_TOPIC_SCHEMAS[TACTILE_IMAGE_SUFFIX][2]
 
 
+def tactile_topic(pad: str, suffix: str) -> str:
+    """``/tactile/<pad><suffix>``, the topic of one of :data:`PAD_TOPIC_SCHEMAS`' streams of a pad."""
+    return f"{TACTILE_DEPTH_PREFIX}{pad}{suffix}"
+
+
 def tactile_depth_topic(pad: str) -> str:
     """``/tactile/<pad>/depth``."""
-    return f"{TACTILE_DEPTH_PREFIX}{pad}{TACTILE_DEPTH_SUFFIX}"
+    return tactile_topic(pad, TACTILE_DEPTH_SUFFIX)
 
 
 def tactile_image_topic(pad: str) -> str:
     """``/tactile/<pad>/image``."""
-    return f"{TACTILE_DEPTH_PREFIX}{pad}{TACTILE_IMAGE_SUFFIX}"
+    return tactile_topic(pad, TACTILE_IMAGE_SUFFIX)
 
 
 def tactile_reference_topic(pad: str) -> str:
     """``/tactile/<pad>/reference``."""
-    return f"{TACTILE_DEPTH_PREFIX}{pad}{TACTILE_REFERENCE_SUFFIX}"
+    return tactile_topic(pad, TACTILE_REFERENCE_SUFFIX)
 
 
 def tactile_force_topic(pad: str) -> str:
     """``/tactile/<pad>/force``."""
-    return f"{TACTILE_DEPTH_PREFIX}{pad}{TACTILE_FORCE_SUFFIX}"
+    return tactile_topic(pad, TACTILE_FORCE_SUFFIX)
 
 
 def tactile_markers_topic(pad: str) -> str:
     """``/tactile/<pad>/markers``."""
-    return f"{TACTILE_DEPTH_PREFIX}{pad}{TACTILE_MARKERS_SUFFIX}"
+    return tactile_topic(pad, TACTILE_MARKERS_SUFFIX)
 
 
 def pad_of(topic: str, suffix: str) -> Optional[str]:
@@ -219,13 +224,16 @@ IMAGE_ENCODINGS: Dict[str, Tuple[str, int, Any]] = {
     "32FC1": ("<f4", 1, np.float32),
 }
 
+#: The ``/tactile/points`` field holding each point's pad index (the ``/tactile/<pad>/depth``
+#: channel order); the reader hands it to users as ``tactile["pad"]``.
+TACTILE_POINT_PAD_FIELD = "phalanx"  # the wire name of format version 1
 #: The ``/tactile/points`` PointCloud fields: (name, byte offset, ``PackedElementField`` type).
 TACTILE_POINT_FIELDS: Tuple[Tuple[str, int, str], ...] = (
     ("x", 0, "FLOAT32"),
     ("y", 4, "FLOAT32"),
     ("z", 8, "FLOAT32"),
     ("distance", 12, "FLOAT32"),
-    ("phalanx", 16, "UINT32"),
+    (TACTILE_POINT_PAD_FIELD, 16, "UINT32"),
 )
 #: Bytes per tactile point (the PointCloud's ``point_stride``).
 TACTILE_POINT_STRIDE = 20
@@ -338,7 +346,7 @@ STATE_RECORD_KEYS = (
     "T_world_palm",
     "linear_velocity",
     "angular_velocity",
-    "phalanges_in_contact",
+    "phalanges_in_contact",  # the wire name of format version 1: the robot's touch links in contact
 )
 #: An episode frame's ``/sample/info`` ``episode`` object.
 EPISODE_FRAME_KEYS = ("frame", "time_s", "arm_move")
@@ -349,15 +357,3 @@ TOUCH_FORCE_KEYS = ("forces", "hand_force_n")
 #: area, pad frame, N: what its field sums to), ``link_force_n`` (every contact of its link),
 #: ``contacts`` and the slip rule's ``friction``.
 PAD_FORCE_KEYS = ("force_n", "link_force_n", "contacts", "friction")
-
-# --- robots -----------------------------------------------------------------------------------
-
-#: The UR5e + Allegro's 12 pads in tactile index order (FORMAT.md): the names a dataset of that
-#: robot holds. Other robots name their own pads (a parallel gripper: 2, e.g. ``left``,
-#: ``right``), so the reader never assumes these: a sample's ``tactile["phalanges"]`` lists the
-#: pads its shard has, in the order of the ``phalanx`` index.
-ALLEGRO_PHALANGES = tuple(
-    f"{f}_{p}" for f in ("ff", "mf", "rf", "th") for p in ("proximal", "medial", "distal")
-)
-#: Same as :data:`ALLEGRO_PHALANGES` (the name earlier versions used; not the pads of every robot).
-PHALANGES = ALLEGRO_PHALANGES

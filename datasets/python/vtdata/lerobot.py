@@ -236,7 +236,7 @@ class _Layout:
         self.has_noisy = "depth_noisy" in first
         self.joint_names = joint_names
         tactile = first.get("tactile")
-        self.pads: List[str] = list(tactile["phalanges"]) if tactile else []
+        self.pads: List[str] = list(tactile["pads"]) if tactile else []
         self.pad_depth_shape: Tuple[int, ...] = tuple(tactile["depth"].shape) if tactile else ()
         self.optical: Dict[str, Tuple[int, ...]] = {
             pad: tuple(img.shape) for pad, img in first.get("tactile_images", {}).items()
@@ -312,8 +312,8 @@ class _Layout:
             )
         if self.pads:
             t_touch, reading = touch if touch is not None else (0, sample["tactile"])
-            if list(reading["phalanges"]) != self.pads:
-                raise DatasetError(f"{where}: pads {reading['phalanges']}, the dataset's first sample has {self.pads}")
+            if list(reading["pads"]) != self.pads:
+                raise DatasetError(f"{where}: pads {reading['pads']}, the dataset's first sample has {self.pads}")
             out["observation.tactile.depth"] = _check(
                 reading["depth"], self.pad_depth_shape, np.float32, where, "tactile depth"
             )
@@ -586,7 +586,7 @@ def _tactile_meta(sample: Sample) -> Dict[str, Any]:
     # Per-instant entries are the frames' (points per pad, force fields), not a calibration.
     for key in ("points", "forces", "hand_force_n"):
         tactile.pop(key, None)
-    tactile["pad_order"] = list(sample["tactile"]["phalanges"])
+    tactile["pad_order"] = list(sample["tactile"]["pads"])
     return tactile
 
 

@@ -39,6 +39,7 @@ from mcap_protobuf.decoder import DecoderFactory as _ProtobufDecoderFactory
 from .decoders import (  # noqa: F401
     _JsonDecoderFactory,
     _McapDecoderFactory,
+    _add_message,
     _camera_fields,
     _decode_json,
     _episode_streams,
@@ -56,14 +57,12 @@ from .decoders import (  # noqa: F401
 )
 from .errors import DatasetError, DatasetNotFoundError
 from .format import (  # noqa: F401
-    ALLEGRO_PHALANGES,
     EPISODE_METADATA_KEY,
     FORMAT_VERSION,
     MANIFEST_FILE,
     MANIFEST_FORMAT,
     MODELS_DIR,
     MODELS_INFO_FILE,
-    PHALANGES,
     REQUIRED_TOPICS,
     SAMPLE_PERIOD_NS,
     TACTILE_DEPTH_PREFIX,
@@ -124,9 +123,9 @@ class Sample(Dict[str, Any]):
     - ``index``: the sample's index in its split; ``split``: the split name.
     - ``tactile`` (only with a robot in the scene): a dict with ``points`` ``(N, 3)`` float32
       tactile points in the camera frame, ``distance`` ``(N,)`` float32 depth from the pad,
-      ``phalanx`` ``(N,)`` uint32 pad index into ``phalanges``, ``phalanges`` (the robot's ``P``
-      pad names in index order, read from the shard: the 12 ``ff_proximal`` … ``th_distal`` of
-      the Allegro, 2 of a parallel gripper) and ``depth`` ``(P, R, R)`` float32 pad camera images
+      ``pad`` ``(N,)`` uint32 pad index into ``pads``, ``pads`` (the robot's ``P`` pad names in
+      index order, read from the shard: 12 on the Allegro hand, 2 on a parallel gripper) and
+      ``depth`` ``(P, R, R)`` float32 pad camera images
       (``inf`` = no surface), one per ``/tactile/<pad>/depth`` topic. With force fields
       (``robot.tactile.force_field``, FORMAT.md "Force fields") also ``forces``: ``{pad: {"position":
       (R, R, 2) float32, "pressure": (R, R) float32, "shear": (R, R, 2) float32, "slip": (R, R)
@@ -146,7 +145,7 @@ class Sample(Dict[str, Any]):
       GelSight/DIGIT-style sensor): ``{pad: (H, W, 3) uint8}`` in pad order, the sensor's RGB image
       (``/tactile/<pad>/image``, linear 8-bit levels) and its no-contact reference image without
       noise (``/tactile/<pad>/reference``, same size); the same pads in both, a subset of
-      ``tactile["phalanges"]``. The sensor's parameters are ``info["tactile"]["optical"][pad]``.
+      ``tactile["pads"]``. The sensor's parameters are ``info["tactile"]["optical"][pad]``.
       In an episode the references are written once, with frame 0; every frame gets them.
     - ``episode`` (only in an episode dataset, FORMAT.md "Episodes"): the frame's faster streams,
       ``{"frame": k, "time_ns": t, "states": [(t_ns, record), ...], "tactile": [(t_ns, touch),
@@ -423,8 +422,8 @@ class Dataset(Sequence[Sample]):
     def _sample_messages(
         self, shard: str, log_time: int, end: int, index: int
     ) -> Tuple[Dict[str, Any], Dict[str, int], List[Tuple[int, str, int, Any]]]:
-        """Read sample ``index``'s chunk: its messages at ``log_time`` by topic (each required
-        topic once), their channel ids and (an episode frame's) the later messages up to ``end``
+        """Read sample ``index``'s chunk: its messages at ``log_time`` by topic (each topic the
+        reader decodes once, :func:`~vtdata.decoders._add_message`), their channel ids and (an episode frame's) the later messages up to ``end``
         as ``(log_time, topic, channel id, message)``."""
         messages = self._messages(shard, log_time, end)
         decoded: Dict[str, Any] = {}
@@ -436,14 +435,7 @@ class Dataset(Sequence[Sample]):
                 if message.log_time != log_time:
                     later.append((message.log_time, channel.topic, channel.id, value))
                     continue
-                if channel.topic in decoded and (
-                    channel.topic in REQUIRED_TOPICS or channel.topic == TOPIC_EPISODE_STATE
-                ):
-                    raise DatasetError(
-                        f"{shard}: sample {index} of split {self.split!r} has more than one "
-                        f"{channel.topic} message"
-                    )
-                decoded[channel.topic] = value
+                _add_message(decoded, channel.topic, value, f"{shard}: sample {index} of split {self.split!r}")
                 channel_ids[channel.topic] = channel.id
         except DatasetError:
             raise
@@ -493,8 +485,10 @@ class Dataset(Sequence[Sample]):
                 expect=_TOPIC_IMAGE_ENCODINGS[TOPIC_DEPTH_NOISY],
                 where=where + f" {TOPIC_DEPTH_NOISY}",
             )
+        pads = None
         if TOPIC_TACTILE_POINTS in decoded:
             sample["tactile"] = _tactile(decoded, channel_ids, where)
+            pads = sample["tactile"]["pads"]
         else:
             # Force fields or markers without tactile data: an error.
             _forces(decoded, channel_ids, where, None)
@@ -502,7 +496,7 @@ class Dataset(Sequence[Sample]):
         frame = index - episode["first_sample"] if episode is not None else 0
         if frame > 0:
             self._add_first_frame_references(shard, decoded, channel_ids, where)
-        optical = _optical(decoded, channel_ids, where, sample.get("tactile"))
+        optical = _optical(decoded, channel_ids, where, pads)
         if optical is not None:
             sample["tactile_images"], sample["tactile_references"] = optical
         if episode is not None:

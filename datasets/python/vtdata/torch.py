@@ -73,7 +73,7 @@ def to_tensors(sample: Mapping[str, Any]) -> TensorSample:
     ``{pad: tensor}`` dicts, each tensor ``(H, W, 3)`` uint8 like ``rgb``. With force fields (a
     ``tactile`` dict with ``forces``) the sample gains ``forces``: ``(P, R, R, 4)`` float32, each
     pad's grid (pads in ``tactile["forces"]`` order, the pad order: every pad of
-    ``tactile["phalanges"]`` as vtgen writes them) with :data:`FORCE_CHANNELS` per cell (pressure,
+    ``tactile["pads"]`` as vtgen writes them) with :data:`FORCE_CHANNELS` per cell (pressure,
     shear_x, shear_y in Pa; slip 1.0 or 0.0). With marker flow (a ``tactile`` dict with
     ``markers``) it gains ``markers``: ``{pad: (N, 4) float32}`` in pad order, each optical pad's
     markers with :data:`MARKER_CHANNELS` (x, y, rest_x, rest_y; m, pad frame): a dict, not one

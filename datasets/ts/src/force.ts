@@ -5,7 +5,8 @@
 // the gel has moved each printed marker, and its rest position (Python `tactile["markers"]`, Rust
 // `TactileData::marker_flow`).
 import type { Sample } from "./checks.js";
-import { FORCE_STRIDE, MARKER_STRIDE, forcePadOfTopic, markersPadOfTopic, padForceTopic, padImageTopic, padMarkersTopic } from "./format.js";
+import { FORCE_STRIDE, MARKER_STRIDE } from "./format.js";
+import { readPadStream, type PadStream } from "./pads.js";
 
 /**
  * One pad's force field: `resolution`² cells, row-major (cell `(u, v)`, column u along the pad's
@@ -58,60 +59,26 @@ export function decodeForceField(value: Record<string, unknown>, where: string):
   return field;
 }
 
+/** `/tactile/<pad>/force`: a square grid per pad, every pad's the same resolution; `/sample/info`
+ * `tactile.forces` lists the pads. */
+export const PAD_FORCE: PadStream<ForceField> = {
+  suffix: "/force",
+  what: "force fields",
+  decode: decodeForceField,
+  listed: { key: "forces", padsAre: "pads" },
+  same: { aspect: "resolution", of: (f) => `${f.resolution}x${f.resolution}` },
+};
+
 /**
- * The force fields of one touch reading (a sample, or an episode's touch messages of one instant):
- * the pads are its `/tactile/<pad>/force` topics in the order of their channels (the writer adds
- * them in the robot's pad order). When `pads` (the reading's pads, from its `/tactile/<pad>/depth`
- * channels) is given, each must be one of them; when `/sample/info` has `tactile.forces`, it must
- * list exactly these pads; every field has the same resolution. Throws an Error naming `where`
- * and the topic otherwise. Empty without force topics.
+ * The force fields of one touch reading (a sample, or an episode's touch messages of one instant),
+ * read by {@link readPadStream}: the pads are its `/tactile/<pad>/force` topics in the order of
+ * their channels (the writer adds them in the robot's pad order). When `pads` (the reading's pads,
+ * from its `/tactile/<pad>/depth` channels) is given, each must be one of them; when `/sample/info`
+ * has `tactile.forces`, it must list exactly these pads; every field has the same resolution.
+ * Throws an Error naming `where` and the topic otherwise. Empty without force topics.
  */
 export function readForceFields(sample: Sample, where: string, pads?: readonly string[]): Map<string, ForceField> {
-  const found: { pad: string; channelId: number }[] = [];
-  for (const [topic, list] of sample) {
-    const pad = forcePadOfTopic(topic);
-    if (pad != undefined) {
-      found.push({ pad, channelId: list[0]?.channelId ?? 0 });
-    }
-  }
-  found.sort((a, b) => a.channelId - b.channelId);
-  const names = found.map((f) => f.pad);
-  const info = sample.get("/sample/info")?.[0]?.value;
-  const listed = (info?.tactile as Record<string, unknown> | undefined)?.forces as Record<string, unknown> | undefined;
-  if (listed != undefined) {
-    const want = Object.keys(listed).sort();
-    const have = [...names].sort();
-    if (want.join("\n") !== have.join("\n")) {
-      throw new Error(
-        `${where}: /sample/info tactile.forces lists the pads [${want.join(", ")}], ` +
-          `the sample has force fields of [${have.join(", ")}] (/tactile/<pad>/force)`,
-      );
-    }
-  }
-  if (pads != undefined) {
-    const unknown = names.filter((pad) => !pads.includes(pad));
-    if (unknown.length > 0) {
-      throw new Error(
-        `${where}: force fields of ${unknown.join(", ")}, which are not pads of the sample ` +
-          `(no /tactile/<pad>/depth; pads: ${pads.join(", ")})`,
-      );
-    }
-  }
-  const fields = new Map<string, ForceField>();
-  for (const pad of names) {
-    const topic = padForceTopic(pad);
-    const list = sample.get(topic)!;
-    if (list.length !== 1) {
-      throw new Error(`${where}: ${list.length} messages on ${topic}, expected one`);
-    }
-    fields.set(pad, decodeForceField(list[0]!.value, `${where} ${topic}`));
-  }
-  const sizes = new Set([...fields.values()].map((f) => f.resolution));
-  if (sizes.size > 1) {
-    const each = [...fields].map(([pad, f]) => `${pad} ${f.resolution}x${f.resolution}`);
-    throw new Error(`${where}: the pads' force fields differ in resolution: ${each.join(", ")}`);
-  }
-  return fields;
+  return readPadStream(sample, where, PAD_FORCE, pads).values;
 }
 
 /**
@@ -149,43 +116,30 @@ export function decodeMarkerFlow(value: Record<string, unknown>, where: string):
   return flow;
 }
 
+/** `/tactile/<pad>/markers`: only an optical pad has them (only an optical sensor prints markers);
+ * the counts may differ from pad to pad (each sensor has its own grid). */
+export const PAD_MARKERS: PadStream<MarkerFlow> = {
+  suffix: "/markers",
+  what: "markers",
+  decode: decodeMarkerFlow,
+  needs: { suffix: "/image", padsAre: "optical pads" },
+};
+
 /**
- * The marker flow of one touch reading (a sample, or an episode's touch messages of one instant):
- * the pads are its `/tactile/<pad>/markers` topics in the order of their channels (the writer adds
- * them in the robot's pad order). Each must be an optical pad of the reading (its
- * `/tactile/<pad>/image` is there: only an optical sensor prints markers) and, when `pads` (the
- * reading's pads, from its `/tactile/<pad>/depth` channels) is given, one of them; when
- * `/sample/info` has `tactile.optical`, it must not give the pad's sensor `markers: null`. The
- * counts may differ from pad to pad (each sensor has its own grid). Throws an Error naming `where`
- * and the topic otherwise. Empty without marker topics.
+ * The marker flow of one touch reading (a sample, or an episode's touch messages of one instant),
+ * read by {@link readPadStream}: the pads are its `/tactile/<pad>/markers` topics in the order of
+ * their channels (the writer adds them in the robot's pad order). Each must be an optical pad of
+ * the reading (its `/tactile/<pad>/image` is there: only an optical sensor prints markers) and,
+ * when `pads` (the reading's pads, from its `/tactile/<pad>/depth` channels) is given, one of
+ * them; when `/sample/info` has `tactile.optical`, it must not give the pad's sensor `markers:
+ * null`. Throws an Error naming `where` and the topic otherwise. Empty without marker topics.
  */
 export function readMarkerFlow(sample: Sample, where: string, pads?: readonly string[]): Map<string, MarkerFlow> {
-  const found: { pad: string; channelId: number }[] = [];
-  for (const [topic, list] of sample) {
-    const pad = markersPadOfTopic(topic);
-    if (pad != undefined) {
-      found.push({ pad, channelId: list[0]?.channelId ?? 0 });
-    }
-  }
-  found.sort((a, b) => a.channelId - b.channelId);
-  const names = found.map((f) => f.pad);
-  if (pads != undefined) {
-    const unknown = names.filter((pad) => !pads.includes(pad));
-    if (unknown.length > 0) {
-      throw new Error(
-        `${where}: markers of ${unknown.join(", ")}, which are not pads of the sample ` +
-          `(no /tactile/<pad>/depth; pads: ${pads.join(", ")})`,
-      );
-    }
-  }
-  const plain = names.filter((pad) => !sample.has(padImageTopic(pad)));
-  if (plain.length > 0) {
-    throw new Error(`${where}: markers of ${plain.join(", ")}, which are not optical pads of the sample (no /tactile/<pad>/image)`);
-  }
+  const flows = readPadStream(sample, where, PAD_MARKERS, pads).values;
   const info = sample.get("/sample/info")?.[0]?.value;
   const optical = (info?.tactile as Record<string, unknown> | undefined)?.optical as Record<string, unknown> | undefined;
   if (optical != undefined) {
-    const unprinted = names.filter((pad) => {
+    const unprinted = [...flows.keys()].filter((pad) => {
       const sensor = optical[pad] as Record<string, unknown> | undefined;
       return sensor != undefined && "markers" in sensor && sensor.markers === null;
     });
@@ -194,15 +148,6 @@ export function readMarkerFlow(sample: Sample, where: string, pads?: readonly st
         `${where}: markers of ${unprinted.join(", ")}, whose sensors have none (/sample/info tactile.optical.<pad>.markers is null)`,
       );
     }
-  }
-  const flows = new Map<string, MarkerFlow>();
-  for (const pad of names) {
-    const topic = padMarkersTopic(pad);
-    const list = sample.get(topic)!;
-    if (list.length !== 1) {
-      throw new Error(`${where}: ${list.length} messages on ${topic}, expected one`);
-    }
-    flows.set(pad, decodeMarkerFlow(list[0]!.value, `${where} ${topic}`));
   }
   return flows;
 }

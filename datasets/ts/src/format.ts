@@ -1,16 +1,9 @@
 // The parts of datasets/FORMAT.md (format version 1) this reader checks.
 
-// The robot is data: a dataset's pads, joints and grasp frame are the robot description's (a UR5e +
-// Allegro has 12 pads and 22 joints, a parallel gripper 2 pads), so the checks read them from the
-// shard: the pads are its `/tactile/<pad>/depth` channels, in channel order (the writer adds them
-// in the pads' order, the order of the point cloud's `phalanx` index).
-
-export const FINGERS = ["ff", "mf", "rf", "th"] as const;
-export const PHALANGES = ["proximal", "medial", "distal"] as const;
-/** The UR5e + Allegro's 12 pads `<finger>_<phalanx>`, in the order of its `phalanx` index. */
-export const ALLEGRO_PADS = FINGERS.flatMap((f) => PHALANGES.map((p) => `${f}_${p}`));
-/** The UR5e + Allegro's joints in `joint_positions`: 6 arm + 16 hand. */
-export const ALLEGRO_JOINT_COUNT = 22;
+// The robot is data: a dataset's pads, joints and grasp frame are the robot description's (a hand
+// may have a dozen pads, a parallel gripper 2), so the checks read them from the shard: the pads
+// are its `/tactile/<pad>/depth` channels, in channel order (the writer adds them in the pads'
+// order, the order of the point cloud's pad index, POINT_PAD_FIELD).
 
 /** The depth image topic of pad `pad`. */
 export const padDepthTopic = (pad: string): string => `/tactile/${pad}/depth`;
@@ -23,8 +16,8 @@ export function padOfTopic(topic: string): string | undefined {
 
 // A pad with an optical (GelSight/DIGIT-style) sensor adds two RGB images to every sample, after
 // the depth images, in the pads' order: the sensor's image and its no-contact reference image
-// (without noise, the same size). Only such pads have them (a gripper: both pads; an Allegro: the
-// distal pads if configured); /sample/info `tactile.optical` lists them with their parameters.
+// (without noise, the same size). Only such pads have them (a gripper: both pads; a hand: the pads
+// configured optical); /sample/info `tactile.optical` lists them with their parameters.
 
 /** The optical image topic of pad `pad`. */
 export const padImageTopic = (pad: string): string => `/tactile/${pad}/image`;
@@ -89,17 +82,13 @@ export function markersPadsOf(channels: Iterable<{ id: number; topic: string }>)
     .map((c) => markersPadOfTopic(c.topic)!);
 }
 
-/** The pads of a shard: its `/tactile/<pad>/depth` channels, by channel id (the `phalanx` order). */
+/** The pads of a shard: its `/tactile/<pad>/depth` channels, by channel id (the points' pad index order). */
 export function padsOf(channels: Iterable<{ id: number; topic: string }>): string[] {
   return [...channels]
     .filter((c) => padOfTopic(c.topic) != undefined)
     .sort((a, b) => a.id - b.id)
     .map((c) => padOfTopic(c.topic)!);
 }
-
-/** Whether `pads` are the UR5e + Allegro's, in its order. */
-export const isAllegro = (pads: readonly string[]): boolean =>
-  pads.length === ALLEGRO_PADS.length && pads.every((p, k) => p === ALLEGRO_PADS[k]);
 
 export const SAMPLE_PERIOD_NS = 100_000_000n;
 
@@ -187,7 +176,7 @@ export const SAMPLE_INFO_KEYS = [
 
 export const SAMPLE_INFO_ROBOT_KEYS = [
   "physics_backend",
-  "phalanges_in_contact",
+  "phalanges_in_contact", // the wire name of format version 1: the robot's touch links in contact
   "slip_mm",
   "slip_deg",
   "penetration_mm",
@@ -236,13 +225,16 @@ export const SHARD_METADATA_KEYS = [
   "occlusion_histogram",
 ];
 
+/** The `/tactile/points` field holding each point's pad index (into the shard's pads, `padsOf`). */
+export const POINT_PAD_FIELD = "phalanx"; // the wire name of format version 1
+
 /** Point cloud fields: name, offset, Foxglove NumericType name. */
 export const POINT_FIELDS: [string, number, string][] = [
   ["x", 0, "FLOAT32"],
   ["y", 4, "FLOAT32"],
   ["z", 8, "FLOAT32"],
   ["distance", 12, "FLOAT32"],
-  ["phalanx", 16, "UINT32"],
+  [POINT_PAD_FIELD, 16, "UINT32"],
 ];
 export const POINT_STRIDE = 20;
 
@@ -311,7 +303,7 @@ export const STATE_RECORD_KEYS = [
   "T_world_palm",
   "linear_velocity",
   "angular_velocity",
-  "phalanges_in_contact",
+  "phalanges_in_contact", // the wire name of format version 1: the robot's touch links in contact
 ];
 
 /** The keys of an episode frame's `/sample/info` `episode`. */

@@ -4,8 +4,8 @@
 // `tactileReferences` the way the Python (`tactile_images`, `tactile_references`) and Rust
 // (`TactileData::optical`) readers read them.
 import type { Sample } from "./checks.js";
-import { PAD_OPTICAL_ENCODING, opticalOfTopic, padImageTopic, padReferenceTopic } from "./format.js";
-import type { Decoded } from "./shard.js";
+import { PAD_OPTICAL_ENCODING, padImageTopic, padReferenceTopic } from "./format.js";
+import { readPadStream, type PadStream } from "./pads.js";
 
 /** An 8-bit RGB image: `height` rows of `width * 3` bytes (R, G, B), packed (no row padding). */
 export type RgbImage = { width: number; height: number; data: Uint8Array };
@@ -15,15 +15,6 @@ export type OpticalImages = {
   tactileImages: Map<string, RgbImage>;
   tactileReferences: Map<string, RgbImage>;
 };
-
-/** The message of `topic` in `sample`; an Error if there is none or more than one. */
-function single(sample: Sample, topic: string, where: string): Decoded {
-  const list = sample.get(topic) ?? [];
-  if (list.length !== 1) {
-    throw new Error(`${where}: ${list.length} messages on ${topic}, expected one`);
-  }
-  return list[0]!;
-}
 
 /**
  * A decoded `foxglove.RawImage` of encoding `rgb8` as an {@link RgbImage}. Rows are read `step`
@@ -55,81 +46,68 @@ export function decodeRgb8(value: Record<string, unknown>, where: string): RgbIm
   return { width, height, data: out };
 }
 
+/** `/tactile/<pad>/image`: an optical pad's RGB image (`rgb8`, not empty; each sensor its own size);
+ * `/sample/info` `tactile.optical` lists the optical pads. */
+export const PAD_IMAGE: PadStream<RgbImage> = {
+  suffix: "/image",
+  what: "optical images",
+  decode: decodeRgb8,
+  listed: { key: "optical", padsAre: "optical pads" },
+};
+
+/** `/tactile/<pad>/reference`: an optical pad's no-contact image, beside its image. */
+export const PAD_REFERENCE: PadStream<RgbImage> = {
+  suffix: "/reference",
+  what: "reference images",
+  decode: decodeRgb8,
+  needs: { suffix: "/image", padsAre: "optical pads" },
+};
+
 /**
- * The optical images of one sample: the pads are its `/tactile/<pad>/image` topics in the order of
- * their channels (the writer adds them in the robot's pad order). Each image needs its
- * `/tactile/<pad>/reference` of the same size, both `rgb8`. When `pads` (the sample's pads, from
- * its `/tactile/<pad>/depth` channels) is given, every optical pad must be one of them; when
- * `/sample/info` has `tactile.optical`, it must list exactly these pads, each at its `image_size`
- * (`[width, height]`). Throws an Error naming `where` and the topic otherwise.
+ * The optical images of one sample, read by {@link readPadStream}: the pads are its
+ * `/tactile/<pad>/image` topics in the order of their channels (the writer adds them in the
+ * robot's pad order). Each image needs its `/tactile/<pad>/reference` of the same size, both
+ * `rgb8`. When `pads` (the sample's pads, from its `/tactile/<pad>/depth` channels) is given, every
+ * optical pad must be one of them; when `/sample/info` has `tactile.optical`, it must list exactly
+ * these pads, each at its `image_size` (`[width, height]`). Throws an Error naming `where` and the
+ * topic otherwise.
  *
  * `first`: in an episode (FORMAT.md, "Episodes") the references are written once, with frame 0;
  * the other frames take a missing reference from `first`, frame 0's sample.
  */
 export function readOpticalImages(sample: Sample, where: string, pads?: readonly string[], first?: Sample): OpticalImages {
-  const found: { pad: string; channelId: number }[] = [];
-  const references = new Set<string>();
-  for (const [topic, list] of sample) {
-    const optical = opticalOfTopic(topic);
-    if (optical?.kind === "image") {
-      found.push({ pad: optical.pad, channelId: list[0]?.channelId ?? 0 });
-    } else if (optical?.kind === "reference") {
-      references.add(optical.pad);
+  const { values: tactileImages, listed } = readPadStream(sample, where, PAD_IMAGE, pads);
+  // An episode frame's missing references are frame 0's.
+  const withReferences = new Map(sample);
+  for (const pad of tactileImages.keys()) {
+    const topic = padReferenceTopic(pad);
+    const frame0 = first?.get(topic);
+    if (!sample.has(topic) && frame0 != undefined) {
+      withReferences.set(topic, frame0);
     }
   }
-  found.sort((a, b) => a.channelId - b.channelId);
-  const optical = found.map((f) => f.pad);
-  for (const pad of references) {
-    if (!optical.includes(pad)) {
-      throw new Error(`${where}: ${padReferenceTopic(pad)} without its ${padImageTopic(pad)}`);
-    }
-  }
-  const info = sample.get("/sample/info")?.[0]?.value;
-  const tactile = info?.tactile as Record<string, unknown> | undefined;
-  const listed = tactile?.optical as Record<string, Record<string, unknown> | undefined> | undefined;
-  if (listed != undefined) {
-    const names = Object.keys(listed).sort();
-    const have = [...optical].sort();
-    if (names.join("\n") !== have.join("\n")) {
-      throw new Error(
-        `${where}: /sample/info tactile.optical lists the optical pads [${names.join(", ")}], ` +
-          `the sample has images of [${have.join(", ")}] (/tactile/<pad>/image)`,
-      );
-    }
-  }
-  if (pads != undefined) {
-    const unknown = optical.filter((pad) => !pads.includes(pad));
-    if (unknown.length > 0) {
-      throw new Error(
-        `${where}: optical images of ${unknown.join(", ")}, which are not pads of the sample ` +
-          `(no /tactile/<pad>/depth; pads: ${pads.join(", ")})`,
-      );
-    }
-  }
-  const tactileImages = new Map<string, RgbImage>();
+  const references = readPadStream(withReferences, where, PAD_REFERENCE, pads).values;
   const tactileReferences = new Map<string, RgbImage>();
-  for (const pad of optical) {
+  for (const [pad, image] of tactileImages) {
     const imageTopic = padImageTopic(pad);
     const referenceTopic = padReferenceTopic(pad);
-    const holder = sample.has(referenceTopic) ? sample : first?.has(referenceTopic) ? first : undefined;
-    if (holder == undefined) {
+    const reference = references.get(pad);
+    if (reference == undefined) {
       throw new Error(`${where}: ${imageTopic} without its ${referenceTopic}${first != undefined ? " (nor has the episode's frame 0)" : ""}`);
     }
-    const image = decodeRgb8(single(sample, imageTopic, where).value, `${where} ${imageTopic}`);
-    const reference = decodeRgb8(single(holder, referenceTopic, where).value, `${where} ${referenceTopic}`);
     if (reference.width !== image.width || reference.height !== image.height) {
       throw new Error(
         `${where}: ${referenceTopic} is ${reference.width}x${reference.height}, its image ${image.width}x${image.height}`,
       );
     }
-    const size = listed?.[pad]?.image_size;
+    const sensor = listed?.[pad] as Record<string, unknown> | undefined;
+    const size = sensor?.image_size;
     if (size != undefined && JSON.stringify(size) !== JSON.stringify([image.width, image.height])) {
       throw new Error(
         `${where}: ${imageTopic} is ${image.width}x${image.height}, but /sample/info ` +
           `tactile.optical.${pad}.image_size is ${JSON.stringify(size)} ([width, height])`,
       );
     }
-    tactileImages.set(pad, image);
     tactileReferences.set(pad, reference);
   }
   return { tactileImages, tactileReferences };

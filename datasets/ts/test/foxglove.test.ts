@@ -28,7 +28,6 @@ import {
   toNanos,
 } from "../src/foxglove.js";
 import {
-  ALLEGRO_JOINT_COUNT,
   BASE_TOPICS,
   EPISODE_METADATA_KEY,
   EPISODE_RECORD_KEYS,
@@ -44,6 +43,7 @@ import {
   isEpisodeStreamTopic,
   type EpisodeTiming,
   POINT_FIELDS,
+  POINT_PAD_FIELD,
   POINT_STRIDE,
   NOISE_TOPICS,
   OPTICAL_INFO_KEYS,
@@ -58,7 +58,6 @@ import {
   forcePadOfTopic,
   forcePadsOf,
   imageSpec,
-  isAllegro,
   markersPadOfTopic,
   markersPadsOf,
   opticalOfTopic,
@@ -81,6 +80,16 @@ const layoutPath = process.env.VTGEN_LAYOUT ?? join(repoRoot, "datasets", "foxgl
 const allowNoSceneModels = process.env.VTGEN_ALLOW_NO_SCENE_MODELS === "1";
 
 type Dataset = { name: string; root: string | undefined; shards: string[]; robot: boolean | undefined };
+
+// The readers know no robot: these are the UR5e + Allegro's (scenes/tiny-hand.yaml's robot), for
+// the checks of its shards only.
+/** The UR5e + Allegro's 12 pads, in the order of its pad index. */
+const ALLEGRO_PADS = ["ff", "mf", "rf", "th"].flatMap((f) => ["proximal", "medial", "distal"].map((p) => `${f}_${p}`));
+/** The UR5e + Allegro's joints in `joint_positions`: 6 arm + 16 hand. */
+const ALLEGRO_JOINT_COUNT = 22;
+/** Whether `pads` are the UR5e + Allegro's, in its order. */
+const isAllegro = (pads: readonly string[]): boolean =>
+  pads.length === ALLEGRO_PADS.length && pads.every((p, k) => p === ALLEGRO_PADS[k]);
 
 
 // ---- which datasets --------------------------------------------------------------------------
@@ -232,13 +241,16 @@ function samePose(a: Obj, b: Obj, tp: number, tr: number, what: string): void {
   assert.ok(worst <= tr, `${what}: rotations differ by ${worst.toExponential(2)} (> ${tr})`);
 }
 
-/** The `phalanx` field (the pad index) of every point of a /tactile/points message. */
-function phalanxIndices(cloud: Obj): number[] {
+/** Where in a /tactile/points point its pad index (field POINT_PAD_FIELD) is. */
+const PAD_INDEX_OFFSET = POINT_FIELDS.find(([name]) => name === POINT_PAD_FIELD)![1];
+
+/** The pad index of every point of a /tactile/points message. */
+function padIndices(cloud: Obj): number[] {
   const data = cloud.data as Uint8Array;
   const view = new DataView(data.buffer, data.byteOffset, data.byteLength);
   const out: number[] = [];
   for (let i = 0; i + POINT_STRIDE <= data.byteLength; i += POINT_STRIDE) {
-    out.push(view.getUint32(i + 16, true));
+    out.push(view.getUint32(i + PAD_INDEX_OFFSET, true));
   }
   return out;
 }
@@ -294,7 +306,7 @@ describe("datasets/foxglove-layout.json", () => {
     for (const topic of ["/tactile/points", SCENE_TOPIC, "/camera/rgb", "/camera/calibration", "/camera/depth", "/camera/mask", "/sample/info"]) {
       assert.ok(topics.has(topic), `the layout does not show ${topic}`);
     }
-    assert.ok([...topics].some((t) => /^\/tactile\/\w+_\w+\/depth$/.test(t)), "the layout shows no phalanx depth image");
+    assert.ok([...topics].some((t) => /^\/tactile\/\w+_\w+\/depth$/.test(t)), "the layout shows no pad depth image");
     assert.ok(
       refs.some((r) => r.use === "image" && opticalOfTopic(r.topic)?.kind === "image"),
       "the layout shows no optical pad image (/tactile/<pad>/image)",
@@ -327,7 +339,7 @@ for (const dataset of all) {
       describe(label, () => {
         let shard: ShardData;
         let robot = false;
-        /** The robot's pads, from the shard's /tactile/<pad>/depth channels (in phalanx index order). */
+        /** The robot's pads, from the shard's /tactile/<pad>/depth channels (in pad index order). */
         let pads: string[] = [];
         /** The pads with an optical sensor, from the shard's /tactile/<pad>/image channels (pad order). */
         let optical: string[] = [];
@@ -536,7 +548,7 @@ for (const dataset of all) {
           }
         });
 
-        it("a robot's pads: a depth image each, the pads /sample/info lists, in the phalanx index's order", () => {
+        it("a robot's pads: a depth image each, the pads /sample/info lists, in the pad index's order", () => {
           if (!robot) {
             assert.deepEqual(pads, [], "pad depth images without a robot");
             return;
@@ -550,7 +562,7 @@ for (const dataset of all) {
             assert.deepEqual(Object.keys(listed).sort(), [...pads].sort(), `${where}: /sample/info tactile.pads != the pad topics`);
             // The k-th pad channel is pad k of the point cloud: its points are that pad's count.
             const counts = obj(tactile.points) as Record<string, number>;
-            const index = phalanxIndices(only(sample, "/tactile/points"));
+            const index = padIndices(only(sample, "/tactile/points"));
             pads.forEach((pad, k) => {
               assert.equal(index.filter((i) => i === k).length, counts[pad] ?? 0, `${where}: points of pad ${k} (${pad})`);
             });
@@ -743,8 +755,8 @@ for (const dataset of all) {
               assert.equal(data.byteLength % POINT_STRIDE, 0, `${where}: point data length`);
               const view = new DataView(data.buffer, data.byteOffset, data.byteLength);
               for (let i = 0; i < data.byteLength; i += POINT_STRIDE) {
-                const phalanx = view.getUint32(i + 16, true);
-                assert.ok(phalanx < pads.length, `${where}: phalanx ${phalanx} of ${pads.length} pads`);
+                const pad = view.getUint32(i + PAD_INDEX_OFFSET, true);
+                assert.ok(pad < pads.length, `${where}: pad index ${pad} of ${pads.length} pads`);
                 for (let k = 0; k < 4; k++) {
                   assert.ok(Number.isFinite(view.getFloat32(i + 4 * k, true)), `${where}: non-finite point value`);
                 }

@@ -150,9 +150,19 @@ describe("readOpticalImages", () => {
     const s = sample(["left"], ["left"]);
     s.delete(padReferenceTopic("left"));
     assert.throws(() => readOpticalImages(s, "here"), /\/tactile\/left\/image without its \/tactile\/left\/reference/);
-    const t = sample(["left"], ["left"]);
+    const t = sample(["left"], ["left"], { info: null });
     t.delete(padImageTopic("left"));
-    assert.throws(() => readOpticalImages(t, "here"), /\/tactile\/left\/reference without its \/tactile\/left\/image/);
+    assert.throws(
+      () => readOpticalImages(t, "here"),
+      /^Error: here: reference images of left, which are not optical pads of the sample \(no \/tactile\/<pad>\/image\)$/,
+    );
+    // With /sample/info tactile.optical listing the pad, its missing image is what is named.
+    const u = sample(["left"], ["left"]);
+    u.delete(padImageTopic("left"));
+    assert.throws(() => readOpticalImages(u, "here"), /tactile\.optical lists the optical pads \[left\], the sample has optical images of \[\]/);
+    const twice = sample(["left"], ["left"]);
+    twice.get(padImageTopic("left"))!.push(twice.get(padImageTopic("left"))![0]!);
+    assert.throws(() => readOpticalImages(twice, "here"), /^Error: here: 2 messages on \/tactile\/left\/image, expected one$/);
     assert.throws(
       () => decodeRgb8({ ...rawImage(pixels(0), W, H), data: new Uint8Array(W * H * 3 - 1) }, "short"),
       /short: 5x3 rgb8 image with step 15 needs 45 bytes, data has 44/,
@@ -187,7 +197,7 @@ describe("readOpticalImages", () => {
   it("holds the images against /sample/info tactile.optical and the sample's pads", () => {
     assert.throws(
       () => readOpticalImages(sample(["left", "right"], ["left"], { info: { optical: { left: sensorInfo(), right: sensorInfo() } } }), "here"),
-      /tactile\.optical lists the optical pads \[left, right\], the sample has images of \[left\]/,
+      /tactile\.optical lists the optical pads \[left, right\], the sample has optical images of \[left\]/,
     );
     assert.throws(
       () => readOpticalImages(sample(["left"], ["left"], { info: { optical: { left: sensorInfo(4, 3) } } }), "here"),
