@@ -257,9 +257,10 @@ fn most_held_objects_stay_still_while_the_arm_is_still() {
     let builtin = vt_robot::Robot::allegro();
     let mut models = vec![("primitive hand", builtin.clone())];
     if let Some(dir) = std::env::var_os("ROBOT_ASSETS") {
-        let hand = vtgen::assets::robot::load_hand_meshes(std::path::Path::new(&dir), &builtin.model, None).unwrap();
-        let real = vtgen::assets::robot::with_real_hand(&builtin, &hand).unwrap();
-        models.push(("real hand", vt_robot::Robot { model: real, ..builtin.clone() }));
+        let drawn = vt_robot::Robot::builtin_with(vt_robot::DEFAULT_ROBOT, &[dir.into()]).unwrap();
+        let hand = vtgen::assets::robot::hand_surface_meshes(&drawn).unwrap();
+        let real = vtgen::assets::robot::with_real_hand(&drawn, &hand).unwrap();
+        models.push(("real hand", vt_robot::Robot { model: real, ..drawn.clone() }));
     }
     let pc = PhysicsConfig { timestep: 1.0 / 240.0, ..PhysicsConfig::default() };
     let settings = PhysicsSettings::from(&pc);

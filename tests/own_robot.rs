@@ -20,11 +20,13 @@ const FINGERS: [(&str, [f64; 3], [f64; 3]); 3] = [
 /// Phalanx lengths (m): proximal, distal (to the fingertip sphere's centre).
 const LENGTHS: [f64; 2] = [0.05, 0.04];
 
-/// The UR5e arm of the built-in URDF (base to flange) with the gripper on its Allegro adapter.
+/// The UR5e arm of the built-in URDF (base to flange; its primitives, the real meshes' visuals
+/// left out) with the gripper on its Allegro adapter.
 pub fn three_finger_urdf() -> String {
     let builtin = vt_robot::BUILTIN_URDF;
     let cut = builtin.find("  <link name=\"hand_adapter\">").expect("the built-in URDF has the hand adapter");
-    let mut x = builtin[..cut].replace("name=\"ur5e_allegro\"", "name=\"ur5e_three_finger\"");
+    let arm: String = builtin[..cut].lines().filter(|l| !l.contains("<mesh filename=")).map(|l| format!("{l}\n")).collect();
+    let mut x = arm.replace("name=\"ur5e_allegro\"", "name=\"ur5e_three_finger\"");
     let box_link = |x: &mut String, name: &str, mass: f64, size: [f64; 3], at: [f64; 3], tip: Option<(f64, f64)>| {
         let g = |x: &mut String, kind: &str| {
             let _ = write!(
@@ -120,12 +122,15 @@ fn write_config(dir: &Path) -> PathBuf {
 }
 
 /// `scenes/tiny-hand.yaml` written as `config` in `dir` with the robot of `description` (beside
-/// it) grasping at the palm's middle, on the backend under test (`VTGEN_TEST_PHYSICS`).
+/// it) grasping at the palm's middle, on the backend under test (`VTGEN_TEST_PHYSICS`); its sensor
+/// rule for the Allegro's medial pads left out (this hand has none: a rule that selects no pad
+/// is an error).
 pub fn three_finger_config(dir: &Path, description: &str, config: &str) -> PathBuf {
     let text = std::fs::read_to_string(root().join("scenes/tiny-hand.yaml")).unwrap();
     let backend = std::env::var("VTGEN_TEST_PHYSICS").unwrap_or_else(|_| "rapier".into());
     let text = text
         .replace("robot:\n", &format!("robot:\n  description: {description}\n"))
+        .replace("      - {pads: medial, model: taxel_array, rows: 4, cols: 4}\n", "")
         .replace("  grasp:\n", "  grasp:\n    object_offset: {min: [0.0, -0.01, -0.06], max: [0.0, 0.01, -0.035]}\n")
         .replace("backend: rapier", &format!("backend: {backend}"));
     let cfg = dir.join(config);

@@ -9,10 +9,11 @@ use std::path::{Path, PathBuf};
 use glam::{DAffine3, DMat4, DVec3};
 use vt_objects::TexturedMesh;
 use vt_robot::Robot;
-use vtgen::assets::robot::{ARM_TRIANGLES_PER_LINK, load_robot_meshes};
 use vtgen::config::RendererConfig;
 use vtgen::render::{Draw, DrawRole, Renderer, View, WgpuRenderer};
+use vtgen::scene::drawable::TRIANGLES_PER_LINK;
 use vtgen::scene::look_at;
+use vtgen::scene::robot::link_mesh_with;
 
 use crate::common::{root, run, stderr, tempdir};
 
@@ -24,6 +25,20 @@ fn assets() -> Option<PathBuf> {
     dir
 }
 
+/// The built-in UR5e + Allegro drawn from the meshes in `dir` (its URDF's optional visuals).
+fn real_robot(dir: &Path) -> Robot {
+    Robot::builtin_with(vt_robot::DEFAULT_ROBOT, &[dir.to_path_buf()]).unwrap()
+}
+
+/// Each link drawn from meshes: whole, or simplified as the renderer draws it.
+fn drawn_links(model: &vt_robot::RobotModel, simplified: bool) -> HashMap<usize, TexturedMesh> {
+    let max = if simplified { TRIANGLES_PER_LINK } else { usize::MAX };
+    (0..model.links.len())
+        .filter(|&l| model.links[l].visuals.iter().any(|v| matches!(v.geometry, vt_robot::Geometry::Mesh { .. })))
+        .filter_map(|l| link_mesh_with(model, l, max).map(|m| (l, m)))
+        .collect()
+}
+
 fn z_range(m: &TexturedMesh) -> (f32, f32) {
     m.positions.iter().fold((f32::MAX, f32::MIN), |(lo, hi), p| (lo.min(p[2]), hi.max(p[2])))
 }
@@ -31,9 +46,10 @@ fn z_range(m: &TexturedMesh) -> (f32, f32) {
 #[test]
 fn real_meshes_sit_in_our_link_frames() {
     let Some(dir) = assets() else { return };
-    let robot = Robot::allegro();
+    let robot = real_robot(&dir);
     let model = robot.model.clone();
-    let meshes = load_robot_meshes(&dir, &model, false).unwrap();
+    let meshes = drawn_links(&model, false);
+    assert_eq!(meshes.len(), 7 + 17, "the arm's 7 links and the hand's palm, bases and phalanges");
     let get = |name: &str| &meshes[&model.link_id(name).unwrap()];
     // Phalanges run along their link's z from the joint to the next joint (the URDF's lengths),
     // the distal ones to the end of the fingertip (FACTS: 0.0267 + 0.012 finger, 0.0543 thumb).
@@ -50,9 +66,9 @@ fn real_meshes_sit_in_our_link_frames() {
     let (lo, hi) = upper.positions.iter().fold((f32::MAX, f32::MIN), |(lo, hi), p| (lo.min(p[0]), hi.max(p[0])));
     assert!((lo + 0.425 + 0.06).abs() < 0.04 && hi.abs() < 0.1, "upper arm x from {lo} to {hi}");
     assert_eq!(upper.triangle_count(), 40_120, "whole");
-    let drawn = load_robot_meshes(&dir, &model, true).unwrap();
+    let drawn = drawn_links(&model, true);
     let drawn_count = |name: &str| drawn[&model.link_id(name).unwrap()].triangle_count();
-    assert!(drawn_count("shoulder_lift_link") <= 4 * ARM_TRIANGLES_PER_LINK / 3, "simplified: {}", drawn_count("shoulder_lift_link"));
+    assert!(drawn_count("shoulder_lift_link") <= 4 * TRIANGLES_PER_LINK / 3, "simplified: {}", drawn_count("shoulder_lift_link"));
     assert!(drawn_count("palm") < get("palm").triangle_count(), "the drawn hand is simplified too");
 }
 
@@ -67,10 +83,10 @@ fn outside_one_pixel(a: &[u8], b: &[u8], w: usize, h: usize) -> usize {
 #[test]
 fn the_simplified_robot_keeps_its_silhouette_within_a_pixel_at_the_paper_camera() {
     let Some(dir) = assets() else { return };
-    let robot = Robot::allegro();
+    let robot = real_robot(&dir);
     let model = robot.model.clone();
-    let full = load_robot_meshes(&dir, &model, false).unwrap();
-    let simplified = load_robot_meshes(&dir, &model, true).unwrap();
+    let full = drawn_links(&model, false);
+    let simplified = drawn_links(&model, true);
     // scenes/paper.yaml: its camera, its robot base, the arm at its home pose.
     let paper = vtgen::config::LoadedConfig::load(&root().join("scenes/paper.yaml")).unwrap().config;
     let cam = &paper.camera;
@@ -172,9 +188,9 @@ fn tactile_points_lie_on_the_object_and_at_the_real_finger_surface() {
     use rapier3d::parry::query::PointQuery;
     let Some(dir) = assets() else { return };
     let out = real_robot_dataset(&dir);
-    let robot = Robot::allegro();
+    let robot = real_robot(&dir);
     let model = robot.model.clone();
-    let hand = vtgen::assets::robot::load_hand_meshes(&dir, &model, None).unwrap();
+    let hand = vtgen::assets::robot::hand_surface_meshes(&robot).unwrap();
     let trimesh = |m: &TexturedMesh| {
         let v = m.positions.iter().map(|p| glam::Vec3::from(*p)).collect();
         let t = m.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
@@ -232,9 +248,8 @@ fn tactile_points_lie_on_the_object_and_at_the_real_finger_surface() {
 fn each_pad_sits_on_its_phalanx_real_surface() {
     use rapier3d::parry::query::PointQuery;
     let Some(dir) = assets() else { return };
-    let robot = Robot::allegro();
-    let model = robot.model.clone();
-    let hand = vtgen::assets::robot::load_hand_meshes(&dir, &model, None).unwrap();
+    let robot = real_robot(&dir);
+    let hand = vtgen::assets::robot::hand_surface_meshes(&robot).unwrap();
     let real = vtgen::assets::robot::with_real_hand(&robot, &hand).unwrap();
     let q = real.zero();
     let links = real.forward_kinematics(&q);
@@ -263,23 +278,36 @@ fn write(dir: &Path, rel: &str, bytes: &[u8]) {
 
 #[test]
 fn bad_robot_mesh_directories_give_one_clear_error_naming_the_path() {
-    let robot = Robot::allegro();
-    let model = robot.model.clone();
-    let err = |dir: &Path| load_robot_meshes(dir, &model, true).map(|_: HashMap<_, _>| ()).unwrap_err().to_string();
+    let err = |dir: &Path| {
+        let config = tempdir();
+        let path = config.path().join("c.yaml");
+        std::fs::write(&path, "objects: [005_tomato_soup_can]\nrobot: {}\n").unwrap();
+        vtgen::config::LoadedConfig::load_with_assets(&path, &[], Some(dir)).map(|_| ()).unwrap_err().to_string()
+    };
     // A directory of another robot (or of nothing).
     let other = tempdir();
     write(other.path(), "meshes/panda_link0.dae", b"<COLLADA/>");
     let e = err(other.path());
     assert!(
-        e.contains("no Allegro hand meshes") && e.contains("allegro/meshes/base_link.STL") && e.contains("scripts/robot-assets"),
+        e.contains("none of the meshes of robot 'ur5e_allegro'")
+            && e.contains("ur5e/visual/base.obj")
+            && e.contains("scripts/robot-assets"),
         "{e}"
     );
     // A corrupt STL.
     let corrupt = tempdir();
-    write(corrupt.path(), "allegro/meshes/base_link.STL", b"solid nothing useful\n");
-    write(corrupt.path(), "ur5e/visual/upperarm.obj", b"v 0 0 0\n");
-    let e = err(corrupt.path());
-    assert!(e.contains("base_link.STL") && e.contains("robot mesh"), "{e}");
+    if let Some(dir) = std::env::var_os("ROBOT_ASSETS").map(PathBuf::from) {
+        for sub in ["allegro/meshes", "ur5e/visual"] {
+            std::fs::create_dir_all(corrupt.path().join(sub)).unwrap();
+            for f in std::fs::read_dir(dir.join(sub)).unwrap() {
+                let f = f.unwrap().path();
+                std::fs::copy(&f, corrupt.path().join(sub).join(f.file_name().unwrap())).unwrap();
+            }
+        }
+        write(corrupt.path(), "allegro/meshes/base_link.STL", b"solid nothing useful\n");
+        let e = err(corrupt.path());
+        assert!(e.contains("base_link.STL") && e.contains("link 'palm' visual"), "{e}");
+    }
     // A missing mesh of an otherwise complete directory.
     if let Some(dir) = std::env::var_os("ROBOT_ASSETS").map(PathBuf::from) {
         let partial = tempdir();
@@ -293,7 +321,7 @@ fn bad_robot_mesh_directories_give_one_clear_error_naming_the_path() {
             }
         }
         let e = err(partial.path());
-        assert!(e.contains("link_14.0.STL") && e.contains("file not found"), "{e}");
+        assert!(e.contains("link_14.0.STL") && e.contains("1 are not"), "{e}");
     }
     // The CLI: one error line, exit status 1.
     let config = root().join("scenes/tiny-hand.yaml");

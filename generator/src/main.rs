@@ -296,6 +296,21 @@ enum ExportFormat {
     },
 }
 
+impl ExportFormat {
+    /// The dataset, the output folder and the format's exporter.
+    fn exporter(self) -> (PathBuf, PathBuf, Box<dyn vtgen::cli::export::Exporter>) {
+        use vtgen::cli::export::{Bop, BopOptions, LerobotOptions};
+        match self {
+            ExportFormat::Bop { dataset, out, quiet, exr, targets_min_visib } => {
+                (dataset, out, Box::new(Bop { quiet, options: BopOptions { exr, targets_min_visib } }))
+            }
+            ExportFormat::Lerobot { dataset, out, repo_id, fps, vcodec, python, quiet } => {
+                (dataset, out, Box::new(LerobotOptions { repo_id, fps, vcodec, python, quiet }))
+            }
+        }
+    }
+}
+
 // A table: one match arm per subcommand, from parsed flags to its `vtgen::cli::<command>::run`.
 fn run(cli: Cli) -> Result<()> {
     let load = |config: &PathBuf| anyhow::Ok(LoadedConfig::load_with_assets(config, &cli.overrides, cli.robot_assets.as_deref())?);
@@ -369,12 +384,9 @@ fn run(cli: Cli) -> Result<()> {
         Command::Inspect { dataset, json } => commands::inspect::run(&dataset, json),
         Command::Validate { dataset, full } => commands::validate::run(&dataset, full),
         Command::Stats { dataset, out } => commands::stats::run(&dataset, &out),
-        Command::Export { format: ExportFormat::Bop { dataset, out, quiet, exr, targets_min_visib } } => {
-            commands::export::run_bop(&dataset, &out, quiet, commands::export::BopOptions { exr, targets_min_visib })
-        }
-        Command::Export { format: ExportFormat::Lerobot { dataset, out, repo_id, fps, vcodec, python, quiet } } => {
-            let opts = commands::export::LerobotOptions { repo_id, fps, vcodec, python, quiet };
-            commands::export::run_lerobot(&dataset, &out, &opts)
+        Command::Export { format } => {
+            let (dataset, out, exporter) = format.exporter();
+            commands::export::run(exporter.as_ref(), &dataset, &out)
         }
         Command::Dump { dataset, split, index, out, exr } => commands::dump::dump(&dataset, &split, index, &out, exr),
     }

@@ -34,7 +34,7 @@ impl EpisodeTimeline {
         let (record, robot) = (config.sampling.record.as_ref()?, config.robot.as_ref()?);
         let timestep = robot.physics.timestep;
         let periods = record.periods(timestep);
-        let per_move = crate::physics::grasp::move_steps(&robot.grasp, timestep) + record.in_hand_steps(timestep);
+        let per_move = robot.grasp.move_steps(timestep) + record.in_hand_steps(timestep);
         let steps = config.sampling.instances_per_trajectory as u64 * per_move as u64;
         Some(EpisodeTimeline { periods, steps, frames: steps / periods.camera + 1, timestep })
     }
@@ -169,6 +169,17 @@ impl std::str::FromStr for ShardSelector {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_papers_config_plans_its_samples_and_a_set_its_tiny_split() {
+        let paper = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/paper.yaml"));
+        let full = crate::config::LoadedConfig::load(paper).unwrap().config;
+        assert_eq!(Plan::new(&full).total_samples(), 220_000);
+        let set: Vec<crate::config::Override> =
+            ["sampling.trajectories_per_object=2", "sampling.instances_per_trajectory=5"].iter().map(|s| s.parse().unwrap()).collect();
+        let small = crate::config::LoadedConfig::load_with(paper, &set).unwrap().config;
+        assert_eq!(Plan::new(&small).total_samples(), 11 * 2 * 5);
+    }
 
     fn config(trajectories: u32, instances: u32, per_shard: u32) -> Config {
         let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/tiny.yaml")).unwrap();

@@ -14,7 +14,6 @@ use vt_randomizers::{AppearanceContext, ImageLibrary, ProceduralTexture, SampleK
 
 use crate::annotate::occlusion::{model_points, occlusion_level};
 use crate::assets::LoadedObject;
-use crate::assets::robot::{load_drawn_meshes, robot_assets_dir};
 use crate::config::{Config, LoadedConfig, snap_depth_to_grid};
 use crate::cpu_clock::StageClock;
 use crate::physics::grasp::Trajectory;
@@ -67,32 +66,22 @@ struct DrawnRobot {
     glbs: Vec<SceneModel>,
 }
 
-/// Uploads every drawn link of the robot: its real mesh where the robot assets have one (the
-/// built-in robots drawn from primitives), else its URDF's own geometry (meshes included).
+/// Uploads every drawn link of the robot, from its URDF's visuals (its meshes, or its primitives
+/// where a robot's optional meshes are not there).
 fn upload_robot(renderer: &mut dyn Renderer, cfg: &LoadedConfig, r: &RobotScene) -> Result<DrawnRobot> {
     let mut out = DrawnRobot::default();
-    // The robot assets hold real meshes for the built-in robots drawn from primitives;
-    // other robots draw their URDF's own geometry (meshes included).
-    let has_meshes = crate::assets::robot::ROBOTS_WITH_MESHES.contains(&r.robot.name.as_str());
-    let mut real = match robot_assets_dir(cfg) {
-        Some(dir) if has_meshes => load_drawn_meshes(&dir, &r.robot, true)?,
-        Some(_) => Default::default(),
-        None => {
-            static SAID: std::sync::Once = std::sync::Once::new();
-            if has_meshes {
-                SAID.call_once(|| {
-                    eprintln!(
-                        "vtgen: drawing the robot from primitives (no robot meshes: --robot-assets DIR, e.g. \
-                             `--robot-assets \"$(scripts/robot-assets)\"`, draws the real meshes of {})",
-                        r.robot.name
-                    )
-                });
-            }
-            Default::default()
-        }
-    };
+    if !r.robot.model.visual_meshes_left_out.is_empty() {
+        static SAID: std::sync::Once = std::sync::Once::new();
+        SAID.call_once(|| {
+            eprintln!(
+                "vtgen: drawing the robot from primitives (no robot meshes: --robot-assets DIR, e.g. \
+                     `--robot-assets \"$(scripts/robot-assets)\"`, draws the real meshes of {})",
+                r.robot.name
+            )
+        });
+    }
     for link in 0..r.robot.model.links.len() {
-        let mesh = real.remove(&link).or_else(|| link_mesh(&r.robot.model, link));
+        let mesh = link_mesh(&r.robot.model, link);
         if let (Some(mesh), Some(id)) = (mesh, robot_mask_id(&r.robot, link)) {
             // Matte black hand (white tips), the arm's painted aluminium.
             let arm = mask_ids::ARM_LINKS.contains(&id) || id == mask_ids::ARM_LINK_SEVENTH;

@@ -15,6 +15,47 @@ from pathlib import Path
 out = []
 w = out.append
 
+# The real meshes of the built-in robots, drawn where the robot assets hold them
+# (`scripts/robot-assets` fetches them from PyPI into package folders named allegro/, ur5e/ and
+# robotiq_2f85/); without them each link is drawn from its primitive visuals (the descriptions'
+# `drawn_meshes: optional`). Per link: (file, xyz, rpy, material or None for the file's own
+# colours, scale).
+MESH_VISUALS = {}
+
+
+def mat4(xyz, rpy):
+    """A URDF origin as a 4x4 matrix: R = Rz(yaw) Ry(pitch) Rx(roll), then the translation."""
+    (r, p, y), (cr, sr, cp, sp, cy, sy) = rpy, (math.cos(rpy[0]), math.sin(rpy[0]), math.cos(rpy[1]),
+                                                  math.sin(rpy[1]), math.cos(rpy[2]), math.sin(rpy[2]))
+    return [[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr, xyz[0]],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr, xyz[1]],
+            [-sp, cp * sr, cp * cr, xyz[2]],
+            [0.0, 0.0, 0.0, 1.0]]
+
+
+def mul(a, b):
+    return [[sum(a[i][k] * b[k][j] for k in range(4)) for j in range(4)] for i in range(4)]
+
+
+def inverse(m):
+    rt = [[m[j][i] for j in range(3)] for i in range(3)]
+    t = [-sum(rt[i][k] * m[k][3] for k in range(3)) for i in range(3)]
+    return [rt[0] + [t[0]], rt[1] + [t[1]], rt[2] + [t[2]], [0.0, 0.0, 0.0, 1.0]]
+
+
+def xyz_rpy(m):
+    """The URDF origin of a rigid 4x4 matrix (checked by composing it back)."""
+    pitch = math.asin(max(-1.0, min(1.0, -m[2][0])))
+    if abs(math.cos(pitch)) > 1e-9:
+        roll, yaw = math.atan2(m[2][1], m[2][2]), math.atan2(m[1][0], m[0][0])
+    else:  # gimbal lock: yaw 0, roll from the remaining rotation
+        roll, yaw = math.atan2(-m[1][2], m[1][1]), 0.0
+    # Rounded to 1e-12 (m, rad): the products leave 1e-17 crumbs where there are zeros.
+    xyz, rpy = [round(m[i][3], 12) + 0.0 for i in range(3)], [round(a, 12) + 0.0 for a in (roll, pitch, yaw)]
+    back = mat4(xyz, rpy)
+    assert all(abs(back[i][j] - m[i][j]) < 1e-12 for i in range(3) for j in range(4)), m
+    return xyz, rpy
+
 
 def box_inertia(m, x, y, z):
     return (m * (y * y + z * z) / 12, m * (x * x + z * z) / 12, m * (x * x + y * y) / 12)
@@ -39,6 +80,11 @@ def link(name, mass, geoms, com=(0, 0, 0)):
         w(f'    <visual>{o}<geometry>{g}</geometry><material name="{material}"/></visual>')
         if collides:
             w(f'    <collision>{o}<geometry>{g}</geometry></collision>')
+    for file, xyz, rpy, material, scale in MESH_VISUALS.get(name, []):
+        o = f'<origin xyz="{xyz[0]!r} {xyz[1]!r} {xyz[2]!r}" rpy="{rpy[0]!r} {rpy[1]!r} {rpy[2]!r}"/>'
+        s = f' scale="{scale} {scale} {scale}"' if scale != 1 else ""
+        m = f'<material name="{material}"/>' if material else ""
+        w(f'    <visual>{o}<geometry><mesh filename="package://{file}"{s}/></geometry>{m}</visual>')
     w("  </link>")
 
 
@@ -66,12 +112,75 @@ def ur5e_allegro_header():
         w(f'  <material name="{name}"><color rgba="{rgba}"/></material>')
 
 
+# The UR5e's visual meshes (airo-models 0.0.12, arms/ur5e/visual, OBJ + MTL) sit in the links of
+# Universal Robots' ROS description (its ur5e.urdf): per link, the ROS joint origin leading to it
+# and the mesh's visual origin there (xyz, rpy). Its base_link_inertia is our base_link (the DH
+# base frame). The ROS link frames differ from our DH link frames by a fixed offset per link,
+# found from both chains at q = 0 (both turn each joint about its local z, so it holds at any q).
+H, PI = math.pi / 2, math.pi
+ROS_CHAIN = [
+    ("base_link", ((0, 0, 0), (0, 0, 0)), "base.obj", ((0, 0, 0), (0, 0, PI))),
+    ("shoulder_pan_link", ((0, 0, 0.1625), (0, 0, 0)), "shoulder.obj", ((0, 0, 0), (0, 0, PI))),
+    ("shoulder_lift_link", ((0, 0, 0), (H, 0, 0)), "upperarm.obj", ((0, 0, 0.138), (H, 0, -H))),
+    ("elbow_link", ((-0.425, 0, 0), (0, 0, 0)), "forearm.obj", ((0, 0, 0.007), (H, 0, -H))),
+    ("wrist_1_link", ((-0.3922, 0, 0.1333), (0, 0, 0)), "wrist1.obj", ((0, 0, -0.127), (H, 0, 0))),
+    ("wrist_2_link", ((0, -0.0997, 0), (H, 0, 0)), "wrist2.obj", ((0, 0, -0.0997), (0, 0, 0))),
+    ("wrist_3_link", ((0, 0, 0.0996), (H, PI, PI)), "wrist3.obj", ((0, 0, -0.0989), (H, 0, 0))),
+]
+# UR5e, standard DH (a, d, alpha) and link masses. Joint i+1's origin is joint i's fixed DH part:
+# translation (a_i, 0, d_i) then rotation alpha_i about x; every joint turns about its local z.
+DH = [(0.0, 0.1625, math.pi / 2, 3.761), (-0.425, 0.0, 0.0, 8.058), (-0.3922, 0.0, 0.0, 2.846),
+      (0.0, 0.1333, math.pi / 2, 1.37), (0.0, 0.0997, -math.pi / 2, 1.3), (0.0, 0.0996, 0.0, 0.365)]
+ARM = ["shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2", "wrist_3"]
+
+
+def ur5e_mesh_visuals():
+    """The UR5e meshes' origins in our link frames: (our link at q = 0)^-1 * (ROS link at q = 0) *
+    (the ROS visual origin)."""
+    ours, t, prev = {"base_link": mat4((0, 0, 0), (0, 0, 0))}, mat4((0, 0, 0), (0, 0, 0)), (0.0, 0.0, 0.0)
+    for name, (a, d, alpha, _) in zip(ARM, DH):
+        t = mul(t, mat4((prev[0], 0, prev[1]), (prev[2], 0, 0)))
+        ours[f"{name}_link"], prev = t, (a, d, alpha)
+    ros = mat4((0, 0, 0), (0, 0, 0))
+    for link_name, (jxyz, jrpy), mesh, (vxyz, vrpy) in ROS_CHAIN:
+        ros = mul(ros, mat4(jxyz, jrpy))
+        xyz, rpy = xyz_rpy(mul(mul(inverse(ours[link_name]), ros), mat4(vxyz, vrpy)))
+        MESH_VISUALS[link_name] = [(f"ur5e/visual/{mesh}", xyz, rpy, None, 1)]
+
+
+def allegro_mesh_visuals():
+    """The Allegro hand v4's STL meshes (example-robot-data 6.0.0, allegro_hand_description/meshes),
+    each in its link's frame of that package's URDF, whose joint origins our hand uses unchanged;
+    the fingertips at the tip joint (0.0267 m, thumb 0.0423 m along the distal link's z). The hand
+    black, the fingertips white (the URDF's materials)."""
+    black = lambda f, z=0.0: (f"allegro/meshes/{f}", (0, 0, z), (0, 0, 0), "hand_black", 1)
+    tip = lambda f, z: (f"allegro/meshes/{f}", (0, 0, z), (0, 0, 0), "tip_white", 1)
+    MESH_VISUALS["palm"] = [black("base_link.STL")]
+    for p in ("ff", "mf", "rf"):
+        MESH_VISUALS[f"{p}_base"] = [black("link_0.0.STL")]
+        MESH_VISUALS[f"{p}_proximal"] = [black("link_1.0.STL")]
+        MESH_VISUALS[f"{p}_medial"] = [black("link_2.0.STL")]
+        MESH_VISUALS[f"{p}_distal"] = [black("link_3.0.STL"), tip("link_3.0_tip.STL", 0.0267)]
+    MESH_VISUALS["th_base"] = [black("link_12.0_right.STL")]
+    MESH_VISUALS["th_proximal"] = [black("link_13.0.STL")]
+    MESH_VISUALS["th_medial"] = [black("link_14.0.STL")]
+    MESH_VISUALS["th_distal"] = [black("link_15.0.STL"), tip("link_15.0_tip.STL", 0.0423)]
+
+
+def robotiq_mesh_visuals():
+    """The 2F-85's visual OBJs (airo-models 0.0.12, grippers/robotiq_2f_85/meshes/visual), each in
+    its link's frame of that package's robotiq_2f_85.urdf (whose joint origins our gripper uses;
+    its base_link_inertia is our gripper_body); the body in metres, the rest in millimetres."""
+    part = lambda f, material, scale: (f"robotiq_2f85/visual/robotiq_arg2f_85_{f}.obj", (0, 0, 0), (0, 0, 0), material, scale)
+    MESH_VISUALS["gripper_body"] = [part("base_link", "gripper_black", 1)]
+    for side in ("left", "right"):
+        MESH_VISUALS[f"{side}_outer_knuckle"] = [part("outer_knuckle", "knuckle_grey", 0.001)]
+        MESH_VISUALS[f"{side}_outer_finger"] = [part("outer_finger", "gripper_black", 0.001)]
+        MESH_VISUALS[f"{side}_inner_finger"] = [part("inner_finger", "gripper_black", 0.001)]
+        MESH_VISUALS[f"{side}_inner_knuckle"] = [part("inner_knuckle", "gripper_black", 0.001)]
+
+
 def ur5e():
-    # UR5e, standard DH (a, d, alpha) and link masses. Joint i+1's origin is joint i's fixed DH part:
-    # translation (a_i, 0, d_i) then rotation alpha_i about x; every joint turns about its local z.
-    DH = [(0.0, 0.1625, math.pi / 2, 3.761), (-0.425, 0.0, 0.0, 8.058), (-0.3922, 0.0, 0.0, 2.846),
-          (0.0, 0.1333, math.pi / 2, 1.37), (0.0, 0.0997, -math.pi / 2, 1.3), (0.0, 0.0996, 0.0, 0.365)]
-    ARM = ["shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2", "wrist_3"]
     ARM_LIMITS = [(2 * math.pi, 150), (2 * math.pi, 150), (math.pi, 150), (2 * math.pi, 28), (2 * math.pi, 28), (2 * math.pi, 28)]
     link("base_link", 4.0, [("cylinder", (0.075, 0.09), (0, 0, 0.045), "arm_grey", True)])
     parent, prev = "base_link", (0.0, 0.0, 0.0)
@@ -197,5 +306,8 @@ def write(name, header, hand):
 
 
 # Each robot's folder: robots/allegro/ (this one) and robots/robotiq_2f85/.
+ur5e_mesh_visuals()
+allegro_mesh_visuals()
+robotiq_mesh_visuals()
 write("robot.urdf", ur5e_allegro_header, allegro)
 write("../robotiq_2f85/robot.urdf", ur5e_robotiq_2f85_header, robotiq_2f85)

@@ -358,7 +358,6 @@ fn taxim_seed(work: &Path) -> (PathBuf, Vec<u8>) {
 
 // Long on purpose: one entry per target (its seeds and how an input is tried), in one table.
 fn targets(work: &Path) -> Vec<Target> {
-    use vtgen::assets::robot::{read_obj, read_stl};
     let corpus = root().join("tests/fuzz/corpus");
     let scenes: Vec<Vec<u8>> =
         ["tiny.yaml", "tiny-hand.yaml", "paper.yaml", "demo-hand.yaml"].iter().map(|s| read(&root().join("scenes").join(s))).collect();
@@ -433,7 +432,7 @@ fn targets(work: &Path) -> Vec<Target> {
             share: 1.0,
             run: Box::new(in_file("mesh.obj", |p| {
                 let _ = vt_objects::load_mesh(p);
-                let _ = read_obj(p);
+                let _ = vt_robot::mesh::read_mesh(p, glam::DVec3::ONE);
             })),
         },
         Target {
@@ -458,7 +457,7 @@ fn targets(work: &Path) -> Vec<Target> {
             seeds: vec![read(&corpus.join("stl/tetra.stl")), binary_stl(&mesh("009_gelatin_box"))],
             tokens: TEXT_TOKENS,
             share: 1.0,
-            run: Box::new(in_file("mesh.stl", |p| drop(read_stl(p, [0.1, 0.1, 0.1])))),
+            run: Box::new(in_file("mesh.stl", |p| drop(vt_robot::mesh::read_mesh(p, glam::DVec3::ONE)))),
         },
         Target {
             name: "ply",

@@ -98,8 +98,8 @@ fn mesh_sha256(o: &LoadedObject) -> String {
 }
 
 /// The robot: its URDF text (and its description's, but for the default robot, whose identity
-/// earlier datasets carry as its URDF's alone) and every file of the robot mesh directories the
-/// run reads.
+/// earlier datasets carry as its URDF's alone) and every mesh file its URDF names that the run
+/// reads.
 fn robot_source(cfg: &LoadedConfig, rc: &crate::config::RobotConfig) -> Result<Source> {
     let mut h = Sha256::new();
     let mut from = Vec::new();
@@ -137,28 +137,25 @@ fn robot_source(cfg: &LoadedConfig, rc: &crate::config::RobotConfig) -> Result<S
     }
     // The mesh files a URDF names (the robot's own geometry), by content.
     if let Some(robot) = cfg.robot.as_ref().filter(|r| !r.model.mesh_files.is_empty()) {
-        for (file, m) in robot.model.mesh_files.iter().zip(robot_mesh_files(robot)?) {
+        for (file, m) in robot.model.mesh_files.iter().zip(robot_mesh_files(robot, None)?) {
             h.update(tail(file, 1).as_bytes());
             h.update(m.bytes.to_le_bytes());
             h.update(m.sha256.as_bytes());
         }
         from.push(format!("{} URDF mesh files", robot.model.mesh_files.len()));
     }
-    match &cfg.robot_assets {
-        Some(_) if !crate::assets::robot::ROBOTS_WITH_MESHES.contains(&name) => {}
-        Some(dir) => {
-            for sub in crate::assets::robot::mesh_dirs(name) {
-                hash_dir(&mut h, dir, &dir.join(sub))?;
-            }
-            from.push("robot meshes".to_string());
-        }
-        None => from.push("primitives".to_string()),
+    // A robot drawn from its primitives where its optional meshes are not there.
+    if cfg.robot.as_ref().is_some_and(|r| !r.model.visual_meshes_left_out.is_empty()) {
+        from.push("primitives".to_string());
     }
     Ok(Source { from: from.join(", "), sha256: hex(h) })
 }
 
-/// The mesh files a robot's URDF names, each with its size and SHA-256 (`robot/meshes.json`).
-pub fn robot_mesh_files(robot: &vt_robot::Robot) -> Result<Vec<vt_dataset::RobotMeshFile>> {
+/// The mesh files a robot's URDF names, each with its size and SHA-256 (`robot/meshes.json`); a
+/// file in the robot assets folder `assets` by its path there (the same assets in another folder
+/// give the same dataset), any other where it was read.
+pub fn robot_mesh_files(robot: &vt_robot::Robot, assets: Option<&Path>) -> Result<Vec<vt_dataset::RobotMeshFile>> {
+    let assets = assets.map(|a| std::fs::canonicalize(a).unwrap_or_else(|_| a.to_path_buf()));
     robot
         .model
         .mesh_files
@@ -167,29 +164,10 @@ pub fn robot_mesh_files(robot: &vt_robot::Robot) -> Result<Vec<vt_dataset::Robot
             let bytes = std::fs::read(f).with_context(|| format!("cannot read {}", f.display()))?;
             let mut h = Sha256::new();
             h.update(&bytes);
-            Ok(vt_dataset::RobotMeshFile { file: f.display().to_string(), bytes: bytes.len() as u64, sha256: hex(h) })
+            let file = assets.as_deref().and_then(|a| f.strip_prefix(a).ok()).unwrap_or(f);
+            Ok(vt_dataset::RobotMeshFile { file: file.display().to_string(), bytes: bytes.len() as u64, sha256: hex(h) })
         })
         .collect()
-}
-
-/// Every regular file below `dir` in name order: its path relative to `root`, its length and bytes.
-fn hash_dir(h: &mut Sha256, root: &Path, dir: &Path) -> Result<()> {
-    let Ok(entries) = std::fs::read_dir(dir) else {
-        return Ok(()); // the mesh loader reports a missing directory with its layout
-    };
-    let mut paths: Vec<_> = entries.filter_map(|e| e.ok().map(|e| e.path())).collect();
-    paths.sort();
-    for p in paths {
-        if p.is_dir() {
-            hash_dir(h, root, &p)?;
-        } else {
-            let bytes = std::fs::read(&p).with_context(|| format!("cannot read {}", p.display()))?;
-            h.update(p.strip_prefix(root).unwrap_or(&p).to_string_lossy().as_bytes());
-            h.update((bytes.len() as u64).to_le_bytes());
-            h.update(&bytes);
-        }
-    }
-    Ok(())
 }
 
 fn hex(h: Sha256) -> String {

@@ -101,7 +101,19 @@ impl Default for GraspConfig {
     }
 }
 
+/// After an arm move, up to this many waits of `PENETRATION_WAIT_SECONDS` for squeezing
+/// transients (the arm move's schedule: `GraspConfig::move_steps`).
+pub const PENETRATION_WAITS: usize = 10;
+pub const PENETRATION_WAIT_SECONDS: f64 = 0.025;
+
 impl GraspConfig {
+    /// Physics steps of one recorded arm move of an episode, without in-hand motion: the move, the
+    /// hold, and the whole settle window of `PENETRATION_WAITS` waits.
+    pub fn move_steps(&self, timestep: f64) -> usize {
+        let steps = |seconds: f64| (seconds / timestep).round().max(1.0) as usize;
+        steps(self.move_seconds) + steps(self.hold_seconds) + PENETRATION_WAITS * steps(PENETRATION_WAIT_SECONDS)
+    }
+
     /// This config with the joint arrays it leaves out taken from the robot's description.
     pub fn with_robot_defaults(mut self, robot: &vt_robot::Robot) -> Self {
         if self.home_arm.is_empty() {

@@ -3,6 +3,7 @@
 
 mod camera;
 mod grasp;
+mod led;
 mod noise;
 mod objects;
 mod optical;
@@ -242,6 +243,18 @@ impl LoadedConfig {
             }
             loaded.config.robot.as_mut().expect("cloned above").grasp = grasp;
             loaded.pad_sensors = rc.tactile.pad_sensors(&robot)?;
+            // Robot assets given, and none of the robot's meshes in them: a wrong folder, which
+            // would otherwise draw the primitive robot.
+            if let (Some(dir), Some(first)) = (&loaded.robot_assets, robot.model.visual_meshes_left_out.first()) {
+                let message = format!(
+                    "robot assets {}: none of the meshes of robot '{}' are there (e.g. {first}, looked for as {}). Fetch them with \
+                     `scripts/robot-assets` (it prints the folder), or point --robot-assets at a folder with its layout",
+                    dir.display(),
+                    robot.name,
+                    dir.join(first.strip_prefix("package://").unwrap_or(first)).display()
+                );
+                return Err((vec!["robot"], message));
+            }
             loaded.robot = Some(robot);
         }
         Ok(loaded)
@@ -291,21 +304,14 @@ impl LoadedConfig {
                 .map_err(|e| (vec!["robot", "description"], e.to_string())),
             (model, None) => {
                 let name = model.as_deref().unwrap_or(vt_robot::DEFAULT_ROBOT);
-                let field = if rc.model.is_some() { vec!["robot", "model"] } else { vec!["robot"] };
-                let builtin = vt_robot::Robot::builtin_with(name, &self.package_dirs(rc)).map_err(|e| (field, e.message))?;
+                let packages = self.package_dirs(rc);
                 match urdf {
                     // A URDF of one's own with the built-in robot's names and description.
-                    Some(u) => {
-                        let urdf_text = std::fs::read_to_string(&u)
-                            .map_err(|e| (vec!["robot", "urdf"], format!("robot description {}: cannot read: {e}", u.display())))?;
-                        let model = vt_robot::RobotModel::from_urdf_str(&urdf_text, &u.display().to_string())
-                            .map_err(|e| (vec!["robot", "urdf"], e.to_string()))?;
-                        let text = vt_robot::builtin_description(name).expect("a built-in robot has a description");
-                        let desc = serde_yaml::from_str(text).expect("the built-in description parses (unit-tested)");
-                        vt_robot::Robot::resolve(model, urdf_text, desc, text, &format!("built-in {name}.yaml with {}", u.display()))
-                            .map_err(|e| (vec!["robot", "urdf"], e.to_string()))
+                    Some(u) => vt_robot::Robot::builtin_with_urdf(name, &u, &packages).map_err(|e| (vec!["robot", "urdf"], e.to_string())),
+                    None => {
+                        let field = if rc.model.is_some() { vec!["robot", "model"] } else { vec!["robot"] };
+                        vt_robot::Robot::builtin_with(name, &packages).map_err(|e| (field, e.message))
                     }
-                    None => Ok(builtin),
                 }
             }
         }

@@ -15,7 +15,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use super::optical::Led;
+use super::led::Led;
 
 /// The gel-normal terms of the polynomial model, for the inner normal `m = (mx, my, mz)`: zero on
 /// a flat gel (`m = -z`), so the background alone is the no-contact image.

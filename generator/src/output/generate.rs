@@ -179,12 +179,12 @@ fn prepare_output(out: &Path, config_json: &str, sources: &MeshSources, plan: &P
 /// Writes `robot/` (FORMAT.md): the robot's URDF (an arm and a hand joined into one), its
 /// description, and the mesh files its URDF names by name, size and SHA-256, so that a reader can
 /// redraw the robot from its own copy of them.
-fn write_robot(out: &Path, robot: &vt_robot::Robot) -> Result<()> {
+fn write_robot(out: &Path, robot: &vt_robot::Robot, assets: Option<&Path>) -> Result<()> {
     let dir = out.join(vt_dataset::ROBOT_DIR);
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
     vt_dataset::write_atomic(&dir.join("robot.urdf"), robot.urdf_text.as_bytes())?;
     vt_dataset::write_atomic(&dir.join("robot.yaml"), robot.description_text.as_bytes())?;
-    let meshes = crate::assets::sources::robot_mesh_files(robot)?;
+    let meshes = crate::assets::sources::robot_mesh_files(robot, assets)?;
     let text = serde_json::to_string_pretty(&vt_dataset::RobotFiles { name: robot.name.clone(), meshes })? + "\n";
     vt_dataset::write_atomic(&dir.join("meshes.json"), text.as_bytes())
 }
@@ -560,7 +560,7 @@ pub fn generate(cfg: &LoadedConfig, opts: &GenerateOptions) -> Result<GenerateSu
     }
     prepare_output(out, &config_json, &sources, &plan, opts)?;
     if let Some(robot) = &cfg.robot {
-        write_robot(out, robot)?;
+        write_robot(out, robot, cfg.robot_assets.as_deref())?;
     }
     for line in write_models(out, &objects)? {
         if !opts.quiet {

@@ -8,7 +8,7 @@ use vt_dataset::GraspStats;
 use vt_objects::TexturedMesh;
 use vt_robot::Robot;
 
-use crate::assets::robot::{collides_as_real_meshes, load_hand_meshes, robot_assets_dir, with_real_hand};
+use crate::assets::robot::{hand_surface_meshes, with_real_hand};
 use crate::config::{LoadedConfig, RobotConfig};
 use crate::physics::grasp::{
     FingerGait, GraspContext, GraspEvent, MIN_REACHABLE_SHARE, PivotControl, REACH_SAMPLES, RollControl, Trajectory, TrajectoryKey,
@@ -71,12 +71,9 @@ pub struct RobotScene {
 impl RobotScene {
     pub fn new(cfg: &LoadedConfig, robot: &RobotConfig, objects: &[crate::assets::LoadedObject]) -> Result<Self> {
         let mut model = cfg.robot.clone().context("a config with a robot section has its robot loaded")?;
-        // The Allegro hand collides as its real meshes' hulls, its pads on their surfaces; the
-        // 2F-85 collides as its URDF's boxes (its meshes are drawn).
-        let hand_meshes = match robot_assets_dir(cfg) {
-            Some(dir) if collides_as_real_meshes(&model.name) => Some(load_hand_meshes(&dir, &model.model, None)?),
-            _ => None,
-        };
+        // A hand that collides as its meshes' hulls (`hand_collision: mesh_hulls`, when they are
+        // drawn), its pads on their surfaces.
+        let hand_meshes = hand_surface_meshes(&model);
         if let Some(hand) = &hand_meshes {
             model.model = with_real_hand(&model, hand)?;
         }

@@ -1,6 +1,7 @@
 //! Scene sampling: from a sample's key to the camera, the object pose and the appearance. Pure
 //! and seeded; the robot and the grasp loop replace the free-floating object pose later.
 
+pub mod drawable;
 pub mod environment;
 pub mod robot;
 

@@ -6,8 +6,8 @@ use vt_dataset::{Pose, frames, mask_ids};
 use vt_objects::{Texture, TexturedMesh};
 use vt_robot::{Geometry, Robot, RobotModel};
 
+use super::drawable::{RawMesh, TRIANGLES_PER_LINK, drawable_link};
 use super::pose_of;
-use crate::assets::robot::{RawMesh, URDF_MESH_TRIANGLES_PER_LINK, drawable_link};
 
 /// Mask id of a robot link (`vt_dataset::mask_ids`): the base and the arm link moved by arm joint
 /// k, the hand's body (the links fixed between flange and grasp frame), the hand link moved by
@@ -51,12 +51,18 @@ fn moves_below(model: &RobotModel, top: usize, link: usize) -> bool {
 /// A link's visual shapes as one mesh (its colours in a small texture, one texel per shape; a
 /// link with URDF meshes: see [`mesh_link`]).
 pub fn link_mesh(model: &RobotModel, link: usize) -> Option<TexturedMesh> {
+    link_mesh_with(model, link, TRIANGLES_PER_LINK)
+}
+
+/// [`link_mesh`] with a link drawn from meshes simplified to about `max_triangles` (`usize::MAX`:
+/// whole).
+pub fn link_mesh_with(model: &RobotModel, link: usize, max_triangles: usize) -> Option<TexturedMesh> {
     let shapes = &model.links[link].visuals;
     if shapes.is_empty() {
         return None;
     }
     if shapes.iter().any(|s| matches!(s.geometry, Geometry::Mesh { .. })) {
-        return Some(mesh_link(shapes));
+        return Some(mesh_link(shapes, max_triangles));
     }
     let n = shapes.len();
     let mut mesh = TexturedMesh {
@@ -85,8 +91,8 @@ pub fn link_mesh(model: &RobotModel, link: usize) -> Option<TexturedMesh> {
 }
 
 /// A link drawn from its URDF's meshes (and any primitives beside them), each triangle in the
-/// URDF's colour or else its mesh file's, simplified as the built-in arm's meshes are.
-fn mesh_link(shapes: &[vt_robot::Shape]) -> TexturedMesh {
+/// URDF's colour or else its mesh file's, simplified (`scene::drawable`).
+fn mesh_link(shapes: &[vt_robot::Shape], max_triangles: usize) -> TexturedMesh {
     let mut raw = RawMesh { positions: Vec::new(), triangles: Vec::new(), colours: Vec::new() };
     for s in shapes {
         let urdf_colour = (s.rgba != vt_robot::NO_RGBA).then(|| [s.rgba[0], s.rgba[1], s.rgba[2]]);
@@ -105,7 +111,7 @@ fn mesh_link(shapes: &[vt_robot::Shape]) -> TexturedMesh {
             }
         }
     }
-    drawable_link(raw, URDF_MESH_TRIANGLES_PER_LINK)
+    drawable_link(raw, max_triangles)
 }
 
 /// Box, cylinder (along z) or sphere as positions, normals and triangles.

@@ -9,7 +9,7 @@ use glam::{DAffine3, DVec3};
 use serde::Deserialize;
 
 use crate::mesh::MeshPaths;
-use crate::model::{Geometry, JointKind, RobotError, RobotModel, xyz_rpy};
+use crate::model::{Geometry, JointKind, RobotError, RobotModel, VisualMeshes, xyz_rpy};
 
 /// How the grasp loop takes hold of an object.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
@@ -56,10 +56,31 @@ pub struct Description {
     /// Collision meshes that collide as several convex parts instead of one hull.
     #[serde(default)]
     pub convex_decomposition: Option<DecompositionSpec>,
+    /// `optional`: the URDF's visual meshes are drawn when their files are there (the robot
+    /// assets), else its primitive visuals (default `required`).
+    #[serde(default)]
+    pub drawn_meshes: VisualMeshes,
+    /// `mesh_hulls`: the hand's links collide as the convex hulls of their visual meshes when
+    /// those are drawn, and the pads move onto their surfaces (default `urdf`: as the URDF's
+    /// collision shapes).
+    #[serde(default)]
+    pub hand_collision: HandCollision,
     /// The pads' sensors when a config names none for them: rules as `robot.tactile.sensors`
     /// takes them (docs/tactile.md), read by the generator (this crate knows no sensor).
     #[serde(default)]
     pub sensors: Option<serde_yaml::Value>,
+}
+
+/// How the hand collides (`hand_collision` in a description).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum HandCollision {
+    /// As the URDF's collision shapes.
+    #[default]
+    Urdf,
+    /// Each hand link with visual meshes as their convex hull (the real surface the picture
+    /// shows), its pads moved onto that surface; the URDF's shapes where the meshes are not there.
+    MeshHulls,
 }
 
 /// Which links' collision meshes are decomposed into convex parts (V-HACD) and how finely.
@@ -269,6 +290,7 @@ pub struct Robot {
     pub decomposition: Option<Decomposition>,
     /// The description's default sensor rules (`sensors:`), as written.
     pub sensors: Option<serde_yaml::Value>,
+    pub hand_collision: HandCollision,
 }
 
 // The robots vtgen carries, chosen by name (`robot.model`): one folder each under `robots/`
@@ -324,7 +346,12 @@ impl Robot {
     pub fn builtin_with(name: &str, package_dirs: &[PathBuf]) -> Result<Self, RobotError> {
         let description_name = format!("built-in {name}.yaml");
         match builtin_texts(name) {
-            Some((Some(urdf), description)) => Robot::from_texts(urdf, &format!("built-in {name}.urdf"), description, &description_name),
+            Some((Some(urdf), description)) => {
+                let desc = parse(description, &description_name)?;
+                let paths = MeshPaths { urdf_dir: None, package_dirs: package_dirs.to_vec() };
+                let model = RobotModel::from_urdf_with(urdf, &format!("built-in {name}.urdf"), &paths, desc.drawn_meshes)?;
+                Robot::resolve(model, urdf.to_string(), desc, description, &description_name)
+            }
             Some((None, description)) => {
                 let desc = parse(description, &description_name)?;
                 Robot::from_description(desc, description, None, None, package_dirs, &description_name)
@@ -334,6 +361,17 @@ impl Robot {
                 message: format!("no built-in robot '{name}' (built in: {})", BUILTIN_ROBOTS.join(", ")),
             }),
         }
+    }
+
+    /// A built-in robot's description with a URDF of one's own (its links and joints named as the
+    /// built-in one's); its meshes are found beside it and in `package_dirs`.
+    pub fn builtin_with_urdf(name: &str, urdf: &Path, package_dirs: &[PathBuf]) -> Result<Self, RobotError> {
+        let Some((_, description)) = builtin_texts(name) else {
+            return Robot::builtin_with(name, package_dirs);
+        };
+        let source_name = format!("built-in {name}.yaml with {}", urdf.display());
+        let desc = parse(description, &source_name)?;
+        Robot::from_description(desc, description, None, Some(urdf), package_dirs, &source_name)
     }
 
     /// The default robot ([`crate::DEFAULT_ROBOT`]: the paper's UR5e with the Allegro hand).
@@ -396,14 +434,15 @@ impl Robot {
             }
             (None, None) => {}
         }
-        let model = RobotModel::from_urdf(&urdf_text, &urdf_name, &paths(&urdf_path))?;
+        let model = RobotModel::from_urdf_with(&urdf_text, &urdf_name, &paths(&urdf_path), desc.drawn_meshes)?;
         Robot::resolve(model, urdf_text, desc, description_text, source_name)
     }
 
     /// A URDF and a description given as text (names are for errors).
     pub fn from_texts(urdf: &str, urdf_name: &str, description: &str, description_name: &str) -> Result<Self, RobotError> {
-        let model = RobotModel::from_urdf_str(urdf, urdf_name)?;
-        Robot::resolve(model, urdf.to_string(), parse(description, description_name)?, description, description_name)
+        let desc = parse(description, description_name)?;
+        let model = RobotModel::from_urdf_with(urdf, urdf_name, &MeshPaths::default(), desc.drawn_meshes)?;
+        Robot::resolve(model, urdf.to_string(), desc, description, description_name)
     }
 
     /// The grasp frame's azimuth minus the first arm joint's angle, at home.

@@ -14,12 +14,12 @@ mod model;
 mod resolve;
 
 pub use description::{
-    BUILTIN_ROBOTS, Decomposition, DecompositionSpec, Description, GraspKind, HandJoint, PRISMATIC_DAMPING_TIME,
+    BUILTIN_ROBOTS, Decomposition, DecompositionSpec, Description, GraspKind, HandCollision, HandJoint, PRISMATIC_DAMPING_TIME,
     PRISMATIC_FULL_FORCE_ERROR, Pad, Robot, builtin_description,
 };
 pub use ik::IkOptions;
 pub use mesh::{MeshPaths, TriangleMesh};
-pub use model::{Geometry, Joint, JointKind, Link, Mimic, NO_RGBA, RobotError, RobotModel, Shape, xyz_rpy};
+pub use model::{Geometry, Joint, JointKind, Link, Mimic, NO_RGBA, RobotError, RobotModel, Shape, VisualMeshes, xyz_rpy};
 
 /// The robot a config without `robot.model` gets: the paper's.
 pub const DEFAULT_ROBOT: &str = "ur5e_allegro";

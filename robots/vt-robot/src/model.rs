@@ -121,6 +121,23 @@ pub struct RobotModel {
     joint_index: HashMap<String, usize>,
     /// The mesh files the URDF's geometry was read from, each once, in the order first met.
     pub mesh_files: Vec<std::path::PathBuf>,
+    /// Visual meshes left out because their files are not there ([`VisualMeshes::Optional`]), as
+    /// the URDF names them: their links are drawn from their primitive visuals.
+    pub visual_meshes_left_out: Vec<String>,
+}
+
+/// Whether a URDF's visual meshes must be found (`drawn_meshes` in a robot description).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum VisualMeshes {
+    /// Every mesh file must be found.
+    #[default]
+    Required,
+    /// A robot drawn from its primitive visuals unless its meshes are there (the built-in robots,
+    /// whose meshes come with the robot assets): a link with visual meshes is drawn from them
+    /// alone when they are found, from its primitive visuals alone when none are; some found and
+    /// some not is an error (a robot half real, half primitive would pass silently).
+    Optional,
 }
 
 /// The colour of a visual mesh the URDF gives no colour: drawn in its file's own colours.
@@ -153,10 +170,15 @@ impl RobotModel {
     /// A URDF whose `<mesh>` files are found through `paths`. Every mesh problem (a missing file, an
     /// unreadable one) is listed in one error; every other names its link or joint.
     pub fn from_urdf(text: &str, source_name: &str, paths: &MeshPaths) -> Result<Self, RobotError> {
+        Self::from_urdf_with(text, source_name, paths, VisualMeshes::Required)
+    }
+
+    /// `from_urdf` with the visual meshes required or optional.
+    pub fn from_urdf_with(text: &str, source_name: &str, paths: &MeshPaths, visual_meshes: VisualMeshes) -> Result<Self, RobotError> {
         let err = |message: String| RobotError { source_name: source_name.to_string(), message };
         let urdf = urdf_rs::read_from_string(text).map_err(|e| err(format!("not valid URDF: {e}")))?;
         let mut meshes = MeshCache::default();
-        let (mut links, link_index) = read_links(&urdf, paths, &mut meshes).map_err(err)?;
+        let (mut links, link_index, visual_meshes_left_out) = read_links(&urdf, paths, &mut meshes, visual_meshes).map_err(err)?;
         let mut joints = Vec::new();
         let mut joint_index = HashMap::new();
         for j in &urdf.joints {
@@ -177,7 +199,7 @@ impl RobotModel {
                 dofs.push(i);
             }
         }
-        Ok(RobotModel { links, joints, root, dofs, link_index, joint_index, mesh_files: meshes.files() })
+        Ok(RobotModel { links, joints, root, dofs, link_index, joint_index, mesh_files: meshes.files(), visual_meshes_left_out })
     }
 
     /// This model with the collision shapes of the given links replaced by the convex hull of
@@ -337,10 +359,17 @@ impl RobotModel {
     }
 }
 
-/// The URDF's links with their visual and collision shapes, and their index by name. Every mesh
-/// that cannot be read is listed in the one error.
-fn read_links(urdf: &urdf_rs::Robot, paths: &MeshPaths, meshes: &mut MeshCache) -> Result<(Vec<Link>, HashMap<String, usize>), String> {
+/// The URDF's links with their visual and collision shapes, their index by name, and how many
+/// optional visual meshes were left out. Every mesh that cannot be read is listed in the one error.
+fn read_links(
+    urdf: &urdf_rs::Robot,
+    paths: &MeshPaths,
+    meshes: &mut MeshCache,
+    visual_meshes: VisualMeshes,
+) -> Result<(Vec<Link>, HashMap<String, usize>, Vec<String>), String> {
     let mut mesh_problems: Vec<String> = Vec::new();
+    // Optional visual meshes: the ones found and the ones left out, by file name.
+    let (mut found, mut left_out): (Vec<String>, Vec<String>) = (Vec::new(), Vec::new());
     let colours: HashMap<&str, [f64; 4]> =
         urdf.materials.iter().filter_map(|m| m.color.as_ref().map(|c| (m.name.as_str(), c.rgba.0))).collect();
     // A shape, or None when its mesh could not be read (the problem is listed).
@@ -374,7 +403,16 @@ fn read_links(urdf: &urdf_rs::Robot, paths: &MeshPaths, meshes: &mut MeshCache) 
             return Err(format!("link '{}' is defined twice", l.name));
         }
         let mut visuals = Vec::new();
+        let optional = visual_meshes == VisualMeshes::Optional;
+        let has_meshes = l.visual.iter().any(|v| matches!(v.geometry, urdf_rs::Geometry::Mesh { .. }));
         for (i, v) in l.visual.iter().enumerate() {
+            if let (true, urdf_rs::Geometry::Mesh { filename, .. }) = (optional, &v.geometry) {
+                if paths.resolve(filename).is_err() {
+                    left_out.push(filename.clone());
+                    continue;
+                }
+                found.push(filename.clone());
+            }
             let colour =
                 v.material.as_ref().and_then(|m| m.color.as_ref().map(|c| c.rgba.0).or_else(|| colours.get(m.name.as_str()).copied()));
             // A mesh without a URDF colour keeps its file's colours (`NO_RGBA` marks it).
@@ -384,6 +422,10 @@ fn read_links(urdf: &urdf_rs::Robot, paths: &MeshPaths, meshes: &mut MeshCache) 
                 (_, None) => [0.5, 0.5, 0.5, 1.0],
             };
             visuals.extend(shape(&v.origin, &v.geometry, rgba, &format!("link '{}' visual {i}", l.name)));
+        }
+        // Optional meshes: a link drawn from its meshes keeps none of its primitive visuals.
+        if optional && has_meshes && visuals.iter().any(|s| matches!(s.geometry, Geometry::Mesh { .. })) {
+            visuals.retain(|s| matches!(s.geometry, Geometry::Mesh { .. }));
         }
         let collisions = l
             .collision
@@ -402,12 +444,20 @@ fn read_links(urdf: &urdf_rs::Robot, paths: &MeshPaths, meshes: &mut MeshCache) 
             parent_joint: None,
         });
     }
+    if !found.is_empty() && !left_out.is_empty() {
+        let n = left_out.len();
+        let list: String = left_out.iter().take(8).map(|p| format!("\n  - {p}")).collect();
+        mesh_problems.push(format!(
+            "{} of the robot's visual meshes are there and {n} are not (the robot assets hold only part of this robot's meshes): {list}",
+            found.len()
+        ));
+    }
     if !mesh_problems.is_empty() {
         let n = mesh_problems.len();
         let list: String = mesh_problems.iter().map(|p| format!("\n  - {p}")).collect();
         return Err(format!("{n} geometr{} cannot be loaded:{list}", if n == 1 { "y" } else { "ies" }));
     }
-    Ok((links, link_index))
+    Ok((links, link_index, left_out))
 }
 
 /// A URDF joint between known links, its type supported, its limits a range and its axis not zero

@@ -325,6 +325,7 @@ impl Robot {
             touch_links,
             decomposition,
             sensors: desc.sensors,
+            hand_collision: desc.hand_collision,
         };
         robot.azimuth_offset = match desc.arm.azimuth_offset {
             Some(a) => a,

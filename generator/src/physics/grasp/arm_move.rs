@@ -22,9 +22,7 @@ const MAX_MOVES_PER_INSTANCE: u32 = 4;
 /// Palm poses drawn for one arm move before it counts as unreachable.
 const MOVE_TARGET_DRAWS: usize = 20;
 
-/// After a move, up to this many waits of `PENETRATION_WAIT_SECONDS` for squeezing transients.
-pub(super) const PENETRATION_WAITS: usize = 10;
-pub(super) const PENETRATION_WAIT_SECONDS: f64 = 0.025;
+use crate::config::{PENETRATION_WAIT_SECONDS, PENETRATION_WAITS};
 
 /// How one arm move of an instance ended.
 // One value per arm move, moved once: boxing the recordable pose would buy nothing.

@@ -6,7 +6,6 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use vt_robot::{IkOptions, Robot};
 
-use super::arm_move::{PENETRATION_WAIT_SECONDS, PENETRATION_WAITS};
 use super::finger_roll::RollControl;
 use super::palm_up;
 use super::pivot::PivotControl;
@@ -163,10 +162,9 @@ impl<'a> GraspContext<'a> {
 }
 
 /// Physics steps of one recorded arm move of an episode, without a finger motion
-/// (`GraspContext::move_steps`).
+/// (`GraspContext::move_steps`; the schedule is the config's, `GraspConfig::move_steps`).
 pub fn move_steps(config: &GraspConfig, timestep: f64) -> usize {
-    let steps = |seconds: f64| (seconds / timestep).round().max(1.0) as usize;
-    steps(config.move_seconds) + steps(config.hold_seconds) + PENETRATION_WAITS * steps(PENETRATION_WAIT_SECONDS)
+    config.move_steps(timestep)
 }
 
 /// Grasp-frame poses drawn by `reachable_share`, and the share of them the arm must reach.

@@ -9,6 +9,7 @@
 //! column in the YAML text the values came from.
 
 pub mod locate;
+pub mod module_order;
 
 use std::borrow::Cow;
 use std::fmt::{self, Display};
