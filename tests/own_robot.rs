@@ -23,7 +23,7 @@ const LENGTHS: [f64; 2] = [0.05, 0.04];
 /// The UR5e arm of the built-in URDF (base to flange; its primitives, the real meshes' visuals
 /// left out) with the gripper on its Allegro adapter.
 pub fn three_finger_urdf() -> String {
-    let builtin = vt_robot::BUILTIN_URDF;
+    let builtin = vt_robot::builtin_urdf(vt_robot::DEFAULT_ROBOT).unwrap();
     let cut = builtin.find("  <link name=\"hand_adapter\">").expect("the built-in URDF has the hand adapter");
     let arm: String = builtin[..cut].lines().filter(|l| !l.contains("<mesh filename=")).map(|l| format!("{l}\n")).collect();
     let mut x = arm.replace("name=\"ur5e_allegro\"", "name=\"ur5e_three_finger\"");

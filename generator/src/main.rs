@@ -13,10 +13,10 @@ use vtgen::plan::ShardSelector;
 struct Cli {
     #[command(subcommand)]
     command: Command,
-    /// Draw the real robot (the built-in ones): a directory with ur5e/visual/*.obj and
-    /// allegro/meshes/*.STL or robotiq_2f85/visual/*.obj, as `scripts/robot-assets` fetches (it
-    /// prints the directory). Overrides the config's robot.assets; without either, the robot is
-    /// drawn from its URDF's shapes.
+    /// The robot's files: the folder of the packages its URDF's `package://` meshes name, as
+    /// `scripts/robot-assets` fetches them (it prints the folder). The built-in robots are drawn
+    /// from their real meshes with it and from their URDF's primitive shapes without it.
+    /// Overrides the config's robot.assets.
     #[arg(long, global = true, value_name = "DIR")]
     robot_assets: Option<PathBuf>,
     /// Override a config key (repeatable), with the config's own checks, e.g.

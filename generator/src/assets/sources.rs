@@ -125,7 +125,7 @@ fn robot_source(cfg: &LoadedConfig, rc: &crate::config::RobotConfig) -> Result<S
             from.push("the description's URDF".to_string());
         }
         (None, None) if name == vt_robot::DEFAULT_ROBOT => {
-            h.update(vt_robot::BUILTIN_URDF.as_bytes());
+            h.update(vt_robot::builtin_urdf(name).unwrap_or_default().as_bytes());
             from.push("built-in URDF".to_string());
         }
         (None, None) => {

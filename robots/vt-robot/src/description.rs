@@ -23,7 +23,7 @@ pub enum GraspKind {
     ParallelJaw,
 }
 
-/// The description file as written (see `robots/allegro/robot.yaml`).
+/// The description file as written (see `robots/ur5e_allegro/robot.yaml`).
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Description {
@@ -306,6 +306,11 @@ fn builtin_texts(name: &str) -> Option<(Option<&'static str>, &'static str)> {
 /// A built-in robot's description text.
 pub fn builtin_description(name: &str) -> Option<&'static str> {
     builtin_texts(name).map(|t| t.1)
+}
+
+/// A built-in robot's URDF text, when its folder carries it.
+pub fn builtin_urdf(name: &str) -> Option<&'static str> {
+    builtin_texts(name).and_then(|t| t.0)
 }
 
 /// The file a description's `urdf` or `hand_urdf` names: `package://NAME/...` through the package

@@ -15,7 +15,7 @@ mod resolve;
 
 pub use description::{
     BUILTIN_ROBOTS, Decomposition, DecompositionSpec, Description, GraspKind, HandCollision, HandJoint, PRISMATIC_DAMPING_TIME,
-    PRISMATIC_FULL_FORCE_ERROR, Pad, Robot, builtin_description,
+    PRISMATIC_FULL_FORCE_ERROR, Pad, Robot, builtin_description, builtin_urdf,
 };
 pub use ik::IkOptions;
 pub use mesh::{MeshPaths, TriangleMesh};
@@ -23,8 +23,6 @@ pub use model::{Geometry, Joint, JointKind, Link, Mimic, NO_RGBA, RobotError, Ro
 
 /// The robot a config without `robot.model` gets: the paper's.
 pub const DEFAULT_ROBOT: &str = "ur5e_allegro";
-/// The default robot's URDF (its folder, `robots/allegro/`).
-pub const BUILTIN_URDF: &str = include_str!("../../allegro/robot.urdf");
 
 #[cfg(test)]
 mod tests;

@@ -3,6 +3,11 @@ use glam::{DAffine3, DQuat, DVec3};
 use super::*;
 use crate::GraspKind;
 
+/// The default robot's URDF text.
+fn default_urdf() -> &'static str {
+    builtin_urdf(crate::DEFAULT_ROBOT).unwrap()
+}
+
 fn model() -> RobotModel {
     Robot::allegro().model
 }
@@ -112,9 +117,9 @@ fn ik_reaches_poses_in_front_of_the_robot() {
 #[test]
 fn broken_urdfs_give_clear_errors() {
     let cases = [
-        (BUILTIN_URDF.replace("<parent link=\"ff_base\"/>", "<parent link=\"ff_bse\"/>"), "missing parent link 'ff_bse'"),
+        (default_urdf().replace("<parent link=\"ff_base\"/>", "<parent link=\"ff_bse\"/>"), "missing parent link 'ff_bse'"),
         (
-            BUILTIN_URDF.replace("lower=\"-0.47\" upper=\"0.47\"", "lower=\"0.47\" upper=\"-0.47\""),
+            default_urdf().replace("lower=\"-0.47\" upper=\"0.47\"", "lower=\"0.47\" upper=\"-0.47\""),
             "lower limit 0.47 is above upper limit -0.47",
         ),
         ("<robot name=\"x\"><link name=\"a\"/>".to_string(), "not valid URDF"),
@@ -127,9 +132,9 @@ fn broken_urdfs_give_clear_errors() {
 
 /// The Allegro description with `from` replaced by `to`, resolved; the error it gives.
 fn description_error(from: &str, to: &str) -> String {
-    let text = include_str!("../../allegro/robot.yaml");
+    let text = include_str!("../../ur5e_allegro/robot.yaml");
     assert!(text.contains(from), "{from}");
-    Robot::from_texts(BUILTIN_URDF, "ur5e_allegro.urdf", &text.replacen(from, to, 1), "bad.yaml").unwrap_err().to_string()
+    Robot::from_texts(default_urdf(), "ur5e_allegro.urdf", &text.replacen(from, to, 1), "bad.yaml").unwrap_err().to_string()
 }
 
 #[test]
@@ -155,12 +160,12 @@ fn broken_descriptions_name_the_file_and_the_field() {
         assert!(e.starts_with("robot description bad.yaml: line ") && e.contains(want), "{from} -> {to}: {e}");
     }
     // A pad given by an origin on its link becomes a frame of its own.
-    let text = include_str!("../../allegro/robot.yaml").replacen(
+    let text = include_str!("../../ur5e_allegro/robot.yaml").replacen(
         "name: ff_distal, link: ff_distal, frame: ff_distal_pad,",
         "name: ff_tip, link: ff_distal, origin: {xyz: [0.0098, 0, 0.02], rpy: [0, 1.5707963267948966, 0]}, size: [0.03, 0.02],",
         1,
     );
-    let robot = Robot::from_texts(BUILTIN_URDF, "u", &text, "d").unwrap();
+    let robot = Robot::from_texts(default_urdf(), "u", &text, "d").unwrap();
     let pad = &robot.pads[2];
     assert_eq!((robot.model.links[pad.frame].name.as_str(), pad.size), ("ff_tip_pad", Some((0.03, 0.02))));
     assert_eq!(robot.model.relative_pose(&robot.model.zero(), pad.link, pad.frame).translation, DVec3::new(0.0098, 0.0, 0.02));
@@ -282,8 +287,8 @@ fn every_missing_mesh_is_listed_at_once_with_its_link() {
 /// The UR5e arm of the built-in URDF up to its flange, as a URDF of its own: its primitives (the
 /// real meshes' visuals left out).
 fn ur5e_arm_urdf() -> String {
-    let cut = BUILTIN_URDF.find("  <link name=\"hand_adapter\">").unwrap();
-    let arm: String = BUILTIN_URDF[..cut].lines().filter(|l| !l.contains("<mesh filename=")).map(|l| format!("{l}\n")).collect();
+    let cut = default_urdf().find("  <link name=\"hand_adapter\">").unwrap();
+    let arm: String = default_urdf()[..cut].lines().filter(|l| !l.contains("<mesh filename=")).map(|l| format!("{l}\n")).collect();
     format!("{arm}</robot>\n")
 }
 
@@ -356,7 +361,7 @@ fn the_builtin_revolute_hands_keep_their_drives_and_an_upstream_robot_says_where
 fn a_redundant_arm_keeps_its_joints_off_their_limits() {
     // The UR5e with a seventh joint (a wrist roll on the flange): the null-space pull keeps every
     // joint within its range's inner 95 % over reachable targets.
-    let urdf = BUILTIN_URDF.replacen(
+    let urdf = default_urdf().replacen(
         "<link name=\"hand_adapter\">",
         "<link name=\"roll_link\"><inertial><mass value=\"0.1\"/><inertia ixx=\"1e-4\" ixy=\"0\" ixz=\"0\" iyy=\"1e-4\" iyz=\"0\" izz=\"1e-4\"/></inertial></link>\
          <joint name=\"roll\" type=\"revolute\"><parent link=\"flange\"/><child link=\"roll_link\"/><axis xyz=\"0 0 1\"/>\
@@ -366,7 +371,7 @@ fn a_redundant_arm_keeps_its_joints_off_their_limits() {
     let adapter_joint = urdf.find("<parent link=\"flange\"/><child link=\"hand_adapter\"/>").expect("the adapter hangs on the flange");
     let urdf =
         format!("{}<parent link=\"roll_link\"/>{}", &urdf[..adapter_joint], &urdf[adapter_joint + "<parent link=\"flange\"/>".len()..]);
-    let text = include_str!("../../allegro/robot.yaml").replace("flange: flange", "flange: roll_link").replace(
+    let text = include_str!("../../ur5e_allegro/robot.yaml").replace("flange: flange", "flange: roll_link").replace(
         "home: [-1.5707963267948966, -1.5707963267948966, 1.5707963267948966, -1.5707963267948966, -1.5707963267948966, 0.0]",
         "home: [-1.5707963267948966, -1.5707963267948966, 1.5707963267948966, -1.5707963267948966, -1.5707963267948966, 0.0, 0.0]",
     );
