@@ -359,14 +359,12 @@ impl RobotModel {
     }
 }
 
-/// The URDF's links with their visual and collision shapes, their index by name, and how many
-/// optional visual meshes were left out. Every mesh that cannot be read is listed in the one error.
-fn read_links(
-    urdf: &urdf_rs::Robot,
-    paths: &MeshPaths,
-    meshes: &mut MeshCache,
-    visual_meshes: VisualMeshes,
-) -> Result<(Vec<Link>, HashMap<String, usize>, Vec<String>), String> {
+/// A URDF's links, their index by name, and the optional visual meshes left out (as named).
+type ReadLinks = (Vec<Link>, HashMap<String, usize>, Vec<String>);
+
+/// The URDF's links with their visual and collision shapes, their index by name, and the optional
+/// visual meshes left out. Every mesh that cannot be read is listed in the one error.
+fn read_links(urdf: &urdf_rs::Robot, paths: &MeshPaths, meshes: &mut MeshCache, visual_meshes: VisualMeshes) -> Result<ReadLinks, String> {
     let mut mesh_problems: Vec<String> = Vec::new();
     // Optional visual meshes: the ones found and the ones left out, by file name.
     let (mut found, mut left_out): (Vec<String>, Vec<String>) = (Vec::new(), Vec::new());
