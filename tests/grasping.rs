@@ -255,7 +255,7 @@ fn most_held_objects_stay_still_while_the_arm_is_still() {
     use vtgen::config::{GraspConfig, PhysicsConfig};
     use vtgen::physics::grasp::{GraspContext, TrajectoryKey, simulate_trajectory};
     use vtgen::physics::{HandPhysics, PhysicsObject, PhysicsSettings, RapierHand};
-    let builtin = vt_robot::Robot::allegro();
+    let builtin = vt_robot::Robot::default_robot();
     let mut models = vec![("primitive hand", builtin.clone())];
     if let Some(dir) = std::env::var_os("ROBOT_ASSETS") {
         let drawn = vt_robot::Robot::builtin_with(vt_robot::DEFAULT_ROBOT, &[dir.into()]).unwrap();

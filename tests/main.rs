@@ -16,6 +16,7 @@ mod mesh_robot;
 mod optical_calibration;
 mod optical_shading;
 mod own_robot;
+mod pad_sensors;
 mod panda;
 mod render_geometry;
 mod robot_meshes;

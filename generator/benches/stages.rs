@@ -32,7 +32,7 @@ fn settings() -> PhysicsSettings {
 }
 
 fn physics(c: &mut Criterion) {
-    let robot = Robot::allegro();
+    let robot = Robot::default_robot();
     let object = physics_object();
     let mut group = c.benchmark_group("physics");
     // One step with the fingers closed around the can (contacts active), as during an arm move.
@@ -228,7 +228,7 @@ fn rendering(c: &mut Criterion) {
             episode: None,
         },
         tactile: Some(TactileData {
-            pads: Robot::allegro().pad_names(),
+            pads: Robot::default_robot().pad_names(),
             resolution: 32,
             depth: vec![vec![f32::INFINITY; 32 * 32]; 12],
             points: Vec::new(),

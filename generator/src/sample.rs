@@ -191,6 +191,20 @@ pub struct StageTimes {
     pub other_cpu: Duration,
 }
 
+impl StageTimes {
+    /// A touch reading's times, into their stages.
+    fn add_touch(&mut self, t: &crate::sensors::touch::TouchTimes) {
+        self.render_call_cpu += t.render_call_cpu;
+        self.tactile_render += t.render;
+        self.tactile_extract += t.extract;
+        self.tactile_forces += t.forces;
+        self.force_fields += t.force_fields;
+        self.tactile_optical += t.optical;
+        self.tactile_optical_cpu += t.optical_cpu;
+        self.optical_images += t.optical_images;
+    }
+}
+
 impl std::ops::AddAssign<&StageTimes> for StageTimes {
     fn add_assign(&mut self, o: &StageTimes) {
         // Destructured, so that a new field is a compile error here until it is added up.
@@ -677,16 +691,7 @@ impl<'a> SampleFactory<'a> {
             write_reference: self.config.sampling.record.is_none() || (key.instance == 0 && noise_tag.is_empty()),
         };
         let reading = touch.sense(self.renderer.as_mut(), &input)?;
-        let t = reading.times;
-        let times = &mut self.times;
-        times.render_call_cpu += t.render_call_cpu;
-        times.tactile_render += t.render;
-        times.tactile_extract += t.extract;
-        times.tactile_forces += t.forces;
-        times.force_fields += t.force_fields;
-        times.tactile_optical += t.optical;
-        times.tactile_optical_cpu += t.optical_cpu;
-        times.optical_images += t.optical_images;
+        self.times.add_touch(&reading.times);
         posed.info.tactile = Some(reading.info);
         Ok(reading.data)
     }

@@ -357,6 +357,17 @@ fn taxim_seed(work: &Path) -> (PathBuf, Vec<u8>) {
 }
 
 // Long on purpose: one entry per target (its seeds and how an input is tried), in one table.
+/// Every built-in robot's description (`robots/<folder>/robot.yaml`), in folder order.
+fn builtin_descriptions() -> Vec<Vec<u8>> {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(root().join("robots"))
+        .unwrap()
+        .filter_map(|e| Some(e.ok()?.path().join("robot.yaml")).filter(|p| p.is_file()))
+        .collect();
+    files.sort();
+    assert!(files.len() >= 3, "the built-in robots' descriptions");
+    files.iter().map(|p| read(p)).collect()
+}
+
 fn targets(work: &Path) -> Vec<Target> {
     let corpus = root().join("tests/fuzz/corpus");
     let scenes: Vec<Vec<u8>> =
@@ -482,7 +493,7 @@ fn targets(work: &Path) -> Vec<Target> {
         },
         Target {
             name: "description",
-            seeds: ["allegro", "robotiq_2f85", "panda"].iter().map(|r| read(&root().join("robots").join(r).join("robot.yaml"))).collect(),
+            seeds: builtin_descriptions(),
             tokens: TEXT_TOKENS,
             share: 0.3,
             run: Box::new(move |input| {

@@ -24,8 +24,8 @@ pub struct FakeHand {
 }
 
 impl FakeHand {
-    /// A hand that holds whatever it is given, touching it with `touching` of the Allegro hand's
-    /// 12 phalanges.
+    /// A hand that holds whatever it is given, touching it with `touching` of the default robot's
+    /// 12 touch links.
     pub fn holding(touching: usize) -> Self {
         FakeHand {
             object: DAffine3::IDENTITY,

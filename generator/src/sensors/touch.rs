@@ -174,22 +174,7 @@ impl TouchStep {
         times.optical = clock.wall();
         times.optical_cpu = clock.cpu();
         times.optical_images = optical.len() as u64;
-        let optical_info = views
-            .iter()
-            .zip(&names)
-            .filter_map(|(p, n)| p.optical().map(|s| Ok((n.clone(), serde_json::to_value(s)?))))
-            .collect::<Result<BTreeMap<_, _>>>()?;
-        let info = TouchInfo {
-            contact_threshold_mm: cfg.contact_threshold_mm,
-            sensors: names.iter().zip(&self.pads).map(|(n, p)| (n.clone(), p.sensor.model)).collect(),
-            near_mm: cfg.near_mm,
-            far_mm: cfg.far_mm,
-            pads: names.iter().zip(&self.pads).map(|(n, p)| (n.clone(), [p.size.0, p.size.1])).collect(),
-            points: names.iter().zip(&reading.counts).map(|(n, c)| (n.clone(), *c as u64)).collect(),
-            optical: (!optical_info.is_empty()).then_some(optical_info),
-            forces: forces.as_ref().map(|f| f.info.clone()),
-            hand_force_n: forces.as_ref().map(|f| f.hand_force_n),
-        };
+        let info = self.info(&names, &views, &reading.counts, forces.as_ref())?;
         let data = TactileData {
             pads: names,
             resolution: cfg.resolution,
@@ -204,6 +189,28 @@ impl TouchStep {
             marker_flow,
         };
         Ok(Touch { data, info, times })
+    }
+
+    /// What `/sample/info` says of a reading: the pads' settings, sensors and sizes, the points per
+    /// pad, each optical pad's sensor in this sample, the forces.
+    fn info(&self, names: &[String], views: &[PadView], counts: &[u32], forces: Option<&ForceReadings>) -> Result<TouchInfo> {
+        let cfg = &self.config;
+        let optical = views
+            .iter()
+            .zip(names)
+            .filter_map(|(p, n)| p.optical().map(|s| Ok((n.clone(), serde_json::to_value(s)?))))
+            .collect::<Result<BTreeMap<_, _>>>()?;
+        Ok(TouchInfo {
+            contact_threshold_mm: cfg.contact_threshold_mm,
+            sensors: names.iter().zip(&self.pads).map(|(n, p)| (n.clone(), p.sensor.model)).collect(),
+            near_mm: cfg.near_mm,
+            far_mm: cfg.far_mm,
+            pads: names.iter().zip(&self.pads).map(|(n, p)| (n.clone(), [p.size.0, p.size.1])).collect(),
+            points: names.iter().zip(counts).map(|(n, c)| (n.clone(), *c as u64)).collect(),
+            optical: (!optical.is_empty()).then_some(optical),
+            forces: forces.map(|f| f.info.clone()),
+            hand_force_n: forces.map(|f| f.hand_force_n),
+        })
     }
 
     /// The optical pads' images: each from its depth view (none: the pad does not touch the

@@ -380,7 +380,7 @@ impl Robot {
     }
 
     /// The default robot ([`crate::DEFAULT_ROBOT`]: the paper's UR5e with the Allegro hand).
-    pub fn allegro() -> Self {
+    pub fn default_robot() -> Self {
         Robot::builtin(crate::DEFAULT_ROBOT).expect("the built-in robot is valid (unit-tested)")
     }
 
@@ -473,10 +473,9 @@ impl Robot {
 
     /// Sensing area of each pad: (length along the pad's x, width along its y), metres. The
     /// description's size when it gives one; else, from the pad link's collision geometry. With
-    /// primitives: the collision box's extent along the pad's axes, plus the fingertip sphere on
-    /// the distal phalanges. With the
-    /// real meshes (a convex-hull collision shape): from the joint to the next joint, or to the end
-    /// of the fingertip on the distal phalanges, by the mesh's width.
+    /// primitives: the (last) collision box's extent along the pad's axes, plus the radius of a
+    /// sphere on the link (a rounded tip). With a hull or a mesh: from the link's origin to its
+    /// child revolute joint, or to the hull's end when it has none, by the hull's width.
     pub fn pad_sizes(&self) -> Vec<(f64, f64)> {
         let model = &self.model;
         self.pads

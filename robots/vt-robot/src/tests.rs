@@ -9,7 +9,7 @@ fn default_urdf() -> &'static str {
 }
 
 fn model() -> RobotModel {
-    Robot::allegro().model
+    Robot::default_robot().model
 }
 
 const PALM: &str = "palm";
@@ -48,7 +48,7 @@ fn hand_forward_kinematics_matches_the_published_check_vectors() {
 
 #[test]
 fn arm_forward_kinematics_matches_the_dh_check_vectors() {
-    let robot = Robot::allegro();
+    let robot = Robot::default_robot();
     let m = &robot.model;
     let flange = m.link_id("flange").unwrap();
     let arm = &robot.arm_dofs;
@@ -79,7 +79,7 @@ fn arm_forward_kinematics_matches_the_dh_check_vectors() {
 
 #[test]
 fn sensor_pads_sit_on_the_palmar_surface_facing_out() {
-    let robot = Robot::allegro();
+    let robot = Robot::default_robot();
     let m = &robot.model;
     let q = m.zero();
     for p in robot.pad_names() {
@@ -97,7 +97,7 @@ fn sensor_pads_sit_on_the_palmar_surface_facing_out() {
 
 #[test]
 fn ik_reaches_poses_in_front_of_the_robot() {
-    let robot = Robot::allegro();
+    let robot = Robot::default_robot();
     let arm = &robot.arm_dofs;
     let mut seed = robot.model.zero();
     use std::f64::consts::FRAC_PI_2;
@@ -350,7 +350,7 @@ fn an_arm_and_a_gripper_from_two_files_with_a_grasp_frame_offset_and_urdf_drive_
 #[test]
 fn the_builtin_revolute_hands_keep_their_drives_and_an_upstream_robot_says_where_its_files_come_from() {
     // The Allegro's URDF effort is the physics default: its drives are the ones it always had.
-    let robot = Robot::allegro();
+    let robot = Robot::default_robot();
     assert!(robot.hand.iter().all(|h| h.effort == Some(0.7) && h.stiffness.is_none() && h.damping.is_none()));
     let e = Robot::builtin("panda").unwrap_err().to_string();
     assert!(e.contains("package://example-robot-data/robots/panda_description/urdf/panda.urdf"), "{e}");
@@ -408,7 +408,7 @@ fn a_pads_default_size_runs_along_its_own_axes() {
       <joint name="j" type="prismatic"><parent link="base"/><child link="finger"/><axis xyz="0 1 0"/><limit lower="0" upper="0.04" effort="20" velocity="1"/></joint>
     </robot>"#;
     let m = RobotModel::from_urdf_str(urdf, "f.urdf").unwrap();
-    let mut robot = Robot::allegro();
+    let mut robot = Robot::default_robot();
     let mut model = m.clone();
     let finger = model.link_id("finger").unwrap();
     let frame = model
@@ -419,7 +419,7 @@ fn a_pads_default_size_runs_along_its_own_axes() {
     let (len, wid) = robot.pad_sizes()[0];
     assert!((len - 0.03).abs() < 1e-12 && (wid - 0.01).abs() < 1e-12, "{len} {wid}");
     // The Allegro's pads keep their sizes: box z by box y, plus the tip sphere on the distal ones.
-    let allegro = Robot::allegro();
+    let allegro = Robot::default_robot();
     let sizes = allegro.pad_sizes();
     for (pad, (len, wid)) in allegro.pads.iter().zip(&sizes) {
         let boxes: Vec<DVec3> = allegro.model.links[pad.link]
@@ -435,7 +435,7 @@ fn a_pads_default_size_runs_along_its_own_axes() {
 
 #[test]
 fn a_sensor_rule_selects_pads_by_glob_or_label() {
-    let robot = Robot::allegro();
+    let robot = Robot::default_robot();
     let selected = |pattern: &str| robot.pads.iter().filter(|p| p.matches(pattern)).map(|p| p.name.clone()).collect::<Vec<_>>();
     assert_eq!(selected("*").len(), 12);
     assert_eq!(selected("th_*"), ["th_proximal", "th_medial", "th_distal"]);

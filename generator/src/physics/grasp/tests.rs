@@ -19,7 +19,7 @@ pub fn physics_object(id: &str) -> PhysicsObject {
 
 /// The grasp config's defaults with the Allegro hand's joint arrays.
 fn allegro_grasp() -> GraspConfig {
-    GraspConfig::default().with_robot_defaults(&Robot::allegro())
+    GraspConfig::default().with_robot_defaults(&Robot::default_robot())
 }
 
 /// The grasp loop's context with the robot base and the camera of `scenes/paper.yaml`, at 240 Hz.
@@ -30,7 +30,7 @@ fn paper_context<'a>(robot: &'a Robot, cfg: &'a GraspConfig) -> GraspContext<'a>
 
 /// The palm's normal (world) of `n` arm moves drawn with `cfg`.
 fn move_normals(cfg: &GraspConfig, n: u64) -> Vec<(DVec3, DVec3)> {
-    let robot = Robot::allegro();
+    let robot = Robot::default_robot();
     let ctx = paper_context(&robot, cfg);
     (0..n)
         .map(|k| {
@@ -68,7 +68,7 @@ fn back_to_camera_moves_turn_the_palm_away_from_the_camera() {
     assert!((150..=250).contains(&back), "{back} of 400 back-to-camera moves");
     // Without the knob no move leaves the cone, and the draws are those of the plain sampler.
     cfg.back_to_camera_share = 0.0;
-    let robot = Robot::allegro();
+    let robot = Robot::default_robot();
     let ctx = paper_context(&robot, &cfg);
     for k in 0..50 {
         let a = ctx.sample_move_palm(&mut ChaCha8Rng::seed_from_u64(k));
@@ -80,7 +80,7 @@ fn back_to_camera_moves_turn_the_palm_away_from_the_camera() {
 
 /// The grasp loop over the scripted hand: `cfg` with the paper's robot and camera.
 fn run_fake(hand: &mut crate::physics::fake::FakeHand, cfg: &GraspConfig, instances: u32) -> (Result<Trajectory>, Vec<GraspEvent>) {
-    let robot = Robot::allegro();
+    let robot = Robot::default_robot();
     let ctx = paper_context(&robot, cfg);
     let object = PhysicsObject {
         points: vt_objects::procedural_mesh(vt_objects::Catalog::builtin().get("005_tomato_soup_can").unwrap()).positions,
@@ -94,7 +94,7 @@ fn run_fake(hand: &mut crate::physics::fake::FakeHand, cfg: &GraspConfig, instan
 #[test]
 fn a_held_object_gives_every_instance_without_slip_and_the_same_key_the_same_trajectory() {
     let cfg = allegro_grasp();
-    let robot = Robot::allegro();
+    let robot = Robot::default_robot();
     let mut hand = crate::physics::fake::FakeHand::holding(3);
     let (t, failures) = run_fake(&mut hand, &cfg, 4);
     let t = t.unwrap();
@@ -176,7 +176,7 @@ fn both_built_in_robots_reach_the_paper_workspace() {
 
 #[test]
 fn the_simulated_hand_starts_at_its_preshape_not_at_the_urdfs_zero() {
-    let robot = Robot::allegro();
+    let robot = Robot::default_robot();
     let settings = PhysicsSettings::from(&PhysicsConfig::default());
     let mut hand = RapierHand::new(&robot, settings).unwrap();
     let pre: Vec<f64> = robot.hand.iter().map(|h| 0.5 * (h.preshape.0 + h.preshape.1) + 0.1).collect();
@@ -196,7 +196,7 @@ fn the_simulated_hand_starts_at_its_preshape_not_at_the_urdfs_zero() {
 
 #[test]
 fn a_link_under_the_floor_is_found_and_named() {
-    let robot = Robot::allegro();
+    let robot = Robot::default_robot();
     let mut q = robot.model.zero();
     for (&d, &v) in robot.arm_dofs.iter().zip(&robot.home) {
         q[d] = v;
