@@ -29,7 +29,8 @@ fn main() {
     let manifest = PathBuf::from(std::env::var("CARGO_MANIFEST_DIR").expect("cargo sets it"));
     let root = manifest.parent().expect("the generator sits in the workspace").to_path_buf();
     // The crates a dataset's bytes come from (the trainer's are not among them).
-    let dirs = ["generator/src", "check/src", "objects/ycb/src", "randomizers/src", "datasets/src", "robots/vt-robot/src"];
+    let dirs =
+        ["generator/src", "generator/presets", "check/src", "objects/ycb/src", "randomizers/src", "datasets/src", "robots/vt-robot/src"];
     let mut files = Vec::new();
     for d in dirs {
         let dir = root.join(d);

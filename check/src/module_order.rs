@@ -7,6 +7,16 @@
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
+/// [`check`] of the crate at `manifest_dir` (its `src/`), the files that are not modules of the
+/// graph being the crate root, a binary's `main.rs` and the test holding the order,
+/// `module_order.rs`; panics with every import against `order`.
+pub fn assert_crate_order(manifest_dir: &str, order: &[&str]) {
+    let src = Path::new(manifest_dir).join("src");
+    if let Err(wrong) = check(&src, order, &["lib.rs", "main.rs", "module_order.rs"]) {
+        panic!("the module order (src/module_order.rs) is broken:\n{wrong}");
+    }
+}
+
 /// Every import against `order` among the top-level modules of the crate whose sources are in
 /// `src` (`skip`: files of `src` that are not modules of the graph: the crate root, a binary, the
 /// test holding the order); also a module missing from `order`, or one `lib.rs` does not declare.

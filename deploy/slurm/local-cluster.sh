@@ -10,6 +10,15 @@ if [ "$cmd" = stop ]; then
   for p in slurmd slurmctld munged; do
     [ -f "$dir/$p.pid" ] && kill "$(cat "$dir/$p.pid")" 2>/dev/null || true
   done
+  # The daemons write their state as they shut down: wait (up to 10 s each) until they are gone,
+  # so that the caller can remove DIR.
+  for p in slurmd slurmctld munged; do
+    pid="$(cat "$dir/$p.pid" 2>/dev/null || true)"
+    for _ in $(seq 50); do
+      [ -n "$pid" ] && kill -0 "$pid" 2>/dev/null || break
+      sleep 0.2
+    done
+  done
   exit 0
 fi
 [ "$(id -u)" = 0 ] || { echo "local-cluster.sh: the Slurm daemons need root" >&2; exit 3; }

@@ -134,62 +134,94 @@ pub struct OpticalSensor {
     pub calibration: Option<SensorCalibration>,
 }
 
+/// A preset's file (`generator/presets/optical/<preset>.yaml`): the sensor's parameters, its LEDs
+/// by azimuth and elevation, and the marker grid a config's `markers: {}` takes.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PresetFile {
+    image_size: [u32; 2],
+    sensing_area_mm: [f64; 2],
+    gel_thickness_mm: f64,
+    elastic_spread_mm: f64,
+    lights: Vec<PresetLed>,
+    ambient: f64,
+    background: [f64; 3],
+    vignetting: f64,
+    noise_std: f64,
+    markers: Markers,
+}
+
 /// An LED `elevation_deg` above the gel plane at `azimuth_deg` about the pad's z.
-fn led(azimuth_deg: f64, elevation_deg: f64, color: [f64; 3], falloff: f64) -> Led {
-    let (a, e) = (azimuth_deg.to_radians(), elevation_deg.to_radians());
-    Led { direction: [e.cos() * a.cos(), e.cos() * a.sin(), -e.sin()], color, falloff }
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PresetLed {
+    azimuth_deg: f64,
+    elevation_deg: f64,
+    color: [f64; 3],
+    falloff: f64,
+}
+
+impl PresetLed {
+    fn led(&self) -> Led {
+        let (a, e) = (self.azimuth_deg.to_radians(), self.elevation_deg.to_radians());
+        Led { direction: [e.cos() * a.cos(), e.cos() * a.sin(), -e.sin()], color: self.color, falloff: self.falloff }
+    }
 }
 
 impl OpticalPreset {
-    /// The preset's parameters. Sizes are the published ones; the LED layout follows the sensors'
-    /// designs (three colours around the gel for the GelSight Mini, three along the DIGIT's edges)
-    /// with directions, colours and gel values of our choosing.
-    pub fn sensor(self) -> OpticalSensor {
+    /// The preset's file, as built into vtgen.
+    fn file(self) -> &'static PresetFile {
+        static FILES: std::sync::LazyLock<[PresetFile; 2]> = std::sync::LazyLock::new(|| {
+            let parse = |name: &str, text: &str| {
+                serde_yaml::from_str(text).unwrap_or_else(|e| panic!("presets/optical/{name}.yaml: {e} (unit-tested)"))
+            };
+            [
+                parse("gelsight_mini", include_str!("../../presets/optical/gelsight_mini.yaml")),
+                parse("digit", include_str!("../../presets/optical/digit.yaml")),
+            ]
+        });
         match self {
-            OpticalPreset::GelsightMini => OpticalSensor {
-                image_size: [320, 240],
-                sensing_area_mm: [18.6, 14.3],
-                gel_thickness_mm: 1.5,
-                elastic_spread_mm: 0.4,
-                lights: vec![
-                    led(90.0, 35.0, [0.85, 0.12, 0.10], 0.25),
-                    led(210.0, 35.0, [0.10, 0.80, 0.15], 0.25),
-                    led(330.0, 35.0, [0.12, 0.15, 0.85], 0.25),
-                ],
-                ambient: 0.15,
-                background: [0.78, 0.74, 0.80],
-                vignetting: 0.25,
-                markers: None,
-                noise_std: 1.0,
-                calibration: None,
-            },
-            OpticalPreset::Digit => OpticalSensor {
-                image_size: [320, 240],
-                sensing_area_mm: [19.0, 16.0],
-                gel_thickness_mm: 1.0,
-                elastic_spread_mm: 0.3,
-                lights: vec![
-                    led(0.0, 28.0, [0.90, 0.15, 0.05], 0.45),
-                    led(120.0, 28.0, [0.05, 0.85, 0.20], 0.45),
-                    led(240.0, 28.0, [0.10, 0.20, 0.95], 0.45),
-                ],
-                ambient: 0.2,
-                background: [0.70, 0.72, 0.68],
-                vignetting: 0.35,
-                markers: None,
-                noise_std: 1.5,
-                calibration: None,
-            },
+            OpticalPreset::GelsightMini => &FILES[0],
+            OpticalPreset::Digit => &FILES[1],
+        }
+    }
+
+    /// The preset's parameters (its file, `generator/presets/optical/`).
+    pub fn sensor(self) -> OpticalSensor {
+        let f = self.file();
+        OpticalSensor {
+            image_size: f.image_size,
+            sensing_area_mm: f.sensing_area_mm,
+            gel_thickness_mm: f.gel_thickness_mm,
+            elastic_spread_mm: f.elastic_spread_mm,
+            lights: f.lights.iter().map(PresetLed::led).collect(),
+            ambient: f.ambient,
+            background: f.background,
+            vignetting: f.vignetting,
+            markers: None,
+            noise_std: f.noise_std,
+            calibration: None,
         }
     }
 
     /// The preset's marker grid, used when the config asks for markers.
     pub fn markers(self) -> Markers {
-        match self {
-            OpticalPreset::GelsightMini => Markers { pitch_mm: 2.0, radius_mm: 0.3, shift: 0.5, opacity: 0.85 },
-            OpticalPreset::Digit => Markers { pitch_mm: 1.6, radius_mm: 0.22, shift: 0.5, opacity: 0.8 },
-        }
+        self.file().markers
     }
+}
+
+#[cfg(test)]
+#[test]
+fn the_preset_files_parse_and_give_the_published_sizes() {
+    let mini = OpticalPreset::GelsightMini.sensor();
+    let digit = OpticalPreset::Digit.sensor();
+    assert_eq!((mini.image_size, mini.sensing_area_mm), ([320, 240], [18.6, 14.3]));
+    assert_eq!((digit.image_size, digit.sensing_area_mm), ([320, 240], [19.0, 16.0]));
+    for s in [&mini, &digit] {
+        assert_eq!(s.lights.len(), 3);
+        assert!(s.lights.iter().all(|l| l.direction[2] < 0.0 && (glam::DVec3::from_array(l.direction).length() - 1.0).abs() < 1e-12));
+    }
+    assert_eq!(OpticalPreset::Digit.markers().pitch_mm, 1.6);
 }
 
 impl OpticalConfig {
