@@ -108,7 +108,7 @@ fn bad_robot_input_gives_clear_errors() {
     assert!(stderr(&o).contains("robot.physics.backend: unknown variant `bullet`"), "{}", stderr(&o));
 
     let urdf =
-        vt_robot::builtin_urdf(vt_robot::DEFAULT_ROBOT).unwrap().replace("<child link=\"ff_medial\"/>", "<child link=\"ff_middle\"/>");
+        vt_robot::builtin_urdf(vt_robot::DEFAULT_ROBOT).unwrap().replacen("<child link=\"ff_medial\"", "<child link=\"ff_middle\"", 1);
     std::fs::write(d.path().join("hand.urdf"), urdf).unwrap();
     std::fs::write(&cfg, text.replace("robot:\n", "robot:\n  urdf: hand.urdf\n")).unwrap();
     let o = run_generate(&cfg, &d.path().join("o2"), &[]);

@@ -179,10 +179,12 @@ fn robot_check_reads_a_mesh_robot_and_catches_the_floor() {
 #[test]
 fn robot_check_catches_a_pad_facing_away_and_lists_every_missing_mesh() {
     let d = tempdir();
-    // The 2F-85 with its right pad frame turned to face out of the jaw.
-    let desc = vt_robot::builtin_description("ur5e_robotiq_2f85").unwrap().replace("urdf: robot.urdf", "urdf: gripper.urdf");
+    // The 2F-85 (the arm's and the gripper's files, as its folder has them) with its right pad
+    // frame turned to face out of the jaw.
+    let desc = vt_robot::builtin_description("ur5e_robotiq_2f85").unwrap().replace("urdf: ../ur5e/arm.urdf", "urdf: arm.urdf");
     std::fs::write(d.path().join("gripper.yaml"), desc).unwrap();
-    let urdf = include_str!("../robots/ur5e_robotiq_2f85/robot.urdf");
+    std::fs::copy(root().join("robots/ur5e/arm.urdf"), d.path().join("arm.urdf")).unwrap();
+    let urdf = include_str!("../robots/ur5e_robotiq_2f85/gripper.urdf");
     let at = urdf.find("<joint name=\"right_pad_joint\"").unwrap();
     let turned = urdf[at..].replacen("rpy=\"1.57079633 0 0\"", "rpy=\"-1.57079633 0 0\"", 1);
     std::fs::write(d.path().join("gripper.urdf"), format!("{}{turned}", &urdf[..at])).unwrap();

@@ -20,13 +20,13 @@ const FINGERS: [(&str, [f64; 3], [f64; 3]); 3] = [
 /// Phalanx lengths (m): proximal, distal (to the fingertip sphere's centre).
 const LENGTHS: [f64; 2] = [0.05, 0.04];
 
-/// The UR5e arm of the built-in URDF (base to flange; its primitives, the real meshes' visuals
-/// left out) with the gripper on its Allegro adapter.
+/// The built-in UR5e arm (`robots/ur5e/arm.urdf`, base to flange; its primitives, the real
+/// meshes' visuals left out) with the gripper on an adapter like the Allegro's.
 pub fn three_finger_urdf() -> String {
-    let builtin = vt_robot::builtin_urdf(vt_robot::DEFAULT_ROBOT).unwrap();
-    let cut = builtin.find("  <link name=\"hand_adapter\">").expect("the built-in URDF has the hand adapter");
-    let arm: String = builtin[..cut].lines().filter(|l| !l.contains("<mesh filename=")).map(|l| format!("{l}\n")).collect();
-    let mut x = arm.replace("name=\"ur5e_allegro\"", "name=\"ur5e_three_finger\"");
+    let arm = std::fs::read_to_string(root().join("robots/ur5e/arm.urdf")).unwrap();
+    let cut = arm.rfind("</robot>").expect("the arm's URDF ends");
+    let arm: String = arm[..cut].lines().filter(|l| !l.contains("<mesh filename=")).map(|l| format!("{l}\n")).collect();
+    let mut x = arm.replace("name=\"ur5e\"", "name=\"ur5e_three_finger\"");
     let box_link = |x: &mut String, name: &str, mass: f64, size: [f64; 3], at: [f64; 3], tip: Option<(f64, f64)>| {
         let g = |x: &mut String, kind: &str| {
             let _ = write!(

@@ -1,7 +1,8 @@
 //! Finds the built-in robots: every folder `robots/<folder>/` beside this crate that holds a
-//! `robot.yaml` (its `name:` is the robot's name), with `robot.urdf` when the folder carries its
-//! URDF (a robot without one names its upstream URDF in the description). Writes their table into
-//! `$OUT_DIR/builtin_robots.rs`; no Rust code knows a robot's name.
+//! `robot.yaml` (its `name:` is the robot's name), with the URDFs its `urdf:` and `hand_urdf:` name
+//! when they are files of the checkout (relative to the folder: an arm shared by several robots,
+//! a hand of its own); a `package://` URDF is read from the robot assets at load. Writes their
+//! table into `$OUT_DIR/builtin_robots.rs`; no Rust code knows a robot's name.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -9,7 +10,7 @@ use std::path::{Path, PathBuf};
 fn main() {
     let robots = Path::new(&std::env::var("CARGO_MANIFEST_DIR").expect("cargo sets it")).join("..");
     println!("cargo:rerun-if-changed={}", robots.display());
-    let mut found: Vec<(String, PathBuf, Option<PathBuf>)> = Vec::new();
+    let mut found: Vec<(String, PathBuf, Option<PathBuf>, Option<PathBuf>)> = Vec::new();
     let mut folders: Vec<PathBuf> =
         std::fs::read_dir(&robots).expect("robots/ is readable").filter_map(|e| e.ok().map(|e| e.path())).collect();
     folders.sort();
@@ -25,12 +26,17 @@ fn main() {
             .find_map(|l| l.strip_prefix("name:"))
             .map(|n| n.split('#').next().unwrap_or_default().trim().to_string())
             .unwrap_or_else(|| panic!("{}: no `name:` line", yaml.display()));
-        let urdf = dir.join("robot.urdf");
-        let urdf = urdf.is_file().then(|| {
-            println!("cargo:rerun-if-changed={}", urdf.display());
-            urdf.canonicalize().expect("the URDF exists")
-        });
-        found.push((name, yaml.canonicalize().expect("the description exists"), urdf));
+        // A top-level key's file, relative to the folder (None: a package:// name, or none given).
+        let file = |key: &str| {
+            let value = text.lines().find_map(|l| l.strip_prefix(key))?.split('#').next()?.trim().to_string();
+            let path = dir.join(&value);
+            (!value.starts_with("package://") && path.is_file()).then(|| {
+                println!("cargo:rerun-if-changed={}", path.display());
+                path.canonicalize().expect("the URDF exists")
+            })
+        };
+        let (urdf, hand) = (file("urdf:"), file("hand_urdf:"));
+        found.push((name, yaml.canonicalize().expect("the description exists"), urdf, hand));
     }
     let mut out = String::new();
     let names: Vec<String> = found.iter().map(|(n, ..)| format!("{n:?}")).collect();
@@ -40,12 +46,15 @@ fn main() {
         found.len(),
         names.join(", ")
     );
-    let _ =
-        writeln!(out, "/// Each built-in robot: its name, its URDF's text (None: named in the description) and its description's text.");
-    let _ = writeln!(out, "const BUILTIN_TEXTS: [(&str, Option<&str>, &str); {}] = [", found.len());
-    for (name, yaml, urdf) in &found {
-        let urdf = urdf.as_ref().map_or("None".to_string(), |u| format!("Some(include_str!({:?}))", u.display().to_string()));
-        let _ = writeln!(out, "    ({name:?}, {urdf}, include_str!({:?})),", yaml.display().to_string());
+    let _ = writeln!(
+        out,
+        "/// Each built-in robot: its name, its (arm's) URDF's text and its hand's (None: not a file of the checkout) and its description's text."
+    );
+    let _ = writeln!(out, "const BUILTIN_TEXTS: [(&str, Option<&str>, Option<&str>, &str); {}] = [", found.len());
+    let text =
+        |p: &Option<PathBuf>| p.as_ref().map_or("None".to_string(), |u| format!("Some(include_str!({:?}))", u.display().to_string()));
+    for (name, yaml, urdf, hand) in &found {
+        let _ = writeln!(out, "    ({name:?}, {}, {}, include_str!({:?})),", text(urdf), text(hand), yaml.display().to_string());
     }
     out.push_str("];\n");
     let dest = Path::new(&std::env::var("OUT_DIR").expect("cargo sets it")).join("builtin_robots.rs");

@@ -5,7 +5,7 @@
 //! Targets: the YAML config loader and `--set` overrides, OBJ and MTL (object meshes and the UR5e
 //! arm), GLB, STL (the Allegro hand), PLY, DAE (robot meshes), URDF, robot descriptions, optical
 //! calibration files (vtgen's YAML, Taxim's `.npz`), the MCAP shard reader and `vtgen validate --full`.
-//! Seeds: `scenes/*.yaml`, `robots/ur5e_allegro/robot.urdf`, `tests/fuzz/corpus/` (OBJ, MTL,
+//! Seeds: `scenes/*.yaml`, the default robot's URDF (arm and hand as one tree), `tests/fuzz/corpus/` (OBJ, MTL,
 //! ASCII STL), and binary seeds made here from the procedural meshes (GLB, binary STL, PLY) and a
 //! 48x32 dataset generated at start (its shard).
 //!
@@ -404,7 +404,7 @@ fn targets(work: &Path) -> Vec<Target> {
     let validate_root = dataset.clone();
     let validate_shard = dataset.join("test/shard-00000.mcap");
     let validate_seed = read(&validate_shard);
-    let allegro_urdf = String::from_utf8_lossy(&read(&root().join("robots/ur5e_allegro/robot.urdf"))).into_owned();
+    let allegro_urdf = vt_robot::builtin_urdf(vt_robot::DEFAULT_ROBOT).expect("the default robot carries its URDFs");
     let (calibration_dir, calibration_seed) = calibration_seed(work);
     let (taxim_dir, taxim_seed) = taxim_seed(work);
     vec![
@@ -479,7 +479,7 @@ fn targets(work: &Path) -> Vec<Target> {
         },
         Target {
             name: "urdf",
-            seeds: vec![read(&root().join("robots/ur5e_allegro/robot.urdf"))],
+            seeds: vec![allegro_urdf.clone().into_bytes()],
             tokens: TEXT_TOKENS,
             share: 0.3,
             run: Box::new(|input| drop(vt_robot::RobotModel::from_urdf_str(&String::from_utf8_lossy(input), "fuzz.urdf"))),

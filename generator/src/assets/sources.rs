@@ -125,7 +125,8 @@ fn robot_source(cfg: &LoadedConfig, rc: &crate::config::RobotConfig) -> Result<S
             from.push("the description's URDF".to_string());
         }
         (None, None) if name == vt_robot::DEFAULT_ROBOT => {
-            h.update(vt_robot::builtin_urdf(name).unwrap_or_default().as_bytes());
+            let robot = cfg.robot.as_ref().context("a built-in robot is loaded with the config")?;
+            h.update(robot.urdf_text.as_bytes());
             from.push("built-in URDF".to_string());
         }
         (None, None) => {

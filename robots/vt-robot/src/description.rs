@@ -297,20 +297,43 @@ pub struct Robot {
 // (`build.rs` finds them).
 include!(concat!(env!("OUT_DIR"), "/builtin_robots.rs"));
 
-/// A built-in robot's URDF text (None: its description names an upstream URDF, read from the
-/// robot assets) and description text.
-fn builtin_texts(name: &str) -> Option<(Option<&'static str>, &'static str)> {
-    BUILTIN_TEXTS.iter().find(|r| r.0 == name).map(|r| (r.1, r.2))
+/// A built-in robot's texts: its (arm's) URDF (None: its description names an upstream URDF, read
+/// from the robot assets), its hand's URDF when the description mounts one, its description.
+struct BuiltinTexts {
+    urdf: Option<&'static str>,
+    hand: Option<&'static str>,
+    description: &'static str,
+}
+
+fn builtin_texts(name: &str) -> Option<BuiltinTexts> {
+    BUILTIN_TEXTS.iter().find(|r| r.0 == name).map(|r| BuiltinTexts { urdf: r.1, hand: r.2, description: r.3 })
 }
 
 /// A built-in robot's description text.
 pub fn builtin_description(name: &str) -> Option<&'static str> {
-    builtin_texts(name).map(|t| t.1)
+    builtin_texts(name).map(|t| t.description)
 }
 
-/// A built-in robot's URDF text, when its folder carries it.
-pub fn builtin_urdf(name: &str) -> Option<&'static str> {
-    builtin_texts(name).and_then(|t| t.0)
+/// A built-in robot's URDF text when its folder carries it: its arm's with its hand's mounted as
+/// the description says (one tree, as datasets store it).
+pub fn builtin_urdf(name: &str) -> Option<String> {
+    let t = builtin_texts(name)?;
+    let desc = parse(t.description, name).ok()?;
+    builtin_urdf_text(name, &t, &desc).ok()
+}
+
+/// The URDF text of a built-in robot that carries its URDFs: the arm's, with the hand's mounted on
+/// it when the description has a `hand_urdf` (its `package://` meshes left as named).
+fn builtin_urdf_text(name: &str, t: &BuiltinTexts, desc: &Description) -> Result<String, RobotError> {
+    let urdf = t.urdf.expect("called for a robot that carries its URDF");
+    match (t.hand, &desc.mount) {
+        (Some(hand), Some(mount)) => {
+            let origin = mount.origin.map_or(DAffine3::IDENTITY, |o| xyz_rpy(o.xyz, o.rpy));
+            let hand_name = PathBuf::from(format!("built-in {name} hand_urdf"));
+            compose_urdf(urdf, &format!("built-in {name} urdf"), hand, &hand_name, &MeshPaths::default(), &mount.parent, origin)
+        }
+        _ => Ok(urdf.to_string()),
+    }
 }
 
 /// The file a description's `urdf` or `hand_urdf` names: `package://NAME/...` through the package
@@ -351,15 +374,16 @@ impl Robot {
     pub fn builtin_with(name: &str, package_dirs: &[PathBuf]) -> Result<Self, RobotError> {
         let description_name = format!("built-in {name}.yaml");
         match builtin_texts(name) {
-            Some((Some(urdf), description)) => {
-                let desc = parse(description, &description_name)?;
+            Some(t) if t.urdf.is_some() => {
+                let desc = parse(t.description, &description_name)?;
+                let urdf = builtin_urdf_text(name, &t, &desc)?;
                 let paths = MeshPaths { urdf_dir: None, package_dirs: package_dirs.to_vec() };
-                let model = RobotModel::from_urdf_with(urdf, &format!("built-in {name}.urdf"), &paths, desc.drawn_meshes)?;
-                Robot::resolve(model, urdf.to_string(), desc, description, &description_name)
+                let model = RobotModel::from_urdf_with(&urdf, &format!("built-in {name}.urdf"), &paths, desc.drawn_meshes)?;
+                Robot::resolve(model, urdf, desc, t.description, &description_name)
             }
-            Some((None, description)) => {
-                let desc = parse(description, &description_name)?;
-                Robot::from_description(desc, description, None, None, package_dirs, &description_name)
+            Some(t) => {
+                let desc = parse(t.description, &description_name)?;
+                Robot::from_description(desc, t.description, None, None, package_dirs, &description_name)
             }
             None => Err(RobotError {
                 source_name: "robot.model".into(),
@@ -371,12 +395,14 @@ impl Robot {
     /// A built-in robot's description with a URDF of one's own (its links and joints named as the
     /// built-in one's); its meshes are found beside it and in `package_dirs`.
     pub fn builtin_with_urdf(name: &str, urdf: &Path, package_dirs: &[PathBuf]) -> Result<Self, RobotError> {
-        let Some((_, description)) = builtin_texts(name) else {
+        let Some(t) = builtin_texts(name) else {
             return Robot::builtin_with(name, package_dirs);
         };
         let source_name = format!("built-in {name}.yaml with {}", urdf.display());
-        let desc = parse(description, &source_name)?;
-        Robot::from_description(desc, description, None, Some(urdf), package_dirs, &source_name)
+        let mut desc = parse(t.description, &source_name)?;
+        // The URDF given is the whole robot: no hand is mounted on it.
+        (desc.hand_urdf, desc.mount) = (None, None);
+        Robot::from_description(desc, t.description, None, Some(urdf), package_dirs, &source_name)
     }
 
     /// The default robot ([`crate::DEFAULT_ROBOT`]: the paper's UR5e with the Allegro hand).

@@ -3,9 +3,24 @@ use glam::{DAffine3, DQuat, DVec3};
 use super::*;
 use crate::GraspKind;
 
-/// The default robot's URDF text.
-fn default_urdf() -> &'static str {
+/// The default robot's URDF text: its arm's and its hand's, as one tree.
+fn default_urdf() -> String {
     builtin_urdf(crate::DEFAULT_ROBOT).unwrap()
+}
+
+/// The default robot's hand, as its folder carries it.
+const HAND: &str = include_str!("../../ur5e_allegro/hand.urdf");
+
+/// The default robot as one URDF file: the arm, `between` (links and joints below the flange), and
+/// the hand's links and joints with its adapter fixed to `hand_parent`.
+fn allegro_on(between: &str, hand_parent: &str) -> String {
+    let arm = include_str!("../../ur5e/arm.urdf");
+    let arm = &arm[..arm.rfind("</robot>").unwrap()];
+    let open = HAND.find("<robot").unwrap();
+    let body = &HAND[open + HAND[open..].find('>').unwrap() + 1..HAND.rfind("</robot>").unwrap()];
+    format!(
+        "{arm}{between}<joint name=\"hand_adapter_joint\" type=\"fixed\"><parent link=\"{hand_parent}\"/><child link=\"hand_adapter\"/></joint>{body}</robot>\n"
+    )
 }
 
 fn model() -> RobotModel {
@@ -117,11 +132,8 @@ fn ik_reaches_poses_in_front_of_the_robot() {
 #[test]
 fn broken_urdfs_give_clear_errors() {
     let cases = [
-        (default_urdf().replace("<parent link=\"ff_base\"/>", "<parent link=\"ff_bse\"/>"), "missing parent link 'ff_bse'"),
-        (
-            default_urdf().replace("lower=\"-0.47\" upper=\"0.47\"", "lower=\"0.47\" upper=\"-0.47\""),
-            "lower limit 0.47 is above upper limit -0.47",
-        ),
+        (HAND.replace("<parent link=\"ff_base\"/>", "<parent link=\"ff_bse\"/>"), "missing parent link 'ff_bse'"),
+        (HAND.replace("lower=\"-0.47\" upper=\"0.47\"", "lower=\"0.47\" upper=\"-0.47\""), "lower limit 0.47 is above upper limit -0.47"),
         ("<robot name=\"x\"><link name=\"a\"/>".to_string(), "not valid URDF"),
     ];
     for (text, want) in cases {
@@ -134,13 +146,13 @@ fn broken_urdfs_give_clear_errors() {
 fn description_error(from: &str, to: &str) -> String {
     let text = include_str!("../../ur5e_allegro/robot.yaml");
     assert!(text.contains(from), "{from}");
-    Robot::from_texts(default_urdf(), "ur5e_allegro.urdf", &text.replacen(from, to, 1), "bad.yaml").unwrap_err().to_string()
+    Robot::from_texts(&default_urdf(), "ur5e_allegro.urdf", &text.replacen(from, to, 1), "bad.yaml").unwrap_err().to_string()
 }
 
 #[test]
 fn broken_descriptions_name_the_file_and_the_field() {
     let cases = [
-        ("link: ff_distal,", "link: ff_distl,", "line 45: pads[2].link: no link 'ff_distl' in the URDF"),
+        ("link: ff_distal,", "link: ff_distl,", "line 48: pads[2].link: no link 'ff_distl' in the URDF"),
         ("base: base_link", "base: palm", "arm: 'flange' is not below 'palm': the arm is not one serial chain"),
         ("frame: palm", "frame: base_link", "grasp.frame: 'base_link' is not fixed below the flange 'flange'"),
         ("frame: palm", "frame: ff_distal", "grasp.frame: 'ff_distal' moves against the flange"),
@@ -151,8 +163,8 @@ fn broken_descriptions_name_the_file_and_the_field() {
         ("frame: th_distal_pad,", "frame: th_medial_pad,", "pads[11].frame: 'th_medial_pad' is not a link fixed to 'th_distal'"),
         ("min_touching: 2", "min_touching: 13", "grasp.min_touching: 13 is not within 1 ..= the 12 touch links"),
         ("home: [-1.5707963267948966, ", "home: [", "arm.home: 5 values for 6 arm joints"),
-        ("kind: palm", "kind: suction", "line 18: grasp.kind: unknown variant `suction`"),
-        ("min_touching: 2", "min_touching: 2\n  fingers: 4", "line 20: grasp: unknown field `fingers`"),
+        ("kind: palm", "kind: suction", "line 21: grasp.kind: unknown variant `suction`"),
+        ("min_touching: 2", "min_touching: 2\n  fingers: 4", "line 23: grasp: unknown field `fingers`"),
     ];
     for (from, to, want) in cases {
         let e = description_error(from, to);
@@ -165,7 +177,7 @@ fn broken_descriptions_name_the_file_and_the_field() {
         "name: ff_tip, link: ff_distal, origin: {xyz: [0.0098, 0, 0.02], rpy: [0, 1.5707963267948966, 0]}, size: [0.03, 0.02],",
         1,
     );
-    let robot = Robot::from_texts(default_urdf(), "u", &text, "d").unwrap();
+    let robot = Robot::from_texts(&default_urdf(), "u", &text, "d").unwrap();
     let pad = &robot.pads[2];
     assert_eq!((robot.model.links[pad.frame].name.as_str(), pad.size), ("ff_tip_pad", Some((0.03, 0.02))));
     assert_eq!(robot.model.relative_pose(&robot.model.zero(), pad.link, pad.frame).translation, DVec3::new(0.0098, 0.0, 0.02));
@@ -284,12 +296,9 @@ fn every_missing_mesh_is_listed_at_once_with_its_link() {
     assert!(e.contains("needs the URDF's folder"), "{e}");
 }
 
-/// The UR5e arm of the built-in URDF up to its flange, as a URDF of its own: its primitives (the
-/// real meshes' visuals left out).
+/// The built-in UR5e arm up to its flange: its primitives (the real meshes' visuals left out).
 fn ur5e_arm_urdf() -> String {
-    let cut = default_urdf().find("  <link name=\"hand_adapter\">").unwrap();
-    let arm: String = default_urdf()[..cut].lines().filter(|l| !l.contains("<mesh filename=")).map(|l| format!("{l}\n")).collect();
-    format!("{arm}</robot>\n")
+    include_str!("../../ur5e/arm.urdf").lines().filter(|l| !l.contains("<mesh filename=")).map(|l| format!("{l}\n")).collect()
 }
 
 #[test]
@@ -361,16 +370,12 @@ fn the_builtin_revolute_hands_keep_their_drives_and_an_upstream_robot_says_where
 fn a_redundant_arm_keeps_its_joints_off_their_limits() {
     // The UR5e with a seventh joint (a wrist roll on the flange): the null-space pull keeps every
     // joint within its range's inner 95 % over reachable targets.
-    let urdf = default_urdf().replacen(
-        "<link name=\"hand_adapter\">",
+    let urdf = allegro_on(
         "<link name=\"roll_link\"><inertial><mass value=\"0.1\"/><inertia ixx=\"1e-4\" ixy=\"0\" ixz=\"0\" iyy=\"1e-4\" iyz=\"0\" izz=\"1e-4\"/></inertial></link>\
          <joint name=\"roll\" type=\"revolute\"><parent link=\"flange\"/><child link=\"roll_link\"/><axis xyz=\"0 0 1\"/>\
-         <limit lower=\"-2\" upper=\"2\" effort=\"10\" velocity=\"1\"/></joint><link name=\"hand_adapter\">",
-        1,
+         <limit lower=\"-2\" upper=\"2\" effort=\"10\" velocity=\"1\"/></joint>",
+        "roll_link",
     );
-    let adapter_joint = urdf.find("<parent link=\"flange\"/><child link=\"hand_adapter\"/>").expect("the adapter hangs on the flange");
-    let urdf =
-        format!("{}<parent link=\"roll_link\"/>{}", &urdf[..adapter_joint], &urdf[adapter_joint + "<parent link=\"flange\"/>".len()..]);
     let text = include_str!("../../ur5e_allegro/robot.yaml").replace("flange: flange", "flange: roll_link").replace(
         "home: [-1.5707963267948966, -1.5707963267948966, 1.5707963267948966, -1.5707963267948966, -1.5707963267948966, 0.0]",
         "home: [-1.5707963267948966, -1.5707963267948966, 1.5707963267948966, -1.5707963267948966, -1.5707963267948966, 0.0, 0.0]",
