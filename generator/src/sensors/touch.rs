@@ -129,7 +129,7 @@ impl TouchStep {
     /// One reading: the pad views of the object alone and the tactile point cloud (in the frame
     /// `t_camera_world` maps to), the optical pads' images, the force fields when configured.
     pub fn sense(&mut self, renderer: &mut dyn Renderer, input: &TouchInput) -> Result<Touch> {
-        let cfg = &self.config.clone();
+        let cfg = &self.config;
         let mut times = TouchTimes::default();
         let clock = StageClock::start();
         // A pad feels the object when its link touches it (FORMAT.md, "Touch and contact").
@@ -170,7 +170,7 @@ impl TouchStep {
         };
         let clock = StageClock::start();
         let names: Vec<String> = self.pads.iter().map(|p| p.name.clone()).collect();
-        let (optical, marker_flow) = self.optical_images(input, &names, &views, (&reading, shears.as_deref()));
+        let (optical, marker_flow) = optical_images(&mut self.references, input, &names, &views, (&reading, shears.as_deref()));
         times.optical = clock.wall();
         times.optical_cpu = clock.cpu();
         times.optical_images = optical.len() as u64;
@@ -213,44 +213,6 @@ impl TouchStep {
         })
     }
 
-    /// The optical pads' images: each from its depth view (none: the pad does not touch the
-    /// object) and its gel's shear displacement (with force fields), with the sample's noise
-    /// stream for that pad, beside its sensor's reference image (the last one made per pad,
-    /// reused while the sensor stays the same). With force fields, also each marked pad's marker
-    /// flow, the one its image shows.
-    fn optical_images(
-        &mut self,
-        input: &TouchInput,
-        names: &[String],
-        views: &[PadView],
-        (reading, shears): (&TactileReading, Option<&[Option<GelShear>]>),
-    ) -> (Vec<OpticalPadImage>, Vec<PadMarkerFlow>) {
-        self.references.resize(views.len(), None);
-        let (mut out, mut flows) = (Vec::new(), Vec::new());
-        for (k, (pad, name)) in views.iter().zip(names).enumerate() {
-            let Some(sensor) = pad.optical() else { continue };
-            let mut noise = SampleStream::sample(input.key, &format!("tactile_image/{name}{}", input.noise_tag));
-            let shear = shears.and_then(|s| s[k].as_ref());
-            let (image, flow) = match &reading.optical_shaded[k] {
-                Some(gpu) => optical_image_shaded(sensor, gpu, shear, Some(&mut noise)),
-                None => optical_image_with_flow(sensor, reading.optical_depth[k].as_deref(), shear, Some(&mut noise)),
-            };
-            if shears.is_some() && sensor.markers.is_some() {
-                let f32s = |p: [f64; 2]| p.map(|v| v as f32);
-                flows.push(PadMarkerFlow { pad: name.clone(), markers: flow.into_iter().map(|(r, m)| (f32s(r), f32s(m))).collect() });
-            }
-            let cached = &mut self.references[k];
-            if cached.as_ref().is_none_or(|(s, _)| s != sensor) {
-                *cached = Some((sensor.clone(), reference_image(sensor).rgb));
-            }
-            // An episode's reference goes with its first frame only: the sensor unit is the same
-            // for the whole episode.
-            let reference = if input.write_reference { cached.as_ref().expect("set above").1.clone() } else { Vec::new() };
-            out.push(OpticalPadImage { pad: name.clone(), width: image.width, height: image.height, image: image.rgb, reference });
-        }
-        (out, flows)
-    }
-
     /// Every pad's force field from the physics' contacts of the posed state (its depth view
     /// spreads them), the forces each was made from, and the whole hand's force (world).
     fn force_fields(&self, resolution: u32, views: &[PadView], depth: &[Vec<f32>], input: &TouchInput) -> Result<ForceReadings> {
@@ -286,6 +248,44 @@ impl TouchStep {
         let hand_force = input.t_world_palm.transform_vector3(contacts.iter().map(|c| c.force).sum());
         Ok(ForceReadings { fields, info, hand_force_n: hand_force.to_array() })
     }
+}
+
+/// The optical pads' images: each from its depth view (none: the pad does not touch the
+/// object) and its gel's shear displacement (with force fields), with the sample's noise
+/// stream for that pad, beside its sensor's reference image (`references`: the last one made per
+/// pad, reused while the sensor stays the same). With force fields, also each marked pad's marker
+/// flow, the one its image shows.
+fn optical_images(
+    references: &mut Vec<Option<(OpticalSensor, Vec<u8>)>>,
+    input: &TouchInput,
+    names: &[String],
+    views: &[PadView],
+    (reading, shears): (&TactileReading, Option<&[Option<GelShear>]>),
+) -> (Vec<OpticalPadImage>, Vec<PadMarkerFlow>) {
+    references.resize(views.len(), None);
+    let (mut out, mut flows) = (Vec::new(), Vec::new());
+    for (k, (pad, name)) in views.iter().zip(names).enumerate() {
+        let Some(sensor) = pad.optical() else { continue };
+        let mut noise = SampleStream::sample(input.key, &format!("tactile_image/{name}{}", input.noise_tag));
+        let shear = shears.and_then(|s| s[k].as_ref());
+        let (image, flow) = match &reading.optical_shaded[k] {
+            Some(gpu) => optical_image_shaded(sensor, gpu, shear, Some(&mut noise)),
+            None => optical_image_with_flow(sensor, reading.optical_depth[k].as_deref(), shear, Some(&mut noise)),
+        };
+        if shears.is_some() && sensor.markers.is_some() {
+            let f32s = |p: [f64; 2]| p.map(|v| v as f32);
+            flows.push(PadMarkerFlow { pad: name.clone(), markers: flow.into_iter().map(|(r, m)| (f32s(r), f32s(m))).collect() });
+        }
+        let cached = &mut references[k];
+        if cached.as_ref().is_none_or(|(s, _)| s != sensor) {
+            *cached = Some((sensor.clone(), reference_image(sensor).rgb));
+        }
+        // An episode's reference goes with its first frame only: the sensor unit is the same
+        // for the whole episode.
+        let reference = if input.write_reference { cached.as_ref().expect("set above").1.clone() } else { Vec::new() };
+        out.push(OpticalPadImage { pad: name.clone(), width: image.width, height: image.height, image: image.rgb, reference });
+    }
+    (out, flows)
 }
 
 /// The real fingers' surface under each pad, from its link's real mesh.
