@@ -36,6 +36,14 @@ fn path_down(model: &RobotModel, top: usize, link: usize) -> Option<Vec<usize>> 
     Some(joints)
 }
 
+/// Whether joint `j` moves a link of the hand rooted at `hand_root`: its child is below the root,
+/// not the root itself (the joint carrying the root, e.g. an arm's last joint when the fingers
+/// hang off its link, is the arm's).
+fn in_hand(model: &RobotModel, j: usize, hand_root: usize) -> bool {
+    let child = model.joints[j].child;
+    child != hand_root && model.is_below(child, hand_root)
+}
+
 /// Whether `link` hangs below `top` through fixed joints only.
 fn fixed_below(model: &RobotModel, top: usize, link: usize) -> bool {
     path_down(model, top, link).is_some_and(|p| p.iter().all(|&j| !model.joints[j].moves()))
@@ -121,7 +129,7 @@ fn hand_joint(model: &RobotModel, i: usize, h: &HandJointSpec, hand_root: usize,
         return Err(at(field, format!("'{}' mimics another joint: list the joint it follows", h.joint)));
     }
     let Some(dof) = joint.dof else { return Err(at(field, format!("'{}' is fixed", h.joint))) };
-    if !model.is_below(joint.child, hand_root) {
+    if !in_hand(model, j, hand_root) {
         let root = &model.links[hand_root].name;
         return Err(at(field, format!("'{}' is not below the hand's root '{root}'", h.joint)));
     }
@@ -164,7 +172,7 @@ fn hand(model: &RobotModel, specs: &[HandJointSpec], hand_root: usize) -> Result
     }
     let mut followers = Vec::new();
     for (j, joint) in model.joints.iter().enumerate() {
-        if !joint.moves() || !model.is_below(joint.child, hand_root) || hand.iter().any(|h| h.joint == j) {
+        if !joint.moves() || !in_hand(model, j, hand_root) || hand.iter().any(|h| h.joint == j) {
             continue;
         }
         match joint.mimic {

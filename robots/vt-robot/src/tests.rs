@@ -449,3 +449,31 @@ fn a_sensor_rule_selects_pads_by_glob_or_label() {
     assert_eq!(selected("*_tip").len(), 0);
     assert_eq!(selected("ff_distal*"), ["ff_distal"]);
 }
+
+/// Fingers that hang directly off the arm's last moving link (the hand's root is that link): the
+/// arm's last joint carries the root and is not a hand joint, and listing it as one is refused.
+#[test]
+fn a_hand_rooted_at_the_arms_last_moving_link() {
+    let urdf = format!(
+        "{}<link name=\"finger\"><inertial><mass value=\"0.05\"/><inertia ixx=\"1e-5\" ixy=\"0\" ixz=\"0\" iyy=\"1e-5\" iyz=\"0\" izz=\"1e-5\"/></inertial>\
+         <collision><geometry><box size=\"0.01 0.01 0.04\"/></geometry></collision></link>\
+         <joint name=\"slide\" type=\"prismatic\"><parent link=\"wrist_3_link\"/><child link=\"finger\"/><axis xyz=\"0 1 0\"/>\
+         <limit lower=\"0\" upper=\"0.04\" effort=\"20\" velocity=\"0.1\"/></joint></robot>\n",
+        ur5e_arm_urdf().trim_end().strip_suffix("</robot>").unwrap()
+    );
+    let description = |hand: &str| {
+        format!(
+            "name: wrist_hand\narm: {{base: base_link, flange: wrist_3_link, home: [-1.5707963267948966, -1.5707963267948966, 1.5707963267948966, -1.5707963267948966, -1.5707963267948966, 0.0]}}\n\
+             grasp: {{frame: wrist_3_link, origin: {{xyz: [0, 0, 0.1], rpy: [0, -1.5707963267948966, 0]}}, kind: palm, min_touching: 1}}\n\
+             hand:\n{hand}pads:\n  - {{name: p, link: finger, origin: {{xyz: [0, -0.005, 0], rpy: [1.5707963267948966, 0, 0]}}}}\n"
+        )
+    };
+    let robot =
+        Robot::from_texts(&urdf, "u.urdf", &description("  - {joint: slide, preshape: [0.04, 0.04], close: 0.0}\n"), "d.yaml").unwrap();
+    assert_eq!((robot.hand.len(), robot.followers.len()), (1, 0));
+    assert_eq!(robot.model.links[robot.hand_root].name, "wrist_3_link");
+    let e = Robot::from_texts(&urdf, "u.urdf", &description("  - {joint: wrist_3_joint, preshape: [0, 0], close: 0.0}\n"), "d.yaml")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("hand[0].joint: 'wrist_3_joint' is not below the hand's root 'wrist_3_link'"), "{e}");
+}
