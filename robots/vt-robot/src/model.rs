@@ -402,7 +402,6 @@ fn read_links(urdf: &urdf_rs::Robot, paths: &MeshPaths, meshes: &mut MeshCache, 
         }
         let mut visuals = Vec::new();
         let optional = visual_meshes == VisualMeshes::Optional;
-        let has_meshes = l.visual.iter().any(|v| matches!(v.geometry, urdf_rs::Geometry::Mesh { .. }));
         for (i, v) in l.visual.iter().enumerate() {
             if let (true, urdf_rs::Geometry::Mesh { filename, .. }) = (optional, &v.geometry) {
                 if paths.resolve(filename).is_err() {
@@ -422,7 +421,7 @@ fn read_links(urdf: &urdf_rs::Robot, paths: &MeshPaths, meshes: &mut MeshCache, 
             visuals.extend(shape(&v.origin, &v.geometry, rgba, &format!("link '{}' visual {i}", l.name)));
         }
         // Optional meshes: a link drawn from its meshes keeps none of its primitive visuals.
-        if optional && has_meshes && visuals.iter().any(|s| matches!(s.geometry, Geometry::Mesh { .. })) {
+        if optional && visuals.iter().any(|s| matches!(s.geometry, Geometry::Mesh { .. })) {
             visuals.retain(|s| matches!(s.geometry, Geometry::Mesh { .. }));
         }
         let collisions = l

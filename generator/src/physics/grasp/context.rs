@@ -148,7 +148,7 @@ impl<'a> GraspContext<'a> {
     /// Physics steps of one recorded arm move: the move, the hold, and (when recording steps) the
     /// whole settle window of `PENETRATION_WAITS` waits.
     pub fn move_steps(&self) -> usize {
-        move_steps(self.config, self.timestep)
+        self.config.move_steps(self.timestep)
             + self.finger_gait.as_ref().map_or(0, |g| g.steps)
             + self.pivot.as_ref().map_or(0, |p| p.steps)
             + self.finger_roll.as_ref().map_or(0, |r| r.steps)
@@ -159,12 +159,6 @@ impl<'a> GraspContext<'a> {
         let target = self.t_world_base.inverse() * *t_world_palm;
         self.robot.solve_grasp_ik(&target, q, &IkOptions::default())
     }
-}
-
-/// Physics steps of one recorded arm move of an episode, without a finger motion
-/// (`GraspContext::move_steps`; the schedule is the config's, `GraspConfig::move_steps`).
-pub fn move_steps(config: &GraspConfig, timestep: f64) -> usize {
-    config.move_steps(timestep)
 }
 
 /// Grasp-frame poses drawn by `reachable_share`, and the share of them the arm must reach.

@@ -28,9 +28,7 @@ use glam::{DAffine3, DMat3, DQuat, DVec3};
 use rand::Rng;
 use vt_randomizers::SampleStream;
 
-pub use context::{
-    FingerGait, GraspContext, MIN_REACHABLE_SHARE, REACH_SAMPLES, TrajectoryKey, move_steps, reach_samples, reachable_share,
-};
+pub use context::{FingerGait, GraspContext, MIN_REACHABLE_SHARE, REACH_SAMPLES, TrajectoryKey, reach_samples, reachable_share};
 pub use finger_roll::RollControl;
 pub use floor::{floor_clearance, robot_floor_clearance};
 pub use outcome::{Failure, GraspEvent, Redo};
@@ -68,7 +66,7 @@ pub struct Trajectory {
     /// Attempts it took (1 = the first grasp held through every instance).
     pub attempts: u32,
     /// With `GraspContext::record_steps`: the state at the settled grasp, then after every
-    /// physics step of the recorded arm moves (`1 + instances * move_steps` states); else empty.
+    /// physics step of the recorded arm moves (`1 + instances * GraspContext::move_steps` states); else empty.
     pub steps: Vec<InstanceState>,
 }
 
