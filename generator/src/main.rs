@@ -247,6 +247,11 @@ enum RobotAction {
         /// Print the report as JSON.
         #[arg(long)]
         json: bool,
+        /// Search a home, a workspace height and a base distance with which the check passes
+        /// (the smallest change first) and print them as `--set` lines, with the figures before
+        /// and after.
+        #[arg(long)]
+        suggest: bool,
     },
 }
 
@@ -377,7 +382,10 @@ fn run(cli: Cli) -> Result<()> {
             };
             render_press_image(&calibration, pixel_size_mm, shape, &out)
         }
-        Command::Robot { action: RobotAction::Check { config, json } } => commands::robot_check::run(&load(&config)?, json),
+        Command::Robot { action: RobotAction::Check { config, json, suggest: false } } => commands::robot_check::run(&load(&config)?, json),
+        Command::Robot { action: RobotAction::Check { config, json, suggest: true } } => {
+            commands::robot_suggest::run(&load(&config)?, json)
+        }
         Command::Preview { source, n, out, width, columns, ycb_dir } => {
             commands::preview::run(&source, n, &out, (width, columns), ycb_dir.as_ref(), cli.robot_assets.clone(), &cli.overrides)
         }

@@ -9,7 +9,7 @@ use glam::{DAffine3, DVec3};
 use serde::Serialize;
 use vt_robot::{GraspKind, Robot};
 
-use crate::config::LoadedConfig;
+use crate::config::{LoadedConfig, RobotConfig};
 use crate::physics::grasp::{GraspContext, MIN_REACHABLE_SHARE, REACH_SAMPLES, reach_samples, robot_floor_clearance};
 use crate::physics::robot::{grasp_context, t_world_base};
 
@@ -50,13 +50,66 @@ pub struct RobotCheckReport {
     pub jaw_gap_m: Option<f64>,
     /// What must be fixed before making data (empty: none).
     pub problems: Vec<String>,
+    /// What to change for the arm's placement problems, from their cause.
+    pub advice: Vec<String>,
+}
+
+/// The config's robot and its `robot:` section.
+pub fn config_robot(cfg: &LoadedConfig) -> Result<(&Robot, &RobotConfig)> {
+    let rc = cfg.config.robot.as_ref().with_context(|| format!("{}: the config has no `robot:` section", cfg.path.display()))?;
+    let robot = cfg.robot.as_ref().context("a config with a robot section has its robot loaded")?;
+    Ok((robot, rc))
 }
 
 pub fn check_robot(cfg: &LoadedConfig) -> Result<RobotCheckReport> {
-    let rc = cfg.config.robot.as_ref().with_context(|| format!("{}: the config has no `robot:` section", cfg.path.display()))?;
-    let robot = cfg.robot.as_ref().context("a config with a robot section has its robot loaded")?;
+    let (robot, rc) = config_robot(cfg)?;
+    let camera = DVec3::from_array(cfg.config.camera.position);
+    let mut report = check_setup(robot, rc, camera);
+    report.advice = advice(robot, rc, camera, &report);
+    Ok(report)
+}
+
+/// What to change, from the cause: the inverse kinematics starts every move from the home, so a
+/// home facing away from the workspace (or one folding a link through the floor) fails poses the
+/// arm reaches well from another. The check is redone with a searched home to tell the two apart.
+fn advice(robot: &Robot, rc: &RobotConfig, camera: DVec3, report: &RobotCheckReport) -> Vec<String> {
+    let placement_problem = report.reach_share < MIN_REACHABLE_SHARE
+        || report.under_floor_share > MAX_BAD_SHARE
+        || report.joints_at_limit.iter().any(|j| j.share > MAX_BAD_SHARE);
+    if !placement_problem {
+        return Vec::new();
+    }
+    let mut out = Vec::new();
+    match super::robot_suggest::with_searched_home(robot, rc, camera) {
+        Some((home, with_home)) if with_home.problems.len() < report.problems.len() => {
+            let values: Vec<String> = home.iter().map(|v| format!("{:.4}", v)).collect();
+            out.push(format!(
+                "the cause is the home the inverse kinematics starts from (robot.grasp.home_arm, else the description's arm.home): \
+                 from the searched home [{}] the arm reaches {:.0}% with {} problem(s) left",
+                values.join(", "),
+                100.0 * with_home.reach_share,
+                with_home.problems.len()
+            ));
+        }
+        Some(_) => out.push(
+            "a better home alone does not fix it: the workspace lies where the arm cannot hold the hand up; move the workspace \
+             (robot.grasp.palm_workspace) or the base (robot.base_position)"
+                .into(),
+        ),
+        None => out.push(
+            "the arm cannot put the grasp frame hand-up at the workspace's centre from any seed tried: move the workspace \
+             (robot.grasp.palm_workspace) or the base (robot.base_position)"
+                .into(),
+        ),
+    }
+    out.push("`vtgen robot check --suggest CONFIG` searches a home, workspace and base placement that pass".into());
+    out
+}
+
+/// The check of `robot` placed and moved as `rc` says (its base, home and workspace).
+pub fn check_setup(robot: &Robot, rc: &RobotConfig, camera_position: DVec3) -> RobotCheckReport {
     let t_world_base = t_world_base(rc);
-    let ctx = grasp_context(robot, t_world_base, rc, DVec3::from_array(cfg.config.camera.position), None);
+    let ctx = grasp_context(robot, t_world_base, rc, camera_position, None);
     let pre: Vec<f64> = rc.grasp.preshape.iter().map(|&(lo, _)| lo).collect();
     let reached: Vec<Vec<f64>> = reach_samples(&ctx, REACH_SAMPLES)
         .into_iter()
@@ -71,7 +124,7 @@ pub fn check_robot(cfg: &LoadedConfig) -> Result<RobotCheckReport> {
     if reach_share < MIN_REACHABLE_SHARE {
         problems.push(format!(
             "the arm reaches {:.0}% of {REACH_SAMPLES} grasp-frame poses drawn from robot.grasp.palm_workspace (at least {:.0}% needed): \
-             move the workspace or robot.base_position",
+             see the advice below",
             100.0 * reach_share,
             100.0 * MIN_REACHABLE_SHARE
         ));
@@ -80,7 +133,7 @@ pub fn check_robot(cfg: &LoadedConfig) -> Result<RobotCheckReport> {
     let (under_floor_share, lowest) = floor_clearance(robot, &t_world_base, &reached, &mut problems);
     let joints_at_limit = joints_at_limit(robot, &reached, &mut problems);
     let (jaws_facing, jaw_gap_m) = jaws(robot, &ctx, &pre, &mut problems).unzip();
-    Ok(RobotCheckReport {
+    RobotCheckReport {
         robot: robot.name.clone(),
         links: model.links.len(),
         arm_joints: robot.arm_joints.len(),
@@ -96,7 +149,8 @@ pub fn check_robot(cfg: &LoadedConfig) -> Result<RobotCheckReport> {
         jaws_facing,
         jaw_gap_m,
         problems,
-    })
+        advice: Vec::new(),
+    }
 }
 
 /// The share of the reached poses with a link under the floor, and the lowest link seen (its
@@ -121,8 +175,8 @@ fn floor_clearance(
     if under_floor_share > MAX_BAD_SHARE {
         let (link, z) = lowest.expect("a link under the floor was seen");
         problems.push(format!(
-            "a link is under the floor in {:.0}% of the reached grasp poses (lowest: '{}' at {:.0} mm): raise robot.base_position \
-             or the workspace (the grasp loop redoes such moves)",
+            "a link is under the floor in {:.0}% of the reached grasp poses (lowest: '{}' at {:.0} mm): see the advice below \
+             (the grasp loop redoes such moves)",
             100.0 * under_floor_share,
             robot.model.links[link].name,
             1000.0 * z
@@ -145,7 +199,7 @@ fn joints_at_limit(robot: &Robot, reached: &[Vec<f64>], problems: &mut Vec<Strin
             if share > MAX_BAD_SHARE {
                 problems.push(format!(
                     "arm joint '{}' is at a limit in {:.0}% of the reached grasp poses: the inverse kinematics pins it there; \
-                     check arm.home and the workspace",
+                     see the advice below",
                     joint.name,
                     100.0 * share
                 ));
@@ -220,6 +274,9 @@ impl std::fmt::Display for RobotCheckReport {
             write!(f, "{} problem(s):", self.problems.len())?;
             for p in &self.problems {
                 write!(f, "\n  - {p}")?;
+            }
+            for a in &self.advice {
+                write!(f, "\nadvice: {a}")?;
             }
             Ok(())
         }

@@ -176,7 +176,8 @@ fn prepare_output(out: &Path, config_json: &str, sources: &MeshSources, plan: &P
     vt_dataset::write_atomic(&sources_path, (serde_json::to_string_pretty(sources)? + "\n").as_bytes())
 }
 
-/// Writes `robot/` (FORMAT.md): the robot's URDF (an arm and a hand joined into one), its
+/// Writes `robot/` (FORMAT.md): the robot's URDF as simulated (an arm and a hand joined into one,
+/// the description's joint corrections applied) and the upstream text they corrected, its
 /// description, and the mesh files its URDF names by name, size and SHA-256, so that a reader can
 /// redraw the robot from its own copy of them.
 fn write_robot(out: &Path, robot: &vt_robot::Robot, assets: Option<&Path>) -> Result<()> {
@@ -184,6 +185,13 @@ fn write_robot(out: &Path, robot: &vt_robot::Robot, assets: Option<&Path>) -> Re
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
     vt_dataset::write_atomic(&dir.join("robot.urdf"), robot.urdf_text.as_bytes())?;
     vt_dataset::write_atomic(&dir.join("robot.yaml"), robot.description_text.as_bytes())?;
+    let upstream = dir.join("robot.upstream.urdf");
+    match &robot.upstream_urdf_text {
+        Some(text) => vt_dataset::write_atomic(&upstream, text.as_bytes())?,
+        // A rerun over a dataset of a robot that had corrections: no stale upstream file stays.
+        None if upstream.exists() => std::fs::remove_file(&upstream).with_context(|| format!("cannot remove {}", upstream.display()))?,
+        None => {}
+    }
     let meshes = crate::assets::sources::robot_mesh_files(robot, assets)?;
     let text = serde_json::to_string_pretty(&vt_dataset::RobotFiles { name: robot.name.clone(), meshes })? + "\n";
     vt_dataset::write_atomic(&dir.join("meshes.json"), text.as_bytes())

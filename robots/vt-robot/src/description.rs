@@ -3,6 +3,7 @@
 //! joints with their preshape ranges and closing targets, and the tactile pads. [`Robot`] is a
 //! URDF model checked against its description, with every name resolved to an index once.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use glam::{DAffine3, DVec3};
@@ -69,6 +70,39 @@ pub struct Description {
     /// takes them (docs/tactile.md), read by the generator (this crate knows no sensor).
     #[serde(default)]
     pub sensors: Option<serde_yaml::Value>,
+    /// Joints whose URDF type or limits are corrected, by name (upstream files with `fixed` finger
+    /// joints that move on the real robot): the simulated URDF is the corrected one, the upstream
+    /// text is kept beside it.
+    #[serde(default)]
+    pub joints: BTreeMap<String, JointOverride>,
+}
+
+/// A URDF joint's type and limits as the description corrects them (`joints:`); fields not given
+/// keep the URDF's values.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointOverride {
+    #[serde(default, rename = "type")]
+    pub kind: Option<JointType>,
+    /// Limits (rad, or m for a prismatic joint), effort (N·m or N) and velocity.
+    #[serde(default)]
+    pub lower: Option<f64>,
+    #[serde(default)]
+    pub upper: Option<f64>,
+    #[serde(default)]
+    pub effort: Option<f64>,
+    #[serde(default)]
+    pub velocity: Option<f64>,
+}
+
+/// A URDF joint type a description may set.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum JointType {
+    Revolute,
+    Continuous,
+    Prismatic,
+    Fixed,
 }
 
 /// How the hand collides (`hand_collision` in a description).
@@ -265,8 +299,11 @@ fn glob_match(pattern: &[u8], name: &[u8]) -> bool {
 pub struct Robot {
     pub name: String,
     pub model: RobotModel,
-    /// The URDF's text (a dataset's identity names it; an arm and a hand: the two joined).
+    /// The URDF's text as simulated (a dataset's identity names it; an arm and a hand: the two
+    /// joined; the description's `joints:` corrections applied).
     pub urdf_text: String,
+    /// The URDF's text before the description's `joints:` corrections (None: it has none).
+    pub upstream_urdf_text: Option<String>,
     /// The description's text, as written (a dataset carries it beside the URDF).
     pub description_text: String,
     /// Moving joints from the base to the flange, and their entries in the joint-value vector.
@@ -378,8 +415,7 @@ impl Robot {
                 let desc = parse(t.description, &description_name)?;
                 let urdf = builtin_urdf_text(name, &t, &desc)?;
                 let paths = MeshPaths { urdf_dir: None, package_dirs: package_dirs.to_vec() };
-                let model = RobotModel::from_urdf_with(&urdf, &format!("built-in {name}.urdf"), &paths, desc.drawn_meshes)?;
-                Robot::resolve(model, urdf, desc, t.description, &description_name)
+                Robot::build(urdf, &format!("built-in {name}.urdf"), &paths, desc, t.description, &description_name)
             }
             Some(t) => {
                 let desc = parse(t.description, &description_name)?;
@@ -465,15 +501,33 @@ impl Robot {
             }
             (None, None) => {}
         }
-        let model = RobotModel::from_urdf_with(&urdf_text, &urdf_name, &paths(&urdf_path), desc.drawn_meshes)?;
-        Robot::resolve(model, urdf_text, desc, description_text, source_name)
+        Robot::build(urdf_text, &urdf_name, &paths(&urdf_path), desc, description_text, source_name)
+    }
+
+    /// The robot from its URDF text (the description's joint corrections applied first) and its
+    /// parsed description.
+    fn build(
+        urdf_text: String,
+        urdf_name: &str,
+        paths: &MeshPaths,
+        desc: Description,
+        description_text: &str,
+        source_name: &str,
+    ) -> Result<Self, RobotError> {
+        let (urdf_text, upstream) = match corrected_urdf(&urdf_text, urdf_name, &desc.joints, description_text, source_name)? {
+            Some(corrected) => (corrected, Some(urdf_text)),
+            None => (urdf_text, None),
+        };
+        let model = RobotModel::from_urdf_with(&urdf_text, urdf_name, paths, desc.drawn_meshes)?;
+        let mut robot = Robot::resolve(model, urdf_text, desc, description_text, source_name)?;
+        robot.upstream_urdf_text = upstream;
+        Ok(robot)
     }
 
     /// A URDF and a description given as text (names are for errors).
     pub fn from_texts(urdf: &str, urdf_name: &str, description: &str, description_name: &str) -> Result<Self, RobotError> {
         let desc = parse(description, description_name)?;
-        let model = RobotModel::from_urdf_with(urdf, urdf_name, &MeshPaths::default(), desc.drawn_meshes)?;
-        Robot::resolve(model, urdf.to_string(), desc, description, description_name)
+        Robot::build(urdf.to_string(), urdf_name, &MeshPaths::default(), desc, description, description_name)
     }
 
     /// The grasp frame's azimuth minus the first arm joint's angle, at home.
@@ -624,6 +678,74 @@ fn compose_urdf(
     robot.links.extend(hand.links);
     robot.joints.extend(hand.joints);
     urdf_rs::write_to_string(&robot).map_err(|e| err(&hand_name, format!("cannot join the arm and the hand: {e}")))
+}
+
+/// The URDF with the description's `joints:` corrections applied (None when it has none): each
+/// named joint's type, limits, effort and velocity as given. Errors name the description's line.
+fn corrected_urdf(
+    urdf: &str,
+    urdf_name: &str,
+    joints: &BTreeMap<String, JointOverride>,
+    description_text: &str,
+    source_name: &str,
+) -> Result<Option<String>, RobotError> {
+    if joints.is_empty() {
+        return Ok(None);
+    }
+    let mut robot = urdf_rs::read_from_string(urdf)
+        .map_err(|e| RobotError { source_name: urdf_name.to_string(), message: format!("not valid URDF: {e}") })?;
+    let problem = |name: &str, field: Option<&'static str>, message: String| {
+        let mut path = vec![vt_check::Seg::key("joints"), vt_check::Seg::key(name.to_string())];
+        path.extend(field.map(vt_check::Seg::key));
+        let line = vt_check::locate::locate(description_text, &path).map(|(l, _)| format!("line {l}: ")).unwrap_or_default();
+        let field = field.map_or(String::new(), |f| format!(".{f}"));
+        RobotError { source_name: source_name.to_string(), message: format!("{line}joints.{name}{field}: {message}") }
+    };
+    for (name, o) in joints {
+        let Some(j) = robot.joints.iter_mut().find(|j| &j.name == name) else {
+            return Err(problem(name, None, format!("no joint '{name}' in the URDF")));
+        };
+        if let Some(kind) = o.kind {
+            j.joint_type = match kind {
+                JointType::Revolute => urdf_rs::JointType::Revolute,
+                JointType::Continuous => urdf_rs::JointType::Continuous,
+                JointType::Prismatic => urdf_rs::JointType::Prismatic,
+                JointType::Fixed => urdf_rs::JointType::Fixed,
+            };
+        }
+        for (field, value, slot) in [
+            ("lower", o.lower, &mut j.limit.lower),
+            ("upper", o.upper, &mut j.limit.upper),
+            ("effort", o.effort, &mut j.limit.effort),
+            ("velocity", o.velocity, &mut j.limit.velocity),
+        ] {
+            if let Some(v) = value {
+                if !v.is_finite() || (matches!(field, "effort" | "velocity") && v < 0.0) {
+                    return Err(problem(
+                        name,
+                        Some(field),
+                        format!("{v} is not a finite{} number", if field == "lower" || field == "upper" { "" } else { ", non-negative" }),
+                    ));
+                }
+                *slot = v;
+            }
+        }
+        let moves = !matches!(j.joint_type, urdf_rs::JointType::Fixed);
+        let limited = matches!(j.joint_type, urdf_rs::JointType::Revolute | urdf_rs::JointType::Prismatic);
+        if limited && j.limit.lower >= j.limit.upper {
+            return Err(problem(
+                name,
+                None,
+                format!("moves between {} and {}: give a range (lower below upper) for a joint that moves", j.limit.lower, j.limit.upper),
+            ));
+        }
+        if moves && j.axis.xyz.0.iter().all(|a| *a == 0.0) {
+            return Err(problem(name, Some("type"), "the URDF gives this joint no axis to move about".into()));
+        }
+    }
+    urdf_rs::write_to_string(&robot)
+        .map(Some)
+        .map_err(|e| RobotError { source_name: urdf_name.to_string(), message: format!("cannot write the corrected URDF: {e}") })
 }
 
 /// `x`, or 0 when it is a rounding error's size (cos(1.57079633) is 3e-9).

@@ -316,6 +316,7 @@ impl Robot {
             name: desc.name,
             model,
             urdf_text,
+            upstream_urdf_text: None,
             description_text: description_text.to_string(),
             arm_joints: arm.joints,
             arm_dofs: arm.dofs,

@@ -477,3 +477,44 @@ fn a_hand_rooted_at_the_arms_last_moving_link() {
         .to_string();
     assert!(e.contains("hand[0].joint: 'wrist_3_joint' is not below the hand's root 'wrist_3_link'"), "{e}");
 }
+
+/// An upstream URDF whose finger joint is `fixed` (as Kinova's are in example-robot-data): the
+/// description's `joints:` makes it move, the simulated URDF carries the correction and the
+/// upstream text is kept; a joint the URDF lacks, or a moving joint without a range, is refused at
+/// its line.
+#[test]
+fn a_description_corrects_a_fixed_finger_joint() {
+    let urdf = format!(
+        "{}<link name=\"finger\"><inertial><mass value=\"0.05\"/><inertia ixx=\"1e-5\" ixy=\"0\" ixz=\"0\" iyy=\"1e-5\" iyz=\"0\" izz=\"1e-5\"/></inertial>\
+         <collision><geometry><box size=\"0.01 0.01 0.04\"/></geometry></collision></link>\
+         <joint name=\"finger_joint\" type=\"fixed\"><parent link=\"wrist_3_link\"/><child link=\"finger\"/><axis xyz=\"0 0 1\"/>\
+         <limit lower=\"0\" upper=\"1.51\" effort=\"2\" velocity=\"1\"/></joint></robot>\n",
+        ur5e_arm_urdf().trim_end().strip_suffix("</robot>").unwrap()
+    );
+    let description = |joints: &str| {
+        format!(
+            "name: fixed_fingers\narm: {{base: base_link, flange: wrist_3_link, home: [-1.5707963267948966, -1.5707963267948966, 1.5707963267948966, -1.5707963267948966, -1.5707963267948966, 0.0]}}\n\
+             grasp: {{frame: wrist_3_link, origin: {{xyz: [0, 0, 0.1], rpy: [0, -1.5707963267948966, 0]}}, kind: palm, min_touching: 1}}\n\
+             hand:\n  - {{joint: finger_joint, preshape: [0.2, 0.4], close: 1.2}}\n\
+             pads:\n  - {{name: p, link: finger, origin: {{xyz: [0, -0.005, 0], rpy: [1.5707963267948966, 0, 0]}}}}\n{joints}"
+        )
+    };
+    let e = Robot::from_texts(&urdf, "u.urdf", &description(""), "d.yaml").unwrap_err().to_string();
+    assert!(e.contains("hand[0].joint: 'finger_joint' is fixed"), "{e}");
+    let robot =
+        Robot::from_texts(&urdf, "u.urdf", &description("joints:\n  finger_joint: {type: revolute, effort: 1.5}\n"), "d.yaml").unwrap();
+    let j = robot.model.joint("finger_joint").unwrap();
+    assert_eq!((j.kind, j.lower, j.upper, j.effort), (JointKind::Revolute, 0.0, 1.51, 1.5));
+    assert_eq!(robot.upstream_urdf_text.as_deref(), Some(urdf.as_str()));
+    assert!(RobotModel::from_urdf_str(&robot.urdf_text, "simulated").unwrap().joint("finger_joint").unwrap().moves());
+    assert!(Robot::from_texts(&urdf, "u.urdf", &description(""), "d.yaml").is_err());
+    let e =
+        Robot::from_texts(&urdf, "u.urdf", &description("joints:\n  finger_jiont: {type: revolute}\n"), "d.yaml").unwrap_err().to_string();
+    assert!(e.contains("line 9: joints.finger_jiont: no joint 'finger_jiont' in the URDF"), "{e}");
+    let e = Robot::from_texts(&urdf, "u.urdf", &description("joints:\n  finger_joint: {type: revolute, upper: 0.0}\n"), "d.yaml")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("joints.finger_joint: moves between 0 and 0"), "{e}");
+    let plain = Robot::from_texts(&ur5e_arm_urdf(), "u.urdf", &description(""), "d.yaml");
+    assert!(plain.is_err(), "no finger in the plain arm");
+}

@@ -77,7 +77,7 @@ const PALM_UP_GRAVITY: DVec3 = DVec3::new(-9.81, 0.0, 0.0);
 /// The neutral palm orientation (world). Palm frame: +x palmar normal, +z along the fingers.
 /// Neutral: palm up (x -> world z), fingers towards the camera side (z -> world -y), so the arm
 /// stays behind the hand.
-fn palm_up() -> DQuat {
+pub fn palm_up() -> DQuat {
     DQuat::from_mat3(&DMat3::from_cols(DVec3::Z, DVec3::NEG_X, DVec3::NEG_Y))
 }
 
