@@ -11,6 +11,7 @@ mod determinism;
 mod episodes;
 mod foxglove_scene;
 mod grasping;
+mod jaco;
 mod ground_truth;
 mod mesh_robot;
 mod optical_calibration;

@@ -209,6 +209,7 @@ fn tactile_points_lie_on_the_object_and_at_the_real_finger_surface() {
         .collect();
     let ds = vt_dataset::DatasetReader::open(out).unwrap();
     let mut finger_mm = Vec::new();
+    let mut distance_mm = Vec::new();
     for split in ["train", "test"] {
         for s in ds.samples(split).unwrap() {
             let s = s.unwrap();
@@ -225,6 +226,7 @@ fn tactile_points_lie_on_the_object_and_at_the_real_finger_surface() {
                 let world = s.t_world_camera.transform_point(glam::Vec3::from(p.position).as_dvec3());
                 let local = frames[name.as_str()].inverse().transform_point(world);
                 finger_mm.push(1e3 * fingers[name].distance_to_local_point(local.as_vec3(), false) as f64);
+                distance_mm.push(1e3 * p.distance as f64);
             }
         }
     }
@@ -242,6 +244,13 @@ fn tactile_points_lie_on_the_object_and_at_the_real_finger_surface() {
     // real surface under it, along the pad's normal: the points are where the drawn finger
     // touches the object (half a pixel of the 32x32 pad for the raster).
     assert!(pct(1.0) <= 2.0 + 0.5, "median {:.2} mm, max {:.2} mm", pct(0.5), pct(1.0));
+    // A point's distance is the object's above the real finger surface under its pixel: on the
+    // round fingertips it reads no deeper press than the physics lets the object in (1 mm, plus
+    // the slant of a round surface along the pad's normal), where a flat pad's plane read 5 mm.
+    let pressed = distance_mm.iter().filter(|&&d| d < -1.0).count() as f64 / distance_mm.len() as f64;
+    let deepest = distance_mm.iter().copied().fold(f64::MAX, f64::min);
+    eprintln!("tactile distances: {:.1}% below -1 mm, deepest {deepest:.2} mm", 100.0 * pressed);
+    assert!(pressed <= 0.02 && deepest >= -2.0, "{:.1}% below -1 mm, deepest {deepest:.2} mm", 100.0 * pressed);
 }
 
 #[test]

@@ -75,7 +75,7 @@ pub fn homes(robot: &Robot, rc: &RobotConfig, n: usize) -> Vec<Vec<f64>> {
         if robot_floor_clearance(robot, &t_world_base, &q).is_some_and(|(_, z)| z < HOME_FLOOR_CLEARANCE) {
             continue;
         }
-        let arm: Vec<f64> = robot.arm_dofs.iter().map(|&d| q[d]).collect();
+        let arm: Vec<f64> = robot.arm_dofs.iter().zip(&robot.arm_joints).map(|(&d, &j)| nearest_zero_turn(robot, j, q[d])).collect();
         if found.iter().any(|(_, o)| o.iter().zip(&arm).all(|(a, b)| (a - b).abs() < 0.05)) {
             continue;
         }
@@ -83,6 +83,19 @@ pub fn homes(robot: &Robot, rc: &RobotConfig, n: usize) -> Vec<Vec<f64>> {
     }
     found.sort_by(|a, b| b.0.total_cmp(&a.0));
     found.into_iter().take(n).map(|(_, q)| q).collect()
+}
+
+/// `v` turned by whole turns to the value nearest zero within the joint's limits (a wrist at 5.06
+/// rad reads -1.23): the same pose, the home a reader recognises.
+fn nearest_zero_turn(robot: &Robot, joint: usize, v: f64) -> f64 {
+    let j = &robot.model.joints[joint];
+    let tau = std::f64::consts::TAU;
+    let wrapped = v - tau * (v / tau).round();
+    [wrapped, wrapped + tau, wrapped - tau]
+        .into_iter()
+        .filter(|x| (j.lower..=j.upper).contains(x))
+        .min_by(|a, b| a.abs().total_cmp(&b.abs()))
+        .unwrap_or(v)
 }
 
 /// A joint's range for seeding: its limits, or one turn about zero for a continuous joint.

@@ -258,7 +258,11 @@ pub fn sense(
             let spread = standoff.map_or(1.0, |s| (s + d) / s);
             let (x, y) = pad_pixel(u, v, n, pad.size);
             let (x, y) = (x * spread, y * spread);
-            points.push(TactilePoint { position: to_camera.transform_point3(DVec3::new(x, y, d)), distance: d, pad: k as u32 });
+            // The distance is the object's above the finger's real surface under the pixel (the
+            // pad plane when no surface is known): a round fingertip curving away from a flat pad
+            // reads no false press.
+            let above = gap[(v * n + u) as usize] as f64;
+            points.push(TactilePoint { position: to_camera.transform_point3(DVec3::new(x, y, d)), distance: above, pad: k as u32 });
             counts[k] += 1;
         }
     }
