@@ -252,6 +252,15 @@ enum RobotAction {
         /// and after.
         #[arg(long)]
         suggest: bool,
+        /// A parallel-jaw gripper's pads pass when their normals are within this many degrees of
+        /// opposite at some opening between the preshape and the closing target.
+        #[arg(long, default_value_t = vtgen::cli::robot_check::JAW_TOLERANCE_DEG)]
+        jaw_tolerance_deg: f64,
+        /// After a passing check, a short hold test: this many trajectories per object through
+        /// the grasp loop (2 instances each; `vtgen grasps`' table), failing when an object keeps
+        /// fewer than half of them.
+        #[arg(long, value_name = "TRAJECTORIES", default_value_t = 0)]
+        hold: u32,
     },
 }
 
@@ -382,9 +391,24 @@ fn run(cli: Cli) -> Result<()> {
             };
             render_press_image(&calibration, pixel_size_mm, shape, &out)
         }
-        Command::Robot { action: RobotAction::Check { config, json, suggest: false } } => commands::robot_check::run(&load(&config)?, json),
-        Command::Robot { action: RobotAction::Check { config, json, suggest: true } } => {
-            commands::robot_suggest::run(&load(&config)?, json)
+        Command::Robot { action: RobotAction::Check { config, json, suggest, jaw_tolerance_deg, hold } } => {
+            anyhow::ensure!(
+                (0.0..=90.0).contains(&jaw_tolerance_deg),
+                "--jaw-tolerance-deg: {jaw_tolerance_deg} is not within 0 ..= 90 degrees"
+            );
+            let cfg = load(&config)?;
+            if suggest {
+                commands::robot_suggest::run(&cfg, json, jaw_tolerance_deg)?;
+            } else {
+                commands::robot_check::run(&cfg, json, jaw_tolerance_deg)?;
+            }
+            if hold > 0 && !suggest {
+                let jobs = std::thread::available_parallelism().map_or(1, |n| n.get());
+                let opts = commands::grasps::GraspCheckOptions { trajectories: hold, instances: Some(2), jobs, quiet: true };
+                println!("hold test: {hold} trajectories per object, 2 instances each");
+                commands::grasps::run(&cfg, None, &opts, json, Some(0.5))?;
+            }
+            Ok(())
         }
         Command::Preview { source, n, out, width, columns, ycb_dir } => {
             commands::preview::run(&source, n, &out, (width, columns), ycb_dir.as_ref(), cli.robot_assets.clone(), &cli.overrides)

@@ -44,10 +44,8 @@ pub struct RobotCheckReport {
     pub lowest_link_height_m: Option<f64>,
     /// Arm joints at a limit in more than none of the reached poses.
     pub joints_at_limit: Vec<JointAtLimit>,
-    /// Parallel-jaw grippers: the first two pads face each other (their +z point at one another)
-    /// at the preshape, and the gap between them (m).
-    pub jaws_facing: Option<bool>,
-    pub jaw_gap_m: Option<f64>,
+    /// Parallel-jaw grippers: the first two pads over the closing ([`JawReport`]).
+    pub jaws: Option<JawReport>,
     /// What must be fixed before making data (empty: none).
     pub problems: Vec<String>,
     /// What to change for the arm's placement problems, from their cause.
@@ -61,10 +59,10 @@ pub fn config_robot(cfg: &LoadedConfig) -> Result<(&Robot, &RobotConfig)> {
     Ok((robot, rc))
 }
 
-pub fn check_robot(cfg: &LoadedConfig) -> Result<RobotCheckReport> {
+pub fn check_robot(cfg: &LoadedConfig, jaw_tolerance_deg: f64) -> Result<RobotCheckReport> {
     let (robot, rc) = config_robot(cfg)?;
     let camera = DVec3::from_array(cfg.config.camera.position);
-    let mut report = check_setup(robot, rc, camera);
+    let mut report = check_setup(robot, rc, camera, jaw_tolerance_deg);
     report.advice = advice(robot, rc, camera, &report);
     Ok(report)
 }
@@ -80,7 +78,7 @@ fn advice(robot: &Robot, rc: &RobotConfig, camera: DVec3, report: &RobotCheckRep
         return Vec::new();
     }
     let mut out = Vec::new();
-    match super::robot_suggest::with_searched_home(robot, rc, camera) {
+    match super::robot_suggest::with_searched_home(robot, rc, camera, report.jaws.as_ref().map_or(JAW_TOLERANCE_DEG, |j| j.tolerance_deg)) {
         Some((home, with_home)) if with_home.problems.len() < report.problems.len() => {
             let values: Vec<String> = home.iter().map(|v| format!("{:.4}", v)).collect();
             out.push(format!(
@@ -107,7 +105,7 @@ fn advice(robot: &Robot, rc: &RobotConfig, camera: DVec3, report: &RobotCheckRep
 }
 
 /// The check of `robot` placed and moved as `rc` says (its base, home and workspace).
-pub fn check_setup(robot: &Robot, rc: &RobotConfig, camera_position: DVec3) -> RobotCheckReport {
+pub fn check_setup(robot: &Robot, rc: &RobotConfig, camera_position: DVec3, jaw_tolerance_deg: f64) -> RobotCheckReport {
     let t_world_base = t_world_base(rc);
     let ctx = grasp_context(robot, t_world_base, rc, camera_position, None);
     let pre: Vec<f64> = rc.grasp.preshape.iter().map(|&(lo, _)| lo).collect();
@@ -132,7 +130,7 @@ pub fn check_setup(robot: &Robot, rc: &RobotConfig, camera_position: DVec3) -> R
     let model = &robot.model;
     let (under_floor_share, lowest) = floor_clearance(robot, &t_world_base, &reached, &mut problems);
     let joints_at_limit = joints_at_limit(robot, &reached, &mut problems);
-    let (jaws_facing, jaw_gap_m) = jaws(robot, &ctx, &pre, &mut problems).unzip();
+    let jaws = jaws(robot, &ctx, rc, jaw_tolerance_deg, &mut problems);
     RobotCheckReport {
         robot: robot.name.clone(),
         links: model.links.len(),
@@ -146,8 +144,7 @@ pub fn check_setup(robot: &Robot, rc: &RobotConfig, camera_position: DVec3) -> R
         lowest_link: lowest.map(|(l, _)| model.links[l].name.clone()),
         lowest_link_height_m: lowest.map(|(_, z)| z),
         joints_at_limit,
-        jaws_facing,
-        jaw_gap_m,
+        jaws,
         problems,
         advice: Vec::new(),
     }
@@ -210,26 +207,69 @@ fn joints_at_limit(robot: &Robot, reached: &[Vec<f64>], problems: &mut Vec<Strin
     joints_at_limit
 }
 
-/// A parallel-jaw gripper's first two pads at the preshape: whether they face each other, and
-/// their gap (m); a problem when they do not face. None for other robots.
-fn jaws(robot: &Robot, ctx: &GraspContext, pre: &[f64], problems: &mut Vec<String>) -> Option<(bool, f64)> {
-    if robot.kind != GraspKind::ParallelJaw || robot.pads.len() < 2 {
-        return None;
-    }
+/// The jaw check's default tolerance (degrees): the two pads' normals may be this far from opposite
+/// where the jaws meet an object (a 20° tilt leaves an antipodal pair inside a friction cone of
+/// μ ≈ 0.36 on both sides, the grasp sampler's own bound).
+pub const JAW_TOLERANCE_DEG: f64 = 25.0;
+/// Closing positions the jaw check steps through, from the preshape to the closing target.
+const JAW_SWEEP_STEPS: usize = 40;
+
+/// The jaws at one closing position: the gap between the first two pads (m) and how far their
+/// normals are from opposite (degrees), or None when either pad faces away from the other.
+fn jaw_at(robot: &Robot, ctx: &GraspContext, hand: &[f64]) -> (f64, Option<f64>) {
     let mut q = ctx.home();
-    robot.set_hand(&mut q, pre);
+    robot.set_hand(&mut q, hand);
     let poses = robot.model.forward_kinematics(&q);
     let (a, b) = (poses[robot.pads[0].frame], poses[robot.pads[1].frame]);
     let (za, zb) = (a.transform_vector3(DVec3::Z), b.transform_vector3(DVec3::Z));
     let ab = b.translation - a.translation;
-    let facing = za.dot(ab) > 0.0 && zb.dot(-ab) > 0.0 && za.dot(zb) < -0.9;
-    if !facing {
+    let towards = za.dot(ab) > 0.0 && zb.dot(-ab) > 0.0;
+    (ab.length(), towards.then(|| (-za.dot(zb)).clamp(-1.0, 1.0).acos().to_degrees()))
+}
+
+/// A parallel-jaw gripper's first two pads, judged over the closing from the preshape to the
+/// closing target (fingers that turn face each other only over part of it): the openings (m)
+/// where they face within `tolerance_deg`, the gap and angle at the preshape; a problem when they
+/// face nowhere. None for other robots.
+fn jaws(robot: &Robot, ctx: &GraspContext, rc: &RobotConfig, tolerance_deg: f64, problems: &mut Vec<String>) -> Option<JawReport> {
+    if robot.kind != GraspKind::ParallelJaw || robot.pads.len() < 2 {
+        return None;
+    }
+    let open: Vec<f64> = rc.grasp.preshape.iter().map(|&(lo, _)| lo).collect();
+    let closed: Vec<f64> = open.iter().zip(&rc.grasp.close).map(|(&o, c)| c.unwrap_or(o)).collect();
+    let (gap_m, angle) = jaw_at(robot, ctx, &open);
+    let facing: Vec<f64> = (0..=JAW_SWEEP_STEPS)
+        .map(|i| i as f64 / JAW_SWEEP_STEPS as f64)
+        .map(|t| open.iter().zip(&closed).map(|(o, c)| o + t * (c - o)).collect::<Vec<f64>>())
+        .filter_map(|hand| match jaw_at(robot, ctx, &hand) {
+            (gap, Some(a)) if a <= tolerance_deg => Some(gap),
+            _ => None,
+        })
+        .collect();
+    let band = (!facing.is_empty()).then(|| (facing.iter().copied().fold(f64::MAX, f64::min), facing.iter().copied().fold(0.0, f64::max)));
+    if band.is_none() {
         problems.push(format!(
-            "pads '{}' and '{}' do not face each other at the preshape (a pad's +z must point out of its jaw at the other pad)",
+            "pads '{}' and '{}' face each other (normals within {tolerance_deg:.0}° of opposite, --jaw-tolerance-deg) at no opening \
+             between the preshape and the closing target: a pad's +z must point out of its jaw at the other pad",
             robot.pads[0].name, robot.pads[1].name
         ));
     }
-    Some((facing, ab.length()))
+    Some(JawReport { facing: band.is_some(), gap_m, angle_deg: angle, tolerance_deg, facing_openings_m: band })
+}
+
+/// The jaw check's figures.
+#[derive(Debug, Clone, Serialize)]
+pub struct JawReport {
+    /// The pads face each other within the tolerance at some opening of the closing.
+    pub facing: bool,
+    /// At the preshape: the gap between the pads (m) and their normals' angle from opposite
+    /// (degrees; None: a pad faces away).
+    pub gap_m: f64,
+    pub angle_deg: Option<f64>,
+    pub tolerance_deg: f64,
+    /// The narrowest and widest opening (m) where they face within the tolerance: objects of those
+    /// widths meet facing pads.
+    pub facing_openings_m: Option<(f64, f64)>,
 }
 
 impl std::fmt::Display for RobotCheckReport {
@@ -260,13 +300,19 @@ impl std::fmt::Display for RobotCheckReport {
         for j in &self.joints_at_limit {
             writeln!(f, "joint limits: '{}' at a limit in {:.0}% of the reached poses", j.joint, 100.0 * j.share)?;
         }
-        if let (Some(facing), Some(gap)) = (self.jaws_facing, self.jaw_gap_m) {
-            writeln!(
-                f,
-                "jaws: pads {} each other, {:.1} mm apart at the preshape",
-                if facing { "face" } else { "do NOT face" },
-                1000.0 * gap
-            )?;
+        if let Some(j) = &self.jaws {
+            let angle = j.angle_deg.map_or("a pad facing away".to_string(), |a| format!("normals {a:.0}° from opposite"));
+            match j.facing_openings_m {
+                Some((lo, hi)) => writeln!(
+                    f,
+                    "jaws: pads face each other within {:.0}° at openings {:.1} to {:.1} mm of the closing; {:.1} mm apart at the preshape ({angle})",
+                    j.tolerance_deg,
+                    1000.0 * lo,
+                    1000.0 * hi,
+                    1000.0 * j.gap_m
+                )?,
+                None => writeln!(f, "jaws: pads do NOT face each other within {:.0}° at any opening of the closing ({angle} at the preshape)", j.tolerance_deg)?,
+            }
         }
         if self.problems.is_empty() {
             write!(f, "ok: no problem found (next: `vtgen grasps CONFIG --trajectories 2` holds a few objects)")
@@ -284,8 +330,8 @@ impl std::fmt::Display for RobotCheckReport {
 }
 
 /// `vtgen robot check`: the report (text or JSON); an error when it found a problem.
-pub fn run(cfg: &LoadedConfig, json: bool) -> Result<()> {
-    let r = check_robot(cfg)?;
+pub fn run(cfg: &LoadedConfig, json: bool, jaw_tolerance_deg: f64) -> Result<()> {
+    let r = check_robot(cfg, jaw_tolerance_deg)?;
     if json {
         println!("{}", serde_json::to_string_pretty(&r)?);
     } else {

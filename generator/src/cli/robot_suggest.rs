@@ -146,12 +146,12 @@ fn placed(rc: &RobotConfig, raised: f64, farther: f64) -> RobotConfig {
 }
 
 /// The best home for `rc`'s placement, and its check (the config's own home among the candidates).
-fn best_home(robot: &Robot, rc: &RobotConfig, camera: DVec3) -> (RobotConfig, RobotCheckReport) {
-    let mut best = (rc.clone(), check_setup(robot, rc, camera));
+fn best_home(robot: &Robot, rc: &RobotConfig, camera: DVec3, jaw_tolerance_deg: f64) -> (RobotConfig, RobotCheckReport) {
+    let mut best = (rc.clone(), check_setup(robot, rc, camera, jaw_tolerance_deg));
     for home in homes(robot, rc, HOMES_CHECKED) {
         let mut candidate = rc.clone();
         candidate.grasp.home_arm = home;
-        let report = check_setup(robot, &candidate, camera);
+        let report = check_setup(robot, &candidate, camera, jaw_tolerance_deg);
         if better(&report, &best.1) {
             best = (candidate, report);
         }
@@ -161,19 +161,19 @@ fn best_home(robot: &Robot, rc: &RobotConfig, camera: DVec3) -> (RobotConfig, Ro
 
 /// What the check would find with a searched home at the config's own placement (None when no
 /// home reaches the workspace's centre hand-up).
-pub fn with_searched_home(robot: &Robot, rc: &RobotConfig, camera: DVec3) -> Option<(Vec<f64>, RobotCheckReport)> {
+pub fn with_searched_home(robot: &Robot, rc: &RobotConfig, camera: DVec3, jaw_tolerance_deg: f64) -> Option<(Vec<f64>, RobotCheckReport)> {
     let home = homes(robot, rc, 1).into_iter().next()?;
     let mut candidate = rc.clone();
     candidate.grasp.home_arm = home.clone();
-    Some((home, check_setup(robot, &candidate, camera)))
+    Some((home, check_setup(robot, &candidate, camera, jaw_tolerance_deg)))
 }
 
 /// The search: placements nearest first, each with its best home; the first that passes, else the
 /// best seen.
-pub fn suggest(cfg: &LoadedConfig) -> Result<Suggestion> {
+pub fn suggest(cfg: &LoadedConfig, jaw_tolerance_deg: f64) -> Result<Suggestion> {
     let (robot, rc) = config_robot(cfg)?;
     let camera = DVec3::from_array(cfg.config.camera.position);
-    let before = check_setup(robot, rc, camera);
+    let before = check_setup(robot, rc, camera, jaw_tolerance_deg);
     let mut placements: Vec<(f64, f64)> = WORKSPACE_SHIFTS
         .iter()
         .flat_map(|&dz| BASE_SHIFTS.iter().map(move |&dr| (dz, dr)))
@@ -183,7 +183,7 @@ pub fn suggest(cfg: &LoadedConfig) -> Result<Suggestion> {
     let mut best: Option<(f64, f64, RobotConfig, RobotCheckReport)> = None;
     for (dz, dr) in placements {
         let at = placed(rc, dz, dr);
-        let (candidate, report) = best_home(robot, &at, camera + DVec3::Z * dz);
+        let (candidate, report) = best_home(robot, &at, camera + DVec3::Z * dz, jaw_tolerance_deg);
         let passes = report.problems.is_empty();
         if best.as_ref().is_none_or(|b| better(&report, &b.3)) {
             best = Some((dz, dr, candidate, report));
@@ -280,8 +280,8 @@ impl std::fmt::Display for Suggestion {
 
 /// `vtgen robot check --suggest`: the suggestion (text or JSON); an error when even the best
 /// setup found has a problem.
-pub fn run(cfg: &LoadedConfig, json: bool) -> Result<()> {
-    let s = suggest(cfg)?;
+pub fn run(cfg: &LoadedConfig, json: bool, jaw_tolerance_deg: f64) -> Result<()> {
+    let s = suggest(cfg, jaw_tolerance_deg)?;
     if json {
         println!("{}", serde_json::to_string_pretty(&s)?);
     } else {
