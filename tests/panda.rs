@@ -51,7 +51,10 @@ fn the_panda_passes_its_robot_check_and_needs_its_files() {
     let out = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success(), "{out}{}", stderr(&o));
     assert!(out.contains("robot panda: 16 links (19 mesh files), 7 arm joints, 1 hand joints, pads left, right"), "{out}");
-    assert!(out.contains("jaws: pads face each other within 25° at openings 2.0 to 80.0 mm of the closing; 80.0 mm apart at the preshape"), "{out}");
+    assert!(
+        out.contains("jaws: pads face each other within 25° at openings 2.0 to 80.0 mm of the closing; 80.0 mm apart at the preshape"),
+        "{out}"
+    );
     // Without its files: an error that says where they come from.
     let o = run(&["robot", "check", config().to_str().unwrap()]);
     let e = stderr(&o);

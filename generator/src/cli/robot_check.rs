@@ -311,7 +311,11 @@ impl std::fmt::Display for RobotCheckReport {
                     1000.0 * hi,
                     1000.0 * j.gap_m
                 )?,
-                None => writeln!(f, "jaws: pads do NOT face each other within {:.0}° at any opening of the closing ({angle} at the preshape)", j.tolerance_deg)?,
+                None => writeln!(
+                    f,
+                    "jaws: pads do NOT face each other within {:.0}° at any opening of the closing ({angle} at the preshape)",
+                    j.tolerance_deg
+                )?,
             }
         }
         if self.problems.is_empty() {
