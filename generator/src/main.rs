@@ -261,6 +261,10 @@ enum RobotAction {
         /// fewer than half of them.
         #[arg(long, value_name = "TRAJECTORIES", default_value_t = 0)]
         hold: u32,
+        /// Also write a picture (PNG) of the collision shapes and pad frames over the robot, at
+        /// home and in a grasp the config makes.
+        #[arg(long, value_name = "FILE")]
+        picture: Option<PathBuf>,
     },
 }
 
@@ -391,12 +395,16 @@ fn run(cli: Cli) -> Result<()> {
             };
             render_press_image(&calibration, pixel_size_mm, shape, &out)
         }
-        Command::Robot { action: RobotAction::Check { config, json, suggest, jaw_tolerance_deg, hold } } => {
+        Command::Robot { action: RobotAction::Check { config, json, suggest, jaw_tolerance_deg, hold, picture } } => {
             anyhow::ensure!(
                 (0.0..=90.0).contains(&jaw_tolerance_deg),
                 "--jaw-tolerance-deg: {jaw_tolerance_deg} is not within 0 ..= 90 degrees"
             );
             let cfg = load(&config)?;
+            // The picture first: it shows what is wrong when the check finds a problem.
+            if let Some(out) = &picture {
+                commands::robot_picture::write(&cfg, None, out)?;
+            }
             if suggest {
                 commands::robot_suggest::run(&cfg, json, jaw_tolerance_deg)?;
             } else {

@@ -11,6 +11,7 @@ pub mod inspect;
 pub mod plan;
 pub mod preview;
 pub mod robot_check;
+pub mod robot_picture;
 pub mod robot_suggest;
 pub mod stats;
 pub mod tactile;

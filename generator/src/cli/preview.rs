@@ -37,9 +37,14 @@ pub fn samples(
         return all.iter().step_by(step).take(n).map(|&(k, i)| shards[k].read(i)).collect();
     }
     let cfg = LoadedConfig::load_with_assets(source, overrides, robot_assets.as_deref())?;
+    config_samples(&cfg, n, ycb_dir)
+}
+
+/// `n` samples spread over a loaded config's plan, generated in memory.
+pub fn config_samples(cfg: &LoadedConfig, n: usize, ycb_dir: Option<&std::path::PathBuf>) -> Result<Vec<Sample>> {
     let plan = Plan::new(&cfg.config);
-    let objects = load_objects(&cfg, ycb_dir)?;
-    let mut factory = SampleFactory::new(&cfg, &objects, Box::new(WgpuRenderer::new(&cfg.config.renderer)?))?;
+    let objects = load_objects(cfg, ycb_dir)?;
+    let mut factory = SampleFactory::new(cfg, &objects, Box::new(WgpuRenderer::new(&cfg.config.renderer)?))?;
     // Spread the rows over the plan so that every object shows up.
     let all: Vec<_> =
         plan.shards.iter().flat_map(|s| s.samples.iter().enumerate().map(move |(k, r)| (s.split, s.first_sample + k as u64, *r))).collect();
@@ -57,7 +62,8 @@ fn put(img: &mut RgbImage, x: i64, y: i64, c: [u8; 3]) {
     }
 }
 
-fn line(img: &mut RgbImage, a: (f64, f64), b: (f64, f64), c: [u8; 3]) {
+/// A 2-pixel line from `a` to `b` (pixels), clipped to the image.
+pub(crate) fn line(img: &mut RgbImage, a: (f64, f64), b: (f64, f64), c: [u8; 3]) {
     let n = ((b.0 - a.0).abs().max((b.1 - a.1).abs()) as usize).max(1);
     for k in 0..=n {
         let t = k as f64 / n as f64;
