@@ -36,9 +36,18 @@ fn scene(name: &str) -> String {
 #[test]
 fn the_jaco_from_its_unmodified_urdf_passes_its_check_and_suggest_finds_its_base() {
     let Some(a) = assets() else { return };
-    let o = with(&a, &["robot", "check", &scene("tiny-jaco.yaml")]);
+    let d = tempdir();
+    let picture = d.path().join("check.png");
+    let o = with(&a, &["robot", "check", &scene("tiny-jaco.yaml"), "--picture", picture.to_str().unwrap()]);
     let out = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success(), "{out}{}", stderr(&o));
+    // Two panels side by side (at home, over a grasp), the hand's collision shapes drawn in both.
+    let img = image::open(&picture).unwrap().to_rgb8();
+    assert_eq!(img.dimensions(), (2 * 640 + 8, 480));
+    let hand_pixels = |x0: u32| {
+        (x0..x0 + 640).flat_map(|x| (0..480).map(move |y| (x, y))).filter(|&(x, y)| img.get_pixel(x, y).0 == [255, 140, 0]).count()
+    };
+    assert!(hand_pixels(0) > 50 && hand_pixels(648) > 50, "hand outlines: {} and {} pixels", hand_pixels(0), hand_pixels(648));
     assert!(out.contains("robot kinova_j2s6s200: 16 links (11 mesh files), 6 arm joints, 2 hand joints, pads finger_1, finger_2"), "{out}");
     // From the Panda's placement (base 0.4 m from the workspace) the Jaco fails; --suggest moves
     // the base back to where the scene has it.
@@ -96,6 +105,7 @@ fn the_jaco_holds_objects_and_its_data_is_exact() {
     let upstream = std::fs::read(a.join(UPSTREAM[0])).unwrap();
     assert!(std::fs::read(d.path().join("robot/robot.upstream.urdf")).unwrap() == upstream);
     let simulated = std::fs::read_to_string(d.path().join("robot/robot.urdf")).unwrap();
-    let model = vt_robot::RobotModel::from_urdf_str(&simulated, "robot/robot.urdf").unwrap();
+    let paths = vt_robot::MeshPaths { urdf_dir: None, package_dirs: vec![a.clone()] };
+    let model = vt_robot::RobotModel::from_urdf(&simulated, "robot/robot.urdf", &paths).unwrap();
     assert!(model.joint("j2s6s200_joint_finger_1").unwrap().moves() && model.joint("j2s6s200_joint_finger_2").unwrap().moves());
 }

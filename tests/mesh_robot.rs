@@ -194,7 +194,11 @@ fn robot_check_catches_a_pad_facing_away_and_lists_every_missing_mesh() {
     std::fs::write(d.path().join("c.yaml"), text).unwrap();
     let o = run(&["robot", "check", d.path().join("c.yaml").to_str().unwrap()]);
     let out = String::from_utf8_lossy(&o.stdout);
-    assert!(!o.status.success() && out.contains("pads 'left' and 'right' do not face each other"), "{out}");
+    assert!(
+        !o.status.success()
+            && out.contains("pads 'left' and 'right' face each other (normals within 25° of opposite, --jaw-tolerance-deg) at no opening"),
+        "{out}"
+    );
     // Three mesh files gone: one error lists them all, by link.
     let m = tempdir();
     let cfg = write_config(m.path());

@@ -283,6 +283,8 @@ pub fn tactile_points_lie_on_the_object_within_their_pad(dir: &Path) {
     let ds = DatasetReader::open(dir).unwrap();
     let meshes = object_meshes(dir);
     let mut points = 0;
+    // A hand that collides as its real meshes measures touch from their surfaces.
+    let real_surfaces = std::fs::read_to_string(dir.join("robot/robot.yaml")).is_ok_and(|t| t.contains("hand_collision: mesh_hulls"));
     for split in ["train", "test"] {
         for s in ds.samples(split).unwrap() {
             let s = s.unwrap();
@@ -299,10 +301,16 @@ pub fn tactile_points_lie_on_the_object_within_their_pad(dir: &Path) {
                 let name = &tac.pads[p.pad as usize];
                 let local = to_camera.compose(&frames[format!("{name}_pad").as_str()]).inverse().transform_point(pc);
                 let [len, wid] = touch.pads[name];
-                assert!(local.x.abs() <= len / 2.0 + 1e-6 && local.y.abs() <= wid / 2.0 + 1e-6 && local.z <= 0.002 + 1e-6, "{local}");
-                // Its distance is its depth from the pad plane, or (on a real finger surface below
-                // the pad plane, h <= 0) its height above that surface: never less than its depth.
-                assert!(p.distance as f64 >= local.z - 1e-5, "distance {} below the depth {}", p.distance, local.z);
+                assert!(local.x.abs() <= len / 2.0 + 1e-6 && local.y.abs() <= wid / 2.0 + 1e-6, "{local}");
+                // Within the contact threshold of the pad's surface, at the distance it reports: its
+                // depth from the pad plane, or (a hand on its real meshes) its height above the
+                // finger's surface under its pixel, which may bulge above the plane or fall below it.
+                assert!(p.distance as f64 <= 0.002 + 1e-6, "distance {}", p.distance);
+                if real_surfaces {
+                    assert!((local.z - p.distance as f64).abs() <= 0.01, "depth {} and distance {}", local.z, p.distance);
+                } else {
+                    assert!((local.z - p.distance as f64).abs() < 1e-5, "depth {} and distance {}", local.z, p.distance);
+                }
                 points += 1;
             }
         }

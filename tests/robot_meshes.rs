@@ -274,8 +274,9 @@ fn each_pad_sits_on_its_phalanx_real_surface() {
         .unwrap();
         let d = trimesh.distance_to_local_point(t_link_pad.translation.as_vec3(), false) as f64;
         assert!(d <= 1e-3, "{name}: the pad origin is {:.2} mm from the real finger surface", d * 1e3);
-        // z out of the finger: the palmar side (+x of the link), as the URDF's pads.
-        assert!((t_link_pad.transform_vector3(DVec3::Z) - DVec3::X).length() < 1e-9, "{name}");
+        // z out of the finger: the palmar side (+x of the link), as the URDF's pads (their rpy
+        // written to 8 digits).
+        assert!((t_link_pad.transform_vector3(DVec3::Z) - DVec3::X).length() < 1e-7, "{name}");
     }
 }
 
