@@ -450,24 +450,34 @@ fn a_sensor_rule_selects_pads_by_glob_or_label() {
     assert_eq!(selected("ff_distal*"), ["ff_distal"]);
 }
 
+/// The UR5e arm with one finger link hanging off its last link through `joint` (the URDF text of a
+/// `<joint>` whose child is `finger`).
+fn finger_on_the_wrist(joint: &str) -> String {
+    format!(
+        "{}<link name=\"finger\"><inertial><mass value=\"0.05\"/><inertia ixx=\"1e-5\" ixy=\"0\" ixz=\"0\" iyy=\"1e-5\" iyz=\"0\" izz=\"1e-5\"/></inertial>\
+         <collision><geometry><box size=\"0.01 0.01 0.04\"/></geometry></collision></link>{joint}</robot>\n",
+        ur5e_arm_urdf().trim_end().strip_suffix("</robot>").unwrap()
+    )
+}
+
+/// A description of that robot with the given hand list and extra top-level keys.
+fn finger_description(name: &str, hand: &str, extra: &str) -> String {
+    format!(
+        "name: {name}\narm: {{base: base_link, flange: wrist_3_link, home: [-1.5707963267948966, -1.5707963267948966, 1.5707963267948966, -1.5707963267948966, -1.5707963267948966, 0.0]}}\n\
+         grasp: {{frame: wrist_3_link, origin: {{xyz: [0, 0, 0.1], rpy: [0, -1.5707963267948966, 0]}}, kind: palm, min_touching: 1}}\n\
+         hand:\n{hand}pads:\n  - {{name: p, link: finger, origin: {{xyz: [0, -0.005, 0], rpy: [1.5707963267948966, 0, 0]}}}}\n{extra}"
+    )
+}
+
 /// Fingers that hang directly off the arm's last moving link (the hand's root is that link): the
 /// arm's last joint carries the root and is not a hand joint, and listing it as one is refused.
 #[test]
 fn a_hand_rooted_at_the_arms_last_moving_link() {
-    let urdf = format!(
-        "{}<link name=\"finger\"><inertial><mass value=\"0.05\"/><inertia ixx=\"1e-5\" ixy=\"0\" ixz=\"0\" iyy=\"1e-5\" iyz=\"0\" izz=\"1e-5\"/></inertial>\
-         <collision><geometry><box size=\"0.01 0.01 0.04\"/></geometry></collision></link>\
-         <joint name=\"slide\" type=\"prismatic\"><parent link=\"wrist_3_link\"/><child link=\"finger\"/><axis xyz=\"0 1 0\"/>\
-         <limit lower=\"0\" upper=\"0.04\" effort=\"20\" velocity=\"0.1\"/></joint></robot>\n",
-        ur5e_arm_urdf().trim_end().strip_suffix("</robot>").unwrap()
+    let urdf = finger_on_the_wrist(
+        "<joint name=\"slide\" type=\"prismatic\"><parent link=\"wrist_3_link\"/><child link=\"finger\"/><axis xyz=\"0 1 0\"/>\
+         <limit lower=\"0\" upper=\"0.04\" effort=\"20\" velocity=\"0.1\"/></joint>",
     );
-    let description = |hand: &str| {
-        format!(
-            "name: wrist_hand\narm: {{base: base_link, flange: wrist_3_link, home: [-1.5707963267948966, -1.5707963267948966, 1.5707963267948966, -1.5707963267948966, -1.5707963267948966, 0.0]}}\n\
-             grasp: {{frame: wrist_3_link, origin: {{xyz: [0, 0, 0.1], rpy: [0, -1.5707963267948966, 0]}}, kind: palm, min_touching: 1}}\n\
-             hand:\n{hand}pads:\n  - {{name: p, link: finger, origin: {{xyz: [0, -0.005, 0], rpy: [1.5707963267948966, 0, 0]}}}}\n"
-        )
-    };
+    let description = |hand: &str| finger_description("wrist_hand", hand, "");
     let robot =
         Robot::from_texts(&urdf, "u.urdf", &description("  - {joint: slide, preshape: [0.04, 0.04], close: 0.0}\n"), "d.yaml").unwrap();
     assert_eq!((robot.hand.len(), robot.followers.len()), (1, 0));
@@ -484,21 +494,12 @@ fn a_hand_rooted_at_the_arms_last_moving_link() {
 /// its line.
 #[test]
 fn a_description_corrects_a_fixed_finger_joint() {
-    let urdf = format!(
-        "{}<link name=\"finger\"><inertial><mass value=\"0.05\"/><inertia ixx=\"1e-5\" ixy=\"0\" ixz=\"0\" iyy=\"1e-5\" iyz=\"0\" izz=\"1e-5\"/></inertial>\
-         <collision><geometry><box size=\"0.01 0.01 0.04\"/></geometry></collision></link>\
-         <joint name=\"finger_joint\" type=\"fixed\"><parent link=\"wrist_3_link\"/><child link=\"finger\"/><axis xyz=\"0 0 1\"/>\
-         <limit lower=\"0\" upper=\"1.51\" effort=\"2\" velocity=\"1\"/></joint></robot>\n",
-        ur5e_arm_urdf().trim_end().strip_suffix("</robot>").unwrap()
+    let urdf = finger_on_the_wrist(
+        "<joint name=\"finger_joint\" type=\"fixed\"><parent link=\"wrist_3_link\"/><child link=\"finger\"/><axis xyz=\"0 0 1\"/>\
+         <limit lower=\"0\" upper=\"1.51\" effort=\"2\" velocity=\"1\"/></joint>",
     );
-    let description = |joints: &str| {
-        format!(
-            "name: fixed_fingers\narm: {{base: base_link, flange: wrist_3_link, home: [-1.5707963267948966, -1.5707963267948966, 1.5707963267948966, -1.5707963267948966, -1.5707963267948966, 0.0]}}\n\
-             grasp: {{frame: wrist_3_link, origin: {{xyz: [0, 0, 0.1], rpy: [0, -1.5707963267948966, 0]}}, kind: palm, min_touching: 1}}\n\
-             hand:\n  - {{joint: finger_joint, preshape: [0.2, 0.4], close: 1.2}}\n\
-             pads:\n  - {{name: p, link: finger, origin: {{xyz: [0, -0.005, 0], rpy: [1.5707963267948966, 0, 0]}}}}\n{joints}"
-        )
-    };
+    let description =
+        |joints: &str| finger_description("fixed_fingers", "  - {joint: finger_joint, preshape: [0.2, 0.4], close: 1.2}\n", joints);
     let e = Robot::from_texts(&urdf, "u.urdf", &description(""), "d.yaml").unwrap_err().to_string();
     assert!(e.contains("hand[0].joint: 'finger_joint' is fixed"), "{e}");
     let robot =
