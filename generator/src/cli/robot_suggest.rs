@@ -177,7 +177,7 @@ pub fn suggest(cfg: &LoadedConfig, jaw_tolerance_deg: f64) -> Result<Suggestion>
     let mut placements: Vec<(f64, f64)> = WORKSPACE_SHIFTS
         .iter()
         .flat_map(|&dz| BASE_SHIFTS.iter().map(move |&dr| (dz, dr)))
-        .filter(|&(dz, _)| rc.grasp.palm_workspace.min[2] + dz >= MIN_WORKSPACE_Z)
+        .filter(|&(dz, _)| dz == 0.0 || rc.grasp.palm_workspace.min[2] + dz >= MIN_WORKSPACE_Z)
         .collect();
     placements.sort_by(|a, b| (a.0.abs() + a.1.abs()).total_cmp(&(b.0.abs() + b.1.abs())));
     let mut best: Option<(f64, f64, RobotConfig, RobotCheckReport)> = None;
