@@ -40,6 +40,9 @@ pub struct ObjectGraspReport {
     pub kept_fraction: f64,
     /// Grasp attempts over all trajectories (1 per trajectory when every first grasp held).
     pub attempts: u64,
+    /// Attempts per kept trajectory (every failed attempt is physics thrown away); None when none
+    /// was kept.
+    pub attempts_per_kept: Option<f64>,
     /// Failed attempts by kind.
     pub failures: BTreeMap<String, u64>,
     pub instances: u64,
@@ -107,17 +110,18 @@ impl GraspCheckReport {
             "Grasp loop, {} physics, {} instances per trajectory ({:.0} s):\n\n",
             self.physics_backend, self.instances_per_trajectory, self.seconds
         );
-        s.push_str("| object | kept | attempts | failures | max penetration (mm) | min contacts | slip median / 90% / max (mm) | slip > 10 mm | mean slip (mm) | min floor clearance (mm) |\n");
-        s.push_str("|---|---|---|---|---|---|---|---|---|---|\n");
+        s.push_str("| object | kept | attempts | per kept | failures | max penetration (mm) | min contacts | slip median / 90% / max (mm) | slip > 10 mm | mean slip (mm) | min floor clearance (mm) |\n");
+        s.push_str("|---|---|---|---|---|---|---|---|---|---|---|\n");
         for o in &self.objects {
             let failures: Vec<String> = o.failures.iter().map(|(k, v)| format!("{k} {v}")).collect();
             s.push_str(&format!(
-                "| {} | {}/{} ({:.0}%) | {} | {} | {:.2} | {} | {:.1} / {:.1} / {:.1} | {:.1}% | {:.1} | {:.0} |\n",
+                "| {} | {}/{} ({:.0}%) | {} | {} | {} | {:.2} | {} | {:.1} / {:.1} / {:.1} | {:.1}% | {:.1} | {:.0} |\n",
                 o.object_id,
                 o.kept,
                 o.trajectories,
                 100.0 * o.kept_fraction,
                 o.attempts,
+                o.attempts_per_kept.map_or("-".to_string(), |a| format!("{a:.1}")),
                 if failures.is_empty() { "none".into() } else { failures.join(", ") },
                 o.max_penetration_mm,
                 o.min_links_in_contact,
@@ -300,6 +304,7 @@ fn per_object_figures(objects: &[LoadedObject], mut results: Vec<TrajectoryResul
         (o.median_slip_mm, o.p90_slip_mm) = (at(0.5), at(0.9));
         o.over_10mm_share = slips.iter().filter(|&&s| s > 10.0).count() as f64 / slips.len().max(1) as f64;
         o.kept_fraction = o.kept as f64 / o.trajectories.max(1) as f64;
+        o.attempts_per_kept = (o.kept > 0).then(|| o.attempts as f64 / o.kept as f64);
         o.mean_slip_mm /= o.instances.max(1) as f64;
         if o.instances == 0 {
             o.min_links_in_contact = 0;
