@@ -93,6 +93,8 @@ fn the_jaco_holds_objects_and_its_data_is_exact() {
     for obj in r["objects"].as_array().unwrap() {
         assert_eq!(obj["kept"], 3, "{obj}");
         assert!(obj["max_penetration_mm"].as_f64().unwrap() <= 1.0, "{obj}");
+        let per_kept = obj["attempts_per_kept"].as_f64().unwrap();
+        assert!(per_kept >= 1.0 && per_kept == obj["attempts"].as_f64().unwrap() / 3.0, "{obj}");
     }
     let d = tempdir();
     let o = with(&a, &["generate", &scene("tiny-jaco.yaml"), "--out", d.path().to_str().unwrap(), "--quiet"]);
