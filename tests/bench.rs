@@ -32,6 +32,9 @@ fn bench_reports_cpu_outside_the_rasterizer_and_predicts_from_it() {
     assert!(f("render_call_cpu") > 0.0 && low < rate, "{r}");
     assert!((low - 16.0 * samples / (f("cpu_outside_rasterizer") + f("render_call_cpu"))).abs() < 1e-6 * low, "{r}");
     assert!(f("bytes_per_sample") > 0.0, "{r}");
+    // The grasp loop's attempts per kept trajectory: at least one, for the object it made samples of.
+    let attempts = r["attempts_per_kept"].as_object().expect("a robot config reports attempts per kept trajectory");
+    assert!(!attempts.is_empty() && attempts.values().all(|a| a.as_f64().unwrap() >= 1.0), "{r}");
 }
 
 #[test]

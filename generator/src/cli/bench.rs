@@ -88,6 +88,11 @@ pub struct BenchReport {
     /// Samples per object and occlusion bin (`OcclusionBin` order), to tune the camera and the grasp
     /// knobs towards the occlusion the experiment needs without writing a dataset.
     pub occlusion_bins: BTreeMap<String, [u64; 3]>,
+    /// With a robot: grasp attempts per kept trajectory, per object (a trajectory the grasp loop
+    /// gave up on counts its `robot.grasp.max_attempts`): every failed attempt is physics thrown
+    /// away. Objects without a kept trajectory are left out.
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub attempts_per_kept: BTreeMap<String, f64>,
 }
 
 impl std::fmt::Display for BenchReport {
@@ -195,6 +200,12 @@ impl std::fmt::Display for BenchReport {
             all.iter_mut().zip(b).for_each(|(a, x)| *a += x);
         }
         writeln!(f, "  {:<24}{}", "all", share(&all))?;
+        if !r.attempts_per_kept.is_empty() {
+            writeln!(f, "grasp attempts per kept trajectory")?;
+            for (id, a) in &r.attempts_per_kept {
+                writeln!(f, "  {id:<24}{a:>8.1}")?;
+            }
+        }
         for s in &r.skipped_trajectories {
             writeln!(f, "skipped            {s}")?;
         }
@@ -243,6 +254,8 @@ struct TrajectoryRun {
     occlusion: [u64; 3],
     /// Bytes of its shard.
     bytes: u64,
+    /// The grasp attempts it took (a robot's trajectory that was kept).
+    attempts: Option<u32>,
 }
 
 /// Makes and writes the samples of one trajectory (one shard, as `generate` writes shards of whole
@@ -272,13 +285,19 @@ fn bench_trajectory(
         skipped: None,
         occlusion: [0; 3],
         bytes: 0,
+        attempts: None,
     };
     let mut writer = WriterThread::create(&dir.join(format!("bench-{i}.mcap")), &meta, cfg.config.output.shard_compression())?;
     writer.set_scene(factory.scene_models(object_index))?;
     let mut tally = ShardTally::default();
     for (k, (split, index, r)) in traj.iter().enumerate() {
         match factory.make(*split, *index, r, &mut tally) {
-            Ok(s) => writer.write_sample(s)?,
+            Ok(s) => {
+                if k == 0 {
+                    run.attempts = s.info.robot.as_ref().map(|r| r.grasp_attempts);
+                }
+                writer.write_sample(s)?
+            }
             // The grasp loop gave up on this trajectory (its first sample simulates it): measure
             // the others.
             Err(e) if k == 0 && factory.has_robot() => {
@@ -343,7 +362,8 @@ pub fn bench(
         _ => "cpu",
     };
     let optical_shading = optical_shading.to_string();
-    report(runs, workers, Measured { jobs, seconds, process_cpu, predict_cores, episode_camera_hz, optical_shading })
+    let max_attempts = cfg.config.robot.as_ref().map_or(0, |r| r.grasp.max_attempts);
+    report(runs, workers, Measured { jobs, seconds, process_cpu, predict_cores, episode_camera_hz, optical_shading, max_attempts })
 }
 
 /// What `bench` measured around the workers.
@@ -354,11 +374,25 @@ struct Measured {
     predict_cores: Option<usize>,
     episode_camera_hz: Option<f64>,
     optical_shading: String,
+    /// `robot.grasp.max_attempts` (0 without a robot).
+    max_attempts: u32,
 }
 
 /// The report of the benchmark's trajectories and of its workers' stage times.
 fn report(runs: Vec<TrajectoryRun>, workers: Vec<(StageTimes, WriterTimes, Duration, String)>, m: Measured) -> Result<BenchReport> {
-    let Measured { jobs, seconds, process_cpu, predict_cores, episode_camera_hz, optical_shading } = m;
+    let Measured { jobs, seconds, process_cpu, predict_cores, episode_camera_hz, optical_shading, max_attempts } = m;
+    // Per object: attempts spent (kept trajectories' own, given-up ones' all) and trajectories kept.
+    let mut attempts: BTreeMap<String, (u64, u64)> = BTreeMap::new();
+    for t in &runs {
+        let a = attempts.entry(t.object_id.clone()).or_default();
+        match (t.attempts, &t.skipped) {
+            (Some(n), None) => *a = (a.0 + n as u64, a.1 + 1),
+            (_, Some(_)) => a.0 += max_attempts as u64,
+            (None, None) => {}
+        }
+    }
+    let attempts_per_kept =
+        attempts.into_iter().filter(|(_, (_, kept))| *kept > 0).map(|(id, (n, kept))| (id, n as f64 / kept as f64)).collect();
     let mut n = 0;
     let mut skipped = Vec::new();
     let mut occlusion_bins: BTreeMap<String, [u64; 3]> = BTreeMap::new();
@@ -417,6 +451,7 @@ fn report(runs: Vec<TrajectoryRun>, workers: Vec<(StageTimes, WriterTimes, Durat
         peak_rss_mib: peak_rss_mib(),
         skipped_trajectories: skipped,
         occlusion_bins,
+        attempts_per_kept,
     })
 }
 
