@@ -5,7 +5,7 @@
 
 use glam::DVec3;
 use vtgen::config::{GraspConfig, PhysicsConfig};
-use vtgen::physics::grasp::{GraspContext, TrajectoryKey, simulate_trajectory};
+use vtgen::physics::grasp::{GraspContext, GraspLog, TrajectoryKey, simulate_trajectory};
 use vtgen::physics::{HandPhysics, PhysicsObject, PhysicsSettings, RapierHand};
 
 fn backend() -> String {
@@ -42,7 +42,7 @@ fn contact_forces_in_a_settled_hold_balance_the_weight() {
             let entry = catalog.get(id).unwrap();
             let object = PhysicsObject { points: vt_objects::procedural_mesh(entry).positions, mass: entry.mass };
             let key = TrajectoryKey { seed: 5, object_id: id, trajectory: 0, instances: 1 };
-            if simulate_trajectory(&ctx, physics.as_mut(), &object, key, &mut Vec::new()).is_err() {
+            if simulate_trajectory(&ctx, physics.as_mut(), &object, key, &mut GraspLog::default()).is_err() {
                 continue;
             }
             physics.set_gravity(gravity);

@@ -253,7 +253,7 @@ fn the_grasp_check_reports_the_same_trajectories_as_generation() {
 #[test]
 fn most_held_objects_stay_still_while_the_arm_is_still() {
     use vtgen::config::{GraspConfig, PhysicsConfig};
-    use vtgen::physics::grasp::{GraspContext, TrajectoryKey, simulate_trajectory};
+    use vtgen::physics::grasp::{GraspContext, GraspLog, TrajectoryKey, simulate_trajectory};
     use vtgen::physics::{HandPhysics, PhysicsObject, PhysicsSettings, RapierHand};
     let builtin = vt_robot::Robot::default_robot();
     let mut models = vec![("primitive hand", builtin.clone())];
@@ -282,7 +282,7 @@ fn most_held_objects_stay_still_while_the_arm_is_still() {
             let object = PhysicsObject { points: vt_objects::procedural_mesh(entry).positions, mass: entry.mass };
             for trajectory in 0..2 {
                 let key = TrajectoryKey { seed: 11, object_id: id, trajectory, instances: 1 };
-                simulate_trajectory(&ctx, hand.as_mut(), &object, key, &mut Vec::new()).unwrap();
+                simulate_trajectory(&ctx, hand.as_mut(), &object, key, &mut GraspLog::default()).unwrap();
                 let before = hand.object_pose();
                 for _ in 0..(10.0 / pc.timestep).round() as usize {
                     hand.step();

@@ -53,14 +53,14 @@ fn physics(c: &mut Criterion) {
     group.sample_size(10);
     group.bench_function("trajectory of 5 instances (soup can)", |b| {
         b.iter(|| {
-            let mut failures = Vec::new();
+            let mut log = vtgen::physics::grasp::GraspLog::default();
             black_box(
                 simulate_trajectory(
                     &ctx,
                     &mut hand,
                     &object,
                     TrajectoryKey { seed: 1, object_id: OBJECT, trajectory: 0, instances: 5 },
-                    &mut failures,
+                    &mut log,
                 )
                 .expect("a grasp holds"),
             )

@@ -109,6 +109,11 @@ enum Command {
         /// No progress bar.
         #[arg(long)]
         quiet: bool,
+        /// Run the hold screen as a judge only: every attempt goes on whatever the screen finds,
+        /// and its verdicts are counted against the attempts' outcomes (how many failures it
+        /// catches, how many held grasps it would turn away).
+        #[arg(long)]
+        judge_screen: bool,
     },
     /// Check the robot a config names before making data.
     Robot {
@@ -369,9 +374,9 @@ fn run(cli: Cli) -> Result<()> {
         Command::Bench { config, samples, jobs, ycb_dir, json, predict_cores } => {
             commands::bench::run(&load(&config)?, samples, jobs, ycb_dir.as_ref(), predict_cores.map(|n| n as usize), json)
         }
-        Command::Grasps { config, trajectories, instances, jobs, ycb_dir, min_kept, json, quiet } => {
+        Command::Grasps { config, trajectories, instances, jobs, ycb_dir, min_kept, json, quiet, judge_screen } => {
             let jobs = jobs.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
-            let opts = commands::grasps::GraspCheckOptions { trajectories, instances, jobs, quiet };
+            let opts = commands::grasps::GraspCheckOptions { trajectories, instances, jobs, quiet, judge_screen };
             commands::grasps::run(&load(&config)?, ycb_dir.as_ref(), &opts, json, min_kept)
         }
         Command::Tactile { action: TactileAction::Calibrate { dir, ball_radius, pixel_size_mm, marker_pitch_mm, holdout, out } } => {
@@ -412,7 +417,7 @@ fn run(cli: Cli) -> Result<()> {
             }
             if hold > 0 && !suggest {
                 let jobs = std::thread::available_parallelism().map_or(1, |n| n.get());
-                let opts = commands::grasps::GraspCheckOptions { trajectories: hold, instances: Some(2), jobs, quiet: true };
+                let opts = commands::grasps::GraspCheckOptions { trajectories: hold, instances: Some(2), jobs, quiet: true, judge_screen: false };
                 println!("hold test: {hold} trajectories per object, 2 instances each");
                 commands::grasps::run(&cfg, None, &opts, json, Some(0.5))?;
             }

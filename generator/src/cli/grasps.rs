@@ -15,7 +15,7 @@ use serde::Serialize;
 use crate::assets::LoadedObject;
 use crate::config::LoadedConfig;
 use crate::output::workers::run_pool;
-use crate::physics::grasp::floor_clearance;
+use crate::physics::grasp::{HoldScreen, StepLedger, floor_clearance};
 use crate::physics::robot::{RobotScene, Simulated};
 
 /// What to check.
@@ -28,6 +28,9 @@ pub struct GraspCheckOptions {
     /// Parallel workers, each with its own physics world.
     pub jobs: usize,
     pub quiet: bool,
+    /// Run the hold screen as a judge only (every attempt goes on) and count its verdicts against
+    /// the attempts' outcomes.
+    pub judge_screen: bool,
 }
 
 /// One object's figures.
@@ -45,6 +48,12 @@ pub struct ObjectGraspReport {
     pub attempts_per_kept: Option<f64>,
     /// Failed attempts by kind.
     pub failures: BTreeMap<String, u64>,
+    /// Where the physics steps went (per phase; failed attempts, redone moves, kept).
+    pub physics_steps: StepLedger,
+    /// Physics steps per kept trajectory, and the share of all steps that made no recorded
+    /// instance.
+    pub steps_per_kept: Option<f64>,
+    pub wasted_share: f64,
     pub instances: u64,
     /// Worst recorded instance: deepest penetration of a hand link into the object (mm), fewest
     /// touch links in contact, largest slip since the grasp (mm), lowest object point above the
@@ -96,6 +105,8 @@ pub struct GraspCheckReport {
     pub instances_per_trajectory: u32,
     pub objects: Vec<ObjectGraspReport>,
     pub seconds: f64,
+    /// Whether the hold screen only judged (`--judge-screen`).
+    pub judged_screen: bool,
 }
 
 impl GraspCheckReport {
@@ -110,18 +121,20 @@ impl GraspCheckReport {
             "Grasp loop, {} physics, {} instances per trajectory ({:.0} s):\n\n",
             self.physics_backend, self.instances_per_trajectory, self.seconds
         );
-        s.push_str("| object | kept | attempts | per kept | failures | max penetration (mm) | min contacts | slip median / 90% / max (mm) | slip > 10 mm | mean slip (mm) | min floor clearance (mm) |\n");
-        s.push_str("|---|---|---|---|---|---|---|---|---|---|---|\n");
+        s.push_str("| object | kept | attempts | per kept | physics steps per kept | wasted | failures | max penetration (mm) | min contacts | slip median / 90% / max (mm) | slip > 10 mm | mean slip (mm) | min floor clearance (mm) |\n");
+        s.push_str("|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
         for o in &self.objects {
             let failures: Vec<String> = o.failures.iter().map(|(k, v)| format!("{k} {v}")).collect();
             s.push_str(&format!(
-                "| {} | {}/{} ({:.0}%) | {} | {} | {} | {:.2} | {} | {:.1} / {:.1} / {:.1} | {:.1}% | {:.1} | {:.0} |\n",
+                "| {} | {}/{} ({:.0}%) | {} | {} | {} | {:.0}% | {} | {:.2} | {} | {:.1} / {:.1} / {:.1} | {:.1}% | {:.1} | {:.0} |\n",
                 o.object_id,
                 o.kept,
                 o.trajectories,
                 100.0 * o.kept_fraction,
                 o.attempts,
                 o.attempts_per_kept.map_or("-".to_string(), |a| format!("{a:.1}")),
+                o.steps_per_kept.map_or("-".to_string(), |a| format!("{a:.0}")),
+                100.0 * o.wasted_share,
                 if failures.is_empty() { "none".into() } else { failures.join(", ") },
                 o.max_penetration_mm,
                 o.min_links_in_contact,
@@ -132,6 +145,26 @@ impl GraspCheckReport {
                 o.mean_slip_mm,
                 o.min_floor_clearance_mm,
             ));
+        }
+        s.push_str(&self.phase_line());
+        if self.judged_screen {
+            s.push_str("\n\nThe hold screen as a judge (every attempt went on; its verdict against the attempt's outcome):\n\n");
+            s.push_str("| object | passed, held | passed, failed later | failed, but held | failed, failed | failures caught | held grasps lost |\n");
+            s.push_str("|---|---|---|---|---|---|---|\n");
+            for o in &self.objects {
+                let j = o.physics_steps.screen_judged;
+                let share = |a: u64, b: u64| if a + b == 0 { "-".to_string() } else { format!("{:.0}%", 100.0 * a as f64 / (a + b) as f64) };
+                s.push_str(&format!(
+                    "| {} | {} | {} | {} | {} | {} | {} |\n",
+                    o.object_id,
+                    j.passed_held,
+                    j.passed_failed,
+                    j.failed_held,
+                    j.failed_failed,
+                    share(j.failed_failed, j.passed_failed),
+                    share(j.failed_held, j.passed_held)
+                ));
+            }
         }
         if self.objects.iter().any(|o| !o.in_hand_rotation_deg.is_empty()) {
             s.push_str("\n\nIn-hand rotation per episode (the object's turn in the palm since the settled grasp):\n\n");
@@ -160,6 +193,37 @@ impl GraspCheckReport {
     }
 }
 
+impl GraspCheckReport {
+    /// Where the physics steps went over every object: per phase, and thrown away.
+    fn phase_line(&self) -> String {
+        let mut all = StepLedger::default();
+        for o in &self.objects {
+            all.merge(&o.physics_steps);
+        }
+        let total = all.total().max(1) as f64;
+        let pct = |v: u64| 100.0 * v as f64 / total;
+        format!(
+            "\nPhysics steps ({}): placing {:.1}%, closing {:.1}%, settling {:.1}%, hold screen {:.1}%, arm moves {:.1}%, holds {:.1}%, \
+             in-hand motion {:.1}%, squeeze waits {:.1}%; in failed attempts {:.1}% (they had recorded {:.1} instances on average), \
+             in redone moves {:.1}%, making the kept trajectories {:.1}%. {} attempts screened out.\n",
+            all.total(),
+            pct(all.place),
+            pct(all.close),
+            pct(all.settle),
+            pct(all.screen),
+            pct(all.arm_move),
+            pct(all.hold),
+            pct(all.in_hand),
+            pct(all.squeeze),
+            pct(all.failed_attempts),
+            all.instances_before_failure as f64 / self.objects.iter().map(|o| o.attempts - o.kept as u64).sum::<u64>().max(1) as f64,
+            pct(all.redone_moves),
+            pct(all.kept),
+            all.screened_out
+        )
+    }
+}
+
 /// One trajectory's outcome.
 struct TrajectoryResult {
     object: usize,
@@ -168,6 +232,7 @@ struct TrajectoryResult {
     lost: Option<String>,
     attempts: u64,
     failures: BTreeMap<String, u64>,
+    steps: StepLedger,
     instances: u64,
     max_penetration_mm: f64,
     min_contacts: usize,
@@ -183,13 +248,14 @@ struct TrajectoryResult {
 /// trajectory (every attempt failed) keeps its attempts and failures.
 fn check_trajectory(robot: &mut RobotScene, seed: u64, obj: &LoadedObject, o: usize, t: u32, instances: u32) -> TrajectoryResult {
     let t0 = Instant::now();
-    let Simulated { trajectory: outcome, stats: st } = robot.simulate(seed, o as u32, &obj.id, t, instances);
+    let Simulated { trajectory: outcome, stats: st, steps } = robot.simulate(seed, o as u32, &obj.id, t, instances);
     let mut r = TrajectoryResult {
         object: o,
         trajectory: t,
         lost: outcome.as_ref().err().map(|e| format!("{e:#}")),
         attempts: st.attempts,
         failures: st.failures.clone(),
+        steps,
         instances: 0,
         max_penetration_mm: 0.0,
         min_contacts: usize::MAX,
@@ -244,7 +310,13 @@ pub fn check_grasps(cfg: &LoadedConfig, objects: &[LoadedObject], opts: &GraspCh
         opts.jobs,
         &work,
         &abort,
-        || RobotScene::new(cfg, robot_cfg, objects),
+        || {
+            let mut scene = RobotScene::new(cfg, robot_cfg, objects)?;
+            if opts.judge_screen {
+                scene.hold_screen = Some(HoldScreen::Judge);
+            }
+            Ok(scene)
+        },
         |robot, _, &(o, t)| {
             progress.set_message(format!("{} #{t}", objects[o].id));
             let r = check_trajectory(robot, config.seed, &objects[o], o, t, instances);
@@ -261,6 +333,7 @@ pub fn check_grasps(cfg: &LoadedConfig, objects: &[LoadedObject], opts: &GraspCh
         instances_per_trajectory: instances,
         objects: per_object,
         seconds: started.elapsed().as_secs_f64(),
+        judged_screen: opts.judge_screen,
     })
 }
 
@@ -289,6 +362,7 @@ fn per_object_figures(objects: &[LoadedObject], mut results: Vec<TrajectoryResul
         for (k, v) in r.failures {
             *o.failures.entry(k).or_default() += v;
         }
+        o.physics_steps.merge(&r.steps);
         o.instances += r.instances;
         o.max_penetration_mm = o.max_penetration_mm.max(r.max_penetration_mm);
         o.min_links_in_contact = o.min_links_in_contact.min(r.min_contacts);
@@ -305,6 +379,8 @@ fn per_object_figures(objects: &[LoadedObject], mut results: Vec<TrajectoryResul
         o.over_10mm_share = slips.iter().filter(|&&s| s > 10.0).count() as f64 / slips.len().max(1) as f64;
         o.kept_fraction = o.kept as f64 / o.trajectories.max(1) as f64;
         o.attempts_per_kept = (o.kept > 0).then(|| o.attempts as f64 / o.kept as f64);
+        o.steps_per_kept = (o.kept > 0).then(|| o.physics_steps.total() as f64 / o.kept as f64);
+        o.wasted_share = o.physics_steps.wasted() as f64 / o.physics_steps.total().max(1) as f64;
         o.mean_slip_mm /= o.instances.max(1) as f64;
         if o.instances == 0 {
             o.min_links_in_contact = 0;

@@ -19,8 +19,9 @@ pub struct FakeHand {
     /// The object flies out of the hand at this step of the simulation (counted from the start),
     /// once: a restored state does not drop it again.
     pub drop_at_step: Option<u64>,
+    /// Steps taken since it was made (a restore does not take them back: they were spent).
     pub steps: u64,
-    saved: Option<(DAffine3, Vec<f64>, DVec3, u64)>,
+    saved: Option<(DAffine3, Vec<f64>, DVec3)>,
 }
 
 impl FakeHand {
@@ -88,11 +89,11 @@ impl HandPhysics for FakeHand {
         None
     }
     fn save(&mut self) {
-        self.saved = Some((self.object, self.joints.clone(), self.gravity, self.steps));
+        self.saved = Some((self.object, self.joints.clone(), self.gravity));
     }
     fn restore(&mut self) {
-        if let Some((object, joints, gravity, steps)) = self.saved.clone() {
-            (self.object, self.joints, self.gravity, self.steps) = (object, joints, gravity, steps);
+        if let Some((object, joints, gravity)) = self.saved.clone() {
+            (self.object, self.joints, self.gravity) = (object, joints, gravity);
         }
     }
 }

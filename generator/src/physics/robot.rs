@@ -11,8 +11,8 @@ use vt_robot::Robot;
 use crate::assets::robot::{hand_surface_meshes, with_real_hand};
 use crate::config::{LoadedConfig, RobotConfig};
 use crate::physics::grasp::{
-    FingerGait, GraspContext, GraspEvent, MIN_REACHABLE_SHARE, PivotControl, REACH_SAMPLES, RollControl, Trajectory, TrajectoryKey,
-    reachable_share, simulate_trajectory,
+    FingerGait, GraspContext, GraspLog, HoldScreen, MIN_REACHABLE_SHARE, PivotControl, REACH_SAMPLES, RollControl, StepLedger, Trajectory,
+    TrajectoryKey, reachable_share, simulate_trajectory,
 };
 use crate::physics::{HandPhysics, PhysicsObject, PhysicsSettings, RapierHand};
 
@@ -20,6 +20,8 @@ use crate::physics::{HandPhysics, PhysicsObject, PhysicsSettings, RapierHand};
 pub struct Simulated {
     pub trajectory: Result<Trajectory>,
     pub stats: GraspStats,
+    /// Where its physics steps went.
+    pub steps: StepLedger,
 }
 
 /// The robot's base in the world (`robot.base_position`, `robot.base_yaw_deg`).
@@ -66,6 +68,8 @@ pub struct RobotScene {
     /// Episodes: trajectories record every physics step (`Trajectory::steps`), with the
     /// recording's finger motion.
     record: Option<crate::config::RecordConfig>,
+    /// The hold screen's mode when not the config's (`vtgen grasps --judge-screen`).
+    pub hold_screen: Option<HoldScreen>,
 }
 
 impl RobotScene {
@@ -116,6 +120,7 @@ impl RobotScene {
             objects,
             camera_position,
             record: cfg.config.sampling.record.clone(),
+            hold_screen: None,
         })
     }
 
@@ -132,24 +137,27 @@ impl RobotScene {
     /// holds through all instances) and returns it with the grasp loop's figures, which a lost
     /// trajectory keeps too (`vtgen grasps` reports them).
     pub fn simulate(&mut self, seed: u64, object_index: u32, object_id: &str, trajectory: u32, instances: u32) -> Simulated {
-        let ctx = grasp_context(&self.robot, self.t_world_base, &self.config, self.camera_position, self.record.as_ref());
-        let mut events: Vec<GraspEvent> = Vec::new();
+        let mut ctx = grasp_context(&self.robot, self.t_world_base, &self.config, self.camera_position, self.record.as_ref());
+        if let Some(mode) = self.hold_screen {
+            ctx.hold_screen = mode;
+        }
+        let mut log = GraspLog::default();
         let result = simulate_trajectory(
             &ctx,
             self.physics.as_mut(),
             &self.objects[object_index as usize],
             TrajectoryKey { seed, object_id, trajectory, instances },
-            &mut events,
+            &mut log,
         );
         let attempts = result.as_ref().map_or(self.config.grasp.max_attempts, |t| t.attempts);
         let mut stats = GraspStats { trajectories: 1, attempts: attempts as u64, ..Default::default() };
-        for e in events {
+        for e in log.events {
             *stats.failures.entry(e.name().to_string()).or_default() += 1;
         }
         for s in result.iter().flat_map(|t| &t.instances) {
             stats.max_slip_mm = stats.max_slip_mm.max(s.slip_translation * 1e3);
             stats.max_penetration_mm = stats.max_penetration_mm.max(s.penetration * 1e3);
         }
-        Simulated { trajectory: result.with_context(|| format!("grasping {object_id}")), stats }
+        Simulated { trajectory: result.with_context(|| format!("grasping {object_id}")), stats, steps: log.steps }
     }
 }

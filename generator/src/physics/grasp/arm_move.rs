@@ -10,7 +10,7 @@ use rand_chacha::ChaCha8Rng;
 use vt_randomizers::{SampleKey, SampleStream};
 
 use super::floor::{MIN_FLOOR_CLEARANCE, floor_clearance, robot_floor_clearance};
-use super::{Attempt, Failure, GRAVITY, GraspContext, GraspEvent, Held, InstanceState, Recorded, Redo, Stop, lost, rot};
+use super::{Attempt, Failure, GRAVITY, GraspContext, GraspEvent, Held, InstanceState, Phase, Recorded, Redo, Stop, lost, rot};
 use crate::physics::HandPhysics;
 
 /// Arm moves tried for one instance (each from the last recorded state, when the backend can
@@ -21,6 +21,15 @@ const MAX_MOVES_PER_INSTANCE: u32 = 4;
 
 /// Palm poses drawn for one arm move before it counts as unreachable.
 const MOVE_TARGET_DRAWS: usize = 20;
+
+/// A snapshot's hold ends once the object has stopped in the hand: it moved less than
+/// `STILL_TRANSLATION` (m) and turned less than `STILL_ROTATION` (rad) in the palm over the last
+/// `STILL_WINDOW_SECONDS`, and the hold lasted `MIN_HOLD_SECONDS`. That is 1 mm/s and 1°/s,
+/// twenty times the creep of a held object with the arm still (docs/grasp-loop.md#creep).
+const STILL_WINDOW_SECONDS: f64 = 0.05;
+const STILL_TRANSLATION: f64 = 0.00005;
+const STILL_ROTATION: f64 = 0.05 * std::f64::consts::PI / 180.0;
+const MIN_HOLD_SECONDS: f64 = 0.05;
 
 use crate::config::{PENETRATION_WAIT_SECONDS, PENETRATION_WAITS};
 
@@ -77,6 +86,33 @@ fn instance_state(
     }
 }
 
+/// Whether the object has stopped in the hand during a hold: its palm-frame poses over the last
+/// `STILL_WINDOW_SECONDS`.
+struct StillWatch {
+    window: std::collections::VecDeque<DAffine3>,
+    len: usize,
+    min_steps: usize,
+}
+
+impl StillWatch {
+    fn new(ctx: &GraspContext) -> Self {
+        let len = ctx.steps(STILL_WINDOW_SECONDS);
+        StillWatch { window: std::collections::VecDeque::with_capacity(len + 1), len, min_steps: ctx.steps(MIN_HOLD_SECONDS) }
+    }
+
+    /// The object at `pose` after the hold's `held`-th step: true once it has stopped.
+    fn stopped(&mut self, pose: DAffine3, held: usize) -> bool {
+        self.window.push_back(pose);
+        if self.window.len() <= self.len {
+            return false;
+        }
+        let then = self.window.pop_front().expect("a full window");
+        let moved = (pose.translation - then.translation).length();
+        let turned = rot(&then).angle_between(rot(&pose));
+        held >= self.min_steps && moved < STILL_TRANSLATION && turned < STILL_ROTATION
+    }
+}
+
 /// The joint values a fraction `s` ∈ [0, 1] along the smooth (smoothstep) path from `from` to `to`.
 fn along_path(from: &[f64], to: &[f64], s: f64) -> Vec<f64> {
     let w = s * s * (3.0 - 2.0 * s);
@@ -85,7 +121,7 @@ fn along_path(from: &[f64], to: &[f64], s: f64) -> Vec<f64> {
 
 impl Attempt<'_> {
     /// Phase 4: one arm move per instance from the settled grasp at joint values `q`.
-    pub(super) fn record_instances(&mut self, mut q: Vec<f64>, held: Held, events: &mut Vec<GraspEvent>) -> Result<Recorded, Stop> {
+    pub(super) fn record_instances(&mut self, mut q: Vec<f64>, held: Held) -> Result<Recorded, Stop> {
         let key = self.key;
         let mut out = Vec::with_capacity(key.instances as usize);
         let mut steps = Vec::new();
@@ -106,6 +142,7 @@ impl Attempt<'_> {
                 // (the arm then only takes moves that keep a recordable grasp): redoing one move
                 // costs far less than a fresh grasp and every instance before it.
                 self.physics.save();
+                let move_start = self.physics.steps_taken();
                 let q_before = q.clone();
                 let logged = log.as_ref().map_or(0, |l| l.steps.len());
                 // Why this move cannot stand: the attempt's failure if it was the last try, and
@@ -121,7 +158,8 @@ impl Attempt<'_> {
                 if moved >= MAX_MOVES_PER_INSTANCE {
                     return Err(failure.into());
                 }
-                events.push(GraspEvent::Redone(redo));
+                self.log.events.push(GraspEvent::Redone(redo));
+                self.redone_steps += self.physics.steps_taken() - move_start;
                 self.physics.restore();
                 q = q_before;
                 if let Some(log) = log.as_mut() {
@@ -129,6 +167,7 @@ impl Attempt<'_> {
                 }
             };
             out.push(instance_state(self.ctx, &*self.physics, &q, obj, held.t_palm_object, contacts, penetration));
+            self.recorded += 1;
         }
         Ok((out, steps))
     }
@@ -145,10 +184,19 @@ impl Attempt<'_> {
         let Some(mut q_target) = self.draw_move_target(q, arm_rng) else {
             return Ok(MoveOutcome::Failed(Failure::Unreachable));
         };
-        if !self.follow_path(q, &q_target, log.as_deref_mut())
-            || !self.swing_fingers(&q_target, grasp_targets, log.as_deref_mut())
-            || !self.roll_fingers(&q_target, grasp_targets, arm_rng, log.as_deref_mut())
-            || !self.pivot(&mut q_target, grasp_targets, arm_rng, log.as_deref_mut())
+        // The path's steps up to its end count as the move, the rest as the hold.
+        let path_steps = self.ctx.steps(self.ctx.config.move_seconds) as u64;
+        let start = self.physics.steps_taken();
+        let followed = self.follow_path(q, &q_target, log.as_deref_mut());
+        let steps = self.physics.steps_taken() - start;
+        self.log.steps.add(Phase::ArmMove, steps.min(path_steps));
+        self.log.steps.add(Phase::Hold, steps - steps.min(path_steps));
+        if !followed
+            || !self.counted(Phase::InHand, |a| {
+                a.swing_fingers(&q_target, grasp_targets, log.as_deref_mut())
+                    && a.roll_fingers(&q_target, grasp_targets, arm_rng, log.as_deref_mut())
+                    && a.pivot(&mut q_target, grasp_targets, arm_rng, log.as_deref_mut())
+            })
         {
             return Ok(MoveOutcome::Failed(Failure::LostDuringMotion));
         }
@@ -160,7 +208,7 @@ impl Attempt<'_> {
         if touching < self.ctx.robot.min_touching {
             return Ok(MoveOutcome::NotRecordable(Failure::TooFewContacts));
         }
-        let penetration = self.wait_out_squeeze(q, log);
+        let penetration = self.counted(Phase::Squeeze, |a| a.wait_out_squeeze(q, log));
         Ok(self.check_instance(q, penetration))
     }
 
@@ -180,13 +228,17 @@ impl Attempt<'_> {
     }
 
     /// The move along the smooth joint-space path from `q_from` to `q_target`, then the hold: the
-    /// palm's acceleration enters as apparent gravity. False when the object falls out of the hand.
+    /// palm's acceleration enters as apparent gravity. The hold lasts `hold_seconds`, or (snapshots,
+    /// `grasp.hold_until_still`) until the object has stopped in the hand. False when the object
+    /// falls out of the hand.
     pub(super) fn follow_path(&mut self, q_from: &[f64], q_target: &[f64], mut log: Option<&mut StepLog>) -> bool {
         let (ctx, physics) = (self.ctx, &mut *self.physics);
         let n = ctx.steps(ctx.config.move_seconds);
         let palm_at = |s: f64| -> DAffine3 { ctx.t_world_base * ctx.robot.grasp_frame_pose(&along_path(q_from, q_target, s)) };
         let dt = ctx.timestep;
         let ds = 1.0 / n as f64;
+        // Episodes keep every hold whole: each move takes the same steps.
+        let mut still = (ctx.config.hold_until_still && !ctx.record_steps).then(|| StillWatch::new(ctx));
         for k in 1..=n + ctx.steps(ctx.config.hold_seconds) {
             let s = (k as f64 * ds).min(1.0);
             let p = palm_at(s);
@@ -207,6 +259,12 @@ impl Attempt<'_> {
             // its own random stream.)
             if lost(&*physics) {
                 return false;
+            }
+            if k > n
+                && let Some(watch) = still.as_mut()
+                && watch.stopped(physics.object_pose(), k - n)
+            {
+                break;
             }
         }
         true

@@ -9,6 +9,7 @@ use vt_robot::{IkOptions, Robot};
 use super::finger_roll::RollControl;
 use super::palm_up;
 use super::pivot::PivotControl;
+use super::screen::HoldScreen;
 use crate::config::GraspConfig;
 
 /// Everything the loop needs besides the physics.
@@ -32,6 +33,8 @@ pub struct GraspContext<'a> {
     /// Record the hand's contact forces with every state (`InstanceState::hand_contacts`, for
     /// the force fields).
     pub record_contact_forces: bool,
+    /// The hold screen between the settled grasp and the first arm move.
+    pub hold_screen: HoldScreen,
 }
 
 /// `sampling.record.finger_motion` resolved to hand joints: after each arm move's hold, hand joint
@@ -86,6 +89,7 @@ impl<'a> GraspContext<'a> {
             pivot: None,
             finger_roll: None,
             record_contact_forces: false,
+            hold_screen: if config.hold_screen { HoldScreen::On } else { HoldScreen::Off },
         }
     }
 
@@ -108,7 +112,7 @@ impl<'a> GraspContext<'a> {
         let tilt_axis = DVec3::new(0.0, rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0)).normalize_or(DVec3::Y);
         let cos_max = self.config.max_tilt_deg.to_radians().cos();
         let tilt = (rng.random_range(cos_max..=1.0f64)).acos();
-        DAffine3::from_rotation_translation(palm_up() * roll * DQuat::from_axis_angle(tilt_axis, tilt), p)
+        DAffine3::from_rotation_translation(cone_palm(roll, tilt_axis, tilt), p)
     }
 
     /// A random roll about the palm normal (palm x), within `max_roll_deg` either way.
@@ -130,14 +134,19 @@ impl<'a> GraspContext<'a> {
         // rotation that takes the normal (world z) towards the horizontal direction from the
         // camera to the palm workspace's centre.
         let mut t = self.sample_palm(rng);
-        let w = &self.config.palm_workspace;
-        let centre = DVec3::from_array(w.min).lerp(DVec3::from_array(w.max), 0.5);
-        let away = (centre - self.camera_position).with_z(0.0).normalize_or(DVec3::Y);
+        let away = self.away_from_camera();
         let (lo, hi) = self.config.back_to_camera_tilt_deg;
         let tilt = rng.random_range(lo..=hi).to_radians();
-        let turn = DQuat::from_axis_angle(DVec3::Z.cross(away).normalize(), tilt);
-        t.matrix3 = DMat3::from_quat(turn * palm_up() * self.draw_roll(rng));
+        t.matrix3 = DMat3::from_quat(back_to_camera_palm(away, tilt, self.draw_roll(rng)));
         t
+    }
+
+    /// The horizontal direction (world) from the camera to the palm workspace's centre: the
+    /// back-to-camera moves tilt the palm normal along it.
+    pub(super) fn away_from_camera(&self) -> DVec3 {
+        let w = &self.config.palm_workspace;
+        let centre = DVec3::from_array(w.min).lerp(DVec3::from_array(w.max), 0.5);
+        (centre - self.camera_position).with_z(0.0).normalize_or(DVec3::Y)
     }
 
     /// Simulation steps in `seconds` (at least one).
@@ -159,6 +168,18 @@ impl<'a> GraspContext<'a> {
         let target = self.t_world_base.inverse() * *t_world_palm;
         self.robot.solve_grasp_ik(&target, q, &IkOptions::default())
     }
+}
+
+/// A palm orientation (world) of the arm moves' cone: `palm_up` rolled about the palm normal by
+/// `roll`, then tilted by `tilt` (rad) about `tilt_axis` (palm frame, across the normal).
+pub(super) fn cone_palm(roll: DQuat, tilt_axis: DVec3, tilt: f64) -> DQuat {
+    palm_up() * roll * DQuat::from_axis_angle(tilt_axis, tilt)
+}
+
+/// A back-to-camera palm orientation (world): the palm normal tilted from straight up by `tilt`
+/// (rad) towards `away` (horizontal, world), after a `roll` about it.
+pub(super) fn back_to_camera_palm(away: DVec3, tilt: f64, roll: DQuat) -> DQuat {
+    DQuat::from_axis_angle(DVec3::Z.cross(away).normalize(), tilt) * palm_up() * roll
 }
 
 /// Grasp-frame poses drawn by `reachable_share`, and the share of them the arm must reach.

@@ -8,18 +8,21 @@
 //!
 //! One file per step: [`context`] (what the loop knows besides the physics, and the grasp-frame
 //! samplers), [`placement`] (the object into the open hand, one way per grasp kind), [`phases`]
-//! (close the hand, settle the grasp), [`arm_move`] (the instances: one arm move each, undone and
-//! redrawn when it cannot be recorded), [`floor`] (heights above the floor) and [`outcome`] (what
-//! the loop counts).
+//! (close the hand, settle the grasp), [`screen`] (the optional hold screen of a settled grasp),
+//! [`arm_move`] (the instances: one arm move each, undone and redrawn when it cannot be recorded),
+//! [`floor`] (heights above the floor), [`outcome`] (what the loop counts) and [`ledger`] (where
+//! its physics steps go).
 
 mod arm_move;
 mod context;
 mod finger_roll;
 mod floor;
+mod ledger;
 mod outcome;
 mod phases;
 mod pivot;
 mod placement;
+mod screen;
 #[cfg(test)]
 mod tests;
 
@@ -31,8 +34,10 @@ use vt_randomizers::SampleStream;
 pub use context::{FingerGait, GraspContext, MIN_REACHABLE_SHARE, REACH_SAMPLES, TrajectoryKey, reach_samples, reachable_share};
 pub use finger_roll::RollControl;
 pub use floor::{floor_clearance, robot_floor_clearance};
+pub use ledger::{GraspLog, Phase, ScreenJudged, StepLedger};
 pub use outcome::{Failure, GraspEvent, Redo};
 pub use pivot::PivotControl;
+pub use screen::HoldScreen;
 
 use crate::physics::{HandPhysics, PhysicsObject};
 use placement::Placement;
@@ -121,6 +126,15 @@ struct Attempt<'a> {
     key: TrajectoryKey<'a>,
     /// 0 for the first attempt: names its random streams (`grasp/<n>`, `arm/<n>…`).
     number: u32,
+    /// Where the events and the physics steps are counted.
+    log: &'a mut GraspLog,
+    /// This attempt's steps in moves it undid, and in the hold screen's probes.
+    redone_steps: u64,
+    screen_steps: u64,
+    /// Instances recorded so far.
+    recorded: u32,
+    /// The hold screen's verdict, when it ran.
+    screen_verdict: Option<bool>,
 }
 
 /// A trajectory whose grasp never held: the object's fault, not the run's, so `generate` finishes
@@ -143,17 +157,35 @@ pub fn simulate_trajectory(
     physics: &mut dyn HandPhysics,
     object: &PhysicsObject,
     key: TrajectoryKey,
-    events: &mut Vec<GraspEvent>,
+    log: &mut GraspLog,
 ) -> Result<Trajectory> {
     let cfg = ctx.config;
     let placement = Placement::of(ctx.robot.kind, object)?;
     let mut last = None;
     for number in 0..cfg.max_attempts {
-        let mut attempt = Attempt { ctx, physics: &mut *physics, object, key, number };
-        match attempt.run(&placement, events) {
-            Ok((instances, steps)) => return Ok(Trajectory { instances, attempts: number + 1, steps }),
+        let start = physics.steps_taken();
+        let mut attempt = Attempt { ctx, physics: &mut *physics, object, key, number, log: &mut *log,
+            redone_steps: 0,
+            screen_steps: 0,
+            recorded: 0,
+            screen_verdict: None,
+        };
+        let outcome = attempt.run(&placement);
+        let (redone, screened, recorded) = (attempt.redone_steps, attempt.screen_steps, attempt.recorded);
+        if let Some(passed) = attempt.screen_verdict {
+            log.steps.screen_judged.count(passed, outcome.is_ok());
+        }
+        let spent = physics.steps_taken() - start;
+        match outcome {
+            Ok((instances, steps)) => {
+                log.steps.redone_moves += redone;
+                log.steps.kept += spent - redone - screened;
+                return Ok(Trajectory { instances, attempts: number + 1, steps });
+            }
             Err(Stop::Failed(f)) => {
-                events.push(GraspEvent::Failed(f));
+                log.steps.failed_attempts += spent;
+                log.steps.instances_before_failure += recorded as u64;
+                log.events.push(GraspEvent::Failed(f));
                 last = Some(f);
             }
             Err(Stop::Error(e)) => return Err(e),
@@ -184,16 +216,27 @@ pub fn simulate_trajectory(
 impl Attempt<'_> {
     /// The attempt, in its phases: reach the grasp pose, put the object in the open hand, close
     /// the fingers, settle while the palm turns to its pose, then record the instances (arm moves).
-    fn run(&mut self, placement: &Placement, events: &mut Vec<GraspEvent>) -> Result<Recorded, Stop> {
+    fn run(&mut self, placement: &Placement) -> Result<Recorded, Stop> {
         let (ctx, key) = (self.ctx, self.key);
         let rng = &mut SampleStream::trajectory(key.seed, key.object_id, key.trajectory, &format!("grasp/{}", self.number));
         let t_world_palm = ctx.sample_palm(rng);
         let q = ctx.reach(&t_world_palm, &ctx.home()).ok_or(Failure::Unreachable)?;
         let pre: Vec<f64> = ctx.config.preshape.iter().map(|&(lo, hi)| rng.random_range(lo..=hi)).collect();
-        self.place(placement, rng, &pre)?;
-        let grasp_targets = self.close_hand(&pre);
-        let grasped = self.settle(&t_world_palm)?;
-        self.record_instances(q, Held { t_palm_object: grasped, targets: &grasp_targets }, events)
+        self.counted(Phase::Place, |a| a.place(placement, rng, &pre))?;
+        let grasp_targets = self.counted(Phase::Close, |a| a.close_hand(&pre));
+        let grasped = self.counted(Phase::Settle, |a| a.settle(&t_world_palm))?;
+        let held = Held { t_palm_object: grasped, targets: &grasp_targets };
+        self.screen(&held, &t_world_palm)?;
+        self.record_instances(q, held)
+    }
+
+    /// Runs `f`, counting the physics steps it takes under `phase`.
+    fn counted<T>(&mut self, phase: Phase, f: impl FnOnce(&mut Self) -> T) -> T {
+        let start = self.physics.steps_taken();
+        let out = f(self);
+        let steps = self.physics.steps_taken() - start;
+        self.log.steps.add(phase, steps);
+        out
     }
 }
 

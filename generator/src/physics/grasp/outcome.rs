@@ -13,6 +13,8 @@ pub enum Failure {
     Unreachable,
     /// No antipodal pair of the object's hull fits between the open jaws (a parallel-jaw grasp).
     NoAntipodalPair,
+    /// The settled grasp let the object go under one of the hold screen's probes.
+    HoldScreen,
 }
 
 /// An arm move undone and redrawn from the last recorded state: not a failure, the attempt goes
@@ -48,6 +50,7 @@ impl GraspEvent {
                 Failure::TouchesFloor => "TouchesFloor",
                 Failure::Unreachable => "Unreachable",
                 Failure::NoAntipodalPair => "NoAntipodalPair",
+                Failure::HoldScreen => "HoldScreen",
             },
             GraspEvent::Redone(r) => match r {
                 Redo::Penetration => "MoveRedoneForPenetration",

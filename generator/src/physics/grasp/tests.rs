@@ -80,15 +80,34 @@ fn back_to_camera_moves_turn_the_palm_away_from_the_camera() {
 
 /// The grasp loop over the scripted hand: `cfg` with the paper's robot and camera.
 fn run_fake(hand: &mut crate::physics::fake::FakeHand, cfg: &GraspConfig, instances: u32) -> (Result<Trajectory>, Vec<GraspEvent>) {
+    let (t, log) = run_fake_screened(hand, cfg, instances, None);
+    (t, log.events)
+}
+
+/// `run_fake` with the hold screen's mode set (None: the config's), and the whole log.
+fn run_fake_screened(
+    hand: &mut crate::physics::fake::FakeHand,
+    cfg: &GraspConfig,
+    instances: u32,
+    screen: Option<HoldScreen>,
+) -> (Result<Trajectory>, GraspLog) {
     let robot = Robot::default_robot();
-    let ctx = paper_context(&robot, cfg);
+    let mut ctx = paper_context(&robot, cfg);
+    if let Some(mode) = screen {
+        ctx.hold_screen = mode;
+    }
     let object = PhysicsObject {
         points: vt_objects::procedural_mesh(vt_objects::Catalog::builtin().get("005_tomato_soup_can").unwrap()).positions,
         mass: 0.35,
     };
-    let mut failures = Vec::new();
+    let mut log = GraspLog::default();
     let key = TrajectoryKey { seed: 3, object_id: "005_tomato_soup_can", trajectory: 0, instances };
-    (simulate_trajectory(&ctx, hand, &object, key, &mut failures), failures)
+    (simulate_trajectory(&ctx, hand, &object, key, &mut log), log)
+}
+
+/// Physics steps from the first attempt's placement to its settled grasp (240 Hz), about.
+fn steps_to_settled(cfg: &GraspConfig) -> u64 {
+    ((0.15f64 + cfg.close_seconds + cfg.settle_seconds) * 240.0).round() as u64
 }
 
 #[test]
@@ -147,17 +166,83 @@ fn grasps_that_do_not_hold_fail_each_attempt_and_the_trajectory_names_the_cause(
 
 #[test]
 fn a_move_that_drops_the_object_is_undone_and_redrawn() {
-    let cfg = allegro_grasp();
+    // No hold screen: the drop comes in the first arm move.
+    let cfg = GraspConfig { hold_screen: false, ..allegro_grasp() };
     // Steps of placing, resting, closing and settling, then well into the first arm move.
-    let settle_steps = (0.15f64 + cfg.close_seconds + cfg.settle_seconds) * 240.0;
     let mut hand = crate::physics::fake::FakeHand::holding(3);
-    hand.drop_at_step = Some(settle_steps as u64 + 60);
+    hand.drop_at_step = Some(steps_to_settled(&cfg) + 60);
     let (t, failures) = run_fake(&mut hand, &cfg, 3);
     let t = t.unwrap();
     assert_eq!((t.instances.len(), t.attempts), (3, 1));
     assert_eq!(failures, vec![GraspEvent::Redone(Redo::Drop)]);
     // The redone move starts from the state saved before the drop: the object is back in the hand.
     assert!(t.instances.iter().all(|i| i.slip_translation == 0.0));
+}
+
+#[test]
+fn a_grasp_that_lets_go_under_a_probe_is_screened_out_before_any_arm_move() {
+    let cfg = GraspConfig { hold_screen: true, ..allegro_grasp() };
+    // The object flies out early in the first probe (once).
+    let drop_at = steps_to_settled(&cfg) + 10;
+    let dropping = || {
+        let mut hand = crate::physics::fake::FakeHand::holding(3);
+        hand.drop_at_step = Some(drop_at);
+        hand
+    };
+    let (t, log) = run_fake_screened(&mut dropping(), &cfg, 3, None);
+    let t = t.unwrap();
+    assert_eq!((t.instances.len(), t.attempts), (3, 2));
+    assert_eq!(log.events, vec![GraspEvent::Failed(Failure::HoldScreen)]);
+    let steps = log.steps;
+    assert_eq!(steps.screened_out, 1);
+    // The screened-out attempt spent no arm move: it ended in the probe that lost the object.
+    assert_eq!(steps.failed_attempts, drop_at);
+    assert_eq!(steps.instances_before_failure, 0);
+    // Every step is counted once, under its phase; the kept attempt's 4 probes (0.2 s turn, 0.1 s
+    // hold) are wasted.
+    let kept_probes = 4 * (48 + 24);
+    assert_eq!(steps.total(), steps.failed_attempts + steps.kept + steps.redone_moves + kept_probes);
+    assert_eq!(steps.wasted(), steps.failed_attempts + kept_probes);
+    assert_eq!(steps.arm_move, 3 * 120);
+    // Judging only, the attempt goes on from the settled state the probes left, and the verdict
+    // is counted against its outcome.
+    let (t, log) = run_fake_screened(&mut dropping(), &cfg, 3, Some(HoldScreen::Judge));
+    assert_eq!(t.unwrap().attempts, 1);
+    assert_eq!(log.steps.screen_judged, ScreenJudged { failed_held: 1, ..Default::default() });
+    assert_eq!(log.steps.screened_out, 0);
+    // Without it, no probe is run.
+    let (t, log) = run_fake_screened(&mut crate::physics::fake::FakeHand::holding(3), &cfg, 3, Some(HoldScreen::Off));
+    assert_eq!(t.unwrap().attempts, 1);
+    assert_eq!(log.steps.screen, 0);
+}
+
+#[test]
+fn the_hold_screen_probes_the_extremes_the_arm_moves_draw_from() {
+    let robot = Robot::default_robot();
+    let cfg = GraspConfig { back_to_camera_share: 0.5, ..allegro_grasp() };
+    let ctx = paper_context(&robot, &cfg);
+    let probes = ctx.probe_gravities();
+    assert_eq!(probes.len(), 8);
+    // Angle of each probe's gravity from the palm-up settle's: the cone's edge, then the
+    // back-to-camera tilts at both ends.
+    let from_up: Vec<f64> = probes.iter().map(|g| g.angle_between(PALM_UP_GRAVITY).to_degrees()).collect();
+    for (k, want) in [50.0, 50.0, 50.0, 50.0, 80.0, 80.0, 120.0, 120.0].into_iter().enumerate() {
+        assert!((from_up[k] - want).abs() < 1e-6, "probe {k}: {} deg from up, want {want}", from_up[k]);
+        assert!((probes[k].length() - 9.81).abs() < 1e-9);
+    }
+    // Every probe is an apparent gravity the move sampler's draws come near: within 10 deg of one
+    // of 4000 drawn moves.
+    let drawn: Vec<DVec3> = (0..4000)
+        .map(|k| ctx.sample_move_palm(&mut ChaCha8Rng::seed_from_u64(k)))
+        .map(|t| DQuat::from_mat3(&t.matrix3).inverse() * GRAVITY)
+        .collect();
+    for (k, g) in probes.iter().enumerate() {
+        let nearest = drawn.iter().map(|d| d.angle_between(*g).to_degrees()).fold(180.0, f64::min);
+        assert!(nearest < 10.0, "probe {k} is {nearest} deg from every drawn move");
+    }
+    // Without back-to-camera moves only the cone's edge is probed.
+    let cone_only = GraspConfig { back_to_camera_share: 0.0, ..cfg.clone() };
+    assert_eq!(paper_context(&robot, &cone_only).probe_gravities().len(), 4);
 }
 
 #[test]
@@ -224,6 +309,7 @@ fn event_names_are_the_ones_earlier_datasets_count_under() {
         (GraspEvent::Failed(TouchesFloor), "TouchesFloor"),
         (GraspEvent::Failed(Unreachable), "Unreachable"),
         (GraspEvent::Failed(NoAntipodalPair), "NoAntipodalPair"),
+        (GraspEvent::Failed(HoldScreen), "HoldScreen"),
         (GraspEvent::Redone(Redo::Penetration), "MoveRedoneForPenetration"),
         (GraspEvent::Redone(Redo::Contacts), "MoveRedoneForContacts"),
         (GraspEvent::Redone(Redo::Floor), "MoveRedoneForFloor"),
