@@ -417,7 +417,8 @@ fn run(cli: Cli) -> Result<()> {
             }
             if hold > 0 && !suggest {
                 let jobs = std::thread::available_parallelism().map_or(1, |n| n.get());
-                let opts = commands::grasps::GraspCheckOptions { trajectories: hold, instances: Some(2), jobs, quiet: true, judge_screen: false };
+                let opts =
+                    commands::grasps::GraspCheckOptions { trajectories: hold, instances: Some(2), jobs, quiet: true, judge_screen: false };
                 println!("hold test: {hold} trajectories per object, 2 instances each");
                 commands::grasps::run(&cfg, None, &opts, json, Some(0.5))?;
             }

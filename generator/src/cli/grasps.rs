@@ -153,7 +153,8 @@ impl GraspCheckReport {
             s.push_str("|---|---|---|---|---|---|---|\n");
             for o in &self.objects {
                 let j = o.physics_steps.screen_judged;
-                let share = |a: u64, b: u64| if a + b == 0 { "-".to_string() } else { format!("{:.0}%", 100.0 * a as f64 / (a + b) as f64) };
+                let share =
+                    |a: u64, b: u64| if a + b == 0 { "-".to_string() } else { format!("{:.0}%", 100.0 * a as f64 / (a + b) as f64) };
                 s.push_str(&format!(
                     "| {} | {} | {} | {} | {} | {} | {} |\n",
                     o.object_id,

@@ -164,7 +164,13 @@ pub fn simulate_trajectory(
     let mut last = None;
     for number in 0..cfg.max_attempts {
         let start = physics.steps_taken();
-        let mut attempt = Attempt { ctx, physics: &mut *physics, object, key, number, log: &mut *log,
+        let mut attempt = Attempt {
+            ctx,
+            physics: &mut *physics,
+            object,
+            key,
+            number,
+            log: &mut *log,
             redone_steps: 0,
             screen_steps: 0,
             recorded: 0,
