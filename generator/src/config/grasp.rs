@@ -53,11 +53,13 @@ pub struct GraspConfig {
     /// drops the object is undone and another drawn (both backends), so 0.5 s costs fewer simulated
     /// steps per recorded instance than 1 s.
     pub move_seconds: f64,
-    /// Stillness after each move before the instance is checked and recorded: at most this long
-    /// with `hold_until_still` (snapshots), exactly this long in episodes.
+    /// Stillness after each move before the instance is checked and recorded (at most this long
+    /// with `hold_until_still`, in snapshots).
     pub hold_seconds: f64,
     /// End a snapshot's hold once the object has stopped in the hand (moved < 0.05 mm and turned
-    /// < 0.05° over 50 ms, after at least 50 ms) rather than after the whole `hold_seconds`.
+    /// < 0.05° over 50 ms, after at least 50 ms) rather than after the whole `hold_seconds`. Off by
+    /// default: on `scenes/paper.yaml` it saved 17% of a kept trajectory's physics steps, but the
+    /// drill and the cracker box lost more grasps, which took back most of it (docs/performance.md).
     pub hold_until_still: bool,
     /// Grasp attempts per trajectory (each with fresh randomness) before `generate` gives up
     /// with an error naming the trajectory. Large objects need many: on the cracker box about 1
@@ -104,7 +106,7 @@ impl Default for GraspConfig {
             settle_seconds: 0.4,
             move_seconds: 0.5,
             hold_seconds: 0.2,
-            hold_until_still: true,
+            hold_until_still: false,
             max_attempts: 200,
             max_penetration: 0.001,
             hold_screen: false,

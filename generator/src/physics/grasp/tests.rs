@@ -217,6 +217,25 @@ fn a_grasp_that_lets_go_under_a_probe_is_screened_out_before_any_arm_move() {
 }
 
 #[test]
+fn a_snapshot_hold_ends_once_the_object_has_stopped_when_asked() {
+    use crate::physics::fake::FakeHand;
+    let until_still = GraspConfig { hold_until_still: true, ..allegro_grasp() };
+    // A still object: each hold ends when the 50 ms window (12 steps at 240 Hz) first compares
+    // two poses, 13 steps in, instead of lasting 0.2 s (48 steps).
+    let (t, log) = run_fake_screened(&mut FakeHand::holding(3), &until_still, 3, None);
+    assert_eq!(t.unwrap().instances.len(), 3);
+    assert_eq!(log.steps.hold, 3 * 13);
+    let (_, log) = run_fake_screened(&mut FakeHand::holding(3), &allegro_grasp(), 3, None);
+    assert_eq!(log.steps.hold, 3 * 48);
+    // An object sliding 0.1 mm per step (24 mm/s) has not stopped: the whole hold.
+    let mut sliding = FakeHand::holding(3);
+    sliding.drift_per_step = DVec3::new(0.0, 0.0, 1e-4);
+    let (t, log) = run_fake_screened(&mut sliding, &until_still, 3, None);
+    assert_eq!(t.unwrap().instances.len(), 3);
+    assert_eq!(log.steps.hold, 3 * 48);
+}
+
+#[test]
 fn the_hold_screen_probes_the_extremes_the_arm_moves_draw_from() {
     let robot = Robot::default_robot();
     let cfg = GraspConfig { back_to_camera_share: 0.5, ..allegro_grasp() };
