@@ -133,7 +133,7 @@ struct Attempt<'a> {
     screen_steps: u64,
     /// Instances recorded so far.
     recorded: u32,
-    /// The hold screen's verdict, when it ran.
+    /// The hold screen's verdict, when it ran as a judge.
     screen_verdict: Option<bool>,
 }
 

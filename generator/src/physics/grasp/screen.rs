@@ -73,7 +73,10 @@ impl Attempt<'_> {
         let steps = self.physics.steps_taken() - start;
         self.log.steps.add(Phase::Screen, steps);
         self.screen_steps += steps;
-        self.screen_verdict = Some(passed);
+        // Judged against the outcome only when the verdict does not decide it.
+        if mode == HoldScreen::Judge {
+            self.screen_verdict = Some(passed);
+        }
         match (mode, passed) {
             (HoldScreen::On, false) => {
                 self.log.steps.screened_out += 1;

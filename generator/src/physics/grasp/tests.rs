@@ -195,6 +195,8 @@ fn a_grasp_that_lets_go_under_a_probe_is_screened_out_before_any_arm_move() {
     assert_eq!(log.events, vec![GraspEvent::Failed(Failure::HoldScreen)]);
     let steps = log.steps;
     assert_eq!(steps.screened_out, 1);
+    // Acting on its verdicts, the screen judges nothing.
+    assert_eq!(steps.screen_judged, ScreenJudged::default());
     // The screened-out attempt spent no arm move: it ended in the probe that lost the object.
     assert_eq!(steps.failed_attempts, drop_at);
     assert_eq!(steps.instances_before_failure, 0);
