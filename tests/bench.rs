@@ -7,7 +7,7 @@ use crate::common::{root, run, stderr};
 #[test]
 fn bench_reports_cpu_outside_the_rasterizer_and_predicts_from_it() {
     let config = root().join("scenes/tiny-hand.yaml");
-    let o = run(&["bench", config.to_str().unwrap(), "--samples", "4", "--jobs", "1", "--predict-cores", "16", "--json"]);
+    let o = run(&["bench", config.to_str().unwrap(), "--samples", "4", "--jobs", "1", "--predict-cores", "16", "--per-pass", "--json"]);
     assert!(o.status.success(), "vtgen bench failed: {}", stderr(&o));
     let r: serde_json::Value = serde_json::from_slice(&o.stdout).expect("bench --json prints JSON");
     let f = |k: &str| r[k].as_f64().unwrap_or_else(|| panic!("no number {k} in {r}"));
@@ -35,6 +35,11 @@ fn bench_reports_cpu_outside_the_rasterizer_and_predicts_from_it() {
     // The grasp loop's attempts per kept trajectory: at least one, for the object it made samples of.
     let attempts = r["attempts_per_kept"].as_object().expect("a robot config reports attempts per kept trajectory");
     assert!(!attempts.is_empty() && attempts.values().all(|a| a.as_f64().unwrap() >= 1.0), "{r}");
+    // --per-pass: the main camera's and the pads' passes, each timed.
+    let passes = r["render_passes"].as_object().expect("--per-pass times the render passes");
+    for pass in ["main views", "depth views", "copy and map"] {
+        assert!(passes.get(pass).and_then(|s| s.as_f64()).is_some_and(|s| s > 0.0), "{pass}: {r}");
+    }
 }
 
 #[test]

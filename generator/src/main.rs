@@ -83,6 +83,11 @@ enum Command {
         /// rasterizes): N divided by the measured CPU time per sample outside the rasterizer.
         #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=4096))]
         predict_cores: Option<u32>,
+        /// Also time every render pass on its own (shadow map, main views, anti-aliased colour,
+        /// mask views, depth views, optical shading, copy and map, readback): each is submitted
+        /// and waited for, so the run is slower than without; the images are the same.
+        #[arg(long)]
+        per_pass: bool,
     },
     /// Run the grasp loop alone (no rendering) over the first trajectories of every object and
     /// report, per object, how many kept the object through all instances, the attempts and
@@ -371,8 +376,10 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Command::Config { config } => commands::plan::run_config(&load(&config)?),
-        Command::Bench { config, samples, jobs, ycb_dir, json, predict_cores } => {
-            commands::bench::run(&load(&config)?, samples, jobs, ycb_dir.as_ref(), predict_cores.map(|n| n as usize), json)
+        Command::Bench { config, samples, jobs, ycb_dir, json, predict_cores, per_pass } => {
+            let options =
+                commands::bench::BenchOptions { samples, jobs, ycb_dir, predict_cores: predict_cores.map(|n| n as usize), per_pass };
+            commands::bench::run(&load(&config)?, &options, json)
         }
         Command::Grasps { config, trajectories, instances, jobs, ycb_dir, min_kept, json, quiet, judge_screen } => {
             let jobs = jobs.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));

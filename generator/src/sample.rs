@@ -333,6 +333,17 @@ impl<'a> SampleFactory<'a> {
         self.renderer.readback_time()
     }
 
+    /// Times the renderer's passes one by one from now on (`vtgen bench --per-pass`); false when
+    /// it has none to time.
+    pub fn time_render_passes(&mut self) -> bool {
+        self.renderer.time_passes()
+    }
+
+    /// The renderer's pass times since `time_render_passes`.
+    pub fn render_pass_times(&self) -> Option<crate::render::PassTimes> {
+        self.renderer.pass_times()
+    }
+
     pub fn renderer_name(&self) -> String {
         self.renderer.describe()
     }

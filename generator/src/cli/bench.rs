@@ -19,7 +19,7 @@ use crate::config::LoadedConfig;
 use crate::output::workers::run_pool;
 use crate::output::writer_thread::{WriterThread, WriterTimes};
 use crate::plan::{Plan, SampleRef, Split};
-use crate::render::WgpuRenderer;
+use crate::render::{PassTimes, WgpuRenderer};
 use crate::sample::{SampleFactory, ShardTally, StageTimes};
 
 #[derive(Debug, Clone, Serialize)]
@@ -93,6 +93,10 @@ pub struct BenchReport {
     /// away. Objects without a kept trajectory are left out.
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
     pub attempts_per_kept: BTreeMap<String, f64>,
+    /// `--per-pass`: seconds per render pass, summed over the samples and workers, each pass
+    /// timed on its own (submitted and waited for), in the order a sample runs them.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub render_passes: Option<BTreeMap<String, f64>>,
 }
 
 impl std::fmt::Display for BenchReport {
@@ -200,6 +204,15 @@ impl std::fmt::Display for BenchReport {
             all.iter_mut().zip(b).for_each(|(a, x)| *a += x);
         }
         writeln!(f, "  {:<24}{}", "all", share(&all))?;
+        if let Some(passes) = &r.render_passes {
+            let total: f64 = passes.values().sum();
+            writeln!(f, "render passes      timed one by one (--per-pass), ms per sample and share of their sum:")?;
+            let mut by_time: Vec<_> = passes.iter().collect();
+            by_time.sort_by(|a, b| b.1.total_cmp(a.1));
+            for (name, seconds) in by_time {
+                writeln!(f, "  {name:<24}{:>8.2} ms {:>6.1}%", per(*seconds), 100.0 * seconds / total.max(1e-12))?;
+            }
+        }
         if !r.attempts_per_kept.is_empty() {
             writeln!(f, "grasp attempts per kept trajectory")?;
             for (id, a) in &r.attempts_per_kept {
@@ -316,15 +329,23 @@ fn bench_trajectory(
     Ok(run)
 }
 
-/// Runs the benchmark; `predict_cores`: also predict the samples/s of that many cores with a free
-/// rasterizer.
-pub fn bench(
-    cfg: &LoadedConfig,
-    samples: u64,
-    jobs: usize,
-    ycb_dir: Option<&std::path::PathBuf>,
-    predict_cores: Option<usize>,
-) -> Result<BenchReport> {
+/// What `vtgen bench` runs and what it reports besides the stages.
+#[derive(Debug, Clone, Default)]
+pub struct BenchOptions {
+    /// Samples (whole trajectories, objects in turn) and parallel workers.
+    pub samples: u64,
+    pub jobs: usize,
+    pub ycb_dir: Option<std::path::PathBuf>,
+    /// Also predict the samples/s of that many cores with a free rasterizer.
+    pub predict_cores: Option<usize>,
+    /// Time every render pass on its own (slower: no overlap of recording and drawing).
+    pub per_pass: bool,
+}
+
+/// Runs the benchmark.
+pub fn bench(cfg: &LoadedConfig, options: &BenchOptions) -> Result<BenchReport> {
+    let BenchOptions { samples, jobs, ref ycb_dir, predict_cores, per_pass } = *options;
+    let ycb_dir = ycb_dir.as_ref();
     let plan = Plan::new(&cfg.config);
     let work = select(&plan, samples);
     if work.is_empty() {
@@ -343,10 +364,17 @@ pub fn bench(
         &abort,
         || {
             let renderer = WgpuRenderer::new(&cfg.config.renderer)?;
-            Ok((SampleFactory::new(cfg, &objects, Box::new(renderer))?, WriterTimes::default()))
+            let mut factory = SampleFactory::new(cfg, &objects, Box::new(renderer))?;
+            if per_pass {
+                factory.time_render_passes();
+            }
+            Ok((factory, WriterTimes::default()))
         },
         |(factory, write), i, traj| bench_trajectory(cfg, factory, write, &dir, i, traj).map(Some),
-        |(factory, write)| Ok((factory.times, write, factory.readback_time(), factory.renderer_name())),
+        |(factory, write)| {
+            let done = Worker { times: factory.times, write, readback: factory.readback_time(), adapter: factory.renderer_name() };
+            Ok((done, factory.render_pass_times()))
+        },
     );
     let seconds = started.elapsed().as_secs_f64();
     let process_cpu = match (cpu_started, crate::cpu_clock::process_cpu_time()) {
@@ -366,6 +394,15 @@ pub fn bench(
     report(runs, workers, Measured { jobs, seconds, process_cpu, predict_cores, episode_camera_hz, optical_shading, max_attempts })
 }
 
+/// What one worker measured: its stage times, its writers', its renderer's readback, and the
+/// adapter it drew with.
+struct Worker {
+    times: StageTimes,
+    write: WriterTimes,
+    readback: Duration,
+    adapter: String,
+}
+
 /// What `bench` measured around the workers.
 struct Measured {
     jobs: usize,
@@ -379,7 +416,7 @@ struct Measured {
 }
 
 /// The report of the benchmark's trajectories and of its workers' stage times.
-fn report(runs: Vec<TrajectoryRun>, workers: Vec<(StageTimes, WriterTimes, Duration, String)>, m: Measured) -> Result<BenchReport> {
+fn report(runs: Vec<TrajectoryRun>, workers: Vec<(Worker, Option<PassTimes>)>, m: Measured) -> Result<BenchReport> {
     let Measured { jobs, seconds, process_cpu, predict_cores, episode_camera_hz, optical_shading, max_attempts } = m;
     // Per object: attempts spent (kept trajectories' own, given-up ones' all) and trajectories kept.
     let mut attempts: BTreeMap<String, (u64, u64)> = BTreeMap::new();
@@ -408,12 +445,16 @@ fn report(runs: Vec<TrajectoryRun>, workers: Vec<(StageTimes, WriterTimes, Durat
         bail!("no sample could be made: {}", skipped.join("; "));
     }
     let (mut t, mut write, mut readback, mut adapter) = (StageTimes::default(), WriterTimes::default(), Duration::ZERO, String::new());
-    for (times, w, r, a) in workers {
+    let mut passes: Option<PassTimes> = None;
+    for (Worker { times, write: w, readback: r, adapter: a }, p) in workers {
         t += &times;
         write.busy += w.busy;
         write.cpu += w.cpu;
         readback += r;
         adapter = a;
+        if let Some(p) = p {
+            *passes.get_or_insert_default() += p;
+        }
     }
     let cpu_outside = (t.physics_cpu + t.other_cpu + readback + write.cpu).as_secs_f64();
     Ok(BenchReport {
@@ -452,19 +493,13 @@ fn report(runs: Vec<TrajectoryRun>, workers: Vec<(StageTimes, WriterTimes, Durat
         skipped_trajectories: skipped,
         occlusion_bins,
         attempts_per_kept,
+        render_passes: passes.map(|p| p.named().into_iter().filter(|(_, s)| *s > 0.0).map(|(n, s)| (n.to_string(), s)).collect()),
     })
 }
 
 /// `vtgen bench`: the benchmark, printed as a table (or JSON).
-pub fn run(
-    cfg: &LoadedConfig,
-    samples: u64,
-    jobs: usize,
-    ycb_dir: Option<&std::path::PathBuf>,
-    predict_cores: Option<usize>,
-    json: bool,
-) -> Result<()> {
-    let r = bench(cfg, samples, jobs, ycb_dir, predict_cores)?;
+pub fn run(cfg: &LoadedConfig, options: &BenchOptions, json: bool) -> Result<()> {
+    let r = bench(cfg, options)?;
     if json {
         println!("{}", serde_json::to_string_pretty(&r)?);
     } else {

@@ -21,7 +21,6 @@ pub struct FakeHand {
     pub drop_at_step: Option<u64>,
     /// Steps taken since it was made (a restore does not take them back: they were spent).
     pub steps: u64,
-    saved: Option<(DAffine3, Vec<f64>, DVec3)>,
 }
 
 impl FakeHand {
@@ -37,7 +36,6 @@ impl FakeHand {
             penetration: 0.0,
             drop_at_step: None,
             steps: 0,
-            saved: None,
         }
     }
 }
@@ -88,12 +86,11 @@ impl HandPhysics for FakeHand {
     fn deepest_link(&self) -> Option<(usize, f64)> {
         None
     }
-    fn save(&mut self) {
-        self.saved = Some((self.object, self.joints.clone(), self.gravity));
+    fn save(&self) -> super::SavedState {
+        super::SavedState::new((self.object, self.joints.clone(), self.gravity))
     }
-    fn restore(&mut self) {
-        if let Some((object, joints, gravity)) = self.saved.clone() {
-            (self.object, self.joints, self.gravity) = (object, joints, gravity);
-        }
+    fn restore(&mut self, state: &super::SavedState) {
+        let (object, joints, gravity) = state.get::<(DAffine3, Vec<f64>, DVec3)>().clone();
+        (self.object, self.joints, self.gravity) = (object, joints, gravity);
     }
 }

@@ -103,10 +103,26 @@ pub trait HandPhysics {
     /// The hand link (`RobotModel::links` index) that reaches deepest into the object, and how
     /// deep (m, >= 0); None when no link touches it. Errors name it (an `InitialOverlap`).
     fn deepest_link(&self) -> Option<(usize, f64)>;
-    /// Remembers the whole simulation state so that `restore` can undo what follows (an arm move
-    /// that dropped the object or ended in a pose that cannot be recorded). Every backend must:
-    /// the grasp loop's redo of a move depends on it, and so do the data's bytes.
-    fn save(&mut self);
-    /// Back to the state of the last `save` (it stays saved).
-    fn restore(&mut self);
+    /// The whole simulation state, so that `restore` can undo what follows (an arm move that
+    /// dropped the object or ended in a pose that cannot be recorded, the hold screen's probes).
+    /// Every backend must: the grasp loop's redo of a move depends on it, and so do the data's
+    /// bytes. Valid until the next `reset`.
+    fn save(&self) -> SavedState;
+    /// Back to a state `save` returned since the last `reset`.
+    fn restore(&mut self, state: &SavedState);
+}
+
+/// A backend's whole simulation state (`HandPhysics::save`): opaque to the grasp loop, which
+/// only hands it back to the backend that made it.
+pub struct SavedState(Box<dyn std::any::Any + Send>);
+
+impl SavedState {
+    pub fn new<T: std::any::Any + Send>(state: T) -> Self {
+        SavedState(Box::new(state))
+    }
+
+    /// The backend's own state; a state from another backend is a bug in the grasp loop.
+    pub fn get<T: std::any::Any>(&self) -> &T {
+        self.0.downcast_ref().expect("a state saved by this backend")
+    }
 }

@@ -13,7 +13,7 @@ use mujoco_rs::prelude::*;
 use vt_robot::{Geometry, Robot, RobotModel};
 
 use super::hand_assembly::{Drive, HandAssembly, SimJoint};
-use super::{HandContact, HandPhysics, PhysicsObject, PhysicsSettings};
+use super::{HandContact, HandPhysics, PhysicsObject, PhysicsSettings, SavedState};
 
 struct Sim {
     data: MjData<Box<MjModel>>,
@@ -45,7 +45,6 @@ pub struct MujocoHand {
     mass: f64,
     /// The state `save` took (MuJoCo's integration state: time, qpos, qvel, act, controls, warm
     /// start, applied forces) and the gravity then.
-    saved: Option<(Box<[f64]>, [f64; 3])>,
     steps: u64,
 }
 
@@ -102,7 +101,6 @@ impl MujocoHand {
             sim: None,
             damping: (0.0, 0.0),
             mass: 1.0,
-            saved: None,
             steps: 0,
         })
     }
@@ -296,7 +294,6 @@ impl HandPhysics for MujocoHand {
     fn reset(&mut self, object: &PhysicsObject, object_pose: DAffine3, q: &[f64]) -> Result<()> {
         self.build(object)?;
         self.mass = object.mass;
-        self.saved = None;
         let sim = self.sim.as_mut().expect("built");
         let qp = sim.data.qpos_mut();
         for (&a, &v) in sim.hand_qpos.iter().zip(q) {
@@ -408,15 +405,16 @@ impl HandPhysics for MujocoHand {
             .max_by(|a, b| a.1.total_cmp(&b.1))
     }
 
-    fn save(&mut self) {
+    fn save(&self) -> SavedState {
         let sim = self.sim();
-        self.saved = Some((sim.data.state(FULL_STATE), sim.data.model_opt().gravity));
+        SavedState::new((sim.data.state(FULL_STATE), sim.data.model_opt().gravity))
     }
 
-    fn restore(&mut self) {
-        let Some((state, gravity)) = &self.saved else { return };
+    fn restore(&mut self, state: &SavedState) {
+        let (state, gravity) = state.get::<(Box<[f64]>, [f64; 3])>();
         let sim = self.sim.as_mut().expect("built");
-        // The buffer came from `save` on this model, so it has the size mj_setState expects.
+        // The buffer came from `save` on this model (the grasp loop saves again after each
+        // reset), so it has the size mj_setState expects.
         sim.data.set_state(state, FULL_STATE).expect("a state saved from the same model");
         sim.data.model_opt_mut().gravity = *gravity;
         // Positions, contacts and the other derived quantities the checks read, for that state.

@@ -9,7 +9,7 @@ use vt_robot::{Geometry, Robot};
 
 use super::hand_assembly::{Drive, HandAssembly, SimJoint};
 use super::hull_shape::WalkedHull;
-use super::{HandPhysics, PhysicsObject, PhysicsSettings};
+use super::{HandPhysics, PhysicsObject, PhysicsSettings, SavedState};
 
 const HAND_GROUP: Group = Group::GROUP_1;
 const OBJECT_GROUP: Group = Group::GROUP_2;
@@ -152,7 +152,6 @@ pub struct RapierHand {
     /// a scanned mesh's ~8 000 vertices costs more than a grasp attempt's first steps, and every
     /// attempt of a trajectory resets with the same object.
     hull: Option<(Vec<[f32; 3]>, SharedShape)>,
-    saved: Option<WorldState>,
     steps: u64,
 }
 
@@ -181,7 +180,6 @@ impl RapierHand {
             hand_collider_links: Vec::new(),
             object: None,
             hull: None,
-            saved: None,
             steps: 0,
         };
         h.build(&vec![0.0; robot.hand.len()])?;
@@ -259,7 +257,6 @@ impl RapierHand {
         self.hand_collider_links = hand_collider_links;
         self.touch_colliders = touch_colliders;
         self.object = None;
-        self.saved = None;
         Ok(())
     }
 
@@ -397,9 +394,9 @@ impl HandPhysics for RapierHand {
             .max_by(|a, b| a.1.total_cmp(&b.1))
     }
 
-    fn save(&mut self) {
+    fn save(&self) -> SavedState {
         let w = &self.world;
-        self.saved = Some(WorldState {
+        SavedState::new(WorldState {
             gravity: w.gravity,
             islands: w.islands.clone(),
             broad_phase: w.broad_phase.clone(),
@@ -408,20 +405,19 @@ impl HandPhysics for RapierHand {
             colliders: w.colliders.clone(),
             impulse_joints: w.impulse_joints.clone(),
             multibody_joints: w.multibody_joints.clone(),
-        });
+        })
     }
 
-    fn restore(&mut self) {
-        if let Some(s) = self.saved.clone() {
-            let w = &mut self.world;
-            w.gravity = s.gravity;
-            w.islands = s.islands;
-            w.broad_phase = s.broad_phase;
-            w.narrow_phase = s.narrow_phase;
-            w.bodies = s.bodies;
-            w.colliders = s.colliders;
-            w.impulse_joints = s.impulse_joints;
-            w.multibody_joints = s.multibody_joints;
-        }
+    fn restore(&mut self, state: &SavedState) {
+        let s = state.get::<WorldState>().clone();
+        let w = &mut self.world;
+        w.gravity = s.gravity;
+        w.islands = s.islands;
+        w.broad_phase = s.broad_phase;
+        w.narrow_phase = s.narrow_phase;
+        w.bodies = s.bodies;
+        w.colliders = s.colliders;
+        w.impulse_joints = s.impulse_joints;
+        w.multibody_joints = s.multibody_joints;
     }
 }

@@ -215,6 +215,73 @@ pub trait Renderer {
     fn readback_time(&self) -> std::time::Duration {
         std::time::Duration::ZERO
     }
+    /// Times every pass on its own from now on (`vtgen bench --per-pass`): each is submitted and
+    /// waited for before the next is recorded, which costs the overlap of recording and drawing,
+    /// so the whole is slower than without. The images are the same. False: this renderer has no
+    /// passes to time.
+    fn time_passes(&mut self) -> bool {
+        false
+    }
+    /// The passes' times since `time_passes`; None before it.
+    fn pass_times(&self) -> Option<PassTimes> {
+        None
+    }
+}
+
+/// Wall time per render pass (`Renderer::time_passes`), summed over the calls: each pass from its
+/// submission to the device's being idle again.
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct PassTimes {
+    /// Uniforms and textures written since the last submission (randomized looks), uploaded.
+    pub uploads: std::time::Duration,
+    /// The spotlight's shadow map (lit colour renders that cast shadows).
+    pub shadow_map: std::time::Duration,
+    /// The main camera's single-sample pass: colour, z-depth, mask and silhouette.
+    pub main_views: std::time::Duration,
+    /// The anti-aliased colour pass (`renderer.msaa: 4`).
+    pub main_msaa: std::time::Duration,
+    /// Instance-mask-only renders (the occlusion's unoccluded silhouette).
+    pub mask_views: std::time::Duration,
+    /// The depth views of the pads (and the other depth views) in their atlas.
+    pub depth_views: std::time::Duration,
+    /// Optical tactile shading on the GPU (compute).
+    pub optical_shading: std::time::Duration,
+    /// Copying the targets into readback buffers and mapping them.
+    pub copy_and_map: std::time::Duration,
+    /// Unpadding the mapped rows on the CPU (`readback_time`).
+    pub readback: std::time::Duration,
+}
+
+impl std::ops::AddAssign for PassTimes {
+    fn add_assign(&mut self, o: PassTimes) {
+        let PassTimes { uploads, shadow_map, main_views, main_msaa, mask_views, depth_views, optical_shading, copy_and_map, readback } = o;
+        self.uploads += uploads;
+        self.shadow_map += shadow_map;
+        self.main_views += main_views;
+        self.main_msaa += main_msaa;
+        self.mask_views += mask_views;
+        self.depth_views += depth_views;
+        self.optical_shading += optical_shading;
+        self.copy_and_map += copy_and_map;
+        self.readback += readback;
+    }
+}
+
+impl PassTimes {
+    /// (name, seconds) of every pass, in the order a sample runs them.
+    pub fn named(&self) -> [(&'static str, f64); 9] {
+        [
+            ("uploads", self.uploads.as_secs_f64()),
+            ("shadow map", self.shadow_map.as_secs_f64()),
+            ("main views", self.main_views.as_secs_f64()),
+            ("main colour msaa", self.main_msaa.as_secs_f64()),
+            ("mask views", self.mask_views.as_secs_f64()),
+            ("depth views", self.depth_views.as_secs_f64()),
+            ("optical shading", self.optical_shading.as_secs_f64()),
+            ("copy and map", self.copy_and_map.as_secs_f64()),
+            ("readback", self.readback.as_secs_f64()),
+        ]
+    }
 }
 
 /// Orthographic projection of a depth view: x right, y down (as OpenCV), z forward.

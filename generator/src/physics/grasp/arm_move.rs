@@ -141,7 +141,7 @@ impl Attempt<'_> {
                 // A move that drops the object or ends in a pose that cannot be recorded is undone
                 // (the arm then only takes moves that keep a recordable grasp): redoing one move
                 // costs far less than a fresh grasp and every instance before it.
-                self.physics.save();
+                let before = self.physics.save();
                 let move_start = self.physics.steps_taken();
                 let q_before = q.clone();
                 let logged = log.as_ref().map_or(0, |l| l.steps.len());
@@ -160,7 +160,7 @@ impl Attempt<'_> {
                 }
                 self.log.events.push(GraspEvent::Redone(redo));
                 self.redone_steps += self.physics.steps_taken() - move_start;
-                self.physics.restore();
+                self.physics.restore(&before);
                 q = q_before;
                 if let Some(log) = log.as_mut() {
                     log.steps.truncate(logged);

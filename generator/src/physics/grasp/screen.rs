@@ -92,7 +92,7 @@ impl Attempt<'_> {
         let physics = &mut *self.physics;
         let settled = rot(t_world_palm).inverse() * GRAVITY;
         let (n_turn, n_hold) = (ctx.steps(PROBE_TURN_SECONDS), ctx.steps(PROBE_HOLD_SECONDS));
-        physics.save();
+        let settled_state = physics.save();
         let mut passed = true;
         'probes: for g in ctx.probe_gravities() {
             let turn = DQuat::from_rotation_arc(settled.normalize(), g.normalize());
@@ -107,13 +107,13 @@ impl Attempt<'_> {
             }
             let drift = (physics.object_pose().translation - held.t_palm_object.translation).length();
             let touching = physics.touch_contacts().iter().filter(|c| c.is_some()).count();
-            physics.restore();
+            physics.restore(&settled_state);
             if drift > PROBE_MAX_DRIFT || touching < ctx.robot.min_touching {
                 passed = false;
                 break;
             }
         }
-        physics.restore();
+        physics.restore(&settled_state);
         passed
     }
 }

@@ -57,6 +57,8 @@ pub struct WgpuRenderer {
     msaa: u32,
     shadow: ShadowMap,
     tonemapping: ToneMapping,
+    /// Shadow-map comparisons per pixel (`renderer.shadow_taps`: 4 or 9).
+    shadow_taps: u32,
     material_layout: wgpu::BindGroupLayout,
     sampler: wgpu::Sampler,
     /// Frame uniforms (camera, light), one record per view of a submission.
@@ -70,6 +72,8 @@ pub struct WgpuRenderer {
     readback: std::time::Duration,
     /// The optical shading's compute pipelines, made on first use.
     optical: Option<optical::OpticalPipelines>,
+    /// Per-pass times, when timed (`Renderer::time_passes`).
+    pass_times: Option<crate::render::PassTimes>,
 }
 
 impl WgpuRenderer {
@@ -100,6 +104,7 @@ impl WgpuRenderer {
             msaa,
             shadow,
             tonemapping: cfg.tonemapping,
+            shadow_taps: cfg.shadow_taps,
             material_layout: layouts.material,
             sampler,
             frames,
@@ -108,6 +113,7 @@ impl WgpuRenderer {
             targets: [None, None],
             readback: std::time::Duration::ZERO,
             optical: None,
+            pass_times: None,
         })
     }
 }
@@ -119,6 +125,18 @@ fn mat(m: DMat4) -> [[f32; 4]; 4] {
 impl Renderer for WgpuRenderer {
     fn readback_time(&self) -> std::time::Duration {
         self.readback
+    }
+
+    fn time_passes(&mut self) -> bool {
+        self.pass_times.get_or_insert_default();
+        true
+    }
+
+    fn pass_times(&self) -> Option<crate::render::PassTimes> {
+        self.pass_times.map(|mut p| {
+            p.readback = self.readback;
+            p
+        })
     }
 
     fn describe(&self) -> String {

@@ -117,19 +117,47 @@ impl WgpuRenderer {
         let t = self.targets[sub.slot as usize].as_ref().expect("created above");
         let bg = lighting.background.map(|c| srgb_to_linear(c) as f64);
         let background = wgpu::Color { r: bg[0], g: bg[1], b: bg[2], a: 1.0 };
-        let mut enc = self.device.create_command_encoder(&Default::default());
+        // With pass timing (`Renderer::time_passes`): what is recorded so far is submitted and
+        // waited for, and its wall time charged to `field`; the next pass gets a fresh encoder.
+        let timing = self.pass_times.is_some();
+        let mut laps = crate::render::PassTimes::default();
+        let mut clock = std::time::Instant::now();
+        let mut lap = |enc: wgpu::CommandEncoder, field: &mut std::time::Duration| -> Result<wgpu::CommandEncoder> {
+            if !timing {
+                return Ok(enc);
+            }
+            self.queue.submit([enc.finish()]);
+            self.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| anyhow!("GPU wait failed: {e}"))?;
+            *field += clock.elapsed();
+            clock = std::time::Instant::now();
+            Ok(self.device.create_command_encoder(&Default::default()))
+        };
+        // The uniforms and any texture written since the last submission.
+        let mut enc = lap(self.device.create_command_encoder(&Default::default()), &mut laps.uploads)?;
         if let Some((t_world_light, light_proj)) = shadow {
             self.encode_shadow_pass(&mut enc, sub.views.len(), light_proj * t_world_light.inverse(), draws);
+            enc = lap(enc, &mut laps.shadow_map)?;
         }
         self.encode_view_pass(&mut enc, t, sub, draws, background);
+        enc = lap(
+            enc,
+            match sub.readback {
+                Readback::All => &mut laps.main_views,
+                Readback::Mask => &mut laps.mask_views,
+                Readback::Depth => &mut laps.depth_views,
+            },
+        )?;
         if let (Readback::All, Some(pipeline), Some(ms)) = (sub.readback, &self.pipelines.msaa, &t.msaa) {
             self.encode_msaa_pass(&mut enc, t, ms, pipeline, sub.views, draws, background);
+            enc = lap(enc, &mut laps.main_msaa)?;
         }
         let shading = match sub.optical {
             [] => None,
             jobs => {
                 let viewports: Vec<[u32; 4]> = sub.views.iter().map(|v| v.viewport).collect();
-                Some(self.encode_optical(&mut enc, &t.depth, &viewports, jobs)?)
+                let shading = self.encode_optical(&mut enc, &t.depth, &viewports, jobs)?;
+                enc = lap(enc, &mut laps.optical_shading)?;
+                Some(shading)
             }
         };
         let copies = copy_targets(&mut enc, t, sub.readback, w, h);
@@ -143,6 +171,9 @@ impl WgpuRenderer {
             });
         }
         self.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| anyhow!("GPU wait failed: {e}"))?;
+        if timing {
+            laps.copy_and_map += clock.elapsed();
+        }
         let t_read = std::time::Instant::now();
         let read = |buf: &wgpu::Buffer, bpp: u32| -> Result<Vec<u8>> { read_unpadded(buf, w * bpp, h) };
         let rb = &t.readback;
@@ -168,6 +199,9 @@ impl WgpuRenderer {
             shading.readback.unmap();
         }
         self.readback += t_read.elapsed();
+        if let Some(times) = self.pass_times.as_mut() {
+            *times += laps;
+        }
         Ok(out)
     }
 
@@ -203,7 +237,7 @@ impl WgpuRenderer {
                     (outer * lighting.softness.clamp(0.0, 0.999)).cos() as f32,
                     texel as f32,
                     (self.tonemapping == ToneMapping::Aces) as u8 as f32,
-                    0.0,
+                    (self.shadow_taps == 4) as u8 as f32,
                 ],
                 up: [up.x as f32, up.y as f32, up.z as f32, 0.0],
                 shadow_vp: mat(shadow_vp),
