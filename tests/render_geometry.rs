@@ -283,7 +283,11 @@ fn a_box_casts_its_shadow_where_geometry_puts_it() {
     // 33 239 here).
     let away: Vec<f64> = diff.iter().enumerate().filter(|(i, _)| clear[*i]).map(|(_, d)| *d).collect();
     let away_over_1 = away.iter().filter(|&&d| d > 1.0).count();
-    assert!(away_over_1 * 200 < away.len(), "{away_over_1} of {} floor pixels away from the shadow's edge differ by more than a level", away.len());
+    assert!(
+        away_over_1 * 200 < away.len(),
+        "{away_over_1} of {} floor pixels away from the shadow's edge differ by more than a level",
+        away.len()
+    );
     diff.sort_by(f64::total_cmp);
     let mean = diff.iter().sum::<f64>() / diff.len() as f64;
     let (p999, max) = (diff[diff.len() * 999 / 1000], diff[diff.len() - 1]);
@@ -422,12 +426,7 @@ fn timing_the_passes_one_by_one_changes_no_pixel_and_times_each_pass_run() {
             near: 0.0,
             far: 0.1,
             // Looking straight down (z forward = -Z), x along X, y along -Y.
-            t_world_camera: DMat4::from_cols(
-                glam::DVec4::X,
-                glam::DVec4::NEG_Y,
-                glam::DVec4::NEG_Z,
-                glam::DVec4::new(0.0, 0.0, 0.27, 1.0),
-            ),
+            t_world_camera: DMat4::from_cols(glam::DVec4::X, glam::DVec4::NEG_Y, glam::DVec4::NEG_Z, glam::DVec4::new(0.0, 0.0, 0.27, 1.0)),
             perspective_standoff: None,
         };
         let depths = r.render_depth_views(&[pad; 12], &draws).unwrap();
