@@ -13,12 +13,6 @@ pub struct RendererConfig {
     pub adapter: Option<String>,
     /// Side of the spotlight's shadow map in texels (256–8192).
     pub shadow_map_size: u32,
-    /// Shadow-map comparisons per shaded pixel (percentage-closer filtering, each a bilinear 2x2
-    /// comparison): 4 (default) or 9, the 3x3 kernel of earlier versions. 4 draws the main view
-    /// about 8% faster on lavapipe with the same shadows to within a few levels at their edges
-    /// (docs/rendering.md).
-    #[serde(skip_serializing_if = "is_default_shadow_taps")]
-    pub shadow_taps: u32,
     /// Tone mapping of the linear colour before sRGB encoding: `none` (clamp) or `aces` (filmic).
     #[serde(default)]
     pub tonemapping: ToneMapping,
@@ -29,32 +23,16 @@ pub struct RendererConfig {
 
 impl Default for RendererConfig {
     fn default() -> Self {
-        RendererConfig {
-            backend: Backend::Auto,
-            adapter: None,
-            shadow_map_size: 1024,
-            shadow_taps: DEFAULT_SHADOW_TAPS,
-            tonemapping: ToneMapping::None,
-            msaa: 1,
-        }
+        RendererConfig { backend: Backend::Auto, adapter: None, shadow_map_size: 1024, tonemapping: ToneMapping::None, msaa: 1 }
     }
 }
 
-const DEFAULT_SHADOW_TAPS: u32 = 4;
-
-fn is_default_shadow_taps(taps: &u32) -> bool {
-    *taps == DEFAULT_SHADOW_TAPS
-}
-
 impl Check for RendererConfig {
-    /// Shadow map size and filter, anti-aliasing.
+    /// Shadow map size, anti-aliasing.
     fn check(&self, c: &mut Checks) {
         c.range(field!(self.shadow_map_size), 256, 8192);
         if ![1, 4].contains(&self.msaa) {
             c.key(key!(self.msaa)).fail(format!("{} is not supported: use 1 (off) or 4", self.msaa));
-        }
-        if ![4, 9].contains(&self.shadow_taps) {
-            c.key(key!(self.shadow_taps)).fail(format!("{} is not supported: use 4 or 9", self.shadow_taps));
         }
     }
 }

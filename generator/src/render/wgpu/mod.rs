@@ -57,8 +57,6 @@ pub struct WgpuRenderer {
     msaa: u32,
     shadow: ShadowMap,
     tonemapping: ToneMapping,
-    /// Shadow-map comparisons per pixel (`renderer.shadow_taps`: 4 or 9).
-    shadow_taps: u32,
     material_layout: wgpu::BindGroupLayout,
     sampler: wgpu::Sampler,
     /// Frame uniforms (camera, light), one record per view of a submission.
@@ -104,7 +102,6 @@ impl WgpuRenderer {
             msaa,
             shadow,
             tonemapping: cfg.tonemapping,
-            shadow_taps: cfg.shadow_taps,
             material_layout: layouts.material,
             sampler,
             frames,

@@ -237,7 +237,7 @@ impl WgpuRenderer {
                     (outer * lighting.softness.clamp(0.0, 0.999)).cos() as f32,
                     texel as f32,
                     (self.tonemapping == ToneMapping::Aces) as u8 as f32,
-                    (self.shadow_taps == 4) as u8 as f32,
+                    0.0,
                 ],
                 up: [up.x as f32, up.y as f32, up.z as f32, 0.0],
                 shadow_vp: mat(shadow_vp),

@@ -74,13 +74,10 @@ struct FsOut {
     @location(3) silhouette: u32,
 };
 
-// Share of the PCF kernel (each tap a bilinear 2x2 comparison) lit by the spotlight: 3x3 taps
-// 1.5 texels apart, or (`renderer.shadow_taps: 4`, `frame.spot.w` = 1) 2x2 taps 2.5 texels apart,
-// whose spread (1.56 texel^2 each way) is the 3x3's (1.5) with under half the lookups. The
-// lookup point is pushed off the surface along the light-facing normal by ~1.5 shadow texels
-// (normal-offset bias: no acne on surfaces grazing the light), which together with the small
-// slope-scaled bias of the shadow pass keeps contact shadows attached (no peter-panning at the
-// finger-object contacts).
+// Share of a 3x3 PCF kernel (each tap a bilinear 2x2 comparison) lit by the spotlight. The lookup point is pushed off the surface
+// along the light-facing normal by ~1.5 shadow texels (normal-offset bias: no acne on surfaces
+// grazing the light), which together with the small slope-scaled bias of the shadow pass keeps
+// contact shadows attached (no peter-panning at the finger-object contacts).
 fn shadow_factor(cam_pos: vec3<f32>, n_light: vec3<f32>, dist: f32) -> f32 {
     let texel = frame.spot.y * dist;
     let p = frame.shadow_vp * vec4<f32>(cam_pos + n_light * (1.5 * texel), 1.0);
@@ -93,15 +90,6 @@ fn shadow_factor(cam_pos: vec3<f32>, n_light: vec3<f32>, dist: f32) -> f32 {
         return 1.0;
     }
     let size = vec2<f32>(textureDimensions(shadow_map));
-    if (frame.spot.w > 0.5) {
-        var lit4 = 0.0;
-        for (var dy = -1; dy <= 1; dy += 2) {
-            for (var dx = -1; dx <= 1; dx += 2) {
-                lit4 += textureSampleCompareLevel(shadow_map, shadow_sampler, uv + vec2<f32>(f32(dx), f32(dy)) * (1.25 / size), ndc.z);
-            }
-        }
-        return lit4 / 4.0;
-    }
     var lit = 0.0;
     for (var dy = -1; dy <= 1; dy++) {
         for (var dx = -1; dx <= 1; dx++) {
