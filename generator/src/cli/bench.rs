@@ -93,8 +93,9 @@ pub struct BenchReport {
     /// away. Objects without a kept trajectory are left out.
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
     pub attempts_per_kept: BTreeMap<String, f64>,
-    /// `--per-pass`: seconds per render pass, summed over the samples and workers, each pass
-    /// timed on its own (submitted and waited for), in the order a sample runs them.
+    /// `--per-pass`: seconds per render pass by the pass's name, summed over the samples and
+    /// workers, each pass timed on its own (submitted and waited for); passes that never ran are
+    /// left out.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub render_passes: Option<BTreeMap<String, f64>>,
 }
@@ -330,7 +331,7 @@ fn bench_trajectory(
 }
 
 /// What `vtgen bench` runs and what it reports besides the stages.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone)]
 pub struct BenchOptions {
     /// Samples (whole trajectories, objects in turn) and parallel workers.
     pub samples: u64,

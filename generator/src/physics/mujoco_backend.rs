@@ -43,8 +43,6 @@ pub struct MujocoHand {
     sim: Option<Sim>,
     damping: (f64, f64),
     mass: f64,
-    /// The state `save` took (MuJoCo's integration state: time, qpos, qvel, act, controls, warm
-    /// start, applied forces) and the gravity then.
     steps: u64,
 }
 
@@ -405,6 +403,8 @@ impl HandPhysics for MujocoHand {
             .max_by(|a, b| a.1.total_cmp(&b.1))
     }
 
+    /// MuJoCo's integration state (time, qpos, qvel, act, controls, warm start, applied forces)
+    /// and the gravity.
     fn save(&self) -> SavedState {
         let sim = self.sim();
         SavedState::new((sim.data.state(FULL_STATE), sim.data.model_opt().gravity))

@@ -230,7 +230,7 @@ pub trait Renderer {
 
 /// Wall time per render pass (`Renderer::time_passes`), summed over the calls: each pass from its
 /// submission to the device's being idle again.
-#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct PassTimes {
     /// Uniforms and textures written since the last submission (randomized looks), uploaded.
     pub uploads: std::time::Duration,
