@@ -157,8 +157,9 @@ impl FingerMotionConfig {
 /// `speed_deg_s`, each in its `direction` (+1 or -1), until the object has turned by a target
 /// drawn from `step_deg` about `axis` (palm frame); the joints then hold for `hold_seconds` and
 /// the next step begins, in the same sense, until a joint has moved `max_deg` or the window's last
-/// `hold_seconds`. An object that turns the other way reverses every joint's direction once. The
-/// joints then return to their grasp targets with the window. Each arm move takes `seconds` longer.
+/// `hold_seconds`, or, with `regrasp`, re-places the fingers and goes on. An object that turns the
+/// other way reverses every joint's direction once. The joints keep their last targets to the
+/// window's end (the turn is kept). Each arm move takes `seconds` longer.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct FingerRollConfig {
@@ -176,6 +177,69 @@ pub struct FingerRollConfig {
     #[serde(default = "default_roll_hold")]
     pub hold_seconds: f64,
     pub joints: Vec<FingerRollJoint>,
+    /// Finger gaiting: when a joint has moved `max_deg`, each listed joint's finger in turn lifts
+    /// off, moves its joint back to the grasp target and is placed again, and the roll goes on.
+    /// Left out: the roll ends there.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub regrasp: Option<RegraspConfig>,
+}
+
+/// `sampling.record.finger_roll.regrasp`: how a finger is lifted and placed again. A finger (the
+/// listed joint and the hand joints above and below it) is lifted only while touch links of other
+/// fingers hold the object, and is put back at once when the object moves in the hand during
+/// its lift.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RegraspConfig {
+    /// How far the finger's other joints open from where they stand (degrees).
+    #[serde(default = "default_lift_deg")]
+    pub lift_deg: f64,
+    /// The lift, the listed joint's return and the placing (s each).
+    #[serde(default = "default_lift_seconds")]
+    pub lift_seconds: f64,
+    #[serde(default = "default_return_seconds")]
+    pub return_seconds: f64,
+    #[serde(default = "default_lift_seconds")]
+    pub place_seconds: f64,
+    /// The object's motion in the palm during a lift that puts the finger back (mm, degrees).
+    #[serde(default = "default_max_slip_mm")]
+    pub max_slip_mm: f64,
+    #[serde(default = "default_max_slip_deg")]
+    pub max_slip_deg: f64,
+}
+
+fn default_lift_deg() -> f64 {
+    25.0
+}
+fn default_lift_seconds() -> f64 {
+    0.15
+}
+fn default_return_seconds() -> f64 {
+    0.2
+}
+fn default_max_slip_mm() -> f64 {
+    10.0
+}
+fn default_max_slip_deg() -> f64 {
+    10.0
+}
+
+impl RegraspConfig {
+    /// Physics steps of the lift, the return and the placing at `timestep`.
+    pub fn steps(&self, timestep: f64) -> [usize; 3] {
+        [self.lift_seconds, self.return_seconds, self.place_seconds].map(|s| (s / timestep).round().max(1.0) as usize)
+    }
+}
+
+impl Check for RegraspConfig {
+    fn check(&self, c: &mut Checks) {
+        c.positive(field!(self.lift_deg), 90.0, "degrees");
+        c.positive(field!(self.lift_seconds), 10.0, "s");
+        c.positive(field!(self.return_seconds), 10.0, "s");
+        c.positive(field!(self.place_seconds), 10.0, "s");
+        c.positive(field!(self.max_slip_mm), 100.0, "mm");
+        c.positive(field!(self.max_slip_deg), 180.0, "degrees");
+    }
 }
 
 fn default_roll_seconds() -> f64 {
@@ -233,6 +297,9 @@ impl Check for FingerRollConfig {
         for (i, j) in self.joints.iter().enumerate() {
             let mut joints = c.key(joints_key);
             joints.index(i).range(field!(j.direction), -1.0, 1.0);
+        }
+        if let Some(r) = &self.regrasp {
+            r.check(&mut c.key(key!(self.regrasp)));
         }
     }
 }

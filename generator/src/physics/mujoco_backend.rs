@@ -10,7 +10,7 @@ use std::fmt::Write as _;
 use anyhow::{Context, Result, anyhow};
 use glam::{DAffine3, DQuat, DVec3};
 use mujoco_rs::prelude::*;
-use vt_robot::{Geometry, Robot, RobotModel};
+use vt_robot::{Geometry, PadContact, Robot, RobotModel};
 
 use super::hand_assembly::{Drive, HandAssembly, SimJoint};
 use super::{HandContact, HandPhysics, PhysicsObject, PhysicsSettings, SavedState};
@@ -33,6 +33,16 @@ struct Sim {
     hand_geoms: Vec<usize>,
     /// Each hand link with collision geometry and its geoms.
     link_geoms: Vec<(usize, Vec<usize>)>,
+    /// Every hand geom with the skin its contacts have (`contact_skin`).
+    skins: Vec<GeomSkin>,
+}
+
+/// A hand geom's skin: what sizes the patch of its contacts, so their torsional friction.
+struct GeomSkin {
+    geom: usize,
+    skin: PadContact,
+    /// Half the pad's width, where the description gives its size (m).
+    max_radius: Option<f64>,
 }
 
 pub struct MujocoHand {
@@ -62,7 +72,7 @@ fn pos_quat(t: &DAffine3) -> String {
 
 /// MuJoCo's soft contacts let a held object creep under a steady load (measured with the arm
 /// still: 1 of 12 grasps within 1 mm and 1° over 10 s, the rest 1 to 7 mm). Its noslip solver pass
-/// removes it: 10 iterations left 8 of 12 still, 50 with the torsional friction below all 12
+/// removes it: 10 iterations left 8 of 12 still, 50 with torsional friction 0.02 all 12
 /// (within 0.53 mm and 0.31°; `tests/grasping.rs`) for 3–5 % more physics time (`vtgen bench`).
 /// 30 iterations, or 50 with torsional friction 0.01, left one or two grasps pivoting.
 const NOSLIP_ITERATIONS: u32 = 50;
@@ -70,9 +80,34 @@ const NOSLIP_ITERATIONS: u32 = 50;
 /// The armature of a hand joint (kg·m² or kg) unless its drive needs more (`write_children`).
 const DEFAULT_ARMATURE: f64 = 0.0005;
 
-/// Torsional friction coefficient (condim 4): resistance to spinning about the contact normal,
-/// what keeps an object held by two opposed pads from pivoting between them.
-const TORSIONAL_FRICTION: f64 = 0.02;
+/// The skin of a hand link that is no pad: rigid plastic or metal (E about 2 GPa), whose contact
+/// patch is a fraction of a millimetre.
+const RIGID_SKIN: PadContact = PadContact { modulus_mpa: 2000.0, crown_radius_mm: 20.0 };
+
+/// A contact's torsional friction (MuJoCo's spin coefficient, m: the largest torque about the
+/// normal is it times the normal force) for a Hertzian patch of radius `a` under Coulomb friction
+/// `mu`: the integral of `mu·p(r)·r` over the patch, `3π/16 · mu · a` (Johnson, Contact
+/// Mechanics, §7.4). MuJoCo's contacts are points, so without it nothing resists an object's
+/// spin between two opposed pads; with one constant it is the same for a soft pad eased to 1 N
+/// as for a rigid link pressing 30 N.
+fn torsional_friction(mu: f64, a: f64) -> f64 {
+    3.0 * std::f64::consts::PI / 16.0 * mu * a
+}
+
+/// The skin of each hand link's geoms: the description's pad's on a pad's link (the first pad on
+/// it, whose half width bounds the patch), rigid on the others.
+fn hand_skins(robot: &Robot, link_geoms: &[(usize, Vec<usize>)]) -> Vec<GeomSkin> {
+    let sizes = robot.pad_sizes();
+    let mut skins = Vec::new();
+    for (link, geoms) in link_geoms {
+        let (skin, max_radius) = match robot.pads.iter().position(|p| p.link == *link) {
+            Some(i) => (robot.pads[i].contact, Some(sizes[i].0.min(sizes[i].1) / 2.0)),
+            None => (RIGID_SKIN, None),
+        };
+        skins.extend(geoms.iter().map(|&geom| GeomSkin { geom, skin, max_radius }));
+    }
+    skins
+}
 
 /// The real hand's links collide as the convex hulls of their meshes: one `<mesh>` asset per hull
 /// shape, named `<link>_<shape index>` (MuJoCo takes the hull of a mesh's vertices for collision).
@@ -112,9 +147,9 @@ impl MujocoHand {
             x,
             r#"<mujoco model="vtgen-hand"><compiler angle="radian" autolimits="true"/>
 <option timestep="{}" gravity="0 0 0" integrator="implicitfast" cone="elliptic" impratio="10" noslip_iterations="{}"/>
-<default><geom friction="{} {} 0.0001" condim="4" solref="0.01 1" solimp="0.99 0.999 0.0005"/></default>
+<default><geom friction="{} 0 0.0001" condim="4" solref="0.01 1" solimp="0.99 0.999 0.0005"/></default>
 <asset><mesh name="object" vertex=""#,
-            s.timestep, NOSLIP_ITERATIONS, s.friction, TORSIONAL_FRICTION
+            s.timestep, NOSLIP_ITERATIONS, s.friction
         );
         for p in &object.points {
             let _ = write!(x, "{} {} {} ", p[0], p[1], p[2]);
@@ -161,7 +196,9 @@ impl MujocoHand {
     }
 
     /// The geoms of body `b`'s colliders. Hand geoms collide with the object only (contype 1 /
-    /// conaffinity 2, the object 2 / 1), and have no mass: the body's is the assembly's.
+    /// conaffinity 2, the object 2 / 1), and have no mass: the body's is the assembly's. Their
+    /// priority makes a contact take the hand geom's friction, whose torsional part `step` sets
+    /// from the geom's skin and load.
     fn write_geoms(&self, x: &mut String, b: usize) {
         let m = &self.robot.model;
         for c in self.assembly.colliders.iter().filter(|c| c.body == b) {
@@ -172,7 +209,7 @@ impl MujocoHand {
                 Geometry::Cylinder { radius, length } => ("cylinder", format!(r#"size="{radius} {}""#, length / 2.0)),
                 Geometry::ConvexHull { .. } | Geometry::Mesh { .. } => ("mesh", format!(r#"mesh="{name}""#)),
             };
-            let _ = write!(x, r#"<geom name="{name}" type="{kind}" {size} {} contype="1" conaffinity="2" mass="0"/>"#, pos_quat(&c.pose));
+            let _ = write!(x, r#"<geom name="{name}" type="{kind}" {size} {} contype="1" conaffinity="2" priority="1" mass="0"/>"#, pos_quat(&c.pose));
         }
     }
 
@@ -250,7 +287,8 @@ impl MujocoHand {
         let link_geoms = (0..self.robot.model.links.len())
             .map(|l| (l, geom_of_link(&self.robot.model.links[l].name)))
             .filter(|(_, g)| !g.is_empty())
-            .collect();
+            .collect::<Vec<_>>();
+        let skins = hand_skins(&self.robot, &link_geoms);
         let data = MjData::new(Box::new(model));
         self.sim = Some(Sim {
             data,
@@ -265,6 +303,7 @@ impl MujocoHand {
             touch_geoms,
             hand_geoms,
             link_geoms,
+            skins,
         });
         Ok(())
     }
@@ -281,6 +320,38 @@ impl MujocoHand {
             let hit = (a == sim.object_geom && geoms.contains(&b)) || (b == sim.object_geom && geoms.contains(&a));
             (hit && c.dist < 1e-3).then_some(c.dist)
         })
+    }
+}
+
+impl Sim {
+    /// The torsional friction each hand geom's contacts have in the next step: its skin's patch
+    /// under the normal force the object put on it in this one (all its contacts together, so
+    /// their torsional torques add up to the patch's).
+    fn size_patches(&mut self, mu: f64) {
+        let mut normal = vec![0.0; self.skins.len()];
+        for (i, c) in self.data.contact().iter().enumerate() {
+            let (a, b) = (c.geom[0] as usize, c.geom[1] as usize);
+            let hand_geom = if a == self.object_geom { b } else if b == self.object_geom { a } else { continue };
+            if let Some(k) = self.skins.iter().position(|s| s.geom == hand_geom) {
+                normal[k] += self.data.contact_force(i)[0].max(0.0);
+            }
+        }
+        let spin: Vec<f64> = self.skins.iter().zip(&normal).map(|(s, &n)| torsional_friction(mu, s.skin.patch_radius(n, s.max_radius))).collect();
+        self.set_spin(&spin);
+    }
+
+    /// Each hand geom's torsional friction coefficient, in `skins` order.
+    fn spin(&self) -> Vec<f64> {
+        let friction = self.data.model().geom_friction();
+        self.skins.iter().map(|s| friction[s.geom][1]).collect()
+    }
+
+    fn set_spin(&mut self, spin: &[f64]) {
+        // Only values of existing geoms change: no size, index or address of the model.
+        let friction = unsafe { self.data.model_mut() }.geom_friction_mut();
+        for (s, &v) in self.skins.iter().zip(spin) {
+            friction[s.geom][1] = v;
+        }
     }
 }
 
@@ -309,6 +380,8 @@ impl HandPhysics for MujocoHand {
         for (&a, &v) in sim.hand_actuators.iter().zip(q) {
             ctrl[a] = v;
         }
+        // No load yet: the patches are points until the first step sizes them.
+        sim.set_spin(&vec![0.0; sim.skins.len()]);
         sim.data.forward();
         Ok(())
     }
@@ -342,6 +415,7 @@ impl HandPhysics for MujocoHand {
             f[d + 3 + i] = -ang * mass * 0.0025 * v[3 + i];
         }
         sim.data.step();
+        sim.size_patches(self.settings.friction);
         self.steps += 1;
     }
 
@@ -403,16 +477,17 @@ impl HandPhysics for MujocoHand {
             .max_by(|a, b| a.1.total_cmp(&b.1))
     }
 
-    /// MuJoCo's integration state (time, qpos, qvel, act, controls, warm start, applied forces)
-    /// and the gravity.
+    /// MuJoCo's integration state (time, qpos, qvel, act, controls, warm start, applied forces),
+    /// the gravity and the hand geoms' torsional friction (sized by the last step's loads).
     fn save(&self) -> SavedState {
         let sim = self.sim();
-        SavedState::new((sim.data.state(FULL_STATE), sim.data.model_opt().gravity))
+        SavedState::new((sim.data.state(FULL_STATE), sim.data.model_opt().gravity, sim.spin()))
     }
 
     fn restore(&mut self, state: &SavedState) {
-        let (state, gravity) = state.get::<(Box<[f64]>, [f64; 3])>();
+        let (state, gravity, spin) = state.get::<(Box<[f64]>, [f64; 3], Vec<f64>)>();
         let sim = self.sim.as_mut().expect("built");
+        sim.set_spin(spin);
         // The buffer came from `save` on this model (the grasp loop saves again after each
         // reset), so it has the size mj_setState expects.
         sim.data.set_state(state, FULL_STATE).expect("a state saved from the same model");

@@ -234,6 +234,38 @@ pub struct PadSpec {
     /// One label (the key older descriptions used for it).
     #[serde(default)]
     pub group: Option<String>,
+    /// What the pad's skin is (default: `PadContact::default()`, a soft elastomer).
+    #[serde(default)]
+    pub contact: Option<PadContact>,
+}
+
+/// A pad's skin as its contacts see it: what sets the size of a contact patch under a load
+/// (Hertz: radius `(3 N R / 4 E*)^(1/3)`). Physics backends whose contacts are single points give
+/// each pad's contacts the torsional friction of that patch; a rigid link's patch is a point.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PadContact {
+    /// Effective modulus `E* = E / (1 - ν²)` of the skin against a rigid object (MPa).
+    pub modulus_mpa: f64,
+    /// Radius of curvature of the skin's surface where it touches (mm).
+    pub crown_radius_mm: f64,
+}
+
+impl Default for PadContact {
+    /// A soft silicone skin, as on gel-based sensors (E about 0.3 MPa, ν about 0.5), domed with
+    /// a 20 mm radius.
+    fn default() -> Self {
+        PadContact { modulus_mpa: 0.4, crown_radius_mm: 20.0 }
+    }
+}
+
+impl PadContact {
+    /// The radius (m) of the patch a normal force `normal` (N) presses, at most `max_radius` (the
+    /// pad's half width, where it is known).
+    pub fn patch_radius(&self, normal: f64, max_radius: Option<f64>) -> f64 {
+        let a = (3.0 * normal.max(0.0) * self.crown_radius_mm * 1e-3 / (4.0 * self.modulus_mpa * 1e6)).cbrt();
+        max_radius.map_or(a, |m| a.min(m))
+    }
 }
 
 #[derive(Debug, Clone, Copy, Deserialize)]
@@ -273,6 +305,7 @@ pub struct Pad {
     pub size: Option<(f64, f64)>,
     /// The description's labels of the pad (sensor rules select pads by name or label).
     pub labels: Vec<String>,
+    pub contact: PadContact,
 }
 
 impl Pad {

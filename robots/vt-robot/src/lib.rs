@@ -15,7 +15,7 @@ mod resolve;
 
 pub use description::{
     BUILTIN_ROBOTS, Decomposition, DecompositionSpec, Description, GraspKind, HandCollision, HandJoint, PRISMATIC_DAMPING_TIME,
-    PRISMATIC_FULL_FORCE_ERROR, Pad, Robot, builtin_description, builtin_urdf,
+    PRISMATIC_FULL_FORCE_ERROR, Pad, PadContact, Robot, builtin_description, builtin_urdf,
 };
 pub use ik::IkOptions;
 pub use mesh::{MeshPaths, TriangleMesh};

@@ -420,7 +420,7 @@ fn a_pads_default_size_runs_along_its_own_axes() {
         .add_fixed_link(finger, "tip_pad", xyz_rpy([0.0, 0.01, 0.0], [0.0, -std::f64::consts::FRAC_PI_2, std::f64::consts::FRAC_PI_2]))
         .unwrap();
     robot.model = model;
-    robot.pads = vec![Pad { name: "tip".into(), link: finger, frame, size: None, labels: Vec::new() }];
+    robot.pads = vec![Pad { name: "tip".into(), link: finger, frame, size: None, labels: Vec::new(), contact: Default::default() }];
     let (len, wid) = robot.pad_sizes()[0];
     assert!((len - 0.03).abs() < 1e-12 && (wid - 0.01).abs() < 1e-12, "{len} {wid}");
     // The Allegro's pads keep their sizes: box z by box y, plus the tip sphere on the distal ones.

@@ -1,9 +1,10 @@
 //! The closed-loop finger roll (episodes, hands): after an arm move, the arm stands still while
 //! the listed hand joints move from their grasp targets until the object has turned by a drawn
 //! target about a chosen axis, then hold; step after step in the same sense, until a joint has
-//! moved its most (`sampling.record.finger_roll`).
+//! moved its most (`sampling.record.finger_roll`). With `regrasp`, the fingers are then lifted,
+//! moved back and placed again one at a time, and the roll goes on: finger gaiting.
 
-use glam::DVec3;
+use glam::{DQuat, DVec3};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
@@ -30,12 +31,80 @@ pub struct RollControl {
     pub max: f64,
     /// (hand joint index, direction).
     pub joints: Vec<(usize, f64)>,
+    pub regrasp: Option<Regrasp>,
+}
+
+/// `finger_roll.regrasp` resolved: how each listed joint's finger is lifted and placed again.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Regrasp {
+    /// How far the finger's other joints open (rad).
+    pub lift: f64,
+    /// Physics steps of the lift, the listed joint's return and the placing.
+    pub phase_steps: [usize; 3],
+    /// The object's motion in the palm during a lift that puts the finger back (m, rad).
+    pub max_slip: f64,
+    pub max_slip_angle: f64,
+    /// One per listed joint, in `RollControl::joints` order.
+    pub fingers: Vec<Finger>,
+}
+
+/// The finger of a listed joint.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Finger {
+    /// The finger's other hand joints that close on the object, each with the sign of its
+    /// opening (towards its preshape, away from its closing target).
+    pub lifting: Vec<(usize, f64)>,
+    /// Its touch links (indices in `Robot::touch_links`).
+    pub touch: Vec<usize>,
+}
+
+impl Regrasp {
+    fn of(r: &crate::config::RegraspConfig, robot: &vt_robot::Robot, joints: &[(usize, f64)], timestep: f64) -> Self {
+        let m = &robot.model;
+        let child = |h: usize| m.joints[robot.hand[h].joint].child;
+        let fingers = joints
+            .iter()
+            .map(|&(listed, _)| {
+                // The finger: the hand joints on the listed joint's chain, above and below it; its
+                // links hang from the highest of them.
+                let chain: Vec<usize> = (0..robot.hand.len())
+                    .filter(|&h| m.is_below(child(h), child(listed)) || m.is_below(child(listed), child(h)))
+                    .collect();
+                let top = chain.iter().copied().find(|&h| chain.iter().all(|&o| m.is_below(child(o), child(h)))).unwrap_or(listed);
+                let lifting = chain
+                    .iter()
+                    .filter(|&&h| h != listed)
+                    .filter_map(|&h| {
+                        let j = &robot.hand[h];
+                        let close = j.close?;
+                        let open = 0.5 * (j.preshape.0 + j.preshape.1);
+                        Some((h, (open - close).signum()))
+                    })
+                    .collect();
+                let touch = robot.touch_links.iter().enumerate().filter(|&(_, &l)| m.is_below(l, child(top))).map(|(i, _)| i).collect();
+                Finger { lifting, touch }
+            })
+            .collect();
+        Regrasp {
+            lift: r.lift_deg.to_radians(),
+            phase_steps: r.steps(timestep),
+            max_slip: r.max_slip_mm * 1e-3,
+            max_slip_angle: r.max_slip_deg.to_radians(),
+            fingers,
+        }
+    }
+
+    /// Physics steps one finger's re-placement takes.
+    fn finger_steps(&self) -> usize {
+        self.phase_steps.iter().sum()
+    }
 }
 
 impl RollControl {
     /// The configured roll for `robot` at `timestep` (its joints are checked at load).
     pub fn of(roll: &crate::config::FingerRollConfig, robot: &vt_robot::Robot, timestep: f64) -> Self {
-        let joints = roll.joints.iter().filter_map(|j| Some((robot.hand.iter().position(|h| h.name == j.joint)?, j.direction))).collect();
+        let joints: Vec<(usize, f64)> =
+            roll.joints.iter().filter_map(|j| Some((robot.hand.iter().position(|h| h.name == j.joint)?, j.direction))).collect();
         RollControl {
             steps: roll.steps(timestep),
             hold_steps: (roll.hold_seconds / timestep).round().max(1.0) as usize,
@@ -43,63 +112,188 @@ impl RollControl {
             step: (roll.step_deg.0.to_radians(), roll.step_deg.1.to_radians()),
             speed: roll.speed_deg_s.to_radians(),
             max: roll.max_deg.to_radians(),
+            regrasp: roll.regrasp.as_ref().map(|r| Regrasp::of(r, robot, &joints, timestep)),
             joints,
         }
     }
 }
 
+/// A finger's re-placement that did not happen, or was taken back.
+#[derive(Debug, PartialEq)]
+enum Replaced {
+    Done,
+    /// The other fingers did not hold the object: the finger stays (or is put back) where it was.
+    Refused,
+    /// The object fell out of the hand.
+    Lost,
+}
+
+/// The roll window's running state: its step count and the hand's targets.
+struct Window<'a> {
+    q: &'a [f64],
+    grasp_targets: &'a [f64],
+    targets: Vec<f64>,
+    k: usize,
+}
+
 impl Attempt<'_> {
+    /// One step of the window at its current targets. False when the object falls out of the hand.
+    fn window_step(&mut self, w: &mut Window, log: Option<&mut StepLog>) -> bool {
+        w.k += 1;
+        self.step_hand(&w.targets, w.grasp_targets, w.q, log)
+    }
+
     /// The finger roll's window, the arm still at `q`. False when the object falls out of the hand.
+    /// The joints keep their last targets to the window's end: the turn made is kept.
     pub(super) fn roll_fingers(&mut self, q: &[f64], grasp_targets: &[f64], rng: &mut ChaCha8Rng, mut log: Option<&mut StepLog>) -> bool {
         let ctx = self.ctx;
         let Some(control) = &ctx.finger_roll else { return true };
         let draw = |rng: &mut ChaCha8Rng| rng.random_range(control.step.0..=control.step.1);
         let per_step = control.speed * ctx.timestep;
-        let (mut moved, mut sense, mut reversed) = (0.0f64, 1.0, false);
-        let mut step_start = rot(&self.physics.object_pose());
-        let (mut target, mut turned, mut hold_until) = (draw(rng), 0.0f64, None::<usize>);
-        let mut done = false;
-        for k in 0..control.steps {
-            let closing = k + control.hold_steps >= control.steps;
-            let rolling = !done && !closing && hold_until.is_none_or(|h| k >= h);
-            if rolling && hold_until.is_some() {
-                // The next step, from here.
-                (hold_until, target, turned) = (None, draw(rng), 0.0);
-                step_start = rot(&self.physics.object_pose());
-            }
-            if rolling {
-                moved += per_step;
-                if moved >= control.max {
-                    done = true;
+        let mut w = Window { q, grasp_targets, targets: grasp_targets.to_vec(), k: 0 };
+        // Each listed joint's move from its grasp target (rad, in its direction and the sense).
+        let mut moved = vec![0.0f64; control.joints.len()];
+        let (mut sense, mut reversed, mut rolling) = (1.0, false, true);
+        let last = control.steps - control.hold_steps;
+        while rolling && w.k < last {
+            let (target, step_start) = (draw(rng), rot(&self.physics.object_pose()));
+            let mut turned = 0.0f64;
+            loop {
+                if w.k >= last {
+                    break;
+                }
+                if moved.iter().any(|&m| m >= control.max) {
+                    let Some(regrasp) = &control.regrasp else {
+                        rolling = false;
+                        break;
+                    };
+                    match self.replace_fingers(regrasp, control, &mut moved, &mut w, last, log.as_deref_mut()) {
+                        Replaced::Done => continue,
+                        Replaced::Refused => {
+                            rolling = false;
+                            break;
+                        }
+                        Replaced::Lost => return false,
+                    }
+                }
+                for (m, &(j, direction)) in moved.iter_mut().zip(&control.joints) {
+                    *m += per_step;
+                    w.targets[j] = grasp_targets[j] + sense * direction * *m;
+                }
+                if !self.window_step(&mut w, log.as_deref_mut()) {
+                    return false;
+                }
+                let now = twist_angle(rot(&self.physics.object_pose()) * step_start.inverse(), control.axis);
+                let speed = (now - turned).abs() / ctx.timestep;
+                turned = now;
+                if !reversed && now < -WRONG_WAY {
+                    // The joints turn the object the other way: every direction reverses, from
+                    // where they stand.
+                    (sense, reversed) = (-sense, true);
+                    for (m, &(j, direction)) in moved.iter_mut().zip(&control.joints) {
+                        *m = (w.targets[j] - grasp_targets[j]) * sense * direction;
+                    }
+                    break;
+                }
+                if now.abs() + speed * STOP_LEAD_SECONDS >= target {
+                    break;
                 }
             }
-            let mut targets = grasp_targets.to_vec();
-            if !closing {
-                for &(j, direction) in &control.joints {
-                    targets[j] += sense * direction * moved;
+            for _ in 0..control.hold_steps.min(last.saturating_sub(w.k)) {
+                if !self.window_step(&mut w, log.as_deref_mut()) {
+                    return false;
                 }
-            }
-            if !self.step_hand(&targets, grasp_targets, q, log.as_deref_mut()) {
-                return false;
-            }
-            if !rolling {
-                continue;
-            }
-            let now = twist_angle(rot(&self.physics.object_pose()) * step_start.inverse(), control.axis);
-            let speed = (now - turned).abs() / ctx.timestep;
-            turned = now;
-            if !reversed && now < -WRONG_WAY {
-                // The joints turn the object the other way: every direction reverses, from the
-                // grasp targets again.
-                (sense, reversed, moved) = (-sense, true, 0.0);
-                step_start = rot(&self.physics.object_pose());
-                turned = 0.0;
-            } else if now.abs() + speed * STOP_LEAD_SECONDS >= target {
-                hold_until = Some(k + control.hold_steps);
             }
         }
-        self.physics.set_targets(grasp_targets);
+        while w.k < control.steps {
+            if !self.window_step(&mut w, log.as_deref_mut()) {
+                return false;
+            }
+        }
         true
+    }
+
+    /// Finger gaiting: each finger whose joint has moved lifts off (its other joints open by
+    /// `lift`), its listed joint returns to the grasp target and it closes again, one finger at a
+    /// time. A finger is lifted only while at least `min_touching` touch links of the other
+    /// fingers touch the object, and is put back at once when the object moves in the palm during
+    /// its lift. Every finger placed again has its move cleared.
+    fn replace_fingers(
+        &mut self,
+        regrasp: &Regrasp,
+        control: &RollControl,
+        moved: &mut [f64],
+        w: &mut Window,
+        last: usize,
+        mut log: Option<&mut StepLog>,
+    ) -> Replaced {
+        let ctx = self.ctx;
+        let [lift_steps, return_steps, place_steps] = regrasp.phase_steps;
+        for (f, finger) in regrasp.fingers.iter().enumerate() {
+            if moved[f] <= 0.0 {
+                continue;
+            }
+            if w.k + regrasp.finger_steps() > last {
+                return Replaced::Refused;
+            }
+            let contacts = self.physics.touch_contacts();
+            let others = contacts.iter().enumerate().filter(|(i, c)| c.is_some() && !finger.touch.contains(i)).count();
+            if others < ctx.robot.min_touching {
+                return Replaced::Refused;
+            }
+            let (listed, _) = control.joints[f];
+            let start = self.physics.object_pose();
+            let joints = self.physics.joint_positions();
+            let from: Vec<f64> = finger.lifting.iter().map(|&(h, _)| w.targets[h]).collect();
+            let lifted: Vec<f64> = finger.lifting.iter().map(|&(h, open)| joints[h] + open * regrasp.lift).collect();
+            let slipped = |pose: glam::DAffine3| {
+                let d = start.inverse() * pose;
+                d.translation.length() > regrasp.max_slip
+                    || DQuat::from_mat3(&d.matrix3).angle_between(DQuat::IDENTITY) > regrasp.max_slip_angle
+            };
+            // Lift, watching the object.
+            let mut held = true;
+            for s in 1..=lift_steps {
+                let t = s as f64 / lift_steps as f64;
+                for (i, &(h, _)) in finger.lifting.iter().enumerate() {
+                    w.targets[h] = from[i] + t * (lifted[i] - from[i]);
+                }
+                if !self.window_step(w, log.as_deref_mut()) {
+                    return Replaced::Lost;
+                }
+                if slipped(self.physics.object_pose()) {
+                    held = false;
+                    break;
+                }
+            }
+            if held {
+                // Back to the grasp target, in the air.
+                let away = w.targets[listed];
+                for s in 1..=return_steps {
+                    let t = s as f64 / return_steps as f64;
+                    w.targets[listed] = away + t * (w.grasp_targets[listed] - away);
+                    if !self.window_step(w, log.as_deref_mut()) {
+                        return Replaced::Lost;
+                    }
+                }
+                moved[f] = 0.0;
+            }
+            // Placed again: the lifted joints close to their grasp targets.
+            let up: Vec<f64> = finger.lifting.iter().map(|&(h, _)| w.targets[h]).collect();
+            for s in 1..=place_steps {
+                let t = s as f64 / place_steps as f64;
+                for (i, &(h, _)) in finger.lifting.iter().enumerate() {
+                    w.targets[h] = up[i] + t * (w.grasp_targets[h] - up[i]);
+                }
+                if !self.window_step(w, log.as_deref_mut()) {
+                    return Replaced::Lost;
+                }
+            }
+            if !held {
+                return Replaced::Refused;
+            }
+        }
+        Replaced::Done
     }
 }
 
