@@ -271,6 +271,49 @@ fn gravity_pivoting_turns_the_object_between_the_jaws_and_keeps_the_ground_truth
     assert!(!o.status.success() && e.contains("sampling.record.pivot.step_deg"), "{e}");
 }
 
+/// Finger gaiting (`sampling.record.finger_roll.regrasp`) on the Allegro hand: with the fingers
+/// lifted, moved back and placed again whenever a joint has moved its most, the same roll turns
+/// the object further than without (the physics-only `vtgen grasps` figures over six 6 s windows
+/// per object); a generated gaiting episode keeps its length, its ground truth on every frame and
+/// every touch point on the object; bad regrasp settings are refused with their field.
+#[test]
+fn finger_gaiting_turns_the_object_further_than_the_roll_and_keeps_the_ground_truth() {
+    let cfg = root().join("scenes/tiny-episode.yaml");
+    let roll = "sampling.record={camera_hz: 30, tactile_hz: 60, finger_roll: {seconds: 6, axis: [0, 0, 1], \
+                joints: [{joint: ff_joint_0}, {joint: mf_joint_0}, {joint: rf_joint_0}]}}";
+    let gait = roll.replace("}]}}", "}], regrasp: {}}}");
+    let episodes = ["--trajectories", "6", "--instances", "1", "--set"];
+    let rolling = median_in_hand_rotation(&cfg, &[&episodes[..], &[roll]].concat());
+    let gaiting = median_in_hand_rotation(&cfg, &[&episodes[..], &[gait.as_str()]].concat());
+    for (g, r) in gaiting.iter().zip(&rolling) {
+        assert!(*g >= 1.2 * r, "median largest in-hand rotation {g:.1}° gaiting against {r:.1}° rolling alone");
+    }
+
+    let d = tempdir();
+    let short = gait.replace("seconds: 6", "seconds: 3");
+    let args = [
+        "--set",
+        "objects=[005_tomato_soup_can]",
+        "--set",
+        "sampling.trajectories_per_object=1",
+        "--set",
+        "sampling.instances_per_trajectory=1",
+        "--set",
+        short.as_str(),
+    ];
+    generate(&cfg, d.path(), &args);
+    let ds = DatasetReader::open(d.path()).unwrap();
+    let e = episode_of(ds.shards("train").unwrap()[0].meta());
+    // One arm move of 0.95 s and its 3 s window, re-placements included.
+    assert!((e.duration_s - 3.95).abs() < 0.01, "{e:?}");
+    crate::ground_truth::check_dataset(d.path(), e.frames as usize);
+    tactile_points_lie_on_the_object_within_their_pad(d.path());
+
+    let o = run(&["plan", cfg.to_str().unwrap(), "--set", &gait.replace("regrasp: {}", "regrasp: {lift_deg: 0}")]);
+    let e = stderr(&o);
+    assert!(!o.status.success() && e.contains("sampling.record.finger_roll.regrasp.lift_deg"), "{e}");
+}
+
 /// The closed-loop finger roll (`sampling.record.finger_roll`) on the Allegro hand: it turns the
 /// object in the hand more than arm moves alone (the physics-only `vtgen grasps` figures over six
 /// episodes per object, with and without), a generated rolling episode keeps its ground truth on

@@ -165,6 +165,11 @@ fn broken_descriptions_name_the_file_and_the_field() {
         ("home: [-1.5707963267948966, ", "home: [", "arm.home: 5 values for 6 arm joints"),
         ("kind: palm", "kind: suction", "line 21: grasp.kind: unknown variant `suction`"),
         ("min_touching: 2", "min_touching: 2\n  fingers: 4", "line 23: grasp: unknown field `fingers`"),
+        (
+            "frame: ff_medial_pad,",
+            "frame: ff_medial_pad, contact: {modulus_mpa: 0, crown_radius_mm: 20},",
+            "pads[1].contact.modulus_mpa: 0: must be positive (MPa)",
+        ),
     ];
     for (from, to, want) in cases {
         let e = description_error(from, to);
@@ -518,4 +523,24 @@ fn a_description_corrects_a_fixed_finger_joint() {
     assert!(e.contains("joints.finger_joint: moves between 0 and 0"), "{e}");
     let plain = Robot::from_texts(&ur5e_arm_urdf(), "u.urdf", &description(""), "d.yaml");
     assert!(plain.is_err(), "no finger in the plain arm");
+}
+
+/// A pad's contact patch is Hertz's: radius `(3 N R / 4 E*)^(1/3)`, growing as the cube root of the
+/// load, bounded by the pad; a description gives its skin per pad, others take the soft default.
+#[test]
+fn a_pads_contact_patch_follows_hertz_and_its_description() {
+    let skin = PadContact { modulus_mpa: 0.4, crown_radius_mm: 20.0 };
+    // 3 · 10 N · 0.02 m / (4 · 0.4 MPa) = 3.75e-7 m³.
+    assert!((skin.patch_radius(10.0, None) - 3.75e-7f64.cbrt()).abs() < 1e-12);
+    assert!((skin.patch_radius(80.0, None) / skin.patch_radius(10.0, None) - 2.0).abs() < 1e-12);
+    assert_eq!(skin.patch_radius(80.0, Some(0.005)), 0.005);
+    assert_eq!(skin.patch_radius(-1.0, None), 0.0);
+    let text = include_str!("../../ur5e_allegro/robot.yaml").replacen(
+        "frame: ff_medial_pad,",
+        "frame: ff_medial_pad, contact: {modulus_mpa: 2.5, crown_radius_mm: 8},",
+        1,
+    );
+    let robot = Robot::from_texts(&default_urdf(), "u", &text, "d").unwrap();
+    assert_eq!(robot.pads[1].contact, PadContact { modulus_mpa: 2.5, crown_radius_mm: 8.0 });
+    assert_eq!(robot.pads[0].contact, PadContact::default());
 }

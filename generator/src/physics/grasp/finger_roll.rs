@@ -313,5 +313,26 @@ mod tests {
         let th = robot.hand.iter().position(|h| h.name == "th_joint_0").unwrap();
         assert_eq!(c.joints, vec![(ff, -1.0), (th, 1.0)]);
         assert!((c.speed - 30f64.to_radians()).abs() < 1e-12);
+        assert_eq!(c.regrasp, None);
+    }
+
+    /// Each listed joint's finger, from the kinematics alone: the hand joints on its chain that
+    /// close (opening towards their preshape) and the touch links hanging from the finger.
+    #[test]
+    fn a_regrasp_finds_each_listed_joints_finger() {
+        let robot = vt_robot::Robot::builtin("ur5e_allegro").unwrap();
+        let cfg: crate::config::FingerRollConfig =
+            serde_yaml::from_str("{joints: [{joint: ff_joint_0}, {joint: th_joint_1}], regrasp: {lift_seconds: 0.1}}").unwrap();
+        let c = RollControl::of(&cfg, &robot, 0.005);
+        let r = c.regrasp.expect("configured");
+        assert_eq!(r.phase_steps, [20, 40, 30]);
+        let hand = |n: &str| robot.hand.iter().position(|h| h.name == n).unwrap();
+        let names = |f: &Finger| -> Vec<String> { f.touch.iter().map(|&t| robot.model.links[robot.touch_links[t]].name.clone()).collect() };
+        // The index finger: its three flexion joints open the negative way (preshape below close).
+        assert_eq!(r.fingers[0].lifting, vec![(hand("ff_joint_1"), -1.0), (hand("ff_joint_2"), -1.0), (hand("ff_joint_3"), -1.0)]);
+        assert_eq!(names(&r.fingers[0]), ["ff_proximal", "ff_medial", "ff_distal"]);
+        // The thumb: its other three joints, the one above the listed joint included.
+        assert_eq!(r.fingers[1].lifting, vec![(hand("th_joint_0"), -1.0), (hand("th_joint_2"), -1.0), (hand("th_joint_3"), -1.0)]);
+        assert_eq!(names(&r.fingers[1]), ["th_proximal", "th_medial", "th_distal"]);
     }
 }
