@@ -248,8 +248,9 @@ fn the_grasp_check_reports_the_same_trajectories_as_generation() {
 /// four Gauss-Seidel sweeps per solver iteration, 11 of 12 stay within 1 mm and 1° over 10 s (the
 /// worst of them 0.54 mm, 0.52°); the twelfth, the real hand's first mustard-bottle grasp, slides
 /// 12.8 mm and turns 5.7° (with one sweep 7 of 12 stayed). On MuJoCo, with 50 noslip iterations
-/// and torsional friction 0.02, all 12 (the worst 0.53 mm, 0.31°; 1 of 12 without noslip, 8 of 12
-/// with 10 iterations). The test holds all but one grasp to 1 mm and 1°, and every grasp to 30 mm.
+/// and each contact's torsional friction from its pad's patch, 11 of 12 (the twelfth, the
+/// primitive hand's first gelatin-box grasp, 1.64 mm and 1.23°; with torsional friction 0.02 for
+/// every contact all 12; 1 of 12 without noslip, 8 of 12 with 10 iterations). The test holds all but one grasp to 1 mm and 1°, and every grasp to 30 mm.
 #[test]
 fn most_held_objects_stay_still_while_the_arm_is_still() {
     use vtgen::config::{GraspConfig, PhysicsConfig};

@@ -72,9 +72,9 @@ fn pos_quat(t: &DAffine3) -> String {
 
 /// MuJoCo's soft contacts let a held object creep under a steady load (measured with the arm
 /// still: 1 of 12 grasps within 1 mm and 1° over 10 s, the rest 1 to 7 mm). Its noslip solver pass
-/// removes it: 10 iterations left 8 of 12 still, 50 with torsional friction 0.02 all 12
-/// (within 0.53 mm and 0.31°; `tests/grasping.rs`) for 3–5 % more physics time (`vtgen bench`).
-/// 30 iterations, or 50 with torsional friction 0.01, left one or two grasps pivoting.
+/// removes it: 10 iterations left 8 of 12 still, 50 all 12 with torsional friction 0.02 for every
+/// contact, and 11 of 12 (the twelfth 1.6 mm, 1.2°) with each pad's patch (`tests/grasping.rs`),
+/// for 3–5 % more physics time (`vtgen bench`).
 const NOSLIP_ITERATIONS: u32 = 50;
 
 /// The armature of a hand joint (kg·m² or kg) unless its drive needs more (`write_children`).
@@ -209,7 +209,11 @@ impl MujocoHand {
                 Geometry::Cylinder { radius, length } => ("cylinder", format!(r#"size="{radius} {}""#, length / 2.0)),
                 Geometry::ConvexHull { .. } | Geometry::Mesh { .. } => ("mesh", format!(r#"mesh="{name}""#)),
             };
-            let _ = write!(x, r#"<geom name="{name}" type="{kind}" {size} {} contype="1" conaffinity="2" priority="1" mass="0"/>"#, pos_quat(&c.pose));
+            let _ = write!(
+                x,
+                r#"<geom name="{name}" type="{kind}" {size} {} contype="1" conaffinity="2" priority="1" mass="0"/>"#,
+                pos_quat(&c.pose)
+            );
         }
     }
 
@@ -331,12 +335,19 @@ impl Sim {
         let mut normal = vec![0.0; self.skins.len()];
         for (i, c) in self.data.contact().iter().enumerate() {
             let (a, b) = (c.geom[0] as usize, c.geom[1] as usize);
-            let hand_geom = if a == self.object_geom { b } else if b == self.object_geom { a } else { continue };
+            let hand_geom = if a == self.object_geom {
+                b
+            } else if b == self.object_geom {
+                a
+            } else {
+                continue;
+            };
             if let Some(k) = self.skins.iter().position(|s| s.geom == hand_geom) {
                 normal[k] += self.data.contact_force(i)[0].max(0.0);
             }
         }
-        let spin: Vec<f64> = self.skins.iter().zip(&normal).map(|(s, &n)| torsional_friction(mu, s.skin.patch_radius(n, s.max_radius))).collect();
+        let spin: Vec<f64> =
+            self.skins.iter().zip(&normal).map(|(s, &n)| torsional_friction(mu, s.skin.patch_radius(n, s.max_radius))).collect();
         self.set_spin(&spin);
     }
 

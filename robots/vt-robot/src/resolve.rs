@@ -222,7 +222,10 @@ fn pad(model: &mut RobotModel, i: usize, p: &PadSpec, hand_root: usize, listed: 
     let contact = p.contact.unwrap_or_default();
     for (value, field, unit) in [(contact.modulus_mpa, "modulus_mpa", "MPa"), (contact.crown_radius_mm, "crown_radius_mm", "mm")] {
         if !(value > 0.0 && value.is_finite()) {
-            return Err(at([Seg::key("pads"), Seg::Index(i), Seg::key("contact"), Seg::key(field)], format!("{value}: must be positive ({unit})")));
+            return Err(at(
+                [Seg::key("pads"), Seg::Index(i), Seg::key("contact"), Seg::key(field)],
+                format!("{value}: must be positive ({unit})"),
+            ));
         }
     }
     Ok(Pad { name: p.name.clone(), link: on, frame, size, labels, contact })

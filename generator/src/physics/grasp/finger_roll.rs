@@ -67,9 +67,8 @@ impl Regrasp {
             .map(|&(listed, _)| {
                 // The finger: the hand joints on the listed joint's chain, above and below it; its
                 // links hang from the highest of them.
-                let chain: Vec<usize> = (0..robot.hand.len())
-                    .filter(|&h| m.is_below(child(h), child(listed)) || m.is_below(child(listed), child(h)))
-                    .collect();
+                let chain: Vec<usize> =
+                    (0..robot.hand.len()).filter(|&h| m.is_below(child(h), child(listed)) || m.is_below(child(listed), child(h))).collect();
                 let top = chain.iter().copied().find(|&h| chain.iter().all(|&o| m.is_below(child(o), child(h)))).unwrap_or(listed);
                 let lifting = chain
                     .iter()
