@@ -271,6 +271,29 @@ fn gravity_pivoting_turns_the_object_between_the_jaws_and_keeps_the_ground_truth
     assert!(!o.status.success() && e.contains("sampling.record.pivot.step_deg"), "{e}");
 }
 
+/// One episode of the tomato soup can with `record` (a `--set` of `sampling.record`, a 3 s in-hand
+/// window): one arm move of 0.95 s and its window long, its ground truth on every frame and every
+/// touch point on the object within its pad.
+fn one_soup_can_episode_keeps_its_ground_truth(cfg: &Path, record: &str) {
+    let d = tempdir();
+    let args = [
+        "--set",
+        "objects=[005_tomato_soup_can]",
+        "--set",
+        "sampling.trajectories_per_object=1",
+        "--set",
+        "sampling.instances_per_trajectory=1",
+        "--set",
+        record,
+    ];
+    generate(cfg, d.path(), &args);
+    let ds = DatasetReader::open(d.path()).unwrap();
+    let e = episode_of(ds.shards("train").unwrap()[0].meta());
+    assert!((e.duration_s - 3.95).abs() < 0.01, "{e:?}");
+    crate::ground_truth::check_dataset(d.path(), e.frames as usize);
+    tactile_points_lie_on_the_object_within_their_pad(d.path());
+}
+
 /// Finger gaiting (`sampling.record.finger_roll.regrasp`) on the Allegro hand: with the fingers
 /// lifted, moved back and placed again whenever a joint has moved its most, the same roll turns
 /// the object further than without (the physics-only `vtgen grasps` figures over six 6 s windows
@@ -289,25 +312,8 @@ fn finger_gaiting_turns_the_object_further_than_the_roll_and_keeps_the_ground_tr
         assert!(*g >= 1.2 * r, "median largest in-hand rotation {g:.1}° gaiting against {r:.1}° rolling alone");
     }
 
-    let d = tempdir();
-    let short = gait.replace("seconds: 6", "seconds: 3");
-    let args = [
-        "--set",
-        "objects=[005_tomato_soup_can]",
-        "--set",
-        "sampling.trajectories_per_object=1",
-        "--set",
-        "sampling.instances_per_trajectory=1",
-        "--set",
-        short.as_str(),
-    ];
-    generate(&cfg, d.path(), &args);
-    let ds = DatasetReader::open(d.path()).unwrap();
-    let e = episode_of(ds.shards("train").unwrap()[0].meta());
-    // One arm move of 0.95 s and its 3 s window, re-placements included.
-    assert!((e.duration_s - 3.95).abs() < 0.01, "{e:?}");
-    crate::ground_truth::check_dataset(d.path(), e.frames as usize);
-    tactile_points_lie_on_the_object_within_their_pad(d.path());
+    // A 3 s window, re-placements included.
+    one_soup_can_episode_keeps_its_ground_truth(&cfg, &gait.replace("seconds: 6", "seconds: 3"));
 
     let o = run(&["plan", cfg.to_str().unwrap(), "--set", &gait.replace("regrasp: {}", "regrasp: {lift_deg: 0}")]);
     let e = stderr(&o);
@@ -331,24 +337,7 @@ fn a_finger_roll_turns_the_object_in_the_hand_and_keeps_the_ground_truth() {
         assert!(*r >= 3.0 && *r >= 3.0 * s, "median largest in-hand rotation {r:.1}° rolling against {s:.1}° without");
     }
 
-    let d = tempdir();
-    let args = [
-        "--set",
-        "objects=[005_tomato_soup_can]",
-        "--set",
-        "sampling.trajectories_per_object=1",
-        "--set",
-        "sampling.instances_per_trajectory=1",
-    ];
-    let mut args = args.to_vec();
-    args.extend(["--set", roll]);
-    generate(&cfg, d.path(), &args);
-    let ds = DatasetReader::open(d.path()).unwrap();
-    let e = episode_of(ds.shards("train").unwrap()[0].meta());
-    // One arm move of 0.95 s and its 3 s roll.
-    assert!((e.duration_s - 3.95).abs() < 0.01, "{e:?}");
-    crate::ground_truth::check_dataset(d.path(), e.frames as usize);
-    tactile_points_lie_on_the_object_within_their_pad(d.path());
+    one_soup_can_episode_keeps_its_ground_truth(&cfg, roll);
 
     let o = run(&["plan", cfg.to_str().unwrap(), "--set", "sampling.record.finger_roll={joints: [{joint: wrist_1_joint}]}"]);
     let e = stderr(&o);
