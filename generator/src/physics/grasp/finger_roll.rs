@@ -190,7 +190,7 @@ impl Attempt<'_> {
                     // where they stand.
                     (sense, reversed) = (-sense, true);
                     for (m, &(j, direction)) in moved.iter_mut().zip(&control.joints) {
-                        *m = (w.targets[j] - grasp_targets[j]) * sense * direction;
+                        *m = if direction == 0.0 { 0.0 } else { (w.targets[j] - grasp_targets[j]) / (sense * direction) };
                     }
                     break;
                 }
