@@ -33,7 +33,7 @@ struct Sim {
     hand_geoms: Vec<usize>,
     /// Each hand link with collision geometry and its geoms.
     link_geoms: Vec<(usize, Vec<usize>)>,
-    /// Every hand geom with the skin its contacts have (`contact_skin`).
+    /// Every hand geom with the skin its contacts have (`hand_skins`).
     skins: Vec<GeomSkin>,
 }
 
@@ -41,7 +41,7 @@ struct Sim {
 struct GeomSkin {
     geom: usize,
     skin: PadContact,
-    /// Half the pad's width, where the description gives its size (m).
+    /// Half the narrower side of the pad's sensing area, on a pad's link (m).
     max_radius: Option<f64>,
 }
 
@@ -86,8 +86,7 @@ const RIGID_SKIN: PadContact = PadContact { modulus_mpa: 2000.0, crown_radius_mm
 
 /// A contact's torsional friction (MuJoCo's spin coefficient, m: the largest torque about the
 /// normal is it times the normal force) for a Hertzian patch of radius `a` under Coulomb friction
-/// `mu`: the integral of `mu·p(r)·r` over the patch, `3π/16 · mu · a` (Johnson, Contact
-/// Mechanics, §7.4). MuJoCo's contacts are points, so without it nothing resists an object's
+/// `mu`: the integral of `mu·p(r)·r` over the patch under Hertz's pressure, `3π/16 · mu · a`. MuJoCo's contacts are points, so without it nothing resists an object's
 /// spin between two opposed pads; with one constant it is the same for a soft pad eased to 1 N
 /// as for a rigid link pressing 30 N.
 fn torsional_friction(mu: f64, a: f64) -> f64 {
