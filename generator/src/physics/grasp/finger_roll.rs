@@ -4,7 +4,7 @@
 //! moved its most (`sampling.record.finger_roll`). With `regrasp`, the fingers are then lifted,
 //! moved back and placed again one at a time, and the roll goes on: finger gaiting.
 
-use glam::{DQuat, DVec3};
+use glam::{DAffine3, DQuat, DVec3};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
@@ -212,6 +212,34 @@ impl Attempt<'_> {
         true
     }
 
+    /// Moves the targets of hand joints `joints` in a straight line from where they are to `to`
+    /// over `steps` steps of the window. `Some(false)` when `go_on` refuses the object's pose
+    /// after a step (the targets stay there), None when the object falls out of the hand.
+    fn ramp(
+        &mut self,
+        w: &mut Window,
+        joints: &[usize],
+        to: &[f64],
+        steps: usize,
+        mut log: Option<&mut StepLog>,
+        mut go_on: impl FnMut(DAffine3) -> bool,
+    ) -> Option<bool> {
+        let from: Vec<f64> = joints.iter().map(|&h| w.targets[h]).collect();
+        for s in 1..=steps {
+            let t = s as f64 / steps as f64;
+            for ((&h, a), b) in joints.iter().zip(&from).zip(to) {
+                w.targets[h] = a + t * (b - a);
+            }
+            if !self.window_step(w, log.as_deref_mut()) {
+                return None;
+            }
+            if !go_on(self.physics.object_pose()) {
+                return Some(false);
+            }
+        }
+        Some(true)
+    }
+
     /// Finger gaiting: each finger whose joint has moved lifts off (its other joints open by
     /// `lift`), its listed joint returns to the grasp target and it closes again, one finger at a
     /// time. A finger is lifted only while at least `min_touching` touch links of the other
@@ -243,50 +271,29 @@ impl Attempt<'_> {
             let (listed, _) = control.joints[f];
             let start = self.physics.object_pose();
             let joints = self.physics.joint_positions();
-            let from: Vec<f64> = finger.lifting.iter().map(|&(h, _)| w.targets[h]).collect();
+            let lifting: Vec<usize> = finger.lifting.iter().map(|&(h, _)| h).collect();
             let lifted: Vec<f64> = finger.lifting.iter().map(|&(h, open)| joints[h] + open * regrasp.lift).collect();
-            let slipped = |pose: glam::DAffine3| {
+            let slipped = |pose: DAffine3| {
                 let d = start.inverse() * pose;
                 d.translation.length() > regrasp.max_slip
                     || DQuat::from_mat3(&d.matrix3).angle_between(DQuat::IDENTITY) > regrasp.max_slip_angle
             };
             // Lift, watching the object.
-            let mut held = true;
-            for s in 1..=lift_steps {
-                let t = s as f64 / lift_steps as f64;
-                for (i, &(h, _)) in finger.lifting.iter().enumerate() {
-                    w.targets[h] = from[i] + t * (lifted[i] - from[i]);
-                }
-                if !self.window_step(w, log.as_deref_mut()) {
-                    return Replaced::Lost;
-                }
-                if slipped(self.physics.object_pose()) {
-                    held = false;
-                    break;
-                }
-            }
+            let Some(held) = self.ramp(w, &lifting, &lifted, lift_steps, log.as_deref_mut(), |pose| !slipped(pose)) else {
+                return Replaced::Lost;
+            };
             if held {
                 // Back to the grasp target, in the air.
-                let away = w.targets[listed];
-                for s in 1..=return_steps {
-                    let t = s as f64 / return_steps as f64;
-                    w.targets[listed] = away + t * (w.grasp_targets[listed] - away);
-                    if !self.window_step(w, log.as_deref_mut()) {
-                        return Replaced::Lost;
-                    }
+                let grasp = [w.grasp_targets[listed]];
+                if self.ramp(w, &[listed], &grasp, return_steps, log.as_deref_mut(), |_| true).is_none() {
+                    return Replaced::Lost;
                 }
                 moved[f] = 0.0;
             }
             // Placed again: the lifted joints close to their grasp targets.
-            let up: Vec<f64> = finger.lifting.iter().map(|&(h, _)| w.targets[h]).collect();
-            for s in 1..=place_steps {
-                let t = s as f64 / place_steps as f64;
-                for (i, &(h, _)) in finger.lifting.iter().enumerate() {
-                    w.targets[h] = up[i] + t * (w.grasp_targets[h] - up[i]);
-                }
-                if !self.window_step(w, log.as_deref_mut()) {
-                    return Replaced::Lost;
-                }
+            let grasp: Vec<f64> = lifting.iter().map(|&h| w.grasp_targets[h]).collect();
+            if self.ramp(w, &lifting, &grasp, place_steps, log.as_deref_mut(), |_| true).is_none() {
+                return Replaced::Lost;
             }
             if !held {
                 return Replaced::Refused;
