@@ -214,21 +214,24 @@ fn inspect_reports_each_episodes_in_hand_rotation() {
     );
 }
 
-/// Per object, the median over its episodes of the largest in-hand rotation (degrees) that
-/// `vtgen grasps CONFIG ARGS` reports.
-fn median_in_hand_rotation(config: &Path, args: &[&str]) -> Vec<f64> {
+/// Per object, the episodes' in-hand rotations that `vtgen grasps CONFIG ARGS` reports.
+fn in_hand_rotations(config: &Path, args: &[&str]) -> Vec<Vec<serde_json::Value>> {
     let mut all = vec!["grasps", config.to_str().unwrap(), "--json", "--quiet"];
     all.extend_from_slice(args);
     let o = run(&all);
     assert!(o.status.success(), "{}", stderr(&o));
     let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-    let objects = report["objects"].as_array().unwrap();
-    objects
+    report["objects"].as_array().unwrap().iter().map(|o| o["in_hand_rotation_deg"].as_array().unwrap().clone()).collect()
+}
+
+/// Per object, the median over its episodes of the largest in-hand rotation (degrees) that
+/// `vtgen grasps CONFIG ARGS` reports.
+fn median_in_hand_rotation(config: &Path, args: &[&str]) -> Vec<f64> {
+    in_hand_rotations(config, args)
         .iter()
-        .map(|o| {
-            let mut largest: Vec<f64> =
-                o["in_hand_rotation_deg"].as_array().unwrap().iter().map(|e| e["largest_deg"].as_f64().unwrap()).collect();
-            assert!(!largest.is_empty(), "{o}");
+        .map(|episodes| {
+            let mut largest: Vec<f64> = episodes.iter().map(|e| e["largest_deg"].as_f64().unwrap()).collect();
+            assert!(!largest.is_empty(), "no episodes");
             largest.sort_by(f64::total_cmp);
             largest[largest.len() / 2]
         })
@@ -239,7 +242,9 @@ fn median_in_hand_rotation(config: &Path, args: &[&str]) -> Vec<f64> {
 /// object between its jaws far more than arm moves alone do (the physics-only `vtgen grasps`
 /// figures over six episodes per object, with and without), a generated pivoting episode keeps
 /// its ground truth on every frame and every touch point on the object, and the pivot is refused
-/// with its field for a hand that holds objects on its palm.
+/// with its field for a hand that holds objects on its palm. An episode's turn target
+/// (`sampling.record.turn_target_deg`) ends the pivoting: the episodes turn less than without one,
+/// and each sample names its episode's target.
 #[test]
 fn gravity_pivoting_turns_the_object_between_the_jaws_and_keeps_the_ground_truth() {
     let cfg = root().join("scenes/tiny-pivot.yaml");
@@ -248,11 +253,22 @@ fn gravity_pivoting_turns_the_object_between_the_jaws_and_keeps_the_ground_truth
     for (p, s) in pivoting.iter().zip(&still) {
         assert!(*p >= 30.0 && *p >= 3.0 * s, "median largest in-hand rotation {p:.1}° pivoting against {s:.1}° without");
     }
+    let targeted = in_hand_rotations(&cfg, &["--trajectories", "6", "--set", "sampling.record.turn_target_deg=[15, 15]"]);
+    for (episodes, p) in targeted.iter().zip(&pivoting) {
+        let mut largest: Vec<f64> = episodes.iter().map(|e| e["largest_deg"].as_f64().unwrap()).collect();
+        largest.sort_by(f64::total_cmp);
+        assert!(episodes.iter().all(|e| e["target_deg"].as_f64() == Some(15.0)), "{episodes:?}");
+        assert!(largest[largest.len() / 2] < *p, "with a 15° target {largest:?}, without {p:.1}° (median)");
+        assert!(largest.iter().any(|&l| l >= 13.0), "no episode reached its 15° target: {largest:?}");
+    }
 
     let d = tempdir();
-    generate(&cfg, d.path(), &["--set", "objects=[005_tomato_soup_can]", "--set", "sampling.trajectories_per_object=1"]);
+    let args = ["--set", "objects=[005_tomato_soup_can]", "--set", "sampling.trajectories_per_object=1"];
+    generate(&cfg, d.path(), &[&args[..], &["--set", "sampling.record.turn_target_deg=[40, 40]"]].concat());
     let ds = DatasetReader::open(d.path()).unwrap();
     let shard = &ds.shards("train").unwrap()[0];
+    let target = shard.read_sample_info(shard.indices().next().unwrap()).unwrap().robot.unwrap().turn_target_deg;
+    assert_eq!(target, Some(40.0));
     let e = episode_of(shard.meta());
     // One arm move of 0.95 s (move, hold, settle window) and its 3 s pivoting window.
     assert!((e.duration_s - 3.95).abs() < 0.01, "{e:?}");
@@ -269,6 +285,13 @@ fn gravity_pivoting_turns_the_object_between_the_jaws_and_keeps_the_ground_truth
     let o = run(&["plan", cfg.to_str().unwrap(), "--set", "sampling.record.pivot.step_deg=[0, 10]"]);
     let e = stderr(&o);
     assert!(!o.status.success() && e.contains("sampling.record.pivot.step_deg"), "{e}");
+    let o = run(&["plan", cfg.to_str().unwrap(), "--set", "sampling.record.turn_target_deg=[30, 200]"]);
+    let e = stderr(&o);
+    assert!(!o.status.success() && e.contains("sampling.record.turn_target_deg"), "{e}");
+    let o =
+        run(&["plan", cfg.to_str().unwrap(), "--set", "sampling.record.pivot=null", "--set", "sampling.record.turn_target_deg=[30, 60]"]);
+    let e = stderr(&o);
+    assert!(!o.status.success() && e.contains("sampling.record.turn_target_deg") && e.contains("needs a controller"), "{e}");
 }
 
 /// One episode of the tomato soup can with `record` (a `--set` of `sampling.record`, a 3 s in-hand

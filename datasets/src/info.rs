@@ -181,6 +181,9 @@ pub struct RobotInfo {
     pub penetration_mm: f64,
     /// Attempts the trajectory took before a grasp held.
     pub grasp_attempts: u32,
+    /// The episode's turn target (degrees; with `sampling.record.turn_target_deg`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub turn_target_deg: Option<f64>,
     /// Every robot joint (rad), by name.
     pub joint_positions: BTreeMap<String, f64>,
     #[serde(rename = "T_world_palm")]
@@ -297,6 +300,8 @@ pub(crate) fn example_info(robot: bool) -> SampleInfo {
             slip_deg: 2.0,
             penetration_mm: 0.4,
             grasp_attempts: 2,
+            // Optional, only in episodes with a turn target: not a key every robot sample has.
+            turn_target_deg: None,
             joint_positions: [("ff_j0".to_string(), 0.1)].into(),
             t_world_palm: pose,
             tactile: Some(TouchInfo {

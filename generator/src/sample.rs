@@ -562,6 +562,7 @@ impl<'a> SampleFactory<'a> {
             slip_deg: st.slip_rotation.to_degrees(),
             penetration_mm: st.penetration * 1e3,
             grasp_attempts: attempts,
+            turn_target_deg: rec.trajectory.turn_target_deg,
             joint_positions: robot.robot.model.dof_names().iter().zip(&st.q).map(|(n, v)| (n.to_string(), *v)).collect(),
             t_world_palm: pose_of(&t_world_palm),
             tactile: None,

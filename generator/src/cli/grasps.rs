@@ -85,6 +85,20 @@ pub struct EpisodeRotation {
     pub trajectory: u32,
     pub last_deg: f64,
     pub largest_deg: f64,
+    /// The episode's turn target (`sampling.record.turn_target_deg`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub target_deg: Option<f64>,
+}
+
+/// An episode reached its turn target when its largest rotation came this close (degrees): the
+/// controllers stop turning a few degrees short, where the object's speed would carry it on.
+pub const TURN_TARGET_TOLERANCE_DEG: f64 = 2.0;
+
+impl EpisodeRotation {
+    /// Whether the episode has a turn target and reached it.
+    pub fn reached_target(&self) -> bool {
+        self.target_deg.is_some_and(|t| self.largest_deg >= t - TURN_TARGET_TOLERANCE_DEG)
+    }
 }
 
 impl ObjectGraspReport {
@@ -169,20 +183,26 @@ impl GraspCheckReport {
         }
         if self.objects.iter().any(|o| !o.in_hand_rotation_deg.is_empty()) {
             s.push_str("\n\nIn-hand rotation per episode (the object's turn in the palm since the settled grasp):\n\n");
-            s.push_str("| object | episodes | largest: median (°) | largest: max (°) | at the end: median (°) | episodes >= 45° |\n");
-            s.push_str("|---|---|---|---|---|---|\n");
+            let targets = self.objects.iter().flat_map(|o| &o.in_hand_rotation_deg).any(|e| e.target_deg.is_some());
+            s.push_str("| object | episodes | largest: median (°) | largest: max (°) | at the end: median (°) | episodes >= 45° |");
+            s.push_str(if targets { " turn target reached |\n|---|---|---|---|---|---|---|\n" } else { "\n|---|---|---|---|---|---|\n" });
             for o in &self.objects {
                 let (median, share) = o.rotation_figures(45.0);
                 let mut last: Vec<f64> = o.in_hand_rotation_deg.iter().map(|e| e.last_deg).collect();
                 last.sort_by(f64::total_cmp);
                 let max = o.in_hand_rotation_deg.iter().map(|e| e.largest_deg).fold(0.0, f64::max);
                 s.push_str(&format!(
-                    "| {} | {} | {median:.1} | {max:.1} | {:.1} | {:.0}% |\n",
+                    "| {} | {} | {median:.1} | {max:.1} | {:.1} | {:.0}% |",
                     o.object_id,
                     o.in_hand_rotation_deg.len(),
                     last.get(last.len() / 2).copied().unwrap_or(0.0),
                     100.0 * share
                 ));
+                if targets {
+                    let reached = o.in_hand_rotation_deg.iter().filter(|e| e.reached_target()).count();
+                    s.push_str(&format!(" {reached}/{} |", o.in_hand_rotation_deg.len()));
+                }
+                s.push('\n');
             }
         }
         for o in &self.objects {
@@ -283,7 +303,7 @@ fn check_trajectory(robot: &mut RobotScene, seed: u64, obj: &LoadedObject, o: us
         let orientation = |s: &crate::physics::grasp::InstanceState| glam::DQuat::from_mat3(&s.t_palm_object.matrix3).normalize();
         let turn = |s: &crate::physics::grasp::InstanceState| orientation(first).angle_between(orientation(s)).to_degrees();
         let largest = traj.steps.iter().map(turn).fold(0.0, f64::max);
-        r.rotation = Some(EpisodeRotation { trajectory: t, last_deg: turn(last), largest_deg: largest });
+        r.rotation = Some(EpisodeRotation { trajectory: t, last_deg: turn(last), largest_deg: largest, target_deg: traj.turn_target_deg });
     }
     r.seconds = t0.elapsed().as_secs_f64();
     r

@@ -41,11 +41,25 @@ pub struct RecordConfig {
     /// A closed-loop finger roll after each arm move, for hands (off unless given).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub finger_roll: Option<FingerRollConfig>,
+    /// The object's rotation in the palm each episode aims at (degrees, the angle between its
+    /// orientations at the settled grasp and now), drawn uniformly from [min, max] per episode: the
+    /// pivoting and the finger roll stop turning once it is reached, and the grasp holds from then
+    /// on. None: they turn for as long as their windows last.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub turn_target_deg: Option<(f64, f64)>,
 }
 
 impl Default for RecordConfig {
     fn default() -> Self {
-        RecordConfig { camera_hz: 30.0, tactile_hz: 60.0, state_hz: None, finger_motion: None, pivot: None, finger_roll: None }
+        RecordConfig {
+            camera_hz: 30.0,
+            tactile_hz: 60.0,
+            state_hz: None,
+            finger_motion: None,
+            pivot: None,
+            finger_roll: None,
+            turn_target_deg: None,
+        }
     }
 }
 
@@ -338,6 +352,17 @@ impl RecordConfig {
 
     /// The rates against the physics step: each a whole number of steps (within 1 %), touch and
     /// state whole multiples of the camera.
+    /// The turn target: within half a turn (the angle between two orientations), for a controller
+    /// that turns the object.
+    pub(super) fn check_turn_target(&self, c: &mut Checks) {
+        let Some((lo, hi)) = self.turn_target_deg else { return };
+        let mut at = c.key(key!(self.turn_target_deg));
+        at.bounded_range([lo, hi], excl(0.0), incl(180.0), "degrees");
+        if self.pivot.is_none() && self.finger_roll.is_none() {
+            at.fail("a turn target needs a controller that turns the object: sampling.record.pivot (grippers) or sampling.record.finger_roll (hands)");
+        }
+    }
+
     pub(super) fn check_rates(&self, timestep: f64, c: &mut Checks) {
         let p = self.periods(timestep);
         let rates = [(key!(self.camera_hz), self.camera_hz, p.camera), (key!(self.tactile_hz), self.tactile_hz, p.tactile)]

@@ -69,6 +69,7 @@ impl Config {
         at.section(field!(record.finger_motion));
         at.section(field!(record.pivot));
         at.section(field!(record.finger_roll));
+        record.check_turn_target(&mut at);
     }
 
     /// Object ids known or well-formed, custom masses in range, no object twice.

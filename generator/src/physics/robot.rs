@@ -47,6 +47,7 @@ pub fn grasp_context<'a>(
         finger_gait,
         pivot,
         finger_roll,
+        turn_target_deg: record.and_then(|r| r.turn_target_deg),
         record_contact_forces,
         ..GraspContext::new(robot, t_world_base, &rc.grasp, rc.physics.timestep, camera_position)
     }

@@ -126,6 +126,7 @@ impl Attempt<'_> {
         let mut out = Vec::with_capacity(key.instances as usize);
         let mut steps = Vec::new();
         let mut log = self.ctx.record_steps.then_some(StepLog { steps: &mut steps, grasped: held.t_palm_object });
+        self.turn_goal = self.ctx.turn_target_deg(&key).map(|target| (rot(&self.physics.object_pose()), target.to_radians()));
         if let Some(log) = log.as_mut() {
             log.push(self.ctx, &*self.physics, &q);
         }
@@ -231,7 +232,22 @@ impl Attempt<'_> {
     /// palm's acceleration enters as apparent gravity. The hold lasts `hold_seconds`, or (snapshots,
     /// `grasp.hold_until_still`) until the object has stopped in the hand. False when the object
     /// falls out of the hand.
-    pub(super) fn follow_path(&mut self, q_from: &[f64], q_target: &[f64], mut log: Option<&mut StepLog>) -> bool {
+    pub(super) fn follow_path(&mut self, q_from: &[f64], q_target: &[f64], log: Option<&mut StepLog>) -> bool {
+        self.follow_path_to_goal(q_from, q_target, false, log).is_some()
+    }
+
+    /// `follow_path`; with `stop_at_goal`, the arm stops where it is on the path once the object
+    /// has turned the episode's turn target in the hand, and holds there for the rest of the move's
+    /// steps. The arm's joints where it stopped (`q_target` when it did not); None when the object
+    /// falls out of the hand.
+    pub(super) fn follow_path_to_goal(
+        &mut self,
+        q_from: &[f64],
+        q_target: &[f64],
+        stop_at_goal: bool,
+        mut log: Option<&mut StepLog>,
+    ) -> Option<Vec<f64>> {
+        let goal = self.turn_goal.filter(|_| stop_at_goal);
         let (ctx, physics) = (self.ctx, &mut *self.physics);
         let n = ctx.steps(ctx.config.move_seconds);
         let palm_at = |s: f64| -> DAffine3 { ctx.t_world_base * ctx.robot.grasp_frame_pose(&along_path(q_from, q_target, s)) };
@@ -239,10 +255,11 @@ impl Attempt<'_> {
         let ds = 1.0 / n as f64;
         // Episodes keep every hold whole: each move takes the same steps.
         let mut still = (ctx.config.hold_until_still && !ctx.record_steps).then(|| StillWatch::new(ctx));
+        let mut stopped_at = None;
         for k in 1..=n + ctx.steps(ctx.config.hold_seconds) {
-            let s = (k as f64 * ds).min(1.0);
+            let s = stopped_at.unwrap_or((k as f64 * ds).min(1.0));
             let p = palm_at(s);
-            let acc = if k <= n {
+            let acc = if k <= n && stopped_at.is_none() {
                 let (a, b) = (palm_at((s - ds).max(0.0)).translation, palm_at((s + ds).min(1.0)).translation);
                 (b - 2.0 * p.translation + a) / (dt * dt)
             } else {
@@ -258,7 +275,10 @@ impl Attempt<'_> {
             // fall. (Same outcome, same bytes: the failed move is undone and the next draws from
             // its own random stream.)
             if lost(&*physics) {
-                return false;
+                return None;
+            }
+            if stopped_at.is_none() && goal.is_some_and(|(from, target)| from.angle_between(rot(&physics.object_pose())) >= target) {
+                stopped_at = Some(s);
             }
             if k > n
                 && let Some(watch) = still.as_mut()
@@ -267,7 +287,7 @@ impl Attempt<'_> {
                 break;
             }
         }
-        true
+        Some(stopped_at.map_or_else(|| q_target.to_vec(), |s| along_path(q_from, q_target, s)))
     }
 
     /// The scripted finger motion (episodes), the arm still at `q` (apparent gravity as in the

@@ -4,6 +4,7 @@
 use glam::{DAffine3, DMat3, DQuat, DVec3};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
+use vt_randomizers::SampleStream;
 use vt_robot::{IkOptions, Robot};
 
 use super::finger_roll::RollControl;
@@ -30,6 +31,8 @@ pub struct GraspContext<'a> {
     pub pivot: Option<PivotControl>,
     /// A closed-loop finger roll after each arm move's hold and finger motion (episodes, hands).
     pub finger_roll: Option<RollControl>,
+    /// The range (degrees) each episode's turn target is drawn from (`sampling.record.turn_target_deg`).
+    pub turn_target_deg: Option<(f64, f64)>,
     /// Record the hand's contact forces with every state (`InstanceState::hand_contacts`, for
     /// the force fields).
     pub record_contact_forces: bool,
@@ -88,9 +91,17 @@ impl<'a> GraspContext<'a> {
             finger_gait: None,
             pivot: None,
             finger_roll: None,
+            turn_target_deg: None,
             record_contact_forces: false,
             hold_screen: if config.hold_screen { HoldScreen::On } else { HoldScreen::Off },
         }
+    }
+
+    /// The turn target (degrees, as the config gives it) of trajectory `key`'s episode: every
+    /// attempt at it aims at the same turn, drawn from its own stream.
+    pub fn turn_target_deg(&self, key: &TrajectoryKey) -> Option<f64> {
+        let (lo, hi) = self.turn_target_deg?;
+        Some(SampleStream::trajectory(key.seed, key.object_id, key.trajectory, "turn_target").random_range(lo..=hi))
     }
 
     /// The arm's home: elbow up, palm facing up over the workspace.

@@ -143,7 +143,8 @@ impl Attempt<'_> {
     }
 
     /// The finger roll's window, the arm still at `q`. False when the object falls out of the hand.
-    /// The joints keep their last targets to the window's end: the turn made is kept.
+    /// The joints keep their last targets to the window's end: the turn made is kept. The episode's
+    /// turn target, once reached, ends the rolling.
     pub(super) fn roll_fingers(&mut self, q: &[f64], grasp_targets: &[f64], rng: &mut ChaCha8Rng, mut log: Option<&mut StepLog>) -> bool {
         let ctx = self.ctx;
         let Some(control) = &ctx.finger_roll else { return true };
@@ -152,7 +153,9 @@ impl Attempt<'_> {
         let mut w = Window { q, grasp_targets, targets: grasp_targets.to_vec(), k: 0 };
         // Each listed joint's move from its grasp target (rad, in its direction and the sense).
         let mut moved = vec![0.0f64; control.joints.len()];
-        let (mut sense, mut reversed, mut rolling) = (1.0, false, true);
+        let (mut sense, mut reversed) = (1.0, false);
+        // An episode whose turn target is reached rolls no more.
+        let mut rolling = self.turn_left().is_none_or(|left| left > 0.0);
         let last = control.steps - control.hold_steps;
         while rolling && w.k < last {
             let (target, step_start) = (draw(rng), rot(&self.physics.object_pose()));
@@ -194,7 +197,13 @@ impl Attempt<'_> {
                     }
                     break;
                 }
-                if now.abs() + speed * STOP_LEAD_SECONDS >= target {
+                let lead = speed * STOP_LEAD_SECONDS;
+                if self.turn_left().is_some_and(|left| left <= lead) {
+                    // The episode's turn is made: the fingers hold from here on.
+                    rolling = false;
+                    break;
+                }
+                if now.abs() + lead >= target {
                     break;
                 }
             }

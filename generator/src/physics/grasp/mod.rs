@@ -73,6 +73,8 @@ pub struct Trajectory {
     /// With `GraspContext::record_steps`: the state at the settled grasp, then after every
     /// physics step of the recorded arm moves (`1 + instances * GraspContext::move_steps` states); else empty.
     pub steps: Vec<InstanceState>,
+    /// The episode's turn target (degrees), with `sampling.record.turn_target_deg`.
+    pub turn_target_deg: Option<f64>,
 }
 
 const GRAVITY: DVec3 = DVec3::new(0.0, 0.0, -9.81);
@@ -135,6 +137,9 @@ struct Attempt<'a> {
     recorded: u32,
     /// The hold screen's verdict, when it ran as a judge.
     screen_verdict: Option<bool>,
+    /// The object's orientation in the palm at the settled grasp and the episode's turn target
+    /// (rad) from it, once the arm moves begin (`sampling.record.turn_target_deg`).
+    turn_goal: Option<(DQuat, f64)>,
 }
 
 /// A trajectory whose grasp never held: the object's fault, not the run's, so `generate` finishes
@@ -175,6 +180,7 @@ pub fn simulate_trajectory(
             screen_steps: 0,
             recorded: 0,
             screen_verdict: None,
+            turn_goal: None,
         };
         let outcome = attempt.run(&placement);
         let (redone, screened, recorded) = (attempt.redone_steps, attempt.screen_steps, attempt.recorded);
@@ -186,7 +192,7 @@ pub fn simulate_trajectory(
             Ok((instances, steps)) => {
                 log.steps.redone_moves += redone;
                 log.steps.kept += spent - redone - screened;
-                return Ok(Trajectory { instances, attempts: number + 1, steps });
+                return Ok(Trajectory { instances, attempts: number + 1, steps, turn_target_deg: ctx.turn_target_deg(&key) });
             }
             Err(Stop::Failed(f)) => {
                 log.steps.failed_attempts += spent;
@@ -234,6 +240,12 @@ impl Attempt<'_> {
         let held = Held { t_palm_object: grasped, targets: &grasp_targets };
         self.screen(&held, &t_world_palm)?;
         self.record_instances(q, held)
+    }
+
+    /// The turn (rad) left to the episode's target: None without one, at most 0 once reached.
+    fn turn_left(&self) -> Option<f64> {
+        let (from, target) = self.turn_goal?;
+        Some(target - from.angle_between(rot(&self.physics.object_pose())))
     }
 
     /// Runs `f`, counting the physics steps it takes under `phase`.

@@ -86,7 +86,8 @@ impl Attempt<'_> {
     /// the configured easing rate, and rises four times as fast while the object slides along the
     /// pads or turns faster than `TURN_SPEED`: it hovers where the object turns but does not slip.
     /// At the target (less the turn the grip takes to stop it) the grip is full again for
-    /// `hold_seconds`, and the next pivot begins. An object that does not turn with the grip fully
+    /// `hold_seconds`, and the next pivot begins. The episode's turn target, once reached, ends the
+    /// window's pivoting like its last pivot's target. An object that does not turn with the grip fully
     /// eased, or has slid `SLIDE_BUDGET` along the pads, or a wrist that cannot turn, ends the
     /// window's pivoting; the arm then holds still with the grip full.
     pub(super) fn pivot(&mut self, q: &mut Vec<f64>, grasp_targets: &[f64], rng: &mut ChaCha8Rng, mut log: Option<&mut StepLog>) -> bool {
@@ -104,13 +105,17 @@ impl Attempt<'_> {
         let mut sense = None;
         let mut k = 0;
         while k + turn_steps + control.ease_steps + control.hold_steps <= control.steps {
+            if self.turn_left().is_some_and(|left| left <= 0.0) {
+                // The episode's turn is made: the grip holds to the window's end.
+                break;
+            }
             let target = rng.random_range(control.step.0..=control.step.1);
             let lead = GRAVITY_LEAD + STALL_LEAD * stalls as f64;
             let Some(q_turned) = self.wrist_turn(q, &jaws, centroid, target + lead, &mut sense) else { break };
             self.physics.set_targets(grasp_targets);
-            if !self.follow_path(q, &q_turned, log.as_deref_mut()) {
-                return false;
-            }
+            // The wrist turn itself may turn the object: the arm stops where the episode's turn
+            // target is reached.
+            let Some(q_turned) = self.follow_path_to_goal(q, &q_turned, true, log.as_deref_mut()) else { return false };
             *q = q_turned;
             k += turn_steps;
             let budget = control.steps - control.hold_steps - k;
@@ -209,7 +214,8 @@ impl Attempt<'_> {
             point = now_point;
             *slid += slide;
             let (speed, slide_speed) = (step.abs() / ctx.timestep, slide / ctx.timestep);
-            let end = if angle.abs() + speed * TIGHTEN_LEAD_SECONDS >= target {
+            let lead = speed * TIGHTEN_LEAD_SECONDS;
+            let end = if angle.abs() + lead >= target || self.turn_left().is_some_and(|left| left <= lead) {
                 Some(TurnEnd::Reached)
             } else if *slid > SLIDE_BUDGET {
                 Some(TurnEnd::Slid)
