@@ -214,22 +214,23 @@ fn inspect_reports_each_episodes_in_hand_rotation() {
     );
 }
 
-/// Per object, the episodes' in-hand rotations that `vtgen grasps CONFIG ARGS` reports.
-fn in_hand_rotations(config: &Path, args: &[&str]) -> Vec<Vec<serde_json::Value>> {
+/// Per object, what `vtgen grasps CONFIG ARGS` reports.
+fn grasp_report(config: &Path, args: &[&str]) -> Vec<serde_json::Value> {
     let mut all = vec!["grasps", config.to_str().unwrap(), "--json", "--quiet"];
     all.extend_from_slice(args);
     let o = run(&all);
     assert!(o.status.success(), "{}", stderr(&o));
     let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-    report["objects"].as_array().unwrap().iter().map(|o| o["in_hand_rotation_deg"].as_array().unwrap().clone()).collect()
+    report["objects"].as_array().unwrap().clone()
 }
 
 /// Per object, the median over its episodes of the largest in-hand rotation (degrees) that
 /// `vtgen grasps CONFIG ARGS` reports.
 fn median_in_hand_rotation(config: &Path, args: &[&str]) -> Vec<f64> {
-    in_hand_rotations(config, args)
+    grasp_report(config, args)
         .iter()
-        .map(|episodes| {
+        .map(|o| {
+            let episodes = o["in_hand_rotation_deg"].as_array().unwrap();
             let mut largest: Vec<f64> = episodes.iter().map(|e| e["largest_deg"].as_f64().unwrap()).collect();
             assert!(!largest.is_empty(), "no episodes");
             largest.sort_by(f64::total_cmp);
@@ -244,7 +245,7 @@ fn median_in_hand_rotation(config: &Path, args: &[&str]) -> Vec<f64> {
 /// its ground truth on every frame and every touch point on the object, and the pivot is refused
 /// with its field for a hand that holds objects on its palm. An episode's turn target
 /// (`sampling.record.turn_target_deg`) ends the pivoting: the episodes turn less than without one,
-/// and each sample names its episode's target.
+/// `vtgen grasps` counts the windows it ended, and each sample names its episode's target.
 #[test]
 fn gravity_pivoting_turns_the_object_between_the_jaws_and_keeps_the_ground_truth() {
     let cfg = root().join("scenes/tiny-pivot.yaml");
@@ -253,8 +254,11 @@ fn gravity_pivoting_turns_the_object_between_the_jaws_and_keeps_the_ground_truth
     for (p, s) in pivoting.iter().zip(&still) {
         assert!(*p >= 30.0 && *p >= 3.0 * s, "median largest in-hand rotation {p:.1}° pivoting against {s:.1}° without");
     }
-    let targeted = in_hand_rotations(&cfg, &["--trajectories", "6", "--set", "sampling.record.turn_target_deg=[15, 15]"]);
-    for (episodes, p) in targeted.iter().zip(&pivoting) {
+    let targeted = grasp_report(&cfg, &["--trajectories", "6", "--set", "sampling.record.turn_target_deg=[15, 15]"]);
+    for (o, p) in targeted.iter().zip(&pivoting) {
+        // Every window counted by how it ended, the target among them.
+        assert!(o["in_hand_ends"]["target"].as_u64().unwrap_or(0) > 0, "{}", o["in_hand_ends"]);
+        let episodes = o["in_hand_rotation_deg"].as_array().unwrap();
         let mut largest: Vec<f64> = episodes.iter().map(|e| e["largest_deg"].as_f64().unwrap()).collect();
         largest.sort_by(f64::total_cmp);
         assert!(episodes.iter().all(|e| e["target_deg"].as_f64() == Some(15.0)), "{episodes:?}");

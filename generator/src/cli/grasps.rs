@@ -77,6 +77,13 @@ pub struct ObjectGraspReport {
     /// states: `vtgen inspect` gives the same figures at the camera frames).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub in_hand_rotation_deg: Vec<EpisodeRotation>,
+    /// Episodes with in-hand motion: every in-hand window simulated (those of undone moves and
+    /// failed attempts too), by how its turning ended: `target` (the episode's turn target
+    /// reached), `window` (turning to the window's end), `slid` (the pivot's slide budget),
+    /// `no_wrist_turn`, `joint_range` (a rolling joint at its most without regrasp),
+    /// `regrasp_refused`.
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub in_hand_ends: BTreeMap<String, u64>,
 }
 
 /// One episode's in-hand rotation (degrees).
@@ -185,7 +192,9 @@ impl GraspCheckReport {
             s.push_str("\n\nIn-hand rotation per episode (the object's turn in the palm since the settled grasp):\n\n");
             let targets = self.objects.iter().flat_map(|o| &o.in_hand_rotation_deg).any(|e| e.target_deg.is_some());
             s.push_str("| object | episodes | largest: median (°) | largest: max (°) | at the end: median (°) | episodes >= 45° |");
-            s.push_str(if targets { " turn target reached |\n|---|---|---|---|---|---|---|\n" } else { "\n|---|---|---|---|---|---|\n" });
+            s.push_str(if targets { " turn target reached |" } else { "" });
+            s.push_str(" windows' turning ended by |\n|---|---|---|---|---|---|---|");
+            s.push_str(if targets { "---|\n" } else { "\n" });
             for o in &self.objects {
                 let (median, share) = o.rotation_figures(45.0);
                 let mut last: Vec<f64> = o.in_hand_rotation_deg.iter().map(|e| e.last_deg).collect();
@@ -202,7 +211,8 @@ impl GraspCheckReport {
                     let reached = o.in_hand_rotation_deg.iter().filter(|e| e.reached_target()).count();
                     s.push_str(&format!(" {reached}/{} |", o.in_hand_rotation_deg.len()));
                 }
-                s.push('\n');
+                let ends: Vec<String> = o.in_hand_ends.iter().map(|(k, v)| format!("{k} {v}")).collect();
+                s.push_str(&format!(" {} |\n", if ends.is_empty() { "-".to_string() } else { ends.join(", ") }));
             }
         }
         for o in &self.objects {
@@ -254,6 +264,7 @@ struct TrajectoryResult {
     attempts: u64,
     failures: BTreeMap<String, u64>,
     steps: StepLedger,
+    in_hand_ends: BTreeMap<&'static str, u64>,
     instances: u64,
     max_penetration_mm: f64,
     min_contacts: usize,
@@ -269,7 +280,7 @@ struct TrajectoryResult {
 /// trajectory (every attempt failed) keeps its attempts and failures.
 fn check_trajectory(robot: &mut RobotScene, seed: u64, obj: &LoadedObject, o: usize, t: u32, instances: u32) -> TrajectoryResult {
     let t0 = Instant::now();
-    let Simulated { trajectory: outcome, stats: st, steps } = robot.simulate(seed, o as u32, &obj.id, t, instances);
+    let Simulated { trajectory: outcome, stats: st, steps, in_hand_ends } = robot.simulate(seed, o as u32, &obj.id, t, instances);
     let mut r = TrajectoryResult {
         object: o,
         trajectory: t,
@@ -277,6 +288,7 @@ fn check_trajectory(robot: &mut RobotScene, seed: u64, obj: &LoadedObject, o: us
         attempts: st.attempts,
         failures: st.failures.clone(),
         steps,
+        in_hand_ends,
         instances: 0,
         max_penetration_mm: 0.0,
         min_contacts: usize::MAX,
@@ -384,6 +396,9 @@ fn per_object_figures(objects: &[LoadedObject], mut results: Vec<TrajectoryResul
             *o.failures.entry(k).or_default() += v;
         }
         o.physics_steps.merge(&r.steps);
+        for (k, v) in r.in_hand_ends {
+            *o.in_hand_ends.entry(k.to_string()).or_default() += v;
+        }
         o.instances += r.instances;
         o.max_penetration_mm = o.max_penetration_mm.max(r.max_penetration_mm);
         o.min_links_in_contact = o.min_links_in_contact.min(r.min_contacts);

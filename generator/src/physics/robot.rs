@@ -22,6 +22,8 @@ pub struct Simulated {
     pub stats: GraspStats,
     /// Where its physics steps went.
     pub steps: StepLedger,
+    /// Its in-hand windows by how their turning ended (`GraspLog::in_hand_ends`).
+    pub in_hand_ends: std::collections::BTreeMap<&'static str, u64>,
 }
 
 /// The robot's base in the world (`robot.base_position`, `robot.base_yaw_deg`).
@@ -159,6 +161,11 @@ impl RobotScene {
             stats.max_slip_mm = stats.max_slip_mm.max(s.slip_translation * 1e3);
             stats.max_penetration_mm = stats.max_penetration_mm.max(s.penetration * 1e3);
         }
-        Simulated { trajectory: result.with_context(|| format!("grasping {object_id}")), stats, steps: log.steps }
+        Simulated {
+            trajectory: result.with_context(|| format!("grasping {object_id}")),
+            stats,
+            steps: log.steps,
+            in_hand_ends: log.in_hand_ends,
+        }
     }
 }

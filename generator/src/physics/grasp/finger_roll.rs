@@ -10,7 +10,7 @@ use rand_chacha::ChaCha8Rng;
 
 use super::arm_move::StepLog;
 use super::pivot::twist_angle;
-use super::{Attempt, rot};
+use super::{Attempt, InHandEnd, rot};
 
 /// A step stops this long (s) before its target at the current turning speed: the fingers' drives
 /// take about as long to stop the object.
@@ -156,6 +156,7 @@ impl Attempt<'_> {
         let (mut sense, mut reversed) = (1.0, false);
         // An episode whose turn target is reached rolls no more.
         let mut rolling = self.turn_left().is_none_or(|left| left > 0.0);
+        let mut ended = if rolling { InHandEnd::Window } else { InHandEnd::Target };
         let last = control.steps - control.hold_steps;
         while rolling && w.k < last {
             let (target, step_start) = (draw(rng), rot(&self.physics.object_pose()));
@@ -166,13 +167,13 @@ impl Attempt<'_> {
                 }
                 if moved.iter().any(|&m| m >= control.max) {
                     let Some(regrasp) = &control.regrasp else {
-                        rolling = false;
+                        (rolling, ended) = (false, InHandEnd::JointRange);
                         break;
                     };
                     match self.replace_fingers(regrasp, control, &mut moved, &mut w, last, log.as_deref_mut()) {
                         Replaced::Done => continue,
                         Replaced::Refused => {
-                            rolling = false;
+                            (rolling, ended) = (false, InHandEnd::RegraspRefused);
                             break;
                         }
                         Replaced::Lost => return false,
@@ -200,7 +201,7 @@ impl Attempt<'_> {
                 let lead = speed * STOP_LEAD_SECONDS;
                 if self.turn_left().is_some_and(|left| left <= lead) {
                     // The episode's turn is made: the fingers hold from here on.
-                    rolling = false;
+                    (rolling, ended) = (false, InHandEnd::Target);
                     break;
                 }
                 if now.abs() + lead >= target {
@@ -218,6 +219,7 @@ impl Attempt<'_> {
                 return false;
             }
         }
+        self.log.in_hand_ended(ended);
         true
     }
 

@@ -4,7 +4,7 @@
 
 use serde::Serialize;
 
-use super::outcome::GraspEvent;
+use super::outcome::{GraspEvent, InHandEnd};
 
 /// A phase of an attempt, as [`StepLedger`] counts its physics steps.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -142,10 +142,19 @@ impl StepLedger {
     }
 }
 
-/// What the grasp loop reports besides the trajectory: the events statistics count and where its
-/// physics steps went.
+/// What the grasp loop reports besides the trajectory: the events statistics count, where its
+/// physics steps went and why its in-hand windows stopped turning.
 #[derive(Debug, Clone, Default)]
 pub struct GraspLog {
     pub events: Vec<GraspEvent>,
     pub steps: StepLedger,
+    /// Every in-hand window simulated (undone moves' and failed attempts' included), by how its
+    /// turning ended (`InHandEnd::name`).
+    pub in_hand_ends: std::collections::BTreeMap<&'static str, u64>,
+}
+
+impl GraspLog {
+    pub fn in_hand_ended(&mut self, end: InHandEnd) {
+        *self.in_hand_ends.entry(end.name()).or_default() += 1;
+    }
 }

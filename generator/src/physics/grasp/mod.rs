@@ -35,7 +35,7 @@ pub use context::{FingerGait, GraspContext, MIN_REACHABLE_SHARE, REACH_SAMPLES, 
 pub use finger_roll::RollControl;
 pub use floor::{floor_clearance, robot_floor_clearance};
 pub use ledger::{GraspLog, Phase, ScreenJudged, StepLedger};
-pub use outcome::{Failure, GraspEvent, Redo};
+pub use outcome::{Failure, GraspEvent, InHandEnd, Redo};
 pub use pivot::PivotControl;
 pub use screen::HoldScreen;
 

@@ -1,5 +1,5 @@
-//! The grasp loop's outcome vocabulary: why an attempt failed, why a move was redone, and the
-//! stable names statistics count them under.
+//! The grasp loop's outcome vocabulary: why an attempt failed, why a move was redone, why an
+//! in-hand window stopped turning, and the stable names statistics count them under.
 
 /// Why an attempt at a trajectory ended without it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -58,6 +58,38 @@ impl GraspEvent {
                 Redo::Floor => "MoveRedoneForFloor",
                 Redo::Drop => "MoveRedoneForDrop",
             },
+        }
+    }
+}
+
+/// Why an in-hand window (the pivoting or the finger roll after an arm move) stopped turning the
+/// object before the window's end, or that it turned to the end.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum InHandEnd {
+    /// The episode's turn target was reached.
+    Target,
+    /// The window had no time left for another pivot or step.
+    Window,
+    /// The object slid the pivot's budget along the pads.
+    Slid,
+    /// No wrist turn for the next pivot is reachable above the floor.
+    NoWristTurn,
+    /// A rolling joint moved its most, and the roll has no regrasp.
+    JointRange,
+    /// A finger could not be lifted (the others did not hold the object) or was put back.
+    RegraspRefused,
+}
+
+impl InHandEnd {
+    /// The name `vtgen grasps` counts it under.
+    pub fn name(self) -> &'static str {
+        match self {
+            InHandEnd::Target => "target",
+            InHandEnd::Window => "window",
+            InHandEnd::Slid => "slid",
+            InHandEnd::NoWristTurn => "no_wrist_turn",
+            InHandEnd::JointRange => "joint_range",
+            InHandEnd::RegraspRefused => "regrasp_refused",
         }
     }
 }

@@ -9,7 +9,7 @@ use rand_chacha::ChaCha8Rng;
 
 use super::arm_move::StepLog;
 use super::floor::robot_floor_clearance;
-use super::{Attempt, rot};
+use super::{Attempt, InHandEnd, rot};
 use crate::physics::antipodal::Jaws;
 
 /// A pivot tightens this long (s) before its target at the current turning speed: the grip takes
@@ -104,14 +104,19 @@ impl Attempt<'_> {
         // Every pivot of the window turns the same way, so the turns add up.
         let mut sense = None;
         let mut k = 0;
+        let mut ended = InHandEnd::Window;
         while k + turn_steps + control.ease_steps + control.hold_steps <= control.steps {
             if self.turn_left().is_some_and(|left| left <= 0.0) {
                 // The episode's turn is made: the grip holds to the window's end.
+                ended = InHandEnd::Target;
                 break;
             }
             let target = rng.random_range(control.step.0..=control.step.1);
             let lead = GRAVITY_LEAD + STALL_LEAD * stalls as f64;
-            let Some(q_turned) = self.wrist_turn(q, &jaws, centroid, target + lead, &mut sense) else { break };
+            let Some(q_turned) = self.wrist_turn(q, &jaws, centroid, target + lead, &mut sense) else {
+                ended = InHandEnd::NoWristTurn;
+                break;
+            };
             self.physics.set_targets(grasp_targets);
             // The wrist turn itself may turn the object: the arm stops where the episode's turn
             // target is reached.
@@ -127,7 +132,10 @@ impl Attempt<'_> {
                 // Held where it is (it rests on the gripper, or its centre of mass hangs near the
                 // pads' line): the next wrist turn puts gravity further round.
                 TurnEnd::Still | TurnEnd::OutOfTime => stalls += 1,
-                TurnEnd::Slid => break,
+                TurnEnd::Slid => {
+                    ended = InHandEnd::Slid;
+                    break;
+                }
             }
             // Full grip between pivots.
             for _ in 0..control.hold_steps.min(control.steps - k) {
@@ -143,6 +151,10 @@ impl Attempt<'_> {
             }
             k += 1;
         }
+        if ended == InHandEnd::Window && self.turn_left().is_some_and(|left| left <= 0.0) {
+            ended = InHandEnd::Target;
+        }
+        self.log.in_hand_ended(ended);
         true
     }
 
