@@ -77,8 +77,8 @@ pub struct ObjectGraspReport {
     /// states: `vtgen inspect` gives the same figures at the camera frames).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub in_hand_rotation_deg: Vec<EpisodeRotation>,
-    /// Episodes with in-hand motion: every in-hand window simulated (those of undone moves and
-    /// failed attempts too), by how its turning ended: `target` (the episode's turn target
+    /// Episodes with in-hand motion: every in-hand window that kept the object (those of undone
+    /// moves and failed attempts too), by how its turning ended: `target` (the episode's turn target
     /// reached), `window` (turning to the window's end), `slid` (the pivot's slide budget),
     /// `no_wrist_turn`, `joint_range` (a rolling joint at its most without regrasp),
     /// `regrasp_refused`.

@@ -148,8 +148,8 @@ impl StepLedger {
 pub struct GraspLog {
     pub events: Vec<GraspEvent>,
     pub steps: StepLedger,
-    /// Every in-hand window simulated (undone moves' and failed attempts' included), by how its
-    /// turning ended (`InHandEnd::name`).
+    /// Every in-hand window that kept the object in the hand (undone moves' and failed attempts'
+    /// included), by how its turning ended (`InHandEnd::name`).
     pub in_hand_ends: std::collections::BTreeMap<&'static str, u64>,
 }
 

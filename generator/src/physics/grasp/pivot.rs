@@ -222,7 +222,10 @@ impl Attempt<'_> {
             let step = twist_angle(DQuat::from_axis_angle(jaws.axis, now - angle), jaws.axis);
             angle += step;
             let now_point = pose.transform_point3(held_point);
-            let slide = (now_point.distance(point) - pad_reach * step.abs()).max(0.0);
+            // Along the pads only: the object shifting between them as the jaws ease is no slide.
+            let moved = now_point - point;
+            let along_pads = moved - jaws.axis * moved.dot(jaws.axis);
+            let slide = (along_pads.length() - pad_reach * step.abs()).max(0.0);
             point = now_point;
             *slid += slide;
             let (speed, slide_speed) = (step.abs() / ctx.timestep, slide / ctx.timestep);
