@@ -81,7 +81,8 @@ pub struct ObjectGraspReport {
     /// moves and failed attempts too), by how its turning ended: `target` (the episode's turn target
     /// reached), `window` (turning to the window's end), `slid` (the pivot's slide budget),
     /// `no_wrist_turn`, `joint_range` (a rolling joint at its most without regrasp),
-    /// `regrasp_refused`.
+    /// `others_not_holding` (a finger not lifted), `finger_put_back` (the object moved while it
+    /// was lifted).
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
     pub in_hand_ends: BTreeMap<String, u64>,
 }

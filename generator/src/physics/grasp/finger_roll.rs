@@ -121,8 +121,10 @@ impl RollControl {
 #[derive(Debug, PartialEq)]
 enum Replaced {
     Done,
-    /// The other fingers did not hold the object: the finger stays (or is put back) where it was.
-    Refused,
+    /// Not done (the finger stays, or is put back, where it was), and why the roll ends: no time
+    /// left in the window, the other fingers not holding the object, or the object moving while the
+    /// finger was lifted.
+    Refused(InHandEnd),
     /// The object fell out of the hand.
     Lost,
 }
@@ -172,8 +174,8 @@ impl Attempt<'_> {
                     };
                     match self.replace_fingers(regrasp, control, &mut moved, &mut w, last, log.as_deref_mut()) {
                         Replaced::Done => continue,
-                        Replaced::Refused => {
-                            (rolling, ended) = (false, InHandEnd::RegraspRefused);
+                        Replaced::Refused(why) => {
+                            (rolling, ended) = (false, why);
                             break;
                         }
                         Replaced::Lost => return false,
@@ -272,12 +274,12 @@ impl Attempt<'_> {
                 continue;
             }
             if w.k + regrasp.finger_steps() > last {
-                return Replaced::Refused;
+                return Replaced::Refused(InHandEnd::Window);
             }
             let contacts = self.physics.touch_contacts();
             let others = contacts.iter().enumerate().filter(|(i, c)| c.is_some() && !finger.touch.contains(i)).count();
             if others < ctx.robot.min_touching {
-                return Replaced::Refused;
+                return Replaced::Refused(InHandEnd::OthersNotHolding);
             }
             let (listed, _) = control.joints[f];
             let start = self.physics.object_pose();
@@ -307,7 +309,7 @@ impl Attempt<'_> {
                 return Replaced::Lost;
             }
             if !held {
-                return Replaced::Refused;
+                return Replaced::Refused(InHandEnd::FingerPutBack);
             }
         }
         Replaced::Done

@@ -76,8 +76,11 @@ pub enum InHandEnd {
     NoWristTurn,
     /// A rolling joint moved its most, and the roll has no regrasp.
     JointRange,
-    /// A finger could not be lifted (the others did not hold the object) or was put back.
-    RegraspRefused,
+    /// A finger was not lifted: the other fingers' touch links touching the object were fewer
+    /// than the robot's `min_touching`.
+    OthersNotHolding,
+    /// A lifted finger was put back: the object moved in the palm during its lift.
+    FingerPutBack,
 }
 
 impl InHandEnd {
@@ -89,7 +92,8 @@ impl InHandEnd {
             InHandEnd::Slid => "slid",
             InHandEnd::NoWristTurn => "no_wrist_turn",
             InHandEnd::JointRange => "joint_range",
-            InHandEnd::RegraspRefused => "regrasp_refused",
+            InHandEnd::OthersNotHolding => "others_not_holding",
+            InHandEnd::FingerPutBack => "finger_put_back",
         }
     }
 }
