@@ -350,8 +350,6 @@ impl RecordConfig {
         StreamPeriods { camera: steps(self.camera_hz), tactile: steps(self.tactile_hz), state: self.state_hz.map_or(1, steps) }
     }
 
-    /// The rates against the physics step: each a whole number of steps (within 1 %), touch and
-    /// state whole multiples of the camera.
     /// The turn target: within half a turn (the angle between two orientations), for a controller
     /// that turns the object.
     pub(super) fn check_turn_target(&self, c: &mut Checks) {
@@ -363,6 +361,8 @@ impl RecordConfig {
         }
     }
 
+    /// The rates against the physics step: each a whole number of steps (within 1 %), touch and
+    /// state whole multiples of the camera.
     pub(super) fn check_rates(&self, timestep: f64, c: &mut Checks) {
         let p = self.periods(timestep);
         let rates = [(key!(self.camera_hz), self.camera_hz, p.camera), (key!(self.tactile_hz), self.tactile_hz, p.tactile)]

@@ -10,7 +10,9 @@ use rand_chacha::ChaCha8Rng;
 use vt_randomizers::{SampleKey, SampleStream};
 
 use super::floor::{MIN_FLOOR_CLEARANCE, floor_clearance, robot_floor_clearance};
-use super::{Attempt, Failure, GRAVITY, GraspContext, GraspEvent, Held, InstanceState, Phase, Recorded, Redo, Stop, lost, rot};
+use super::{
+    Attempt, Failure, GRAVITY, GraspContext, GraspEvent, Held, InstanceState, Phase, Recorded, Redo, Stop, lost, rot, turn_left_to,
+};
 use crate::physics::HandPhysics;
 
 /// Arm moves tried for one instance (each from the last recorded state, when the backend can
@@ -277,7 +279,7 @@ impl Attempt<'_> {
             if lost(&*physics) {
                 return None;
             }
-            if stopped_at.is_none() && goal.is_some_and(|(from, target)| from.angle_between(rot(&physics.object_pose())) >= target) {
+            if stopped_at.is_none() && goal.is_some_and(|g| turn_left_to(g, &physics.object_pose()) <= 0.0) {
                 stopped_at = Some(s);
             }
             if k > n

@@ -154,6 +154,7 @@ pub struct GraspLog {
 }
 
 impl GraspLog {
+    /// Counts an in-hand window by how its turning ended.
     pub fn in_hand_ended(&mut self, end: InHandEnd) {
         *self.in_hand_ends.entry(end.name()).or_default() += 1;
     }

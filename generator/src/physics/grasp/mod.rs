@@ -92,6 +92,12 @@ fn rot(t: &DAffine3) -> DQuat {
     DQuat::from_mat3(&t.matrix3).normalize()
 }
 
+/// The turn (rad) left to a turn goal (the orientation it counts from, the target) with the object
+/// at `pose` (palm frame); at most 0 once reached.
+fn turn_left_to((from, target): (DQuat, f64), pose: &DAffine3) -> f64 {
+    target - from.angle_between(rot(pose))
+}
+
 /// Distance (m) from the palm at which an object is lost from the hand (a move's end check; the
 /// settle and the moves stop as soon as the object is this far).
 const LOST_DISTANCE: f64 = 0.25;
@@ -244,8 +250,7 @@ impl Attempt<'_> {
 
     /// The turn (rad) left to the episode's target: None without one, at most 0 once reached.
     fn turn_left(&self) -> Option<f64> {
-        let (from, target) = self.turn_goal?;
-        Some(target - from.angle_between(rot(&self.physics.object_pose())))
+        Some(turn_left_to(self.turn_goal?, &self.physics.object_pose()))
     }
 
     /// Runs `f`, counting the physics steps it takes under `phase`.
