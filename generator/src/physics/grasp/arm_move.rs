@@ -128,7 +128,7 @@ impl Attempt<'_> {
         let mut out = Vec::with_capacity(key.instances as usize);
         let mut steps = Vec::new();
         let mut log = self.ctx.record_steps.then_some(StepLog { steps: &mut steps, grasped: held.t_palm_object });
-        self.turn_goal = self.ctx.turn_target_deg(&key).map(|target| (rot(&self.physics.object_pose()), target.to_radians()));
+        self.turn_goal = self.turn_target_deg.map(|target| (rot(&self.physics.object_pose()), target.to_radians()));
         if let Some(log) = log.as_mut() {
             log.push(self.ctx, &*self.physics, &q);
         }

@@ -143,8 +143,11 @@ struct Attempt<'a> {
     recorded: u32,
     /// The hold screen's verdict, when it ran as a judge.
     screen_verdict: Option<bool>,
-    /// The object's orientation in the palm at the settled grasp and the episode's turn target
-    /// (rad) from it, once the arm moves begin (`sampling.record.turn_target_deg`).
+    /// The episode's turn target (degrees, `sampling.record.turn_target_deg`), drawn once per
+    /// trajectory.
+    turn_target_deg: Option<f64>,
+    /// The object's orientation in the palm at the settled grasp and the turn target (rad) from
+    /// it, once the arm moves begin.
     turn_goal: Option<(DQuat, f64)>,
 }
 
@@ -173,6 +176,7 @@ pub fn simulate_trajectory(
     let cfg = ctx.config;
     let placement = Placement::of(ctx.robot.kind, object)?;
     let mut last = None;
+    let turn_target_deg = ctx.turn_target_deg(&key);
     for number in 0..cfg.max_attempts {
         let start = physics.steps_taken();
         let mut attempt = Attempt {
@@ -186,6 +190,7 @@ pub fn simulate_trajectory(
             screen_steps: 0,
             recorded: 0,
             screen_verdict: None,
+            turn_target_deg,
             turn_goal: None,
         };
         let outcome = attempt.run(&placement);
@@ -198,7 +203,7 @@ pub fn simulate_trajectory(
             Ok((instances, steps)) => {
                 log.steps.redone_moves += redone;
                 log.steps.kept += spent - redone - screened;
-                return Ok(Trajectory { instances, attempts: number + 1, steps, turn_target_deg: ctx.turn_target_deg(&key) });
+                return Ok(Trajectory { instances, attempts: number + 1, steps, turn_target_deg });
             }
             Err(Stop::Failed(f)) => {
                 log.steps.failed_attempts += spent;
