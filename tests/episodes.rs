@@ -245,7 +245,8 @@ fn median_in_hand_rotation(config: &Path, args: &[&str]) -> Vec<f64> {
 /// its ground truth on every frame and every touch point on the object, and the pivot is refused
 /// with its field for a hand that holds objects on its palm. An episode's turn target
 /// (`sampling.record.turn_target_deg`) ends the pivoting: the episodes turn less than without one,
-/// `vtgen grasps` counts the windows it ended, and each sample names its episode's target.
+/// `vtgen grasps` counts the windows it ended, and each sample names its episode's target. The
+/// gripper's grasp records as the hand's does (`sampling.record.grasp`).
 #[test]
 fn gravity_pivoting_turns_the_object_between_the_jaws_and_keeps_the_ground_truth() {
     let cfg = root().join("scenes/tiny-pivot.yaml");
@@ -268,14 +269,18 @@ fn gravity_pivoting_turns_the_object_between_the_jaws_and_keeps_the_ground_truth
 
     let d = tempdir();
     let args = ["--set", "objects=[005_tomato_soup_can]", "--set", "sampling.trajectories_per_object=1"];
-    generate(&cfg, d.path(), &[&args[..], &["--set", "sampling.record.turn_target_deg=[40, 40]"]].concat());
+    // The jaws' grasp recorded too: the object floats still between the open jaws, they close,
+    // the wrist turns.
+    let recorded = ["--set", "sampling.record.turn_target_deg=[40, 40]", "--set", "sampling.record.grasp=true"];
+    generate(&cfg, d.path(), &[&args[..], &recorded].concat());
     let ds = DatasetReader::open(d.path()).unwrap();
     let shard = &ds.shards("train").unwrap()[0];
     let target = shard.read_sample_info(shard.indices().next().unwrap()).unwrap().robot.unwrap().turn_target_deg;
     assert_eq!(target, Some(40.0));
     let e = episode_of(shard.meta());
-    // One arm move of 0.95 s (move, hold, settle window) and its 3 s pivoting window.
-    assert!((e.duration_s - 3.95).abs() < 0.01, "{e:?}");
+    // The grasp (1.13 s), one arm move of 0.95 s (move, hold, settle window) and its 3 s pivoting
+    // window.
+    assert!((e.duration_s - e.settled_s.unwrap() - 3.95).abs() < 0.01 && e.settled_s > Some(1.1), "{e:?}");
     crate::ground_truth::check_dataset(d.path(), e.frames as usize);
     tactile_points_lie_on_the_object_within_their_pad(d.path());
     let o = run(&["inspect", d.path().to_str().unwrap(), "--json"]);
@@ -302,6 +307,17 @@ fn gravity_pivoting_turns_the_object_between_the_jaws_and_keeps_the_ground_truth
 /// window): one arm move of 0.95 s and its window long, its ground truth on every frame and every
 /// touch point on the object within its pad.
 fn one_soup_can_episode_keeps_its_ground_truth(cfg: &Path, record: &str) {
+    let d = one_soup_can_episode(cfg, record);
+    let ds = DatasetReader::open(d.path()).unwrap();
+    let e = episode_of(ds.shards("train").unwrap()[0].meta());
+    assert!((e.duration_s - 3.95).abs() < 0.01, "{e:?}");
+    crate::ground_truth::check_dataset(d.path(), e.frames as usize);
+    tactile_points_lie_on_the_object_within_their_pad(d.path());
+}
+
+/// One episode of one arm move of the tomato soup can with `record` (a `--set` of
+/// `sampling.record`), generated.
+fn one_soup_can_episode(cfg: &Path, record: &str) -> tempfile::TempDir {
     let d = tempdir();
     let args = [
         "--set",
@@ -314,11 +330,7 @@ fn one_soup_can_episode_keeps_its_ground_truth(cfg: &Path, record: &str) {
         record,
     ];
     generate(cfg, d.path(), &args);
-    let ds = DatasetReader::open(d.path()).unwrap();
-    let e = episode_of(ds.shards("train").unwrap()[0].meta());
-    assert!((e.duration_s - 3.95).abs() < 0.01, "{e:?}");
-    crate::ground_truth::check_dataset(d.path(), e.frames as usize);
-    tactile_points_lie_on_the_object_within_their_pad(d.path());
+    d
 }
 
 /// Finger gaiting (`sampling.record.finger_roll.regrasp`) on the Allegro hand: with the fingers
@@ -372,4 +384,61 @@ fn a_finger_roll_turns_the_object_in_the_hand_and_keeps_the_ground_truth() {
         !o.status.success() && e.contains("sampling.record.finger_roll.joints") && e.contains("'wrist_1_joint' is not a hand joint"),
         "{e}"
     );
+}
+
+/// Recording the grasp (`sampling.record.grasp`): an episode starts with the object in the open
+/// hand, the palm facing up and no phalanx on it; the fingers close and the wrist turns the palm to
+/// the grasp pose along a smooth arm path (no jump of the palm between two physics steps, its
+/// position kept) before the settled grasp, which is a camera frame at `settled_s`. The ground
+/// truth holds on every frame, the grasp's included, and the in-hand rotation counts from the
+/// settled grasp.
+#[test]
+fn a_recorded_grasp_closes_the_open_hand_and_turns_the_wrist_before_the_settled_grasp() {
+    let d = one_soup_can_episode(&root().join("scenes/tiny-episode.yaml"), "sampling.record.grasp=true");
+    let ds = DatasetReader::open(d.path()).unwrap();
+    let shard = &ds.shards("train").unwrap()[0];
+    let e = episode_of(shard.meta());
+    // Rest 0.15 s, closing 0.6 s and settle 0.4 s at 240 Hz (276 steps), less the 4 that put the
+    // settled grasp on a 30 Hz frame (every 8 steps); then one arm move of 0.95 s.
+    let dt = 0.0041667;
+    let settled_s = e.settled_s.expect("the episode names its settled grasp");
+    assert!((settled_s - 272.0 * dt).abs() < 1e-9 && (e.duration_s - settled_s - 0.95).abs() < 0.01, "{e:?}");
+    let frames: Vec<_> = shard.indices().map(|i| shard.read(i).unwrap()).collect();
+    let settled = frames.iter().position(|s| s.info.episode.unwrap().time_s == settled_s).expect("a frame at the settled grasp");
+    assert_eq!(settled, 34);
+    for s in &frames[..settled] {
+        let frame = s.info.episode.unwrap();
+        assert_eq!((frame.arm_move, frame.settled_s), (0, Some(settled_s)), "{frame:?}");
+    }
+    let palm = |s: &vt_dataset::Sample| s.info.robot.as_ref().unwrap().t_world_palm;
+    let (open, held) = (&frames[0], &frames[settled]);
+    // The palm's normal (its +x) straight up while the object is put in; nothing touches it yet.
+    let normal = palm(open).rotation() * glam::DVec3::X;
+    assert!(normal.z > (0.5f64).to_radians().cos(), "palm normal {normal} at the first frame");
+    assert!(open.info.links_in_contact().is_empty(), "{:?}", open.info.links_in_contact());
+    assert!(held.info.links_in_contact().len() >= 3, "{:?}", held.info.links_in_contact());
+    // The wrist turns the palm from facing up to the grasp pose, in place, without a jump.
+    let turned = palm(open).rotation().angle_between(palm(held).rotation()).to_degrees();
+    assert!(turned > 1.0, "the palm turned {turned:.2}° before the settled grasp");
+    assert!((palm(open).translation() - palm(held).translation()).length() < 1e-3);
+    let states: Vec<_> = frames[..=settled].iter().flat_map(|s| s.episode.as_ref().unwrap().states.iter().map(|(_, st)| st)).collect();
+    for w in states.windows(2) {
+        let step = w[0].t_world_palm.rotation().angle_between(w[1].t_world_palm.rotation()).to_degrees();
+        assert!(step < 1.0, "the palm jumped {step:.2}° in one physics step at {} s", w[1].time_s);
+    }
+    crate::ground_truth::check_dataset(d.path(), e.frames as usize);
+    tactile_points_lie_on_the_object_within_their_pad(d.path());
+    // The object moves in the closing hand; its in-hand rotation counts from the settled grasp.
+    let o = run(&["inspect", d.path().to_str().unwrap(), "--json"]);
+    let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let largest = report["in_hand_rotation_deg"][0]["largest_deg"].as_f64().unwrap();
+    let since_open = frames
+        .iter()
+        .map(|s| {
+            let in_palm =
+                |f: &vt_dataset::Sample| palm(f).rotation().inverse() * f.t_world_camera.rotation() * f.t_camera_object.rotation();
+            in_palm(open).angle_between(in_palm(s)).to_degrees()
+        })
+        .fold(0.0, f64::max);
+    assert!(largest < 5.0 && since_open > largest, "largest {largest:.2}° from the settled grasp, {since_open:.2}° from the open hand");
 }

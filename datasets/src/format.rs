@@ -103,6 +103,7 @@ pub fn description() -> Value {
         camera_period_steps: 0,
         tactile_period_steps: 0,
         state_period_steps: 0,
+        settled_s: None,
     };
     let state = StateRecord {
         time_s: 0.0,

@@ -28,6 +28,9 @@ pub struct EpisodeRecord {
     pub camera_period_steps: u64,
     pub tactile_period_steps: u64,
     pub state_period_steps: u64,
+    /// With the grasp recorded: the settled grasp's time in the episode (s).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub settled_s: Option<f64>,
 }
 
 impl EpisodeRecord {
@@ -115,10 +118,16 @@ pub struct SampleInfo {
 pub struct EpisodeFrameInfo {
     /// The frame's index in the episode (also `instance`).
     pub frame: u32,
-    /// Simulated time since the episode's start (the settled grasp), seconds.
+    /// Simulated time since the episode's start (the settled grasp, or the object put in the
+    /// open hand when the grasp is recorded), seconds.
     pub time_s: f64,
-    /// The arm move under way (0-based); frame 0 is the settled grasp before move 0.
+    /// The arm move under way (0-based); the settled grasp (frame 0 unless the grasp is
+    /// recorded) and the frames before it are before move 0.
     pub arm_move: u32,
+    /// With the grasp recorded (`sampling.record.grasp`): the settled grasp's time (s); the frames
+    /// before it show the object put in the open hand, the fingers closing and the wrist turning.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub settled_s: Option<f64>,
 }
 
 /// The state stream of an episode (`/episode/state`): the robot's joints and the object's ground
@@ -322,7 +331,7 @@ pub(crate) fn example_info(robot: bool) -> SampleInfo {
                 hand_force_n: Some([0.0, 0.0, -3.4]),
             }),
         }),
-        episode: robot.then_some(EpisodeFrameInfo { frame: 3, time_s: 0.1, arm_move: 0 }),
+        episode: robot.then_some(EpisodeFrameInfo { frame: 3, time_s: 0.1, arm_move: 0, settled_s: None }),
     }
 }
 

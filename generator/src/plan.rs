@@ -21,7 +21,10 @@ pub struct SampleRef {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct EpisodeTimeline {
     pub periods: crate::config::StreamPeriods,
-    /// Physics steps from the settled grasp to the end of the last arm move.
+    /// Physics steps recorded before the settled grasp (`sampling.record.grasp`; 0 without): a
+    /// whole number of camera periods, so that the settled grasp is a frame.
+    pub grasp_steps: u64,
+    /// Physics steps from the episode's start to the end of the last arm move.
     pub steps: u64,
     /// Camera frames: one at step 0, then every `periods.camera` steps.
     pub frames: u64,
@@ -35,11 +38,18 @@ impl EpisodeTimeline {
         let timestep = robot.physics.timestep;
         let periods = record.periods(timestep);
         let per_move = robot.grasp.move_steps(timestep) + record.in_hand_steps(timestep);
-        let steps = config.sampling.instances_per_trajectory as u64 * per_move as u64;
-        Some(EpisodeTimeline { periods, steps, frames: steps / periods.camera + 1, timestep })
+        let grasp_steps = record.grasp_steps(&robot.grasp, timestep);
+        let steps = grasp_steps + config.sampling.instances_per_trajectory as u64 * per_move as u64;
+        Some(EpisodeTimeline { periods, grasp_steps, steps, frames: steps / periods.camera + 1, timestep })
     }
 
-    /// Simulated time (ns) of physics step `step` from the episode's start (the settled grasp).
+    /// The settled grasp's time (s) when the grasp is recorded (`sampling.record.grasp`).
+    pub fn settled_s(&self) -> Option<f64> {
+        (self.grasp_steps > 0).then_some(self.grasp_steps as f64 * self.timestep)
+    }
+
+    /// Simulated time (ns) of physics step `step` from the episode's start (the settled grasp, or
+    /// the object put in the open hand when the grasp is recorded).
     pub fn time_ns(&self, step: u64) -> u64 {
         (step as f64 * self.timestep * 1e9).round() as u64
     }

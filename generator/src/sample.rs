@@ -467,11 +467,18 @@ impl<'a> SampleFactory<'a> {
         })
     }
 
-    /// Where frame `r.instance` of an episode stands: its time and the arm move it shows.
+    /// Where frame `r.instance` of an episode stands: its time and the arm move it shows (0 up to
+    /// the settled grasp).
     fn episode_frame(&self, r: &SampleRef, t: &EpisodeTimeline) -> EpisodeFrameInfo {
         let step = r.instance as u64 * t.periods.camera;
-        let per_move = (t.steps / self.config.sampling.instances_per_trajectory as u64).max(1);
-        EpisodeFrameInfo { frame: r.instance, time_s: step as f64 * t.timestep, arm_move: (step.max(1) - 1).div_euclid(per_move) as u32 }
+        let per_move = ((t.steps - t.grasp_steps) / self.config.sampling.instances_per_trajectory as u64).max(1);
+        let since_settled = step.saturating_sub(t.grasp_steps);
+        EpisodeFrameInfo {
+            frame: r.instance,
+            time_s: step as f64 * t.timestep,
+            arm_move: (since_settled.max(1) - 1).div_euclid(per_move) as u32,
+            settled_s: t.settled_s(),
+        }
     }
 
     /// Adds the distractors' draws and the target object's to `draws`; the object's draw.

@@ -311,11 +311,11 @@ fn check_trajectory(robot: &mut RobotScene, seed: u64, obj: &LoadedObject, o: us
         r.min_clearance_mm = r.min_clearance_mm.min(lowest * 1e3);
     }
     if let Ok(traj) = &outcome
-        && let (Some(first), Some(last)) = (traj.steps.first(), traj.steps.last())
+        && let (Some(first), Some(last)) = (traj.steps.get(traj.settled_step), traj.steps.last())
     {
         let orientation = |s: &crate::physics::grasp::InstanceState| glam::DQuat::from_mat3(&s.t_palm_object.matrix3).normalize();
         let turn = |s: &crate::physics::grasp::InstanceState| orientation(first).angle_between(orientation(s)).to_degrees();
-        let largest = traj.steps.iter().map(turn).fold(0.0, f64::max);
+        let largest = traj.steps[traj.settled_step..].iter().map(turn).fold(0.0, f64::max);
         r.rotation = Some(EpisodeRotation { trajectory: t, last_deg: turn(last), largest_deg: largest, target_deg: traj.turn_target_deg });
     }
     r.seconds = t0.elapsed().as_secs_f64();

@@ -30,7 +30,7 @@ pub struct Inspection {
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub episodes: Vec<vt_dataset::EpisodeRecord>,
     /// Episode datasets: per episode (split, object, trajectory), the object's rotation in the
-    /// palm's frame from its first frame (degrees): at its last frame and the largest.
+    /// palm's frame from its settled grasp (degrees): at its last frame and the largest.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub in_hand_rotation_deg: Vec<InHandRotation>,
 }
@@ -66,10 +66,13 @@ pub fn inspect(root: &Path) -> Result<Inspection> {
     for split in manifest.splits.keys() {
         occlusion.insert(split.clone(), OcclusionBin::ALL.iter().map(|b| (b.key().to_string(), 0)).collect());
     }
-    // Per episode: the object's orientation in the palm at its first frame, and the rotations since.
+    // Per episode: the object's orientation in the palm at its settled grasp (its first frame
+    // unless the grasp is recorded), and the rotations since.
     let mut rotation: BTreeMap<(String, String, u64), (glam::DQuat, f64, f64)> = BTreeMap::new();
     super::for_each_info(&ds, |split, info| {
-        if let (Some(_), Some(robot)) = (info.episode, &info.robot) {
+        if let (Some(episode), Some(robot)) = (info.episode, &info.robot)
+            && episode.settled_s.is_none_or(|settled| episode.time_s >= settled - 1e-9)
+        {
             let object = info.t_world_camera.rotation() * info.t_camera_object.rotation();
             let in_palm = robot.t_world_palm.rotation().inverse() * object;
             let entry = rotation.entry((split.to_string(), info.object_id.clone(), info.trajectory as u64)).or_insert((in_palm, 0.0, 0.0));
@@ -164,7 +167,7 @@ impl Inspection {
             last.sort_by(f64::total_cmp);
             largest.sort_by(f64::total_cmp);
             out.push(format!(
-                "in-hand     the object's rotation in the palm per episode, first to last frame: median {:.2}°, max {:.2}°; largest on the way: median {:.2}°, max {:.2}°",
+                "in-hand     the object's rotation in the palm per episode, settled grasp to last frame: median {:.2}°, max {:.2}°; largest on the way: median {:.2}°, max {:.2}°",
                 last[last.len() / 2],
                 last[last.len() - 1],
                 largest[largest.len() / 2],

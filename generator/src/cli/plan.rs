@@ -30,8 +30,12 @@ pub fn describe(path: &Path, c: &Config) -> String {
         Some(t) => {
             let hz = |steps: u64| 1.0 / (steps as f64 * t.timestep);
             let seconds = t.steps as f64 * t.timestep;
+            let grasp = match t.grasp_steps {
+                0 => String::new(),
+                g => format!("the grasp ({:.2} s) and ", g as f64 * t.timestep),
+            };
             line(format!(
-                "episodes    {} objects x {} trajectories, each {} arm moves = {seconds:.2} s: {} camera frames (samples) at {:.1} Hz, touch at {:.1} Hz, state at {:.1} Hz",
+                "episodes    {} objects x {} trajectories, each {grasp}{} arm moves = {seconds:.2} s: {} camera frames (samples) at {:.1} Hz, touch at {:.1} Hz, state at {:.1} Hz",
                 c.objects.len(),
                 s.trajectories_per_object,
                 s.instances_per_trajectory,

@@ -119,11 +119,27 @@ impl Default for GraspConfig {
 pub const PENETRATION_WAITS: usize = 10;
 pub const PENETRATION_WAIT_SECONDS: f64 = 0.025;
 
+/// Physics steps of `timestep` seconds in a phase of `seconds` (at least one): how the grasp loop
+/// counts every phase.
+pub fn physics_steps(seconds: f64, timestep: f64) -> usize {
+    (seconds / timestep).round().max(1.0) as usize
+}
+
+/// The object rests on the open palm this long (s) before the fingers close.
+pub const REST_SECONDS: f64 = 0.15;
+
 impl GraspConfig {
+    /// Physics steps of a grasp from the object resting in the open hand to the settled grasp:
+    /// the rest (`REST_SECONDS`), the closing and the settle.
+    pub fn grasp_steps(&self, timestep: f64) -> usize {
+        let steps = |seconds| physics_steps(seconds, timestep);
+        steps(REST_SECONDS) + steps(self.close_seconds) + steps(self.settle_seconds)
+    }
+
     /// Physics steps of one recorded arm move of an episode, without in-hand motion: the move, the
     /// hold, and the whole settle window of `PENETRATION_WAITS` waits.
     pub fn move_steps(&self, timestep: f64) -> usize {
-        let steps = |seconds: f64| (seconds / timestep).round().max(1.0) as usize;
+        let steps = |seconds| physics_steps(seconds, timestep);
         steps(self.move_seconds) + steps(self.hold_seconds) + PENETRATION_WAITS * steps(PENETRATION_WAIT_SECONDS)
     }
 

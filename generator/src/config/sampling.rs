@@ -47,6 +47,11 @@ pub struct RecordConfig {
     /// on. None: they turn for as long as their windows last.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub turn_target_deg: Option<(f64, f64)>,
+    /// Record the grasp itself before the settled grasp: the object resting in the open hand with
+    /// the palm up, the fingers closing on it, and the arm turning the wrist to the grasp pose
+    /// (the settle then follows that real arm path instead of tilting gravity in the hand's frame).
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub grasp: bool,
 }
 
 impl Default for RecordConfig {
@@ -59,6 +64,7 @@ impl Default for RecordConfig {
             pivot: None,
             finger_roll: None,
             turn_target_deg: None,
+            grasp: false,
         }
     }
 }
@@ -344,6 +350,17 @@ pub struct StreamPeriods {
 }
 
 impl RecordConfig {
+    /// Physics steps an episode records before its settled grasp (`grasp`; 0 without): the rest,
+    /// the closing and the settle (`GraspConfig::grasp_steps`), less the first few of the rest, so
+    /// that the settled grasp falls on a camera frame.
+    pub fn grasp_steps(&self, grasp: &super::GraspConfig, timestep: f64) -> u64 {
+        if !self.grasp {
+            return 0;
+        }
+        let all = grasp.grasp_steps(timestep) as u64;
+        all - all % self.periods(timestep).camera
+    }
+
     /// Each stream's period in physics steps of `timestep` seconds (the nearest whole number).
     pub fn periods(&self, timestep: f64) -> StreamPeriods {
         let steps = |hz: f64| (1.0 / (hz * timestep)).round().max(1.0) as u64;

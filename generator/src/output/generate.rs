@@ -708,6 +708,7 @@ fn episode_metadata(config: &crate::config::Config, shard: &crate::plan::ShardPl
         camera_period_steps: p.camera,
         tactile_period_steps: p.tactile,
         state_period_steps: p.state,
+        settled_s: timeline.settled_s(),
     };
     Some((vt_dataset::EPISODE_METADATA_KEY.to_string(), record.to_json()))
 }

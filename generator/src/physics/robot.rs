@@ -46,6 +46,7 @@ pub fn grasp_context<'a>(
     let record_contact_forces = rc.tactile.force_field.is_some();
     GraspContext {
         record_steps,
+        recorded_grasp_steps: record.map_or(0, |r| r.grasp_steps(&rc.grasp, rc.physics.timestep) as usize),
         finger_gait,
         pivot,
         finger_roll,

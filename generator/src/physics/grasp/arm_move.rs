@@ -64,7 +64,7 @@ impl StepLog<'_> {
 }
 
 /// The state of the grasp with the arm at `q` (its hand joints read from the physics).
-fn instance_state(
+pub(super) fn instance_state(
     ctx: &GraspContext,
     physics: &dyn HandPhysics,
     q: &[f64],
@@ -116,9 +116,28 @@ impl StillWatch {
 }
 
 /// The joint values a fraction `s` ∈ [0, 1] along the smooth (smoothstep) path from `from` to `to`.
-fn along_path(from: &[f64], to: &[f64], s: f64) -> Vec<f64> {
+pub(super) fn along_path(from: &[f64], to: &[f64], s: f64) -> Vec<f64> {
     let w = s * s * (3.0 - 2.0 * s);
     from.iter().zip(to).map(|(a, b)| a + (b - a) * w).collect()
+}
+
+impl GraspContext<'_> {
+    /// The apparent gravity in the palm's frame with the arm a fraction `s` along the smooth path
+    /// from `from` to `to`: gravity less the palm's acceleration while the arm moves at `ds` of
+    /// the path per physics step (None: standing still).
+    pub(super) fn gravity_on_path(&self, from: &[f64], to: &[f64], s: f64, ds: Option<f64>) -> DVec3 {
+        let palm_at = |s: f64| -> DAffine3 { self.t_world_base * self.robot.grasp_frame_pose(&along_path(from, to, s)) };
+        let p = palm_at(s);
+        let acc = match ds {
+            Some(ds) => {
+                let (a, b) = (palm_at((s - ds).max(0.0)).translation, palm_at((s + ds).min(1.0)).translation);
+                let dt = self.timestep;
+                (b - 2.0 * p.translation + a) / (dt * dt)
+            }
+            None => DVec3::ZERO,
+        };
+        rot(&p).inverse() * (GRAVITY - acc)
+    }
 }
 
 impl Attempt<'_> {
@@ -126,7 +145,7 @@ impl Attempt<'_> {
     pub(super) fn record_instances(&mut self, mut q: Vec<f64>, held: Held) -> Result<Recorded, Stop> {
         let key = self.key;
         let mut out = Vec::with_capacity(key.instances as usize);
-        let mut steps = Vec::new();
+        let mut steps = self.take_grasp_states(&held.t_palm_object);
         let mut log = self.ctx.record_steps.then_some(StepLog { steps: &mut steps, grasped: held.t_palm_object });
         self.turn_goal = self.turn_target_deg.map(|target| (rot(&self.physics.object_pose()), target.to_radians()));
         if let Some(log) = log.as_mut() {
@@ -252,22 +271,13 @@ impl Attempt<'_> {
         let goal = self.turn_goal.filter(|_| stop_at_goal);
         let (ctx, physics) = (self.ctx, &mut *self.physics);
         let n = ctx.steps(ctx.config.move_seconds);
-        let palm_at = |s: f64| -> DAffine3 { ctx.t_world_base * ctx.robot.grasp_frame_pose(&along_path(q_from, q_target, s)) };
-        let dt = ctx.timestep;
         let ds = 1.0 / n as f64;
         // Episodes keep every hold whole: each move takes the same steps.
         let mut still = (ctx.config.hold_until_still && !ctx.record_steps).then(|| StillWatch::new(ctx));
         let mut stopped_at = None;
         for k in 1..=n + ctx.steps(ctx.config.hold_seconds) {
             let s = stopped_at.unwrap_or((k as f64 * ds).min(1.0));
-            let p = palm_at(s);
-            let acc = if k <= n && stopped_at.is_none() {
-                let (a, b) = (palm_at((s - ds).max(0.0)).translation, palm_at((s + ds).min(1.0)).translation);
-                (b - 2.0 * p.translation + a) / (dt * dt)
-            } else {
-                DVec3::ZERO
-            };
-            physics.set_gravity(rot(&p).inverse() * (GRAVITY - acc));
+            physics.set_gravity(ctx.gravity_on_path(q_from, q_target, s, (k <= n && stopped_at.is_none()).then_some(ds)));
             physics.step();
             if let Some(log) = log.as_deref_mut() {
                 log.push(ctx, &*physics, &along_path(q_from, q_target, s));

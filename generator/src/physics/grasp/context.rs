@@ -25,6 +25,10 @@ pub struct GraspContext<'a> {
     /// for episodes). Each arm move then also waits out its whole settle window, so that every
     /// move takes [`GraspContext::move_steps`] steps.
     pub record_steps: bool,
+    /// Episodes with `sampling.record.grasp`: the states kept from before the settled grasp
+    /// (`RecordConfig::grasp_steps`; 0: none recorded). The arm then holds the palm up while the
+    /// object is put in and the fingers close, and turns to the grasp pose during the settle.
+    pub recorded_grasp_steps: usize,
     /// A scripted finger motion after each arm move's hold (episodes).
     pub finger_gait: Option<FingerGait>,
     /// Gravity pivoting after each arm move's hold and finger motion (episodes, parallel jaws).
@@ -88,6 +92,7 @@ impl<'a> GraspContext<'a> {
             timestep,
             camera_position,
             record_steps: false,
+            recorded_grasp_steps: 0,
             finger_gait: None,
             pivot: None,
             finger_roll: None,
@@ -162,7 +167,7 @@ impl<'a> GraspContext<'a> {
 
     /// Simulation steps in `seconds` (at least one).
     pub(super) fn steps(&self, seconds: f64) -> usize {
-        (seconds / self.timestep).round().max(1.0) as usize
+        crate::config::physics_steps(seconds, self.timestep)
     }
 
     /// Physics steps of one recorded arm move: the move, the hold, and (when recording steps) the

@@ -71,8 +71,11 @@ pub struct Trajectory {
     /// Attempts it took (1 = the first grasp held through every instance).
     pub attempts: u32,
     /// With `GraspContext::record_steps`: the state at the settled grasp, then after every
-    /// physics step of the recorded arm moves (`1 + instances * GraspContext::move_steps` states); else empty.
+    /// physics step of the recorded arm moves (`1 + instances * GraspContext::move_steps` states),
+    /// after the `settled_step` states of the grasp itself before it (`sampling.record.grasp`); else empty.
     pub steps: Vec<InstanceState>,
+    /// The index in `steps` of the settled grasp (`GraspContext::recorded_grasp_steps`).
+    pub settled_step: usize,
     /// The episode's turn target (degrees), with `sampling.record.turn_target_deg`.
     pub turn_target_deg: Option<f64>,
 }
@@ -149,6 +152,15 @@ struct Attempt<'a> {
     /// The object's orientation in the palm at the settled grasp and the turn target (rad) from
     /// it, once the arm moves begin.
     turn_goal: Option<(DQuat, f64)>,
+    /// Recording the grasp (`GraspContext::recorded_grasp_steps`): the arm's joints holding the
+    /// palm up over the grasp's position, and the states since the object was put in the hand.
+    grasp_recording: Option<GraspRecording>,
+}
+
+/// The grasp as an episode records it, while it is made.
+struct GraspRecording {
+    q_palm_up: Vec<f64>,
+    states: Vec<InstanceState>,
 }
 
 /// A trajectory whose grasp never held: the object's fault, not the run's, so `generate` finishes
@@ -192,6 +204,7 @@ pub fn simulate_trajectory(
             screen_verdict: None,
             turn_target_deg,
             turn_goal: None,
+            grasp_recording: None,
         };
         let outcome = attempt.run(&placement);
         let (redone, screened, recorded) = (attempt.redone_steps, attempt.screen_steps, attempt.recorded);
@@ -203,7 +216,8 @@ pub fn simulate_trajectory(
             Ok((instances, steps)) => {
                 log.steps.redone_moves += redone;
                 log.steps.kept += spent - redone - screened;
-                return Ok(Trajectory { instances, attempts: number + 1, steps, turn_target_deg });
+                let settled_step = ctx.recorded_grasp_steps;
+                return Ok(Trajectory { instances, attempts: number + 1, steps, settled_step, turn_target_deg });
             }
             Err(Stop::Failed(f)) => {
                 log.steps.failed_attempts += spent;
@@ -245,12 +259,64 @@ impl Attempt<'_> {
         let t_world_palm = ctx.sample_palm(rng);
         let q = ctx.reach(&t_world_palm, &ctx.home()).ok_or(Failure::Unreachable)?;
         let pre: Vec<f64> = ctx.config.preshape.iter().map(|&(lo, hi)| rng.random_range(lo..=hi)).collect();
+        if ctx.recorded_grasp_steps > 0 {
+            // Recorded, the grasp is made as a robot would make it: the palm up over the grasp's
+            // position while the object is put in and the fingers close, then the wrist turning to
+            // the grasp pose (the palm's orientation turned by the least rotation to face up).
+            let r = rot(&t_world_palm);
+            let up = DAffine3::from_rotation_translation(DQuat::from_rotation_arc(r * DVec3::X, DVec3::Z) * r, t_world_palm.translation);
+            let q_palm_up = ctx.reach(&up, &q).ok_or(Failure::Unreachable)?;
+            self.grasp_recording = Some(GraspRecording { q_palm_up, states: Vec::new() });
+        }
         self.counted(Phase::Place, |a| a.place(placement, rng, &pre))?;
         let grasp_targets = self.counted(Phase::Close, |a| a.close_hand(&pre));
-        let grasped = self.counted(Phase::Settle, |a| a.settle(&t_world_palm))?;
+        let grasped = self.counted(Phase::Settle, |a| a.settle(&t_world_palm, &q))?;
         let held = Held { t_palm_object: grasped, targets: &grasp_targets };
         self.screen(&held, &t_world_palm)?;
         self.record_instances(q, held)
+    }
+
+    /// One physics step of the grasp before it settled; recording the grasp, the state after it
+    /// is logged with the arm's joints at `q_arm` (None: holding the palm up).
+    fn grasp_step(&mut self, q_arm: Option<&[f64]>) {
+        self.physics.step();
+        self.log_grasp_state(q_arm);
+    }
+
+    /// Recording the grasp: logs the state now with the arm's joints at `q_arm` (None: holding the
+    /// palm up).
+    fn log_grasp_state(&mut self, q_arm: Option<&[f64]>) {
+        let Some(rec) = self.grasp_recording.as_mut() else { return };
+        let physics = &*self.physics;
+        let q = q_arm.unwrap_or(&rec.q_palm_up);
+        let state = arm_move::instance_state(
+            self.ctx,
+            physics,
+            q,
+            physics.object_pose(),
+            DAffine3::IDENTITY,
+            physics.touch_contacts(),
+            physics.max_penetration(),
+        );
+        rec.states.push(state);
+    }
+
+    /// Recording the grasp: its states once it has settled at `held` (palm frame), the settled
+    /// state itself left out (the arm moves' log starts with it), the earliest ones dropped so
+    /// that `GraspContext::recorded_grasp_steps` remain, their slip counted from `held`.
+    fn take_grasp_states(&mut self, held: &DAffine3) -> Vec<InstanceState> {
+        let Some(rec) = self.grasp_recording.take() else { return Vec::new() };
+        let mut states = rec.states;
+        states.pop();
+        let keep = self.ctx.recorded_grasp_steps;
+        debug_assert!(states.len() >= keep, "{} grasp states, {keep} to keep", states.len());
+        let mut states = states.split_off(states.len().saturating_sub(keep));
+        for st in &mut states {
+            let rel = held.inverse() * st.t_palm_object;
+            st.slip_translation = rel.translation.length();
+            st.slip_rotation = rot(&rel).angle_between(DQuat::IDENTITY);
+        }
+        states
     }
 
     /// The turn (rad) left to the episode's target: None without one, at most 0 once reached.

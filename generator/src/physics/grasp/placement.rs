@@ -9,9 +9,9 @@ use rand_chacha::ChaCha8Rng;
 use vt_randomizers::uniform_rotation;
 use vt_robot::GraspKind;
 
-use super::phases::{REST_DAMPING, REST_SECONDS};
+use super::phases::REST_DAMPING;
 use super::{Attempt, Failure, PALM_UP_GRAVITY, Stop};
-use crate::config::GraspConfig;
+use crate::config::{GraspConfig, REST_SECONDS};
 use crate::physics::PhysicsObject;
 use crate::physics::antipodal::{Hull, Jaws, antipodal_pose};
 
@@ -127,13 +127,20 @@ impl Attempt<'_> {
             physics.set_object_damping(REST_DAMPING, REST_DAMPING);
             physics.step();
             if physics.max_penetration() <= PLACEMENT_MAX_OVERLAP {
-                for _ in 0..ctx.steps(REST_SECONDS) {
-                    physics.step();
-                }
+                self.rest();
                 return Ok(());
             }
         }
         Err(Failure::InitialOverlap.into())
+    }
+
+    /// The object, just put in the open hand, rests there for `REST_SECONDS`; the grasp's recording
+    /// starts with it.
+    fn rest(&mut self) {
+        self.log_grasp_state(None);
+        for _ in 0..self.ctx.steps(REST_SECONDS) {
+            self.grasp_step(None);
+        }
     }
 
     /// Phase 1 of a parallel-jaw grasp: the object weightless between the open jaws at an antipodal
@@ -150,6 +157,11 @@ impl Attempt<'_> {
             physics.set_object_damping(REST_DAMPING, REST_DAMPING);
             physics.step();
             if physics.max_penetration() <= PLACEMENT_MAX_OVERLAP {
+                // Recorded, the weightless object floats still between the open jaws as long as
+                // it would rest on a palm, so that every grasp records as many steps.
+                if self.grasp_recording.is_some() {
+                    self.rest();
+                }
                 return Ok(());
             }
         }
