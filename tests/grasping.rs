@@ -427,3 +427,86 @@ fn a_saved_physics_state_replays_the_same_steps_and_an_older_one_outlives_a_newe
     assert_eq!(steps(&mut hand), first, "the older state changed when a newer one was restored");
     assert_ne!(first.last(), first.first(), "the object and fingers moved: the replay compares something");
 }
+
+/// `robot.grasp.regrasp_on_loss`: a grasp lost after it recorded instances keeps them and the next
+/// grasp records the trajectory's rest, so the failed attempts throw away fewer physics steps
+/// (`vtgen grasps`, the cracker box and the drill of `scenes/paper.yaml`, primitive robot); every
+/// sample names the grasp that recorded it, in order along its trajectory, a trajectory changes
+/// grasp where one was lost, and the ground truth holds. Episodes refuse it with its field.
+#[test]
+fn a_lost_grasps_instances_are_kept_and_the_next_grasp_records_the_rest_when_asked() {
+    let steps = |regrasp: bool| -> Vec<serde_json::Value> {
+        let o = run(&[
+            "grasps",
+            root().join("scenes/paper.yaml").to_str().unwrap(),
+            "--set",
+            "objects=[003_cracker_box, 035_power_drill]",
+            "--trajectories",
+            "2",
+            "--instances",
+            "20",
+            "--set",
+            &format!("robot.grasp.regrasp_on_loss={regrasp}"),
+            "--quiet",
+            "--json",
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let r: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        r["objects"].as_array().unwrap().iter().map(|ob| ob["physics_steps"].clone()).collect()
+    };
+    let (restarting, regrasping) = (steps(false), steps(true));
+    for (a, b) in restarting.iter().zip(&regrasping) {
+        let failed = |s: &serde_json::Value| s["failed_attempts"].as_u64().unwrap();
+        assert!(failed(b) < failed(a), "failed attempts' steps {} with regrasp_on_loss against {} without", failed(b), failed(a));
+    }
+    assert!(regrasping.iter().any(|s| s["instances_before_failure"].as_u64().unwrap() > 0), "no grasp was lost: {regrasping:?}");
+
+    // The cracker box in the hand scene loses a grasp after it recorded instances.
+    let d = tempdir();
+    let small = [
+        "--set",
+        "camera.width=160",
+        "--set",
+        "camera.height=120",
+        "--set",
+        "camera.intrinsics={fx: 153.75, fy: 153.75, cx: 79.5, cy: 59.5}",
+    ];
+    let regrasp = [
+        "--set",
+        "objects=[003_cracker_box]",
+        "--set",
+        "sampling.trajectories_per_object=2",
+        "--set",
+        "sampling.instances_per_trajectory=20",
+        "--set",
+        "robot.grasp.regrasp_on_loss=true",
+    ];
+    let o = run_generate(&root().join("scenes/tiny-hand.yaml"), d.path(), &[&small[..], &regrasp].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let ds = DatasetReader::open(d.path()).unwrap();
+    let mut grasps: std::collections::BTreeMap<u32, Vec<(u32, u32, u32)>> = Default::default();
+    for s in ds.samples("train").unwrap() {
+        let info = s.unwrap().info;
+        let robot = info.robot.unwrap();
+        grasps.entry(info.trajectory).or_default().push((
+            info.instance,
+            robot.grasp.expect("every sample names its grasp"),
+            robot.grasp_attempts,
+        ));
+    }
+    assert_eq!(grasps.len(), 2);
+    let mut changes = 0;
+    for (trajectory, mut g) in grasps {
+        g.sort();
+        assert!(g.windows(2).all(|w| w[0].1 <= w[1].1), "trajectory {trajectory}: grasps out of order {g:?}");
+        assert!(g.iter().all(|&(_, grasp, attempts)| grasp >= 1 && grasp <= attempts), "{g:?}");
+        assert_eq!(g.last().map(|l| l.1), g.last().map(|l| l.2), "the last grasp is the trajectory's last attempt: {g:?}");
+        changes += g.windows(2).filter(|w| w[0].1 != w[1].1).count();
+    }
+    assert!(changes > 0, "no trajectory changed grasp");
+    crate::ground_truth::check_dataset(d.path(), 40);
+
+    let o = run(&["plan", root().join("scenes/tiny-episode.yaml").to_str().unwrap(), "--set", "robot.grasp.regrasp_on_loss=true"]);
+    let e = stderr(&o);
+    assert!(!o.status.success() && e.contains("sampling.record") && e.contains("robot.grasp.regrasp_on_loss"), "{e}");
+}

@@ -190,6 +190,10 @@ pub struct RobotInfo {
     pub penetration_mm: f64,
     /// Attempts the trajectory took before a grasp held.
     pub grasp_attempts: u32,
+    /// With `robot.grasp.regrasp_on_loss`: the attempt (1-based) whose grasp recorded this
+    /// instance; where it changes along a trajectory, a grasp was lost and a new one made.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub grasp: Option<u32>,
     /// The episode's turn target (degrees; with `sampling.record.turn_target_deg`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub turn_target_deg: Option<f64>,
@@ -309,6 +313,8 @@ pub(crate) fn example_info(robot: bool) -> SampleInfo {
             slip_deg: 2.0,
             penetration_mm: 0.4,
             grasp_attempts: 2,
+            // Optional, only with `regrasp_on_loss`.
+            grasp: None,
             // Optional, only in episodes with a turn target: not a key every robot sample has.
             turn_target_deg: None,
             joint_positions: [("ff_j0".to_string(), 0.1)].into(),

@@ -550,9 +550,12 @@ impl<'a> SampleFactory<'a> {
         }
         let rec = recording.as_ref().expect("set above");
         let attempts = rec.trajectory.attempts;
-        let st = match at {
-            StateAt::Instance(i) => &rec.trajectory.instances[i as usize],
-            StateAt::Step(k) => &rec.trajectory.steps[k as usize],
+        let (st, grasp) = match at {
+            StateAt::Instance(i) => {
+                let regrasps = robot.config.grasp.regrasp_on_loss;
+                (&rec.trajectory.instances[i as usize], regrasps.then(|| rec.trajectory.instance_grasps[i as usize]))
+            }
+            StateAt::Step(k) => (&rec.trajectory.steps[k as usize], None),
         };
         let t_world_palm = robot.t_world_base * st.t_base_palm;
         let posed = pose_links(&robot.robot, robot.t_world_base, t_world_palm, &st.q, self.uploaded.robot_meshes.iter().map(|m| m.0));
@@ -569,6 +572,7 @@ impl<'a> SampleFactory<'a> {
             slip_deg: st.slip_rotation.to_degrees(),
             penetration_mm: st.penetration * 1e3,
             grasp_attempts: attempts,
+            grasp,
             turn_target_deg: rec.trajectory.turn_target_deg,
             joint_positions: robot.robot.model.dof_names().iter().zip(&st.q).map(|(n, v)| (n.to_string(), *v)).collect(),
             t_world_palm: pose_of(&t_world_palm),

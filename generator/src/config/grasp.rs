@@ -72,6 +72,14 @@ pub struct GraspConfig {
     /// Off by default: on `scenes/paper.yaml` it caught half of the large objects' failing
     /// grasps but turned away a fifth of their holding ones, and cost 8% more physics steps.
     pub hold_screen: bool,
+    /// When a grasp is lost after it recorded instances, keep them and record the trajectory's
+    /// remaining instances with a new grasp (the next attempt) instead of starting the trajectory
+    /// over: no recorded arm move is thrown away (docs/performance.md). A trajectory may then hold
+    /// several grasps in turn, and each sample names its own (`/sample/info` `grasp`). Off by
+    /// default: a trajectory is one grasp held through every instance, as in the paper. Snapshots
+    /// only: an episode is one grasp's time series.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub regrasp_on_loss: bool,
 }
 
 /// Palm-normal tilt (from straight up, away from the camera) of the back-to-camera moves: from
@@ -110,6 +118,7 @@ impl Default for GraspConfig {
             max_attempts: 200,
             max_penetration: 0.001,
             hold_screen: false,
+            regrasp_on_loss: false,
         }
     }
 }

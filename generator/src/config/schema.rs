@@ -64,7 +64,12 @@ impl Config {
         let mut at = sampling.key(key!(sampling_config.record));
         match &self.robot {
             None => at.fail("episodes record a grasp: the config needs a robot section"),
-            Some(robot) => record.check_rates(robot.physics.timestep, &mut at),
+            Some(robot) => {
+                record.check_rates(robot.physics.timestep, &mut at);
+                if robot.grasp.regrasp_on_loss {
+                    at.fail("an episode is one grasp's time series: robot.grasp.regrasp_on_loss works with snapshots only");
+                }
+            }
         }
         at.section(field!(record.finger_motion));
         at.section(field!(record.pivot));

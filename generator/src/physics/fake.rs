@@ -19,6 +19,9 @@ pub struct FakeHand {
     /// The object flies out of the hand at this step of the simulation (counted from the start),
     /// once: a restored state does not drop it again.
     pub drop_at_step: Option<u64>,
+    /// The object flies out of the hand at every step counted in [first, last): a restored state
+    /// drops it again while the count is in it (a grasp lost for good).
+    pub drop_between: Option<(u64, u64)>,
     /// Steps taken since it was made (a restore does not take them back: they were spent).
     pub steps: u64,
 }
@@ -35,6 +38,7 @@ impl FakeHand {
             contacts: (0..12).map(|k| (k < touching).then_some(0.0)).collect(),
             penetration: 0.0,
             drop_at_step: None,
+            drop_between: None,
             steps: 0,
         }
     }
@@ -64,6 +68,9 @@ impl HandPhysics for FakeHand {
         self.object.translation += self.drift_per_step;
         if self.drop_at_step == Some(self.steps) {
             self.drop_at_step = None;
+            self.object.translation += DVec3::new(-1.0, 0.0, 0.0);
+        }
+        if self.drop_between.is_some_and(|(first, last)| (first..last).contains(&self.steps)) {
             self.object.translation += DVec3::new(-1.0, 0.0, 0.0);
         }
     }

@@ -144,14 +144,13 @@ impl Attempt<'_> {
     /// Phase 4: one arm move per instance from the settled grasp at joint values `q`.
     pub(super) fn record_instances(&mut self, mut q: Vec<f64>, held: Held) -> Result<Recorded, Stop> {
         let key = self.key;
-        let mut out = Vec::with_capacity(key.instances as usize);
         let mut steps = self.take_grasp_states(&held.t_palm_object);
         let mut log = self.ctx.record_steps.then_some(StepLog { steps: &mut steps, grasped: held.t_palm_object });
         self.turn_goal = self.turn_target_deg.map(|target| (rot(&self.physics.object_pose()), target.to_radians()));
         if let Some(log) = log.as_mut() {
             log.push(self.ctx, &*self.physics, &q);
         }
-        for instance in 0..key.instances {
+        for instance in self.first_instance..key.instances {
             let sample_key = SampleKey { seed: key.seed, object_id: key.object_id, trajectory: key.trajectory, instance };
             let mut moved = 0;
             let (obj, contacts, penetration) = loop {
@@ -188,10 +187,10 @@ impl Attempt<'_> {
                     log.steps.truncate(logged);
                 }
             };
-            out.push(instance_state(self.ctx, &*self.physics, &q, obj, held.t_palm_object, contacts, penetration));
-            self.recorded += 1;
+            self.instances.push(instance_state(self.ctx, &*self.physics, &q, obj, held.t_palm_object, contacts, penetration));
+            self.recorded_at = (self.physics.steps_taken(), self.redone_steps);
         }
-        Ok((out, steps))
+        Ok((std::mem::take(&mut self.instances), steps))
     }
 
     /// One arm move from `q`, in its steps: draw a reachable palm pose, follow the path and hold,

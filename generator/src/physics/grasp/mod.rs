@@ -70,6 +70,9 @@ pub struct Trajectory {
     pub instances: Vec<InstanceState>,
     /// Attempts it took (1 = the first grasp held through every instance).
     pub attempts: u32,
+    /// Per instance, the attempt (1-based) whose grasp recorded it: all `attempts` unless
+    /// `grasp.regrasp_on_loss` kept the instances of grasps lost before.
+    pub instance_grasps: Vec<u32>,
     /// With `GraspContext::record_steps`: the state at the settled grasp, then after every
     /// physics step of the recorded arm moves (`1 + instances * GraspContext::move_steps` states),
     /// after the `settled_step` states of the grasp itself before it (`sampling.record.grasp`); else empty.
@@ -142,8 +145,13 @@ struct Attempt<'a> {
     /// This attempt's steps in moves it undid, and in the hold screen's probes.
     redone_steps: u64,
     screen_steps: u64,
-    /// Instances recorded so far.
-    recorded: u32,
+    /// The trajectory's instance this attempt records first: 0, or (`grasp.regrasp_on_loss`)
+    /// the instances lost grasps recorded before it.
+    first_instance: u32,
+    /// The instances this attempt recorded so far, and the physics' step count and this
+    /// attempt's redone steps when it recorded the last of them.
+    instances: Vec<InstanceState>,
+    recorded_at: (u64, u64),
     /// The hold screen's verdict, when it ran as a judge.
     screen_verdict: Option<bool>,
     /// The episode's turn target (degrees, `sampling.record.turn_target_deg`), drawn once per
@@ -189,6 +197,8 @@ pub fn simulate_trajectory(
     let placement = Placement::of(ctx.robot.kind, object)?;
     let mut last = None;
     let turn_target_deg = ctx.turn_target_deg(&key);
+    // The instances of lost grasps kept (`regrasp_on_loss`), and per instance its grasp.
+    let (mut kept, mut instance_grasps) = (Vec::new(), Vec::new());
     for number in 0..cfg.max_attempts {
         let start = physics.steps_taken();
         let mut attempt = Attempt {
@@ -200,14 +210,17 @@ pub fn simulate_trajectory(
             log: &mut *log,
             redone_steps: 0,
             screen_steps: 0,
-            recorded: 0,
+            first_instance: kept.len() as u32,
+            instances: Vec::new(),
+            recorded_at: (start, 0),
             screen_verdict: None,
             turn_target_deg,
             turn_goal: None,
             grasp_recording: None,
         };
         let outcome = attempt.run(&placement);
-        let (redone, screened, recorded) = (attempt.redone_steps, attempt.screen_steps, attempt.recorded);
+        let (redone, screened) = (attempt.redone_steps, attempt.screen_steps);
+        let (recorded, (recorded_at, redone_then)) = (std::mem::take(&mut attempt.instances), attempt.recorded_at);
         if let Some(passed) = attempt.screen_verdict {
             log.steps.screen_judged.count(passed, outcome.is_ok());
         }
@@ -216,12 +229,22 @@ pub fn simulate_trajectory(
             Ok((instances, steps)) => {
                 log.steps.redone_moves += redone;
                 log.steps.kept += spent - redone - screened;
+                instance_grasps.resize(instance_grasps.len() + instances.len(), number + 1);
+                kept.extend(instances);
                 let settled_step = ctx.recorded_grasp_steps;
-                return Ok(Trajectory { instances, attempts: number + 1, steps, settled_step, turn_target_deg });
+                return Ok(Trajectory { instances: kept, attempts: number + 1, instance_grasps, steps, settled_step, turn_target_deg });
             }
             Err(Stop::Failed(f)) => {
-                log.steps.failed_attempts += spent;
-                log.steps.instances_before_failure += recorded as u64;
+                log.steps.instances_before_failure += recorded.len() as u64;
+                // A lost grasp's instances stay, with the steps that made them, when asked.
+                let made = if cfg.regrasp_on_loss && !recorded.is_empty() { recorded_at - start } else { 0 };
+                if made > 0 {
+                    log.steps.redone_moves += redone_then;
+                    log.steps.kept += made - redone_then - screened;
+                    instance_grasps.resize(instance_grasps.len() + recorded.len(), number + 1);
+                    kept.extend(recorded);
+                }
+                log.steps.failed_attempts += spent - made;
                 log.events.push(GraspEvent::Failed(f));
                 last = Some(f);
             }

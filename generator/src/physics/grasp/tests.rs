@@ -180,6 +180,39 @@ fn a_move_that_drops_the_object_is_undone_and_redrawn() {
 }
 
 #[test]
+fn a_lost_grasp_keeps_its_instances_and_a_new_grasp_records_the_rest_when_asked() {
+    let regrasp = GraspConfig { regrasp_on_loss: true, ..allegro_grasp() };
+    // Each instance is a 0.5 s move and a 0.2 s hold (168 steps); from 60 steps into the third
+    // move every try drops the object (each in its first step), so the first grasp is lost after
+    // two instances, and the next attempt, placed after that, holds.
+    let lost = steps_to_settled(&regrasp) + 2 * 168 + 60;
+    let losing = || {
+        let mut hand = crate::physics::fake::FakeHand::holding(3);
+        hand.drop_between = Some((lost, lost + 4));
+        hand
+    };
+    let (t, log) = run_fake_screened(&mut losing(), &regrasp, 5, None);
+    let t = t.unwrap();
+    assert_eq!((t.instances.len(), t.attempts), (5, 2));
+    assert_eq!(t.instance_grasps, [1, 1, 2, 2, 2]);
+    let mut events = vec![GraspEvent::Redone(Redo::Drop); 3];
+    events.push(GraspEvent::Failed(Failure::LostDuringMotion));
+    assert_eq!(log.events, events);
+    // Only the lost grasp's last move and its redraws are thrown away; every step counted once.
+    let steps = log.steps;
+    assert_eq!(steps.instances_before_failure, 2);
+    assert!(steps.failed_attempts < 168, "{steps:?}");
+    assert_eq!(steps.total(), steps.failed_attempts + steps.kept + steps.redone_moves);
+    assert_eq!(steps.arm_move, 5 * 120 + steps.failed_attempts);
+    // By default the trajectory starts over: one grasp holds all of its instances, and the lost
+    // grasp's two instances are thrown away with their steps.
+    let (t, log) = run_fake_screened(&mut losing(), &allegro_grasp(), 5, None);
+    let t = t.unwrap();
+    assert_eq!((t.instances.len(), t.attempts, t.instance_grasps), (5, 2, vec![2; 5]));
+    assert!(log.steps.failed_attempts > steps_to_settled(&regrasp) + 2 * 168);
+}
+
+#[test]
 fn a_grasp_that_lets_go_under_a_probe_is_screened_out_before_any_arm_move() {
     let cfg = GraspConfig { hold_screen: true, ..allegro_grasp() };
     // The object flies out early in the first probe (once).
