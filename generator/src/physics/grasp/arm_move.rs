@@ -5,7 +5,7 @@
 //! redrawn, up to `MAX_MOVES_PER_INSTANCE` times.
 
 use anyhow::Result;
-use glam::{DAffine3, DQuat, DVec3};
+use glam::{DAffine3, DVec3};
 use rand_chacha::ChaCha8Rng;
 use vt_randomizers::{SampleKey, SampleStream};
 
@@ -75,17 +75,18 @@ pub(super) fn instance_state(
 ) -> InstanceState {
     let mut qr = q.to_vec();
     ctx.robot.set_hand(&mut qr, &physics.joint_positions());
-    let rel = grasped.inverse() * obj;
-    InstanceState {
+    let mut state = InstanceState {
         t_base_palm: ctx.robot.grasp_frame_pose(&qr),
         q: qr,
         t_palm_object: obj,
         contacts,
-        slip_translation: rel.translation.length(),
-        slip_rotation: rot(&rel).angle_between(DQuat::IDENTITY),
+        slip_translation: 0.0,
+        slip_rotation: 0.0,
         penetration,
         hand_contacts: if ctx.record_contact_forces { physics.hand_contacts() } else { None },
-    }
+    };
+    state.count_slip_from(&grasped);
+    state
 }
 
 /// Whether the object has stopped in the hand during a hold: its palm-frame poses over the last

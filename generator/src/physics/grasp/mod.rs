@@ -62,6 +62,15 @@ pub struct InstanceState {
     pub hand_contacts: Option<Vec<crate::physics::HandContact>>,
 }
 
+impl InstanceState {
+    /// Sets the slip: the object's motion in the palm since the grasp settled at `grasped`.
+    fn count_slip_from(&mut self, grasped: &DAffine3) {
+        let rel = grasped.inverse() * self.t_palm_object;
+        self.slip_translation = rel.translation.length();
+        self.slip_rotation = rot(&rel).angle_between(DQuat::IDENTITY);
+    }
+}
+
 /// What a held attempt recorded: its instances and (episodes) its steps.
 type Recorded = (Vec<InstanceState>, Vec<InstanceState>);
 
@@ -335,9 +344,7 @@ impl Attempt<'_> {
         debug_assert!(states.len() >= keep, "{} grasp states, {keep} to keep", states.len());
         let mut states = states.split_off(states.len().saturating_sub(keep));
         for st in &mut states {
-            let rel = held.inverse() * st.t_palm_object;
-            st.slip_translation = rel.translation.length();
-            st.slip_rotation = rot(&rel).angle_between(DQuat::IDENTITY);
+            st.count_slip_from(held);
         }
         states
     }
