@@ -301,6 +301,50 @@ fn most_held_objects_stay_still_while_the_arm_is_still() {
     assert!(still + 1 >= total, "only {still} of {total} held objects stay within 1 mm and 1° over 10 s");
 }
 
+/// The solver sees every overlap of the object with the hand: no hand link, the palm included,
+/// sinks into a held object. (With rapier's contact recycling, which reuses a pair's contacts
+/// until the pair has moved 5 cm, the gelatin and sugar boxes sank 2–15 mm into the palm during
+/// arm moves, unseen by the solver, and those moves had to be redone.) Every arm move of 3
+/// trajectories of 20 instances ends within `max_penetration`: none is redone for it.
+#[test]
+fn no_hand_link_sinks_into_a_held_object() {
+    use vtgen::config::{GraspConfig, PhysicsConfig};
+    use vtgen::physics::grasp::{GraspContext, GraspLog, TrajectoryKey, simulate_trajectory};
+    use vtgen::physics::{PhysicsObject, PhysicsSettings, RapierHand};
+    let builtin = vt_robot::Robot::default_robot();
+    let model = match std::env::var_os("ROBOT_ASSETS") {
+        Some(dir) => {
+            let drawn = vt_robot::Robot::builtin_with(vt_robot::DEFAULT_ROBOT, &[dir.into()]).unwrap();
+            let hand = vtgen::assets::robot::hand_surface_meshes(&drawn).unwrap();
+            let real = vtgen::assets::robot::with_real_hand(&drawn, &hand).unwrap();
+            vt_robot::Robot { model: real, ..drawn.clone() }
+        }
+        None => builtin.clone(),
+    };
+    let pc = PhysicsConfig { timestep: 1.0 / 240.0, ..PhysicsConfig::default() };
+    let cfg = GraspConfig::default().with_robot_defaults(&builtin);
+    let t_world_base =
+        glam::DAffine3::from_rotation_translation(glam::DQuat::from_rotation_z(std::f64::consts::PI), DVec3::new(0.0, 0.5, 0.0));
+    let ctx = GraspContext::new(&model, t_world_base, &cfg, pc.timestep, DVec3::new(0.0, -0.75, 0.55));
+    let mut hand = RapierHand::new(&model, PhysicsSettings::from(&pc)).unwrap();
+    for id in ["009_gelatin_box", "004_sugar_box"] {
+        // The real mesh when `YCB_DIR` is set (CI), else the procedural one.
+        let entry = vt_objects::Catalog::builtin().get(id).unwrap().clone();
+        let mesh = match std::env::var_os("YCB_DIR") {
+            Some(d) => vt_objects::load_mesh(&vt_objects::find_ycb_mesh(std::path::Path::new(&d), id).unwrap()).unwrap(),
+            None => vt_objects::procedural_mesh(&entry),
+        };
+        let object = PhysicsObject { points: mesh.positions, mass: entry.mass };
+        let mut log = GraspLog::default();
+        for trajectory in 0..3 {
+            let key = TrajectoryKey { seed: 2020, object_id: id, trajectory, instances: 20 };
+            simulate_trajectory(&ctx, &mut hand, &object, key, &mut log).unwrap();
+        }
+        let names: Vec<&str> = log.events.iter().map(|e| e.name()).collect();
+        assert!(!names.iter().any(|n| n.contains("Penetration")), "{id}: {names:?}");
+    }
+}
+
 /// `randomization.robot_materials` changes only how the robot looks: masks, depth and every pixel
 /// off the robot are the same as without it; robot pixels change in randomized samples, which
 /// record the look, and canonical samples keep the assets' materials.
@@ -475,7 +519,7 @@ fn a_lost_grasps_instances_are_kept_and_the_next_grasp_records_the_rest_when_ask
         "--set",
         "objects=[003_cracker_box]",
         "--set",
-        "sampling.trajectories_per_object=2",
+        "sampling.trajectories_per_object=3",
         "--set",
         "sampling.instances_per_trajectory=20",
         "--set",
@@ -494,7 +538,7 @@ fn a_lost_grasps_instances_are_kept_and_the_next_grasp_records_the_rest_when_ask
             robot.grasp_attempts,
         ));
     }
-    assert_eq!(grasps.len(), 2);
+    assert_eq!(grasps.len(), 3);
     let mut changes = 0;
     for (trajectory, mut g) in grasps {
         g.sort();
@@ -504,7 +548,7 @@ fn a_lost_grasps_instances_are_kept_and_the_next_grasp_records_the_rest_when_ask
         changes += g.windows(2).filter(|w| w[0].1 != w[1].1).count();
     }
     assert!(changes > 0, "no trajectory changed grasp");
-    crate::ground_truth::check_dataset(d.path(), 40);
+    crate::ground_truth::check_dataset(d.path(), 60);
 
     let o = run(&["plan", root().join("scenes/tiny-episode.yaml").to_str().unwrap(), "--set", "robot.grasp.regrasp_on_loss=true"]);
     let e = stderr(&o);

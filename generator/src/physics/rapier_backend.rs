@@ -68,8 +68,14 @@ fn hand_world(settings: &PhysicsSettings) -> PhysicsWorld {
     // 3.5° in 10 s with the arm still (7 of 12 test grasps still); with four and the stiffer
     // contacts below, 12 of 12 stay within 0.5 mm and 0.6° (tests/grasping.rs) at the same
     // physics time per sample, measured with `vtgen bench`. More substeps (16 solver
-    // iterations), no contact recycling or friction in the bias pass did not help.
+    // iterations) or friction in the bias pass did not help.
     world.integration_parameters.num_internal_pgs_iterations = 4;
+    // Every step finds the contacts anew. Rapier's contact recycling reuses a pair's contact
+    // points until the pair has moved 5 cm (its default), which here let held objects sink 2 to
+    // 15 mm into the palm during arm moves, unseen by the solver (the moves then failed the
+    // penetration check and were redone; `tests/grasping.rs`). Off, each step costs ~16 % more
+    // CPU, but grasps are no longer lost to it (docs/grasp-loop.md).
+    world.integration_parameters.contact_recycling = false;
     // Stiff contacts: fingers squeeze with up to 0.7 N·m, which soft contacts turn into
     // millimetres of overlap.
     let nf = 1000.0;
