@@ -181,7 +181,9 @@ fn a_move_that_drops_the_object_is_undone_and_redrawn() {
 
 #[test]
 fn a_lost_grasp_keeps_its_instances_and_a_new_grasp_records_the_rest_when_asked() {
-    let regrasp = GraspConfig { regrasp_on_loss: true, ..allegro_grasp() };
+    // Whole holds, so that every instance takes the same steps.
+    let whole_holds = GraspConfig { hold_until_still: false, ..allegro_grasp() };
+    let regrasp = GraspConfig { regrasp_on_loss: true, ..whole_holds.clone() };
     // Each instance is a 0.5 s move and a 0.2 s hold (168 steps); from 60 steps into the third
     // move every try drops the object (each in its first step), so the first grasp is lost after
     // two instances, and the next attempt, placed after that, holds.
@@ -206,7 +208,7 @@ fn a_lost_grasp_keeps_its_instances_and_a_new_grasp_records_the_rest_when_asked(
     assert_eq!(steps.arm_move, 5 * 120 + steps.failed_attempts);
     // By default the trajectory starts over: one grasp holds all of its instances, and the lost
     // grasp's two instances are thrown away with their steps.
-    let (t, log) = run_fake_screened(&mut losing(), &allegro_grasp(), 5, None);
+    let (t, log) = run_fake_screened(&mut losing(), &whole_holds, 5, None);
     let t = t.unwrap();
     assert_eq!((t.instances.len(), t.attempts, t.instance_grasps), (5, 2, vec![2; 5]));
     assert!(log.steps.failed_attempts > steps_to_settled(&regrasp) + 2 * 168);
@@ -252,7 +254,7 @@ fn a_grasp_that_lets_go_under_a_probe_is_screened_out_before_any_arm_move() {
 }
 
 #[test]
-fn a_snapshot_hold_ends_once_the_object_has_stopped_when_asked() {
+fn a_snapshot_hold_ends_once_the_object_has_stopped() {
     use crate::physics::fake::FakeHand;
     let until_still = GraspConfig { hold_until_still: true, ..allegro_grasp() };
     // A still object: each hold ends when the 50 ms window (12 steps at 240 Hz) first compares
@@ -260,7 +262,8 @@ fn a_snapshot_hold_ends_once_the_object_has_stopped_when_asked() {
     let (t, log) = run_fake_screened(&mut FakeHand::holding(3), &until_still, 3, None);
     assert_eq!(t.unwrap().instances.len(), 3);
     assert_eq!(log.steps.hold, 3 * 13);
-    let (_, log) = run_fake_screened(&mut FakeHand::holding(3), &allegro_grasp(), 3, None);
+    let whole_hold = GraspConfig { hold_until_still: false, ..allegro_grasp() };
+    let (_, log) = run_fake_screened(&mut FakeHand::holding(3), &whole_hold, 3, None);
     assert_eq!(log.steps.hold, 3 * 48);
     // An object sliding 0.1 mm per step (24 mm/s) has not stopped: the whole hold.
     let mut sliding = FakeHand::holding(3);
