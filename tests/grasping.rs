@@ -485,7 +485,7 @@ fn a_lost_grasps_instances_are_kept_and_the_next_grasp_records_the_rest_when_ask
             "--trajectories",
             "2",
             "--instances",
-            "20",
+            "40",
             "--set",
             &format!("robot.grasp.regrasp_on_loss={regrasp}"),
             "--quiet",
@@ -516,9 +516,9 @@ fn a_lost_grasps_instances_are_kept_and_the_next_grasp_records_the_rest_when_ask
         "--set",
         "objects=[003_cracker_box]",
         "--set",
-        "sampling.trajectories_per_object=3",
+        "sampling.trajectories_per_object=2",
         "--set",
-        "sampling.instances_per_trajectory=20",
+        "sampling.instances_per_trajectory=30",
         "--set",
         "robot.grasp.regrasp_on_loss=true",
     ];
@@ -535,7 +535,7 @@ fn a_lost_grasps_instances_are_kept_and_the_next_grasp_records_the_rest_when_ask
             robot.grasp_attempts,
         ));
     }
-    assert_eq!(grasps.len(), 3);
+    assert_eq!(grasps.len(), 2);
     let mut changes = 0;
     for (trajectory, mut g) in grasps {
         g.sort();
