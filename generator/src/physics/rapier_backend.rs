@@ -73,8 +73,8 @@ fn hand_world(settings: &PhysicsSettings) -> PhysicsWorld {
     // Every step finds the contacts anew. Rapier's contact recycling reuses a pair's contact
     // points until the pair has moved 5 cm (its default), which here let held objects sink 2 to
     // 15 mm into the palm during arm moves, unseen by the solver (the moves then failed the
-    // penetration check and were redone; `tests/grasping.rs`). Off, each step costs ~16 % more
-    // CPU, but grasps are no longer lost to it (docs/grasp-loop.md).
+    // penetration check and were redone; `tests/grasping.rs`). Off, the CPU per step stayed
+    // within `vtgen bench`'s run-to-run noise, and far fewer grasps are lost (docs/grasp-loop.md).
     world.integration_parameters.contact_recycling = false;
     // Stiff contacts: fingers squeeze with up to 0.7 N·m, which soft contacts turn into
     // millimetres of overlap.
