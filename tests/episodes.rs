@@ -243,7 +243,7 @@ fn median_in_hand_rotation(config: &Path, args: &[&str]) -> Vec<f64> {
 /// object between its jaws far more than arm moves alone do (the physics-only `vtgen grasps`
 /// figures over six episodes per object, with and without), a generated pivoting episode keeps
 /// its ground truth on every frame and every touch point on the object, and the pivot is refused
-/// with its field for a hand that holds objects on its palm. An episode's turn target
+/// with its field for a hand without the pads of its pinch. An episode's turn target
 /// (`sampling.record.turn_target_deg`) ends the pivoting: the episodes turn less than without one,
 /// `vtgen grasps` counts the windows it ended, and each sample names its episode's target. The
 /// gripper's grasp records as the hand's does (`sampling.record.grasp`).
@@ -290,7 +290,7 @@ fn gravity_pivoting_turns_the_object_between_the_jaws_and_keeps_the_ground_truth
 
     let o = run(&["plan", root().join("scenes/tiny-episode.yaml").to_str().unwrap(), "--set", "sampling.record.pivot={}"]);
     let e = stderr(&o);
-    assert!(!o.status.success() && e.contains("sampling.record.pivot") && e.contains("not a parallel-jaw gripper"), "{e}");
+    assert!(!o.status.success() && e.contains("sampling.record.pivot.pads") && e.contains("not a parallel-jaw gripper"), "{e}");
     let o = run(&["plan", cfg.to_str().unwrap(), "--set", "sampling.record.pivot.step_deg=[0, 10]"]);
     let e = stderr(&o);
     assert!(!o.status.success() && e.contains("sampling.record.pivot.step_deg"), "{e}");
@@ -357,6 +357,43 @@ fn finger_gaiting_turns_the_object_further_than_the_roll_and_keeps_the_ground_tr
     let o = run(&["plan", cfg.to_str().unwrap(), "--set", &gait.replace("regrasp: {}", "regrasp: {lift_deg: 0}")]);
     let e = stderr(&o);
     assert!(!o.status.success() && e.contains("sampling.record.finger_roll.regrasp.lift_deg"), "{e}");
+}
+
+/// Pinch pivoting on the Allegro hand (`sampling.record.pivot.pads`): before each pivot the thumb
+/// and a finger take the object between two facing pads, the other fingers lift off and close on
+/// it again after the pivot. It turns the objects further than finger gaiting over the same 6 s
+/// windows (the physics-only `vtgen grasps` figures, six episodes per object), some episode past
+/// 60°; a generated pinch-pivoting episode keeps its ground truth on every frame and every touch
+/// point on the object; pads that select none of the hand's are refused with the field.
+#[test]
+fn pinch_pivoting_turns_the_object_in_the_hand_further_than_gaiting_and_keeps_the_ground_truth() {
+    let cfg = root().join("scenes/tiny-episode.yaml");
+    let pinch = r#"sampling.record={camera_hz: 30, tactile_hz: 60, pivot: {seconds: 6, pads: ["th_*", "*"], max_slide_mm: 400}}"#;
+    let gait = "sampling.record={camera_hz: 30, tactile_hz: 60, finger_roll: {seconds: 6, axis: [0, 0, 1], \
+                joints: [{joint: ff_joint_0}, {joint: mf_joint_0}, {joint: rf_joint_0}], regrasp: {}}}";
+    let episodes = ["--trajectories", "6", "--instances", "1", "--set"];
+    let report = grasp_report(&cfg, &[&episodes[..], &[pinch]].concat());
+    let gaiting = median_in_hand_rotation(&cfg, &[&episodes[..], &[gait]].concat());
+    let mut furthest = 0.0f64;
+    for (o, g) in report.iter().zip(&gaiting) {
+        let mut largest: Vec<f64> =
+            o["in_hand_rotation_deg"].as_array().unwrap().iter().map(|e| e["largest_deg"].as_f64().unwrap()).collect();
+        largest.sort_by(f64::total_cmp);
+        let median = largest[largest.len() / 2];
+        assert!(
+            median >= 1.3 * g,
+            "{}: median largest in-hand rotation {median:.1}° pinch pivoting against {g:.1}° gaiting",
+            o["object_id"]
+        );
+        furthest = furthest.max(largest[largest.len() - 1]);
+    }
+    assert!(furthest >= 60.0, "no pinch-pivoting episode turned its object 60°: at most {furthest:.1}°");
+
+    one_soup_can_episode_keeps_its_ground_truth(&cfg, &pinch.replace("seconds: 6", "seconds: 3"));
+
+    let o = run(&["plan", cfg.to_str().unwrap(), "--set", &pinch.replace("th_*", "thumb")]);
+    let e = stderr(&o);
+    assert!(!o.status.success() && e.contains("sampling.record.pivot.pads") && e.contains("'thumb' selects no pad"), "{e}");
 }
 
 /// The closed-loop finger roll (`sampling.record.finger_roll`) on the Allegro hand: it turns the

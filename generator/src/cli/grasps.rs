@@ -82,7 +82,7 @@ pub struct ObjectGraspReport {
     /// reached), `window` (turning to the window's end), `slid` (the pivot's slide budget),
     /// `no_wrist_turn`, `joint_range` (a rolling joint at its most without regrasp),
     /// `others_not_holding` (a finger not lifted), `finger_put_back` (the object moved while it
-    /// was lifted).
+    /// was lifted), `no_pinch` (a hand's pivoting found no two pads facing each other).
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
     pub in_hand_ends: BTreeMap<String, u64>,
 }

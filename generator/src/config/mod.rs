@@ -233,13 +233,24 @@ impl LoadedConfig {
                     return Err((vec!["sampling", "record", section, "joints"], message));
                 }
             }
-            let pivots = loaded.config.sampling.record.as_ref().is_some_and(|r| r.pivot.is_some());
-            if pivots && robot.kind != vt_robot::GraspKind::ParallelJaw {
-                let message = format!(
-                    "gravity pivoting turns an object between two jaws: robot '{}' is not a parallel-jaw gripper (it holds objects on its palm; its hand's in-hand motion is sampling.record.finger_roll)",
-                    robot.name
-                );
-                return Err((vec!["sampling", "record", "pivot"], message));
+            if let Some(pivot) = record.and_then(|r| r.pivot.as_ref()) {
+                match &pivot.pads {
+                    None if robot.kind != vt_robot::GraspKind::ParallelJaw => {
+                        let message = format!(
+                            "gravity pivoting turns an object about the line between two pads: robot '{}' is not a parallel-jaw gripper, so give the pads its pinch may use (e.g. [th_*, distal])",
+                            robot.name
+                        );
+                        return Err((vec!["sampling", "record", "pivot", "pads"], message));
+                    }
+                    None => {}
+                    Some(patterns) => {
+                        if let Some(none) = patterns.iter().find(|p| !robot.pads.iter().any(|pad| pad.matches(p))) {
+                            let names: Vec<&str> = robot.pads.iter().map(|p| p.name.as_str()).collect();
+                            let message = format!("'{none}' selects no pad of robot '{}' ({})", robot.name, names.join(", "));
+                            return Err((vec!["sampling", "record", "pivot", "pads"], message));
+                        }
+                    }
+                }
             }
             loaded.config.robot.as_mut().expect("cloned above").grasp = grasp;
             loaded.pad_sensors = rc.tactile.pad_sensors(&robot)?;

@@ -86,11 +86,29 @@ pub struct PivotConfig {
     pub ease_seconds: f64,
     /// The grip is full for the window's last `hold_seconds`, and between two pivots (s).
     pub hold_seconds: f64,
+    /// How far the object may slide along the pads over a window (mm) before its pivoting ends.
+    pub max_slide_mm: f64,
+    /// A hand's pinch: two pad patterns (a name, `*`/`?` globs over names, or a label, as the sensor
+    /// rules select pads). Before each pivot, the touching pads of the first and of the second on
+    /// another finger that face each other most become the pinch whose line the object turns
+    /// about; the other fingers lift off, and close on the object again after the pivot. Without
+    /// it, a gripper's two jaws (a hand must give it).
+    pub pads: Option<[String; 2]>,
+    /// How far the other fingers' closing joints open for a hand's pinch (degrees).
+    pub lift_deg: f64,
 }
 
 impl Default for PivotConfig {
     fn default() -> Self {
-        PivotConfig { seconds: 2.0, step_deg: (20.0, 60.0), ease_seconds: 0.6, hold_seconds: 0.25 }
+        PivotConfig {
+            seconds: 2.0,
+            step_deg: (20.0, 60.0),
+            ease_seconds: 0.6,
+            hold_seconds: 0.25,
+            max_slide_mm: 15.0,
+            pads: None,
+            lift_deg: 30.0,
+        }
     }
 }
 
@@ -99,6 +117,8 @@ impl Check for PivotConfig {
         c.positive(field!(self.seconds), 60.0, "s");
         c.positive(field!(self.ease_seconds), 60.0, "s");
         c.positive(field!(self.hold_seconds), 60.0, "s");
+        c.positive(field!(self.max_slide_mm), 1000.0, "mm");
+        c.key(key!(self.lift_deg)).bounded(self.lift_deg, incl(0.0), incl(90.0), "degrees");
         let (lo, hi) = self.step_deg;
         c.key(key!(self.step_deg)).bounded_range([lo, hi], excl(0.0), incl(180.0), "degrees");
         if self.hold_seconds >= self.seconds {

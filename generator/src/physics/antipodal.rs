@@ -21,12 +21,17 @@ pub struct Jaws {
 impl Jaws {
     /// The first two pads of `robot` with its hand joints at `hand` (`Robot::hand` order).
     pub fn of(robot: &Robot, hand: &[f64]) -> Jaws {
+        Jaws::between(robot, hand, [0, 1])
+    }
+
+    /// Pads `pads` (indices in `Robot::pads`) of `robot` with its hand joints at `hand`.
+    pub fn between(robot: &Robot, hand: &[f64], pads: [usize; 2]) -> Jaws {
         let m = &robot.model;
         let mut q = m.zero();
         robot.set_hand(&mut q, hand);
         let links = m.forward_kinematics(&q);
         let to_grasp = links[robot.grasp_frame].inverse();
-        let [a, b] = [0, 1].map(|k| to_grasp.transform_point3(links[robot.pads[k].frame].translation));
+        let [a, b] = pads.map(|k| to_grasp.transform_point3(links[robot.pads[k].frame].translation));
         Jaws { centre: (a + b) * 0.5, axis: (b - a).normalize_or(DVec3::Y), opening: a.distance(b) }
     }
 }

@@ -40,7 +40,7 @@ pub fn grasp_context<'a>(
     record: Option<&crate::config::RecordConfig>,
 ) -> GraspContext<'a> {
     let finger_gait = record.and_then(|r| r.finger_motion.as_ref()).map(|m| FingerGait::of(m, robot, rc.physics.timestep));
-    let pivot = record.and_then(|r| r.pivot.as_ref()).map(|p| PivotControl::of(p, rc.physics.timestep));
+    let pivot = record.and_then(|r| r.pivot.as_ref()).map(|p| PivotControl::of(p, robot, rc.physics.timestep));
     let finger_roll = record.and_then(|r| r.finger_roll.as_ref()).map(|r| RollControl::of(r, robot, rc.physics.timestep));
     let record_steps = record.is_some();
     let record_contact_forces = rc.tactile.force_field.is_some();

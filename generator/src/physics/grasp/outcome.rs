@@ -81,6 +81,8 @@ pub enum InHandEnd {
     OthersNotHolding,
     /// A lifted finger was put back: the object moved in the palm during its lift.
     FingerPutBack,
+    /// A hand's pivoting found no two touching pads of its `pads` that face each other.
+    NoPinch,
 }
 
 impl InHandEnd {
@@ -94,6 +96,7 @@ impl InHandEnd {
             InHandEnd::JointRange => "joint_range",
             InHandEnd::OthersNotHolding => "others_not_holding",
             InHandEnd::FingerPutBack => "finger_put_back",
+            InHandEnd::NoPinch => "no_pinch",
         }
     }
 }

@@ -1,7 +1,8 @@
-//! Gravity pivoting (episodes, parallel-jaw grippers): after an arm move, the arm stands still
-//! while the grip eases until the object turns under its own weight about the line between the
-//! pads, and tightens again when the turn reaches a drawn target: a closed loop on the simulated
-//! rotation, repeated while the window lasts (`sampling.record.pivot`).
+//! Gravity pivoting (episodes): after an arm move, the arm stands still while the grip eases until
+//! the object turns under its own weight about the line between two pads, and tightens again when
+//! the turn reaches a drawn target: a closed loop on the simulated rotation, repeated while the
+//! window lasts (`sampling.record.pivot`). A gripper pivots between its jaws; a hand between a
+//! pinch chosen before each pivot, its other fingers lifted off and placed again after it.
 
 use glam::{DAffine3, DQuat, DVec3};
 use rand::Rng;
@@ -23,8 +24,12 @@ const EASED_GRIP: f64 = -0.3;
 /// `TURN_SPEED` were chosen on `scenes/tiny-pivot.yaml`'s objects: 1 cm/s and 1.5 rad/s kept the
 /// grip too tight to turn in a third more windows.)
 const SLIDE_SPEED: f64 = 0.02;
-/// The object may slide this far (m) along the pads in a window: then the grip stays full.
-const SLIDE_BUDGET: f64 = 0.015;
+/// Two pads may pinch when their normals (+z out of the pads) are at least 90° apart (this cosine).
+/// On a hand's rounded fingertips the pad's normal is not the contact's: 120° apart found no pinch
+/// in half of the Allegro's windows, and turned the objects no further when it found one.
+const PINCH_FACING: f64 = 0.0;
+/// The time (s) a hand's other fingers take to lift before a pivot, and to close again after it.
+const LIFT_SECONDS: f64 = 0.15;
 /// Faster than this (rad/s) the turn would overshoot: the grip rises.
 const TURN_SPEED: f64 = 2.5;
 /// Slower than this (rad/s) with the grip fully eased, the object is not turning (its centre of
@@ -42,18 +47,89 @@ pub struct PivotControl {
     pub hold_steps: usize,
     /// Each pivot's target turn (rad), drawn uniformly from [min, max].
     pub step: (f64, f64),
+    /// How far (m) the object may slide along the pads over a window.
+    pub max_slide: f64,
+    /// The pads the object turns between.
+    pub pads: PivotPads,
+}
+
+/// The pads a pivot turns the object between.
+#[derive(Debug, Clone, PartialEq)]
+pub enum PivotPads {
+    /// A gripper's two jaws (`Robot::pads` 0 and 1).
+    Jaws,
+    /// A hand's pinch, chosen before each pivot: a touching pad of `first` and one of `second` on
+    /// another finger (indices in `Robot::pads`). The other fingers' closing joints open by
+    /// `lift` (rad) over `lift_steps`.
+    Pinch { first: Vec<usize>, second: Vec<usize>, lift: f64, lift_steps: usize },
 }
 
 impl PivotControl {
-    pub fn of(pivot: &crate::config::PivotConfig, timestep: f64) -> Self {
+    /// The configured pivoting for `robot` at `timestep` (its pad patterns are checked at load).
+    pub fn of(pivot: &crate::config::PivotConfig, robot: &vt_robot::Robot, timestep: f64) -> Self {
         let steps = |s: f64| (s / timestep).round().max(1.0) as usize;
+        let matching = |pattern: &str| (0..robot.pads.len()).filter(|&p| robot.pads[p].matches(pattern)).collect();
+        let pads = match &pivot.pads {
+            None => PivotPads::Jaws,
+            Some([a, b]) => PivotPads::Pinch {
+                first: matching(a),
+                second: matching(b),
+                lift: pivot.lift_deg.to_radians(),
+                lift_steps: steps(LIFT_SECONDS),
+            },
+        };
         PivotControl {
             steps: pivot.steps(timestep),
             ease_steps: steps(pivot.ease_seconds),
             hold_steps: steps(pivot.hold_seconds),
             step: (pivot.step_deg.0.to_radians(), pivot.step_deg.1.to_radians()),
+            max_slide: pivot.max_slide_mm * 1e-3,
+            pads,
         }
     }
+}
+
+/// A pinch: its two pads (indices in `Robot::pads`) and the hand joints lifted off while it holds
+/// the object, each with the sign of its opening (towards its preshape).
+struct Pinch {
+    pads: [usize; 2],
+    lifted: Vec<(usize, f64)>,
+}
+
+/// Whether hand joint `h` moves the link `link`: the link hangs from the joint's child.
+fn moves(robot: &vt_robot::Robot, h: usize, link: usize) -> bool {
+    robot.model.is_below(link, robot.model.joints[robot.hand[h].joint].child)
+}
+
+/// The pinch of the touching pads (`touching`, per `Robot::pads`) of `first` and `second`, on two
+/// fingers (no hand joint moves both), whose normals face each other most, at least
+/// `PINCH_FACING`; the hand joints at `hand`. None when no two touching pads face each other.
+fn choose_pinch(robot: &vt_robot::Robot, hand: &[f64], touching: &[bool], first: &[usize], second: &[usize]) -> Option<Pinch> {
+    let m = &robot.model;
+    let mut q = m.zero();
+    robot.set_hand(&mut q, hand);
+    let links = m.forward_kinematics(&q);
+    let normal = |p: usize| links[robot.pads[p].frame].matrix3.z_axis;
+    let one_finger =
+        |a: usize, b: usize| (0..robot.hand.len()).any(|h| moves(robot, h, robot.pads[a].link) && moves(robot, h, robot.pads[b].link));
+    let (facing, pads) = first
+        .iter()
+        .flat_map(|&a| second.iter().map(move |&b| [a, b]))
+        .filter(|&[a, b]| touching[a] && touching[b] && !one_finger(a, b))
+        .map(|[a, b]| (normal(a).dot(normal(b)), [a, b]))
+        .min_by(|x, y| x.0.total_cmp(&y.0))?;
+    if facing > PINCH_FACING {
+        return None;
+    }
+    let lifted = (0..robot.hand.len())
+        .filter(|&h| !pads.iter().any(|&p| moves(robot, h, robot.pads[p].link)))
+        .filter_map(|h| {
+            let j = &robot.hand[h];
+            let open = 0.5 * (j.preshape.0 + j.preshape.1);
+            Some((h, (open - j.close?).signum()))
+        })
+        .collect();
+    Some(Pinch { pads, lifted })
 }
 
 /// The signed angle (rad, in (-π, π]) of `r`'s turn about the unit `axis` (its twist).
@@ -75,58 +151,111 @@ const WRIST_TRIES: usize = 6;
 const WRIST_TRY_STEP: f64 = 0.25;
 
 impl Attempt<'_> {
-    /// The pivoting window of an arm move, the arm at `q`, the gripper's full squeeze at
+    /// The pivoting window of an arm move, the arm at `q`, the hand's full squeeze at
     /// `grasp_targets`. `q` ends where the last wrist turn left the arm. False when the object
     /// falls out of the hand.
     ///
-    /// Each pivot: the arm turns the wrist (a smooth joint-space move and hold, as an arm move) so
-    /// that gravity in the palm frame lies across the pads' line, a drawn target turn plus
-    /// `GRAVITY_LEAD` from the object's centre of mass, on the side away from the gripper. Then the
-    /// grip `g` (the jaws' targets between where they stood, 0, and the full squeeze, 1) falls at
+    /// Each pivot: a hand first chooses its pinch and lifts its other fingers off (a gripper's
+    /// jaws are its pinch). The arm turns the wrist (a smooth joint-space move and hold, as an arm
+    /// move) so that gravity in the palm frame lies across the pads' line, a drawn target turn plus
+    /// `GRAVITY_LEAD` from the object's centre of mass, on the side away from the palm. Then the
+    /// grip `g` (the pinch's targets between where they stood, 0, and the full squeeze, 1) falls at
     /// the configured easing rate, and rises four times as fast while the object slides along the
     /// pads or turns faster than `TURN_SPEED`: it hovers where the object turns but does not slip.
     /// At the target (less the turn the grip takes to stop it) the grip is full again for
-    /// `hold_seconds`, and the next pivot begins. The episode's turn target, once reached, ends the
-    /// window's pivoting like its last pivot's target. An object that does not turn with the grip fully
-    /// eased, or has slid `SLIDE_BUDGET` along the pads, or a wrist that cannot turn, ends the
+    /// `hold_seconds`, a hand's lifted fingers close on the object again, and the next pivot
+    /// begins. The episode's turn target, once reached, ends the window's pivoting like its last
+    /// pivot's target. An object that does not turn with the grip fully eased, or has slid
+    /// `max_slide` along the pads, a wrist that cannot turn, or a hand with no pinch ends the
     /// window's pivoting; the arm then holds still with the grip full.
     pub(super) fn pivot(&mut self, q: &mut Vec<f64>, grasp_targets: &[f64], rng: &mut ChaCha8Rng, mut log: Option<&mut StepLog>) -> bool {
         let ctx = self.ctx;
         let Some(control) = &ctx.pivot else { return true };
-        let start_q = self.physics.joint_positions();
-        // The line between the pads, where the jaws stand now (palm frame).
-        let jaws = Jaws::of(ctx.robot, &start_q);
-        let pad_reach = ctx.robot.pads[0].size.map_or(0.0, |(w, h)| 0.5 * w.hypot(h));
+        let lift_steps = match control.pads {
+            PivotPads::Jaws => 0,
+            PivotPads::Pinch { lift_steps, .. } => lift_steps,
+        };
         let centroid = self.object.points.iter().map(|p| DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)).sum::<DVec3>()
             / self.object.points.len().max(1) as f64;
         let turn_steps = ctx.steps(ctx.config.move_seconds) + ctx.steps(ctx.config.hold_seconds);
         let (mut slid, mut stalls) = (0.0, 0);
         // Every pivot of the window turns the same way, so the turns add up.
         let mut sense = None;
+        // A gripper's jaws hold from the window's start.
+        let window_start_q = self.physics.joint_positions();
         let mut k = 0;
         let mut ended = InHandEnd::Window;
-        while k + turn_steps + control.ease_steps + control.hold_steps <= control.steps {
+        while k + turn_steps + control.ease_steps + control.hold_steps + 2 * lift_steps <= control.steps {
             if self.turn_left().is_some_and(|left| left <= 0.0) {
                 // The episode's turn is made: the grip holds to the window's end.
                 ended = InHandEnd::Target;
                 break;
             }
+            // The pinch and the full grip: the pinch's fingers squeezing, the others lifted.
+            let (pads, full, start_q) = match &control.pads {
+                PivotPads::Jaws => ([0, 1], grasp_targets.to_vec(), window_start_q.clone()),
+                PivotPads::Pinch { first, second, lift, .. } => {
+                    let hand = self.physics.joint_positions();
+                    let contacts = self.physics.touch_contacts();
+                    let touching: Vec<bool> = ctx
+                        .robot
+                        .pads
+                        .iter()
+                        .map(|pad| ctx.robot.touch_links.iter().position(|&l| l == pad.link).is_some_and(|i| contacts[i].is_some()))
+                        .collect();
+                    let Some(pinch) = choose_pinch(ctx.robot, &hand, &touching, first, second) else {
+                        ended = InHandEnd::NoPinch;
+                        break;
+                    };
+                    let mut full = grasp_targets.to_vec();
+                    for &(h, open) in &pinch.lifted {
+                        full[h] = hand[h] + open * lift;
+                    }
+                    if !self.ramp_hand(q, grasp_targets, &full, lift_steps, grasp_targets, log.as_deref_mut()) {
+                        return false;
+                    }
+                    k += lift_steps;
+                    let mut start_q = self.physics.joint_positions();
+                    for &(h, _) in &pinch.lifted {
+                        start_q[h] = full[h];
+                    }
+                    (pinch.pads, full, start_q)
+                }
+            };
+            // The line between the pads, where they stand now (palm frame).
+            let jaws = Jaws::between(ctx.robot, &start_q, pads);
+            let pad_reach = ctx.robot.pads[pads[0]].size.map_or(0.0, |(w, h)| 0.5 * w.hypot(h));
             let target = rng.random_range(control.step.0..=control.step.1);
             let lead = GRAVITY_LEAD + STALL_LEAD * stalls as f64;
             let Some(q_turned) = self.wrist_turn(q, &jaws, centroid, target + lead, &mut sense) else {
                 ended = InHandEnd::NoWristTurn;
+                if !self.ramp_hand(q, &full, grasp_targets, lift_steps, grasp_targets, log.as_deref_mut()) {
+                    return false;
+                }
+                k += lift_steps;
                 break;
             };
-            self.physics.set_targets(grasp_targets);
+            self.physics.set_targets(&full);
             // The wrist turn itself may turn the object: the arm stops where the episode's turn
             // target is reached.
             let Some(q_turned) = self.follow_path_to_goal(q, &q_turned, true, log.as_deref_mut()) else { return false };
             *q = q_turned;
             k += turn_steps;
-            let budget = control.steps - control.hold_steps - k;
-            let turned = self.turn_by(q, &start_q, grasp_targets, &jaws, pad_reach, target, budget, &mut slid, log.as_deref_mut());
+            let budget = control.steps - control.hold_steps - lift_steps - k;
+            let turned = self.turn_by(q, &start_q, &full, &jaws, pad_reach, target, budget, &mut slid, log.as_deref_mut());
             let Some(used) = turned else { return false };
             k += used.steps;
+            // Full grip between pivots; a hand's lifted fingers then close on the object again.
+            for _ in 0..control.hold_steps.min(control.steps - lift_steps - k) {
+                if !self.step_hand(&full, grasp_targets, q, log.as_deref_mut()) {
+                    return false;
+                }
+                k += 1;
+            }
+            if !self.ramp_hand(q, &full, grasp_targets, lift_steps, grasp_targets, log.as_deref_mut()) {
+                return false;
+            }
+            k += lift_steps;
             match used.end {
                 TurnEnd::Reached => stalls = 0,
                 // Held where it is (it rests on the gripper, or its centre of mass hangs near the
@@ -136,13 +265,6 @@ impl Attempt<'_> {
                     ended = InHandEnd::Slid;
                     break;
                 }
-            }
-            // Full grip between pivots.
-            for _ in 0..control.hold_steps.min(control.steps - k) {
-                if !self.step_hand(grasp_targets, grasp_targets, q, log.as_deref_mut()) {
-                    return false;
-                }
-                k += 1;
             }
         }
         while k < control.steps {
@@ -155,6 +277,27 @@ impl Attempt<'_> {
             ended = InHandEnd::Target;
         }
         self.log.in_hand_ended(ended);
+        true
+    }
+
+    /// The hand's targets in a straight line from `from` to `to` over `steps` steps, the arm still
+    /// at `q`. False when the object falls out of the hand.
+    fn ramp_hand(
+        &mut self,
+        q: &[f64],
+        from: &[f64],
+        to: &[f64],
+        steps: usize,
+        grasp_targets: &[f64],
+        mut log: Option<&mut StepLog>,
+    ) -> bool {
+        for s in 1..=steps {
+            let t = s as f64 / steps as f64;
+            let targets: Vec<f64> = from.iter().zip(to).map(|(a, b)| a + t * (b - a)).collect();
+            if !self.step_hand(&targets, grasp_targets, q, log.as_deref_mut()) {
+                return false;
+            }
+        }
         true
     }
 
@@ -232,7 +375,7 @@ impl Attempt<'_> {
             let lead = speed * TIGHTEN_LEAD_SECONDS;
             let end = if angle.abs() + lead >= target || self.turn_left().is_some_and(|left| left <= lead) {
                 Some(TurnEnd::Reached)
-            } else if *slid > SLIDE_BUDGET {
+            } else if *slid > control.max_slide {
                 Some(TurnEnd::Slid)
             } else if floor_since.is_some_and(|f| k - f >= control.ease_steps / 2 && speed < STILL_SPEED) {
                 Some(TurnEnd::Still)
@@ -261,7 +404,7 @@ enum TurnEnd {
     Reached,
     /// It did not turn with the grip fully eased.
     Still,
-    /// It slid `SLIDE_BUDGET` along the pads over the window.
+    /// It slid `max_slide` along the pads over the window.
     Slid,
     /// The window's time ran out.
     OutOfTime,
@@ -270,6 +413,42 @@ enum TurnEnd {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A hand's pinch: the touching pads of the two patterns on two fingers whose normals face
+    /// each other most; the other fingers' closing joints lift, the pinch's fingers do not.
+    #[test]
+    fn a_pinch_takes_the_facing_touching_pads_of_two_fingers() {
+        let robot = vt_robot::Robot::builtin("ur5e_allegro").unwrap();
+        let cfg: crate::config::PivotConfig = serde_yaml::from_str("{pads: ['th_*', distal]}").unwrap();
+        let c = PivotControl::of(&cfg, &robot, 0.005);
+        let pad = |n: &str| robot.pads.iter().position(|p| p.name == n).unwrap();
+        let hand = |n: &str| robot.hand.iter().position(|h| h.name == n).unwrap();
+        let PivotPads::Pinch { first, second, lift, lift_steps } = &c.pads else { panic!("{:?}", c.pads) };
+        assert_eq!(*first, vec![pad("th_proximal"), pad("th_medial"), pad("th_distal")]);
+        assert_eq!(*second, vec![pad("ff_distal"), pad("mf_distal"), pad("rf_distal"), pad("th_distal")]);
+        assert!((lift - 30f64.to_radians()).abs() < 1e-12 && *lift_steps == 30);
+        // The hand closed on an object: the thumb opposes the fingers.
+        let closed: Vec<f64> = robot.hand.iter().map(|h| h.close.unwrap_or(0.0) * 0.6).collect();
+        let all = vec![true; robot.pads.len()];
+        let pinch = choose_pinch(&robot, &closed, &all, first, second).expect("a pinch");
+        assert_eq!(robot.pads[pinch.pads[0]].name.get(..3), Some("th_"));
+        assert_ne!(robot.pads[pinch.pads[1]].name.get(..3), Some("th_"), "the thumb pinches against a finger, not itself");
+        let [a, b] = pinch.pads;
+        let finger = &robot.pads[b].name[..3];
+        for (name, lifted) in
+            [("th_joint_1", false), (&format!("{finger}joint_1"), false), ("ff_joint_1", finger != "ff_"), ("rf_joint_3", finger != "rf_")]
+        {
+            assert_eq!(pinch.lifted.iter().any(|&(h, _)| h == hand(name)), lifted, "{name} with the pinch {a} {b}");
+        }
+        // Closing joints open towards their preshape: the fingers' flexion the negative way.
+        assert!(pinch.lifted.iter().all(|&(_, open)| open == -1.0));
+        // Only touching pads pinch; a thumb touching alone has none.
+        let thumb_only: Vec<bool> = robot.pads.iter().map(|p| p.name.starts_with("th_")).collect();
+        assert!(choose_pinch(&robot, &closed, &thumb_only, first, second).is_none());
+        // A gripper's pads are its jaws.
+        let gripper = vt_robot::Robot::builtin("ur5e_robotiq_2f85").unwrap();
+        assert_eq!(PivotControl::of(&crate::config::PivotConfig::default(), &gripper, 0.005).pads, PivotPads::Jaws);
+    }
 
     #[test]
     fn the_twist_angle_is_the_turn_about_the_axis_alone() {
