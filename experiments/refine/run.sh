@@ -6,7 +6,7 @@
 #
 #   experiments/refine/run.sh pairs    --ycb-dir DIR   # the refiner alone on the three object pairs' test grasps, each and pooled
 #   experiments/refine/run.sh networks --ycb-dir DIR   # + the touch experiment's networks per pair, refined from their estimates (trains them)
-#   experiments/refine/run.sh tracking --ycb-dir DIR   # tracking with the refiner on pivoting (2F-85), finger-roll and finger-gaiting (Allegro) episodes
+#   experiments/refine/run.sh tracking --ycb-dir DIR   # tracking with the refiner on pivoting (2F-85), finger-roll, finger-gaiting and pinch-pivoting (Allegro) episodes
 #   experiments/refine/run.sh paper    --ycb-dir DIR --device cuda --jobs 16   # the paper's dataset and networks, refined
 #
 # The pairs are the touch experiment's (experiments/touch/run.sh pairs): its datasets
@@ -92,13 +92,13 @@ case "$experiment" in
     log "reports: $out/$experiment-<pair>/refine.md (picture sheets: sheet.png); pooled: $out/$experiment-pooled/refine.md"
     ;;
   tracking)
-    for scene in pivot roll gait; do
+    for scene in pivot roll gait pinch; do
       data="$out/tracking-$scene/data"
       generate "experiments/refine/tracking-$scene.yaml" "$data"
       log "track $data -> $out/tracking-$scene/track/tracking.md"
       "$bin/vtpose" track --refine --dataset "$data" --out "$out/tracking-$scene/track" --no-touch-control --quiet > /dev/null
     done
-    log "reports: $out/tracking-{pivot,roll,gait}/track/tracking.md (error-time.svg)"
+    log "reports: $out/tracking-{pivot,roll,gait,pinch}/track/tracking.md (error-time.svg)"
     ;;
   paper)
     data=out/experiments/touch-paper/data
