@@ -237,7 +237,7 @@ impl LoadedConfig {
                 match &pivot.pads {
                     None if robot.kind != vt_robot::GraspKind::ParallelJaw => {
                         let message = format!(
-                            "gravity pivoting turns an object about the line between two pads: robot '{}' is not a parallel-jaw gripper, so give the pads its pinch may use (e.g. [th_*, distal])",
+                            "gravity pivoting turns an object about the line between two pads: robot '{}' is not a parallel-jaw gripper, so give the pads its pinch may use (e.g. [\"th_*\", \"*\"])",
                             robot.name
                         );
                         return Err((vec!["sampling", "record", "pivot", "pads"], message));

@@ -35,7 +35,8 @@ pub struct RecordConfig {
     /// Scripted finger motion after each arm move (off unless given).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub finger_motion: Option<FingerMotionConfig>,
-    /// Gravity pivoting after each arm move, for parallel-jaw grippers (off unless given).
+    /// Gravity pivoting after each arm move, between a gripper's jaws or a hand's pinch (off unless
+    /// given).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub pivot: Option<PivotConfig>,
     /// A closed-loop finger roll after each arm move, for hands (off unless given).
@@ -69,12 +70,12 @@ impl Default for RecordConfig {
     }
 }
 
-/// `sampling.record.pivot`: gravity pivoting with a parallel-jaw gripper. After each arm move's
-/// hold (and finger motion), the arm stands still for `seconds` while a closed loop on the
-/// simulated rotation turns the object about the line between the pads: the grip eases until the
-/// object turns under its own weight, and tightens when the turn reaches a target drawn from
-/// `step_deg`; then it eases again towards the next target, until the window's last `hold_seconds`,
-/// when the grip is full again. Each arm move then takes `seconds` longer.
+/// `sampling.record.pivot`: gravity pivoting between a gripper's jaws or a hand's pinch. After
+/// each arm move's hold (and finger motion), the arm stands still for `seconds` while a closed
+/// loop on the simulated rotation turns the object about the line between the pads: the grip
+/// eases until the object turns under its own weight, and tightens when the turn reaches a target
+/// drawn from `step_deg`; then it eases again towards the next target, until the window's last
+/// `hold_seconds`, when the grip is full again. Each arm move then takes `seconds` longer.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct PivotConfig {
@@ -394,7 +395,7 @@ impl RecordConfig {
         let mut at = c.key(key!(self.turn_target_deg));
         at.bounded_range([lo, hi], excl(0.0), incl(180.0), "degrees");
         if self.pivot.is_none() && self.finger_roll.is_none() {
-            at.fail("a turn target needs a controller that turns the object: sampling.record.pivot (grippers) or sampling.record.finger_roll (hands)");
+            at.fail("a turn target needs a controller that turns the object: sampling.record.pivot or sampling.record.finger_roll");
         }
     }
 

@@ -31,7 +31,8 @@ pub struct GraspContext<'a> {
     pub recorded_grasp_steps: usize,
     /// A scripted finger motion after each arm move's hold (episodes).
     pub finger_gait: Option<FingerGait>,
-    /// Gravity pivoting after each arm move's hold and finger motion (episodes, parallel jaws).
+    /// Gravity pivoting after each arm move's hold and finger motion (episodes; a gripper's jaws or
+    /// a hand's pinch).
     pub pivot: Option<PivotControl>,
     /// A closed-loop finger roll after each arm move's hold and finger motion (episodes, hands).
     pub finger_roll: Option<RollControl>,
