@@ -295,6 +295,14 @@ pub struct HandJoint {
     pub damping: Option<f64>,
 }
 
+impl HandJoint {
+    /// The sign of the joint's opening: from its closing target towards its preshape (the middle
+    /// of the preshape's range). None for a joint that does not close (it keeps its preshape).
+    pub fn opening_sign(&self) -> Option<f64> {
+        Some((0.5 * (self.preshape.0 + self.preshape.1) - self.close?).signum())
+    }
+}
+
 /// A tactile pad.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Pad {

@@ -70,16 +70,7 @@ impl Regrasp {
                 let chain: Vec<usize> =
                     (0..robot.hand.len()).filter(|&h| m.is_below(child(h), child(listed)) || m.is_below(child(listed), child(h))).collect();
                 let top = chain.iter().copied().find(|&h| chain.iter().all(|&o| m.is_below(child(o), child(h)))).unwrap_or(listed);
-                let lifting = chain
-                    .iter()
-                    .filter(|&&h| h != listed)
-                    .filter_map(|&h| {
-                        let j = &robot.hand[h];
-                        let close = j.close?;
-                        let open = 0.5 * (j.preshape.0 + j.preshape.1);
-                        Some((h, (open - close).signum()))
-                    })
-                    .collect();
+                let lifting = chain.iter().filter(|&&h| h != listed).filter_map(|&h| Some((h, robot.hand[h].opening_sign()?))).collect();
                 let touch = robot.touch_links.iter().enumerate().filter(|&(_, &l)| m.is_below(l, child(top))).map(|(i, _)| i).collect();
                 Finger { lifting, touch }
             })

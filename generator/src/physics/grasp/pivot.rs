@@ -123,11 +123,7 @@ fn choose_pinch(robot: &vt_robot::Robot, hand: &[f64], touching: &[bool], first:
     }
     let lifted = (0..robot.hand.len())
         .filter(|&h| !pads.iter().any(|&p| moves(robot, h, robot.pads[p].link)))
-        .filter_map(|h| {
-            let j = &robot.hand[h];
-            let open = 0.5 * (j.preshape.0 + j.preshape.1);
-            Some((h, (open - j.close?).signum()))
-        })
+        .filter_map(|h| Some((h, robot.hand[h].opening_sign()?)))
         .collect();
     Some(Pinch { pads, lifted })
 }
