@@ -326,11 +326,10 @@ fn no_hand_link_sinks_into_a_held_object() {
     let mut hand = RapierHand::new(&model, PhysicsSettings::from(&pc)).unwrap();
     for id in ["009_gelatin_box", "004_sugar_box"] {
         // The real mesh when `YCB_DIR` is set (CI), else the procedural one.
-        let entry = vt_objects::Catalog::builtin().get(id).unwrap().clone();
-        let mesh = match std::env::var_os("YCB_DIR") {
-            Some(d) => vt_objects::load_mesh(&vt_objects::find_ycb_mesh(std::path::Path::new(&d), id).unwrap()).unwrap(),
-            None => vt_objects::procedural_mesh(&entry),
-        };
+        let catalog = vt_objects::Catalog::builtin();
+        let entry = catalog.get(id).unwrap();
+        let ycb = std::env::var_os("YCB_DIR").map(std::path::PathBuf::from);
+        let (mesh, _) = vtgen::assets::catalog_mesh(id, entry, ycb.as_deref()).unwrap();
         let object = PhysicsObject { points: mesh.positions, mass: entry.mass };
         let mut log = GraspLog::default();
         for trajectory in 0..3 {

@@ -4,10 +4,10 @@
 pub mod robot;
 pub mod sources;
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
-use vt_objects::{Catalog, Surface, Symmetry, TexturedMesh, find_ycb_mesh, load_mesh, procedural_mesh};
+use vt_objects::{Catalog, CatalogEntry, Surface, Symmetry, TexturedMesh, find_ycb_mesh, load_mesh, procedural_mesh};
 
 use crate::config::{LoadedConfig, ObjectSpec};
 
@@ -42,6 +42,21 @@ impl std::fmt::Display for MeshSource {
     }
 }
 
+/// A catalogue object's mesh: the YCB download's in `ycb_dir`, else the catalogue's procedural
+/// stand-in.
+pub fn catalog_mesh(id: &str, entry: &CatalogEntry, ycb_dir: Option<&Path>) -> Result<(TexturedMesh, MeshSource)> {
+    Ok(match ycb_dir {
+        Some(dir) => {
+            let path = find_ycb_mesh(dir, id).map_err(|tried| {
+                let tried: Vec<String> = tried.iter().map(|p| p.display().to_string()).collect();
+                anyhow::anyhow!("no mesh for '{id}' in the YCB directory; looked for: {}", tried.join(", "))
+            })?;
+            (load_mesh(&path)?, MeshSource::File(path))
+        }
+        None => (procedural_mesh(entry), MeshSource::Procedural),
+    })
+}
+
 /// Loads every object of the config. `ycb_dir` (from `--ycb-dir` or the config) selects real meshes
 /// for catalogue objects; without it, catalogue objects are procedural.
 pub fn load_objects(cfg: &LoadedConfig, ycb_dir: Option<&PathBuf>) -> Result<Vec<LoadedObject>> {
@@ -57,16 +72,7 @@ pub fn load_objects(cfg: &LoadedConfig, ycb_dir: Option<&PathBuf>) -> Result<Vec
         let obj = match spec {
             ObjectSpec::Catalog(id) => {
                 let entry = catalog.get(id).with_context(|| format!("unknown object id '{id}'"))?;
-                let (mesh, source) = match &ycb_dir {
-                    Some(dir) => {
-                        let path = find_ycb_mesh(dir, id).map_err(|tried| {
-                            let tried: Vec<String> = tried.iter().map(|p| p.display().to_string()).collect();
-                            anyhow::anyhow!("no mesh for '{id}' in the YCB directory; looked for: {}", tried.join(", "))
-                        })?;
-                        (load_mesh(&path)?, MeshSource::File(path))
-                    }
-                    None => (procedural_mesh(entry), MeshSource::Procedural),
-                };
+                let (mesh, source) = catalog_mesh(id, entry, ycb_dir.as_deref())?;
                 LoadedObject {
                     id: id.clone(),
                     index: i as u32,

@@ -9,12 +9,11 @@ use rand::SeedableRng;
 
 /// The object's physics shape: the real mesh when `YCB_DIR` is set, else the procedural one.
 pub fn physics_object(id: &str) -> PhysicsObject {
-    let e = vt_objects::Catalog::builtin().get(id).unwrap().clone();
-    let m = match std::env::var_os("YCB_DIR") {
-        Some(d) => vt_objects::load_mesh(&vt_objects::find_ycb_mesh(std::path::Path::new(&d), id).unwrap()).unwrap(),
-        None => vt_objects::procedural_mesh(&e),
-    };
-    PhysicsObject { points: m.positions.clone(), mass: e.mass }
+    let catalog = vt_objects::Catalog::builtin();
+    let e = catalog.get(id).unwrap();
+    let ycb = std::env::var_os("YCB_DIR").map(std::path::PathBuf::from);
+    let (m, _) = crate::assets::catalog_mesh(id, e, ycb.as_deref()).unwrap();
+    PhysicsObject { points: m.positions, mass: e.mass }
 }
 
 /// The grasp config's defaults with the Allegro hand's joint arrays.
