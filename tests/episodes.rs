@@ -364,7 +364,8 @@ fn finger_gaiting_turns_the_object_further_than_the_roll_and_keeps_the_ground_tr
 /// it again after the pivot. It turns the objects further than finger gaiting over the same 6 s
 /// windows (the physics-only `vtgen grasps` figures, six episodes per object), some episode past
 /// 60°; a generated pinch-pivoting episode keeps its ground truth on every frame and every touch
-/// point on the object; pads that select none of the hand's are refused with the field.
+/// point on the object; `scenes/tiny-pinch.yaml` plans; pads that select none of the hand's are
+/// refused with the field.
 #[test]
 fn pinch_pivoting_turns_the_object_in_the_hand_further_than_gaiting_and_keeps_the_ground_truth() {
     let cfg = root().join("scenes/tiny-episode.yaml");
@@ -391,6 +392,9 @@ fn pinch_pivoting_turns_the_object_in_the_hand_further_than_gaiting_and_keeps_th
 
     one_soup_can_episode_keeps_its_ground_truth(&cfg, &pinch.replace("seconds: 6", "seconds: 3"));
 
+    // The shipped pinch scene plans.
+    let o = run(&["plan", root().join("scenes/tiny-pinch.yaml").to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
     let o = run(&["plan", cfg.to_str().unwrap(), "--set", &pinch.replace("th_*", "thumb")]);
     let e = stderr(&o);
     assert!(!o.status.success() && e.contains("sampling.record.pivot.pads") && e.contains("'thumb' selects no pad"), "{e}");
