@@ -69,8 +69,38 @@ fn dls_step(j: &[[f64; 6]], e: &[f64; 6], lambda: f64) -> Vec<f64> {
 
 impl Robot {
     /// Arm joint values that put the grasp frame at `target` (robot base frame), starting from
-    /// `q` (only the arm entries change; joint limits are respected). None if it does not converge.
+    /// `q` (only the arm entries change; joint limits are respected). Of the values a revolute
+    /// joint can take for the same pose (whole turns apart), the one nearest `q` within its
+    /// limits: the arm's path from `q` never spins a joint a full turn. None if it does not
+    /// converge.
     pub fn solve_grasp_ik(&self, target: &DAffine3, q: &[f64], opts: &IkOptions) -> Option<Vec<f64>> {
+        let solved = self.solve_grasp_ik_seeded(target, q, opts)?;
+        Some(self.nearest_turns(solved, q))
+    }
+
+    /// `solved` with each revolute arm joint turned by whole turns (the same pose) to lie as near
+    /// `seed` as its limits allow. The local solver, or its retries from a turned first joint, can
+    /// land a wrist joint a turn or more from its seed (the UR5e's joints range over two turns).
+    fn nearest_turns(&self, mut solved: Vec<f64>, seed: &[f64]) -> Vec<f64> {
+        use std::f64::consts::TAU;
+        for (&d, &j) in self.arm_dofs.iter().zip(&self.arm_joints) {
+            let jt = &self.model.joints[j];
+            if jt.kind != crate::model::JointKind::Revolute {
+                continue;
+            }
+            let turns = ((seed[d] - solved[d]) / TAU).round();
+            if turns == 0.0 {
+                continue;
+            }
+            // The nearest whole turn, else one fewer when that one leaves the joint's range.
+            if let Some(v) = [turns, turns - turns.signum()].map(|k| solved[d] + k * TAU).into_iter().find(|v| (jt.lower..=jt.upper).contains(v)) {
+                solved[d] = v;
+            }
+        }
+        solved
+    }
+
+    fn solve_grasp_ik_seeded(&self, target: &DAffine3, q: &[f64], opts: &IkOptions) -> Option<Vec<f64>> {
         if let Some(q) = self.solve_grasp_ik_from(target, q, opts) {
             return Some(q);
         }

@@ -130,6 +130,45 @@ fn ik_reaches_poses_in_front_of_the_robot() {
 }
 
 #[test]
+fn ik_never_turns_a_joint_a_whole_turn_from_its_seed() {
+    // Palm poses over the workspace from seeds around the home pose: the local solver and its
+    // retries from a turned first joint land some joints a turn or more from their seeds; the
+    // answer is the same pose with every revolute arm joint within half a turn of its seed
+    // wherever its range allows (the elbow's one turn of range does not always).
+    let robot = Robot::default_robot();
+    let arm = &robot.arm_dofs;
+    use rand::{Rng, SeedableRng};
+    use std::f64::consts::{FRAC_PI_2, PI, TAU};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+    let (mut solved, mut near_a_turn_away) = (0, 0);
+    for _ in 0..150 {
+        let mut seed = robot.model.zero();
+        for (k, v) in [-FRAC_PI_2, -FRAC_PI_2, FRAC_PI_2, -FRAC_PI_2, -FRAC_PI_2, 0.0].into_iter().enumerate() {
+            seed[arm[k]] = v + rng.random_range(-1.5..1.5);
+        }
+        let rot = DQuat::from_rotation_x(PI + rng.random_range(-1.2..1.2)) * DQuat::from_rotation_z(rng.random_range(-PI..PI));
+        let p = DVec3::new(rng.random_range(-0.2..0.2), rng.random_range(0.3..0.6), rng.random_range(0.2..0.45));
+        let target = DAffine3::from_rotation_translation(rot, p);
+        let Some(q) = robot.solve_grasp_ik(&target, &seed, &IkOptions::default()) else { continue };
+        solved += 1;
+        let got = robot.grasp_frame_pose(&q);
+        assert!((got.translation - target.translation).length() < 1e-4);
+        for (&d, &j) in arm.iter().zip(&robot.arm_joints) {
+            let jt = &robot.model.joints[j];
+            let off = q[d] - seed[d];
+            let other = q[d] - off.signum() * TAU;
+            if off.abs() > PI && (jt.lower..=jt.upper).contains(&other) {
+                panic!("{}: {:.2} from its seed {:.2}; {:.2} is the same pose and within its range", jt.name, q[d], seed[d], other);
+            }
+            near_a_turn_away += usize::from(off.abs() > PI);
+        }
+    }
+    assert!(solved >= 100, "{solved} of 150 poses reached");
+    // Only the elbow, whose range is one turn, may be further than half a turn from its seed.
+    assert!(near_a_turn_away <= 5, "{near_a_turn_away}");
+}
+
+#[test]
 fn broken_urdfs_give_clear_errors() {
     let cases = [
         (HAND.replace("<parent link=\"ff_base\"/>", "<parent link=\"ff_bse\"/>"), "missing parent link 'ff_bse'"),
