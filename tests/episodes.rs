@@ -245,7 +245,7 @@ fn median_in_hand_rotation(config: &Path, args: &[&str]) -> Vec<f64> {
 /// its ground truth on every frame and every touch point on the object, and the pivot is refused
 /// with its field for a hand without the pads of its pinch. An episode's turn target
 /// (`sampling.record.turn_target_deg`) ends the pivoting: the episodes turn less than without one,
-/// `vtgen grasps` counts the windows it ended, and each sample names its episode's target. The
+/// most windows reach it and `vtgen grasps` counts them, and each sample names its episode's target. The
 /// gripper's grasp records as the hand's does (`sampling.record.grasp`).
 #[test]
 fn gravity_pivoting_turns_the_object_between_the_jaws_and_keeps_the_ground_truth() {
@@ -257,8 +257,10 @@ fn gravity_pivoting_turns_the_object_between_the_jaws_and_keeps_the_ground_truth
     }
     let targeted = grasp_report(&cfg, &["--trajectories", "6", "--set", "sampling.record.turn_target_deg=[15, 15]"]);
     for (o, p) in targeted.iter().zip(&pivoting) {
-        // Every window counted by how it ended, the target among them.
-        assert!(o["in_hand_ends"]["target"].as_u64().unwrap_or(0) > 0, "{}", o["in_hand_ends"]);
+        // Every window counted by how it ended, the target in most of them: a pivot whose grip
+        // tightened ahead of the target and stopped the object short eases again (without that,
+        // the gelatin box stopped 2-6° short in 5 of 6 windows).
+        assert!(o["in_hand_ends"]["target"].as_u64().unwrap_or(0) >= 4, "{}", o["in_hand_ends"]);
         let episodes = o["in_hand_rotation_deg"].as_array().unwrap();
         let mut largest: Vec<f64> = episodes.iter().map(|e| e["largest_deg"].as_f64().unwrap()).collect();
         largest.sort_by(f64::total_cmp);

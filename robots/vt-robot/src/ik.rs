@@ -93,7 +93,9 @@ impl Robot {
                 continue;
             }
             // The nearest whole turn, else one fewer when that one leaves the joint's range.
-            if let Some(v) = [turns, turns - turns.signum()].map(|k| solved[d] + k * TAU).into_iter().find(|v| (jt.lower..=jt.upper).contains(v)) {
+            if let Some(v) =
+                [turns, turns - turns.signum()].map(|k| solved[d] + k * TAU).into_iter().find(|v| (jt.lower..=jt.upper).contains(v))
+            {
                 solved[d] = v;
             }
         }

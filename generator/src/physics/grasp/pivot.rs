@@ -237,17 +237,28 @@ impl Attempt<'_> {
             let Some(q_turned) = self.follow_path_to_goal(q, &q_turned, true, log.as_deref_mut()) else { return false };
             *q = q_turned;
             k += turn_steps;
-            let budget = control.steps - control.hold_steps - lift_steps - k;
-            let turned = self.turn_by(q, &start_q, &full, &jaws, pad_reach, target, budget, &mut slid, log.as_deref_mut());
-            let Some(used) = turned else { return false };
-            k += used.steps;
-            // Full grip between pivots; a hand's lifted fingers then close on the object again.
-            for _ in 0..control.hold_steps.min(control.steps - lift_steps - k) {
-                if !self.step_hand(&full, grasp_targets, q, log.as_deref_mut()) {
-                    return false;
+            let mut pivot_target = target;
+            let used = loop {
+                let budget = control.steps - control.hold_steps - lift_steps - k;
+                let turned = self.turn_by(q, &start_q, &full, &jaws, pad_reach, pivot_target, budget, &mut slid, log.as_deref_mut());
+                let Some(used) = turned else { return false };
+                k += used.steps;
+                // Full grip between pivots; a hand's lifted fingers then close on the object again.
+                for _ in 0..control.hold_steps.min(control.steps - lift_steps - k) {
+                    if !self.step_hand(&full, grasp_targets, q, log.as_deref_mut()) {
+                        return false;
+                    }
+                    k += 1;
                 }
-                k += 1;
-            }
+                // The grip tightens ahead of the episode's turn target by a predicted lead; where
+                // it stopped the object short, the grip eases again with the wrist where it is
+                // (gravity still pulls the object round), while the window has time for it.
+                let short = matches!(used.end, TurnEnd::Reached) && self.turn_left().is_some_and(|left| left > 0.0);
+                if !short || k + control.ease_steps + control.hold_steps + lift_steps > control.steps {
+                    break used;
+                }
+                pivot_target = f64::INFINITY;
+            };
             if !self.ramp_hand(q, &full, grasp_targets, lift_steps, grasp_targets, log.as_deref_mut()) {
                 return false;
             }
@@ -368,7 +379,9 @@ impl Attempt<'_> {
             point = now_point;
             *slid += slide;
             let (speed, slide_speed) = (step.abs() / ctx.timestep, slide / ctx.timestep);
-            let lead = speed * TIGHTEN_LEAD_SECONDS;
+            // A finishing turn (no target of its own) starts from rest and turns slowly: it stops at
+            // the episode's target, not ahead of it.
+            let lead = if target.is_finite() { speed * TIGHTEN_LEAD_SECONDS } else { 0.0 };
             let end = if angle.abs() + lead >= target || self.turn_left().is_some_and(|left| left <= lead) {
                 Some(TurnEnd::Reached)
             } else if *slid > control.max_slide {
