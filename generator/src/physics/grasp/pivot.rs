@@ -237,7 +237,7 @@ impl Attempt<'_> {
             let Some(q_turned) = self.follow_path_to_goal(q, &q_turned, true, log.as_deref_mut()) else { return false };
             *q = q_turned;
             k += turn_steps;
-            let mut pivot_target = target;
+            let mut pivot_target = Some(target);
             let used = loop {
                 let budget = control.steps - control.hold_steps - lift_steps - k;
                 let turned = self.turn_by(q, &start_q, &full, &jaws, pad_reach, pivot_target, budget, &mut slid, log.as_deref_mut());
@@ -257,7 +257,7 @@ impl Attempt<'_> {
                 if !short || k + control.ease_steps + control.hold_steps + lift_steps > control.steps {
                     break used;
                 }
-                pivot_target = f64::INFINITY;
+                pivot_target = None;
             };
             if !self.ramp_hand(q, &full, grasp_targets, lift_steps, grasp_targets, log.as_deref_mut()) {
                 return false;
@@ -340,7 +340,8 @@ impl Attempt<'_> {
     }
 
     /// One pivot with the wrist still at `q`: the grip regulated until the object has turned
-    /// `target` about the pads' line, for at most `budget` steps. None when the object is lost.
+    /// `target` about the pads' line (None: a finishing turn, until the episode's turn target), for
+    /// at most `budget` steps. None when the object is lost.
     #[allow(clippy::too_many_arguments)]
     fn turn_by(
         &mut self,
@@ -349,7 +350,7 @@ impl Attempt<'_> {
         grasp_targets: &[f64],
         jaws: &Jaws,
         pad_reach: f64,
-        target: f64,
+        target: Option<f64>,
         budget: usize,
         slid: &mut f64,
         mut log: Option<&mut StepLog>,
@@ -381,8 +382,8 @@ impl Attempt<'_> {
             let (speed, slide_speed) = (step.abs() / ctx.timestep, slide / ctx.timestep);
             // A finishing turn (no target of its own) starts from rest and turns slowly: it stops at
             // the episode's target, not ahead of it.
-            let lead = if target.is_finite() { speed * TIGHTEN_LEAD_SECONDS } else { 0.0 };
-            let end = if angle.abs() + lead >= target || self.turn_left().is_some_and(|left| left <= lead) {
+            let lead = if target.is_some() { speed * TIGHTEN_LEAD_SECONDS } else { 0.0 };
+            let end = if target.is_some_and(|t| angle.abs() + lead >= t) || self.turn_left().is_some_and(|left| left <= lead) {
                 Some(TurnEnd::Reached)
             } else if *slid > control.max_slide {
                 Some(TurnEnd::Slid)
