@@ -116,6 +116,9 @@ impl StillWatch {
     }
 }
 
+/// The smooth path's peak speed (at its middle) in units of its mean speed: smoothstep's slope.
+pub(super) const SMOOTH_PATH_PEAK_SPEED: f64 = 1.5;
+
 /// The joint values a fraction `s` ∈ [0, 1] along the smooth (smoothstep) path from `from` to `to`.
 pub(super) fn along_path(from: &[f64], to: &[f64], s: f64) -> Vec<f64> {
     let w = s * s * (3.0 - 2.0 * s);
@@ -138,6 +141,33 @@ impl GraspContext<'_> {
             None => DVec3::ZERO,
         };
         rot(&p).inverse() * (GRAVITY - acc)
+    }
+
+    /// The shortest time (s) the smooth path from `from` to `to` takes with every arm joint within
+    /// its speed limit (the description's `velocity`; a joint without one is not limited).
+    pub(super) fn path_seconds_at_speed_limits(&self, from: &[f64], to: &[f64]) -> f64 {
+        let robot = self.robot;
+        robot
+            .arm_joints
+            .iter()
+            .zip(&robot.arm_dofs)
+            .map(|(&j, &d)| {
+                let limit = robot.model.joints[j].velocity;
+                if limit > 0.0 { SMOOTH_PATH_PEAK_SPEED * (to[d] - from[d]).abs() / limit } else { 0.0 }
+            })
+            .fold(0.0, f64::max)
+    }
+
+    /// Physics steps of the arm's path from `from` to `to`: `move_seconds`, or, with
+    /// `arm_speed_limits`, as many more as keep every joint within its speed limit (snapshots;
+    /// an episode's moves keep one length).
+    pub(super) fn path_steps(&self, from: &[f64], to: &[f64]) -> usize {
+        let steps = self.steps(self.config.move_seconds);
+        if !self.config.arm_speed_limits || self.record_steps {
+            return steps;
+        }
+        // Rounded up: the steps' time is at least the limits' time.
+        steps.max((self.path_seconds_at_speed_limits(from, to) / self.timestep).ceil() as usize)
     }
 }
 
@@ -207,7 +237,7 @@ impl Attempt<'_> {
             return Ok(MoveOutcome::Failed(Failure::Unreachable));
         };
         // The path's steps up to its end count as the move, the rest as the hold.
-        let path_steps = self.ctx.steps(self.ctx.config.move_seconds) as u64;
+        let path_steps = self.ctx.path_steps(q, &q_target) as u64;
         let start = self.physics.steps_taken();
         let followed = self.follow_path(q, &q_target, log.as_deref_mut());
         let steps = self.physics.steps_taken() - start;
@@ -238,8 +268,9 @@ impl Attempt<'_> {
     /// before any physics is spent on it; the check after the move stays, for the hand's links).
     fn draw_move_target(&self, q: &[f64], arm_rng: &mut ChaCha8Rng) -> Option<Vec<f64>> {
         let ctx = self.ctx;
+        let kind = ctx.draw_move_kind(arm_rng);
         for _ in 0..MOVE_TARGET_DRAWS {
-            let t = ctx.sample_move_palm(arm_rng);
+            let t = ctx.sample_move_palm(kind, arm_rng);
             if let Some(qt) = ctx.reach(&t, q)
                 && robot_floor_clearance(ctx.robot, &ctx.t_world_base, &qt).is_none_or(|(_, z)| z >= 0.0)
             {
@@ -270,7 +301,7 @@ impl Attempt<'_> {
     ) -> Option<Vec<f64>> {
         let goal = self.turn_goal.filter(|_| stop_at_goal);
         let (ctx, physics) = (self.ctx, &mut *self.physics);
-        let n = ctx.steps(ctx.config.move_seconds);
+        let n = ctx.path_steps(q_from, q_target);
         let ds = 1.0 / n as f64;
         // Episodes keep every hold whole: each move takes the same steps.
         let mut still = (ctx.config.hold_until_still && !ctx.record_steps).then(|| StillWatch::new(ctx));

@@ -138,13 +138,20 @@ impl<'a> GraspContext<'a> {
         DQuat::from_rotation_x(rng.random_range(-max_roll..=max_roll))
     }
 
-    /// The palm pose of an arm move: with probability `back_to_camera_share` the back of the hand
-    /// faces the camera (the palm normal tilted away from it by `back_to_camera_tilt_deg` from
-    /// straight up, rolled about the normal as usual), otherwise `sample_palm`'s cone.
-    pub(super) fn sample_move_palm(&self, rng: &mut ChaCha8Rng) -> DAffine3 {
+    /// Which sampler an arm move's palm pose comes from: with probability `back_to_camera_share`
+    /// the back of the hand faces the camera, otherwise `sample_palm`'s cone. Drawn once per
+    /// move, so that redrawing a pose the arm cannot reach keeps the share.
+    pub(super) fn draw_move_kind(&self, rng: &mut ChaCha8Rng) -> MoveKind {
         let share = self.config.back_to_camera_share;
         // No extra draw without the knob: the data of configs that do not use it stays the same.
-        if share <= 0.0 || rng.random_range(0.0..1.0) >= share {
+        if share <= 0.0 || rng.random_range(0.0..1.0) >= share { MoveKind::Cone } else { MoveKind::BackToCamera }
+    }
+
+    /// The palm pose of an arm move of `kind`: the back of the hand facing the camera (the palm
+    /// normal tilted away from it by `back_to_camera_tilt_deg` from straight up, rolled about the
+    /// normal as usual), or `sample_palm`'s cone.
+    pub(super) fn sample_move_palm(&self, kind: MoveKind, rng: &mut ChaCha8Rng) -> DAffine3 {
+        if kind == MoveKind::Cone {
             return self.sample_palm(rng);
         }
         // The position (and draws) of the plain sampler; its cone tilt is replaced by a world
@@ -185,6 +192,15 @@ impl<'a> GraspContext<'a> {
         let target = self.t_world_base.inverse() * *t_world_palm;
         self.robot.solve_grasp_ik(&target, q, &IkOptions::default())
     }
+}
+
+/// The sampler of an arm move's palm pose (`GraspContext::draw_move_kind`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum MoveKind {
+    /// Within the tilt cone about palm up.
+    Cone,
+    /// The back of the hand towards the camera.
+    BackToCamera,
 }
 
 /// A palm orientation (world) of the arm moves' cone: `palm_up` rolled about the palm normal by

@@ -34,7 +34,10 @@ fn move_normals(cfg: &GraspConfig, n: u64) -> Vec<(DVec3, DVec3)> {
     (0..n)
         .map(|k| {
             let mut rng = ChaCha8Rng::seed_from_u64(k);
-            let t = ctx.sample_move_palm(&mut rng);
+            let t = {
+                let kind = ctx.draw_move_kind(&mut rng);
+                ctx.sample_move_palm(kind, &mut rng)
+            };
             (t.matrix3 * DVec3::X, t.translation)
         })
         .collect()
@@ -70,11 +73,62 @@ fn back_to_camera_moves_turn_the_palm_away_from_the_camera() {
     let robot = Robot::default_robot();
     let ctx = paper_context(&robot, &cfg);
     for k in 0..50 {
-        let a = ctx.sample_move_palm(&mut ChaCha8Rng::seed_from_u64(k));
+        let a = {
+            let mut rng = ChaCha8Rng::seed_from_u64(k);
+            let kind = ctx.draw_move_kind(&mut rng);
+            ctx.sample_move_palm(kind, &mut rng)
+        };
         let b = ctx.sample_palm(&mut ChaCha8Rng::seed_from_u64(k));
         assert_eq!(a, b);
         assert!((a.matrix3 * DVec3::X).z >= cfg.max_tilt_deg.to_radians().cos() - 1e-9);
     }
+}
+
+/// Every arm joint's fastest turn (rad/s) over the steps of the path from `from` to `to`, and its
+/// speed limit.
+fn peak_joint_speeds(ctx: &GraspContext, from: &[f64], to: &[f64]) -> Vec<(f64, f64)> {
+    let n = ctx.path_steps(from, to);
+    let robot = ctx.robot;
+    let at = |k: usize| arm_move::along_path(from, to, k as f64 / n as f64);
+    robot
+        .arm_joints
+        .iter()
+        .zip(&robot.arm_dofs)
+        .map(|(&j, &d)| {
+            let fastest = (0..n).map(|k| (at(k + 1)[d] - at(k)[d]).abs() / ctx.timestep).fold(0.0, f64::max);
+            (fastest, robot.model.joints[j].velocity)
+        })
+        .collect()
+}
+
+#[test]
+fn arm_moves_keep_every_joint_within_its_speed_limit() {
+    let robot = Robot::default_robot();
+    let cfg = GraspConfig { back_to_camera_share: 0.5, ..allegro_grasp() };
+    let ctx = paper_context(&robot, &cfg);
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let mut q = ctx.home();
+    let mut moves = Vec::new();
+    while moves.len() < 100 {
+        let kind = ctx.draw_move_kind(&mut rng);
+        if let Some(qt) = ctx.reach(&ctx.sample_move_palm(kind, &mut rng), &q) {
+            moves.push((q.clone(), qt.clone()));
+            q = qt;
+        }
+    }
+    for (from, to) in &moves {
+        for (fastest, limit) in peak_joint_speeds(&ctx, from, to) {
+            assert!(limit > 0.0 && fastest <= limit * (1.0 + 1e-9), "a joint turns at {fastest:.2} rad/s, its limit {limit}");
+        }
+    }
+    // The moves the test draws are the kind that needs it: at `move_seconds` alone many would
+    // pass a limit, and an episode's moves keep that length.
+    let fixed = GraspConfig { arm_speed_limits: false, ..cfg.clone() };
+    let fixed_ctx = paper_context(&robot, &fixed);
+    let too_fast = moves.iter().filter(|(from, to)| peak_joint_speeds(&fixed_ctx, from, to).iter().any(|(v, limit)| v > limit)).count();
+    assert!(too_fast >= 20, "{too_fast} of 100 moves too fast at move_seconds");
+    let episode_ctx = GraspContext { record_steps: true, ..paper_context(&robot, &cfg) };
+    assert!(moves.iter().all(|(from, to)| episode_ctx.path_steps(from, to) == fixed_ctx.steps(cfg.move_seconds)));
 }
 
 /// The grasp loop over the scripted hand: `cfg` with the paper's robot and camera.
@@ -289,7 +343,11 @@ fn the_hold_screen_probes_the_extremes_the_arm_moves_draw_from() {
     // Every probe is an apparent gravity the move sampler's draws come near: within 10 deg of one
     // of 4000 drawn moves.
     let drawn: Vec<DVec3> = (0..4000)
-        .map(|k| ctx.sample_move_palm(&mut ChaCha8Rng::seed_from_u64(k)))
+        .map(|k| {
+            let mut rng = ChaCha8Rng::seed_from_u64(k);
+            let kind = ctx.draw_move_kind(&mut rng);
+            ctx.sample_move_palm(kind, &mut rng)
+        })
         .map(|t| DQuat::from_mat3(&t.matrix3).inverse() * GRAVITY)
         .collect();
     for (k, g) in probes.iter().enumerate() {
