@@ -234,8 +234,9 @@ fn a_move_that_drops_the_object_is_undone_and_redrawn() {
 
 #[test]
 fn a_lost_grasp_keeps_its_instances_and_a_new_grasp_records_the_rest_when_asked() {
-    // Whole holds, so that every instance takes the same steps.
-    let whole_holds = GraspConfig { hold_until_still: false, ..allegro_grasp() };
+    // Whole holds and every move `move_seconds` long (no speed limits), so that every instance
+    // takes the same steps.
+    let whole_holds = GraspConfig { hold_until_still: false, arm_speed_limits: false, ..allegro_grasp() };
     let regrasp = GraspConfig { regrasp_on_loss: true, ..whole_holds.clone() };
     // Each instance is a 0.5 s move and a 0.2 s hold (168 steps); from 60 steps into the third
     // move every try drops the object (each in its first step), so the first grasp is lost after
@@ -269,7 +270,8 @@ fn a_lost_grasp_keeps_its_instances_and_a_new_grasp_records_the_rest_when_asked(
 
 #[test]
 fn a_grasp_that_lets_go_under_a_probe_is_screened_out_before_any_arm_move() {
-    let cfg = GraspConfig { hold_screen: true, ..allegro_grasp() };
+    // Every move `move_seconds` long (no speed limits): 120 steps each.
+    let cfg = GraspConfig { hold_screen: true, arm_speed_limits: false, ..allegro_grasp() };
     // The object flies out early in the first probe (once).
     let drop_at = steps_to_settled(&cfg) + 10;
     let dropping = || {
