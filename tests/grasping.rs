@@ -487,6 +487,10 @@ fn a_lost_grasps_instances_are_kept_and_the_next_grasp_records_the_rest_when_ask
             "40",
             "--set",
             &format!("robot.grasp.regrasp_on_loss={regrasp}"),
+            // Every move `move_seconds` long, past the joints' speed limits: such moves lose the
+            // grasps this test needs lost.
+            "--set",
+            "robot.grasp.arm_speed_limits=false",
             "--quiet",
             "--json",
         ]);
@@ -520,6 +524,8 @@ fn a_lost_grasps_instances_are_kept_and_the_next_grasp_records_the_rest_when_ask
         "sampling.instances_per_trajectory=30",
         "--set",
         "robot.grasp.regrasp_on_loss=true",
+        "--set",
+        "robot.grasp.arm_speed_limits=false",
     ];
     let o = run_generate(&root().join("scenes/tiny-hand.yaml"), d.path(), &[&small[..], &regrasp].concat());
     assert!(o.status.success(), "{}", stderr(&o));
