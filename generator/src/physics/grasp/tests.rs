@@ -27,17 +27,20 @@ fn paper_context<'a>(robot: &'a Robot, cfg: &'a GraspConfig) -> GraspContext<'a>
     GraspContext::new(robot, t_world_base, cfg, 1.0 / 240.0, DVec3::new(0.0, -0.75, 0.55))
 }
 
+/// An arm move's palm pose (its kind, then its pose) drawn from seed `k`.
+fn move_palm(ctx: &GraspContext, k: u64) -> DAffine3 {
+    let mut rng = ChaCha8Rng::seed_from_u64(k);
+    let kind = ctx.draw_move_kind(&mut rng);
+    ctx.sample_move_palm(kind, &mut rng)
+}
+
 /// The palm's normal (world) of `n` arm moves drawn with `cfg`.
 fn move_normals(cfg: &GraspConfig, n: u64) -> Vec<(DVec3, DVec3)> {
     let robot = Robot::default_robot();
     let ctx = paper_context(&robot, cfg);
     (0..n)
         .map(|k| {
-            let mut rng = ChaCha8Rng::seed_from_u64(k);
-            let t = {
-                let kind = ctx.draw_move_kind(&mut rng);
-                ctx.sample_move_palm(kind, &mut rng)
-            };
+            let t = move_palm(&ctx, k);
             (t.matrix3 * DVec3::X, t.translation)
         })
         .collect()
@@ -73,11 +76,7 @@ fn back_to_camera_moves_turn_the_palm_away_from_the_camera() {
     let robot = Robot::default_robot();
     let ctx = paper_context(&robot, &cfg);
     for k in 0..50 {
-        let a = {
-            let mut rng = ChaCha8Rng::seed_from_u64(k);
-            let kind = ctx.draw_move_kind(&mut rng);
-            ctx.sample_move_palm(kind, &mut rng)
-        };
+        let a = move_palm(&ctx, k);
         let b = ctx.sample_palm(&mut ChaCha8Rng::seed_from_u64(k));
         assert_eq!(a, b);
         assert!((a.matrix3 * DVec3::X).z >= cfg.max_tilt_deg.to_radians().cos() - 1e-9);
@@ -344,14 +343,7 @@ fn the_hold_screen_probes_the_extremes_the_arm_moves_draw_from() {
     }
     // Every probe is an apparent gravity the move sampler's draws come near: within 10 deg of one
     // of 4000 drawn moves.
-    let drawn: Vec<DVec3> = (0..4000)
-        .map(|k| {
-            let mut rng = ChaCha8Rng::seed_from_u64(k);
-            let kind = ctx.draw_move_kind(&mut rng);
-            ctx.sample_move_palm(kind, &mut rng)
-        })
-        .map(|t| DQuat::from_mat3(&t.matrix3).inverse() * GRAVITY)
-        .collect();
+    let drawn: Vec<DVec3> = (0..4000).map(|k| move_palm(&ctx, k)).map(|t| DQuat::from_mat3(&t.matrix3).inverse() * GRAVITY).collect();
     for (k, g) in probes.iter().enumerate() {
         let nearest = drawn.iter().map(|d| d.angle_between(*g).to_degrees()).fold(180.0, f64::min);
         assert!(nearest < 10.0, "probe {k} is {nearest} deg from every drawn move");
