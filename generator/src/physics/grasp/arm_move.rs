@@ -162,12 +162,43 @@ impl GraspContext<'_> {
     /// `arm_speed_limits`, as many more as keep every joint within its speed limit (snapshots;
     /// an episode's moves keep one length).
     pub(super) fn path_steps(&self, from: &[f64], to: &[f64]) -> usize {
+        if self.record_steps { self.steps(self.config.move_seconds) } else { self.stretched_path_steps(from, to) }
+    }
+
+    /// Physics steps of the arm's path from `from` to `to` stretched to the joints' speed limits:
+    /// `move_seconds`, or, with `arm_speed_limits`, as many more as keep every joint within its
+    /// limit (a snapshot's move, and an episode's wrist turn within its pivoting window).
+    pub(super) fn stretched_path_steps(&self, from: &[f64], to: &[f64]) -> usize {
         let steps = self.steps(self.config.move_seconds);
-        if !self.config.arm_speed_limits || self.record_steps {
+        if !self.config.arm_speed_limits {
             return steps;
         }
         // Rounded up: the steps' time is at least the limits' time.
         steps.max((self.path_seconds_at_speed_limits(from, to) / self.timestep).ceil() as usize)
+    }
+
+    /// Where the arm's move from `from` towards `to` ends: at `to`, or, in an episode with
+    /// `arm_speed_limits` (whose moves all take `move_seconds`: its timeline is fixed), as far
+    /// along the straight joint-space line to it as every joint's speed limit allows in that time
+    /// (`reach_within`): an episode's arm turns no joint faster than the real arm can and reaches
+    /// a far pose over several moves.
+    pub(super) fn move_end(&self, from: &[f64], to: &[f64]) -> Vec<f64> {
+        if !self.config.arm_speed_limits || !self.record_steps {
+            return to.to_vec();
+        }
+        self.reach_within(from, to, self.steps(self.config.move_seconds))
+    }
+
+    /// How far along the straight joint-space line from `from` to `to` the arm's smooth path gets
+    /// in `steps` physics steps with every joint within its speed limit: `to` when it gets there.
+    pub(super) fn reach_within(&self, from: &[f64], to: &[f64], steps: usize) -> Vec<f64> {
+        let allowed = steps as f64 * self.timestep;
+        let needed = self.path_seconds_at_speed_limits(from, to);
+        if needed <= allowed {
+            return to.to_vec();
+        }
+        let share = allowed / needed;
+        from.iter().zip(to).map(|(a, b)| a + (b - a) * share).collect()
     }
 }
 
@@ -265,13 +296,14 @@ impl Attempt<'_> {
     }
 
     /// A palm pose the arm reaches from `q` without putting a link under the floor (drawn again
-    /// before any physics is spent on it; the check after the move stays, for the hand's links).
+    /// before any physics is spent on it; the check after the move stays, for the hand's links):
+    /// the arm's joints where the move ends (`GraspContext::move_end`).
     fn draw_move_target(&self, q: &[f64], arm_rng: &mut ChaCha8Rng) -> Option<Vec<f64>> {
         let ctx = self.ctx;
         let kind = ctx.draw_move_kind(arm_rng);
         for _ in 0..MOVE_TARGET_DRAWS {
             let t = ctx.sample_move_palm(kind, arm_rng);
-            if let Some(qt) = ctx.reach(&t, q)
+            if let Some(qt) = ctx.reach(&t, q).map(|qt| ctx.move_end(q, &qt))
                 && robot_floor_clearance(ctx.robot, &ctx.t_world_base, &qt).is_none_or(|(_, z)| z >= 0.0)
             {
                 return Some(qt);
@@ -285,23 +317,24 @@ impl Attempt<'_> {
     /// `grasp.hold_until_still`) until the object has stopped in the hand. False when the object
     /// falls out of the hand.
     pub(super) fn follow_path(&mut self, q_from: &[f64], q_target: &[f64], log: Option<&mut StepLog>) -> bool {
-        self.follow_path_to_goal(q_from, q_target, false, log).is_some()
+        let n = self.ctx.path_steps(q_from, q_target);
+        self.follow_path_to_goal(q_from, q_target, n, false, log).is_some()
     }
 
-    /// `follow_path`; with `stop_at_goal`, the arm stops where it is on the path once the object
-    /// has turned the episode's turn target in the hand, and holds there for the rest of the move's
-    /// steps. The arm's joints where it stopped (`q_target` when it did not); None when the object
-    /// falls out of the hand.
+    /// `follow_path` over `n` steps of path; with `stop_at_goal`, the arm stops where it is on the
+    /// path once the object has turned the episode's turn target in the hand, and holds there for
+    /// the rest of the move's steps. The arm's joints where it stopped (`q_target` when it did
+    /// not); None when the object falls out of the hand.
     pub(super) fn follow_path_to_goal(
         &mut self,
         q_from: &[f64],
         q_target: &[f64],
+        n: usize,
         stop_at_goal: bool,
         mut log: Option<&mut StepLog>,
     ) -> Option<Vec<f64>> {
         let goal = self.turn_goal.filter(|_| stop_at_goal);
         let (ctx, physics) = (self.ctx, &mut *self.physics);
-        let n = ctx.path_steps(q_from, q_target);
         let ds = 1.0 / n as f64;
         // Episodes keep every hold whole: each move takes the same steps.
         let mut still = (ctx.config.hold_until_still && !ctx.record_steps).then(|| StillWatch::new(ctx));

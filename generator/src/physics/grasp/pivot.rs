@@ -153,7 +153,9 @@ impl Attempt<'_> {
     ///
     /// Each pivot: a hand first chooses its pinch and lifts its other fingers off (a gripper's
     /// jaws are its pinch). The arm turns the wrist (a smooth joint-space move and hold, as an arm
-    /// move) so that gravity in the palm frame lies across the pads' line, a drawn target turn plus
+    /// move, stretched to the joints' speed limits as a snapshot's, and stopped short where the
+    /// window's time left is less) so that gravity in the palm frame lies across the pads' line,
+    /// a drawn target turn plus
     /// `GRAVITY_LEAD` from the object's centre of mass, on the side away from the palm. Then the
     /// grip `g` (the pinch's targets between where they stood, 0, and the full squeeze, 1) falls at
     /// the configured easing rate, and rises four times as fast while the object slides along the
@@ -173,7 +175,9 @@ impl Attempt<'_> {
         };
         let centroid = self.object.points.iter().map(|p| DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)).sum::<DVec3>()
             / self.object.points.len().max(1) as f64;
-        let turn_steps = ctx.steps(ctx.config.move_seconds) + ctx.steps(ctx.config.hold_seconds);
+        // A wrist turn takes at least an arm move and its hold.
+        let hold_steps = ctx.steps(ctx.config.hold_seconds);
+        let turn_steps = ctx.steps(ctx.config.move_seconds) + hold_steps;
         let (mut slid, mut stalls) = (0.0, 0);
         // Every pivot of the window turns the same way, so the turns add up.
         let mut sense = None;
@@ -223,7 +227,7 @@ impl Attempt<'_> {
             let pad_reach = ctx.robot.pads[pads[0]].size.map_or(0.0, |(w, h)| 0.5 * w.hypot(h));
             let target = rng.random_range(control.step.0..=control.step.1);
             let lead = GRAVITY_LEAD + STALL_LEAD * stalls as f64;
-            let Some(q_turned) = self.wrist_turn(q, &jaws, centroid, target + lead, &mut sense) else {
+            let Some(mut q_turned) = self.wrist_turn(q, &jaws, centroid, target + lead, &mut sense) else {
                 ended = InHandEnd::NoWristTurn;
                 if !self.ramp_hand(q, &full, grasp_targets, lift_steps, grasp_targets, log.as_deref_mut()) {
                     return false;
@@ -231,10 +235,21 @@ impl Attempt<'_> {
                 k += lift_steps;
                 break;
             };
+            // The wrist turns within its joints' speed limits (`arm_speed_limits`), taking longer
+            // than an arm move where it must, and as far as the window's time left allows (an
+            // easing and a hold must follow it).
+            let mut path_steps = ctx.stretched_path_steps(q, &q_turned);
+            let room = control.steps.saturating_sub(k + hold_steps + control.ease_steps + control.hold_steps + lift_steps);
+            if path_steps > room {
+                q_turned = ctx.reach_within(q, &q_turned, room);
+                path_steps = room;
+            }
+            let turn_steps = path_steps + hold_steps;
             self.physics.set_targets(&full);
             // The wrist turn itself may turn the object: the arm stops where the episode's turn
             // target is reached.
-            let Some(q_turned) = self.follow_path_to_goal(q, &q_turned, true, log.as_deref_mut()) else { return false };
+            let turned = self.follow_path_to_goal(q, &q_turned, path_steps, true, log.as_deref_mut());
+            let Some(q_turned) = turned else { return false };
             *q = q_turned;
             k += turn_steps;
             let mut pivot_target = Some(target);

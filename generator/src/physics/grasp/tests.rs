@@ -126,8 +126,28 @@ fn arm_moves_keep_every_joint_within_its_speed_limit() {
     let fixed_ctx = paper_context(&robot, &fixed);
     let too_fast = moves.iter().filter(|(from, to)| peak_joint_speeds(&fixed_ctx, from, to).iter().any(|(v, limit)| v > limit)).count();
     assert!(too_fast >= 20, "{too_fast} of 100 moves too fast at move_seconds");
+    // An episode's moves keep that length and end short of a pose they cannot reach within the
+    // limits: on the straight joint-space line to it, its fastest joint at its limit.
     let episode_ctx = GraspContext { record_steps: true, ..paper_context(&robot, &cfg) };
-    assert!(moves.iter().all(|(from, to)| episode_ctx.path_steps(from, to) == fixed_ctx.steps(cfg.move_seconds)));
+    let mut short = 0;
+    for (from, to) in &moves {
+        let end = episode_ctx.move_end(from, to);
+        assert_eq!(episode_ctx.path_steps(from, &end), fixed_ctx.steps(cfg.move_seconds));
+        let speeds = peak_joint_speeds(&episode_ctx, from, &end);
+        for &(fastest, limit) in &speeds {
+            assert!(fastest <= limit * (1.0 + 1e-9), "an episode's joint turns at {fastest:.2} rad/s, its limit {limit}");
+        }
+        let share = |k: usize| (end[k] - from[k]) / (to[k] - from[k]);
+        let moving: Vec<usize> = (0..to.len()).filter(|&k| (to[k] - from[k]).abs() > 1e-6).collect();
+        assert!(moving.iter().all(|&k| (share(k) - share(moving[0])).abs() < 1e-9), "off the line to the drawn pose");
+        if end != *to {
+            short += 1;
+            assert!(speeds.iter().any(|&(fastest, limit)| fastest > 0.99 * limit), "a shortened move not at its limit: {speeds:?}");
+        }
+    }
+    assert_eq!(short, too_fast, "the episode shortens exactly the moves too fast at move_seconds");
+    let snapshot = moves.iter().all(|(from, to)| ctx.move_end(from, to) == *to);
+    assert!(snapshot, "a snapshot's move ends at its drawn pose");
 }
 
 /// The grasp loop over the scripted hand: `cfg` with the paper's robot and camera.
