@@ -100,11 +100,29 @@ pub fn complete_shards(dir: &Path) -> Vec<String> {
     files_named(dir, |n| n.ends_with(".mcap"))
 }
 
+/// Names (relative paths) of the files under `dir` that `pred` accepts, sorted. Names only, so
+/// that it may look while a run is writing: a temporary file renamed or removed between the
+/// listing and a look at it is simply not there (reading every file's bytes, as `files` does, hit
+/// such a file now and then).
 pub fn files_named(dir: &Path, pred: impl Fn(&str) -> bool) -> Vec<String> {
-    if !dir.exists() {
-        return Vec::new();
+    let mut out = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        let Ok(entries) = std::fs::read_dir(&d) else { continue };
+        for e in entries.flatten() {
+            let p = e.path();
+            match e.file_type() {
+                Ok(t) if t.is_dir() => stack.push(p),
+                Ok(_) => {
+                    let name = p.strip_prefix(dir).unwrap().display().to_string();
+                    if pred(&name) {
+                        out.push(name);
+                    }
+                }
+                Err(_) => {}
+            }
+        }
     }
-    let mut v: Vec<String> = files(dir).into_iter().map(|f| f.0).filter(|n| pred(n)).collect();
-    v.sort();
-    v
+    out.sort();
+    out
 }

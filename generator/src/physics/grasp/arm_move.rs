@@ -295,21 +295,30 @@ impl Attempt<'_> {
         Ok(self.check_instance(q, penetration))
     }
 
-    /// A palm pose the arm reaches from `q` without putting a link under the floor (drawn again
-    /// before any physics is spent on it; the check after the move stays, for the hand's links):
-    /// the arm's joints where the move ends (`GraspContext::move_end`).
+    /// A palm pose the arm reaches from `q` without putting a link under the floor, nor the held
+    /// object where it lies in the palm now (drawn again before any physics is spent on it; the
+    /// checks after the move stay, for the hand's links and for an object that slipped on the
+    /// way): the arm's joints where the move ends (`GraspContext::move_end`). Where every draw
+    /// puts the object on the floor, the first that keeps the arm above it (the move may still
+    /// stand: the object can turn in the hand).
     fn draw_move_target(&self, q: &[f64], arm_rng: &mut ChaCha8Rng) -> Option<Vec<f64>> {
         let ctx = self.ctx;
         let kind = ctx.draw_move_kind(arm_rng);
+        let t_palm_object = self.physics.object_pose();
+        let mut arm_clear = None;
         for _ in 0..MOVE_TARGET_DRAWS {
             let t = ctx.sample_move_palm(kind, arm_rng);
-            if let Some(qt) = ctx.reach(&t, q).map(|qt| ctx.move_end(q, &qt))
-                && robot_floor_clearance(ctx.robot, &ctx.t_world_base, &qt).is_none_or(|(_, z)| z >= 0.0)
-            {
+            let Some(qt) = ctx.reach(&t, q).map(|qt| ctx.move_end(q, &qt)) else { continue };
+            if robot_floor_clearance(ctx.robot, &ctx.t_world_base, &qt).is_some_and(|(_, z)| z < 0.0) {
+                continue;
+            }
+            let t_world_object = ctx.t_world_base * ctx.robot.grasp_frame_pose(&qt) * t_palm_object;
+            if floor_clearance(&self.object.points, &t_world_object) >= MIN_FLOOR_CLEARANCE {
                 return Some(qt);
             }
+            arm_clear.get_or_insert(qt);
         }
-        None
+        arm_clear
     }
 
     /// The move along the smooth joint-space path from `q_from` to `q_target`, then the hold: the

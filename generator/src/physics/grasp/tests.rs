@@ -447,3 +447,39 @@ fn event_names_are_the_ones_earlier_datasets_count_under() {
         assert_eq!(event.name(), name);
     }
 }
+
+/// An arm move's target is drawn again, before any physics, where it would put the held object
+/// (where it lies in the palm) on the floor: a large plate that the fake hand keeps where it is is
+/// never moved onto the floor, where a good share of the drawn moves would put it.
+#[test]
+fn move_targets_that_put_the_held_object_on_the_floor_are_drawn_again() {
+    use super::floor::MIN_FLOOR_CLEARANCE;
+    let robot = Robot::default_robot();
+    // Tilt-cone moves only: turned back to the camera (palm sideways) the plate reaches the floor
+    // wherever the palm is.
+    let cfg = allegro_grasp();
+    let ctx = paper_context(&robot, &cfg);
+    // A plate 0.6 m square and 1 cm thick, put flat on the palm: tilted, it reaches far below it.
+    let corner =
+        |k: usize| [if k & 1 == 0 { -0.3 } else { 0.3 }, if k & 2 == 0 { -0.3 } else { 0.3 }, if k & 4 == 0 { -0.005 } else { 0.005 }];
+    let plate = PhysicsObject { points: (0..8).map(corner).collect(), mass: 0.3 };
+    let mut hand = crate::physics::fake::FakeHand::holding(3);
+    let mut log = GraspLog::default();
+    let key = TrajectoryKey { seed: 5, object_id: "plate", trajectory: 0, instances: 40 };
+    let t = simulate_trajectory(&ctx, &mut hand, &plate, key, &mut log).unwrap();
+    let floor_redos = log.events.iter().filter(|e| matches!(e, GraspEvent::Redone(Redo::Floor))).count();
+    assert_eq!(floor_redos, 0, "moves redone with the plate on the floor: {:?}", log.events);
+    // The moves a grasp like this one draws, had they not been drawn again.
+    let (held, q) = (t.instances[0].t_palm_object, &t.instances[0].q);
+    let mut rng = ChaCha8Rng::seed_from_u64(1);
+    let (mut drawn, mut on_floor) = (0, 0);
+    while drawn < 200 {
+        let kind = ctx.draw_move_kind(&mut rng);
+        if let Some(qt) = ctx.reach(&ctx.sample_move_palm(kind, &mut rng), q) {
+            drawn += 1;
+            let t_world_plate = ctx.t_world_base * robot.grasp_frame_pose(&qt) * held;
+            on_floor += (floor_clearance(&plate.points, &t_world_plate) < MIN_FLOOR_CLEARANCE) as usize;
+        }
+    }
+    assert!(on_floor >= 20, "only {on_floor} of {drawn} drawn moves put the plate on the floor: the test shows nothing");
+}
