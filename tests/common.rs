@@ -79,20 +79,14 @@ pub fn reference_dataset() -> &'static Path {
 
 /// Every file under `dir` (relative path -> bytes), sorted.
 pub fn files(dir: &Path) -> Vec<(String, Vec<u8>)> {
-    let mut out = Vec::new();
-    let mut stack = vec![dir.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for e in std::fs::read_dir(&d).unwrap() {
-            let p = e.unwrap().path();
-            if p.is_dir() {
-                stack.push(p);
-            } else {
-                out.push((p.strip_prefix(dir).unwrap().display().to_string(), std::fs::read(&p).unwrap()));
-            }
-        }
-    }
-    out.sort();
-    out
+    assert!(dir.is_dir(), "{} is not a directory", dir.display());
+    files_named(dir, |_| true)
+        .into_iter()
+        .map(|name| {
+            let bytes = std::fs::read(dir.join(&name)).unwrap_or_else(|e| panic!("{name}: {e}"));
+            (name, bytes)
+        })
+        .collect()
 }
 
 /// Names of the complete shard files (`*.mcap`) under a dataset directory.
@@ -102,7 +96,7 @@ pub fn complete_shards(dir: &Path) -> Vec<String> {
 
 /// Names (relative paths) of the files under `dir` that `pred` accepts, sorted. Names only, so
 /// that it may look while a run is writing: a temporary file renamed or removed between the
-/// listing and a look at it is simply not there (reading every file's bytes, as `files` does, hit
+/// listing and a look at it is simply not there (reading every file's bytes while it wrote hit
 /// such a file now and then).
 pub fn files_named(dir: &Path, pred: impl Fn(&str) -> bool) -> Vec<String> {
     let mut out = Vec::new();

@@ -155,11 +155,11 @@ impl Attempt<'_> {
     /// jaws are its pinch). The arm turns the wrist (a smooth joint-space move and hold, as an arm
     /// move, stretched to the joints' speed limits as a snapshot's, and stopped short where the
     /// window's time left is less) so that gravity in the palm frame lies across the pads' line,
-    /// a drawn target turn plus
-    /// `GRAVITY_LEAD` from the object's centre of mass, on the side away from the palm. Then the
-    /// grip `g` (the pinch's targets between where they stood, 0, and the full squeeze, 1) falls at
-    /// the configured easing rate, and rises four times as fast while the object slides along the
-    /// pads or turns faster than `TURN_SPEED`: it hovers where the object turns but does not slip.
+    /// a drawn target turn plus `GRAVITY_LEAD` from the object's centre of mass, on the side away
+    /// from the palm. Then the grip `g` (the pinch's targets between where they stood, 0, and the
+    /// full squeeze, 1) falls at the configured easing rate, and rises four times as fast while the
+    /// object slides along the pads or turns faster than `TURN_SPEED`: it hovers where the object
+    /// turns but does not slip.
     /// At the target (less the turn the grip takes to stop it) the grip is full again for
     /// `hold_seconds`, a hand's lifted fingers close on the object again, and the next pivot
     /// begins. The episode's turn target, once reached, ends the window's pivoting like its last
