@@ -475,6 +475,19 @@ fn a_recorded_grasp_closes_the_open_hand_and_turns_the_wrist_before_the_settled_
         let step = w[0].t_world_palm.rotation().angle_between(w[1].t_world_palm.rotation()).to_degrees();
         assert!(step < 1.0, "the palm jumped {step:.2}° in one physics step at {} s", w[1].time_s);
     }
+    // The wrist turn, like the arm move after it, within every arm joint's speed limit (the URDF's
+    // `velocity`): the turn goes as far towards the grasp pose as the limits let it in its time.
+    let robot = vt_robot::Robot::builtin(vt_robot::DEFAULT_ROBOT).unwrap();
+    let all: Vec<_> = frames.iter().flat_map(|s| s.episode.as_ref().unwrap().states.iter().map(|(_, st)| st)).collect();
+    for &j in &robot.arm_joints {
+        let joint = &robot.model.joints[j];
+        let limit = joint.velocity;
+        let fastest = all
+            .windows(2)
+            .map(|w| (w[1].joint_positions[&joint.name] - w[0].joint_positions[&joint.name]).abs() / (w[1].time_s - w[0].time_s))
+            .fold(0.0, f64::max);
+        assert!(fastest <= 1.001 * limit, "{}: {fastest:.3} rad/s, its limit {limit} rad/s", joint.name);
+    }
     crate::ground_truth::check_dataset(d.path(), e.frames as usize);
     tactile_points_lie_on_the_object_within_their_pad(d.path());
     // The object moves in the closing hand; its in-hand rotation counts from the settled grasp.

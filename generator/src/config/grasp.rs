@@ -58,7 +58,8 @@ pub struct GraspConfig {
     /// speed), as the real arm must. On by default: on `scenes/paper.yaml` 23% more physics steps
     /// and 16% fewer grasp attempts (docs/grasp-loop.md). An episode's moves all take
     /// `move_seconds` (its timeline is fixed): one that would pass a limit stops short of its
-    /// drawn pose, and its pivoting's wrist turns are stretched within the window.
+    /// drawn pose, as does a recorded grasp's wrist turn (half of `settle_seconds`), and its
+    /// pivoting's wrist turns are stretched within the window.
     pub arm_speed_limits: bool,
     /// Stillness after each move before the instance is checked and recorded (at most this long
     /// with `hold_until_still`, in snapshots).

@@ -302,7 +302,10 @@ impl Attempt<'_> {
         }
         self.counted(Phase::Place, |a| a.place(placement, rng, &pre))?;
         let grasp_targets = self.counted(Phase::Close, |a| a.close_hand(&pre));
-        let grasped = self.counted(Phase::Settle, |a| a.settle(&t_world_palm, &q))?;
+        let (grasped, q_settled) = self.counted(Phase::Settle, |a| a.settle(&t_world_palm, &q))?;
+        // A recorded grasp's wrist turn may stop short of the drawn pose (speed limits).
+        let t_world_palm = if q_settled == q { t_world_palm } else { ctx.t_world_base * ctx.robot.grasp_frame_pose(&q_settled) };
+        let q = q_settled;
         let held = Held { t_palm_object: grasped, targets: &grasp_targets };
         self.screen(&held, &t_world_palm)?;
         self.record_instances(q, held)

@@ -35,25 +35,32 @@ impl Attempt<'_> {
     /// Phase 3: the palm turns from facing up to its sampled orientation over the first half (gravity
     /// turns with it in the palm frame, as a wrist rotation would), then holds still for the second
     /// half. Recording the grasp, the arm turns the wrist: it follows the smooth joint path from
-    /// the palm up to `q` (the grasp pose), with the palm's real orientation and acceleration. The
-    /// grasp must hold the object by friction: it may not drift more than `MAX_SETTLE_DRIFT` while
-    /// still. Drift during the turn is the object seating itself in the hand, not a lost grasp.
-    /// Returns the held object pose (palm frame).
-    pub(super) fn settle(&mut self, t_world_palm: &DAffine3, q: &[f64]) -> Result<DAffine3, Failure> {
+    /// the palm up towards `q` (the grasp pose), with the palm's real orientation and acceleration,
+    /// and, with `arm_speed_limits`, only as far as the joints' speed limits let it in that half
+    /// (`GraspContext::reach_within`, as an episode's arm move: the recording's length is fixed).
+    /// The grasp must hold the object by friction: it may not drift more than `MAX_SETTLE_DRIFT`
+    /// while still. Drift during the turn is the object seating itself in the hand, not a lost
+    /// grasp. Returns the held object pose (palm frame) and the arm's joints where the turn ended.
+    pub(super) fn settle(&mut self, t_world_palm: &DAffine3, q: &[f64]) -> Result<(DAffine3, Vec<f64>), Failure> {
         let ctx = self.ctx;
         self.physics.set_object_damping(HELD_DAMPING, HELD_DAMPING);
         let gravity_in_palm = rot(t_world_palm).inverse() * GRAVITY;
         let turn = DQuat::from_rotation_arc(PALM_UP_GRAVITY.normalize(), gravity_in_palm.normalize());
         let n_settle = ctx.steps(ctx.config.settle_seconds);
         let n_turn = (n_settle / 2).max(1);
-        let arm_path = self.grasp_recording.as_ref().map(|rec| rec.q_palm_up.clone());
+        let arm_path = self.grasp_recording.as_ref().map(|rec| {
+            let up = rec.q_palm_up.clone();
+            let end = if ctx.config.arm_speed_limits { ctx.reach_within(&up, q, n_turn) } else { q.to_vec() };
+            (up, end)
+        });
+        let q_settled = arm_path.as_ref().map_or_else(|| q.to_vec(), |(_, end)| end.clone());
         // The arm's joints and the apparent gravity (palm frame) for step `k` of the settle.
         let gravity_at = |k: usize| -> (Option<Vec<f64>>, DVec3) {
             let s = (k as f64 / n_turn as f64).min(1.0);
             match &arm_path {
-                Some(up) => {
+                Some((up, end)) => {
                     let moving = (k <= n_turn).then_some(1.0 / n_turn as f64);
-                    (Some(along_path(up, q, s)), ctx.gravity_on_path(up, q, s, moving))
+                    (Some(along_path(up, end, s)), ctx.gravity_on_path(up, end, s, moving))
                 }
                 None => (None, DQuat::IDENTITY.slerp(turn, s) * PALM_UP_GRAVITY),
             }
@@ -79,6 +86,6 @@ impl Attempt<'_> {
         if (held.translation - before.translation).length() > MAX_SETTLE_DRIFT || touching < ctx.robot.min_touching {
             return Err(Failure::GraspNotHeld);
         }
-        Ok(held)
+        Ok((held, q_settled))
     }
 }

@@ -150,6 +150,45 @@ fn arm_moves_keep_every_joint_within_its_speed_limit() {
     assert!(snapshot, "a snapshot's move ends at its drawn pose");
 }
 
+/// A recorded grasp's wrist turn (palm up to the grasp pose, in half the settle) keeps every arm
+/// joint within its speed limit: over 12 recorded grasps of the scripted hand, no joint turns
+/// faster than its limit between two of the grasp's states; without the limits at least one turn
+/// would (the test's grasps are the kind that needs them).
+#[test]
+fn a_recorded_grasps_wrist_turn_keeps_every_joint_within_its_speed_limit() {
+    let robot = Robot::default_robot();
+    let object = PhysicsObject {
+        points: vt_objects::procedural_mesh(vt_objects::Catalog::builtin().get("005_tomato_soup_can").unwrap()).positions,
+        mass: 0.35,
+    };
+    // The largest ratio of an arm joint's speed to its limit between two states up to the settled grasp.
+    let fastest_turn = |cfg: &GraspConfig, trajectory: u32| -> f64 {
+        let ctx = GraspContext { record_steps: true, recorded_grasp_steps: cfg.grasp_steps(1.0 / 240.0), ..paper_context(&robot, cfg) };
+        let key = TrajectoryKey { seed: 5, object_id: "005_tomato_soup_can", trajectory, instances: 1 };
+        let t = simulate_trajectory(&ctx, &mut crate::physics::fake::FakeHand::holding(3), &object, key, &mut GraspLog::default()).unwrap();
+        let grasp = &t.steps[..=t.settled_step];
+        assert!(grasp.len() > 100, "{} states recorded up to the settled grasp", grasp.len());
+        robot
+            .arm_joints
+            .iter()
+            .zip(&robot.arm_dofs)
+            .flat_map(|(&j, &d)| {
+                let limit = robot.model.joints[j].velocity;
+                grasp.windows(2).map(move |w| (w[1].q[d] - w[0].q[d]).abs() / ctx.timestep / limit)
+            })
+            .fold(0.0, f64::max)
+    };
+    let cfg = allegro_grasp();
+    let unlimited = GraspConfig { arm_speed_limits: false, ..cfg.clone() };
+    let mut too_fast_without = 0;
+    for trajectory in 0..12 {
+        let ratio = fastest_turn(&cfg, trajectory);
+        assert!(ratio <= 1.0 + 1e-9, "trajectory {trajectory}: a joint turns at {ratio:.2} times its limit");
+        too_fast_without += usize::from(fastest_turn(&unlimited, trajectory) > 1.0);
+    }
+    assert!(too_fast_without >= 3, "{too_fast_without} of 12 wrist turns too fast without the limits");
+}
+
 /// The grasp loop over the scripted hand: `cfg` with the paper's robot and camera.
 fn run_fake(hand: &mut crate::physics::fake::FakeHand, cfg: &GraspConfig, instances: u32) -> (Result<Trajectory>, Vec<GraspEvent>) {
     let (t, log) = run_fake_screened(hand, cfg, instances, None);
