@@ -87,6 +87,13 @@ impl PivotControl {
             pads,
         }
     }
+
+    /// Where a pivot whose drawn step is `step` (rad) tightens the grip: at the step, or, with an
+    /// episode's turn target of which `turn_left` (rad) is left, at what is left where that is
+    /// more (within the steps' range): a window often has time for one pivot only.
+    pub fn pivot_target(&self, step: f64, turn_left: Option<f64>) -> f64 {
+        turn_left.map_or(step, |left| step.max(left.min(self.step.1)))
+    }
 }
 
 /// A pinch: its two pads (indices in `Robot::pads`) and the hand joints lifted off while it holds
@@ -225,9 +232,11 @@ impl Attempt<'_> {
             // The line between the pads, where they stand now (palm frame).
             let jaws = Jaws::between(ctx.robot, &start_q, pads);
             let pad_reach = ctx.robot.pads[pads[0]].size.map_or(0.0, |(w, h)| 0.5 * w.hypot(h));
-            let target = rng.random_range(control.step.0..=control.step.1);
+            let step = rng.random_range(control.step.0..=control.step.1);
             let lead = GRAVITY_LEAD + STALL_LEAD * stalls as f64;
-            let Some(mut q_turned) = self.wrist_turn(q, &jaws, centroid, target + lead, &mut sense) else {
+            // The wrist puts gravity past the drawn step; the grip may hold the turn for longer.
+            let target = control.pivot_target(step, self.turn_left());
+            let Some(mut q_turned) = self.wrist_turn(q, &jaws, centroid, step + lead, &mut sense) else {
                 ended = InHandEnd::NoWristTurn;
                 if !self.ramp_hand(q, &full, grasp_targets, lift_steps, grasp_targets, log.as_deref_mut()) {
                     return false;
@@ -438,6 +447,22 @@ enum TurnEnd {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A pivot holds on to what is left of the episode's turn target where that is more than its
+    /// drawn step, within the steps' range; without a target it turns its step.
+    #[test]
+    fn a_pivot_holds_on_to_what_is_left_of_the_episodes_target() {
+        let robot = vt_robot::Robot::builtin("ur5e_robotiq_2f85").unwrap();
+        let cfg: crate::config::PivotConfig = serde_yaml::from_str("{step_deg: [20, 60]}").unwrap();
+        let c = PivotControl::of(&cfg, &robot, 0.005);
+        let deg = f64::to_radians;
+        let at = |step: f64, left: Option<f64>| c.pivot_target(deg(step), left.map(deg)).to_degrees();
+        assert!((at(30.0, None) - 30.0).abs() < 1e-9);
+        assert!((at(30.0, Some(45.0)) - 45.0).abs() < 1e-9, "{}", at(30.0, Some(45.0)));
+        assert!((at(30.0, Some(10.0)) - 30.0).abs() < 1e-9, "the turn left less than the step: the step");
+        assert!((at(30.0, Some(100.0)) - 60.0).abs() < 1e-9, "within the steps' range: {}", at(30.0, Some(100.0)));
+        assert!((at(50.0, Some(-5.0)) - 50.0).abs() < 1e-9);
+    }
 
     /// A hand's pinch: the touching pads of the two patterns on two fingers whose normals face
     /// each other most; the other fingers' closing joints lift, the pinch's fingers do not.
