@@ -68,6 +68,12 @@ impl Hull {
         Some(Hull { planes, surface: SurfaceSampler::new(triangles) })
     }
 
+    /// The outward normal of the face nearest `p` (a point on or near the hull): the face plane
+    /// `p` lies furthest outside of, or least inside.
+    pub fn normal_near(&self, p: DVec3) -> DVec3 {
+        self.planes.iter().max_by(|a, b| (a.0.dot(p) - a.1).total_cmp(&(b.0.dot(p) - b.1))).map_or(DVec3::Z, |&(n, _)| n)
+    }
+
     /// Where a ray from `p` (on the hull) along `dir` (into it) leaves the hull: the distance and
     /// the outward normal there.
     fn exit(&self, p: DVec3, dir: DVec3) -> Option<(f64, DVec3)> {
@@ -165,5 +171,14 @@ mod tests {
         // Too wide for the jaws: no grasp.
         let narrow = Jaws { opening: 0.05, ..jaws };
         assert!(antipodal_pose(&hull, &narrow, &mut rng).is_none());
+        // The nearest face's outward normal, for points just outside, on and just inside a face.
+        for (p, n) in [
+            (DVec3::new(0.031, 0.01, -0.02), DVec3::X),
+            (DVec3::new(-0.01, -0.05, 0.1), DVec3::NEG_Y),
+            (DVec3::new(0.0, 0.02, 0.118), DVec3::Z),
+            (DVec3::new(0.005, 0.0, -0.125), DVec3::NEG_Z),
+        ] {
+            assert!(hull.normal_near(p).distance(n) < 1e-9, "{p}: {}", hull.normal_near(p));
+        }
     }
 }

@@ -11,7 +11,7 @@ use rand_chacha::ChaCha8Rng;
 use super::arm_move::StepLog;
 use super::floor::robot_floor_clearance;
 use super::{Attempt, InHandEnd, rot};
-use crate::physics::antipodal::Jaws;
+use crate::physics::antipodal::{Hull, Jaws};
 
 /// A pivot tightens this long (s) before its target at the current turning speed: the grip takes
 /// about as long to stop the turn once its targets are full again.
@@ -24,9 +24,9 @@ const EASED_GRIP: f64 = -0.3;
 /// `TURN_SPEED` were chosen on `scenes/tiny-pivot.yaml`'s objects: 1 cm/s and 1.5 rad/s kept the
 /// grip too tight to turn in a third more windows.)
 const SLIDE_SPEED: f64 = 0.02;
-/// Two pads may pinch when their normals (+z out of the pads) are at least 90° apart (this cosine).
-/// On a hand's rounded fingertips the pad's normal is not the contact's: 120° apart found no pinch
-/// in half of the Allegro's windows, and turned the objects no further when it found one.
+/// Two pads may pinch when their contact normals are at least 90° apart (this cosine). 120° apart
+/// found no pinch in half of the Allegro's windows, and turned the objects no further when it
+/// found one.
 const PINCH_FACING: f64 = 0.0;
 /// The time (s) a hand's other fingers take to lift before a pivot, and to close again after it.
 const LIFT_SECONDS: f64 = 0.15;
@@ -109,14 +109,32 @@ fn moves(robot: &vt_robot::Robot, h: usize, link: usize) -> bool {
 }
 
 /// The pinch of the touching pads (`touching`, per `Robot::pads`) of `first` and `second`, on two
-/// fingers (no hand joint moves both), whose normals face each other most, at least
-/// `PINCH_FACING`; the hand joints at `hand`. None when no two touching pads face each other.
-fn choose_pinch(robot: &vt_robot::Robot, hand: &[f64], touching: &[bool], first: &[usize], second: &[usize]) -> Option<Pinch> {
+/// fingers (no hand joint moves both), whose contact normals face each other most, at least
+/// `PINCH_FACING`; the hand joints at `hand`. A pad's contact normal is the object's surface
+/// normal where the pad is (`surface_normal`, grasp frame, outward), turned into the object: on a
+/// hand's rounded fingertips the pad's own normal (+z, used without `surface_normal`) is not the
+/// contact's, and found no pinch in a third of the Allegro's windows. None when no two touching
+/// pads face each other.
+fn choose_pinch(
+    robot: &vt_robot::Robot,
+    hand: &[f64],
+    touching: &[bool],
+    first: &[usize],
+    second: &[usize],
+    surface_normal: Option<&dyn Fn(DVec3) -> DVec3>,
+) -> Option<Pinch> {
     let m = &robot.model;
     let mut q = m.zero();
     robot.set_hand(&mut q, hand);
     let links = m.forward_kinematics(&q);
-    let normal = |p: usize| links[robot.pads[p].frame].matrix3.z_axis;
+    let to_grasp = links[robot.grasp_frame].inverse();
+    let normal = |p: usize| -> DVec3 {
+        let frame = links[robot.pads[p].frame];
+        match surface_normal {
+            Some(f) => -f(to_grasp.transform_point3(frame.translation)),
+            None => to_grasp.transform_vector3(frame.matrix3.z_axis),
+        }
+    };
     let one_finger =
         |a: usize, b: usize| (0..robot.hand.len()).any(|h| moves(robot, h, robot.pads[a].link) && moves(robot, h, robot.pads[b].link));
     let (facing, pads) = first
@@ -190,6 +208,8 @@ impl Attempt<'_> {
         let mut sense = None;
         // A gripper's jaws hold from the window's start.
         let window_start_q = self.physics.joint_positions();
+        // The object's convex hull, for the contact normals a hand's pinch is chosen by.
+        let mut hull: Option<Option<Hull>> = None;
         let mut k = 0;
         let mut ended = InHandEnd::Window;
         while k + turn_steps + control.ease_steps + control.hold_steps + 2 * lift_steps <= control.steps {
@@ -210,7 +230,13 @@ impl Attempt<'_> {
                         .iter()
                         .map(|pad| ctx.robot.touch_links.iter().position(|&l| l == pad.link).is_some_and(|i| contacts[i].is_some()))
                         .collect();
-                    let Some(pinch) = choose_pinch(ctx.robot, &hand, &touching, first, second) else {
+                    // The contact normals: the object's hull's nearest faces to the pads.
+                    let hull = hull.get_or_insert_with(|| Hull::of(&self.object.points));
+                    let object = self.physics.object_pose();
+                    let surface_normal =
+                        hull.as_ref().map(|h| move |p: DVec3| rot(&object) * h.normal_near(object.inverse().transform_point3(p)));
+                    let surface_normal = surface_normal.as_ref().map(|f| f as &dyn Fn(DVec3) -> DVec3);
+                    let Some(pinch) = choose_pinch(ctx.robot, &hand, &touching, first, second, surface_normal) else {
                         ended = InHandEnd::NoPinch;
                         break;
                     };
@@ -480,7 +506,7 @@ mod tests {
         // The hand closed on an object: the thumb opposes the fingers.
         let closed: Vec<f64> = robot.hand.iter().map(|h| h.close.unwrap_or(0.0) * 0.6).collect();
         let all = vec![true; robot.pads.len()];
-        let pinch = choose_pinch(&robot, &closed, &all, first, second).expect("a pinch");
+        let pinch = choose_pinch(&robot, &closed, &all, first, second, None).expect("a pinch");
         assert_eq!(robot.pads[pinch.pads[0]].name.get(..3), Some("th_"));
         assert_ne!(robot.pads[pinch.pads[1]].name.get(..3), Some("th_"), "the thumb pinches against a finger, not itself");
         let [a, b] = pinch.pads;
@@ -494,7 +520,24 @@ mod tests {
         assert!(pinch.lifted.iter().all(|&(_, open)| open == -1.0));
         // Only touching pads pinch; a thumb touching alone has none.
         let thumb_only: Vec<bool> = robot.pads.iter().map(|p| p.name.starts_with("th_")).collect();
-        assert!(choose_pinch(&robot, &closed, &thumb_only, first, second).is_none());
+        assert!(choose_pinch(&robot, &closed, &thumb_only, first, second, None).is_none());
+        // By the object's surface normals: an object between the thumb and the fingers (a
+        // sphere about the pads' middle) is pinched, one beside them all is not.
+        let links = robot.model.forward_kinematics(&{
+            let mut q = robot.model.zero();
+            robot.set_hand(&mut q, &closed);
+            q
+        });
+        let to_grasp = links[robot.grasp_frame].inverse();
+        let pad_at = |n: &str| to_grasp.transform_point3(links[robot.pads[pad(n)].frame].translation);
+        let middle = (pad_at("th_distal") + pad_at("mf_distal")) * 0.5;
+        let sphere = |c: DVec3| move |p: DVec3| (p - c).normalize();
+        let between = sphere(middle);
+        let pinch = choose_pinch(&robot, &closed, &all, first, second, Some(&between)).expect("a pinch across the sphere");
+        let [a, b] = pinch.pads.map(|p| pad_at(&robot.pads[p].name));
+        assert!((a - middle).normalize().dot((b - middle).normalize()) <= PINCH_FACING, "{a} {b} about {middle}");
+        let aside = sphere(middle + (pad_at("th_distal") - middle) * 20.0);
+        assert!(choose_pinch(&robot, &closed, &all, first, second, Some(&aside)).is_none());
         // A gripper's pads are its jaws.
         let gripper = vt_robot::Robot::builtin("ur5e_robotiq_2f85").unwrap();
         assert_eq!(PivotControl::of(&crate::config::PivotConfig::default(), &gripper, 0.005).pads, PivotPads::Jaws);
