@@ -21,6 +21,14 @@ fn allegro_grasp() -> GraspConfig {
     GraspConfig::default().with_robot_defaults(&Robot::default_robot())
 }
 
+/// The tomato soup can's procedural mesh, as the scripted hand's tests hold it.
+fn procedural_soup_can() -> PhysicsObject {
+    PhysicsObject {
+        points: vt_objects::procedural_mesh(vt_objects::Catalog::builtin().get("005_tomato_soup_can").unwrap()).positions,
+        mass: 0.35,
+    }
+}
+
 /// The grasp loop's context with the robot base and the camera of `scenes/paper.yaml`, at 240 Hz.
 fn paper_context<'a>(robot: &'a Robot, cfg: &'a GraspConfig) -> GraspContext<'a> {
     let t_world_base = DAffine3::from_rotation_translation(DQuat::from_rotation_z(std::f64::consts::PI), DVec3::new(0.0, 0.5, 0.0));
@@ -157,10 +165,7 @@ fn arm_moves_keep_every_joint_within_its_speed_limit() {
 #[test]
 fn a_recorded_grasps_wrist_turn_keeps_every_joint_within_its_speed_limit() {
     let robot = Robot::default_robot();
-    let object = PhysicsObject {
-        points: vt_objects::procedural_mesh(vt_objects::Catalog::builtin().get("005_tomato_soup_can").unwrap()).positions,
-        mass: 0.35,
-    };
+    let object = procedural_soup_can();
     // The largest ratio of an arm joint's speed to its limit between two states up to the settled grasp.
     let fastest_turn = |cfg: &GraspConfig, trajectory: u32| -> f64 {
         let ctx = GraspContext { record_steps: true, recorded_grasp_steps: cfg.grasp_steps(1.0 / 240.0), ..paper_context(&robot, cfg) };
@@ -207,10 +212,7 @@ fn run_fake_screened(
     if let Some(mode) = screen {
         ctx.hold_screen = mode;
     }
-    let object = PhysicsObject {
-        points: vt_objects::procedural_mesh(vt_objects::Catalog::builtin().get("005_tomato_soup_can").unwrap()).positions,
-        mass: 0.35,
-    };
+    let object = procedural_soup_can();
     let mut log = GraspLog::default();
     let key = TrajectoryKey { seed: 3, object_id: "005_tomato_soup_can", trajectory: 0, instances };
     (simulate_trajectory(&ctx, hand, &object, key, &mut log), log)
