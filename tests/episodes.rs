@@ -435,6 +435,63 @@ fn a_finger_roll_turns_the_object_in_the_hand_and_keeps_the_ground_truth() {
     );
 }
 
+/// The recorded grasp's approach (`sampling.record.approach`): the episode starts with the open
+/// hand 60 mm back from the object along the palm normal, the object standing still in the world
+/// and untouched while the palm comes to it; the grasp then records as without the approach. The
+/// ground truth holds on every frame, the approach's included.
+#[test]
+fn a_recorded_approach_brings_the_open_hand_to_the_object_before_the_grasp() {
+    let d = tempdir();
+    let args = [
+        "--set",
+        "objects=[005_tomato_soup_can]",
+        "--set",
+        "sampling.trajectories_per_object=1",
+        "--set",
+        "sampling.instances_per_trajectory=1",
+        "--set",
+        "sampling.record.grasp=true",
+        "--set",
+        "sampling.record.approach={}",
+    ];
+    generate(&root().join("scenes/tiny-episode.yaml"), d.path(), &args);
+    let ds = DatasetReader::open(d.path()).unwrap();
+    let shard = &ds.shards("train").unwrap()[0];
+    let e = episode_of(shard.meta());
+    // The approach's 0.5 s (120 steps at 240 Hz) before the grasp's 276, less the 4 that put the
+    // settled grasp on a 30 Hz frame: the approach's first 4 states are left out.
+    let dt = 0.0041667;
+    assert!((e.settled_s.unwrap() - 392.0 * dt).abs() < 1e-9, "{e:?}");
+    let frames: Vec<_> = shard.indices().map(|i| shard.read(i).unwrap()).collect();
+    let approaching: Vec<_> = frames.iter().filter(|s| s.info.episode.unwrap().time_s < 116.0 * dt).collect();
+    assert_eq!(approaching.len(), 15);
+    let at_rest = &frames[approaching.len()];
+    let palm = |s: &vt_dataset::Sample| s.info.robot.as_ref().unwrap().t_world_palm;
+    let object = |s: &vt_dataset::Sample| s.t_world_camera.transform_point(s.t_camera_object.translation());
+    let still = object(approaching[0]);
+    for s in &approaching {
+        let moved = (object(s) - still).length();
+        assert!(moved < 1e-6, "the object moved {moved} m in the world at {:?}", s.info.episode);
+        assert!(s.info.links_in_contact().is_empty(), "{:?} touch before the hand reached the object", s.info.links_in_contact());
+    }
+    // The palm comes from 60 mm back along its normal (facing up), to where the object is put in.
+    let normal = palm(at_rest).rotation() * glam::DVec3::X;
+    assert!(normal.z > (0.5f64).to_radians().cos(), "palm normal {normal} when the object is put in");
+    let came = (palm(at_rest).translation() - palm(approaching[0]).translation()).dot(normal);
+    assert!((came - 0.06).abs() < 1e-3, "the palm came {came:.4} m along its normal");
+    crate::ground_truth::check_dataset(d.path(), e.frames as usize);
+    tactile_points_lie_on_the_object_within_their_pad(d.path());
+
+    // An approach without the recorded grasp, or of no length, is refused with its field.
+    let cfg = root().join("scenes/tiny-episode.yaml");
+    let o = run(&["plan", cfg.to_str().unwrap(), "--set", "sampling.record.approach={}"]);
+    let e = stderr(&o);
+    assert!(!o.status.success() && e.contains("sampling.record.approach") && e.contains("sampling.record.grasp: true"), "{e}");
+    let o = run(&["plan", cfg.to_str().unwrap(), "--set", "sampling.record.grasp=true", "--set", "sampling.record.approach={distance_mm: 0}"]);
+    let e = stderr(&o);
+    assert!(!o.status.success() && e.contains("sampling.record.approach.distance_mm"), "{e}");
+}
+
 /// Recording the grasp (`sampling.record.grasp`): an episode starts with the object in the open
 /// hand, the palm facing up and no phalanx on it; the fingers close and the wrist turns the palm to
 /// the grasp pose along a smooth arm path (no jump of the palm between two physics steps, its

@@ -53,6 +53,42 @@ pub struct RecordConfig {
     /// (the settle then follows that real arm path instead of tilting gravity in the hand's frame).
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub grasp: bool,
+    /// With `grasp`: the hand's approach recorded before it, the arm moving the open hand along
+    /// the palm normal to the object, which the workspace holds still where the grasp finds it
+    /// (as the paper's loop places it), until the hand reaches it (off unless given).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub approach: Option<ApproachConfig>,
+}
+
+/// `sampling.record.approach`: the open hand's approach to the object before a recorded grasp.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ApproachConfig {
+    /// The approach's time (s).
+    pub seconds: f64,
+    /// How far back from its grasp pose the palm starts, along its normal (mm). From 100 mm the
+    /// UR5e's forearm went under the floor in a third of the grasps of `scenes/tiny-episode.yaml`
+    /// (the palm 0.22-0.32 m up), from 50-70 mm in one of 60.
+    pub distance_mm: f64,
+}
+
+impl Default for ApproachConfig {
+    fn default() -> Self {
+        ApproachConfig { seconds: 0.5, distance_mm: 60.0 }
+    }
+}
+
+impl Check for ApproachConfig {
+    fn check(&self, c: &mut Checks) {
+        c.positive(field!(self.seconds), 60.0, "s");
+        c.positive(field!(self.distance_mm), 1000.0, "mm");
+    }
+}
+
+impl ApproachConfig {
+    pub fn steps(&self, timestep: f64) -> usize {
+        (self.seconds / timestep).round() as usize
+    }
 }
 
 impl Default for RecordConfig {
@@ -66,6 +102,7 @@ impl Default for RecordConfig {
             finger_roll: None,
             turn_target_deg: None,
             grasp: false,
+            approach: None,
         }
     }
 }
@@ -371,15 +408,20 @@ pub struct StreamPeriods {
 }
 
 impl RecordConfig {
-    /// Physics steps an episode records before its settled grasp (`grasp`; 0 without): the rest,
-    /// the closing and the settle (`GraspConfig::grasp_steps`), less the first few of the rest, so
-    /// that the settled grasp falls on a camera frame.
+    /// Physics steps an episode records before its settled grasp (`grasp`; 0 without): the
+    /// approach (`approach`), the rest, the closing and the settle (`GraspConfig::grasp_steps`),
+    /// less the first few, so that the settled grasp falls on a camera frame.
     pub fn grasp_steps(&self, grasp: &super::GraspConfig, timestep: f64) -> u64 {
         if !self.grasp {
             return 0;
         }
-        let all = grasp.grasp_steps(timestep) as u64;
+        let all = (grasp.grasp_steps(timestep) + self.approach_steps(timestep)) as u64;
         all - all % self.periods(timestep).camera
+    }
+
+    /// Physics steps of the recorded grasp's approach (0 without one).
+    pub fn approach_steps(&self, timestep: f64) -> usize {
+        self.approach.as_ref().filter(|_| self.grasp).map_or(0, |a| a.steps(timestep))
     }
 
     /// Each stream's period in physics steps of `timestep` seconds (the nearest whole number).
@@ -390,6 +432,12 @@ impl RecordConfig {
 
     /// The turn target: within half a turn (the angle between two orientations), for a controller
     /// that turns the object.
+    pub(super) fn check_approach(&self, c: &mut Checks) {
+        if self.approach.is_some() && !self.grasp {
+            c.key(key!(self.approach)).fail("the approach comes before a recorded grasp: it needs sampling.record.grasp: true");
+        }
+    }
+
     pub(super) fn check_turn_target(&self, c: &mut Checks) {
         let Some((lo, hi)) = self.turn_target_deg else { return };
         let mut at = c.key(key!(self.turn_target_deg));

@@ -74,6 +74,8 @@ impl Config {
         at.section(field!(record.finger_motion));
         at.section(field!(record.pivot));
         at.section(field!(record.finger_roll));
+        at.section(field!(record.approach));
+        record.check_approach(&mut at);
         record.check_turn_target(&mut at);
     }
 

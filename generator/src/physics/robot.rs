@@ -11,8 +11,8 @@ use vt_robot::Robot;
 use crate::assets::robot::{hand_surface_meshes, with_real_hand};
 use crate::config::{LoadedConfig, RobotConfig};
 use crate::physics::grasp::{
-    FingerGait, GraspContext, GraspLog, HoldScreen, MIN_REACHABLE_SHARE, PivotControl, REACH_SAMPLES, RollControl, StepLedger, Trajectory,
-    TrajectoryKey, reachable_share, simulate_trajectory,
+    Approach, FingerGait, GraspContext, GraspLog, HoldScreen, MIN_REACHABLE_SHARE, PivotControl, REACH_SAMPLES, RollControl, StepLedger,
+    Trajectory, TrajectoryKey, reachable_share, simulate_trajectory,
 };
 use crate::physics::{HandPhysics, PhysicsObject, PhysicsSettings, RapierHand};
 
@@ -52,6 +52,10 @@ pub fn grasp_context<'a>(
         finger_roll,
         turn_target_deg: record.and_then(|r| r.turn_target_deg),
         record_contact_forces,
+        approach: record.and_then(|r| {
+            let approach = r.approach.as_ref().filter(|_| r.grasp)?;
+            Some(Approach { steps: approach.steps(rc.physics.timestep), distance: approach.distance_mm * 1e-3 })
+        }),
         ..GraspContext::new(robot, t_world_base, &rc.grasp, rc.physics.timestep, camera_position)
     }
 }

@@ -43,6 +43,17 @@ pub struct GraspContext<'a> {
     pub record_contact_forces: bool,
     /// The hold screen between the settled grasp and the first arm move.
     pub hold_screen: HoldScreen,
+    /// Recording the grasp with `sampling.record.approach`: the open hand's approach to the
+    /// object first.
+    pub approach: Option<Approach>,
+}
+
+/// The recorded grasp's approach: the palm starts `distance` (m) back from its palm-up grasp pose
+/// along its normal and the arm's smooth path takes it there in `steps` physics steps.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Approach {
+    pub steps: usize,
+    pub distance: f64,
 }
 
 /// `sampling.record.finger_motion` resolved to hand joints: after each arm move's hold, hand joint
@@ -100,6 +111,7 @@ impl<'a> GraspContext<'a> {
             turn_target_deg: None,
             record_contact_forces: false,
             hold_screen: if config.hold_screen { HoldScreen::On } else { HoldScreen::Off },
+            approach: None,
         }
     }
 

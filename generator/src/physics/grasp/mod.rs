@@ -13,6 +13,7 @@
 //! [`floor`] (heights above the floor), [`outcome`] (what the loop counts) and [`ledger`] (where
 //! its physics steps go).
 
+mod approach;
 mod arm_move;
 mod context;
 mod finger_roll;
@@ -31,7 +32,7 @@ use glam::{DAffine3, DMat3, DQuat, DVec3};
 use rand::Rng;
 use vt_randomizers::SampleStream;
 
-pub use context::{FingerGait, GraspContext, MIN_REACHABLE_SHARE, REACH_SAMPLES, TrajectoryKey, reach_samples, reachable_share};
+pub use context::{Approach, FingerGait, GraspContext, MIN_REACHABLE_SHARE, REACH_SAMPLES, TrajectoryKey, reach_samples, reachable_share};
 pub use finger_roll::RollControl;
 pub use floor::{floor_clearance, robot_floor_clearance};
 pub use ledger::{GraspLog, Phase, ScreenJudged, StepLedger};
@@ -177,6 +178,8 @@ struct Attempt<'a> {
 /// The grasp as an episode records it, while it is made.
 struct GraspRecording {
     q_palm_up: Vec<f64>,
+    /// With an approach: the arm's joints where it starts, the palm back along its normal.
+    q_approach: Option<Vec<f64>>,
     states: Vec<InstanceState>,
 }
 
@@ -298,7 +301,8 @@ impl Attempt<'_> {
             let r = rot(&t_world_palm);
             let up = DAffine3::from_rotation_translation(DQuat::from_rotation_arc(r * DVec3::X, DVec3::Z) * r, t_world_palm.translation);
             let q_palm_up = ctx.reach(&up, &q).ok_or(Failure::Unreachable)?;
-            self.grasp_recording = Some(GraspRecording { q_palm_up, states: Vec::new() });
+            let q_approach = ctx.approach.map(|a| ctx.approach_start(&up, &q_palm_up, a).ok_or(Failure::Unreachable)).transpose()?;
+            self.grasp_recording = Some(GraspRecording { q_palm_up, q_approach, states: Vec::new() });
         }
         self.counted(Phase::Place, |a| a.place(placement, rng, &pre))?;
         let grasp_targets = self.counted(Phase::Close, |a| a.close_hand(&pre));

@@ -15,6 +15,9 @@ pub enum Failure {
     NoAntipodalPair,
     /// The settled grasp let the object go under one of the hold screen's probes.
     HoldScreen,
+    /// Recording the grasp's approach: a link of the open hand would pass through the object on
+    /// the way to it, wherever it was put.
+    ApproachBlocked,
 }
 
 /// An arm move undone and redrawn from the last recorded state: not a failure, the attempt goes
@@ -51,6 +54,7 @@ impl GraspEvent {
                 Failure::Unreachable => "Unreachable",
                 Failure::NoAntipodalPair => "NoAntipodalPair",
                 Failure::HoldScreen => "HoldScreen",
+                Failure::ApproachBlocked => "ApproachBlocked",
             },
             GraspEvent::Redone(r) => match r {
                 Redo::Penetration => "MoveRedoneForPenetration",

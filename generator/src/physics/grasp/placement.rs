@@ -9,7 +9,6 @@ use rand_chacha::ChaCha8Rng;
 use vt_randomizers::uniform_rotation;
 use vt_robot::GraspKind;
 
-use super::phases::REST_DAMPING;
 use super::{Attempt, Failure, PALM_UP_GRAVITY, Stop};
 use crate::config::{GraspConfig, REST_SECONDS};
 use crate::physics::PhysicsObject;
@@ -26,7 +25,7 @@ const PLACEMENT_GAP: f64 = 0.003;
 /// overlaps a link by more than `PLACEMENT_MAX_OVERLAP` (m).
 const PLACEMENT_RETRIES: u32 = 6;
 const PLACEMENT_STEP: f64 = 0.01;
-const PLACEMENT_MAX_OVERLAP: f64 = 0.0015;
+pub(super) const PLACEMENT_MAX_OVERLAP: f64 = 0.0015;
 
 /// How the object is put into the open hand.
 pub(super) enum Placement {
@@ -103,7 +102,7 @@ impl Attempt<'_> {
     /// Phase 1: the object on the open palm (preshape, palm up) at a random orientation and offset,
     /// resting under gravity. Fails when it overlaps a link wherever it is put.
     fn place_on_palm(&mut self, rng: &mut ChaCha8Rng, pre: &[f64]) -> Result<(), Stop> {
-        let (ctx, object, physics) = (self.ctx, self.object, &mut *self.physics);
+        let (ctx, object) = (self.ctx, self.object);
         let cfg = ctx.config;
         let r_obj = sample_object_orientation(cfg, object, rng);
         let back = depth_along(object, r_obj).1;
@@ -115,23 +114,26 @@ impl Attempt<'_> {
         );
         // An object spawned inside a link (large objects reach the thumb, which sits in front of the
         // palm) would be launched by the solver: one step finds the overlap, and the object is moved
-        // out along the palm normal until it is clear.
+        // out along the palm normal until it is clear (and, recording an approach, until the
+        // open hand can come to it).
+        let mut failure = Failure::InitialOverlap;
         for shift in 0..PLACEMENT_RETRIES {
             let p = pos + DVec3::X * (PLACEMENT_STEP * shift as f64);
-            physics.reset(object, DAffine3::from_rotation_translation(r_obj, p), pre)?;
+            let pose = DAffine3::from_rotation_translation(r_obj, p);
             // Open hand at the preshape, palm facing up: the object rests on the palm under gravity
             // (along the palm normal, -x in the palm frame), held still by damping. Closing without
             // gravity lets the first finger to touch push the weightless object out of the hand.
-            physics.set_targets(pre);
-            physics.set_gravity(PALM_UP_GRAVITY);
-            physics.set_object_damping(REST_DAMPING, REST_DAMPING);
-            physics.step();
-            if physics.max_penetration() <= PLACEMENT_MAX_OVERLAP {
+            self.put(pose, pre, PALM_UP_GRAVITY)?;
+            if self.physics.max_penetration() <= PLACEMENT_MAX_OVERLAP {
+                if !self.approach(pose, pre, PALM_UP_GRAVITY)? {
+                    failure = Failure::ApproachBlocked;
+                    continue;
+                }
                 self.rest();
                 return Ok(());
             }
         }
-        Err(Failure::InitialOverlap.into())
+        Err(failure.into())
     }
 
     /// The object, just put in the open hand, rests there for `REST_SECONDS`; the grasp's recording
@@ -147,16 +149,16 @@ impl Attempt<'_> {
     /// pair of its hull (`antipodal_pose`), held still by damping. Fails when no pair fits the jaws,
     /// or every pose tried overlaps the gripper.
     fn place_between_jaws(&mut self, hull: &Hull, rng: &mut ChaCha8Rng, pre: &[f64]) -> Result<(), Stop> {
-        let (object, physics) = (self.object, &mut *self.physics);
         let jaws = Jaws::of(self.ctx.robot, pre);
+        let mut failure = Failure::InitialOverlap;
         for _ in 0..PLACEMENT_RETRIES {
             let pose = antipodal_pose(hull, &jaws, rng).ok_or(Failure::NoAntipodalPair)?;
-            physics.reset(object, pose, pre)?;
-            physics.set_targets(pre);
-            physics.set_gravity(DVec3::ZERO);
-            physics.set_object_damping(REST_DAMPING, REST_DAMPING);
-            physics.step();
-            if physics.max_penetration() <= PLACEMENT_MAX_OVERLAP {
+            self.put(pose, pre, DVec3::ZERO)?;
+            if self.physics.max_penetration() <= PLACEMENT_MAX_OVERLAP {
+                if !self.approach(pose, pre, DVec3::ZERO)? {
+                    failure = Failure::ApproachBlocked;
+                    continue;
+                }
                 // Recorded, the weightless object floats still between the open jaws as long as
                 // it would rest on a palm, so that every grasp records as many steps.
                 if self.grasp_recording.is_some() {
@@ -165,6 +167,6 @@ impl Attempt<'_> {
                 return Ok(());
             }
         }
-        Err(Failure::InitialOverlap.into())
+        Err(failure.into())
     }
 }

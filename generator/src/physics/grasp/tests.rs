@@ -194,6 +194,52 @@ fn a_recorded_grasps_wrist_turn_keeps_every_joint_within_its_speed_limit() {
     assert!(too_fast_without >= 3, "{too_fast_without} of 12 wrist turns too fast without the limits");
 }
 
+/// A recorded grasp's approach (`sampling.record.approach`): the object stands still in the world
+/// while the arm brings the open hand to it from `distance` back along the palm normal, every
+/// joint within its speed limit; the grasp then records as without it, the approach's states
+/// before it.
+#[test]
+fn a_recorded_approach_brings_the_open_hand_to_an_object_standing_still() {
+    let robot = Robot::default_robot();
+    let object = procedural_soup_can();
+    let cfg = allegro_grasp();
+    let grasp_steps = cfg.grasp_steps(1.0 / 240.0);
+    let approach = Approach { steps: 120, distance: 0.06 };
+    let ctx = GraspContext {
+        record_steps: true,
+        recorded_grasp_steps: grasp_steps + approach.steps,
+        approach: Some(approach),
+        ..paper_context(&robot, &cfg)
+    };
+    for trajectory in 0..4 {
+        let key = TrajectoryKey { seed: 5, object_id: "005_tomato_soup_can", trajectory, instances: 1 };
+        let t = simulate_trajectory(&ctx, &mut crate::physics::fake::FakeHand::holding(3), &object, key, &mut GraspLog::default()).unwrap();
+        assert_eq!(t.settled_step, grasp_steps + approach.steps);
+        // The approach's states and the first of the object put in the hand (the palm up there).
+        let came = &t.steps[..=approach.steps];
+        let palm = |s: &InstanceState| ctx.t_world_base * s.t_base_palm;
+        let object_world = |s: &InstanceState| palm(s) * s.t_palm_object;
+        let still = object_world(&came[0]);
+        for s in came {
+            let o = object_world(s);
+            assert!((o.translation - still.translation).length() < 1e-9, "the object moved in the world during the approach");
+            assert!(rot(&o).angle_between(rot(&still)) < 1e-6, "the object turned in the world during the approach");
+        }
+        let (start, end) = (palm(&came[0]), palm(&came[approach.steps]));
+        let normal = rot(&end) * DVec3::X;
+        let back = end.translation - start.translation;
+        assert!((back.dot(normal) - approach.distance).abs() < 1e-3, "the palm starts {:.4} m back", back.dot(normal));
+        assert!(back.reject_from(normal).length() < 1e-3, "the palm starts {:?} off its normal's line", back.reject_from(normal));
+        // Nearer the object at every state, the joints within their speed limits.
+        let gap = |s: &InstanceState| (object_world(s).translation - palm(s).translation).dot(normal);
+        assert!(came.windows(2).all(|w| gap(&w[1]) <= gap(&w[0]) + 1e-9), "the palm moved away from the object");
+        for (&j, &d) in robot.arm_joints.iter().zip(&robot.arm_dofs) {
+            let limit = robot.model.joints[j].velocity;
+            assert!(came.windows(2).all(|w| (w[1].q[d] - w[0].q[d]).abs() / ctx.timestep <= limit), "joint {d} too fast");
+        }
+    }
+}
+
 /// The grasp loop over the scripted hand: `cfg` with the paper's robot and camera.
 fn run_fake(hand: &mut crate::physics::fake::FakeHand, cfg: &GraspConfig, instances: u32) -> (Result<Trajectory>, Vec<GraspEvent>) {
     let (t, log) = run_fake_screened(hand, cfg, instances, None);
