@@ -487,7 +487,8 @@ fn a_recorded_approach_brings_the_open_hand_to_the_object_before_the_grasp() {
     let o = run(&["plan", cfg.to_str().unwrap(), "--set", "sampling.record.approach={}"]);
     let e = stderr(&o);
     assert!(!o.status.success() && e.contains("sampling.record.approach") && e.contains("sampling.record.grasp: true"), "{e}");
-    let o = run(&["plan", cfg.to_str().unwrap(), "--set", "sampling.record.grasp=true", "--set", "sampling.record.approach={distance_mm: 0}"]);
+    let o =
+        run(&["plan", cfg.to_str().unwrap(), "--set", "sampling.record.grasp=true", "--set", "sampling.record.approach={distance_mm: 0}"]);
     let e = stderr(&o);
     assert!(!o.status.success() && e.contains("sampling.record.approach.distance_mm"), "{e}");
 }
