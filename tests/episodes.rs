@@ -326,17 +326,23 @@ fn one_soup_can_episode_keeps_its_ground_truth(cfg: &Path, record: &str) {
 /// One episode of one arm move of the tomato soup can with `record` (a `--set` of
 /// `sampling.record`), generated.
 fn one_soup_can_episode(cfg: &Path, record: &str) -> tempfile::TempDir {
+    one_soup_can_episode_with(cfg, &[record])
+}
+
+/// `one_soup_can_episode` with several `--set`s of `sampling.record`.
+fn one_soup_can_episode_with(cfg: &Path, records: &[&str]) -> tempfile::TempDir {
     let d = tempdir();
-    let args = [
+    let mut args = vec![
         "--set",
         "objects=[005_tomato_soup_can]",
         "--set",
         "sampling.trajectories_per_object=1",
         "--set",
         "sampling.instances_per_trajectory=1",
-        "--set",
-        record,
     ];
+    for record in records {
+        args.extend(["--set", record]);
+    }
     generate(cfg, d.path(), &args);
     d
 }
@@ -441,20 +447,8 @@ fn a_finger_roll_turns_the_object_in_the_hand_and_keeps_the_ground_truth() {
 /// ground truth holds on every frame, the approach's included.
 #[test]
 fn a_recorded_approach_brings_the_open_hand_to_the_object_before_the_grasp() {
-    let d = tempdir();
-    let args = [
-        "--set",
-        "objects=[005_tomato_soup_can]",
-        "--set",
-        "sampling.trajectories_per_object=1",
-        "--set",
-        "sampling.instances_per_trajectory=1",
-        "--set",
-        "sampling.record.grasp=true",
-        "--set",
-        "sampling.record.approach={}",
-    ];
-    generate(&root().join("scenes/tiny-episode.yaml"), d.path(), &args);
+    let cfg = root().join("scenes/tiny-episode.yaml");
+    let d = one_soup_can_episode_with(&cfg, &["sampling.record.grasp=true", "sampling.record.approach={}"]);
     let ds = DatasetReader::open(d.path()).unwrap();
     let shard = &ds.shards("train").unwrap()[0];
     let e = episode_of(shard.meta());
@@ -483,7 +477,6 @@ fn a_recorded_approach_brings_the_open_hand_to_the_object_before_the_grasp() {
     tactile_points_lie_on_the_object_within_their_pad(d.path());
 
     // An approach without the recorded grasp, or of no length, is refused with its field.
-    let cfg = root().join("scenes/tiny-episode.yaml");
     let o = run(&["plan", cfg.to_str().unwrap(), "--set", "sampling.record.approach={}"]);
     let e = stderr(&o);
     assert!(!o.status.success() && e.contains("sampling.record.approach") && e.contains("sampling.record.grasp: true"), "{e}");

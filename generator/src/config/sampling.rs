@@ -430,14 +430,15 @@ impl RecordConfig {
         StreamPeriods { camera: steps(self.camera_hz), tactile: steps(self.tactile_hz), state: self.state_hz.map_or(1, steps) }
     }
 
-    /// The turn target: within half a turn (the angle between two orientations), for a controller
-    /// that turns the object.
+    /// The approach: only before a recorded grasp.
     pub(super) fn check_approach(&self, c: &mut Checks) {
         if self.approach.is_some() && !self.grasp {
             c.key(key!(self.approach)).fail("the approach comes before a recorded grasp: it needs sampling.record.grasp: true");
         }
     }
 
+    /// The turn target: within half a turn (the angle between two orientations), for a controller
+    /// that turns the object.
     pub(super) fn check_turn_target(&self, c: &mut Checks) {
         let Some((lo, hi)) = self.turn_target_deg else { return };
         let mut at = c.key(key!(self.turn_target_deg));
