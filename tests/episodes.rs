@@ -476,6 +476,10 @@ fn a_recorded_approach_brings_the_open_hand_to_the_object_before_the_grasp() {
     crate::ground_truth::check_dataset(d.path(), e.frames as usize);
     tactile_points_lie_on_the_object_within_their_pad(d.path());
 
+    // `vtgen plan` counts it in the episode's length.
+    let o = run(&["plan", cfg.to_str().unwrap(), "--set", "sampling.record.grasp=true", "--set", "sampling.record.approach={}"]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success() && out.contains("each the approach and the grasp (1.63 s)"), "{out}");
     // An approach without the recorded grasp, or of no length, is refused with its field.
     let o = run(&["plan", cfg.to_str().unwrap(), "--set", "sampling.record.approach={}"]);
     let e = stderr(&o);

@@ -30,8 +30,10 @@ pub fn describe(path: &Path, c: &Config) -> String {
         Some(t) => {
             let hz = |steps: u64| 1.0 / (steps as f64 * t.timestep);
             let seconds = t.steps as f64 * t.timestep;
+            let approach = s.record.as_ref().is_some_and(|r| r.approach_steps(t.timestep) > 0);
             let grasp = match t.grasp_steps {
                 0 => String::new(),
+                g if approach => format!("the approach and the grasp ({:.2} s) and ", g as f64 * t.timestep),
                 g => format!("the grasp ({:.2} s) and ", g as f64 * t.timestep),
             };
             line(format!(
