@@ -412,6 +412,9 @@ fn pinch_pivoting_turns_the_object_in_the_hand_further_than_gaiting_and_keeps_th
     let o = run(&["plan", cfg.to_str().unwrap(), "--set", &pinch.replace("th_*", "thumb")]);
     let e = stderr(&o);
     assert!(!o.status.success() && e.contains("sampling.record.pivot.pads") && e.contains("'thumb' selects no pad"), "{e}");
+    let o = run(&["plan", cfg.to_str().unwrap(), "--set", &pinch.replace("max_slide_mm: 400", "max_slide_mm: 400, regrip_rate: 0")]);
+    let e = stderr(&o);
+    assert!(!o.status.success() && e.contains("sampling.record.pivot.regrip_rate"), "{e}");
 }
 
 /// The closed-loop finger roll (`sampling.record.finger_roll`) on the Allegro hand: it turns the

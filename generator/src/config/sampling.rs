@@ -134,6 +134,10 @@ pub struct PivotConfig {
     pub pads: Option<[String; 2]>,
     /// How far the other fingers' closing joints open for a hand's pinch (degrees).
     pub lift_deg: f64,
+    /// How fast the grip rises again while the object slides along the pads or spins, in
+    /// multiples of its easing rate. Less lets a hand's pinch, whose rounded fingertips the object
+    /// rolls and slides along, turn it further, and drops it more often (docs/episodes.md).
+    pub regrip_rate: f64,
 }
 
 impl Default for PivotConfig {
@@ -146,6 +150,7 @@ impl Default for PivotConfig {
             max_slide_mm: 15.0,
             pads: None,
             lift_deg: 30.0,
+            regrip_rate: 4.0,
         }
     }
 }
@@ -157,6 +162,7 @@ impl Check for PivotConfig {
         c.positive(field!(self.hold_seconds), 60.0, "s");
         c.positive(field!(self.max_slide_mm), 1000.0, "mm");
         c.key(key!(self.lift_deg)).bounded(self.lift_deg, incl(0.0), incl(90.0), "degrees");
+        c.positive(field!(self.regrip_rate), 100.0, "easing rates");
         let (lo, hi) = self.step_deg;
         c.key(key!(self.step_deg)).bounded_range([lo, hi], excl(0.0), incl(180.0), "degrees");
         if self.hold_seconds >= self.seconds {

@@ -51,6 +51,8 @@ pub struct PivotControl {
     pub max_slide: f64,
     /// The pads the object turns between.
     pub pads: PivotPads,
+    /// The grip's rise while the object slides or spins, in multiples of its easing rate.
+    pub regrip_rate: f64,
 }
 
 /// The pads a pivot turns the object between.
@@ -85,6 +87,7 @@ impl PivotControl {
             step: (pivot.step_deg.0.to_radians(), pivot.step_deg.1.to_radians()),
             max_slide: pivot.max_slide_mm * 1e-3,
             pads,
+            regrip_rate: pivot.regrip_rate,
         }
     }
 
@@ -182,9 +185,9 @@ impl Attempt<'_> {
     /// window's time left is less) so that gravity in the palm frame lies across the pads' line,
     /// a drawn target turn plus `GRAVITY_LEAD` from the object's centre of mass, on the side away
     /// from the palm. Then the grip `g` (the pinch's targets between where they stood, 0, and the
-    /// full squeeze, 1) falls at the configured easing rate, and rises four times as fast while the
-    /// object slides along the pads or turns faster than `TURN_SPEED`: it hovers where the object
-    /// turns but does not slip.
+    /// full squeeze, 1) falls at the configured easing rate, and rises `regrip_rate` times as fast
+    /// (default 4) while the object slides along the pads or turns faster than `TURN_SPEED`: it
+    /// hovers where the object turns but does not slip.
     /// At the target (less the turn the grip takes to stop it) the grip is full again for
     /// `hold_seconds`, a hand's lifted fingers close on the object again, and the next pivot
     /// begins. The episode's turn target, once reached, ends the window's pivoting like its last
@@ -445,7 +448,7 @@ impl Attempt<'_> {
             if let Some(end) = end {
                 return Some(Turned { steps: k + 1, end });
             }
-            grip = if slide_speed > SLIDE_SPEED || speed > TURN_SPEED { (grip + 4.0 * ease).min(1.0) } else { grip - ease };
+            grip = if slide_speed > SLIDE_SPEED || speed > TURN_SPEED { (grip + control.regrip_rate * ease).min(1.0) } else { grip - ease };
             floor_since = if grip <= EASED_GRIP { floor_since.or(Some(k)) } else { None };
             grip = grip.max(EASED_GRIP);
         }
