@@ -86,8 +86,9 @@ impl Check for ApproachConfig {
 }
 
 impl ApproachConfig {
+    /// Physics steps of the approach, counted as every phase of the grasp is.
     pub fn steps(&self, timestep: f64) -> usize {
-        (self.seconds / timestep).round() as usize
+        super::physics_steps(self.seconds, timestep)
     }
 }
 
