@@ -38,11 +38,16 @@ pub struct Reprojection {
     /// Facing points under a robot surface that touches them (within 2 mm): where a pad presses
     /// on the object, the picture shows the pad. Neither visible nor hidden.
     pub touched: usize,
+    /// Facing points not hidden at their own pixel but within a pixel of something drawn in front
+    /// of them: the object's sliver between an occluder's edge and its own silhouette may cover no
+    /// pixel centre. Neither visible nor hidden.
+    pub at_occluder_edge: usize,
 }
 
 /// Projects surface points with the sample's pose and intrinsics. A point is *visible* when it faces
 /// the camera (not grazing) and nothing is drawn in front of it (a robot link touching it, within
-/// 2 mm, is counted apart: `touched`); it *agrees* when a pixel within one
+/// 2 mm, is counted apart: `touched`; so is a point within a pixel of an occluder's edge,
+/// `at_occluder_edge`); it *agrees* when a pixel within one
 /// pixel of its projection (edge pixels aside) has the object's mask id and its depth within 2 mm
 /// of the point's depth or of the point's tangent plane seen through that pixel's centre. The
 /// plane is for flat faces seen at a grazing angle (at 72° their depth changes by 4 mm per pixel
@@ -52,7 +57,7 @@ pub fn reproject(s: &Sample, points: &[(DVec3, DVec3)], mask_id: u8) -> Reprojec
     let (w, h) = (s.width as i64, s.height as i64);
     let pose = s.t_camera_object;
     let r = pose.rotation();
-    let mut out = Reprojection { visible: 0, front_facing: 0, agreeing: 0, touched: 0 };
+    let mut out = Reprojection { visible: 0, front_facing: 0, agreeing: 0, touched: 0, at_occluder_edge: 0 };
     for (p, n) in points {
         let pc = pose.transform_point(*p);
         let nc = r * *n;
@@ -77,6 +82,14 @@ pub fn reproject(s: &Sample, points: &[(DVec3, DVec3)], mask_id: u8) -> Reprojec
         }
         if vt_dataset::mask_ids::is_robot(s.mask[at(ui, vi)]) && (d - pc.z).abs() <= 0.002 {
             out.touched += 1;
+            continue;
+        }
+        let in_front = |x: i64, y: i64| {
+            let i = at(x, y);
+            s.mask[i] != mask_id && s.depth[i] > 0.0 && (s.depth[i] as f64) < pc.z - 0.002
+        };
+        if (-1..=1).any(|dy| (-1..=1).any(|dx| in_front(ui + dx, vi + dy))) {
+            out.at_occluder_edge += 1;
             continue;
         }
         out.visible += 1;
