@@ -4,12 +4,15 @@
 # charts (error-time.svg, occlusion-time.svg).
 #
 #   experiments/tracking/run.sh cpu   --ycb-dir DIR                  # 2 CPU cores, ~30 min
+#   experiments/tracking/run.sh cpu-pinch --ycb-dir DIR              # the same on objects turned in the hand, ~45 min
 #   experiments/tracking/run.sh gpu   --ycb-dir DIR --device cuda --jobs 16   # 5x the grasps at 30 Hz, the paper's networks
 #
 # Each size generates an episode dataset (the touch experiment's scene recorded as episodes),
 # trains the Tactile-Channel network and the vision-only baseline on the frames of its train
 # episodes, and tracks its test episodes with both: per frame, with the constant-velocity filter,
-# and (tactile network) with another episode's touch (docs/tracking.md).
+# and (tactile network) with another episode's touch (docs/tracking.md). cpu-pinch tracks the
+# objects while the hand turns them by pinch pivoting, and adds the geometric refiner alone and
+# warm-started from each network's estimates (docs/refine.md).
 #
 # Options: --ycb-dir DIR (or $YCB_DIR; required: the real meshes), --robot-assets DIR (the real
 # robot meshes, as scripts/robot-assets prints; default: the robots' URDF shapes), --jobs N
@@ -39,8 +42,8 @@ while [ $# -gt 0 ]; do
 done
 cd "$(dirname "$0")/../.."
 case "$size" in
-  cpu | gpu) ;;
-  *) echo "run.sh: the size must be cpu or gpu, got '$size'" >&2; usage ;;
+  cpu | cpu-pinch | gpu) ;;
+  *) echo "run.sh: the size must be cpu, cpu-pinch or gpu, got '$size'" >&2; usage ;;
 esac
 [ -n "$ycb" ] && [ -d "$ycb" ] || { echo "run.sh: the benchmark needs the real YCB meshes: --ycb-dir DIR (or YCB_DIR)" >&2; exit 2; }
 
@@ -58,6 +61,11 @@ scene=experiments/tracking/cpu.yaml
 train_config=experiments/tracking/train-cpu.yaml
 scene_set=()
 train_set=()
+track_set=()
+if [ "$size" = cpu-pinch ]; then
+  scene=experiments/tracking/cpu-pinch.yaml
+  track_set=(--refine)
+fi
 if [ "$size" = gpu ]; then
   # 5x the grasps (200 per object, as the touch experiment: 160 train and 40 test episodes each) at
   # the camera's and the touch's usual 30 and 60 Hz (58 frames an episode, 23 200 frames, about
@@ -77,5 +85,5 @@ for variant in tactile_channel vision_only; do
   "$bin/vtpose" train "$train_config" --dataset "$out/data" --variant "$variant" --out "$out/runs/$variant" --resume --device "$device" "${train_set[@]}"
 done
 log "track -> $out/track/tracking.md"
-"$bin/vtpose" track "$out/runs/tactile_channel" "$out/runs/vision_only" --out "$out/track" --device "$device" --quiet > /dev/null
+"$bin/vtpose" track "$out/runs/tactile_channel" "$out/runs/vision_only" --out "$out/track" --device "$device" "${track_set[@]}" --quiet > /dev/null
 log "report: $out/track/tracking.md (error-time.svg, occlusion-time.svg)"
