@@ -4,7 +4,7 @@
 # charts (error-time.svg, occlusion-time.svg).
 #
 #   experiments/tracking/run.sh cpu   --ycb-dir DIR                  # 2 CPU cores, ~30 min
-#   experiments/tracking/run.sh cpu-pinch --ycb-dir DIR              # the same on objects turned in the hand, ~45 min
+#   experiments/tracking/run.sh cpu-pinch --ycb-dir DIR              # the same on objects the hand turns, ~15 min
 #   experiments/tracking/run.sh gpu   --ycb-dir DIR --device cuda --jobs 16   # 5x the grasps at 30 Hz, the paper's networks
 #
 # Each size generates an episode dataset (the touch experiment's scene recorded as episodes),
