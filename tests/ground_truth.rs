@@ -1,9 +1,8 @@
 //! The stored ground truth agrees with the stored images: the object's model, moved by the stored
 //! pose and projected with the stored intrinsics, lands in the mask and on the depth.
 
-use glam::DVec3;
 use vt_dataset::{DatasetReader, read_ply};
-use vtgen::cli::validate::{reproject, surface_points};
+use vtgen::cli::validate::{Model, reproject};
 
 use crate::common::*;
 
@@ -12,8 +11,8 @@ use crate::common::*;
 pub fn check_dataset(dir: &std::path::Path, samples: usize) {
     let ds = DatasetReader::open(dir).unwrap();
     let info: vt_dataset::ModelsInfo = serde_json::from_slice(&std::fs::read(dir.join("models/models_info.json")).unwrap()).unwrap();
-    let models: Vec<Vec<(DVec3, DVec3)>> =
-        info.objects.iter().map(|o| surface_points(&read_ply(&dir.join("models").join(&o.file)).unwrap(), 3000)).collect();
+    let models: Vec<Model> =
+        info.objects.iter().map(|o| Model::new(&read_ply(&dir.join("models").join(&o.file)).unwrap()).unwrap()).collect();
     let (mut checked, mut hidden) = (0, 0);
     for split in ["train", "test"] {
         for s in ds.samples(split).unwrap() {
@@ -56,18 +55,32 @@ fn every_sample_reprojects_onto_its_mask_and_depth() {
     check_dataset(reference_dataset(), 40);
 }
 
-#[test]
-fn a_wrong_pose_is_caught() {
-    // The check is not vacuous: a pose 5 mm too close to the camera fails it.
+/// The first train sample of the reference dataset and its object's model.
+fn first_sample_and_model() -> (vt_dataset::Sample, Model) {
     let ds = DatasetReader::open(reference_dataset()).unwrap();
-    let mut s = ds.samples("train").unwrap().next().unwrap().unwrap();
+    let s = ds.samples("train").unwrap().next().unwrap().unwrap();
     let info: vt_dataset::ModelsInfo =
         serde_json::from_slice(&std::fs::read(reference_dataset().join("models/models_info.json")).unwrap()).unwrap();
-    let obj = s.info.object_index as usize;
-    let pts = surface_points(&read_ply(&reference_dataset().join("models").join(&info.objects[obj].file)).unwrap(), 3000);
-    s.t_camera_object.position[2] -= 0.005;
-    let r = reproject(&s, &pts, 1);
-    assert!((r.agreeing as f64) < 0.5 * r.visible as f64, "{} of {} still agree", r.agreeing, r.visible);
+    let file = &info.objects[s.info.object_index as usize].file;
+    let model = Model::new(&read_ply(&reference_dataset().join("models").join(file)).unwrap()).unwrap();
+    (s, model)
+}
+
+#[test]
+fn a_wrong_pose_is_caught() {
+    // The check is not vacuous: a pose 5 mm too close to the camera fails it, and so does one 5 mm
+    // too far (whose points the picture's own object surface would hide, were the object's
+    // occlusion taken from the picture and not from the posed model).
+    let (s, model) = first_sample_and_model();
+    let right = reproject(&s, &model, 1);
+    assert!(right.agreeing as f64 >= 0.99 * right.visible as f64 && right.visible > 50, "{} of {}", right.agreeing, right.visible);
+    for dz in [-0.005, 0.005] {
+        let mut s = s.clone();
+        s.t_camera_object.position[2] += dz;
+        let r = reproject(&s, &model, 1);
+        assert!(r.visible > right.visible / 2, "{dz}: {} of {} points still visible", r.visible, right.visible);
+        assert!((r.agreeing as f64) < 0.5 * r.visible as f64, "{dz}: {} of {} still agree", r.agreeing, r.visible);
+    }
 }
 
 #[test]
@@ -75,13 +88,8 @@ fn points_at_an_occluders_edge_are_neither_visible_nor_hidden() {
     // An occluder's edge drawn over the object, with the object's sliver beside it two pixels wide
     // and covering no pixel centre (background there): the model points projecting into the sliver
     // have no object pixel within a pixel of them, and are counted apart, not as disagreeing.
-    let ds = DatasetReader::open(reference_dataset()).unwrap();
-    let mut s = ds.samples("train").unwrap().next().unwrap().unwrap();
-    let info: vt_dataset::ModelsInfo =
-        serde_json::from_slice(&std::fs::read(reference_dataset().join("models/models_info.json")).unwrap()).unwrap();
-    let obj = s.info.object_index as usize;
-    let pts = surface_points(&read_ply(&reference_dataset().join("models").join(&info.objects[obj].file)).unwrap(), 3000);
-    let before = reproject(&s, &pts, 1);
+    let (mut s, model) = first_sample_and_model();
+    let before = reproject(&s, &model, 1);
     // The object's columns; the band starts at their middle.
     let w = s.width as usize;
     let cols: Vec<usize> = (0..s.mask.len()).filter(|&i| s.mask[i] == 1).map(|i| i % w).collect();
@@ -97,7 +105,7 @@ fn points_at_an_occluders_edge_are_neither_visible_nor_hidden() {
             }
         }
     }
-    let r = reproject(&s, &pts, 1);
+    let r = reproject(&s, &model, 1);
     assert!(r.at_occluder_edge > before.at_occluder_edge, "no point lies at the drawn edge");
     assert!(
         r.visible - r.agreeing <= before.visible - before.agreeing,

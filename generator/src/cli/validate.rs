@@ -38,27 +38,40 @@ pub struct Reprojection {
     /// Facing points under a robot surface that touches them (within 2 mm): where a pad presses
     /// on the object, the picture shows the pad. Neither visible nor hidden.
     pub touched: usize,
-    /// Facing points not hidden at their own pixel but within a pixel of something drawn in front
-    /// of them: the object's sliver between an occluder's edge and its own silhouette may cover no
-    /// pixel centre. Neither visible nor hidden.
+    /// Facing points not hidden at their own pixel but within a pixel of an occluder's edge:
+    /// something else drawn in front of them, or the object's own nearer part where the posed
+    /// model puts one. The object's sliver between such an edge and its own silhouette may cover
+    /// no pixel centre. Neither visible nor hidden.
     pub at_occluder_edge: usize,
 }
 
-/// Projects surface points with the sample's pose and intrinsics. A point is *visible* when it faces
-/// the camera (not grazing) and nothing is drawn in front of it (a robot link touching it, within
-/// 2 mm, is counted apart: `touched`; so is a point within a pixel of an occluder's edge,
-/// `at_occluder_edge`); it *agrees* when a pixel within one
-/// pixel of its projection (edge pixels aside) has the object's mask id and its depth within 2 mm
-/// of the point's depth or of the point's tangent plane seen through that pixel's centre. The
-/// plane is for flat faces seen at a grazing angle (at 72° their depth changes by 4 mm per pixel
-/// at 0.9 m, and the nearest pixel centre may be 0.7 px away); the point's depth for curved ones,
-/// which bend away from the plane. A pose a few millimetres off fails both.
-pub fn reproject(s: &Sample, points: &[(DVec3, DVec3)], mask_id: u8) -> Reprojection {
+/// Projects the model's surface points with the sample's pose and intrinsics. A point is *visible*
+/// when it faces the camera (not grazing), the posed model does not hide it behind another part of
+/// itself, and nothing else is drawn in front of it (a robot link touching it, within 2 mm, is
+/// counted apart: `touched`; so is a point within a pixel of an occluder's edge,
+/// `at_occluder_edge`); it *agrees* when a pixel within one pixel of its projection has the
+/// object's mask id and its depth within 2 mm of the point's depth or of the point's tangent plane
+/// seen through that pixel's centre. The plane is for flat faces seen at a grazing angle (at 72°
+/// their depth changes by 4 mm per pixel at 0.9 m, and the nearest pixel centre may be 0.7 px
+/// away); the point's depth for curved ones, which bend away from the plane. The object's own
+/// occlusion is the posed model's (a ray cast), never the picture's, so a pose a few millimetres
+/// off, nearer or further, fails.
+pub fn reproject(s: &Sample, model: &Model, mask_id: u8) -> Reprojection {
+    use rapier3d::parry::query::{Ray, RayCast};
     let (w, h) = (s.width as i64, s.height as i64);
     let pose = s.t_camera_object;
     let r = pose.rotation();
+    let to_object = pose.inverse();
+    let eye = to_object.transform_point(DVec3::ZERO).as_vec3();
+    // The z-depth (camera frame) where the posed model first meets the camera ray along `dir`.
+    let model_depth = |dir: DVec3| {
+        let dir = dir.normalize();
+        let ray = Ray::new(eye, (to_object.rotation() * dir).as_vec3());
+        model.mesh.cast_local_ray(&ray, f32::MAX, false).map(|t| t as f64 * dir.z)
+    };
+    let pixel_ray = |x: i64, y: i64| DVec3::new((x as f64 - s.cx()) / s.fx(), (y as f64 - s.cy()) / s.fy(), 1.0);
     let mut out = Reprojection { visible: 0, front_facing: 0, agreeing: 0, touched: 0, at_occluder_edge: 0 };
-    for (p, n) in points {
+    for (p, n) in &model.points {
         let pc = pose.transform_point(*p);
         let nc = r * *n;
         if pc.z <= 0.0 {
@@ -76,35 +89,38 @@ pub fn reproject(s: &Sample, points: &[(DVec3, DVec3)], mask_id: u8) -> Reprojec
         }
         out.front_facing += 1;
         let at = |x: i64, y: i64| (y * w + x) as usize;
-        let d = s.depth[at(ui, vi)] as f64;
-        if d > 0.0 && d < pc.z - 0.002 {
-            continue; // occluded
+        let (d, mask) = (s.depth[at(ui, vi)] as f64, s.mask[at(ui, vi)]);
+        let nearer = |d: f32| d > 0.0 && (d as f64) < pc.z - 0.002;
+        if mask != mask_id && nearer(d as f32) {
+            continue; // something else in front
         }
-        if vt_dataset::mask_ids::is_robot(s.mask[at(ui, vi)]) && (d - pc.z).abs() <= 0.002 {
+        if mask == mask_id && nearer(d as f32) && model_depth(pc).is_some_and(|z| z < pc.z - 0.002) {
+            continue; // behind another part of the object
+        }
+        if vt_dataset::mask_ids::is_robot(mask) && (d - pc.z).abs() <= 0.002 {
             out.touched += 1;
             continue;
         }
-        let in_front = |x: i64, y: i64| {
-            let i = at(x, y);
-            s.mask[i] != mask_id && s.depth[i] > 0.0 && (s.depth[i] as f64) < pc.z - 0.002
-        };
-        if (-1..=1).any(|dy| (-1..=1).any(|dx| in_front(ui + dx, vi + dy))) {
+        let neighbours = || (-1..=1).flat_map(|dy| (-1..=1).map(move |dx| (ui + dx, vi + dy)));
+        if neighbours().any(|(x, y)| s.mask[at(x, y)] != mask_id && nearer(s.depth[at(x, y)])) {
+            out.at_occluder_edge += 1;
+            continue;
+        }
+        // The tangent plane n·X = n·p meets the pixel centre's ray r at z = n·p / n·r.
+        let plane_depth = |x: i64, y: i64| nc.dot(pc) / nc.dot(pixel_ray(x, y));
+        let agrees = neighbours().any(|(x, y)| {
+            let (i, z) = (at(x, y), plane_depth(x, y));
+            let d = s.depth[i] as f64;
+            s.mask[i] == mask_id && ((d - pc.z).abs() <= 0.002 || (d - z).abs() <= 0.002)
+        });
+        // Not seen at any pixel centre near it, where the posed model puts a nearer part of the
+        // object within a pixel (beyond the point's own tangent plane): a self-occlusion edge.
+        if !agrees && neighbours().any(|(x, y)| model_depth(pixel_ray(x, y)).is_some_and(|z| z < pc.z.min(plane_depth(x, y)) - 0.002)) {
             out.at_occluder_edge += 1;
             continue;
         }
         out.visible += 1;
-        let ok = (-1..=1).any(|dy| {
-            (-1..=1).any(|dx| {
-                let (x, y) = (ui + dx, vi + dy);
-                // The tangent plane n·X = n·p meets the pixel centre's ray r at z = n·p / n·r.
-                let ray = DVec3::new((x as f64 - s.cx()) / s.fx(), (y as f64 - s.cy()) / s.fy(), 1.0);
-                let z = nc.dot(pc) / nc.dot(ray);
-                let i = at(x, y);
-                let d = s.depth[i] as f64;
-                s.mask[i] == mask_id && ((d - pc.z).abs() <= 0.002 || (d - z).abs() <= 0.002)
-            })
-        });
-        out.agreeing += ok as usize;
+        out.agreeing += agrees as usize;
     }
     out
 }
@@ -222,8 +238,8 @@ pub fn validate(root: &Path, full: bool) -> Result<Report> {
 
 /// An object model as the checks need it: surface points with normals, and the mesh for distances.
 pub struct Model {
-    points: Vec<(DVec3, DVec3)>,
-    mesh: rapier3d::parry::shape::TriMesh,
+    pub points: Vec<(DVec3, DVec3)>,
+    pub mesh: rapier3d::parry::shape::TriMesh,
 }
 
 impl Model {
@@ -279,7 +295,7 @@ pub fn check_ground_truth(s: &Sample, models: &[Model]) -> Option<String> {
             }
         }
     }
-    let r = reproject(s, &model.points, 1);
+    let r = reproject(s, model, 1);
     if r.visible < 30 {
         return None; // hidden (by the hand): nothing to compare
     }
