@@ -2,7 +2,7 @@
 //! pose and projected with the stored intrinsics, lands in the mask and on the depth.
 
 use vt_dataset::{DatasetReader, read_ply};
-use vtgen::cli::validate::{Model, reproject};
+use vtgen::cli::validate::{Model, check_ground_truth, pixels_off_the_mesh, reproject};
 
 use crate::common::*;
 
@@ -55,14 +55,18 @@ fn every_sample_reprojects_onto_its_mask_and_depth() {
     check_dataset(reference_dataset(), 40);
 }
 
+/// The reference dataset's object models, in its models_info.json order.
+fn reference_models() -> Vec<Model> {
+    let info: vt_dataset::ModelsInfo =
+        serde_json::from_slice(&std::fs::read(reference_dataset().join("models/models_info.json")).unwrap()).unwrap();
+    info.objects.iter().map(|o| Model::new(&read_ply(&reference_dataset().join("models").join(&o.file)).unwrap()).unwrap()).collect()
+}
+
 /// The first train sample of the reference dataset and its object's model.
 fn first_sample_and_model() -> (vt_dataset::Sample, Model) {
     let ds = DatasetReader::open(reference_dataset()).unwrap();
     let s = ds.samples("train").unwrap().next().unwrap().unwrap();
-    let info: vt_dataset::ModelsInfo =
-        serde_json::from_slice(&std::fs::read(reference_dataset().join("models/models_info.json")).unwrap()).unwrap();
-    let file = &info.objects[s.info.object_index as usize].file;
-    let model = Model::new(&read_ply(&reference_dataset().join("models").join(file)).unwrap()).unwrap();
+    let model = reference_models().swap_remove(s.info.object_index as usize);
     (s, model)
 }
 
@@ -80,7 +84,14 @@ fn a_wrong_pose_is_caught() {
         let r = reproject(&s, &model, 1);
         assert!(r.visible > right.visible / 2, "{dz}: {} of {} points still visible", r.visible, right.visible);
         assert!((r.agreeing as f64) < 0.5 * r.visible as f64, "{dz}: {} of {} still agree", r.agreeing, r.visible);
+        // And from the other side: the object's pixels leave the posed mesh.
+        let off = pixels_off_the_mesh(&s, &model, 1);
+        assert!(off.off * 2 > off.pixels, "{dz}: {} of {} pixels off the mesh", off.off, off.pixels);
+        assert!(check_ground_truth(&s, &reference_models()).is_some(), "{dz}: `vtgen validate` passes it");
     }
+    let on = pixels_off_the_mesh(&s, &model, 1);
+    assert!(on.pixels > 100 && on.off == 0, "{} of {} pixels off the mesh, the farthest {} m", on.off, on.pixels, on.farthest);
+    assert_eq!(check_ground_truth(&s, &reference_models()), None);
 }
 
 #[test]
