@@ -1,8 +1,8 @@
 //! `vtgen validate`: a dataset is intact and its ground truth is right. Checks the manifest's
 //! checksums, that every complete shard on disk is in the manifest, that every shard's summary and
 //! chunk indexes are readable, that every sample is there with all its messages (decompressing a
-//! chunk verifies its CRC), and re-projects the object model onto the stored mask and depth for a
-//! sample of each shard (every sample with `--full`).
+//! chunk verifies its CRC), and re-projects the object model onto the stored mask and depth and the
+//! object's pixels onto the posed model for a sample of each shard (every sample with `--full`).
 
 use std::path::Path;
 
