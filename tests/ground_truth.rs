@@ -1,7 +1,7 @@
 //! The stored ground truth agrees with the stored images: the object's model, moved by the stored
 //! pose and projected with the stored intrinsics, lands in the mask and on the depth.
 
-use vt_dataset::{DatasetReader, read_ply};
+use vt_dataset::DatasetReader;
 use vtgen::cli::validate::{Model, check_ground_truth, pixels_off_the_mesh, reproject};
 
 use crate::common::*;
@@ -10,9 +10,7 @@ use crate::common::*;
 /// samples with fewer than 30 visible model points are counted, not checked (at most a third).
 pub fn check_dataset(dir: &std::path::Path, samples: usize) {
     let ds = DatasetReader::open(dir).unwrap();
-    let info: vt_dataset::ModelsInfo = serde_json::from_slice(&std::fs::read(dir.join("models/models_info.json")).unwrap()).unwrap();
-    let models: Vec<Model> =
-        info.objects.iter().map(|o| Model::new(&read_ply(&dir.join("models").join(&o.file)).unwrap()).unwrap()).collect();
+    let models = models_of(dir);
     let (mut checked, mut hidden) = (0, 0);
     for split in ["train", "test"] {
         for s in ds.samples(split).unwrap() {
@@ -55,18 +53,17 @@ fn every_sample_reprojects_onto_its_mask_and_depth() {
     check_dataset(reference_dataset(), 40);
 }
 
-/// The reference dataset's object models, in its models_info.json order.
-fn reference_models() -> Vec<Model> {
-    let info: vt_dataset::ModelsInfo =
-        serde_json::from_slice(&std::fs::read(reference_dataset().join("models/models_info.json")).unwrap()).unwrap();
-    info.objects.iter().map(|o| Model::new(&read_ply(&reference_dataset().join("models").join(&o.file)).unwrap()).unwrap()).collect()
+/// A dataset's object models, in its models_info.json order.
+fn models_of(dir: &std::path::Path) -> Vec<Model> {
+    let info: vt_dataset::ModelsInfo = serde_json::from_slice(&std::fs::read(dir.join("models/models_info.json")).unwrap()).unwrap();
+    Model::of_dataset(dir, &info).unwrap()
 }
 
 /// The first train sample of the reference dataset and its object's model.
 fn first_sample_and_model() -> (vt_dataset::Sample, Model) {
     let ds = DatasetReader::open(reference_dataset()).unwrap();
     let s = ds.samples("train").unwrap().next().unwrap().unwrap();
-    let model = reference_models().swap_remove(s.info.object_index as usize);
+    let model = models_of(reference_dataset()).swap_remove(s.info.object_index as usize);
     (s, model)
 }
 
@@ -76,6 +73,7 @@ fn a_wrong_pose_is_caught() {
     // too far (whose points the picture's own object surface would hide, were the object's
     // occlusion taken from the picture and not from the posed model).
     let (s, model) = first_sample_and_model();
+    let models = models_of(reference_dataset());
     let right = reproject(&s, &model, 1);
     assert!(right.agreeing as f64 >= 0.99 * right.visible as f64 && right.visible > 50, "{} of {}", right.agreeing, right.visible);
     for dz in [-0.005, 0.005] {
@@ -87,11 +85,11 @@ fn a_wrong_pose_is_caught() {
         // And from the other side: the object's pixels leave the posed mesh.
         let off = pixels_off_the_mesh(&s, &model, 1);
         assert!(off.off * 2 > off.pixels, "{dz}: {} of {} pixels off the mesh", off.off, off.pixels);
-        assert!(check_ground_truth(&s, &reference_models()).is_some(), "{dz}: `vtgen validate` passes it");
+        assert!(check_ground_truth(&s, &models).is_some(), "{dz}: `vtgen validate` passes it");
     }
     let on = pixels_off_the_mesh(&s, &model, 1);
     assert!(on.pixels > 100 && on.off == 0, "{} of {} pixels off the mesh, the farthest {} m", on.off, on.pixels, on.farthest);
-    assert_eq!(check_ground_truth(&s, &reference_models()), None);
+    assert_eq!(check_ground_truth(&s, &models), None);
 }
 
 #[test]

@@ -198,9 +198,7 @@ pub fn validate(root: &Path, full: bool) -> Result<Report> {
     let info: Option<vt_dataset::ModelsInfo> =
         std::fs::read(root.join("models/models_info.json")).ok().and_then(|b| serde_json::from_slice(&b).ok());
     let models: Vec<Model> = match &info {
-        Some(i) => {
-            i.objects.iter().map(|o| read_ply(&root.join("models").join(&o.file)).and_then(|m| Model::new(&m))).collect::<Result<_>>()?
-        }
+        Some(i) => Model::of_dataset(root, i)?,
         None => {
             problems.push(Problem { shard: None, sample: None, message: "models/models_info.json is missing or unreadable".into() });
             Vec::new()
@@ -283,6 +281,11 @@ impl Model {
         let v = m.positions.iter().map(|p| glam::Vec3::from(*p)).collect();
         let mesh = rapier3d::parry::shape::TriMesh::new(v, m.triangles.clone()).map_err(|e| anyhow::anyhow!("model mesh: {e:?}"))?;
         Ok(Model { points: surface_points(m, 3000), mesh })
+    }
+
+    /// A dataset's object models (`root/models/`), in its models_info.json order.
+    pub fn of_dataset(root: &Path, info: &vt_dataset::ModelsInfo) -> Result<Vec<Self>> {
+        info.objects.iter().map(|o| read_ply(&root.join("models").join(&o.file)).and_then(|m| Model::new(&m))).collect()
     }
 }
 
