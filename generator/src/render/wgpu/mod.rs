@@ -215,7 +215,12 @@ impl Renderer for WgpuRenderer {
 
     fn render(&mut self, view: &View, lighting: &Lighting, draws: &[Draw]) -> Result<RenderOutput> {
         let (w, h) = (view.width, view.height);
-        let views = [ViewSpec { t_world_camera: view.t_world_camera, proj: projection(view), viewport: [0, 0, w, h] }];
+        let views = [ViewSpec {
+            t_world_camera: view.t_world_camera,
+            proj: projection(view),
+            viewport: [0, 0, w, h],
+            depth_range: [view.near as f32, view.far as f32],
+        }];
         let sub = Submission { slot: Slot::Main, size: (w, h), views: &views, readback: Readback::All, cull: None, optical: &[] };
         let images = self.draw_views(&sub, lighting, draws)?;
         let rgb = images.rgba.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect();
@@ -226,7 +231,12 @@ impl Renderer for WgpuRenderer {
 
     fn render_mask(&mut self, view: &View, draws: &[Draw]) -> Result<Vec<u8>> {
         let (w, h) = (view.width, view.height);
-        let views = [ViewSpec { t_world_camera: view.t_world_camera, proj: projection(view), viewport: [0, 0, w, h] }];
+        let views = [ViewSpec {
+            t_world_camera: view.t_world_camera,
+            proj: projection(view),
+            viewport: [0, 0, w, h],
+            depth_range: [view.near as f32, view.far as f32],
+        }];
         let sub = Submission { slot: Slot::Main, size: (w, h), views: &views, readback: Readback::Mask, cull: None, optical: &[] };
         Ok(self.draw_views(&sub, &Lighting::unlit(), draws)?.mask)
     }
@@ -259,7 +269,12 @@ impl WgpuRenderer {
             .map(|(v, &viewport)| {
                 let (vw, vh) = (v.width, v.height);
                 match v.perspective_standoff {
-                    None => ViewSpec { t_world_camera: v.t_world_camera, proj: orthographic(v), viewport },
+                    None => ViewSpec {
+                        t_world_camera: v.t_world_camera,
+                        proj: orthographic(v),
+                        viewport,
+                        depth_range: [v.near as f32, v.far as f32],
+                    },
                     Some(s) => {
                         let pinhole = View {
                             width: vw,
@@ -274,7 +289,12 @@ impl WgpuRenderer {
                             far: s + v.far,
                             t_world_camera: v.t_world_camera * DMat4::from_translation(glam::DVec3::new(0.0, 0.0, -s)),
                         };
-                        ViewSpec { t_world_camera: pinhole.t_world_camera, proj: projection(&pinhole), viewport }
+                        ViewSpec {
+                            t_world_camera: pinhole.t_world_camera,
+                            proj: projection(&pinhole),
+                            viewport,
+                            depth_range: [(s + v.near) as f32, (s + v.far) as f32],
+                        }
                     }
                 }
             })

@@ -14,6 +14,7 @@ struct JobUniform {
     geometry: [f32; 4],
     spread: [f32; 4],
     tint: [f32; 4],
+    depth_range: [f32; 4],
     light_dir: [[f32; 4]; MAX_GEL_LIGHTS],
     light_color: [[f32; 4]; MAX_GEL_LIGHTS],
     light_azimuth: [[f32; 4]; MAX_GEL_LIGHTS],
@@ -98,13 +99,13 @@ pub(super) struct EncodedShading {
 }
 
 impl WgpuRenderer {
-    /// Encodes the shading of `shading` (over the atlas viewports `viewports`, indexed by each
-    /// shading's `view`) reading `atlas` (the depth target), and its copy for readback.
+    /// Encodes the shading of `shading` (over the atlas views `views`, indexed by each shading's
+    /// `view`) reading `atlas` (the depth target), and its copy for readback.
     pub(super) fn encode_optical(
         &self,
         enc: &mut wgpu::CommandEncoder,
         atlas: &wgpu::TextureView,
-        viewports: &[[u32; 4]],
+        views: &[ViewSpec],
         shading: &[GelShading],
     ) -> Result<EncodedShading> {
         let pipelines = self.optical.as_ref().expect("made before encoding");
@@ -112,7 +113,8 @@ impl WgpuRenderer {
         let mut uniforms = vec![0u8; JOB_STRIDE as usize * shading.len()];
         let mut offset = 0usize;
         for (k, s) in shading.iter().enumerate() {
-            let vp = *viewports.get(s.view).ok_or_else(|| anyhow!("optical shading of view {} of {}", s.view, viewports.len()))?;
+            let view = views.get(s.view).ok_or_else(|| anyhow!("optical shading of view {} of {}", s.view, views.len()))?;
+            let vp = view.viewport;
             if s.lights.len() > MAX_GEL_LIGHTS {
                 bail!("{} LEDs: the GPU shading holds {MAX_GEL_LIGHTS}", s.lights.len());
             }
@@ -125,6 +127,7 @@ impl WgpuRenderer {
                 geometry: [s.gel_thickness as f32, s.pitch[0] as f32, s.pitch[1] as f32, s.ambient as f32],
                 spread: [s.spread_sigma_px[0] as f32, s.spread_sigma_px[1] as f32, s.vignetting as f32, spread_on as u8 as f32],
                 tint: [s.tint[0] as f32, s.tint[1] as f32, s.tint[2] as f32, 0.0],
+                depth_range: [view.depth_range[0], view.depth_range[1], 0.0, 0.0],
                 light_dir: [[0.0; 4]; MAX_GEL_LIGHTS],
                 light_color: [[0.0; 4]; MAX_GEL_LIGHTS],
                 light_azimuth: [[0.0; 4]; MAX_GEL_LIGHTS],
@@ -177,7 +180,7 @@ impl WgpuRenderer {
             let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("optical shading"), timestamp_writes: None });
             pass.set_pipeline(pipeline);
             for (k, s) in shading.iter().enumerate() {
-                let vp = viewports[s.view];
+                let vp = views[s.view].viewport;
                 pass.set_bind_group(0, &bind, &[(k as u64 * JOB_STRIDE) as u32]);
                 pass.dispatch_workgroups(vp[2].div_ceil(8), vp[3].div_ceil(8), 1);
             }

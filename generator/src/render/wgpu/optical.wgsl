@@ -15,6 +15,8 @@ struct Job {
     spread: vec4<f32>,
     // The gel's tint (linear RGB).
     tint: vec4<f32>,
+    // The depths the view sees: near, far plane (m); unused (z, w).
+    depth_range: vec4<f32>,
     // Per LED: direction (normalised, towards the LED) and falloff; colour; azimuth (x, y normalised).
     light_dir: array<vec4<f32>, 8>,
     light_color: array<vec4<f32>, 8>,
@@ -31,8 +33,10 @@ struct Job {
 fn indentation(x: i32, y: i32) -> f32 {
     let d = textureLoad(atlas, vec2<i32>(i32(job.viewport.x) + x, i32(job.viewport.y) + y), 0).x;
     let t = job.geometry.x;
-    // +inf (no object) and anything beyond the gel leave it flat.
-    if (!(d < t)) {
+    // +inf (no object), anything beyond the gel and a depth the view cannot see (the rasterizer
+    // can carry an edge-on triangle's depth past its vertices; as `sensors::tactile` drops it)
+    // leave it flat.
+    if (!(d < t) || d < job.depth_range.x || d > job.depth_range.y) {
         return 0.0;
     }
     return clamp(t - d, 0.0, t);

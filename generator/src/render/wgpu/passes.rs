@@ -10,6 +10,9 @@ pub(super) struct ViewSpec {
     pub(super) proj: DMat4,
     /// x, y, width, height in target pixels.
     pub(super) viewport: [u32; 4],
+    /// The depths the view sees (near, far plane), as its target stores them: from its camera
+    /// plane, or from the pinhole of a pinhole pad view.
+    pub(super) depth_range: [f32; 2],
 }
 
 /// One render pass drawing the same draws into several views of one target set, and what of it
@@ -154,8 +157,7 @@ impl WgpuRenderer {
         let shading = match sub.optical {
             [] => None,
             jobs => {
-                let viewports: Vec<[u32; 4]> = sub.views.iter().map(|v| v.viewport).collect();
-                let shading = self.encode_optical(&mut enc, &t.depth, &viewports, jobs)?;
+                let shading = self.encode_optical(&mut enc, &t.depth, sub.views, jobs)?;
                 enc = lap(enc, &mut laps.optical_shading)?;
                 Some(shading)
             }
