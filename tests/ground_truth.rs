@@ -59,12 +59,11 @@ fn models_of(dir: &std::path::Path) -> Vec<Model> {
     Model::of_dataset(dir, &info).unwrap()
 }
 
-/// The first train sample of the reference dataset and its object's model.
-fn first_sample_and_model() -> (vt_dataset::Sample, Model) {
+/// The first train sample of the reference dataset and the dataset's object models.
+fn first_sample_and_models() -> (vt_dataset::Sample, Vec<Model>) {
     let ds = DatasetReader::open(reference_dataset()).unwrap();
     let s = ds.samples("train").unwrap().next().unwrap().unwrap();
-    let model = models_of(reference_dataset()).swap_remove(s.info.object_index as usize);
-    (s, model)
+    (s, models_of(reference_dataset()))
 }
 
 #[test]
@@ -72,22 +71,22 @@ fn a_wrong_pose_is_caught() {
     // The check is not vacuous: a pose 5 mm too close to the camera fails it, and so does one 5 mm
     // too far (whose points the picture's own object surface would hide, were the object's
     // occlusion taken from the picture and not from the posed model).
-    let (s, model) = first_sample_and_model();
-    let models = models_of(reference_dataset());
-    let right = reproject(&s, &model, 1);
+    let (s, models) = first_sample_and_models();
+    let model = &models[s.info.object_index as usize];
+    let right = reproject(&s, model, 1);
     assert!(right.agreeing as f64 >= 0.99 * right.visible as f64 && right.visible > 50, "{} of {}", right.agreeing, right.visible);
     for dz in [-0.005, 0.005] {
         let mut s = s.clone();
         s.t_camera_object.position[2] += dz;
-        let r = reproject(&s, &model, 1);
+        let r = reproject(&s, model, 1);
         assert!(r.visible > right.visible / 2, "{dz}: {} of {} points still visible", r.visible, right.visible);
         assert!((r.agreeing as f64) < 0.5 * r.visible as f64, "{dz}: {} of {} still agree", r.agreeing, r.visible);
         // And from the other side: the object's pixels leave the posed mesh.
-        let off = pixels_off_the_mesh(&s, &model, 1);
+        let off = pixels_off_the_mesh(&s, model, 1);
         assert!(off.off * 2 > off.pixels, "{dz}: {} of {} pixels off the mesh", off.off, off.pixels);
         assert!(check_ground_truth(&s, &models).is_some(), "{dz}: `vtgen validate` passes it");
     }
-    let on = pixels_off_the_mesh(&s, &model, 1);
+    let on = pixels_off_the_mesh(&s, model, 1);
     assert!(on.pixels > 100 && on.off == 0, "{} of {} pixels off the mesh, the farthest {} m", on.off, on.pixels, on.farthest);
     assert_eq!(check_ground_truth(&s, &models), None);
 }
@@ -97,8 +96,9 @@ fn points_at_an_occluders_edge_are_neither_visible_nor_hidden() {
     // An occluder's edge drawn over the object, with the object's sliver beside it two pixels wide
     // and covering no pixel centre (background there): the model points projecting into the sliver
     // have no object pixel within a pixel of them, and are counted apart, not as disagreeing.
-    let (mut s, model) = first_sample_and_model();
-    let before = reproject(&s, &model, 1);
+    let (mut s, models) = first_sample_and_models();
+    let model = &models[s.info.object_index as usize];
+    let before = reproject(&s, model, 1);
     // The object's columns; the band starts at their middle.
     let w = s.width as usize;
     let cols: Vec<usize> = (0..s.mask.len()).filter(|&i| s.mask[i] == 1).map(|i| i % w).collect();
@@ -114,7 +114,7 @@ fn points_at_an_occluders_edge_are_neither_visible_nor_hidden() {
             }
         }
     }
-    let r = reproject(&s, &model, 1);
+    let r = reproject(&s, model, 1);
     assert!(r.at_occluder_edge > before.at_occluder_edge, "no point lies at the drawn edge");
     assert!(
         r.visible - r.agreeing <= before.visible - before.agreeing,
