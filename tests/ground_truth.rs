@@ -20,7 +20,7 @@ pub fn check_dataset(dir: &std::path::Path, samples: usize) {
             let composed = s.t_world_camera.inverse().compose(&s.t_world_object);
             assert!((composed.translation() - s.t_camera_object.translation()).length() < 1e-9);
             assert!(composed.rotation().dot(s.t_camera_object.rotation()).abs() > 1.0 - 1e-12);
-            let r = reproject(&s, &models[obj], 1);
+            let r = reproject(&s, &models[obj]);
             if s.info.robot.is_none() {
                 // Nothing but the object itself can hide it.
                 assert!(r.front_facing > 50, "{split} {}: the object is in view ({} points)", s.index, r.front_facing);
@@ -73,20 +73,20 @@ fn a_wrong_pose_is_caught() {
     // occlusion taken from the picture and not from the posed model).
     let (s, models) = first_sample_and_models();
     let model = &models[s.info.object_index as usize];
-    let right = reproject(&s, model, 1);
+    let right = reproject(&s, model);
     assert!(right.agreeing as f64 >= 0.99 * right.visible as f64 && right.visible > 50, "{} of {}", right.agreeing, right.visible);
     for dz in [-0.005, 0.005] {
         let mut s = s.clone();
         s.t_camera_object.position[2] += dz;
-        let r = reproject(&s, model, 1);
+        let r = reproject(&s, model);
         assert!(r.visible > right.visible / 2, "{dz}: {} of {} points still visible", r.visible, right.visible);
         assert!((r.agreeing as f64) < 0.5 * r.visible as f64, "{dz}: {} of {} still agree", r.agreeing, r.visible);
         // And from the other side: the object's pixels leave the posed mesh.
-        let off = pixels_off_the_mesh(&s, model, 1);
+        let off = pixels_off_the_mesh(&s, model);
         assert!(off.off * 2 > off.pixels, "{dz}: {} of {} pixels off the mesh", off.off, off.pixels);
         assert!(check_ground_truth(&s, &models).is_some(), "{dz}: `vtgen validate` passes it");
     }
-    let on = pixels_off_the_mesh(&s, model, 1);
+    let on = pixels_off_the_mesh(&s, model);
     assert!(on.pixels > 100 && on.off == 0, "{} of {} pixels off the mesh, the farthest {} m", on.off, on.pixels, on.farthest);
     assert_eq!(check_ground_truth(&s, &models), None);
 }
@@ -98,7 +98,7 @@ fn points_at_an_occluders_edge_are_neither_visible_nor_hidden() {
     // have no object pixel within a pixel of them, and are counted apart, not as disagreeing.
     let (mut s, models) = first_sample_and_models();
     let model = &models[s.info.object_index as usize];
-    let before = reproject(&s, model, 1);
+    let before = reproject(&s, model);
     // The object's columns; the band starts at their middle.
     let w = s.width as usize;
     let cols: Vec<usize> = (0..s.mask.len()).filter(|&i| s.mask[i] == 1).map(|i| i % w).collect();
@@ -114,7 +114,7 @@ fn points_at_an_occluders_edge_are_neither_visible_nor_hidden() {
             }
         }
     }
-    let r = reproject(&s, model, 1);
+    let r = reproject(&s, model);
     assert!(r.at_occluder_edge > before.at_occluder_edge, "no point lies at the drawn edge");
     assert!(
         r.visible - r.agreeing <= before.visible - before.agreeing,

@@ -56,8 +56,9 @@ pub struct Reprojection {
 /// away); the point's depth for curved ones, which bend away from the plane. The object's own
 /// occlusion is the posed model's (a ray cast), never the picture's, so a pose a few millimetres
 /// off, nearer or further, fails.
-pub fn reproject(s: &Sample, model: &Model, mask_id: u8) -> Reprojection {
+pub fn reproject(s: &Sample, model: &Model) -> Reprojection {
     use rapier3d::parry::query::{Ray, RayCast};
+    let mask_id = vt_dataset::mask_ids::TARGET_OBJECT;
     let (w, h) = (s.width as i64, s.height as i64);
     let pose = s.t_camera_object;
     let r = pose.rotation();
@@ -69,7 +70,6 @@ pub fn reproject(s: &Sample, model: &Model, mask_id: u8) -> Reprojection {
         let ray = Ray::new(eye, (to_object.rotation() * dir).as_vec3());
         model.mesh.cast_local_ray(&ray, f32::MAX, false).map(|t| t as f64 * dir.z)
     };
-    let pixel_ray = |x: i64, y: i64| DVec3::new((x as f64 - s.cx()) / s.fx(), (y as f64 - s.cy()) / s.fy(), 1.0);
     let mut out = Reprojection { visible: 0, front_facing: 0, agreeing: 0, touched: 0, at_occluder_edge: 0 };
     for (p, n) in &model.points {
         let pc = pose.transform_point(*p);
@@ -107,7 +107,7 @@ pub fn reproject(s: &Sample, model: &Model, mask_id: u8) -> Reprojection {
             continue;
         }
         // The tangent plane n·X = n·p meets the pixel centre's ray r at z = n·p / n·r.
-        let plane_depth = |x: i64, y: i64| nc.dot(pc) / nc.dot(pixel_ray(x, y));
+        let plane_depth = |x: i64, y: i64| nc.dot(pc) / nc.dot(pixel_ray(s, x as f64, y as f64));
         let agrees = neighbours().any(|(x, y)| {
             let (i, z) = (at(x, y), plane_depth(x, y));
             let d = s.depth[i] as f64;
@@ -115,7 +115,10 @@ pub fn reproject(s: &Sample, model: &Model, mask_id: u8) -> Reprojection {
         });
         // Not seen at any pixel centre near it, where the posed model puts a nearer part of the
         // object within a pixel (beyond the point's own tangent plane): a self-occlusion edge.
-        if !agrees && neighbours().any(|(x, y)| model_depth(pixel_ray(x, y)).is_some_and(|z| z < pc.z.min(plane_depth(x, y)) - 0.002)) {
+        if !agrees
+            && neighbours()
+                .any(|(x, y)| model_depth(pixel_ray(s, x as f64, y as f64)).is_some_and(|z| z < pc.z.min(plane_depth(x, y)) - 0.002))
+        {
             out.at_occluder_edge += 1;
             continue;
         }
@@ -123,6 +126,12 @@ pub fn reproject(s: &Sample, model: &Model, mask_id: u8) -> Reprojection {
         out.agreeing += agrees as usize;
     }
     out
+}
+
+/// The camera-frame ray through pixel (x, y) of the sample's image, scaled to z = 1: a z-depth
+/// times it is the point seen there.
+fn pixel_ray(s: &Sample, x: f64, y: f64) -> DVec3 {
+    DVec3::new((x - s.cx()) / s.fx(), (y - s.cy()) / s.fy(), 1.0)
 }
 
 /// The object's pixels against its posed mesh.
@@ -140,17 +149,17 @@ pub struct PixelsOnMesh {
 /// the pixels). A wrong pose moves every pixel off the mesh; a pixel alone off it is the
 /// rasterizer's (an edge-on triangle's depth carried past its vertices: one pixel in 10.8 million,
 /// 1.8 mm, over the datasets measured), so a sample may have one in a thousand.
-pub fn pixels_off_the_mesh(s: &Sample, model: &Model, mask_id: u8) -> PixelsOnMesh {
+pub fn pixels_off_the_mesh(s: &Sample, model: &Model) -> PixelsOnMesh {
     use rapier3d::parry::query::PointQuery;
     let to_object = s.t_camera_object.inverse();
     let w = s.width as usize;
     let mut out = PixelsOnMesh { pixels: 0, off: 0, farthest: 0.0 };
     for (i, (&m, &d)) in s.mask.iter().zip(&s.depth).enumerate() {
-        if m != mask_id || !(d > 0.0 && d.is_finite()) {
+        if m != vt_dataset::mask_ids::TARGET_OBJECT || !(d > 0.0 && d.is_finite()) {
             continue;
         }
         let (u, v, d) = ((i % w) as f64, (i / w) as f64, d as f64);
-        let p = DVec3::new((u - s.cx()) / s.fx() * d, (v - s.cy()) / s.fy() * d, d);
+        let p = pixel_ray(s, u, v) * d;
         let e = model.mesh.distance_to_local_point(to_object.transform_point(p).as_vec3(), false) as f64;
         out.pixels += 1;
         if e > 1e-3 {
@@ -334,7 +343,7 @@ pub fn check_ground_truth(s: &Sample, models: &[Model]) -> Option<String> {
             }
         }
     }
-    let off = pixels_off_the_mesh(s, model, 1);
+    let off = pixels_off_the_mesh(s, model);
     if off.off > (off.pixels / 1000).max(1) {
         return Some(format!(
             "{} of {} object pixels lie more than 1 mm off the posed mesh (the farthest {:.2} mm)",
@@ -343,7 +352,7 @@ pub fn check_ground_truth(s: &Sample, models: &[Model]) -> Option<String> {
             off.farthest * 1e3
         ));
     }
-    let r = reproject(s, model, 1);
+    let r = reproject(s, model);
     if r.visible < 30 {
         return None; // hidden (by the hand): nothing to compare
     }
