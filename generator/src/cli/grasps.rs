@@ -85,6 +85,14 @@ pub struct ObjectGraspReport {
     /// was lifted), `no_pinch` (a hand's pivoting found no two pads facing each other).
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
     pub in_hand_ends: BTreeMap<String, u64>,
+    /// Pads a hand's pivoting placed again to make a pinch where it had none
+    /// (`sampling.record.pivot.repinches`), in the same windows.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub repinches: u64,
+}
+
+fn is_zero(n: &u64) -> bool {
+    *n == 0
 }
 
 /// One episode's in-hand rotation (degrees).
@@ -212,7 +220,10 @@ impl GraspCheckReport {
                     let reached = o.in_hand_rotation_deg.iter().filter(|e| e.reached_target()).count();
                     s.push_str(&format!(" {reached}/{} |", o.in_hand_rotation_deg.len()));
                 }
-                let ends: Vec<String> = o.in_hand_ends.iter().map(|(k, v)| format!("{k} {v}")).collect();
+                let mut ends: Vec<String> = o.in_hand_ends.iter().map(|(k, v)| format!("{k} {v}")).collect();
+                if o.repinches > 0 {
+                    ends.push(format!("(pads placed again {})", o.repinches));
+                }
                 s.push_str(&format!(" {} |\n", if ends.is_empty() { "-".to_string() } else { ends.join(", ") }));
             }
         }
@@ -266,6 +277,7 @@ struct TrajectoryResult {
     failures: BTreeMap<String, u64>,
     steps: StepLedger,
     in_hand_ends: BTreeMap<&'static str, u64>,
+    repinches: u64,
     instances: u64,
     max_penetration_mm: f64,
     min_contacts: usize,
@@ -281,7 +293,8 @@ struct TrajectoryResult {
 /// trajectory (every attempt failed) keeps its attempts and failures.
 fn check_trajectory(robot: &mut RobotScene, seed: u64, obj: &LoadedObject, o: usize, t: u32, instances: u32) -> TrajectoryResult {
     let t0 = Instant::now();
-    let Simulated { trajectory: outcome, stats: st, steps, in_hand_ends } = robot.simulate(seed, o as u32, &obj.id, t, instances);
+    let Simulated { trajectory: outcome, stats: st, steps, in_hand_ends, repinches } =
+        robot.simulate(seed, o as u32, &obj.id, t, instances);
     let mut r = TrajectoryResult {
         object: o,
         trajectory: t,
@@ -290,6 +303,7 @@ fn check_trajectory(robot: &mut RobotScene, seed: u64, obj: &LoadedObject, o: us
         failures: st.failures.clone(),
         steps,
         in_hand_ends,
+        repinches,
         instances: 0,
         max_penetration_mm: 0.0,
         min_contacts: usize::MAX,
@@ -400,6 +414,7 @@ fn per_object_figures(objects: &[LoadedObject], mut results: Vec<TrajectoryResul
         for (k, v) in r.in_hand_ends {
             *o.in_hand_ends.entry(k.to_string()).or_default() += v;
         }
+        o.repinches += r.repinches;
         o.instances += r.instances;
         o.max_penetration_mm = o.max_penetration_mm.max(r.max_penetration_mm);
         o.min_links_in_contact = o.min_links_in_contact.min(r.min_contacts);

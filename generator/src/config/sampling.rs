@@ -139,6 +139,9 @@ pub struct PivotConfig {
     /// multiples of its easing rate. Less lets a hand's pinch, whose rounded fingertips the object
     /// rolls and slides along, turn it further, and drops it more often (docs/episodes.md).
     pub regrip_rate: f64,
+    /// How often in a window a hand with no pinch places a pad of the first pattern again, on the
+    /// object's face opposite a touching pad of the second, before its pivoting ends (0: never).
+    pub repinches: u32,
 }
 
 impl Default for PivotConfig {
@@ -152,6 +155,7 @@ impl Default for PivotConfig {
             pads: None,
             lift_deg: 30.0,
             regrip_rate: 4.0,
+            repinches: 0,
         }
     }
 }

@@ -74,9 +74,14 @@ impl Hull {
         self.planes.iter().max_by(|a, b| (a.0.dot(p) - a.1).total_cmp(&(b.0.dot(p) - b.1))).map_or(DVec3::Z, |&(n, _)| n)
     }
 
+    /// The hull's faces: each one's outward normal and triangle.
+    pub fn faces(&self) -> impl Iterator<Item = (DVec3, &[DVec3; 3])> {
+        self.planes.iter().map(|&(n, _)| n).zip(self.surface.triangles())
+    }
+
     /// Where a ray from `p` (on the hull) along `dir` (into it) leaves the hull: the distance and
     /// the outward normal there.
-    fn exit(&self, p: DVec3, dir: DVec3) -> Option<(f64, DVec3)> {
+    pub fn exit(&self, p: DVec3, dir: DVec3) -> Option<(f64, DVec3)> {
         self.planes
             .iter()
             .filter(|(n, _)| n.dot(dir) > 1e-9)

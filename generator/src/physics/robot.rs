@@ -24,6 +24,8 @@ pub struct Simulated {
     pub steps: StepLedger,
     /// Its in-hand windows by how their turning ended (`GraspLog::in_hand_ends`).
     pub in_hand_ends: std::collections::BTreeMap<&'static str, u64>,
+    /// Pads its pivoting placed again (`GraspLog::repinches`).
+    pub repinches: u64,
 }
 
 /// The robot's base in the world (`robot.base_position`, `robot.base_yaw_deg`).
@@ -171,6 +173,7 @@ impl RobotScene {
             stats,
             steps: log.steps,
             in_hand_ends: log.in_hand_ends,
+            repinches: log.repinches,
         }
     }
 }

@@ -208,6 +208,8 @@ impl Attempt<'_> {
         let key = self.key;
         let mut steps = self.take_grasp_states(&held.t_palm_object);
         let mut log = self.ctx.record_steps.then_some(StepLog { steps: &mut steps, grasped: held.t_palm_object });
+        // The hand's full grasp; a re-placed pad keeps its new place until a move is undone.
+        let mut grasp_targets = held.targets.to_vec();
         self.turn_goal = self.turn_target_deg.map(|target| (rot(&self.physics.object_pose()), target.to_radians()));
         if let Some(log) = log.as_mut() {
             log.push(self.ctx, &*self.physics, &q);
@@ -226,11 +228,11 @@ impl Attempt<'_> {
                 // costs far less than a fresh grasp and every instance before it.
                 let before = self.physics.save();
                 let move_start = self.physics.steps_taken();
-                let q_before = q.clone();
+                let (q_before, targets_before) = (q.clone(), grasp_targets.clone());
                 let logged = log.as_ref().map_or(0, |l| l.steps.len());
                 // Why this move cannot stand: the attempt's failure if it was the last try, and
                 // the redo counted otherwise.
-                let (failure, redo) = match self.move_and_settle(&mut q, &mut arm_rng, held.targets, log.as_mut())? {
+                let (failure, redo) = match self.move_and_settle(&mut q, &mut arm_rng, &mut grasp_targets, log.as_mut())? {
                     MoveOutcome::Recordable(obj, contacts, penetration) => break (obj, contacts, penetration),
                     MoveOutcome::Failed(Failure::LostDuringMotion) => (Failure::LostDuringMotion, Redo::Drop),
                     MoveOutcome::Failed(f) => return Err(f.into()),
@@ -245,6 +247,7 @@ impl Attempt<'_> {
                 self.redone_steps += self.physics.steps_taken() - move_start;
                 self.physics.restore(&before);
                 q = q_before;
+                grasp_targets = targets_before;
                 if let Some(log) = log.as_mut() {
                     log.steps.truncate(logged);
                 }
@@ -261,7 +264,7 @@ impl Attempt<'_> {
         &mut self,
         q: &mut Vec<f64>,
         arm_rng: &mut ChaCha8Rng,
-        grasp_targets: &[f64],
+        grasp_targets: &mut Vec<f64>,
         mut log: Option<&mut StepLog>,
     ) -> Result<MoveOutcome> {
         let Some(mut q_target) = self.draw_move_target(q, arm_rng) else {

@@ -151,6 +151,9 @@ pub struct GraspLog {
     /// Every in-hand window that kept the object in the hand (undone moves' and failed attempts'
     /// included), by how its turning ended (`InHandEnd::name`).
     pub in_hand_ends: std::collections::BTreeMap<&'static str, u64>,
+    /// The pads a hand's pivoting placed again to make a pinch where it had none (the same
+    /// windows counted).
+    pub repinches: u64,
 }
 
 impl GraspLog {

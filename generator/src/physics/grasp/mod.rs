@@ -23,6 +23,7 @@ mod outcome;
 mod phases;
 mod pivot;
 mod placement;
+mod repinch;
 mod screen;
 #[cfg(test)]
 mod tests;

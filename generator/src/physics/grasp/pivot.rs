@@ -10,7 +10,7 @@ use rand_chacha::ChaCha8Rng;
 
 use super::arm_move::StepLog;
 use super::floor::robot_floor_clearance;
-use super::{Attempt, InHandEnd, rot};
+use super::{Attempt, InHandEnd, repinch, rot};
 use crate::physics::antipodal::{Hull, Jaws};
 
 /// A pivot tightens this long (s) before its target at the current turning speed: the grip takes
@@ -53,6 +53,8 @@ pub struct PivotControl {
     pub pads: PivotPads,
     /// The grip's rise while the object slides or spins, in multiples of its easing rate.
     pub regrip_rate: f64,
+    /// How often a window may place a pad of a hand's pinch again where it has none.
+    pub repinches: u32,
 }
 
 /// The pads a pivot turns the object between.
@@ -88,6 +90,7 @@ impl PivotControl {
             max_slide: pivot.max_slide_mm * 1e-3,
             pads,
             regrip_rate: pivot.regrip_rate,
+            repinches: pivot.repinches,
         }
     }
 
@@ -107,7 +110,7 @@ struct Pinch {
 }
 
 /// Whether hand joint `h` moves the link `link`: the link hangs from the joint's child.
-fn moves(robot: &vt_robot::Robot, h: usize, link: usize) -> bool {
+pub(super) fn moves(robot: &vt_robot::Robot, h: usize, link: usize) -> bool {
     robot.model.is_below(link, robot.model.joints[robot.hand[h].joint].child)
 }
 
@@ -194,7 +197,13 @@ impl Attempt<'_> {
     /// pivot's target. An object that does not turn with the grip fully eased, or has slid
     /// `max_slide` along the pads, a wrist that cannot turn, or a hand with no pinch ends the
     /// window's pivoting; the arm then holds still with the grip full.
-    pub(super) fn pivot(&mut self, q: &mut Vec<f64>, grasp_targets: &[f64], rng: &mut ChaCha8Rng, mut log: Option<&mut StepLog>) -> bool {
+    pub(super) fn pivot(
+        &mut self,
+        q: &mut Vec<f64>,
+        grasp_targets: &mut Vec<f64>,
+        rng: &mut ChaCha8Rng,
+        mut log: Option<&mut StepLog>,
+    ) -> bool {
         let ctx = self.ctx;
         let Some(control) = &ctx.pivot else { return true };
         let lift_steps = match control.pads {
@@ -215,6 +224,7 @@ impl Attempt<'_> {
         let mut hull: Option<Option<Hull>> = None;
         let mut k = 0;
         let mut ended = InHandEnd::Window;
+        let mut repinched = 0;
         while k + turn_steps + control.ease_steps + control.hold_steps + 2 * lift_steps <= control.steps {
             if self.turn_left().is_some_and(|left| left <= 0.0) {
                 // The episode's turn is made: the grip holds to the window's end.
@@ -240,8 +250,36 @@ impl Attempt<'_> {
                         hull.as_ref().map(|h| move |p: DVec3| rot(&object) * h.normal_near(object.inverse().transform_point3(p)));
                     let surface_normal = surface_normal.as_ref().map(|f| f as &dyn Fn(DVec3) -> DVec3);
                     let Some(pinch) = choose_pinch(ctx.robot, &hand, &touching, first, second, surface_normal) else {
-                        ended = InHandEnd::NoPinch;
-                        break;
+                        // A pad of the first pattern placed again, opposite a touching pad of the
+                        // second, where the window has time for it and a pivot after it.
+                        let transfer_steps = ctx.steps(repinch::TRANSFER_SECONDS);
+                        let room =
+                            k + 2 * lift_steps + transfer_steps + turn_steps + control.ease_steps + control.hold_steps + 2 * lift_steps
+                                <= control.steps;
+                        let plan = (repinched < control.repinches && room)
+                            .then(|| hull.as_ref().and_then(|h| repinch::plan(ctx.robot, &hand, &touching, first, second, h, &object)))
+                            .flatten();
+                        let Some(plan) = plan else {
+                            ended = InHandEnd::NoPinch;
+                            break;
+                        };
+                        repinched += 1;
+                        self.log.repinches += 1;
+                        let (mut lifted, mut clear, mut press) = (grasp_targets.clone(), grasp_targets.clone(), grasp_targets.clone());
+                        for &h in &plan.chain {
+                            lifted[h] = hand[h] + ctx.robot.hand[h].opening_sign().unwrap_or(0.0) * lift;
+                            clear[h] = plan.clear[h];
+                            press[h] = plan.press[h];
+                        }
+                        let placed = self.ramp_hand(q, grasp_targets, &lifted, lift_steps, grasp_targets, log.as_deref_mut())
+                            && self.ramp_hand(q, &lifted, &clear, transfer_steps, grasp_targets, log.as_deref_mut())
+                            && self.ramp_hand(q, &clear, &press, lift_steps, grasp_targets, log.as_deref_mut());
+                        if !placed {
+                            return false;
+                        }
+                        k += 2 * lift_steps + transfer_steps;
+                        *grasp_targets = press;
+                        continue;
                     };
                     let mut full = grasp_targets.to_vec();
                     for &(h, open) in &pinch.lifted {
