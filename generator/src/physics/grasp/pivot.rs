@@ -253,11 +253,15 @@ impl Attempt<'_> {
                         // A pad of the first pattern placed again, opposite a touching pad of the
                         // second, where the window has time for it and a pivot after it.
                         let transfer_steps = ctx.steps(repinch::TRANSFER_SECONDS);
+                        let holding: Vec<usize> =
+                            ctx.robot.touch_links.iter().zip(&contacts).filter(|(_, c)| c.is_some()).map(|(&l, _)| l).collect();
                         let room =
                             k + 2 * lift_steps + transfer_steps + turn_steps + control.ease_steps + control.hold_steps + 2 * lift_steps
                                 <= control.steps;
                         let plan = (repinched < control.repinches && room)
-                            .then(|| hull.as_ref().and_then(|h| repinch::plan(ctx.robot, &hand, &touching, first, second, h, &object)))
+                            .then(|| {
+                                hull.as_ref().and_then(|h| repinch::plan(ctx.robot, &hand, &touching, &holding, first, second, h, &object))
+                            })
                             .flatten();
                         let Some(plan) = plan else {
                             ended = InHandEnd::NoPinch;
