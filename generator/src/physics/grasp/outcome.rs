@@ -85,7 +85,8 @@ pub enum InHandEnd {
     OthersNotHolding,
     /// A lifted finger was put back: the object moved in the palm during its lift.
     FingerPutBack,
-    /// A hand's pivoting found no two touching pads of its `pads` that face each other.
+    /// A hand's pivoting found no two touching pads of its `pads` that face each other, and placed
+    /// none again (`sampling.record.pivot.repinches`).
     NoPinch,
 }
 

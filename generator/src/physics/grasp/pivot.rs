@@ -194,9 +194,11 @@ impl Attempt<'_> {
     /// At the target (less the turn the grip takes to stop it) the grip is full again for
     /// `hold_seconds`, a hand's lifted fingers close on the object again, and the next pivot
     /// begins. The episode's turn target, once reached, ends the window's pivoting like its last
-    /// pivot's target. An object that does not turn with the grip fully eased, or has slid
-    /// `max_slide` along the pads, a wrist that cannot turn, or a hand with no pinch ends the
-    /// window's pivoting; the arm then holds still with the grip full.
+    /// pivot's target. A hand with no pinch places a pad of the first pattern again, opposite a
+    /// touching pad of the second (`repinches` times per window at most; `repinch`), and chooses
+    /// again. An object that does not turn with the grip fully eased, or has slid `max_slide`
+    /// along the pads, a wrist that cannot turn, or a hand with no pinch left ends the window's
+    /// pivoting; the arm then holds still with the grip full.
     pub(super) fn pivot(
         &mut self,
         q: &mut Vec<f64>,
