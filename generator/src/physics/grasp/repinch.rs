@@ -1,10 +1,12 @@
 //! A hand's pinch made again where it has none (`sampling.record.pivot.repinches`): a pad of the
-//! pinch's first pattern (the thumb's) is lifted off and placed again on the object's face opposite
-//! a touching pad of the second pattern, where the two can pinch. Where it goes comes from the
-//! object's convex hull and the hand's kinematics alone: the ray from the touching pad through the
-//! object along its contact normal leaves the hull at the point the first pad is put, and a damped
-//! least-squares solve over the joints that move that pad (and not the other) finds the joint values
-//! that put it there, clear of the surface first and then pressing into it.
+//! pinch's first pattern (the thumb's) is lifted off and placed again on a face of the object
+//! opposite a touching pad of the second pattern, where the two can pinch. Where it goes comes from
+//! the object's convex hull and the hand's kinematics alone: of the hull's faces whose normals are
+//! at least 120° from the touching pad's contact normal, the point nearest the moved pad, and a
+//! damped least-squares solve over the joints that move that pad (and not the other) for the joint
+//! values that put it there, clear of the surface first and then pressing into it. (Aiming along
+//! the touching pad's normal through the object instead found points out of the thumb's reach:
+//! 8–23 cm away on the large boxes.)
 
 use glam::{DAffine3, DVec3};
 use nalgebra::{DMatrix, DVector};
