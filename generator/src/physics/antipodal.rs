@@ -81,7 +81,7 @@ impl Hull {
 
     /// Where a ray from `p` (on the hull) along `dir` (into it) leaves the hull: the distance and
     /// the outward normal there.
-    pub fn exit(&self, p: DVec3, dir: DVec3) -> Option<(f64, DVec3)> {
+    fn exit(&self, p: DVec3, dir: DVec3) -> Option<(f64, DVec3)> {
         self.planes
             .iter()
             .filter(|(n, _)| n.dot(dir) > 1e-9)
