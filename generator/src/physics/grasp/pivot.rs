@@ -114,6 +114,11 @@ pub(super) fn moves(robot: &vt_robot::Robot, h: usize, link: usize) -> bool {
     robot.model.is_below(link, robot.model.joints[robot.hand[h].joint].child)
 }
 
+/// Whether pads `a` and `b` (indices in `Robot::pads`) are on one finger: a hand joint moves both.
+pub(super) fn on_one_finger(robot: &vt_robot::Robot, a: usize, b: usize) -> bool {
+    (0..robot.hand.len()).any(|h| moves(robot, h, robot.pads[a].link) && moves(robot, h, robot.pads[b].link))
+}
+
 /// The pinch of the touching pads (`touching`, per `Robot::pads`) of `first` and `second`, on two
 /// fingers (no hand joint moves both), whose contact normals face each other most, at least
 /// `PINCH_FACING`; the hand joints at `hand`. A pad's contact normal is the object's surface
@@ -141,12 +146,10 @@ fn choose_pinch(
             None => to_grasp.transform_vector3(frame.matrix3.z_axis),
         }
     };
-    let one_finger =
-        |a: usize, b: usize| (0..robot.hand.len()).any(|h| moves(robot, h, robot.pads[a].link) && moves(robot, h, robot.pads[b].link));
     let (facing, pads) = first
         .iter()
         .flat_map(|&a| second.iter().map(move |&b| [a, b]))
-        .filter(|&[a, b]| touching[a] && touching[b] && !one_finger(a, b))
+        .filter(|&[a, b]| touching[a] && touching[b] && !on_one_finger(robot, a, b))
         .map(|[a, b]| (normal(a).dot(normal(b)), [a, b]))
         .min_by(|x, y| x.0.total_cmp(&y.0))?;
     if facing > PINCH_FACING {

@@ -12,7 +12,7 @@ use glam::{DAffine3, DVec3};
 use nalgebra::{DMatrix, DVector};
 use vt_robot::Robot;
 
-use super::pivot::moves;
+use super::pivot::{moves, on_one_finger};
 use crate::physics::antipodal::Hull;
 
 /// How far (m) off the surface the pad is put before it presses, and how far into it its press
@@ -128,10 +128,12 @@ pub(super) fn plan(
     let pairs = second.iter().filter(|&&b| touching[b]).flat_map(|&b| first.iter().map(move |&a| (b, a)));
     let mut best: Option<(f64, Replacement)> = None;
     for (anchor, mover) in pairs {
-        let (anchor_link, mover_link) = (robot.pads[anchor].link, robot.pads[mover].link);
-        let chain: Vec<usize> = (0..robot.hand.len()).filter(|&h| moves(robot, h, mover_link) && !moves(robot, h, anchor_link)).collect();
-        if anchor == mover || chain.is_empty() || (0..robot.hand.len()).any(|h| moves(robot, h, mover_link) && moves(robot, h, anchor_link))
-        {
+        if anchor == mover || on_one_finger(robot, anchor, mover) {
+            continue;
+        }
+        // On another finger than the anchor, every joint that moves the pad leaves the anchor be.
+        let chain: Vec<usize> = (0..robot.hand.len()).filter(|&h| moves(robot, h, robot.pads[mover].link)).collect();
+        if chain.is_empty() {
             continue;
         }
         let still_holding = holding.iter().filter(|&&l| !chain.iter().any(|&h| moves(robot, h, l))).count();
@@ -166,7 +168,7 @@ mod tests {
     use super::*;
     use glam::DQuat;
 
-    /// A box (half sizes `half`) posed by `pose`, as the hull of its corners.
+    /// A box (half sizes `half`) about the origin, as the hull of its corners.
     fn box_hull(half: DVec3) -> Hull {
         let corners: Vec<[f32; 3]> = (0..8)
             .map(|i| {
