@@ -20,5 +20,5 @@ pub use procedural::{BOX_FACES, procedural_mesh};
 pub use surface::SurfaceSampler;
 pub use symmetry::{
     ContinuousAxis, DerivedSymmetries, Displacement, SAMPLE_SEED, SURFACE_SAMPLES, SymmetryCheck, SymmetryChecker, axis_aligned_transforms,
-    derive_symmetries, revolution_turns, row_major4, tolerance,
+    closest_point_on_triangle, derive_symmetries, revolution_turns, row_major4, tolerance,
 };

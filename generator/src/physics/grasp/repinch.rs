@@ -10,6 +10,7 @@
 
 use glam::{DAffine3, DVec3};
 use nalgebra::{DMatrix, DVector};
+use vt_objects::closest_point_on_triangle;
 use vt_robot::Robot;
 
 use super::pivot::{moves, on_one_finger};
@@ -80,26 +81,6 @@ fn reach(robot: &Robot, start: &[f64], chain: &[usize], pad: usize, point: DVec3
     Some((hand, error))
 }
 
-/// The point of triangle `t` closest to `p`.
-fn closest_on_triangle(p: DVec3, t: &[DVec3; 3]) -> DVec3 {
-    let [a, b, c] = *t;
-    let n = (b - a).cross(c - a).normalize_or_zero();
-    let on_plane = p - n * n.dot(p - a);
-    // Inside when it lies on the inner side of every edge.
-    let inside = [(a, b), (b, c), (c, a)].iter().all(|&(u, v)| (v - u).cross(on_plane - u).dot(n) >= 0.0);
-    if inside {
-        return on_plane;
-    }
-    let on_segment = |u: DVec3, v: DVec3| {
-        let d = v - u;
-        u + d * ((p - u).dot(d) / d.length_squared().max(1e-18)).clamp(0.0, 1.0)
-    };
-    [on_segment(a, b), on_segment(b, c), on_segment(c, a)]
-        .into_iter()
-        .min_by(|x, y| x.distance(p).total_cmp(&y.distance(p)))
-        .expect("three edges")
-}
-
 /// Two contact normals at least this far apart (cosine: 120°) make a pinch a re-placement aims for.
 const OPPOSED: f64 = -0.5;
 
@@ -145,7 +126,7 @@ pub(super) fn plan(
         let Some((point, normal)) = hull
             .faces()
             .filter(|(n, _)| n.dot(outward) <= OPPOSED)
-            .map(|(n, t)| (closest_on_triangle(now, t), n))
+            .map(|(n, t)| (closest_point_on_triangle(now, t), n))
             .min_by(|x, y| x.0.distance(now).total_cmp(&y.0.distance(now)))
         else {
             continue;

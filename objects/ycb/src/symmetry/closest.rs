@@ -117,7 +117,7 @@ impl Bvh {
 }
 
 /// The closest point of triangle `t` to `p` (Ericson, *Real-Time Collision Detection*, 5.1.5).
-fn closest_point_on_triangle(p: DVec3, t: &[DVec3; 3]) -> DVec3 {
+pub fn closest_point_on_triangle(p: DVec3, t: &[DVec3; 3]) -> DVec3 {
     let [a, b, c] = *t;
     let (ab, ac, ap) = (b - a, c - a, p - a);
     let (d1, d2) = (ab.dot(ap), ac.dot(ap));

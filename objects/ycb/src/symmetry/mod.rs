@@ -31,6 +31,7 @@ mod linalg;
 mod measure;
 mod search;
 
+pub use closest::closest_point_on_triangle;
 pub use derive::{
     ContinuousAxis, DerivedSymmetries, SymmetryCheck, axis_aligned_transforms, derive_symmetries, revolution_turns, row_major4,
 };
