@@ -192,8 +192,8 @@ impl Attempt<'_> {
     /// a drawn target turn plus `GRAVITY_LEAD` from the object's centre of mass, on the side away
     /// from the palm. Then the grip `g` (the pinch's targets between where they stood, 0, and the
     /// full squeeze, 1) falls at the configured easing rate, and rises `regrip_rate` times as fast
-    /// (default 4) while the object slides along the pads or turns faster than `TURN_SPEED`: it
-    /// hovers where the object turns but does not slip.
+    /// (default 4) while the object slides along the pads (against where they stand now) or turns
+    /// faster than `TURN_SPEED`: it hovers where the object turns but does not slip.
     /// At the target (less the turn the grip takes to stop it) the grip is full again for
     /// `hold_seconds`, a hand's lifted fingers close on the object again, and the next pivot
     /// begins. The episode's turn target, once reached, ends the window's pivoting like its last
@@ -340,7 +340,7 @@ impl Attempt<'_> {
             let mut pivot_target = Some(target);
             let used = loop {
                 let budget = control.steps - control.hold_steps - lift_steps - k;
-                let turned = self.turn_by(q, &start_q, &full, &jaws, pad_reach, pivot_target, budget, &mut slid, log.as_deref_mut());
+                let turned = self.turn_by(q, &start_q, &full, &jaws, pads, pad_reach, pivot_target, budget, &mut slid, log.as_deref_mut());
                 let Some(used) = turned else { return false };
                 k += used.steps;
                 // Full grip between pivots; a hand's lifted fingers then close on the object again.
@@ -439,9 +439,9 @@ impl Attempt<'_> {
         None
     }
 
-    /// One pivot with the wrist still at `q`: the grip regulated until the object has turned
-    /// `target` about the pads' line (None: a finishing turn, until the episode's turn target), for
-    /// at most `budget` steps. None when the object is lost.
+    /// One pivot with the wrist still at `q`: the grip on `pads` regulated until the object has
+    /// turned `target` about the pads' line (None: a finishing turn, until the episode's turn
+    /// target), for at most `budget` steps. None when the object is lost.
     #[allow(clippy::too_many_arguments)]
     fn turn_by(
         &mut self,
@@ -449,6 +449,7 @@ impl Attempt<'_> {
         start_q: &[f64],
         grasp_targets: &[f64],
         jaws: &Jaws,
+        pads: [usize; 2],
         pad_reach: f64,
         target: Option<f64>,
         budget: usize,
@@ -460,7 +461,8 @@ impl Attempt<'_> {
         let ease = (1.0 - EASED_GRIP) / control.ease_steps as f64;
         let start = self.physics.object_pose();
         let held_point = start.inverse().transform_point3(jaws.centre);
-        let (mut grip, mut angle, mut point) = (1.0, 0.0, jaws.centre);
+        let pads_centre = |physics: &dyn crate::physics::HandPhysics| Jaws::between(ctx.robot, &physics.joint_positions(), pads).centre;
+        let (mut grip, mut angle, mut point, mut centre) = (1.0, 0.0, jaws.centre, pads_centre(&*self.physics));
         let mut floor_since = None;
         for k in 0..budget {
             let targets: Vec<f64> = start_q.iter().zip(grasp_targets).map(|(s, g)| s + grip * (g - s)).collect();
@@ -473,11 +475,14 @@ impl Attempt<'_> {
             let step = twist_angle(DQuat::from_axis_angle(jaws.axis, now - angle), jaws.axis);
             angle += step;
             let now_point = pose.transform_point3(held_point);
+            // Against the pads where they stand now: a hand's fingers give as the grip eases, and
+            // the object they carry with them does not slide along them.
+            let now_centre = pads_centre(&*self.physics);
             // Along the pads only: the object shifting between them as the jaws ease is no slide.
-            let moved = now_point - point;
+            let moved = (now_point - now_centre) - (point - centre);
             let along_pads = moved - jaws.axis * moved.dot(jaws.axis);
             let slide = (along_pads.length() - pad_reach * step.abs()).max(0.0);
-            point = now_point;
+            (point, centre) = (now_point, now_centre);
             *slid += slide;
             let (speed, slide_speed) = (step.abs() / ctx.timestep, slide / ctx.timestep);
             // A finishing turn (no target of its own) starts from rest and turns slowly: it stops at
