@@ -475,13 +475,8 @@ impl Attempt<'_> {
             let step = twist_angle(DQuat::from_axis_angle(jaws.axis, now - angle), jaws.axis);
             angle += step;
             let now_point = pose.transform_point3(held_point);
-            // Against the pads where they stand now: a hand's fingers give as the grip eases, and
-            // the object they carry with them does not slide along them.
             let now_centre = pads_centre(&*self.physics);
-            // Along the pads only: the object shifting between them as the jaws ease is no slide.
-            let moved = (now_point - now_centre) - (point - centre);
-            let along_pads = moved - jaws.axis * moved.dot(jaws.axis);
-            let slide = (along_pads.length() - pad_reach * step.abs()).max(0.0);
+            let slide = slide_along_pads((point, centre), (now_point, now_centre), jaws.axis, pad_reach, step);
             (point, centre) = (now_point, now_centre);
             *slid += slide;
             let (speed, slide_speed) = (step.abs() / ctx.timestep, slide / ctx.timestep);
@@ -506,6 +501,17 @@ impl Attempt<'_> {
         }
         Some(Turned { steps: budget, end: TurnEnd::OutOfTime })
     }
+}
+
+/// How far (m) the object slid along the pads over a step: its held point's move against the pads'
+/// centre (`(point, centre)` before and now), across the pads' line `axis` only (the object shifting
+/// between the pads as they ease is no slide), less what a turn of `turn` (rad) about a patch of
+/// `pad_reach` explains. Against the pads where they stand now, not in the palm: a hand's fingers
+/// give as the grip eases, and the object they carry with them does not slide along them.
+fn slide_along_pads(before: (DVec3, DVec3), now: (DVec3, DVec3), axis: DVec3, pad_reach: f64, turn: f64) -> f64 {
+    let moved = (now.0 - now.1) - (before.0 - before.1);
+    let along_pads = moved - axis * moved.dot(axis);
+    (along_pads.length() - pad_reach * turn.abs()).max(0.0)
 }
 
 /// How a pivot ended, and the steps it took.
@@ -543,6 +549,38 @@ mod tests {
         assert!((at(30.0, Some(10.0)) - 30.0).abs() < 1e-9, "the turn left less than the step: the step");
         assert!((at(30.0, Some(100.0)) - 60.0).abs() < 1e-9, "within the steps' range: {}", at(30.0, Some(100.0)));
         assert!((at(50.0, Some(-5.0)) - 50.0).abs() < 1e-9);
+    }
+
+    /// The slide is the object's move against the pads: an object carried by a finger that gives
+    /// (the Allegro's thumb opening 10°, its pad's place from the forward kinematics) has not slid,
+    /// though it moved millimetres in the palm; one moving along still pads has slid that far, one
+    /// shifting between them has not, and a turn about the patch explains its share.
+    #[test]
+    fn the_slide_is_the_objects_move_against_the_pads_where_they_stand_now() {
+        let robot = vt_robot::Robot::builtin("ur5e_allegro").unwrap();
+        let pad = |n: &str| robot.pads.iter().position(|p| p.name == n).unwrap();
+        let pads = [pad("th_distal"), pad("mf_distal")];
+        let closed: Vec<f64> = robot.hand.iter().map(|h| h.close.unwrap_or(0.5 * (h.preshape.0 + h.preshape.1))).collect();
+        let mut gave = closed.clone();
+        let thumb = robot.hand.iter().position(|h| h.name == "th_joint_3").unwrap();
+        gave[thumb] += robot.hand[thumb].opening_sign().unwrap() * 10f64.to_radians();
+        let jaws = Jaws::between(&robot, &closed, pads);
+        let centre_now = Jaws::between(&robot, &gave, pads).centre;
+        // The object's held point carried with the pads.
+        let carried = centre_now;
+        let in_palm = slide_along_pads((jaws.centre, jaws.centre), (carried, jaws.centre), jaws.axis, 0.0, 0.0);
+        assert!(in_palm > 0.002, "the finger's give moves the pads' centre {:.2} mm across their line", in_palm * 1e3);
+        let against_pads = slide_along_pads((jaws.centre, jaws.centre), (carried, centre_now), jaws.axis, 0.0, 0.0);
+        assert!(against_pads < 1e-12, "{against_pads}");
+
+        let across = jaws.axis.any_orthonormal_vector();
+        let still = (jaws.centre, jaws.centre);
+        let slid = slide_along_pads(still, (jaws.centre + 0.003 * across, jaws.centre), jaws.axis, 0.0, 0.0);
+        assert!((slid - 0.003).abs() < 1e-12, "{slid}");
+        let between = slide_along_pads(still, (jaws.centre + 0.003 * jaws.axis, jaws.centre), jaws.axis, 0.0, 0.0);
+        assert!(between < 1e-12, "{between}");
+        let turned = slide_along_pads(still, (jaws.centre + 0.003 * across, jaws.centre), jaws.axis, 0.01, 0.1);
+        assert!((turned - 0.002).abs() < 1e-12, "a 0.1 rad turn about a 10 mm patch explains 1 mm: {turned}");
     }
 
     /// A hand's pinch: the touching pads of the two patterns on two fingers whose normals face
