@@ -142,6 +142,11 @@ pub struct PivotConfig {
     /// How often in a window a hand with no pinch places a pad of the first pattern again, on the
     /// object's face opposite a touching pad of the second, before its pivoting ends (0: never).
     pub repinches: u32,
+    /// A hand's grasp whose window finds no pinch before its first pivot (and places no pad to
+    /// make one) would turn nothing: with this, the attempt fails (`NoPinch`) and the trajectory
+    /// draws a new grasp, so that every kept episode pivots; without it, the episode is kept
+    /// unturned. Objects the hand seldom pinches cost many more attempts (docs/episodes.md).
+    pub require_pinch: bool,
 }
 
 impl Default for PivotConfig {
@@ -156,6 +161,7 @@ impl Default for PivotConfig {
             lift_deg: 30.0,
             regrip_rate: 4.0,
             repinches: 0,
+            require_pinch: false,
         }
     }
 }

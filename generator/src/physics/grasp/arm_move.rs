@@ -10,6 +10,7 @@ use rand_chacha::ChaCha8Rng;
 use vt_randomizers::{SampleKey, SampleStream};
 
 use super::floor::{MIN_FLOOR_CLEARANCE, floor_clearance, robot_floor_clearance};
+use super::pivot::Pivoted;
 use super::{
     Attempt, Failure, GRAVITY, GraspContext, GraspEvent, Held, InstanceState, Phase, Recorded, Redo, Stop, lost, rot, turn_left_to,
 };
@@ -277,14 +278,22 @@ impl Attempt<'_> {
         let steps = self.physics.steps_taken() - start;
         self.log.steps.add(Phase::ArmMove, steps.min(path_steps));
         self.log.steps.add(Phase::Hold, steps - steps.min(path_steps));
-        if !followed
-            || !self.counted(Phase::InHand, |a| {
-                a.swing_fingers(&q_target, grasp_targets, log.as_deref_mut())
-                    && a.roll_fingers(&q_target, grasp_targets, arm_rng, log.as_deref_mut())
-                    && a.pivot(&mut q_target, grasp_targets, arm_rng, log.as_deref_mut())
-            })
-        {
+        if !followed {
             return Ok(MoveOutcome::Failed(Failure::LostDuringMotion));
+        }
+        let in_hand = self.counted(Phase::InHand, |a| {
+            if a.swing_fingers(&q_target, grasp_targets, log.as_deref_mut())
+                && a.roll_fingers(&q_target, grasp_targets, arm_rng, log.as_deref_mut())
+            {
+                a.pivot(&mut q_target, grasp_targets, arm_rng, log.as_deref_mut())
+            } else {
+                Pivoted::Dropped
+            }
+        });
+        match in_hand {
+            Pivoted::Held => {}
+            Pivoted::Dropped => return Ok(MoveOutcome::Failed(Failure::LostDuringMotion)),
+            Pivoted::NoPinch => return Ok(MoveOutcome::Failed(Failure::NoPinch)),
         }
         *q = q_target;
         let touching = self.physics.touch_contacts().iter().filter(|c| c.is_some()).count();

@@ -209,6 +209,7 @@ pub fn simulate_trajectory(
     let cfg = ctx.config;
     let placement = Placement::of(ctx.robot.kind, object)?;
     let mut last = None;
+    let mut no_pinch = 0u32;
     let turn_target_deg = ctx.turn_target_deg(&key);
     // The instances of lost grasps kept (`regrasp_on_loss`), and per instance its grasp.
     let (mut kept, mut instance_grasps) = (Vec::new(), Vec::new());
@@ -260,6 +261,7 @@ pub fn simulate_trajectory(
                 log.steps.failed_attempts += spent - made;
                 log.events.push(GraspEvent::Failed(f));
                 last = Some(f);
+                no_pinch += u32::from(f == Failure::NoPinch);
             }
             Err(Stop::Error(e)) => return Err(e),
         }
@@ -276,6 +278,15 @@ pub fn simulate_trajectory(
         },
         Some(f) => GraspEvent::Failed(f).name().to_string(),
         None => "no attempt".to_string(),
+    };
+    // Grasps given up for want of a pinch are held grasps: say how to keep them.
+    let why = if no_pinch > 0 {
+        format!(
+            "{why}; {no_pinch} held but had no pinch to pivot from: sampling.record.pivot.require_pinch: false keeps such \
+             episodes unturned"
+        )
+    } else {
+        why
     };
     Err(NoGraspHeld(format!(
         "{} trajectory {}: no grasp held in {} attempts ({why}). `vtgen grasps CONFIG` shows per object how often grasps hold; \

@@ -18,6 +18,9 @@ pub enum Failure {
     /// Recording the grasp's approach: a link of the open hand would pass through the object on
     /// the way to it, wherever it was put.
     ApproachBlocked,
+    /// A hand's pivoting window could not begin (`sampling.record.pivot.require_pinch`): no two
+    /// touching pads of its pinch faced each other and no pad could be placed again to make them.
+    NoPinch,
 }
 
 /// An arm move undone and redrawn from the last recorded state: not a failure, the attempt goes
@@ -55,6 +58,7 @@ impl GraspEvent {
                 Failure::NoAntipodalPair => "NoAntipodalPair",
                 Failure::HoldScreen => "HoldScreen",
                 Failure::ApproachBlocked => "ApproachBlocked",
+                Failure::NoPinch => "NoPinch",
             },
             GraspEvent::Redone(r) => match r {
                 Redo::Penetration => "MoveRedoneForPenetration",

@@ -55,6 +55,8 @@ pub struct PivotControl {
     pub regrip_rate: f64,
     /// How often a window may place a pad of a hand's pinch again where it has none.
     pub repinches: u32,
+    /// Whether a window that finds no pinch before its first pivot fails its attempt.
+    pub require_pinch: bool,
 }
 
 /// The pads a pivot turns the object between.
@@ -91,6 +93,7 @@ impl PivotControl {
             pads,
             regrip_rate: pivot.regrip_rate,
             repinches: pivot.repinches,
+            require_pinch: pivot.require_pinch,
         }
     }
 
@@ -180,10 +183,23 @@ const STALL_LEAD: f64 = 0.4;
 const WRIST_TRIES: usize = 6;
 const WRIST_TRY_STEP: f64 = 0.25;
 
+/// How a pivoting window left the held object.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Pivoted {
+    /// In the hand (turned or not).
+    Held,
+    /// Fallen out of the hand.
+    Dropped,
+    /// In the hand, but no pivot could begin: the hand found no pinch and placed no pad to make
+    /// one (`require_pinch`). The attempt fails (`Failure::NoPinch`): another arm move from the
+    /// same grasp seldom finds one.
+    NoPinch,
+}
+
 impl Attempt<'_> {
     /// The pivoting window of an arm move, the arm at `q`, the hand's full squeeze at
-    /// `grasp_targets`. `q` ends where the last wrist turn left the arm. False when the object
-    /// falls out of the hand.
+    /// `grasp_targets`. `q` ends where the last wrist turn left the arm. Says whether the object
+    /// stayed in the hand and whether any pivot could begin (`Pivoted`).
     ///
     /// Each pivot: a hand first chooses its pinch and lifts its other fingers off (a gripper's
     /// jaws are its pinch). The arm turns the wrist (a smooth joint-space move and hold, as an arm
@@ -201,16 +217,17 @@ impl Attempt<'_> {
     /// touching pad of the second (`repinches` times per window at most; `repinch`), and chooses
     /// again. An object that does not turn with the grip fully eased, or has slid `max_slide`
     /// along the pads, a wrist that cannot turn, or a hand with no pinch left ends the window's
-    /// pivoting; the arm then holds still with the grip full.
+    /// pivoting; the arm then holds still with the grip full. A hand with no pinch before its first
+    /// pivot turns nothing: with `require_pinch` the window ends there (`Pivoted::NoPinch`).
     pub(super) fn pivot(
         &mut self,
         q: &mut Vec<f64>,
         grasp_targets: &mut Vec<f64>,
         rng: &mut ChaCha8Rng,
         mut log: Option<&mut StepLog>,
-    ) -> bool {
+    ) -> Pivoted {
         let ctx = self.ctx;
-        let Some(control) = &ctx.pivot else { return true };
+        let Some(control) = &ctx.pivot else { return Pivoted::Held };
         let lift_steps = match control.pads {
             PivotPads::Jaws => 0,
             PivotPads::Pinch { lift_steps, .. } => lift_steps,
@@ -269,6 +286,11 @@ impl Attempt<'_> {
                             })
                             .flatten();
                         let Some(plan) = plan else {
+                            if control.require_pinch && sense.is_none() {
+                                // No pivot has begun: the window would turn nothing.
+                                self.log.in_hand_ended(InHandEnd::NoPinch);
+                                return Pivoted::NoPinch;
+                            }
                             ended = InHandEnd::NoPinch;
                             break;
                         };
@@ -284,7 +306,7 @@ impl Attempt<'_> {
                             && self.ramp_hand(q, &lifted, &clear, transfer_steps, grasp_targets, log.as_deref_mut())
                             && self.ramp_hand(q, &clear, &press, lift_steps, grasp_targets, log.as_deref_mut());
                         if !placed {
-                            return false;
+                            return Pivoted::Dropped;
                         }
                         k += 2 * lift_steps + transfer_steps;
                         *grasp_targets = press;
@@ -295,7 +317,7 @@ impl Attempt<'_> {
                         full[h] = hand[h] + open * lift;
                     }
                     if !self.ramp_hand(q, grasp_targets, &full, lift_steps, grasp_targets, log.as_deref_mut()) {
-                        return false;
+                        return Pivoted::Dropped;
                     }
                     k += lift_steps;
                     let mut start_q = self.physics.joint_positions();
@@ -315,7 +337,7 @@ impl Attempt<'_> {
             let Some(mut q_turned) = self.wrist_turn(q, &jaws, centroid, step + lead, &mut sense) else {
                 ended = InHandEnd::NoWristTurn;
                 if !self.ramp_hand(q, &full, grasp_targets, lift_steps, grasp_targets, log.as_deref_mut()) {
-                    return false;
+                    return Pivoted::Dropped;
                 }
                 k += lift_steps;
                 break;
@@ -334,19 +356,19 @@ impl Attempt<'_> {
             // The wrist turn itself may turn the object: the arm stops where the episode's turn
             // target is reached.
             let turned = self.follow_path_to_goal(q, &q_turned, path_steps, true, log.as_deref_mut());
-            let Some(q_turned) = turned else { return false };
+            let Some(q_turned) = turned else { return Pivoted::Dropped };
             *q = q_turned;
             k += turn_steps;
             let mut pivot_target = Some(target);
             let used = loop {
                 let budget = control.steps - control.hold_steps - lift_steps - k;
                 let turned = self.turn_by(q, &start_q, &full, &jaws, pads, pad_reach, pivot_target, budget, &mut slid, log.as_deref_mut());
-                let Some(used) = turned else { return false };
+                let Some(used) = turned else { return Pivoted::Dropped };
                 k += used.steps;
                 // Full grip between pivots; a hand's lifted fingers then close on the object again.
                 for _ in 0..control.hold_steps.min(control.steps - lift_steps - k) {
                     if !self.step_hand(&full, grasp_targets, q, log.as_deref_mut()) {
-                        return false;
+                        return Pivoted::Dropped;
                     }
                     k += 1;
                 }
@@ -360,7 +382,7 @@ impl Attempt<'_> {
                 pivot_target = None;
             };
             if !self.ramp_hand(q, &full, grasp_targets, lift_steps, grasp_targets, log.as_deref_mut()) {
-                return false;
+                return Pivoted::Dropped;
             }
             k += lift_steps;
             match used.end {
@@ -376,7 +398,7 @@ impl Attempt<'_> {
         }
         while k < control.steps {
             if !self.step_hand(grasp_targets, grasp_targets, q, log.as_deref_mut()) {
-                return false;
+                return Pivoted::Dropped;
             }
             k += 1;
         }
@@ -384,7 +406,7 @@ impl Attempt<'_> {
             ended = InHandEnd::Target;
         }
         self.log.in_hand_ended(ended);
-        true
+        Pivoted::Held
     }
 
     /// The hand's targets in a straight line from `from` to `to` over `steps` steps, the arm still

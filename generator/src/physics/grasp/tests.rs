@@ -323,6 +323,40 @@ fn grasps_that_do_not_hold_fail_each_attempt_and_the_trajectory_names_the_cause(
     );
 }
 
+/// A hand's pivoting window that finds no pinch before its first pivot would turn nothing: with
+/// `require_pinch` its attempt fails as `NoPinch` at once (another arm move from the same grasp
+/// seldom finds one) and the trajectory draws a new grasp; without it the episode is kept
+/// unturned. The scripted hand touches the object with the index finger alone, so no thumb pad
+/// pinches it, and the window may not place one (`repinches: 0`).
+#[test]
+fn a_pivot_window_with_no_pinch_to_begin_from_fails_its_attempt_where_a_pinch_is_required() {
+    let cfg = GraspConfig { max_attempts: 2, ..allegro_grasp() };
+    let robot = Robot::default_robot();
+    let index_finger = |link: usize| robot.pads.iter().any(|p| p.link == link && p.name.starts_with("ff_"));
+    let run = |require_pinch: bool| {
+        let mut ctx = paper_context(&robot, &cfg);
+        let pivot = crate::config::PivotConfig { pads: Some(["th_*".into(), "*".into()]), require_pinch, ..Default::default() };
+        ctx.pivot = Some(PivotControl::of(&pivot, &robot, 1.0 / 240.0));
+        let mut hand = crate::physics::fake::FakeHand::holding(0);
+        hand.contacts = robot.touch_links.iter().map(|&l| index_finger(l).then_some(0.0)).collect();
+        assert!(hand.contacts.iter().flatten().count() >= robot.min_touching, "the index finger holds the object");
+        let mut log = GraspLog::default();
+        let key = TrajectoryKey { seed: 3, object_id: "005_tomato_soup_can", trajectory: 0, instances: 2 };
+        let t = simulate_trajectory(&ctx, &mut hand, &procedural_soup_can(), key, &mut log);
+        (t, log)
+    };
+    let (t, log) = run(true);
+    let e = t.unwrap_err().to_string();
+    assert!(e.contains("2 held but had no pinch") && e.contains("require_pinch: false"), "{e}");
+    assert_eq!(log.events, [GraspEvent::Failed(Failure::NoPinch); 2]);
+    assert_eq!(log.in_hand_ends.get("no_pinch"), Some(&2));
+    // Without it, each instance's window ends with no pinch and the trajectory is kept.
+    let (t, log) = run(false);
+    assert_eq!(t.unwrap().instances.len(), 2, "{:?}", log.events);
+    assert!(log.events.is_empty(), "{:?}", log.events);
+    assert_eq!(log.in_hand_ends.get("no_pinch"), Some(&2));
+}
+
 #[test]
 fn a_move_that_drops_the_object_is_undone_and_redrawn() {
     // No hold screen: the drop comes in the first arm move.
@@ -525,6 +559,8 @@ fn event_names_are_the_ones_earlier_datasets_count_under() {
         (GraspEvent::Failed(Unreachable), "Unreachable"),
         (GraspEvent::Failed(NoAntipodalPair), "NoAntipodalPair"),
         (GraspEvent::Failed(HoldScreen), "HoldScreen"),
+        (GraspEvent::Failed(ApproachBlocked), "ApproachBlocked"),
+        (GraspEvent::Failed(NoPinch), "NoPinch"),
         (GraspEvent::Redone(Redo::Penetration), "MoveRedoneForPenetration"),
         (GraspEvent::Redone(Redo::Contacts), "MoveRedoneForContacts"),
         (GraspEvent::Redone(Redo::Floor), "MoveRedoneForFloor"),
