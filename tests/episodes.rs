@@ -415,6 +415,10 @@ fn pinch_pivoting_turns_the_object_in_the_hand_further_than_gaiting_and_keeps_th
     let o = run(&["plan", cfg.to_str().unwrap(), "--set", &pinch.replace("max_slide_mm: 400", "max_slide_mm: 400, regrip_rate: 0")]);
     let e = stderr(&o);
     assert!(!o.status.success() && e.contains("sampling.record.pivot.regrip_rate"), "{e}");
+    // A hand's pinch settings without the pinch's pads are refused, not ignored.
+    let o = run(&["plan", cfg.to_str().unwrap(), "--set", &pinch.replace(r#"pads: ["th_*", "*"], "#, "require_pinch: true, ")]);
+    let e = stderr(&o);
+    assert!(!o.status.success() && e.contains("sampling.record.pivot.require_pinch"), "{e}");
 }
 
 /// The closed-loop finger roll (`sampling.record.finger_roll`) on the Allegro hand: it turns the

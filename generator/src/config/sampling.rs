@@ -179,6 +179,16 @@ impl Check for PivotConfig {
         if self.hold_seconds >= self.seconds {
             c.key(key!(self.hold_seconds)).fail(format!("{} s must be shorter than the window ({} s)", self.hold_seconds, self.seconds));
         }
+        // A gripper's jaws are always its pinch: these would silently do nothing.
+        let hand_only = || "applies to a hand's pinch: give its `pads` (a gripper's jaws are always its pinch)".to_string();
+        if self.pads.is_none() {
+            if self.repinches > 0 {
+                c.key(key!(self.repinches)).fail(hand_only());
+            }
+            if self.require_pinch {
+                c.key(key!(self.require_pinch)).fail(hand_only());
+            }
+        }
     }
 }
 
