@@ -415,10 +415,15 @@ fn pinch_pivoting_turns_the_object_in_the_hand_further_than_gaiting_and_keeps_th
     let o = run(&["plan", cfg.to_str().unwrap(), "--set", &pinch.replace("max_slide_mm: 400", "max_slide_mm: 400, regrip_rate: 0")]);
     let e = stderr(&o);
     assert!(!o.status.success() && e.contains("sampling.record.pivot.regrip_rate"), "{e}");
-    // A hand's pinch settings without the pinch's pads are refused, not ignored.
-    let o = run(&["plan", cfg.to_str().unwrap(), "--set", &pinch.replace(r#"pads: ["th_*", "*"], "#, "require_pinch: true, ")]);
-    let e = stderr(&o);
-    assert!(!o.status.success() && e.contains("sampling.record.pivot.require_pinch"), "{e}");
+    // A hand's pinch settings on a gripper, whose jaws are always its pinch, are refused, not
+    // ignored.
+    let gripper = root().join("scenes/tiny-pivot.yaml");
+    for setting in ["require_pinch=true", "repinches=2"] {
+        let o = run(&["plan", gripper.to_str().unwrap(), "--set", &format!("sampling.record.pivot.{setting}")]);
+        let e = stderr(&o);
+        let field = format!("sampling.record.pivot.{}", setting.split('=').next().unwrap());
+        assert!(!o.status.success() && e.contains(&field) && e.contains("applies to a hand's pinch"), "{e}");
+    }
 }
 
 /// The closed-loop finger roll (`sampling.record.finger_roll`) on the Allegro hand: it turns the
