@@ -13,7 +13,6 @@
 //!   about 11 px, no global context), fast enough for CPU tests.
 
 use burn::nn::conv::{Conv2d, Conv2dConfig};
-use burn::nn::interpolate::{Interpolate2dConfig, InterpolateMode};
 use burn::nn::pool::{MaxPool2d, MaxPool2dConfig};
 use burn::nn::{BatchNorm, BatchNormConfig, PaddingConfig2d};
 use burn::prelude::*;
@@ -52,8 +51,33 @@ fn conv(c_in: usize, c_out: usize, k: usize, stride: usize, dilation: usize, bia
         .init(device)
 }
 
+/// Bilinear resizing to `size` (torch's `align_corners=False` convention), written as two matrix
+/// products so that it differentiates on every backend: burn's own bilinear interpolation has no
+/// backward pass on its GPU backends (wgpu, CUDA), where the paper-size network would not train.
 fn resize(x: Tensor<4>, size: [usize; 2]) -> Tensor<4> {
-    Interpolate2dConfig::new().with_output_size(Some(size)).with_mode(InterpolateMode::Linear).with_align_corners(false).init().forward(x)
+    let [b, c, h, w] = x.dims();
+    let [oh, ow] = size;
+    let device = x.device();
+    // Along the rows of each image, then (transposed) along its columns.
+    let cols = x.reshape([b * c * h, w]).matmul(linear_taps(w, ow, &device));
+    let rows = cols.reshape([b * c, h, ow]).swap_dims(1, 2).reshape([b * c * ow, h]).matmul(linear_taps(h, oh, &device));
+    rows.reshape([b * c, ow, oh]).swap_dims(1, 2).reshape([b, c, oh, ow])
+}
+
+/// The `(n_in, n_out)` matrix of linear interpolation: column `j` holds output `j`'s two taps at
+/// the source coordinate `(j + 0.5) n_in / n_out - 0.5`, clamped to the first and last input.
+fn linear_taps(n_in: usize, n_out: usize, device: &Device) -> Tensor<2> {
+    let mut m = vec![0.0f32; n_in * n_out];
+    let scale = n_in as f32 / n_out as f32;
+    for j in 0..n_out {
+        let src = ((j as f32 + 0.5) * scale - 0.5).clamp(0.0, (n_in - 1) as f32);
+        let i0 = src.floor() as usize;
+        let i1 = (i0 + 1).min(n_in - 1);
+        let t = src - i0 as f32;
+        m[i0 * n_out + j] += 1.0 - t;
+        m[i1 * n_out + j] += t;
+    }
+    Tensor::from_data(TensorData::new(m, [n_in, n_out]), device)
 }
 
 // --------------------------------------------------------------------------------------------
@@ -293,6 +317,55 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The matrix-product resizing is burn's bilinear interpolation (`align_corners = false`):
+    /// up from each pyramid level and by ×2, and to an odd size.
+    #[test]
+    fn resizing_by_matrix_products_is_bilinear_interpolation() {
+        use burn::nn::interpolate::{Interpolate2dConfig, InterpolateMode};
+        let device = cpu();
+        for (from, to) in [
+            ([1, 1], [8, 8]),
+            ([2, 2], [8, 8]),
+            ([3, 3], [8, 8]),
+            ([6, 6], [8, 8]),
+            ([8, 4], [16, 8]),
+            ([5, 7], [7, 5]),
+            ([16, 16], [32, 32]),
+        ] {
+            let n = 2 * 3 * from[0] * from[1];
+            let x = Tensor::<4>::from_data(
+                TensorData::new((0..n).map(|i| ((i * 37 % 101) as f32 / 50.0) - 1.0).collect::<Vec<_>>(), [2, 3, from[0], from[1]]),
+                &device,
+            );
+            let ours: Vec<f32> = resize(x.clone(), to).into_data().iter::<f32>().collect();
+            let burns: Vec<f32> = Interpolate2dConfig::new()
+                .with_output_size(Some(to))
+                .with_mode(InterpolateMode::Linear)
+                .with_align_corners(false)
+                .init()
+                .forward(x)
+                .into_data()
+                .iter::<f32>()
+                .collect();
+            assert_eq!(ours.len(), 2 * 3 * to[0] * to[1]);
+            let worst = ours.iter().zip(&burns).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max);
+            assert!(worst < 1e-5, "{from:?} -> {to:?}: off by {worst}");
+        }
+    }
+
+    /// The ResNet-PSP trains on burn's GPU backend too (here on a CPU Vulkan driver such as
+    /// lavapipe, as CI has): the backward pass gives the first convolution a finite gradient.
+    #[test]
+    fn resnet_psp_backpropagates_on_wgpu() {
+        let device = crate::device::parse("wgpu:cpu").unwrap().autodiff();
+        let enc = ColorEncoderConfig::new(EncoderKind::ResnetPsp, [8, 16], 4, 6).init(&device);
+        let img = Tensor::<4>::random([1, 3, 16, 16], burn::tensor::Distribution::Normal(0.0, 1.0), &device);
+        let grads = enc.forward(img).square().mean().backward();
+        let stem = enc.resnet.as_ref().unwrap().stem.weight.val().grad(&grads).expect("the stem gets a gradient");
+        let g: Vec<f32> = stem.into_data().iter::<f32>().collect();
+        assert!(g.iter().all(|v| v.is_finite()) && g.iter().any(|v| *v != 0.0));
     }
 
     /// The ResNet-PSP trains: a backward pass through batch norm, pooling and bilinear resizing

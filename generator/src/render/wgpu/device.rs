@@ -1,6 +1,8 @@
 //! Adapter choice: which wgpu backends a config allows, how adapters rank (a GPU first), and
 //! the device opened on the chosen one.
 
+use std::sync::{Condvar, Mutex, PoisonError};
+
 use super::*;
 
 pub(super) struct OpenDevice {
@@ -10,8 +12,48 @@ pub(super) struct OpenDevice {
     pub(super) max_texture_size: u32,
 }
 
+/// A turn at creating or tearing down a Vulkan instance and device: one at a time in the
+/// process. With 16 workers ending together, NVIDIA's Vulkan driver (580.159, an H200) deadlocked
+/// in 2 of 6 runs inside concurrent `vkDestroyDevice` and `vkDestroyInstance` calls (every worker
+/// waiting for the Vulkan loader's lock, its holder waiting inside the driver). Taking turns costs
+/// a few milliseconds per worker, at its start and its end.
+pub(super) struct DeviceTurn {
+    held: bool,
+}
+
+static DEVICE_TURN: (Mutex<bool>, Condvar) = (Mutex::new(false), Condvar::new());
+
+impl DeviceTurn {
+    /// Not holding the turn (a renderer's until it is dropped).
+    pub(super) fn none() -> Self {
+        DeviceTurn { held: false }
+    }
+
+    /// Waits for the turn; it passes on when this is dropped.
+    pub(super) fn take() -> Self {
+        let (busy, freed) = &DEVICE_TURN;
+        let mut busy = busy.lock().unwrap_or_else(PoisonError::into_inner);
+        while *busy {
+            busy = freed.wait(busy).unwrap_or_else(PoisonError::into_inner);
+        }
+        *busy = true;
+        DeviceTurn { held: true }
+    }
+}
+
+impl Drop for DeviceTurn {
+    fn drop(&mut self) {
+        if self.held {
+            let (busy, freed) = &DEVICE_TURN;
+            *busy.lock().unwrap_or_else(PoisonError::into_inner) = false;
+            freed.notify_one();
+        }
+    }
+}
+
 /// Opens a device on the best adapter the config allows that can render to R32Float targets.
 pub(super) fn open_device(cfg: &RendererConfig) -> Result<OpenDevice> {
+    let _turn = DeviceTurn::take();
     // With `auto`, the native APIs are probed first and GL only when they offer nothing: GL
     // needs Mesa overrides for float targets, and probing EGL is noisy on headless machines.
     let tries = match cfg.backend {
@@ -100,4 +142,33 @@ pub(super) fn rank(info: &wgpu::AdapterInfo) -> (u8, u8) {
 pub fn describe_adapter(info: &wgpu::AdapterInfo) -> String {
     let driver = if info.driver_info.is_empty() { String::new() } else { format!(" ({})", info.driver_info) };
     format!("{}{driver} [{:?}, {:?}]", info.name, info.backend, info.device_type)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+
+    /// Threads taking turns never hold one together, and a dropped turn passes on.
+    #[test]
+    fn one_device_turn_at_a_time() {
+        let (inside, most) = (AtomicUsize::new(0), AtomicUsize::new(0));
+        std::thread::scope(|s| {
+            for _ in 0..8 {
+                s.spawn(|| {
+                    for _ in 0..50 {
+                        let turn = DeviceTurn::take();
+                        let n = inside.fetch_add(1, Ordering::SeqCst) + 1;
+                        most.fetch_max(n, Ordering::SeqCst);
+                        std::thread::yield_now();
+                        inside.fetch_sub(1, Ordering::SeqCst);
+                        drop(turn);
+                    }
+                });
+            }
+        });
+        assert_eq!(most.load(Ordering::SeqCst), 1);
+        drop(DeviceTurn::none());
+        drop(DeviceTurn::take()); // free again
+    }
 }

@@ -72,6 +72,15 @@ pub struct WgpuRenderer {
     optical: Option<optical::OpticalPipelines>,
     /// Per-pass times, when timed (`Renderer::time_passes`).
     pass_times: Option<crate::render::PassTimes>,
+    /// Taken when the renderer is dropped and declared last (fields drop in order), so that the
+    /// device and instance go while it is held (`DeviceTurn`).
+    teardown: DeviceTurn,
+}
+
+impl Drop for WgpuRenderer {
+    fn drop(&mut self) {
+        self.teardown = DeviceTurn::take();
+    }
 }
 
 impl WgpuRenderer {
@@ -111,6 +120,7 @@ impl WgpuRenderer {
             readback: std::time::Duration::ZERO,
             optical: None,
             pass_times: None,
+            teardown: DeviceTurn::none(),
         })
     }
 }
