@@ -23,6 +23,8 @@ fn bench_reports_cpu_outside_the_rasterizer_and_predicts_from_it() {
         // Thread CPU times inside the run cannot exceed the whole process's (1 ms of clock slack).
         assert!(f("process_cpu") + 1e-3 >= f("cpu_outside_rasterizer"), "{r}");
     }
+    // Cores busy: the process's CPU over the run's wall time.
+    assert!((f("cores_busy") - f("process_cpu") / f("seconds")).abs() < 1e-9 * f("cores_busy").max(1.0), "{r}");
     let predicted = r["predicted"].as_array().expect("--predict-cores gives a prediction");
     assert_eq!(predicted[0].as_u64(), Some(16));
     let rate = predicted[1].as_f64().unwrap();

@@ -71,6 +71,9 @@ pub struct BenchReport {
     pub cpu_outside_rasterizer: f64,
     /// The process's CPU seconds (all threads, lavapipe's included) over the run.
     pub process_cpu: f64,
+    /// Cores busy on average: the process's CPU seconds over the run's wall seconds. Below the
+    /// jobs, workers waited (for the GPU, or idle at the end while the last trajectories ran).
+    pub cores_busy: f64,
     /// `--predict-cores N`: N and the samples/s N cores would give with a free rasterizer.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub predicted: Option<(usize, f64)>,
@@ -169,10 +172,20 @@ impl std::fmt::Display for BenchReport {
             per(r.process_cpu),
             per(r.process_cpu - r.cpu_outside_rasterizer)
         )?;
+        writeln!(
+            f,
+            "cores busy         {:.1} on average (CPU in all / wall){}",
+            r.cores_busy,
+            if r.jobs > 1 && r.cores_busy < 0.8 * r.jobs as f64 {
+                ": fewer than the jobs: workers waited, for the device or at the end, where the last trajectories run alone (more samples shorten that)"
+            } else {
+                ""
+            }
+        )?;
         if let Some((cores, rate)) = r.predicted {
             writeln!(
                 f,
-                "predicted          {rate:.0} samples/s on {cores} cores with a free rasterizer (a GPU): {cores} / the CPU outside the rasterizer"
+                "predicted          {rate:.0} samples/s on {cores} cores like these with a free rasterizer (a GPU): {cores} / the CPU outside the rasterizer"
             )?;
         }
         if let Some(rate) = r.predicted_with_render_calls {
@@ -469,6 +482,7 @@ fn report(runs: Vec<TrajectoryRun>, workers: Vec<(Worker, Option<PassTimes>)>, m
         writer_cpu: write.cpu.as_secs_f64(),
         cpu_outside_rasterizer: cpu_outside,
         process_cpu,
+        cores_busy: process_cpu / seconds.max(1e-9),
         predicted: predict_cores.map(|c| (c, c as f64 * n as f64 / cpu_outside.max(1e-9))),
         predicted_with_render_calls: predict_cores.map(|c| c as f64 * n as f64 / (cpu_outside + t.render_call_cpu.as_secs_f64()).max(1e-9)),
         samples: n,
