@@ -2,6 +2,7 @@
 //! draws: the generators differ): index draws, the bilinear resize, crop cells and seed mixing.
 
 use super::*;
+use crate::model::encoder::bilinear_taps;
 
 /// `n` indices into `0..count` (`count >= 1`) in random order: no repeats when `count >= n`,
 /// else every index once and the other `n - count` drawn with replacement.
@@ -25,18 +26,10 @@ pub fn draw(rng: &mut impl Rng, count: usize, n: usize) -> Vec<usize> {
 
 /// Resizes `h × w × 3` bytes to `size × size × 3` floats (0..255), bilinear with half-pixel
 /// centres: output pixel `r` samples the input at `(r + 0.5) · h / size − 0.5`, clamped (the
-/// convention of torch's `interpolate(align_corners=False)` and of the Python view).
+/// convention of torch's `interpolate(align_corners=False)` and of the Python view; the
+/// encoder's resizing uses the same taps).
 pub fn resize_bilinear(src: &[u8], h: usize, w: usize, size: usize) -> Vec<f32> {
-    let axis = |n_in: usize| -> Vec<(usize, usize, f32)> {
-        (0..size)
-            .map(|r| {
-                let x = ((r as f64 + 0.5) * n_in as f64 / size as f64 - 0.5).clamp(0.0, (n_in - 1) as f64);
-                let i0 = x.floor() as usize;
-                (i0, (i0 + 1).min(n_in - 1), (x - i0 as f64) as f32)
-            })
-            .collect()
-    };
-    let (ys, xs) = (axis(h), axis(w));
+    let (ys, xs) = (bilinear_taps(h, size), bilinear_taps(w, size));
     let px = |r: usize, c: usize, k: usize| src[(r * w + c) * 3 + k] as f32;
     let mut out = vec![0.0; size * size * 3];
     for (r, &(y0, y1, wy)) in ys.iter().enumerate() {

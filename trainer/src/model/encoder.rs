@@ -64,16 +64,24 @@ fn resize(x: Tensor<4>, size: [usize; 2]) -> Tensor<4> {
     rows.reshape([b * c, ow, oh]).swap_dims(1, 2).reshape([b, c, oh, ow])
 }
 
-/// The `(n_in, n_out)` matrix of linear interpolation: column `j` holds output `j`'s two taps at
-/// the source coordinate `(j + 0.5) n_in / n_out - 0.5`, clamped to the first and last input.
+/// Linear interpolation from `n_in` to `n_out` samples with half-pixel centres (torch's
+/// `interpolate(align_corners=False)`, and the Python view's crop): output `j` reads the input at
+/// `(j + 0.5) n_in / n_out - 0.5`, clamped to the first and last sample, as `(i0, i1, t)`: the
+/// two inputs and the weight of `i1`.
+pub fn bilinear_taps(n_in: usize, n_out: usize) -> Vec<(usize, usize, f32)> {
+    (0..n_out)
+        .map(|j| {
+            let x = ((j as f64 + 0.5) * n_in as f64 / n_out as f64 - 0.5).clamp(0.0, (n_in - 1) as f64);
+            let i0 = x.floor() as usize;
+            (i0, (i0 + 1).min(n_in - 1), (x - i0 as f64) as f32)
+        })
+        .collect()
+}
+
+/// [`bilinear_taps`] as an `(n_in, n_out)` matrix: column `j` holds output `j`'s two weights.
 fn linear_taps(n_in: usize, n_out: usize, device: &Device) -> Tensor<2> {
     let mut m = vec![0.0f32; n_in * n_out];
-    let scale = n_in as f32 / n_out as f32;
-    for j in 0..n_out {
-        let src = ((j as f32 + 0.5) * scale - 0.5).clamp(0.0, (n_in - 1) as f32);
-        let i0 = src.floor() as usize;
-        let i1 = (i0 + 1).min(n_in - 1);
-        let t = src - i0 as f32;
+    for (j, (i0, i1, t)) in bilinear_taps(n_in, n_out).into_iter().enumerate() {
         m[i0 * n_out + j] += 1.0 - t;
         m[i1 * n_out + j] += t;
     }

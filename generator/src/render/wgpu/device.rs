@@ -15,8 +15,8 @@ pub(super) struct OpenDevice {
 /// A turn at creating or tearing down a Vulkan instance and device: one at a time in the
 /// process. With 16 workers ending together, NVIDIA's Vulkan driver (580.159, an H200) deadlocked
 /// in 2 of 6 runs inside concurrent `vkDestroyDevice` and `vkDestroyInstance` calls (every worker
-/// waiting for the Vulkan loader's lock, its holder waiting inside the driver). Taking turns costs
-/// a few milliseconds per worker, at its start and its end.
+/// waiting for the Vulkan loader's lock, its holder waiting inside the driver). Only the opening
+/// and the teardown take turns; the workers render at the same time as before.
 pub(super) struct DeviceTurn {
     held: bool,
 }
