@@ -166,6 +166,56 @@ impl GraspContext<'_> {
         if self.record_steps { self.steps(self.config.move_seconds) } else { self.stretched_path_steps(from, to) }
     }
 
+    /// An arm move's end: the arm's joints (`move_end`) at a palm pose drawn for the move that
+    /// puts no link under the floor, nor the held object (at `t_palm_object`, its `points`) —
+    /// drawn again before any physics is spent on it; the checks after the move stay, for the
+    /// hand's links and for an object that slipped on the way. Where every draw puts the object
+    /// on the floor, the first that keeps the arm above it (the move may still stand: the object
+    /// can turn in the hand). None when no draw keeps the arm above the floor.
+    ///
+    /// The inverse kinematics starts from `q`, so that the arm takes the nearest solution. Where
+    /// no draw is usable from there, the arm has wandered into a branch of its solutions (the
+    /// shoulder turned under, the elbow below it) where most poses put a link under the floor
+    /// (82 % of the moves drawn from such a pose of `scenes/paper.yaml`, 3 % from home): the
+    /// draws are made again from the arm's home, and the move brings the arm back to the branch
+    /// the workspace is drawn for, instead of ending a grasp that holds.
+    pub(super) fn draw_move_target(
+        &self,
+        q: &[f64],
+        t_palm_object: &DAffine3,
+        points: &[[f32; 3]],
+        arm_rng: &mut ChaCha8Rng,
+    ) -> Option<Vec<f64>> {
+        self.draw_move_target_from(q, q, t_palm_object, points, arm_rng)
+            .or_else(|| self.draw_move_target_from(q, &self.home(), t_palm_object, points, arm_rng))
+    }
+
+    /// `draw_move_target` with the inverse kinematics started from `seed`.
+    pub(super) fn draw_move_target_from(
+        &self,
+        q: &[f64],
+        seed: &[f64],
+        t_palm_object: &DAffine3,
+        points: &[[f32; 3]],
+        arm_rng: &mut ChaCha8Rng,
+    ) -> Option<Vec<f64>> {
+        let kind = self.draw_move_kind(arm_rng);
+        let mut arm_clear = None;
+        for _ in 0..MOVE_TARGET_DRAWS {
+            let t = self.sample_move_palm(kind, arm_rng);
+            let Some(qt) = self.reach(&t, seed).map(|qt| self.move_end(q, &qt)) else { continue };
+            if robot_floor_clearance(self.robot, &self.t_world_base, &qt).is_some_and(|(_, z)| z < 0.0) {
+                continue;
+            }
+            let t_world_object = self.t_world_base * self.robot.grasp_frame_pose(&qt) * *t_palm_object;
+            if floor_clearance(points, &t_world_object) >= MIN_FLOOR_CLEARANCE {
+                return Some(qt);
+            }
+            arm_clear.get_or_insert(qt);
+        }
+        arm_clear
+    }
+
     /// Physics steps of the arm's path from `from` to `to` stretched to the joints' speed limits:
     /// `move_seconds`, or, with `arm_speed_limits`, as many more as keep every joint within its
     /// limit (a snapshot's move, and an episode's wrist turn within its pivoting window).
@@ -308,29 +358,9 @@ impl Attempt<'_> {
     }
 
     /// A palm pose the arm reaches from `q` without putting a link under the floor, nor the held
-    /// object where it lies in the palm now (drawn again before any physics is spent on it; the
-    /// checks after the move stay, for the hand's links and for an object that slipped on the
-    /// way): the arm's joints where the move ends (`GraspContext::move_end`). Where every draw
-    /// puts the object on the floor, the first that keeps the arm above it (the move may still
-    /// stand: the object can turn in the hand).
+    /// object where it lies in the palm now (`GraspContext::draw_move_target`).
     fn draw_move_target(&self, q: &[f64], arm_rng: &mut ChaCha8Rng) -> Option<Vec<f64>> {
-        let ctx = self.ctx;
-        let kind = ctx.draw_move_kind(arm_rng);
-        let t_palm_object = self.physics.object_pose();
-        let mut arm_clear = None;
-        for _ in 0..MOVE_TARGET_DRAWS {
-            let t = ctx.sample_move_palm(kind, arm_rng);
-            let Some(qt) = ctx.reach(&t, q).map(|qt| ctx.move_end(q, &qt)) else { continue };
-            if robot_floor_clearance(ctx.robot, &ctx.t_world_base, &qt).is_some_and(|(_, z)| z < 0.0) {
-                continue;
-            }
-            let t_world_object = ctx.t_world_base * ctx.robot.grasp_frame_pose(&qt) * t_palm_object;
-            if floor_clearance(&self.object.points, &t_world_object) >= MIN_FLOOR_CLEARANCE {
-                return Some(qt);
-            }
-            arm_clear.get_or_insert(qt);
-        }
-        arm_clear
+        self.ctx.draw_move_target(q, &self.physics.object_pose(), &self.object.points, arm_rng)
     }
 
     /// The move along the smooth joint-space path from `q_from` to `q_target`, then the hold: the

@@ -606,3 +606,44 @@ fn move_targets_that_put_the_held_object_on_the_floor_are_drawn_again() {
     }
     assert!(on_floor >= 20, "only {on_floor} of {drawn} drawn moves put the plate on the floor: the test shows nothing");
 }
+
+/// An arm that wandered into a branch of its solutions where most moves put a link under the floor
+/// (the shoulder turned under; a pose a `scenes/paper.yaml` trajectory reached at its 44th
+/// instance) is brought back by a move drawn from its home, where every draw from its own pose
+/// fails: the grasp is not ended for an unreachable move.
+#[test]
+fn an_arm_whose_moves_all_reach_under_the_floor_is_moved_back_towards_home() {
+    use super::floor::robot_floor_clearance;
+    let robot = Robot::default_robot();
+    let cfg = allegro_grasp();
+    let ctx = paper_context(&robot, &cfg);
+    let mut q = ctx.home();
+    let under = [1.9614, -3.3902, 2.0405, 0.8219, 4.8993, -4.9478];
+    for (&d, v) in robot.arm_dofs.iter().zip(under) {
+        q[d] = v;
+    }
+    // A 4 cm cube in the palm: its floor clearance never decides.
+    let cube: Vec<[f32; 3]> = (0..8).map(|k| [[0.0, 0.04][k & 1], [-0.02, 0.02][(k >> 1) & 1], [-0.02, 0.02][(k >> 2) & 1]]).collect();
+    let held = DAffine3::from_translation(DVec3::new(0.04, 0.0, 0.05));
+    let above_floor = |qt: &[f64]| robot_floor_clearance(&robot, &ctx.t_world_base, qt).is_none_or(|(_, z)| z >= 0.0);
+    let (mut stuck, mut drawn) = (0, 0);
+    for seed in 0..400 {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let from_here = ctx.draw_move_target_from(&q, &q, &held, &cube, &mut rng.clone());
+        let qt = ctx.draw_move_target(&q, &held, &cube, &mut rng).expect("a move is drawn");
+        assert!(above_floor(&qt), "seed {seed}: a link under the floor at {qt:?}");
+        match from_here {
+            // The same draws as before where the arm's own pose gives one.
+            Some(here) => assert_eq!(here, qt),
+            None => {
+                stuck += 1;
+                // The home branch: the shoulder back above the base, as at home.
+                let shoulder = robot.arm_dofs[1];
+                assert!((qt[shoulder] - ctx.home()[shoulder]).abs() < 1.5, "seed {seed}: shoulder at {}", qt[shoulder]);
+            }
+        }
+        drawn += 1;
+    }
+    // About 2 % of the moves from this pose find no draw above the floor from it.
+    assert!(stuck >= 2, "only {stuck} of {drawn} moves were stuck: the test shows nothing");
+}
