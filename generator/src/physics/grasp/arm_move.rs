@@ -186,8 +186,14 @@ impl GraspContext<'_> {
         points: &[[f32; 3]],
         arm_rng: &mut ChaCha8Rng,
     ) -> Option<Vec<f64>> {
-        self.draw_move_target_from(q, q, t_palm_object, points, arm_rng)
-            .or_else(|| self.draw_move_target_from(q, &self.home(), t_palm_object, points, arm_rng))
+        self.draw_move_target_from(q, q, t_palm_object, points, arm_rng).or_else(|| {
+            // Home's arm joints, the hand's where they are (the floor checks see the hand).
+            let mut home = q.to_vec();
+            for (&d, &v) in self.robot.arm_dofs.iter().zip(&self.config.home_arm) {
+                home[d] = v;
+            }
+            self.draw_move_target_from(q, &home, t_palm_object, points, arm_rng)
+        })
     }
 
     /// `draw_move_target` with the inverse kinematics started from `seed`.
